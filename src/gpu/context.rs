@@ -1,0 +1,165 @@
+//! A headless wgpu device: prefers a real GPU, falls back to a software adapter (Mesa's
+//! lavapipe), and says which one it got.
+
+/// Which adapter to ask for.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum AdapterChoice {
+    /// A real GPU if there is one, else a software adapter.
+    #[default]
+    Auto,
+    /// Only a software (CPU) adapter, e.g. for reproducible tests.
+    Software,
+}
+
+impl AdapterChoice {
+    /// `TETVR_ADAPTER=software` (or `cpu`) forces the software adapter; anything else is auto.
+    pub fn from_env() -> Self {
+        match std::env::var("TETVR_ADAPTER").as_deref() {
+            Ok("software") | Ok("cpu") => Self::Software,
+            _ => Self::Auto,
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    #[error(
+        "no GPU adapter found{detail}. tetvr needs Vulkan (or Metal/DX12). Without a GPU, install \
+         Mesa's software Vulkan driver: `apt-get install mesa-vulkan-drivers libvulkan1` \
+         (Debian/Ubuntu), or render with --mode reference on the CPU"
+    )]
+    NoAdapter { detail: String },
+    #[error("the adapter '{adapter}' refused a device: {source}")]
+    Device {
+        adapter: String,
+        source: wgpu::RequestDeviceError,
+    },
+    #[error("the adapter '{adapter}' lacks {what}, which {needed_by} needs")]
+    Missing {
+        adapter: String,
+        what: String,
+        needed_by: &'static str,
+    },
+    #[error("GPU work failed: {0}")]
+    Poll(#[from] wgpu::PollError),
+    #[error("reading back a GPU buffer failed: {0}")]
+    Map(#[from] wgpu::BufferAsyncError),
+}
+
+/// A device and queue with the adapter's full limits, plus what tetvr needs to know of it.
+pub struct GpuContext {
+    pub adapter: wgpu::Adapter,
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    pub info: wgpu::AdapterInfo,
+    pub limits: wgpu::Limits,
+    pub features: wgpu::Features,
+}
+
+impl GpuContext {
+    /// Opens a headless device. Takes the adapter's own limits (software adapters offer 8
+    /// colour targets and 128 bytes per sample, more than the WebGPU defaults) and the optional
+    /// features tetvr uses where present: blendable 32-bit float targets and timestamps.
+    pub fn new(choice: AdapterChoice) -> Result<Self, GpuError> {
+        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+        if std::env::var_os("WGPU_BACKEND").is_none() {
+            desc.backends = wgpu::Backends::PRIMARY;
+        }
+        let instance = wgpu::Instance::new(desc);
+        let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
+        let is_software = |a: &wgpu::Adapter| a.get_info().device_type == wgpu::DeviceType::Cpu;
+        let rank = |a: &wgpu::Adapter| match a.get_info().device_type {
+            wgpu::DeviceType::DiscreteGpu => 0,
+            wgpu::DeviceType::IntegratedGpu => 1,
+            wgpu::DeviceType::VirtualGpu | wgpu::DeviceType::Other => 2,
+            wgpu::DeviceType::Cpu => 3,
+        };
+        let adapter = adapters
+            .into_iter()
+            .filter(|a| choice == AdapterChoice::Auto || is_software(a))
+            .min_by_key(rank)
+            .ok_or_else(|| GpuError::NoAdapter {
+                detail: match choice {
+                    AdapterChoice::Auto => String::new(),
+                    AdapterChoice::Software => {
+                        " (a software adapter was asked for: TETVR_ADAPTER=software)".into()
+                    }
+                },
+            })?;
+        let info = adapter.get_info();
+        let limits = adapter.limits();
+        let wanted = wgpu::Features::FLOAT32_BLENDABLE
+            | wgpu::Features::TIMESTAMP_QUERY
+            | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS;
+        let features = adapter.features() & wanted;
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("tetvr"),
+            required_features: features,
+            required_limits: limits.clone(),
+            experimental_features: wgpu::ExperimentalFeatures::disabled(),
+            memory_hints: wgpu::MemoryHints::Performance,
+            trace: wgpu::Trace::Off,
+        }))
+        .map_err(|source| GpuError::Device {
+            adapter: info.name.clone(),
+            source,
+        })?;
+        Ok(Self {
+            adapter,
+            device,
+            queue,
+            info,
+            limits,
+            features,
+        })
+    }
+
+    /// Whether this is a software rasterizer (lavapipe and the like).
+    pub fn is_software(&self) -> bool {
+        self.info.device_type == wgpu::DeviceType::Cpu
+    }
+
+    /// A one-line description: name, type, backend, driver.
+    pub fn summary(&self) -> String {
+        let i = &self.info;
+        format!(
+            "{} ({:?}, {:?}, driver {} {})",
+            i.name, i.device_type, i.backend, i.driver, i.driver_info
+        )
+    }
+
+    /// A multi-line report for `tetvr gpu-info`: the adapter, and the limits and features the
+    /// renderers depend on.
+    pub fn report(&self) -> String {
+        let l = &self.limits;
+        let yes = |f| {
+            if self.features.contains(f) {
+                "yes"
+            } else {
+                "no"
+            }
+        };
+        format!(
+            "adapter: {}\n\
+             software adapter: {}\n\
+             max colour attachments: {}\n\
+             max colour attachment bytes per sample: {}\n\
+             max storage buffer binding: {} bytes\n\
+             max buffer size: {} bytes\n\
+             max texture size 2D: {}\n\
+             max compute workgroups per dimension: {}\n\
+             blendable 32-bit float targets (FLOAT32_BLENDABLE): {}\n\
+             GPU timestamps (TIMESTAMP_QUERY): {}",
+            self.summary(),
+            if self.is_software() { "yes" } else { "no" },
+            l.max_color_attachments,
+            l.max_color_attachment_bytes_per_sample,
+            l.max_storage_buffer_binding_size,
+            l.max_buffer_size,
+            l.max_texture_dimension_2d,
+            l.max_compute_workgroups_per_dimension,
+            yes(wgpu::Features::FLOAT32_BLENDABLE),
+            yes(wgpu::Features::TIMESTAMP_QUERY),
+        )
+    }
+}

@@ -1,0 +1,20 @@
+//! tetvr renders tetrahedral meshes (unstructured grids with a scalar per vertex) on the GPU
+//! through wgpu, with an exact f64 CPU reference renderer as the ground truth.
+//!
+//! Conventions (optical model, rays, error metrics) are those of the project's DESIGN.md:
+//! emission-absorption with a piecewise-linear transfer function ([`tf`]), pixel-centre rays
+//! parameterized by distance from the eye ([`camera`]), premultiplied RGBA images ([`image`]).
+
+pub mod camera;
+pub mod generate;
+pub mod gpu;
+pub mod image;
+pub mod mesh;
+pub mod render;
+pub mod tf;
+
+pub use camera::{Camera, View};
+pub use image::{ErrorMetrics, Image};
+pub use mesh::{ScalarArray, TetMesh};
+pub use render::{Frame, RenderError, Renderer, Timings};
+pub use tf::TransferFunction;

@@ -1,0 +1,419 @@
+//! The tetrahedral mesh model: shared vertex positions, tets as four vertex indices, and named
+//! per-vertex scalar arrays of which one is active.
+//!
+//! A [`TetMesh`] is always valid once built: every index is in range, no tet repeats a vertex,
+//! every coordinate and scalar is finite, and every tet is positively oriented
+//! (`(b - a) . ((c - a) x (d - a)) >= 0`, VTK's convention). [`TetMesh::new`] enforces this and
+//! reports what it had to repair in a [`BuildReport`].
+
+pub mod split;
+pub mod topology;
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+pub use topology::{Adjacency, BoundaryFace, NO_NEIGHBOR};
+
+/// A named per-vertex scalar field.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ScalarArray {
+    pub name: String,
+    pub values: Vec<f64>,
+}
+
+impl ScalarArray {
+    pub fn new(name: impl Into<String>, values: Vec<f64>) -> Self {
+        Self {
+            name: name.into(),
+            values,
+        }
+    }
+
+    /// (min, max) of the values; `None` for an empty array.
+    pub fn range(&self) -> Option<(f64, f64)> {
+        range_of(&self.values)
+    }
+}
+
+/// What [`TetMesh::new`] found and repaired while building a mesh.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct BuildReport {
+    /// Tets given with negative orientation, now reoriented (two vertices swapped).
+    pub reoriented: usize,
+}
+
+/// Problems that make a set of arrays not a tetrahedral mesh. Readers wrap these with the file
+/// name (see [`crate::io::LoadError`]).
+#[derive(Debug, thiserror::Error, Clone, PartialEq)]
+pub enum MeshError {
+    #[error("the mesh has no tetrahedra (after splitting other cell types)")]
+    NoTets,
+    #[error("tet {tet} uses vertex index {index}, but the mesh has only {count} vertices")]
+    IndexOutOfRange {
+        tet: usize,
+        index: u64,
+        count: usize,
+    },
+    #[error("tet {tet} repeats vertex {index}: a tetrahedron needs four distinct vertices")]
+    RepeatedIndex { tet: usize, index: u32 },
+    #[error("vertex {vertex} has a non-finite coordinate ({x}, {y}, {z})")]
+    NonFiniteCoordinate {
+        vertex: usize,
+        x: f64,
+        y: f64,
+        z: f64,
+    },
+    #[error("scalar array '{array}' has the non-finite value {value} at vertex {vertex}")]
+    NonFiniteScalar {
+        array: String,
+        vertex: usize,
+        value: f64,
+    },
+    #[error("scalar array '{array}' has {len} values, but the mesh has {count} vertices")]
+    ArrayLength {
+        array: String,
+        len: usize,
+        count: usize,
+    },
+    #[error("the mesh has {count} vertices; tetvr indexes vertices with 32 bits (at most {max})")]
+    TooManyVertices { count: usize, max: u64 },
+    #[error("no scalar array named '{name}'; the mesh has: {available}")]
+    NoSuchArray { name: String, available: String },
+    #[error("the mesh has no per-vertex scalar array to render; add POINT_DATA to the file")]
+    NoScalars,
+}
+
+/// A validated tetrahedral mesh. Fields are private so that the invariants hold; deformable
+/// meshes change positions and scalars through [`TetMesh::set_positions`] and
+/// [`TetMesh::set_scalars`], which check them again.
+#[derive(Clone, Debug)]
+pub struct TetMesh {
+    positions: Vec<DVec3>,
+    tets: Vec<[u32; 4]>,
+    arrays: Vec<ScalarArray>,
+    active: Option<usize>,
+}
+
+impl TetMesh {
+    /// Validates and builds a mesh. Inverted tets are reoriented and counted in the report; the
+    /// active array is the first one (the file's active scalars, by reader convention).
+    pub fn new(
+        positions: Vec<DVec3>,
+        mut tets: Vec<[u32; 4]>,
+        arrays: Vec<ScalarArray>,
+    ) -> Result<(Self, BuildReport), MeshError> {
+        if tets.is_empty() {
+            return Err(MeshError::NoTets);
+        }
+        if positions.len() as u64 > u32::MAX as u64 {
+            return Err(MeshError::TooManyVertices {
+                count: positions.len(),
+                max: u32::MAX as u64,
+            });
+        }
+        check_positions(&positions)?;
+        for a in &arrays {
+            check_array(a, positions.len())?;
+        }
+        let n = positions.len();
+        for (t, tet) in tets.iter().enumerate() {
+            for (i, &v) in tet.iter().enumerate() {
+                if v as usize >= n {
+                    return Err(MeshError::IndexOutOfRange {
+                        tet: t,
+                        index: v as u64,
+                        count: n,
+                    });
+                }
+                if tet[..i].contains(&v) {
+                    return Err(MeshError::RepeatedIndex { tet: t, index: v });
+                }
+            }
+        }
+        let reoriented = tets
+            .par_iter_mut()
+            .map(|t| {
+                if orient(&positions, t) < 0.0 {
+                    t.swap(2, 3);
+                    1
+                } else {
+                    0
+                }
+            })
+            .sum();
+        let active = if arrays.is_empty() { None } else { Some(0) };
+        Ok((
+            Self {
+                positions,
+                tets,
+                arrays,
+                active,
+            },
+            BuildReport { reoriented },
+        ))
+    }
+
+    pub fn positions(&self) -> &[DVec3] {
+        &self.positions
+    }
+
+    pub fn tets(&self) -> &[[u32; 4]] {
+        &self.tets
+    }
+
+    pub fn arrays(&self) -> &[ScalarArray] {
+        &self.arrays
+    }
+
+    pub fn vertex_count(&self) -> usize {
+        self.positions.len()
+    }
+
+    pub fn tet_count(&self) -> usize {
+        self.tets.len()
+    }
+
+    /// The active scalar array, if the mesh has any.
+    pub fn active_array(&self) -> Option<&ScalarArray> {
+        self.active.map(|i| &self.arrays[i])
+    }
+
+    /// The active scalars, or [`MeshError::NoScalars`] (renderers need one).
+    pub fn scalars(&self) -> Result<&[f64], MeshError> {
+        self.active_array()
+            .map(|a| a.values.as_slice())
+            .ok_or(MeshError::NoScalars)
+    }
+
+    /// Makes the array called `name` the active one.
+    pub fn set_active_array(&mut self, name: &str) -> Result<(), MeshError> {
+        match self.arrays.iter().position(|a| a.name == name) {
+            Some(i) => {
+                self.active = Some(i);
+                Ok(())
+            }
+            None => Err(MeshError::NoSuchArray {
+                name: name.to_owned(),
+                available: self.array_names(),
+            }),
+        }
+    }
+
+    /// The names of all arrays, comma separated (for messages).
+    pub fn array_names(&self) -> String {
+        if self.arrays.is_empty() {
+            return "(none)".to_owned();
+        }
+        self.arrays
+            .iter()
+            .map(|a| a.name.as_str())
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+
+    /// Adds (or replaces, by name) a scalar array and makes it active.
+    pub fn add_array(&mut self, array: ScalarArray) -> Result<(), MeshError> {
+        check_array(&array, self.positions.len())?;
+        let i = match self.arrays.iter().position(|a| a.name == array.name) {
+            Some(i) => {
+                self.arrays[i] = array;
+                i
+            }
+            None => {
+                self.arrays.push(array);
+                self.arrays.len() - 1
+            }
+        };
+        self.active = Some(i);
+        Ok(())
+    }
+
+    /// Replaces all vertex positions (a deforming mesh keeps its topology). Tets that the motion
+    /// turned inside out are *not* reoriented: their vertex order is part of the topology, and a
+    /// renderer must treat them as it treats any degenerate tet.
+    pub fn set_positions(&mut self, positions: Vec<DVec3>) -> Result<(), MeshError> {
+        if positions.len() != self.positions.len() {
+            return Err(MeshError::ArrayLength {
+                array: "positions".into(),
+                len: positions.len(),
+                count: self.positions.len(),
+            });
+        }
+        check_positions(&positions)?;
+        self.positions = positions;
+        Ok(())
+    }
+
+    /// Replaces the values of the active array.
+    pub fn set_scalars(&mut self, values: Vec<f64>) -> Result<(), MeshError> {
+        let i = self.active.ok_or(MeshError::NoScalars)?;
+        let a = ScalarArray::new(self.arrays[i].name.clone(), values);
+        check_array(&a, self.positions.len())?;
+        self.arrays[i] = a;
+        Ok(())
+    }
+
+    /// The four corner positions of tet `t`.
+    pub fn tet_corners(&self, t: usize) -> [DVec3; 4] {
+        self.tets[t].map(|v| self.positions[v as usize])
+    }
+
+    /// Signed volume of tet `t` (positive for the orientation convention above).
+    pub fn signed_volume(&self, t: usize) -> f64 {
+        orient(&self.positions, &self.tets[t]) / 6.0
+    }
+
+    /// Axis-aligned bounding box (min, max).
+    pub fn bounds(&self) -> (DVec3, DVec3) {
+        self.positions
+            .par_iter()
+            .fold(
+                || (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+                |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+            )
+            .reduce(
+                || (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+                |a, b| (a.0.min(b.0), a.1.max(b.1)),
+            )
+    }
+
+    /// Length of the bounding-box diagonal (the default TF unit distance is 1/100 of it).
+    pub fn diagonal(&self) -> f64 {
+        let (lo, hi) = self.bounds();
+        (hi - lo).length()
+    }
+
+    /// (min, max) of the active scalars over each tet's four vertices.
+    pub fn tet_scalar_ranges(&self) -> Result<Vec<(f64, f64)>, MeshError> {
+        let s = self.scalars()?;
+        Ok(self
+            .tets
+            .par_iter()
+            .map(|t| {
+                let v = t.map(|i| s[i as usize]);
+                (
+                    v[0].min(v[1]).min(v[2].min(v[3])),
+                    v[0].max(v[1]).max(v[2].max(v[3])),
+                )
+            })
+            .collect())
+    }
+
+    /// Face adjacency (each tet's four neighbours) and boundary faces.
+    pub fn adjacency(&self) -> Adjacency {
+        Adjacency::build(&self.tets)
+    }
+}
+
+/// Six times the signed volume of tet `t` in `positions`.
+fn orient(positions: &[DVec3], t: &[u32; 4]) -> f64 {
+    let [a, b, c, d] = t.map(|v| positions[v as usize]);
+    (b - a).dot((c - a).cross(d - a))
+}
+
+fn check_positions(positions: &[DVec3]) -> Result<(), MeshError> {
+    match positions.iter().position(|p| !p.is_finite()) {
+        Some(v) => {
+            let p = positions[v];
+            Err(MeshError::NonFiniteCoordinate {
+                vertex: v,
+                x: p.x,
+                y: p.y,
+                z: p.z,
+            })
+        }
+        None => Ok(()),
+    }
+}
+
+fn check_array(a: &ScalarArray, count: usize) -> Result<(), MeshError> {
+    if a.values.len() != count {
+        return Err(MeshError::ArrayLength {
+            array: a.name.clone(),
+            len: a.values.len(),
+            count,
+        });
+    }
+    match a.values.iter().position(|v| !v.is_finite()) {
+        Some(v) => Err(MeshError::NonFiniteScalar {
+            array: a.name.clone(),
+            vertex: v,
+            value: a.values[v],
+        }),
+        None => Ok(()),
+    }
+}
+
+fn range_of(values: &[f64]) -> Option<(f64, f64)> {
+    if values.is_empty() {
+        return None;
+    }
+    Some(
+        values
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
+                (lo.min(v), hi.max(v))
+            }),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn unit_tet() -> Vec<DVec3> {
+        vec![DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z]
+    }
+
+    #[test]
+    fn inverted_tets_are_reoriented_and_counted() {
+        let (m, r) = TetMesh::new(unit_tet(), vec![[0, 2, 1, 3]], vec![]).unwrap();
+        assert_eq!(r.reoriented, 1);
+        assert!((m.signed_volume(0) - 1.0 / 6.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn bad_indices_and_values_are_errors() {
+        let e = TetMesh::new(unit_tet(), vec![[0, 1, 2, 7]], vec![]).unwrap_err();
+        assert_eq!(
+            e,
+            MeshError::IndexOutOfRange {
+                tet: 0,
+                index: 7,
+                count: 4
+            }
+        );
+        let e = TetMesh::new(unit_tet(), vec![[0, 1, 1, 3]], vec![]).unwrap_err();
+        assert_eq!(e, MeshError::RepeatedIndex { tet: 0, index: 1 });
+        let mut p = unit_tet();
+        p[2].y = f64::NAN;
+        assert!(matches!(
+            TetMesh::new(p, vec![[0, 1, 2, 3]], vec![]),
+            Err(MeshError::NonFiniteCoordinate { vertex: 2, .. })
+        ));
+        let a = ScalarArray::new("s", vec![0.0, 1.0, f64::INFINITY, 0.0]);
+        assert!(matches!(
+            TetMesh::new(unit_tet(), vec![[0, 1, 2, 3]], vec![a]),
+            Err(MeshError::NonFiniteScalar { vertex: 2, .. })
+        ));
+        assert_eq!(
+            TetMesh::new(unit_tet(), vec![], vec![]).unwrap_err(),
+            MeshError::NoTets
+        );
+    }
+
+    #[test]
+    fn active_array_selection() {
+        let a = ScalarArray::new("a", vec![0.0; 4]);
+        let b = ScalarArray::new("b", vec![1.0; 4]);
+        let (mut m, _) = TetMesh::new(unit_tet(), vec![[0, 1, 2, 3]], vec![a, b]).unwrap();
+        assert_eq!(m.active_array().unwrap().name, "a");
+        m.set_active_array("b").unwrap();
+        assert_eq!(m.scalars().unwrap(), &[1.0; 4]);
+        let e = m.set_active_array("c").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "no scalar array named 'c'; the mesh has: a, b"
+        );
+    }
+}

@@ -1,0 +1,91 @@
+//! What every rendering mode shares: the [`Renderer`] trait, frames with their timings, and
+//! the error type.
+//!
+//! A renderer is created once for a mesh (pipelines, buffers, acceleration structures) and then
+//! renders many frames; a deforming mesh hands it new positions or scalars between frames.
+
+use glam::DVec3;
+
+use crate::camera::{Camera, CameraError};
+use crate::gpu::GpuError;
+use crate::image::Image;
+use crate::mesh::MeshError;
+use crate::tf::{TfError, TransferFunction};
+
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    #[error(transparent)]
+    Camera(#[from] CameraError),
+    #[error(transparent)]
+    Mesh(#[from] MeshError),
+    #[error(transparent)]
+    Tf(#[from] TfError),
+    #[error(transparent)]
+    Gpu(#[from] GpuError),
+    #[error("{0}")]
+    Settings(String),
+}
+
+/// Per-stage wall or GPU times and work counters of one frame, in the order they happened.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Timings {
+    /// (stage, milliseconds).
+    pub stages: Vec<(&'static str, f64)>,
+    /// (what, count), e.g. tets drawn, fragments, shells.
+    pub counters: Vec<(&'static str, u64)>,
+    /// How the stage times were taken, e.g. "GPU timestamps" or "wall clock, GPU drained".
+    pub clock: &'static str,
+}
+
+impl Timings {
+    pub fn stage(&mut self, name: &'static str, ms: f64) {
+        self.stages.push((name, ms));
+    }
+
+    pub fn count(&mut self, name: &'static str, n: u64) {
+        self.counters.push((name, n));
+    }
+
+    /// The time of a stage by name, if it was recorded.
+    pub fn get(&self, name: &str) -> Option<f64> {
+        self.stages
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map(|&(_, ms)| ms)
+    }
+}
+
+impl std::fmt::Display for Timings {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(f, "stage timings ({}):", self.clock)?;
+        for (name, ms) in &self.stages {
+            writeln!(f, "  {name:<18} {ms:>10.2} ms")?;
+        }
+        for (name, n) in &self.counters {
+            writeln!(f, "  {name:<18} {n:>10}")?;
+        }
+        Ok(())
+    }
+}
+
+/// One rendered frame.
+#[derive(Clone, Debug)]
+pub struct Frame {
+    pub image: Image,
+    pub timings: Timings,
+}
+
+/// One renderer per mode; long-lived, reused across frames.
+pub trait Renderer {
+    /// The mode's name as the CLI spells it (`reference`, `shells`, ...).
+    fn name(&self) -> &'static str;
+
+    /// Renders one frame of the mesh's active scalars.
+    fn render(&mut self, camera: &Camera, tf: &TransferFunction) -> Result<Frame, RenderError>;
+
+    /// New vertex positions for a deforming mesh (same count, same topology).
+    fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError>;
+
+    /// New values of the active scalar array (same count).
+    fn update_scalars(&mut self, scalars: &[f64]) -> Result<(), RenderError>;
+}
