@@ -7,7 +7,7 @@
 
 @group(0) @binding(1) var<uniform> shell: Shell;
 @group(0) @binding(2) var<storage, read> records: array<TetRecord>;
-@group(0) @binding(3) var<storage, read> active: array<u32>;
+@group(0) @binding(3) var<storage, read> active_tets: array<u32>;
 
 struct Varyings {
     @builtin(position) position: vec4<f32>,
@@ -27,7 +27,7 @@ const NOWHERE = vec4<f32>(0.0, 0.0, 0.0, 1.0);
 
 @vertex
 fn vs_faces(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance: u32) -> Varyings {
-    let tet = active[instance];
+    let tet = active_tets[instance];
     var faces = FACE_VERTICES;
     let p = records[tet].pos[faces[vertex]];
     var out: Varyings;
@@ -42,7 +42,7 @@ fn vs_faces(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instanc
 
 @vertex
 fn vs_near(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance: u32) -> Varyings {
-    let tet = active[instance];
+    let tet = active_tets[instance];
     let rec = records[tet];
     // Screen bounds of the tet clipped to z >= near_z: its vertices in front of the plane and
     // its edges' crossings of the plane. Every sample lies in front of the plane (near_z is

@@ -72,10 +72,18 @@ pub fn distance_range(p: &[DVec3; 4]) -> (f64, f64) {
 
 /// The global slice range `k_lo..=k_hi` with `t_first + k dz` in `[t_min, t_max]`, widened by a
 /// thousandth of a slice against rounding, clipped to `0..total`; `None` when empty.
-pub fn slice_range(t_min: f64, t_max: f64, t_first: f64, dz: f64, total: u64) -> Option<(u64, u64)> {
+pub fn slice_range(
+    t_min: f64,
+    t_max: f64,
+    t_first: f64,
+    dz: f64,
+    total: u64,
+) -> Option<(u64, u64)> {
     const MARGIN: f64 = 1e-3;
     let lo = ((t_min - t_first) / dz - MARGIN).ceil().max(0.0);
-    let hi = ((t_max - t_first) / dz + MARGIN).floor().min(total as f64 - 1.0);
+    let hi = ((t_max - t_first) / dz + MARGIN)
+        .floor()
+        .min(total as f64 - 1.0);
     (lo <= hi).then_some((lo as u64, hi as u64))
 }
 
@@ -329,11 +337,23 @@ mod tests {
                     .map(|(t, _)| t as u32)
                     .collect();
                 let r = &b.shells[s as usize];
-                let range = if near { r.near.clone() } else { r.faces.clone() };
-                assert_eq!(&b.indices[range.start as usize..range.end as usize], &expect[..]);
+                let range = if near {
+                    r.near.clone()
+                } else {
+                    r.faces.clone()
+                };
+                assert_eq!(
+                    &b.indices[range.start as usize..range.end as usize],
+                    &expect[..]
+                );
             }
         }
         assert_eq!(b.culled, 50_000u64.div_ceil(11));
-        assert_eq!(b.near as usize, bins.iter().filter(|b| matches!(b, TetBin::Drawn { near: true, .. })).count());
+        assert_eq!(
+            b.near as usize,
+            bins.iter()
+                .filter(|b| matches!(b, TetBin::Drawn { near: true, .. }))
+                .count()
+        );
     }
 }

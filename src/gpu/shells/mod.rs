@@ -340,6 +340,15 @@ impl ShellsRenderer {
             .max(f64::MIN_POSITIVE)
     }
 
+    /// Where this renderer puts the slices for `camera`: `(t_first, dz)`, slice `k` at distance
+    /// `t_first + k dz` from the eye. `t_first` is half a slice beyond the mesh's bounding
+    /// sphere (or beyond the eye, when the eye is inside the sphere).
+    pub fn slice_positions(&self, camera: &Camera) -> (f64, f64) {
+        let dz = self.dz();
+        let dist = (self.mesh.origin - camera.eye).length();
+        ((dist - self.mesh.radius).max(0.0) + 0.5 * dz, dz)
+    }
+
     fn upload_positions(&self) {
         let o = self.mesh.origin;
         let data: Vec<[f32; 4]> = self
@@ -802,10 +811,9 @@ impl Renderer for ShellsRenderer {
         let (right, up, forward) = camera.basis();
         let th = camera.tan_half_fov();
         let slope = [th * camera.aspect(), th];
-        let dz = self.dz();
+        let (t_first, dz) = self.slice_positions(camera);
         let n = self.slices_per_shell;
         let dist = (self.mesh.origin - camera.eye).length();
-        let t_first = (dist - self.mesh.radius).max(0.0) + 0.5 * dz;
         let slices = ((dist + self.mesh.radius - t_first) / dz).floor() as u64 + 1;
         let shells = slices.div_ceil(n as u64);
         if shells > MAX_SHELLS {
@@ -834,7 +842,10 @@ impl Renderer for ShellsRenderer {
         let (scalars, tets) = (&self.mesh.scalars, &self.mesh.tets);
         let bins = binning::classify(&self.mesh.positions, tets, &params, |t| {
             let v = tets[t].map(|i| scalars[i as usize]);
-            tf.is_transparent_on(v[0].min(v[1]).min(v[2].min(v[3])), v[0].max(v[1]).max(v[2].max(v[3])))
+            tf.is_transparent_on(
+                v[0].min(v[1]).min(v[2].min(v[3])),
+                v[0].max(v[1]).max(v[2].max(v[3])),
+            )
         });
         let bin: Binning = binning::sort_into_shells(&bins, shells as u32);
         drop(bins);
@@ -913,7 +924,10 @@ impl Renderer for ShellsRenderer {
         timings.stage("upload", ms_since(t1));
 
         self.ensure_targets(camera.width, camera.height)?;
-        let targets = self.targets.as_ref().ok_or_else(|| settings_error("no targets"))?;
+        let targets = self
+            .targets
+            .as_ref()
+            .ok_or_else(|| settings_error("no targets"))?;
         let raster_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("shells raster"),
             layout: &self.pipelines.raster_layout,
@@ -976,16 +990,20 @@ impl Renderer for ShellsRenderer {
             let enc = rec.encoder();
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("shells assembly"),
-                timestamp_writes: writes.as_ref().map(|(set, b, e)| wgpu::ComputePassTimestampWrites {
-                    query_set: set,
-                    beginning_of_pass_write_index: Some(*b),
-                    end_of_pass_write_index: Some(*e),
+                timestamp_writes: writes.as_ref().map(|(set, b, e)| {
+                    wgpu::ComputePassTimestampWrites {
+                        query_set: set,
+                        beginning_of_pass_write_index: Some(*b),
+                        end_of_pass_write_index: Some(*e),
+                    }
                 }),
             });
             pass.set_pipeline(&self.pipelines.assemble);
             pass.set_bind_group(0, &self.gpu.assemble_group, &[]);
             let groups = (self.mesh.tets.len() as u32).div_ceil(64);
-            let x = groups.min(self.limits.max_compute_workgroups_per_dimension).max(1);
+            let x = groups
+                .min(self.limits.max_compute_workgroups_per_dimension)
+                .max(1);
             pass.dispatch_workgroups(x, groups.div_ceil(x), 1);
         }
         rec.end_stage("assembly")?;
@@ -1060,13 +1078,13 @@ impl Renderer for ShellsRenderer {
 
             let q = rec.pass_queries("composite");
             let set = rec.queries.clone();
-            let timestamp_writes = q.zip(set.as_ref()).map(|((b, e), set)| {
-                wgpu::RenderPassTimestampWrites {
-                    query_set: set,
-                    beginning_of_pass_write_index: Some(b),
-                    end_of_pass_write_index: Some(e),
-                }
-            });
+            let timestamp_writes =
+                q.zip(set.as_ref())
+                    .map(|((b, e), set)| wgpu::RenderPassTimestampWrites {
+                        query_set: set,
+                        beginning_of_pass_write_index: Some(b),
+                        end_of_pass_write_index: Some(e),
+                    });
             {
                 let enc = rec.encoder();
                 let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -1095,7 +1113,11 @@ impl Renderer for ShellsRenderer {
         }
 
         // 5. Readback: the image, the degenerate count, timestamps and fragment counts.
-        let stats_len = 256 + 8 * (2 * passes as u64 + drawn.len() as u64);
+        // Stats layout: degenerate count at 0, occlusion results at 256, timestamps after them
+        // (query resolves land on 256-byte boundaries).
+        let occ_at = 256u64;
+        let ts_at = (occ_at + 8 * drawn.len() as u64).next_multiple_of(256);
+        let stats_len = ts_at + 8 * 2 * passes as u64;
         let stats = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("shells stats readback"),
             size: stats_len,
@@ -1135,8 +1157,6 @@ impl Renderer for ShellsRenderer {
                 },
             );
             enc.copy_buffer_to_buffer(&self.gpu.degenerate, 0, &stats, 0, 4);
-            let occ_at = 256u64;
-            let ts_at = (occ_at + 8 * drawn.len() as u64).next_multiple_of(256);
             if let Some(occ) = &occlusion {
                 enc.resolve_query_set(occ, 0..drawn.len() as u32, &resolve, occ_at);
                 enc.copy_buffer_to_buffer(&resolve, occ_at, &stats, occ_at, 8 * drawn.len() as u64);
@@ -1186,8 +1206,10 @@ impl Renderer for ShellsRenderer {
                 .map_err(|e| settings_error(format!("mapping the stats buffer failed: {e}")))?;
             let degenerate = u32::from_le_bytes([data[0], data[1], data[2], data[3]]);
             let words: &[u64] = bytemuck::cast_slice(&data[256..]);
-            let fragments: Option<u64> = occlusion.as_ref().map(|_| words[..drawn.len()].iter().sum());
-            let ts_at = (256 + 8 * drawn.len()).next_multiple_of(256);
+            let fragments: Option<u64> = occlusion
+                .as_ref()
+                .map(|_| words[..drawn.len()].iter().sum());
+            let ts_at = ts_at as usize;
             let gpu_stages: Vec<(&'static str, f64)> = if ts_set.is_some() {
                 let ts: &[u64] = bytemuck::cast_slice(&data[ts_at..ts_at + 8 * n_ts as usize]);
                 let period = self.queue.get_timestamp_period() as f64;
@@ -1207,7 +1229,10 @@ impl Renderer for ShellsRenderer {
         };
         stats.unmap();
         for stage in ["assembly", "raster", "composite"] {
-            let ms = gpu_stages.iter().find(|(s, _)| *s == stage).map_or(0.0, |&(_, t)| t);
+            let ms = gpu_stages
+                .iter()
+                .find(|(s, _)| *s == stage)
+                .map_or(0.0, |&(_, t)| t);
             timings.stage(stage, ms);
         }
         timings.stage("readback", ms_since(t_read));

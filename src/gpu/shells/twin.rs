@@ -70,7 +70,12 @@ pub fn barycentric(rec: &TetRecord, d: Vec3, t: f32) -> Vec4 {
 
 /// The raster fragment for one pixel and shell: each slice's encoded scalar where the sample is
 /// inside the tet (smallest barycentric >= -epsilon), 0 elsewhere.
-pub fn sample_slices(f: &FrameUniforms, rec: &TetRecord, xy: [f32; 2], first_slice: u32) -> Vec<f32> {
+pub fn sample_slices(
+    f: &FrameUniforms,
+    rec: &TetRecord,
+    xy: [f32; 2],
+    first_slice: u32,
+) -> Vec<f32> {
     let d = pixel_ray(f, xy);
     let sd = Vec3::from_slice(&rec.scalar[..3]).dot(d);
     (0..f.slices_per_shell)
@@ -191,6 +196,10 @@ mod tests {
         assert!(assemble(&f, sliver, [0.0; 4]).is_none());
         let fine = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z];
         let rec = assemble(&f, fine, [0.0; 4]).unwrap();
-        assert!(bytemuck::cast_slice::<TetRecord, f32>(&[rec]).iter().all(|v| v.is_finite()));
+        assert!(
+            bytemuck::cast_slice::<TetRecord, f32>(&[rec])
+                .iter()
+                .all(|v| v.is_finite())
+        );
     }
 }
