@@ -323,6 +323,15 @@ fn brain_volume_at_full_resolution() {
     );
     // At least the head's 22 % of the 196 x 232 x 188 cells, 6 tets each.
     assert!(mesh.tet_count() as f64 > 0.22 * 196.0 * 232.0 * 188.0 * 6.0);
+    let start = Instant::now();
+    let adj = mesh.adjacency();
+    println!(
+        "adjacency: {} boundary faces, {} non-manifold, in {:.2} s",
+        adj.boundary.len(),
+        adj.non_manifold_faces,
+        start.elapsed().as_secs_f64()
+    );
+    assert_eq!(adj.non_manifold_faces, 0);
 }
 
 /// Generation time of grids of 1 M and 10 M tets. Run with `--ignored --nocapture`.
