@@ -50,6 +50,16 @@ struct TfPoint {
     _pad2: f32,
 }
 
+// A bin of the TF acceleration table; see gpu_data::TfBin.
+struct TfBin {
+    value: vec4<f32>,
+    slope: vec4<f32>,
+    start: f32,
+    split: f32,
+    _pad0: f32,
+    _pad1: f32,
+}
+
 @group(0) @binding(0) var<uniform> frame: Frame;
 
 // The unit eye-space direction of the ray through the pixel whose centre is at framebuffer

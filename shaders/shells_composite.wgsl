@@ -5,10 +5,26 @@
 
 @group(0) @binding(1) var slices: texture_2d_array<f32>;
 @group(0) @binding(2) var<storage, read> tf: array<TfPoint>;
+@group(0) @binding(3) var<storage, read> tf_bins: array<TfBin>;
 
 // Colour and extinction at normalized scalar u: piecewise linear between control points,
-// constant beyond the ends, exactly as tf::TransferFunction::eval.
+// constant beyond the ends, exactly as tf::TransferFunction::eval. The bins of a uniform table
+// over [0, 1] each hold the linear piece valid from their start up to the next control point,
+// so most samples take one table read; the rest search the control points.
 fn tf_eval(u: f32) -> vec4<f32> {
+    let n = arrayLength(&tf_bins);
+    let x = u * f32(n);
+    if x >= 0.0 && x < f32(n) {
+        let b = tf_bins[min(u32(x), n - 1u)];
+        if u >= b.start && u < b.split {
+            return b.value + b.slope * (u - b.start);
+        }
+    }
+    return tf_search(u);
+}
+
+// tf_eval by searching the control points.
+fn tf_search(u: f32) -> vec4<f32> {
     let last = frame.tf_count - 1u;
     if u <= tf[0].s {
         return vec4<f32>(tf[0].rgb, tf[0].tau);

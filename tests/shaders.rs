@@ -52,4 +52,5 @@ fn shared_struct_layouts_match_gpu_data() {
     assert_eq!(size("Shell") as usize, size_of::<ShellUniforms>());
     assert_eq!(size("TetRecord") as usize, size_of::<TetRecord>());
     assert_eq!(size("TfPoint") as usize, size_of::<TfPoint>());
+    assert_eq!(size("TfBin") as usize, size_of::<TfBin>());
 }

@@ -525,3 +525,58 @@ fn updated_positions_render_as_a_fresh_renderer_does() {
     assert!(r.update_positions(&bent[1..]).is_err());
     assert!(r.update_scalars(&[f64::NAN; 216]).is_err());
 }
+
+/// Renders `frames` frames after one warm-up and prints the median frame's timings.
+fn bench(
+    name: &str,
+    mesh: &TetMesh,
+    settings: ShellSettings,
+    camera: &Camera,
+    tf: &TransferFunction,
+    frames: usize,
+) -> Image {
+    let mut r = ShellsRenderer::new(ctx(), mesh, settings).expect("renderer");
+    r.render(camera, tf).expect("warm-up frame");
+    let mut runs: Vec<tetvr::Frame> = (0..frames)
+        .map(|_| r.render(camera, tf).expect("frame"))
+        .collect();
+    runs.sort_by(|a, b| {
+        a.timings
+            .get("total")
+            .partial_cmp(&b.timings.get("total"))
+            .expect("finite")
+    });
+    let median = runs.swap_remove(frames / 2);
+    eprintln!("{name}: median of {frames} frames\n{}", median.timings);
+    median.image
+}
+
+/// Frame time on a generated grid of ~187k tets (bluntfin's count) at 512x512.
+#[test]
+#[ignore = "benchmark: run with --ignored --nocapture"]
+fn bench_generated_187k_512() {
+    let (lo, hi) = (DVec3::splat(-1.0), DVec3::splat(1.0));
+    let mesh = generate::box_grid(
+        lo,
+        hi,
+        generate::cells_for_tet_count(187_395),
+        "lin",
+        linear,
+    );
+    let camera = Camera::framing(lo, hi, tetvr::View::ISO, 1.0, 30.0, 512, 512);
+    let tf = tf3(-1.6, 1.6, mesh.diagonal() / 100.0);
+    for n in [32, 16, 8] {
+        let settings = ShellSettings {
+            slices_per_shell: Some(n),
+            ..Default::default()
+        };
+        bench(
+            &format!("generated 187k n={n}"),
+            &mesh,
+            settings,
+            &camera,
+            &tf,
+            3,
+        );
+    }
+}

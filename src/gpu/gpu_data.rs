@@ -97,3 +97,19 @@ pub struct TfPoint {
     pub _pad: [f32; 3],
 }
 const _: () = assert!(size_of::<TfPoint>() == 32);
+
+/// One bin of the transfer-function acceleration table (WGSL `TfBin`, 48 bytes): on
+/// `[start, split)` the piecewise-linear TF is exactly `value + slope (u - start)` (colour and
+/// extinction), `split` being the first control point after `start` (or beyond the bin).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct TfBin {
+    /// (r, g, b, tau) at `start`, from the right.
+    pub value: [f32; 4],
+    /// d(r, g, b, tau) / du on `[start, split)`.
+    pub slope: [f32; 4],
+    pub start: f32,
+    pub split: f32,
+    pub _pad: [f32; 2],
+}
+const _: () = assert!(size_of::<TfBin>() == 48);

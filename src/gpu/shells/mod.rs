@@ -22,6 +22,7 @@
 //! quantized to 1/1024 of the scalar range, and the accumulation keeps about 3 decimal digits.
 
 pub mod binning;
+pub mod tf_table;
 pub mod twin;
 
 use std::time::Instant;
@@ -30,7 +31,7 @@ use bytemuck::Zeroable;
 use glam::DVec3;
 
 use crate::camera::Camera;
-use crate::gpu::gpu_data::{FrameUniforms, ShellUniforms, TetRecord, TfPoint};
+use crate::gpu::gpu_data::{FrameUniforms, ShellUniforms, TetRecord};
 use crate::gpu::{GpuContext, GpuError, shaders};
 use crate::mesh::{MeshError, TetMesh};
 use crate::render::{Frame, RenderError, Renderer, Timings};
@@ -108,6 +109,7 @@ pub struct ShellsRenderer {
     active_buf: wgpu::Buffer,
     shell_buf: wgpu::Buffer,
     tf_buf: wgpu::Buffer,
+    tf_bin_buf: wgpu::Buffer,
     targets: Option<Targets>,
 }
 
@@ -298,6 +300,7 @@ impl ShellsRenderer {
             mapped_at_creation: false,
         });
         let tf_buf = storage("shells transfer function", 16 * 32, none);
+        let tf_bin_buf = storage("shells transfer function bins", 16, none);
         let renderer = Self {
             device,
             queue,
@@ -315,6 +318,7 @@ impl ShellsRenderer {
             active_buf,
             shell_buf,
             tf_buf,
+            tf_bin_buf,
             targets: None,
         };
         renderer.upload_positions();
@@ -630,6 +634,7 @@ impl Pipelines {
                     count: None,
                 },
                 buffer(2, S::FRAGMENT, ro),
+                buffer(3, S::FRAGMENT, ro),
             ],
         );
         let composite_module = module("shells_composite", shaders::shells_composite());
@@ -876,21 +881,13 @@ impl Renderer for ShellsRenderer {
         self.queue
             .write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&frame));
         let (lo, span) = (self.mesh.scalar_min, self.mesh.scalar_span);
-        let tf_points: Vec<TfPoint> = tf
-            .points()
-            .iter()
-            .zip(tf.taus())
-            .map(|(p, &tau)| TfPoint {
-                rgb: p.color.map(|c| c as f32),
-                tau: tau as f32,
-                s: ((p.s - lo) / span) as f32,
-                _pad: [0.0; 3],
-            })
-            .collect();
+        let (tf_points, tf_bins) = tf_table::tf_table(tf, lo, span);
         let (device, queue) = (&self.device, &self.queue);
         let storage = wgpu::BufferUsages::STORAGE;
         let tf_bytes = bytemuck::cast_slice(&tf_points);
         write_grown(device, queue, &mut self.tf_buf, tf_bytes, storage);
+        let bin_bytes = bytemuck::cast_slice(&tf_bins);
+        write_grown(device, queue, &mut self.tf_bin_buf, bin_bytes, storage);
         let drawn: Vec<(u32, &ShellRange)> = bin
             .shells
             .iter()
@@ -966,9 +963,14 @@ impl Renderer for ShellsRenderer {
                     binding: 1,
                     resource: wgpu::BindingResource::TextureView(&targets.slices_view),
                 },
+                entry(2, &self.tf_buf),
                 wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: self.tf_buf.as_entire_binding(),
+                    binding: 3,
+                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: &self.tf_bin_buf,
+                        offset: 0,
+                        size: wgpu::BufferSize::new(std::mem::size_of_val(&tf_bins[..]) as u64),
+                    }),
                 },
             ],
         });

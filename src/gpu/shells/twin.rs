@@ -1,11 +1,12 @@
 //! CPU twins of the shells stages' tricky arithmetic, in f32 with the same operations in the
 //! same order as the WGSL, for testing and debugging: the assembly's per-tet record
 //! (`shaders/shells_assemble.wgsl`) and the raster fragment's slice sampling and inside test
-//! (`shaders/shells_raster.wgsl`). They share no code with the reference renderer.
+//! (`shaders/shells_raster.wgsl`), and the composite's transfer-function evaluation
+//! (`shaders/shells_composite.wgsl`). They share no code with the reference renderer.
 
 use glam::{Vec3, Vec4};
 
-use crate::gpu::gpu_data::{FrameUniforms, TetRecord};
+use crate::gpu::gpu_data::{FrameUniforms, TetRecord, TfBin, TfPoint};
 
 fn v3(a: [f32; 3]) -> Vec3 {
     Vec3::from_array(a)
@@ -89,6 +90,37 @@ pub fn sample_slices(
             }
         })
         .collect()
+}
+
+/// The composite's TF evaluation at normalized scalar `u`: the bin's linear piece when `u` is
+/// on it, else the search over the control points. Returns (r, g, b, tau).
+pub fn tf_eval(points: &[TfPoint], bins: &[TfBin], u: f32) -> Vec4 {
+    let n = bins.len() as u32;
+    let x = u * n as f32;
+    if x >= 0.0 && x < n as f32 {
+        let b = &bins[(x as u32).min(n - 1) as usize];
+        if u >= b.start && u < b.split {
+            return Vec4::from_array(b.value) + Vec4::from_array(b.slope) * (u - b.start);
+        }
+    }
+    tf_search(points, u)
+}
+
+fn tf_search(tf: &[TfPoint], u: f32) -> Vec4 {
+    let at = |p: &TfPoint| Vec4::new(p.rgb[0], p.rgb[1], p.rgb[2], p.tau);
+    let last = tf.len() - 1;
+    if u <= tf[0].s {
+        return at(&tf[0]);
+    }
+    if u >= tf[last].s {
+        return at(&tf[last]);
+    }
+    let mut j = 1;
+    while j < last && tf[j].s <= u {
+        j += 1;
+    }
+    let (a, b) = (&tf[j - 1], &tf[j]);
+    at(a).lerp(at(b), (u - a.s) / (b.s - a.s))
 }
 
 #[cfg(test)]
@@ -181,6 +213,63 @@ mod tests {
                 if lam_k.min_element() < -0.01 {
                     prop_assert_eq!(v, 0.0);
                 }
+            }
+        }
+    }
+
+    /// The table evaluation equals TransferFunction::eval (f32 rounding aside) for TFs with
+    /// points inside bins, on bin edges, outside the data range, and a step.
+    #[test]
+    fn tf_table_matches_the_transfer_function() {
+        use crate::gpu::shells::tf_table::tf_table;
+        use crate::tf::{ControlPoint, TransferFunction};
+        let cp = |s: f64, r: f64, a: f64| ControlPoint {
+            s,
+            color: [r, 1.0 - r, 0.5 * r],
+            opacity: a,
+        };
+        let (lo, span) = (-3.0, 8.0);
+        let tfs = [
+            vec![cp(-3.0, 0.0, 0.0), cp(5.0, 1.0, 0.9)],
+            vec![
+                cp(-4.0, 0.2, 0.1),
+                cp(0.0, 0.9, 0.5),
+                cp(0.0, 0.1, 0.05),
+                cp(1.3, 0.4, 0.7),
+                cp(9.0, 1.0, 0.2),
+            ],
+            vec![
+                cp(-3.0 + 8.0 * 0.25, 0.5, 0.3),
+                cp(-3.0 + 8.0 * 0.5, 0.7, 0.6),
+            ],
+            vec![cp(1.0, 0.5, 0.5)],
+        ];
+        for points in tfs {
+            let tf = TransferFunction::new(points, 0.5).unwrap();
+            let (pts, bins) = tf_table(&tf, lo, span);
+            for i in 0..=40_000 {
+                let u = i as f64 / 40_000.0 * 1.2 - 0.1;
+                let want = tf.eval(lo + u * span);
+                let got = tf_eval(&pts, &bins, u as f32);
+                let want = Vec4::new(
+                    want.color[0] as f32,
+                    want.color[1] as f32,
+                    want.color[2] as f32,
+                    want.tau as f32,
+                );
+                // f32 rounding of u near a step can pick the other side: skip within 1e-6 of one.
+                if tf
+                    .points()
+                    .iter()
+                    .any(|p| ((p.s - lo) / span - u).abs() < 1e-6)
+                {
+                    continue;
+                }
+                // Values up to ~9 (tau of opacity 0.9 over 0.5): 1e-5 is a few f32 ulps.
+                assert!(
+                    (got - want).abs().max_element() < 1e-5,
+                    "u {u}: {got} vs {want}"
+                );
             }
         }
     }
