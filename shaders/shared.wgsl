@@ -40,24 +40,19 @@ struct TetRecord {
     scalar: vec4<f32>,
 }
 
-// A transfer-function control point, s normalized as the encoded scalars are.
+// A transfer-function control point; see gpu_data::TfPoint.
 struct TfPoint {
     rgb: vec3<f32>,
     tau: f32,
     s: f32,
+    inv_width: f32,
     _pad0: f32,
     _pad1: f32,
-    _pad2: f32,
 }
 
-// A bin of the TF acceleration table; see gpu_data::TfBin.
-struct TfBin {
-    value: vec4<f32>,
-    slope: vec4<f32>,
-    start: f32,
-    split: f32,
-    _pad0: f32,
-    _pad1: f32,
+// The transfer function's control points (gpu_data::MAX_TF_POINTS), frame.tf_count used.
+struct TfPoints {
+    points: array<TfPoint, 256>,
 }
 
 @group(0) @binding(0) var<uniform> frame: Frame;

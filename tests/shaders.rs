@@ -28,11 +28,11 @@ fn shells_stages_validate() {
         validate(&format!("shells_raster ({targets} targets)"), &src);
         assert_eq!(entry_points(&src), ["vs_faces", "vs_near", "fs_slices"]);
     }
-    validate("shells_composite", &shaders::shells_composite());
-    assert_eq!(
-        entry_points(&shaders::shells_composite()),
-        ["vs_fullscreen", "fs_composite"]
-    );
+    for targets in 1..=shaders::MAX_TARGETS {
+        let src = shaders::shells_composite(targets);
+        validate(&format!("shells_composite ({targets} layers)"), &src);
+        assert_eq!(entry_points(&src), ["vs_fullscreen", "fs_composite"]);
+    }
 }
 
 /// The WGSL structs have the sizes the Rust `gpu_data` twins assert at compile time.
@@ -52,5 +52,5 @@ fn shared_struct_layouts_match_gpu_data() {
     assert_eq!(size("Shell") as usize, size_of::<ShellUniforms>());
     assert_eq!(size("TetRecord") as usize, size_of::<TetRecord>());
     assert_eq!(size("TfPoint") as usize, size_of::<TfPoint>());
-    assert_eq!(size("TfBin") as usize, size_of::<TfBin>());
+    assert_eq!(size("TfPoints") as usize, size_of::<TfPoints>());
 }

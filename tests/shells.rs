@@ -565,7 +565,7 @@ fn bench_generated_187k_512() {
     );
     let camera = Camera::framing(lo, hi, tetvr::View::ISO, 1.0, 30.0, 512, 512);
     let tf = tf3(-1.6, 1.6, mesh.diagonal() / 100.0);
-    for n in [32, 16, 8] {
+    for n in [16] {
         let settings = ShellSettings {
             slices_per_shell: Some(n),
             ..Default::default()
@@ -579,4 +579,14 @@ fn bench_generated_187k_512() {
             3,
         );
     }
+}
+
+#[test]
+#[ignore = "experiment"]
+fn bench_tiny_512() {
+    let (lo, hi) = (DVec3::splat(-1.0), DVec3::splat(1.0));
+    let mesh = generate::box_grid(lo, hi, UVec3::splat(3), "lin", linear);
+    let camera = Camera::framing(lo, hi, tetvr::View::ISO, 1.0, 30.0, 512, 512);
+    let tf = tf3(-1.6, 1.6, mesh.diagonal() / 100.0);
+    bench("tiny", &mesh, ShellSettings::default(), &camera, &tf, 5);
 }

@@ -84,32 +84,29 @@ pub struct TetRecord {
 }
 const _: () = assert!(size_of::<TetRecord>() == 144);
 
-/// One transfer-function control point (WGSL `TfPoint`, 32 bytes), its `s` normalized to the
-/// renderer's scalar encoding.
+/// One transfer-function control point (WGSL `TfPoint`, 32 bytes), `s` normalized like the
+/// encoded scalars: `u = (s - s_min) / (s_max - s_min)`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct TfPoint {
     pub rgb: [f32; 3],
     /// Extinction per world unit.
     pub tau: f32,
-    /// Normalized scalar value `(s - s_min) / (s_max - s_min)`.
+    /// Normalized scalar value.
     pub s: f32,
-    pub _pad: [f32; 3],
+    /// `1 / (next.s - s)`, 0 when the next point is at the same `s` (a step) or there is none.
+    pub inv_width: f32,
+    pub _pad: [f32; 2],
 }
 const _: () = assert!(size_of::<TfPoint>() == 32);
 
-/// One bin of the transfer-function acceleration table (WGSL `TfBin`, 48 bytes): on
-/// `[start, split)` the piecewise-linear TF is exactly `value + slope (u - start)` (colour and
-/// extinction), `split` being the first control point after `start` (or beyond the bin).
+/// The most control points the shells composite evaluates (a uniform array of 8 KiB).
+pub const MAX_TF_POINTS: usize = 256;
+
+/// The transfer function as a uniform block (WGSL `TfPoints`).
 #[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct TfBin {
-    /// (r, g, b, tau) at `start`, from the right.
-    pub value: [f32; 4],
-    /// d(r, g, b, tau) / du on `[start, split)`.
-    pub slope: [f32; 4],
-    pub start: f32,
-    pub split: f32,
-    pub _pad: [f32; 2],
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct TfPoints {
+    pub points: [TfPoint; MAX_TF_POINTS],
 }
-const _: () = assert!(size_of::<TfBin>() == 48);
+const _: () = assert!(size_of::<TfPoints>() == 32 * MAX_TF_POINTS);

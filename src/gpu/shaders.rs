@@ -34,7 +34,20 @@ pub fn shells_raster(targets: u32) -> String {
     )
 }
 
-/// The shells composite stage (entry points `vs_fullscreen`, `fs_composite`).
-pub fn shells_composite() -> String {
-    format!("{SHARED}\n{SHELLS_COMPOSITE}")
+/// The shells composite stage reading `targets` layers (1..=[`MAX_TARGETS`]) of 4 slices
+/// (entry points `vs_fullscreen`, `fs_composite`). The generated `load_layers` reads the
+/// layers with constant indices: a loop over a dynamic layer index is an order of magnitude
+/// slower on lavapipe.
+pub fn shells_composite(targets: u32) -> String {
+    let targets = targets.clamp(1, MAX_TARGETS);
+    let loads: Vec<String> = (0..targets)
+        .map(|i| format!("textureLoad(slices, xy, {i}, 0)"))
+        .collect();
+    format!(
+        "{SHARED}\n// Generated: the composite variant reading {targets} layers.\n\
+         const TARGETS: u32 = {targets}u;\n\
+         fn load_layers(xy: vec2<i32>) -> array<vec4<f32>, TARGETS> {{\n    \
+         return array<vec4<f32>, TARGETS>({});\n}}\n{SHELLS_COMPOSITE}",
+        loads.join(", ")
+    )
 }

@@ -22,7 +22,6 @@
 //! quantized to 1/1024 of the scalar range, and the accumulation keeps about 3 decimal digits.
 
 pub mod binning;
-pub mod tf_table;
 pub mod twin;
 
 use std::time::Instant;
@@ -31,7 +30,9 @@ use bytemuck::Zeroable;
 use glam::DVec3;
 
 use crate::camera::Camera;
-use crate::gpu::gpu_data::{FrameUniforms, ShellUniforms, TetRecord};
+use crate::gpu::gpu_data::{
+    FrameUniforms, MAX_TF_POINTS, ShellUniforms, TetRecord, TfPoint, TfPoints,
+};
 use crate::gpu::{GpuContext, GpuError, shaders};
 use crate::mesh::{MeshError, TetMesh};
 use crate::render::{Frame, RenderError, Renderer, Timings};
@@ -109,7 +110,6 @@ pub struct ShellsRenderer {
     active_buf: wgpu::Buffer,
     shell_buf: wgpu::Buffer,
     tf_buf: wgpu::Buffer,
-    tf_bin_buf: wgpu::Buffer,
     targets: Option<Targets>,
 }
 
@@ -299,8 +299,12 @@ impl ShellsRenderer {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let tf_buf = storage("shells transfer function", 16 * 32, none);
-        let tf_bin_buf = storage("shells transfer function bins", 16, none);
+        let tf_buf = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("shells transfer function"),
+            size: size_of::<TfPoints>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
         let renderer = Self {
             device,
             queue,
@@ -318,7 +322,6 @@ impl ShellsRenderer {
             active_buf,
             shell_buf,
             tf_buf,
-            tf_bin_buf,
             targets: None,
         };
         renderer.upload_positions();
@@ -633,11 +636,10 @@ impl Pipelines {
                     },
                     count: None,
                 },
-                buffer(2, S::FRAGMENT, ro),
-                buffer(3, S::FRAGMENT, ro),
+                buffer(2, S::FRAGMENT, uniform),
             ],
         );
-        let composite_module = module("shells_composite", shaders::shells_composite());
+        let composite_module = module("shells_composite", shaders::shells_composite(targets));
         let under = wgpu::BlendComponent {
             src_factor: wgpu::BlendFactor::OneMinusDstAlpha,
             dst_factor: wgpu::BlendFactor::One,
@@ -752,6 +754,34 @@ impl<'a> Recorder<'a> {
         self.mark = now;
         Ok(())
     }
+}
+
+/// `tf`'s control points for scalars normalized as `u = (s - lo) / span`.
+pub fn tf_points(tf: &TransferFunction, lo: f64, span: f64) -> Result<TfPoints, RenderError> {
+    let p = tf.points();
+    if p.len() > MAX_TF_POINTS {
+        return Err(settings_error(format!(
+            "the transfer function has {} control points; the shells mode evaluates at most \
+             {MAX_TF_POINTS}: resample it",
+            p.len()
+        )));
+    }
+    let mut out = TfPoints::zeroed();
+    for (k, (q, &tau)) in p.iter().zip(tf.taus()).enumerate() {
+        let u = (q.s - lo) / span;
+        let next = p.get(k + 1).map(|n| (n.s - lo) / span);
+        out.points[k] = TfPoint {
+            rgb: q.color.map(|c| c as f32),
+            tau: tau as f32,
+            s: u as f32,
+            inv_width: match next {
+                Some(v) if v > u => (1.0 / (v - u)) as f32,
+                _ => 0.0,
+            },
+            _pad: [0.0; 2],
+        };
+    }
+    Ok(out)
 }
 
 /// Writes `data` to `*buf`, first growing it (to a power of two) when it is too small.
@@ -881,13 +911,11 @@ impl Renderer for ShellsRenderer {
         self.queue
             .write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&frame));
         let (lo, span) = (self.mesh.scalar_min, self.mesh.scalar_span);
-        let (tf_points, tf_bins) = tf_table::tf_table(tf, lo, span);
+        let tf_points = tf_points(tf, lo, span)?;
+        self.queue
+            .write_buffer(&self.tf_buf, 0, bytemuck::bytes_of(&tf_points));
         let (device, queue) = (&self.device, &self.queue);
         let storage = wgpu::BufferUsages::STORAGE;
-        let tf_bytes = bytemuck::cast_slice(&tf_points);
-        write_grown(device, queue, &mut self.tf_buf, tf_bytes, storage);
-        let bin_bytes = bytemuck::cast_slice(&tf_bins);
-        write_grown(device, queue, &mut self.tf_bin_buf, bin_bytes, storage);
         let drawn: Vec<(u32, &ShellRange)> = bin
             .shells
             .iter()
@@ -964,14 +992,6 @@ impl Renderer for ShellsRenderer {
                     resource: wgpu::BindingResource::TextureView(&targets.slices_view),
                 },
                 entry(2, &self.tf_buf),
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                        buffer: &self.tf_bin_buf,
-                        offset: 0,
-                        size: wgpu::BufferSize::new(std::mem::size_of_val(&tf_bins[..]) as u64),
-                    }),
-                },
             ],
         });
 

@@ -6,7 +6,7 @@
 
 use glam::{Vec3, Vec4};
 
-use crate::gpu::gpu_data::{FrameUniforms, TetRecord, TfBin, TfPoint};
+use crate::gpu::gpu_data::{FrameUniforms, TetRecord, TfPoint};
 
 fn v3(a: [f32; 3]) -> Vec3 {
     Vec3::from_array(a)
@@ -92,35 +92,19 @@ pub fn sample_slices(
         .collect()
 }
 
-/// The composite's TF evaluation at normalized scalar `u`: the bin's linear piece when `u` is
-/// on it, else the search over the control points. Returns (r, g, b, tau).
-pub fn tf_eval(points: &[TfPoint], bins: &[TfBin], u: f32) -> Vec4 {
-    let n = bins.len() as u32;
-    let x = u * n as f32;
-    if x >= 0.0 && x < n as f32 {
-        let b = &bins[(x as u32).min(n - 1) as usize];
-        if u >= b.start && u < b.split {
-            return Vec4::from_array(b.value) + Vec4::from_array(b.slope) * (u - b.start);
+/// The composite's TF evaluation at normalized scalar `u` over control points `tf` (walking
+/// every segment, as the shader does). Returns (r, g, b, tau).
+pub fn tf_eval(tf: &[TfPoint], u: f32) -> Vec4 {
+    let at = |p: &TfPoint| Vec4::new(p.rgb[0], p.rgb[1], p.rgb[2], p.tau);
+    let (first, last) = (&tf[0], &tf[tf.len() - 1]);
+    let mut out = at(first);
+    for w in tf.windows(2) {
+        let (a, b) = (&w[0], &w[1]);
+        if u > first.s && u >= a.s && u < b.s {
+            out = at(a).lerp(at(b), (u - a.s) * a.inv_width);
         }
     }
-    tf_search(points, u)
-}
-
-fn tf_search(tf: &[TfPoint], u: f32) -> Vec4 {
-    let at = |p: &TfPoint| Vec4::new(p.rgb[0], p.rgb[1], p.rgb[2], p.tau);
-    let last = tf.len() - 1;
-    if u <= tf[0].s {
-        return at(&tf[0]);
-    }
-    if u >= tf[last].s {
-        return at(&tf[last]);
-    }
-    let mut j = 1;
-    while j < last && tf[j].s <= u {
-        j += 1;
-    }
-    let (a, b) = (&tf[j - 1], &tf[j]);
-    at(a).lerp(at(b), (u - a.s) / (b.s - a.s))
+    if u >= last.s { at(last) } else { out }
 }
 
 #[cfg(test)]
@@ -217,11 +201,11 @@ mod tests {
         }
     }
 
-    /// The table evaluation equals TransferFunction::eval (f32 rounding aside) for TFs with
-    /// points inside bins, on bin edges, outside the data range, and a step.
+    /// The composite's evaluation equals TransferFunction::eval (f32 rounding aside) for TFs
+    /// with points outside the data range, close together, a single point, and a step.
     #[test]
-    fn tf_table_matches_the_transfer_function() {
-        use crate::gpu::shells::tf_table::tf_table;
+    fn tf_eval_matches_the_transfer_function() {
+        use crate::gpu::shells::tf_points;
         use crate::tf::{ControlPoint, TransferFunction};
         let cp = |s: f64, r: f64, a: f64| ControlPoint {
             s,
@@ -238,37 +222,38 @@ mod tests {
                 cp(1.3, 0.4, 0.7),
                 cp(9.0, 1.0, 0.2),
             ],
-            vec![
-                cp(-3.0 + 8.0 * 0.25, 0.5, 0.3),
-                cp(-3.0 + 8.0 * 0.5, 0.7, 0.6),
-            ],
             vec![cp(1.0, 0.5, 0.5)],
+            vec![
+                cp(0.0, 0.1, 0.1),
+                cp(0.001, 0.9, 0.8),
+                cp(0.002, 0.2, 0.3),
+                cp(2.0, 0.5, 0.5),
+            ],
         ];
         for points in tfs {
             let tf = TransferFunction::new(points, 0.5).unwrap();
-            let (pts, bins) = tf_table(&tf, lo, span);
+            let block = tf_points(&tf, lo, span).unwrap();
+            let pts = &block.points[..tf.points().len()];
+            let eval = |u: f64| {
+                let t = tf.eval(lo + u * span);
+                Vec4::new(
+                    t.color[0] as f32,
+                    t.color[1] as f32,
+                    t.color[2] as f32,
+                    t.tau as f32,
+                )
+            };
             for i in 0..=40_000 {
-                let u = i as f64 / 40_000.0 * 1.2 - 0.1;
-                let want = tf.eval(lo + u * span);
-                let got = tf_eval(&pts, &bins, u as f32);
-                let want = Vec4::new(
-                    want.color[0] as f32,
-                    want.color[1] as f32,
-                    want.color[2] as f32,
-                    want.tau as f32,
-                );
-                // f32 rounding of u near a step can pick the other side: skip within 1e-6 of one.
-                if tf
-                    .points()
-                    .iter()
-                    .any(|p| ((p.s - lo) / span - u).abs() < 1e-6)
-                {
-                    continue;
-                }
-                // Values up to ~9 (tau of opacity 0.9 over 0.5): 1e-5 is a few f32 ulps.
+                let u = (i as f64 / 40_000.0 * 1.4 - 0.2) as f32;
+                let got = tf_eval(pts, u);
+                // Exact up to f32 rounding of u and of the control points (an ulp of u <= 1.2
+                // is 1.2e-7): the result lies between the TF at u -/+ 2e-7 (which also spans a
+                // step at u), give or take a few ulps of values up to ~9 (tau of 0.9 over 0.5).
+                let (a, b) = (eval(u as f64 - 2e-7), eval(u as f64 + 2e-7));
+                let (lo_v, hi_v) = (a.min(b) - Vec4::splat(1e-5), a.max(b) + Vec4::splat(1e-5));
                 assert!(
-                    (got - want).abs().max_element() < 1e-5,
-                    "u {u}: {got} vs {want}"
+                    got.cmpge(lo_v).all() && got.cmple(hi_v).all(),
+                    "u {u}: {got} not in [{a}, {b}]"
                 );
             }
         }
