@@ -274,14 +274,20 @@ impl MeshStats {
             .par_iter()
             .fold(Totals::new, Totals::add)
             .reduce(Totals::new, Totals::merge);
-        // A mesh always has a tet, so the mean is defined; it is zero only if all volumes are.
+        // A mesh always has a tet, so the mean is defined; it is zero only if all volumes are,
+        // and then every relative volume is taken as 0 (below the histogram) rather than 0/0.
         let mean_volume = totals.abs_volume / tets as f64;
         let relative_volume = measures
             .par_iter()
             .fold(
                 || Histogram::new(-12.0, 2.0, 14),
                 |mut h, m| {
-                    h.add((m.volume.abs() / mean_volume).log10());
+                    let relative = if mean_volume > 0.0 {
+                        m.volume.abs() / mean_volume
+                    } else {
+                        0.0
+                    };
+                    h.add(relative.log10());
                     h
                 },
             )
@@ -752,6 +758,23 @@ mod tests {
         assert_eq!(s.inverted_tets, 6);
         let text = s.to_string();
         assert!(text.contains("inverted tets:        6\n"), "{text}");
+    }
+
+    #[test]
+    fn a_mesh_of_flat_tets_has_no_undefined_numbers() {
+        let p = vec![DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::new(1.0, 1.0, 0.0)];
+        let (m, _) = TetMesh::new(p, vec![[0, 1, 2, 3]], vec![]).unwrap();
+        let s = MeshStats::compute(&m, None);
+        assert_eq!((s.mean_volume, s.relative_volume.below), (0.0, 1));
+        assert_eq!(
+            (s.mean_quality, s.quality.below, s.zero_volume_tets),
+            (0.0, 1, 1)
+        );
+        let text = s.to_string();
+        assert!(
+            !text.contains("NaN") && text.contains("scalar arrays:        none"),
+            "{text}"
+        );
     }
 
     fn point_strategy() -> impl Strategy<Value = DVec3> {
