@@ -328,8 +328,12 @@ pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
 fn read_nodes(r: &mut Reader) -> Result<(Vec<DVec3>, Vec<u64>, NodeMap), LoadError> {
     let wide = r.version == Version::V41;
     let (blocks, total) = match r.version {
-        Version::V2 => (1, r.count(false, "the number of nodes", "$Nodes")?),
+        // 2.2 binary files still give the count as text.
+        Version::V2 => (1, r.c.count("the number of nodes")?),
         Version::V40 | Version::V41 => {
+            if r.binary.is_some() {
+                r.c.finish_line(); // binary data starts on the line after $Nodes
+            }
             let b = r.count(wide, "the number of node blocks", "$Nodes")?;
             let n = r.count(wide, "the number of nodes", "$Nodes")?;
             if r.version == Version::V41 {
@@ -429,11 +433,11 @@ fn read_nodes(r: &mut Reader) -> Result<(Vec<DVec3>, Vec<u64>, NodeMap), LoadErr
 fn read_elements(r: &mut Reader, map: &NodeMap, asm: &mut Assembler) -> Result<(), LoadError> {
     let wide = r.version == Version::V41;
     let (blocks, total) = match r.version {
-        Version::V2 => (
-            usize::MAX,
-            r.count(false, "the number of elements", "$Elements")?,
-        ),
+        Version::V2 => (usize::MAX, r.c.count("the number of elements")?),
         Version::V40 | Version::V41 => {
+            if r.binary.is_some() {
+                r.c.finish_line(); // binary data starts on the line after $Elements
+            }
             let b = r.count(wide, "the number of element blocks", "$Elements")?;
             let n = r.count(wide, "the number of elements", "$Elements")?;
             if r.version == Version::V41 {

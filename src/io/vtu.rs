@@ -46,6 +46,7 @@ enum Part {
     Points,
     Cells,
     PointData,
+    CellData,
     Other,
 }
 
@@ -504,6 +505,7 @@ pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
                     Some(b"Points") => Part::Points,
                     Some(b"Cells") => Part::Cells,
                     Some(b"PointData") => Part::PointData,
+                    Some(b"CellData") => Part::CellData,
                     _ => Part::Other,
                 };
                 let mut a = Array {
@@ -575,6 +577,13 @@ pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
             skipped.push(n);
         }
     }
+    skipped.extend(
+        first
+            .arrays
+            .iter()
+            .filter(|a| a.part == Part::CellData)
+            .map(|a| a.name().to_owned()),
+    );
     if let Some(s) = &first.scalars
         && let Some(i) = names.iter().position(|n| n == s)
     {
