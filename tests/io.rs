@@ -559,3 +559,92 @@ fn hex_grid_vtu_is_split_conformingly() {
     // t = x y + z at (2, 2, 1), the last point.
     assert_eq!(m.active_array().unwrap().values[17], 5.0);
 }
+
+#[test]
+fn tetgen_pair_loads_from_either_file() {
+    for f in ["valid/cube.node", "valid/cube.ele"] {
+        let l = load(&corpus(f)).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(l.report.format, Format::TetGen);
+        assert_eq!(l.mesh.tet_count(), 5);
+        // The five-tet cube: 2 triangles per face.
+        assert_conforming(&l.mesh, 1.0, 12, f);
+        let a = &l.mesh.arrays()[0];
+        assert_eq!(a.name, "attribute0");
+        assert_eq!(a.values, [0.0, 1.0, 2.0, 1.0, 1.0, 2.0, 3.0, 2.0]);
+    }
+}
+
+#[test]
+fn write_vtu_round_trips_exactly() {
+    let mut m = tetvr::generate::box_grid(
+        glam::DVec3::new(-1.0, 0.5, 1e5),
+        glam::DVec3::new(2.0, 1.5, 1e5 + 0.3),
+        glam::UVec3::new(3, 2, 2),
+        "f",
+        |p| (p.x * 1.7).sin() + p.y / 3.0,
+    );
+    m.add_array(tetvr::ScalarArray::new("g & <h>", m.positions().iter().map(|p| (p.x + p.y).exp() * 1e-30).collect()))
+        .unwrap();
+    m.set_active_array("f").unwrap();
+    let path = std::env::temp_dir().join(format!("tetvr-io-roundtrip-{}.vtu", std::process::id()));
+    tetvr::io::write_vtu(&m, &path).unwrap();
+    let l = load(&path).unwrap();
+    std::fs::remove_file(&path).unwrap();
+    assert_eq!(l.mesh.positions(), m.positions());
+    assert_eq!(l.mesh.tets(), m.tets());
+    assert_eq!(l.mesh.active_array(), m.active_array());
+    let mut a = l.mesh.arrays().to_vec();
+    let mut b = m.arrays().to_vec();
+    a.sort_by(|x, y| x.name.cmp(&y.name));
+    b.sort_by(|x, y| x.name.cmp(&y.name));
+    assert_eq!(a, b);
+}
+
+/// Every file in tests/corpus/malformed gives an error naming the file and the place.
+#[test]
+fn malformed_corpus_gives_located_errors() {
+    let cases: &[(&str, &str)] = &[
+        ("truncated_binary.vtk", "truncated_binary.vtk: byte 239: file ends inside CELLS (expected 68 more bytes)"),
+        ("bad_header.vtk", "bad_header.vtk: line 1: not a legacy VTK file"),
+        ("bad_counts.vtk", "bad_counts.vtk: line 23: unknown keyword '4'"),
+        ("index_out_of_range.vtk", "index_out_of_range.vtk: cell 3: vertex index 99 of the tetrahedron is out of range (the mesh has 12 points)"),
+        ("nan_coordinate.vtk", "nan_coordinate.vtk: line 8: point 2 has the non-finite coordinate NaN"),
+        ("unknown_cell_type.vtk", "unknown_cell_type.vtk: cell 1: cell type 25 (quadratic hexahedron) is not supported"),
+        ("structured_points.vtk", "structured_points.vtk: line 4: dataset type 'STRUCTURED_POINTS' is not supported"),
+        ("negative_count.vtk", "negative_count.vtk: line 5: expected the number of points (a non-negative integer), found '-12'"),
+        ("huge_count.vtk", "huge_count.vtk: byte 91: file ends inside POINTS (expected 11999999999964 more bytes)"),
+        ("repeated_index.msh", "repeated_index.msh: element 3 (tag 103): the tetrahedron repeats vertex 5"),
+        ("missing_node.msh", "missing_node.msh: element 3 (tag 103): node 999 is not defined"),
+        ("unknown_element.msh", "unknown_element.msh: element 4 (tag 104): unknown element type 99"),
+        ("negative_count.msh", "negative_count.msh: line 9: expected the number of nodes (a non-negative integer), found '-12'"),
+        ("huge_count.msh", "huge_count.msh: line 7: file ends where a node tag was expected"),
+        ("nan_scalar.msh", "nan_scalar.msh: line 41: $NodeData 's' has the non-finite value inf at node 13"),
+        ("quadratic_hex.msh", "quadratic_hex.msh: element 0 (tag 100): element type 17 (a 20-node 3D element) is not supported"),
+        ("nan_scalar.vtu", "nan_scalar.vtu: line 8: array 't' has the non-finite value NaN at point 4"),
+        ("polydata.vtu", "polydata.vtu: byte 64: VTK XML type 'PolyData' is not supported"),
+        ("truncated_compressed.vtu", "truncated_compressed.vtu: byte 354: file ends inside DataArray"),
+        ("bad_xml.vtu", "bad_xml.vtu: byte "),
+        ("nan_point.node", "nan_point.node: line 5: point 3 has the non-finite coordinate inf"),
+        ("bad_index.ele", "bad_index.ele: element 4 (tag 5): vertex index 8 of the tetrahedron is out of range (the mesh has 8 points)"),
+    ];
+    let dir = corpus("malformed");
+    let mut files: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|f| !f.ends_with(".node") || !cases.iter().any(|c| c.0 == f.replace(".node", ".ele")))
+        .filter(|f| !f.ends_with(".ele") || !cases.iter().any(|c| c.0 == f.replace(".ele", ".node")))
+        .collect();
+    files.sort();
+    let mut listed: Vec<String> = cases.iter().map(|c| c.0.to_owned()).collect();
+    listed.sort();
+    assert_eq!(files, listed, "every corpus file needs an expected message");
+    let mut wrong = Vec::new();
+    for (file, expected) in cases {
+        let e = load(&dir.join(file)).expect_err(file).to_string();
+        let msg = e.strip_prefix(&format!("{}/", dir.display())).unwrap_or(&e);
+        if !msg.starts_with(expected) {
+            wrong.push(format!("got      {msg}\nexpected {expected}"));
+        }
+    }
+    assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+}
