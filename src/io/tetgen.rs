@@ -40,7 +40,7 @@ pub(super) fn read(
     // A point line has at least 4 tokens of 2 bytes: cap the reservation by the file size.
     let cap = n.min(c.remaining() / 8);
     let mut positions = Vec::with_capacity(cap);
-    let mut attrs: Vec<Vec<f64>> = (0..nattr).map(|_| Vec::with_capacity(cap)).collect();
+    let mut attrs: Vec<Vec<f64>> = (0..nattr).map(|_| Vec::new()).collect();
     let mut base = 0;
     for i in 0..n {
         let (iat, _) = c.expect("a point index")?;
@@ -106,7 +106,7 @@ pub(super) fn read(
         e.pos = tat;
         let tag: u64 = e.parse("a tetrahedron index")?;
         for id in ids.iter_mut().take(kind.vertex_count()) {
-            *id = e.parse::<i64>("a point index")? - base as i64;
+            *id = e.parse::<i64>("a point index")?.saturating_sub(base as i64);
         }
         for _ in 0..eattr {
             e.parse::<f64>("a tetrahedron attribute")?;

@@ -344,7 +344,7 @@ impl File<'_> {
                 ));
             }
         };
-        if bytes.len() % ty.size() != 0 {
+        if !bytes.len().is_multiple_of(ty.size()) {
             return Err(self.err(
                 a.at,
                 format!(
@@ -591,7 +591,15 @@ pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
         names.insert(0, n);
     }
 
-    let total_points: usize = pieces.iter().map(|p| p.points).sum();
+    let total_points = pieces
+        .iter()
+        .try_fold(0usize, |s, p| s.checked_add(p.points))
+        .ok_or_else(|| {
+            file.err(
+                0,
+                "the pieces' NumberOfPoints add up to more than memory can hold",
+            )
+        })?;
     let mut positions: Vec<f64> = Vec::new();
     let mut arrays: Vec<(String, usize, Vec<f64>)> = Vec::new();
     let mut asm = Assembler::new(total_points);
@@ -611,7 +619,8 @@ pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
                 format!("point {} has the non-finite coordinate {x}", base + i / 3)
             };
             let v = file.values(a, Some(&describe))?;
-            if a.attr("NumberOfComponents").unwrap_or("1").trim() != "3" || v.len() != p.points * 3
+            if a.attr("NumberOfComponents").unwrap_or("1").trim() != "3"
+                || Some(v.len()) != p.points.checked_mul(3)
             {
                 return Err(file.err(
                     a.at,
@@ -647,13 +656,12 @@ pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
                 )
             };
             let v = file.values(a, Some(&describe))?;
-            if v.len() != p.points * nc {
+            if Some(v.len()) != p.points.checked_mul(nc) {
                 return Err(file.err(
                     a.at,
                     format!(
-                        "DataArray '{n}' has {} values, expected {} ({} points x {nc} components)",
+                        "DataArray '{n}' has {} values, expected {} points x {nc} components",
                         v.len(),
-                        p.points * nc,
                         p.points
                     ),
                 ));
