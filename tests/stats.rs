@@ -8,9 +8,9 @@ use tetvr::generate::{box_grid, cells_for_tet_count};
 use tetvr::io::load;
 use tetvr::mesh::stats::MeshStats;
 
-/// Half a million tets: the counts are exact and the computation stays fast.
+/// Half a million tets: the counts are exact (the time is printed, not asserted).
 #[test]
-fn half_a_million_tets_are_counted_exactly_and_quickly() {
+fn half_a_million_tets_are_counted_exactly() {
     let cells = cells_for_tet_count(500_000);
     let mesh = box_grid(DVec3::ZERO, DVec3::ONE, cells, "r", |p| p.length());
     let start = Instant::now();
@@ -36,9 +36,6 @@ fn half_a_million_tets_are_counted_exactly_and_quickly() {
         0
     );
     assert!(s.convex);
-    // Measured 0.23 s on 2 shared cores; 10 s only catches an accidentally quadratic step (a 2-core CI
-    // machine shared with other jobs can be several times slower than the measurement).
-    assert!(seconds < 10.0, "{seconds} s");
 }
 
 /// What `tetvr info` must report for one of the shared data sets.
