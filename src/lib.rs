@@ -10,6 +10,7 @@ pub mod generate;
 pub mod gpu;
 pub mod image;
 pub mod mesh;
+pub mod reference;
 pub mod render;
 pub mod tf;
 
