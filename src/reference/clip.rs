@@ -21,10 +21,12 @@
 //! 1e7 lose no more than the rounding of those differences (exact by Sterbenz' lemma when the
 //! points are within a factor 2 of each other).
 //!
-//! **Degenerate tets.** No volume threshold is used. A zero-volume tet has an empty or
-//! zero-length segment unless the ray lies in its plane; its face constraints can then be void
-//! (coincident corners give `n = 0`), so the segment is also bounded by the tet's bounding
-//! sphere and stays finite. Scalars come from barycentric weights clamped to `>= 0` and
+//! **Degenerate tets.** A tet whose volume is zero to working precision (see [`FLAT`]) has no
+//! interior and is skipped: in exact arithmetic every ray crosses it in at most a point, and
+//! its neighbours' closed faces cover that point. Without this, a ray lying in the plane of a
+//! flat tet with coincident corners (`n = 0`, no constraint) would get a spurious segment.
+//! Every other tet gets its segment bounded also by its bounding sphere, so it stays finite
+//! whatever rounding does. Scalars come from barycentric weights clamped to `>= 0` and
 //! normalized by their sum, so they are always a convex combination of the four vertex values:
 //! never NaN, never outside the tet's range.
 
@@ -77,6 +79,12 @@ impl Segment {
 /// `(v - u) x (w - u)` points *into* a positively oriented tet.
 const INWARD_FACES: [[usize; 3]; 4] = [[1, 3, 2], [0, 2, 3], [0, 3, 1], [0, 1, 2]];
 
+/// Tets with `det(e1, e2, e3) <= FLAT |e1| |e2| |e3|` (the sine of the solid corner angle at
+/// vertex 0) are treated as having zero volume. Rounding makes `det` uncertain by a few
+/// `f64::EPSILON` of that product, so below about 450 epsilon its sign and size are noise.
+/// Slivers of 1e-12 of the mean volume (relative measure ~1e-12) are kept.
+const FLAT: f64 = 1e-13;
+
 /// Lexicographic "greater than" on coordinates (a total order on finite points).
 fn after(a: DVec3, b: DVec3) -> bool {
     a.x.total_cmp(&b.x)
@@ -109,7 +117,15 @@ pub(crate) fn clip_tet(
     origin: DVec3,
     dir: DVec3,
 ) -> Option<(f64, f64, f64, f64)> {
-    // Bounding sphere: only binding for degenerate tets whose face constraints are void.
+    // Zero volume to working precision: no interior, nothing to integrate. This also covers
+    // inverted tets of a deformed mesh (negative volume: the four half-spaces do not meet).
+    let (e1, e2, e3) = (p[1] - p[0], p[2] - p[0], p[3] - p[0]);
+    let det = e1.dot(e2.cross(e3));
+    if !(det > FLAT * e1.length() * e2.length() * e3.length()) {
+        return None;
+    }
+    // Bounding sphere: a cheap guarantee that the segment stays finite and inside the tet's
+    // neighbourhood whatever rounding does to the face constraints.
     let centre = (p[0] + p[1] + p[2] + p[3]) * 0.25;
     let radius = p.iter().map(|&q| (q - centre).length()).fold(0.0, f64::max) * (1.0 + 1e-9);
     let t_centre = (centre - origin).dot(dir);
