@@ -168,6 +168,7 @@ fn beer_lambert_in_a_single_tet() {
     }
     // L comes from a few roundings (~1e-16 relative) and alpha = 1 - exp(-tau L) with
     // tau L < 2: anything above 1e-12 is a real error, not rounding.
+    eprintln!("single tet: worst difference {worst:.1e}");
     assert!(worst < 1e-12, "single tet: {worst:e}");
 }
 
@@ -230,6 +231,7 @@ fn constant_extinction_with_colour_linear_in_s() {
     }
     // Closed form vs the exact integrator in f64: only rounding (~1e-15) differs; the brief's
     // 1e-8 is far above it, 1e-12 still catches any modelling error.
+    eprintln!("colour linear in s: worst difference {worst:.1e}");
     assert!(worst < 1e-12, "{worst:e}");
 }
 
@@ -258,6 +260,7 @@ fn extinction_linear_in_s_with_constant_colour() {
         worst = worst.max(max_diff(r.trace(o, d, &tf), want));
     }
     // As above: only rounding separates the two.
+    eprintln!("tau linear in s: worst difference {worst:.1e}");
     assert!(worst < 1e-12, "{worst:e}");
 }
 
@@ -293,19 +296,13 @@ fn brute_force(
     let mut last = 0;
     for k in 0..steps {
         let p = o + d * ((k as f64 + 0.5) * dt);
-        let found = locate(p, last).or_else(|| {
-            (0..m.tet_count()).find_map(|t| {
-                locate(p, t).map(|v| {
-                    last = t;
-                    v
-                })
-            })
-        });
+        let found = locate(p, last)
+            .or_else(|| (0..m.tet_count()).find_map(|t| locate(p, t).inspect(|_| last = t)));
         if let Some(v) = found {
             let sample = tf.eval(v);
             let alpha = 1.0 - (-sample.tau * dt).exp();
-            for c in 0..3 {
-                color[c] += trans * sample.color[c] * alpha;
+            for (acc, c) in color.iter_mut().zip(sample.color) {
+                *acc += trans * c * alpha;
             }
             trans *= 1.0 - alpha;
         }
@@ -344,7 +341,10 @@ fn converges_to_brute_force_stepping_on_random_meshes() {
     assert!(worst_coarse < 1e-7, "1e5 steps: {worst_coarse:e}");
     // And the difference shrinks as dt^2: doubling the steps divides it by ~4 (2.5 leaves room
     // for the spread between rays; 1e-11 for rounding in the brute-force sums).
-    assert!(worst_fine < worst_coarse / 2.5 + 1e-11, "2e5 steps: {worst_fine:e}");
+    assert!(
+        worst_fine < worst_coarse / 2.5 + 1e-11,
+        "2e5 steps: {worst_fine:e}"
+    );
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -357,7 +357,10 @@ fn translation_far_from_the_origin_changes_nothing() {
     let (lo, hi) = m.bounds();
     let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 24, 24);
     let base = trace_pixels(&ReferenceRenderer::new(&m).unwrap(), &camera, &tf);
-    assert!(base.iter().any(|p| p[3] > 0.5), "the view must see the mesh");
+    assert!(
+        base.iter().any(|p| p[3] > 0.5),
+        "the view must see the mesh"
+    );
     // Translating rounds every coordinate to the ulp of the offset: 1.5e-11 at 1.3e5, 1.9e-9 at
     // 1.3e7 (mesh size 1). Each rounding moves a face by that much; with tau <= 7 and ~20
     // faces per ray the RGBA moves by <= ~20 * 7 * ulp: 2e-9 and 3e-7. Bounds: 1e-8 and 1e-6.
@@ -469,7 +472,10 @@ fn rays_leave_and_reenter_non_convex_meshes() {
     let segs = r.segments(DVec3::new(-1.0, 0.3, 0.4), DVec3::X);
     let total: f64 = segs.iter().map(|s| s.length()).sum();
     assert!((total - 2.0).abs() < 1e-12, "{total}");
-    assert!(segs.iter().all(|s| s.t_out <= 2.0 + 1e-12 || s.t_in >= 3.0 - 1e-12));
+    assert!(
+        segs.iter()
+            .all(|s| s.t_out <= 2.0 + 1e-12 || s.t_in >= 3.0 - 1e-12)
+    );
     assert!(segs.windows(2).all(|w| w[0].t_out <= w[1].t_in));
     // Through the gap: nothing at all.
     assert_eq!(r.trace(DVec3::new(1.5, 0.5, -1.0), DVec3::Z, &tf), [0.0; 4]);
@@ -488,6 +494,7 @@ fn rays_leave_and_reenter_non_convex_meshes() {
         worst = worst.max(max_diff(r.trace(o, d, &tf), beer_lambert(tau, len)));
     }
     // As for the slab: lengths are sums of a few dozen rounded parameters.
+    eprintln!("non-convex: worst difference {worst:.1e}");
     assert!(worst < 1e-12, "{worst:e}");
 }
 
@@ -503,7 +510,12 @@ fn eye_inside_sees_the_distance_to_the_wall() {
     let cases = [
         (4, DVec3::ZERO, DVec3::new(1.0, 0.3, 0.2), 90.0),
         (3, DVec3::ZERO, DVec3::new(-0.2, 1.0, 0.6), 90.0),
-        (3, DVec3::new(-1.0, 0.2, 0.1), DVec3::new(0.0, 0.25, 0.05), 60.0),
+        (
+            3,
+            DVec3::new(-1.0, 0.2, 0.1),
+            DVec3::new(0.0, 0.25, 0.05),
+            60.0,
+        ),
     ];
     for (cells, eye, target, fov) in cases {
         let cube = box_grid(lo, hi, UVec3::splat(cells), "s", |_| 0.5);
@@ -529,6 +541,7 @@ fn eye_inside_sees_the_distance_to_the_wall() {
                 worst_f32 = worst_f32.max(max_diff(px, want));
             }
         }
+        eprintln!("eye {eye}: worst difference {worst_f64:.1e} (f64), {worst_f32:.1e} (image)");
         // f64: rounding only (see Beer-Lambert). The image is f32: 6e-8 relative, < 1e-7.
         assert!(worst_f64 < 1e-12, "cells {cells}, eye {eye}: {worst_f64:e}");
         assert!(worst_f32 < 1e-7, "cells {cells}, eye {eye}: {worst_f32:e}");
@@ -561,7 +574,10 @@ fn head_on_rays_through_grid_edges_and_vertices_leave_no_gap() {
         let z = i as f64 / 4.0;
         let o = DVec3::new(-1.0, 0.0, z);
         let d = DVec3::new(1.0, 1.0, 0.0).normalize();
-        worst = worst.max(max_diff(r.trace(o, d, &tf), beer_lambert(tau, box_len(lo, hi, o, d))));
+        worst = worst.max(max_diff(
+            r.trace(o, d, &tf),
+            beer_lambert(tau, box_len(lo, hi, o, d)),
+        ));
     }
     // A camera looking straight down the grid: the centre pixel's ray runs along the vertex
     // line x = y = 2, others cross faces and edges at every angle.
@@ -582,6 +598,7 @@ fn head_on_rays_through_grid_edges_and_vertices_leave_no_gap() {
         }
     }
     // A gap at a shared face would lose a whole cell (alpha error ~0.1); rounding gives 1e-15.
+    eprintln!("head-on grid: worst difference {worst:.1e}");
     assert!(worst < 1e-12, "{worst:e}");
 }
 
@@ -611,14 +628,14 @@ fn octahedron_len(o: DVec3, d: DVec3) -> f64 {
 /// `lift`; 0 makes it flat). Plus two zero-volume tets with duplicate corners.
 fn octahedron_with_sliver(lift: f64) -> TetMesh {
     let positions = vec![
-        DVec3::new(1.0, 0.0, 0.0),   // 0 A
-        DVec3::new(0.0, 1.0, 0.0),   // 1 B
-        DVec3::new(-1.0, 0.0, 0.0),  // 2 C
+        DVec3::new(1.0, 0.0, 0.0),    // 0 A
+        DVec3::new(0.0, 1.0, 0.0),    // 1 B
+        DVec3::new(-1.0, 0.0, 0.0),   // 2 C
         DVec3::new(0.0, -1.0, -lift), // 3 D (lowered: the sliver fills the gap)
-        DVec3::new(0.0, 0.0, 1.0),   // 4 P
-        DVec3::new(0.0, 0.0, -1.0),  // 5 Q
-        DVec3::new(1.0, 0.0, 0.0),   // 6 duplicate of A
-        DVec3::new(0.0, 1.0, 0.0),   // 7 duplicate of B
+        DVec3::new(0.0, 0.0, 1.0),    // 4 P
+        DVec3::new(0.0, 0.0, -1.0),   // 5 Q
+        DVec3::new(1.0, 0.0, 0.0),    // 6 duplicate of A
+        DVec3::new(0.0, 1.0, 0.0),    // 7 duplicate of B
     ];
     let tets = vec![
         [4, 0, 1, 2],
@@ -667,6 +684,7 @@ fn slivers_and_zero_volume_tets_leave_no_gap() {
             worst = worst.max(max_diff(got, beer_lambert(tau, octahedron_len(o, d))));
         }
         // The lifted D changes lengths by at most ~lift = 1e-12; a gap would cost ~0.1.
+        eprintln!("sliver, lift {lift:e}: worst difference {worst:.1e}");
         assert!(worst < 1e-9, "lift {lift:e}: {worst:e}");
     }
 }
@@ -685,9 +703,8 @@ fn renderer_contract_timings_progress_and_updates() {
 
     let frame = r.render(&camera, &tf).unwrap();
     assert!(frame.timings.get("bvh").is_some() && frame.timings.get("trace").is_some());
-    let counter = |f: &tetvr::Frame, name: &str| {
-        f.timings.counters.iter().find(|c| c.0 == name).map(|c| c.1)
-    };
+    let counter =
+        |f: &tetvr::Frame, name: &str| f.timings.counters.iter().find(|c| c.0 == name).map(|c| c.1);
     assert_eq!(counter(&frame, "rays"), Some(16 * 12));
     assert!(counter(&frame, "segments").unwrap() > 0);
     // The BVH is reported only when it was (re)built.
@@ -746,12 +763,6 @@ fn renderer_contract_timings_progress_and_updates() {
         ReferenceRenderer::new(&bare),
         Err(RenderError::Mesh(MeshError::NoScalars))
     ));
-    let bad = Camera {
-        width: 0,
-        ..camera
-    };
-    assert!(matches!(
-        r.render(&bad, &tf),
-        Err(RenderError::Camera(_))
-    ));
+    let bad = Camera { width: 0, ..camera };
+    assert!(matches!(r.render(&bad, &tf), Err(RenderError::Camera(_))));
 }

@@ -121,7 +121,8 @@ pub(crate) fn clip_tet(
     // inverted tets of a deformed mesh (negative volume: the four half-spaces do not meet).
     let (e1, e2, e3) = (p[1] - p[0], p[2] - p[0], p[3] - p[0]);
     let det = e1.dot(e2.cross(e3));
-    if !(det > FLAT * e1.length() * e2.length() * e3.length()) {
+    // Written so that a NaN (from overflowing coordinates) also lands here.
+    if det.is_nan() || det <= FLAT * e1.length() * e2.length() * e3.length() {
         return None;
     }
     // Bounding sphere: a cheap guarantee that the segment stays finite and inside the tet's
@@ -143,8 +144,7 @@ pub(crate) fn clip_tet(
             return None;
         }
     }
-    // Also rejects NaN (from overflowing coordinates).
-    if !(t_out > t_in) {
+    if t_in.is_nan() || t_out.is_nan() || t_out <= t_in {
         return None;
     }
     let (s_min, s_max) = (

@@ -28,12 +28,12 @@ const STOP_DEPTH: f64 = 40.0;
 /// Gauss-Legendre nodes (positive half) and weights on `[-1, 1]`, 8 points.
 const GL_NODES: [f64; 4] = [
     0.183_434_642_495_649_8,
-    0.525_532_409_916_329_0,
+    0.525_532_409_916_329,
     0.796_666_477_413_626_7,
     0.960_289_856_497_536_2,
 ];
 const GL_WEIGHTS: [f64; 4] = [
-    0.362_683_783_378_362_0,
+    0.362_683_783_378_362,
     0.313_706_645_877_887_3,
     0.222_381_034_453_374_5,
     0.101_228_536_290_376_3,
@@ -96,7 +96,7 @@ impl Accumulator {
     /// Composites (front to back) a piece whose scalar goes from `s0` to `s1` inside one TF
     /// interval.
     fn piece(&mut self, tf: &TransferFunction, s0: f64, s1: f64, len: f64, max_sub_depth: f64) {
-        if !(len > 0.0) {
+        if len.is_nan() || len <= 0.0 {
             return;
         }
         let interval = TfInterval::around(tf, 0.5 * (s0 + s1));
