@@ -9,6 +9,7 @@ pub mod camera;
 pub mod generate;
 pub mod gpu;
 pub mod image;
+pub mod io;
 pub mod mesh;
 pub mod reference;
 pub mod render;

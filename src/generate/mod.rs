@@ -1,14 +1,46 @@
-//! Mesh generators for tests, benchmarks and users without data.
+//! Mesh generators for tests, benchmarks and users without data: structured grids with analytic
+//! fields ([`fields`]), non-convex shapes ([`shapes`]) and scalar volumes turned into tets
+//! ([`volume`]). All of them split hexahedral cells with [`split_cell`], so the tets are
+//! conforming at any resolution.
+
+pub mod fields;
+pub mod shapes;
+pub mod volume;
+
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use glam::{DVec3, UVec3};
 use rayon::prelude::*;
 
 use crate::mesh::split::{CellKind, split_cell};
-use crate::mesh::{ScalarArray, TetMesh};
+use crate::mesh::{MeshError, ScalarArray, TetMesh};
+
+pub use fields::Field;
+
+/// The most tets a generator makes. Face slots are numbered `4 * tet + face` in 32 bits
+/// ([`crate::mesh::Adjacency::build`]), so a mesh with more tets could not be traversed.
+pub const MAX_GENERATED_TETS: u64 = 1 << 30;
+
+/// Why a generator could not make a mesh.
+#[derive(Debug, thiserror::Error, Clone, PartialEq)]
+pub enum GenerateError {
+    #[error("a grid needs at least one cell along each axis, got {x} x {y} x {z}")]
+    NoCells { x: u32, y: u32, z: u32 },
+    #[error(
+        "{requested} tets asked for; generators make at most {max} (tetvr numbers tet faces in 32 bits)"
+    )]
+    TooManyTets { requested: u64, max: u64 },
+    #[error(transparent)]
+    Mesh(#[from] MeshError),
+}
 
 /// A structured grid of `cells` hexahedra filling the box `[lo, hi]`, each split into 6 tets
 /// conformingly (see [`crate::mesh::split`]), with one scalar array `name` sampled from
-/// `field` at the vertices.
+/// `field` at the vertices. [`Field::on_box`] makes a `field` from an analytic [`Field`].
+///
+/// Panics if a component of `cells` is zero, if the grid would have more than
+/// [`MAX_GENERATED_TETS`] tets, or if `field` returns a non-finite value; [`fields::grid`] is
+/// the fallible form.
 pub fn box_grid(
     lo: DVec3,
     hi: DVec3,
@@ -20,48 +52,139 @@ pub fn box_grid(
         cells.min_element() > 0,
         "a grid needs at least one cell per axis"
     );
-    let n = cells + UVec3::ONE;
     let step = (hi - lo) / cells.as_dvec3();
-    let index = |x: u32, y: u32, z: u32| x + n.x * (y + n.y * z);
-    let positions: Vec<DVec3> = (0..n.x * n.y * n.z)
-        .into_par_iter()
-        .map(|i| {
-            let (x, y, z) = (i % n.x, (i / n.x) % n.y, i / (n.x * n.y));
-            lo + DVec3::new(x as f64, y as f64, z as f64) * step
-        })
-        .collect();
-    let tets: Vec<[u32; 4]> = (0..cells.x * cells.y * cells.z)
-        .into_par_iter()
-        .flat_map_iter(|c| {
-            let (x, y, z) = (
-                c % cells.x,
-                (c / cells.x) % cells.y,
-                c / (cells.x * cells.y),
-            );
-            let hex = [
-                index(x, y, z),
-                index(x + 1, y, z),
-                index(x + 1, y + 1, z),
-                index(x, y + 1, z),
-                index(x, y, z + 1),
-                index(x + 1, y, z + 1),
-                index(x + 1, y + 1, z + 1),
-                index(x, y + 1, z + 1),
-            ];
-            let mut out = Vec::with_capacity(6);
-            split_cell(CellKind::Hexahedron, &hex, &mut out);
-            out
-        })
-        .collect();
-    let values = positions.par_iter().map(|&p| field(p)).collect();
-    TetMesh::new(positions, tets, vec![ScalarArray::new(name, values)])
-        .expect("a generated grid is a valid mesh")
-        .0
+    let position = |v: UVec3| lo + v.as_dvec3() * step;
+    hex_grid_mesh(
+        cells,
+        false,
+        |_| true,
+        position,
+        |v| field(position(v)),
+        name,
+    )
+    .expect("a box grid within the size limit with a finite field is a valid mesh")
 }
 
 /// Cells per axis of a cube grid with about `tets` tetrahedra (6 per cell).
 pub fn cells_for_tet_count(tets: u64) -> UVec3 {
     UVec3::splat(((tets as f64 / 6.0).cbrt().round() as u32).max(1))
+}
+
+/// The shared builder of every generator: a structured grid of `cells` hexahedra, of which those
+/// with `keep(cell)` are split into 6 tets each. Vertices are grid points `v` (componentwise
+/// `0..=cells`) at `position(v)` with scalar `value(v)`; those no kept cell uses are dropped and
+/// the rest renumbered in grid order (x fastest). With `wrap_y` the grid is periodic in y: the
+/// vertex row `y = cells.y` is the row `y = 0` (a ring), so `position` is only asked for
+/// `y < cells.y`.
+///
+/// Conforming because [`split_cell`] cuts each quad face by the face's own global indices and
+/// neighbouring cells share their face's vertices.
+pub(crate) fn hex_grid_mesh(
+    cells: UVec3,
+    wrap_y: bool,
+    keep: impl Fn(UVec3) -> bool + Sync,
+    position: impl Fn(UVec3) -> DVec3 + Sync,
+    value: impl Fn(UVec3) -> f64 + Sync,
+    name: &str,
+) -> Result<TetMesh, GenerateError> {
+    if cells.min_element() == 0 {
+        return Err(GenerateError::NoCells {
+            x: cells.x,
+            y: cells.y,
+            z: cells.z,
+        });
+    }
+    let c = cells.as_u64vec3();
+    let cell_count = c.x * c.y * c.z;
+    if cell_count.saturating_mul(6) > MAX_GENERATED_TETS {
+        return Err(GenerateError::TooManyTets {
+            requested: cell_count.saturating_mul(6),
+            max: MAX_GENERATED_TETS,
+        });
+    }
+    // Vertex dimensions; with at most 2^28 cells every id below fits in u32 comfortably
+    // (each axis has at most one more vertex than cells, so at most 8 * 2^28 = 2^31 vertices).
+    let nv = UVec3::new(
+        cells.x + 1,
+        if wrap_y { cells.y } else { cells.y + 1 },
+        cells.z + 1,
+    );
+    let vertex_count = nv.x as usize * nv.y as usize * nv.z as usize;
+    let vid = |x: u32, y: u32, z: u32| -> usize {
+        let y = if wrap_y && y == nv.y { 0 } else { y };
+        x as usize + nv.x as usize * (y as usize + nv.y as usize * z as usize)
+    };
+    let cell_at = |i: u64| {
+        UVec3::new(
+            (i % c.x) as u32,
+            ((i / c.x) % c.y) as u32,
+            (i / (c.x * c.y)) as u32,
+        )
+    };
+    let hex = |p: UVec3| {
+        let (x, y, z) = (p.x, p.y, p.z);
+        [
+            vid(x, y, z),
+            vid(x + 1, y, z),
+            vid(x + 1, y + 1, z),
+            vid(x, y + 1, z),
+            vid(x, y, z + 1),
+            vid(x + 1, y, z + 1),
+            vid(x + 1, y + 1, z + 1),
+            vid(x, y + 1, z + 1),
+        ]
+    };
+
+    let kept: Vec<u32> = (0..cell_count)
+        .into_par_iter()
+        .filter(|&i| keep(cell_at(i)))
+        .map(|i| i as u32)
+        .collect();
+    if kept.is_empty() {
+        return Err(MeshError::NoTets.into());
+    }
+    let used: Vec<AtomicBool> = (0..vertex_count).map(|_| AtomicBool::new(false)).collect();
+    kept.par_iter().for_each(|&i| {
+        for v in hex(cell_at(i as u64)) {
+            used[v].store(true, Ordering::Relaxed);
+        }
+    });
+    let used_ids: Vec<u32> = (0..vertex_count as u32)
+        .into_par_iter()
+        .filter(|&v| used[v as usize].load(Ordering::Relaxed))
+        .collect();
+    drop(used);
+    let mut new_id = vec![u32::MAX; vertex_count];
+    for (k, &v) in used_ids.iter().enumerate() {
+        new_id[v as usize] = k as u32;
+    }
+
+    let mut tets = vec![[0u32; 4]; kept.len() * 6];
+    tets.par_chunks_mut(6).zip(kept.par_iter()).for_each_init(
+        || Vec::with_capacity(6),
+        |buf, (out, &i)| {
+            let ids = hex(cell_at(i as u64)).map(|v| new_id[v]);
+            buf.clear();
+            split_cell(CellKind::Hexahedron, &ids, buf);
+            out.copy_from_slice(buf);
+        },
+    );
+    drop(new_id);
+    let grid_point = |v: u32| {
+        let (v, nx, ny) = (v as usize, nv.x as usize, nv.y as usize);
+        UVec3::new(
+            (v % nx) as u32,
+            ((v / nx) % ny) as u32,
+            (v / (nx * ny)) as u32,
+        )
+    };
+    let positions: Vec<DVec3> = used_ids
+        .par_iter()
+        .map(|&v| position(grid_point(v)))
+        .collect();
+    let values: Vec<f64> = used_ids.par_iter().map(|&v| value(grid_point(v))).collect();
+    let (mesh, _) = TetMesh::new(positions, tets, vec![ScalarArray::new(name, values)])?;
+    Ok(mesh)
 }
 
 #[cfg(test)]
@@ -86,5 +209,42 @@ mod tests {
         assert_eq!(adj.non_manifold_faces, 0);
         assert!(adj.is_convex(m.positions()));
         assert_eq!(cells_for_tet_count(6000), UVec3::splat(10));
+    }
+
+    #[test]
+    fn unused_vertices_are_dropped_and_limits_are_errors() {
+        // Keep only cell (1, 0, 0) of a 2x1x1 grid: the 4 vertices at x = 0 go.
+        let m = hex_grid_mesh(
+            UVec3::new(2, 1, 1),
+            false,
+            |c| c.x == 1,
+            |v| v.as_dvec3(),
+            |v| v.x as f64,
+            "x",
+        )
+        .unwrap();
+        assert_eq!(m.vertex_count(), 8);
+        assert!(m.positions().iter().all(|p| p.x >= 1.0));
+        assert!(m.scalars().unwrap().iter().all(|&s| s >= 1.0));
+        let none = hex_grid_mesh(UVec3::ONE, false, |_| false, |v| v.as_dvec3(), |_| 0.0, "x");
+        assert_eq!(none.unwrap_err(), GenerateError::Mesh(MeshError::NoTets));
+        let huge = hex_grid_mesh(
+            UVec3::splat(1 << 12),
+            false,
+            |_| true,
+            |v| v.as_dvec3(),
+            |_| 0.0,
+            "x",
+        );
+        assert!(matches!(huge, Err(GenerateError::TooManyTets { .. })));
+        let flat = hex_grid_mesh(
+            UVec3::new(1, 0, 1),
+            false,
+            |_| true,
+            |v| v.as_dvec3(),
+            |_| 0.0,
+            "x",
+        );
+        assert!(matches!(flat, Err(GenerateError::NoCells { .. })));
     }
 }

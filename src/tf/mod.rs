@@ -3,6 +3,8 @@
 //! opacity gathered over one unit distance `d_u`, so control point `k` has extinction
 //! `tau_k = -ln(1 - min(a_k, 0.9999)) / d_u` per world unit.
 
+pub mod file;
+
 /// Opacities are clamped to this before conversion to extinction, so `tau` stays finite.
 pub const MAX_OPACITY: f64 = 0.9999;
 
