@@ -4,24 +4,25 @@
 //! Ray casting is traversal x segment integration, kept apart as in VTK's unstructured ray
 //! caster:
 //!
-//! 1. **Traversal** ([`bvh`], [`clip`]): a BVH over tet bounding boxes gathers every tet the
+//! 1. **Traversal** (`bvh.rs`, `clip.rs`): a BVH over tet bounding boxes gathers every tet the
 //!    ray may cross; each is clipped against its four face planes in f64 (Cyrus-Beck, closed
 //!    half-spaces); intervals with `t_out > max(t_in, 0)` are kept (the eye may be inside:
 //!    clamped at 0), sorted by `t_in`, and any overlap (a ray lying exactly in a shared face
 //!    plane is inside both closed tets) is trimmed so each point of the ray counts once.
-//! 2. **Integration** ([`integrate`]): each segment is integrated exactly for the
-//!    piecewise-linear TF, split at the control-point isovalues it crosses, and composited
-//!    front to back in premultiplied RGBA.
+//! 2. **Integration** (`integrate.rs`, [`integrate_segment`]): each segment is integrated
+//!    exactly for the piecewise-linear TF, split at the control-point isovalues it crosses, and
+//!    composited front to back in premultiplied RGBA.
 //!
 //! **Why gather-and-clip rather than a face-adjacency walk.** DESIGN allows any exact method.
 //! A walk decides at each step which face the ray leaves through; on the zero-volume and
 //! near-degenerate tets of real data (blunt fin: 77 tets with coincident corners, i.e. exactly
 //! zero volume, among its 151 near-zero ones; oxygen post: slivers on its axis down to 2e-6 of
 //! the mean volume) that decision is ill-conditioned and a wrong choice loses or repeats whole
-//! stretches of the ray. Clipping each tet independently has no such decision: a degenerate
-//! tet yields an empty or zero-length interval and its neighbours still cover the ray. The
+//! stretches of the ray. Clipping each tet independently has no such decision: a tet of zero
+//! volume is skipped, a sliver yields its (tiny) interval, and the neighbours still cover the
+//! ray. The
 //! face functions are evaluated from the same numbers on both sides of a shared face (see
-//! [`clip`]), so intervals meet exactly, without gaps or overlaps. Non-convex meshes,
+//! `clip.rs`), so intervals meet exactly, without gaps or overlaps. Non-convex meshes,
 //! duplicate-point seams (the ray leaves and re-enters the mesh) and the eye inside the mesh
 //! need no special case: they are just intervals with gaps between them, or an interval
 //! starting at `t = 0`. The walk belongs to the GPU ray caster, which is validated against
