@@ -11,6 +11,7 @@ pub mod gpu;
 pub mod image;
 pub mod io;
 pub mod mesh;
+pub mod reference;
 pub mod render;
 pub mod tf;
 
