@@ -200,7 +200,13 @@ impl Image {
     /// Writes `<stem>-actual.png`, `<stem>-expected.png` (both over white) and `<stem>-diff.png`
     /// (see [`Self::difference`]) into `dir`, creating it: what a person looks at when an image
     /// comparison fails.
-    pub fn save_comparison(&self, reference: &Image, dir: &Path, stem: &str, full_scale: f32) -> Result<(), ImageError> {
+    pub fn save_comparison(
+        &self,
+        reference: &Image,
+        dir: &Path,
+        stem: &str,
+        full_scale: f32,
+    ) -> Result<(), ImageError> {
         std::fs::create_dir_all(dir).map_err(|e| ImageError::Write {
             path: dir.display().to_string(),
             source: image::ImageError::IoError(e),
@@ -208,7 +214,8 @@ impl Image {
         let white = Some([1.0; 3]);
         self.save_png(&dir.join(format!("{stem}-actual.png")), white)?;
         reference.save_png(&dir.join(format!("{stem}-expected.png")), white)?;
-        self.difference(reference, full_scale)?.save_png(&dir.join(format!("{stem}-diff.png")), None)
+        self.difference(reference, full_scale)?
+            .save_png(&dir.join(format!("{stem}-diff.png")), None)
     }
 
     fn check_size(&self, other: &Image) -> Result<(), ImageError> {

@@ -1,5 +1,9 @@
 //! GPU access: a headless wgpu device, and (as modes land) the GPU renderers.
 
 mod context;
+pub mod gpu_data;
+pub mod shaders;
+pub mod shells;
 
 pub use context::{AdapterChoice, GpuContext, GpuError};
+pub use shells::{ShellSettings, ShellsRenderer, SliceFormat};

@@ -7,12 +7,17 @@ use tetvr::{ErrorMetrics, Image};
 
 /// `../shared/data/<name>` beside the checkout (CI clones with `shared/` beside it).
 pub fn shared_data(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data").join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data")
+        .join(name)
 }
 
 /// `target/test-output/`, where failed image comparisons leave their pictures.
 pub fn test_output_dir() -> PathBuf {
-    Path::new(env!("CARGO_TARGET_TMPDIR")).parent().expect("target/tmp has a parent").join("test-output")
+    Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .parent()
+        .expect("target/tmp has a parent")
+        .join("test-output")
 }
 
 /// The bounds an image comparison must meet; each test states (and comments) its numbers.
@@ -26,7 +31,12 @@ pub struct Bounds {
 
 /// Compares `actual` with `expected`; on failure writes actual/expected/diff PNGs to
 /// `target/test-output/<name>-*.png` and panics with the metrics. Non-finite pixels always fail.
-pub fn assert_images_close(name: &str, actual: &Image, expected: &Image, bounds: Bounds) -> ErrorMetrics {
+pub fn assert_images_close(
+    name: &str,
+    actual: &Image,
+    expected: &Image,
+    bounds: Bounds,
+) -> ErrorMetrics {
     let m = actual.compare(expected).expect("images of the same size");
     let ok = m.non_finite == 0
         && m.rmse <= bounds.max_rmse
@@ -35,8 +45,13 @@ pub fn assert_images_close(name: &str, actual: &Image, expected: &Image, bounds:
         && m.spill <= bounds.max_spill;
     if !ok {
         let dir = test_output_dir();
-        actual.save_comparison(expected, &dir, name, 0.1).expect("write comparison images");
-        panic!("{name}: {m}\n  bounds {bounds:?}\n  pictures in {}", dir.join(format!("{name}-*.png")).display());
+        actual
+            .save_comparison(expected, &dir, name, 0.1)
+            .expect("write comparison images");
+        panic!(
+            "{name}: {m}\n  bounds {bounds:?}\n  pictures in {}",
+            dir.join(format!("{name}-*.png")).display()
+        );
     }
     eprintln!("{name}: {m}");
     m

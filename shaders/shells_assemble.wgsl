@@ -1,0 +1,93 @@
+// Assembly (a compute pass standing in for a geometry shader): once per tet and frame, fetch
+// the four vertices from the shared vertex buffer, transform them to eye space, and build the
+// eye-to-barycentric transform and the eye's barycentric coordinates. The CPU twin is
+// gpu::shells::twin::assemble.
+
+@group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> scalars: array<f32>;
+@group(0) @binding(3) var<storage, read> tets: array<vec4<u32>>;
+@group(0) @binding(4) var<storage, read_write> records: array<TetRecord>;
+@group(0) @binding(5) var<storage, read_write> degenerate_count: atomic<u32>;
+
+// World (mesh-origin relative) point to eye space. Every tet that uses a vertex transforms it
+// with exactly these operations, so shared vertices project to the same bits (no cracks).
+fn to_eye(p: vec3<f32>) -> vec3<f32> {
+    let q = p - frame.eye;
+    return vec3<f32>(dot(frame.right, q), dot(frame.up, q), dot(frame.forward, q));
+}
+
+// A world-space vector's components along the eye axes.
+fn rotate(g: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(dot(frame.right, g), dot(frame.up, g), dot(frame.forward, g));
+}
+
+@compute @workgroup_size(64)
+fn main(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let t = (wid.y * groups.x + wid.x) * 64u + lid;
+    if t >= frame.tet_count {
+        return;
+    }
+    let idx = tets[t];
+    let p0 = positions[idx.x].xyz;
+    let p1 = positions[idx.y].xyz;
+    let p2 = positions[idx.z].xyz;
+    let p3 = positions[idx.w].xyz;
+    var rec: TetRecord;
+
+    // Edges relative to the tet's own vertex 0 (the per-tet origin), scaled by the longest so
+    // that neither tiny nor huge tets under- or overflow.
+    let e1 = p1 - p0;
+    let e2 = p2 - p0;
+    let e3 = p3 - p0;
+    let l = max(length(e1), max(length(e2), length(e3)));
+    let inv_l = 1.0 / l;
+    let n1 = e1 * inv_l;
+    let n2 = e2 * inv_l;
+    let n3 = e3 * inv_l;
+    let c23 = cross(n2, n3);
+    let c31 = cross(n3, n1);
+    let c12 = cross(n1, n2);
+    let det = dot(n1, c23);
+    let scale = length(n1) * length(n2) * length(n3);
+    // Also false for NaN (l == 0 gives inv_l = inf and NaN edges).
+    if !(abs(det) > frame.degenerate_tol * scale) {
+        atomicAdd(&degenerate_count, 1u);
+        records[t] = rec;
+        return;
+    }
+    rec.pos[0] = vec4<f32>(to_eye(p0), 1.0);
+    rec.pos[1] = vec4<f32>(to_eye(p1), 1.0);
+    rec.pos[2] = vec4<f32>(to_eye(p2), 1.0);
+    rec.pos[3] = vec4<f32>(to_eye(p3), 1.0);
+
+    // Rows of the inverse edge matrix: lambda_i = g_i . (x - p0) for i = 1..3.
+    let k = inv_l / det;
+    let g1 = c23 * k;
+    let g2 = c31 * k;
+    let g3 = c12 * k;
+    let g0 = -(g1 + g2 + g3);
+    let q = (frame.eye - p0) * inv_l;
+    let l1 = dot(c23, q) / det;
+    let l2 = dot(c31, q) / det;
+    let l3 = dot(c12, q) / det;
+    let lambda_eye = vec4<f32>(1.0 - (l1 + l2 + l3), l1, l2, l3);
+
+    let r0 = rotate(g0);
+    let r1 = rotate(g1);
+    let r2 = rotate(g2);
+    let r3 = rotate(g3);
+    rec.grad_x = vec4<f32>(r0.x, r1.x, r2.x, r3.x);
+    rec.grad_y = vec4<f32>(r0.y, r1.y, r2.y, r3.y);
+    rec.grad_z = vec4<f32>(r0.z, r1.z, r2.z, r3.z);
+    rec.lambda_eye = lambda_eye;
+
+    // Encoded scalars: 1 + normalized value, so that 0 in a slice means "no sample".
+    let s = vec4<f32>(scalars[idx.x], scalars[idx.y], scalars[idx.z], scalars[idx.w]) + 1.0;
+    let gs = r0 * s.x + r1 * s.y + r2 * s.z + r3 * s.w;
+    rec.scalar = vec4<f32>(gs, dot(lambda_eye, s));
+    records[t] = rec;
+}

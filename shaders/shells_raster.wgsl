@@ -1,0 +1,107 @@
+// Raster (one render pass per shell): each active tet's front faces are drawn by vertex pulling
+// from its record; near-plane tets draw a screen-space quad instead. Every fragment takes the
+// exact pixel-centre ray into the tet's barycentric space and writes, for each of the shell's
+// slices, the encoded scalar where the sample lies in the tet and 0 elsewhere, into TARGETS
+// colour targets blended with MAX. The generated prelude defines TARGETS, SliceOut and
+// slice_out(). The CPU twin is gpu::shells::twin::sample_slices.
+
+@group(0) @binding(1) var<uniform> shell: Shell;
+@group(0) @binding(2) var<storage, read> records: array<TetRecord>;
+@group(0) @binding(3) var<storage, read> active_tets: array<u32>;
+
+struct Varyings {
+    @builtin(position) position: vec4<f32>,
+    @location(0) @interpolate(flat) tet: u32,
+}
+
+// Local vertices of face f (opposite vertex f), outward for a positive tet: mesh::topology::FACES.
+const FACE_VERTICES = array<u32, 12>(1u, 2u, 3u, 0u, 3u, 2u, 0u, 1u, 3u, 0u, 2u, 1u);
+// The tet's six edges, as pairs of local vertices.
+const EDGE_A = array<u32, 6>(0u, 0u, 0u, 1u, 1u, 2u);
+const EDGE_B = array<u32, 6>(1u, 2u, 3u, 2u, 3u, 3u);
+// Quad corners (bit 0: x high, bit 1: y high) of two triangles.
+const QUAD_CORNERS = array<u32, 6>(0u, 1u, 2u, 2u, 1u, 3u);
+
+// A vertex that makes its triangle empty (all three corners the same).
+const NOWHERE = vec4<f32>(0.0, 0.0, 0.0, 1.0);
+
+@vertex
+fn vs_faces(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance: u32) -> Varyings {
+    let tet = active_tets[instance];
+    var faces = FACE_VERTICES;
+    let p = records[tet].pos[faces[vertex]];
+    var out: Varyings;
+    out.tet = tet;
+    out.position = select(
+        vec4<f32>(p.x * frame.proj.x, p.y * frame.proj.y, 0.0, p.z),
+        NOWHERE,
+        p.w == 0.0,
+    );
+    return out;
+}
+
+@vertex
+fn vs_near(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance: u32) -> Varyings {
+    let tet = active_tets[instance];
+    let rec = records[tet];
+    // Screen bounds of the tet clipped to z >= near_z: its vertices in front of the plane and
+    // its edges' crossings of the plane. Every sample lies in front of the plane (near_z is
+    // below the first slice's z on the widest ray), so the bounds hold every fragment needed.
+    let zc = frame.near_z;
+    var lo = vec2<f32>(1e30);
+    var hi = vec2<f32>(-1e30);
+    for (var i = 0u; i < 4u; i++) {
+        let p = rec.pos[i].xyz;
+        if p.z >= zc {
+            lo = min(lo, p.xy / p.z);
+            hi = max(hi, p.xy / p.z);
+        }
+    }
+    var ea = EDGE_A;
+    var eb = EDGE_B;
+    for (var e = 0u; e < 6u; e++) {
+        let a = rec.pos[ea[e]].xyz;
+        let b = rec.pos[eb[e]].xyz;
+        if (a.z - zc) * (b.z - zc) < 0.0 {
+            let q = mix(a.xy, b.xy, (zc - a.z) / (b.z - a.z)) / zc;
+            lo = min(lo, q);
+            hi = max(hi, q);
+        }
+    }
+    // To NDC, grown by two pixels against rounding, clamped to the screen.
+    let pad = 4.0 / frame.size;
+    let lo_ndc = max(lo * frame.proj - pad, vec2<f32>(-1.0));
+    let hi_ndc = min(hi * frame.proj + pad, vec2<f32>(1.0));
+    var out: Varyings;
+    out.tet = tet;
+    var corners = QUAD_CORNERS;
+    let c = corners[vertex];
+    let xy = vec2<f32>(
+        select(lo_ndc.x, hi_ndc.x, (c & 1u) != 0u),
+        select(lo_ndc.y, hi_ndc.y, (c & 2u) != 0u),
+    );
+    let empty = rec.pos[0].w == 0.0 || any(lo_ndc >= hi_ndc);
+    out.position = select(vec4<f32>(xy, 0.0, 1.0), NOWHERE, empty);
+    return out;
+}
+
+@fragment
+fn fs_slices(in: Varyings) -> SliceOut {
+    let rec = records[in.tet];
+    let d = pixel_ray(in.position.xy);
+    let gd = rec.grad_x * d.x + rec.grad_y * d.y + rec.grad_z * d.z;
+    let sd = dot(rec.scalar.xyz, d);
+    var v: array<vec4<f32>, TARGETS>;
+    for (var i = 0u; i < TARGETS; i++) {
+        var o = vec4<f32>(0.0);
+        for (var c = 0u; c < 4u; c++) {
+            let j = 4u * i + c;
+            let t = frame.t_first + f32(shell.first_slice + j) * frame.dz;
+            let lam = rec.lambda_eye + t * gd;
+            let inside = min(min(lam.x, lam.y), min(lam.z, lam.w)) >= -frame.epsilon;
+            o[c] = select(0.0, rec.scalar.w + t * sd, inside && j < frame.slices_per_shell);
+        }
+        v[i] = o;
+    }
+    return slice_out(v);
+}

@@ -1,0 +1,115 @@
+//! GPU-visible data: the `#[repr(C)]` twins of the structs in `shaders/shared.wgsl`, with
+//! compile-time size assertions that mirror the WGSL layout (vec3 aligned to 16 bytes, so each
+//! `vec3<f32>` is followed by one scalar that fills its last 4 bytes).
+
+use bytemuck::{Pod, Zeroable};
+
+/// Per-frame constants of the shells pipeline (WGSL `Frame`, uniform, 112 bytes).
+///
+/// Eye space has its origin at the eye and axes (right, up, forward): x to the image's right,
+/// y to its top, z into the scene. Positions on the GPU are relative to the mesh origin (the
+/// bounding-box centre), and so is `eye`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct FrameUniforms {
+    /// Camera right axis (world, unit).
+    pub right: [f32; 3],
+    /// Barycentric inside tolerance: a sample is in a tet when its smallest barycentric
+    /// coordinate is at least `-epsilon`.
+    pub epsilon: f32,
+    /// Camera up axis (world, unit).
+    pub up: [f32; 3],
+    /// Eye-space z below which a tet vertex makes the tet a near-plane tet (drawn as a
+    /// screen-space quad of its part in front of this plane instead of its faces).
+    pub near_z: f32,
+    /// Camera forward axis (world, unit).
+    pub forward: [f32; 3],
+    /// Distance from the eye of slice 0.
+    pub t_first: f32,
+    /// The eye, relative to the mesh origin.
+    pub eye: [f32; 3],
+    /// Slice spacing (world units).
+    pub dz: f32,
+    /// Projection scale: NDC = (x * proj.x / z, y * proj.y / z).
+    pub proj: [f32; 2],
+    /// Image-plane half extent at distance 1: (tan(fov/2) * aspect, tan(fov/2)).
+    pub half_extent: [f32; 2],
+    /// Image size in pixels.
+    pub size: [f32; 2],
+    /// A tet is degenerate (skipped) when |det(edges / L)| <= this times the product of the
+    /// normalized edge lengths, L the longest of the three edges from vertex 0.
+    pub degenerate_tol: f32,
+    /// Number of tets (assembly bound).
+    pub tet_count: u32,
+    /// Slices per shell (the raster stage writes zeros beyond this).
+    pub slices_per_shell: u32,
+    /// Number of transfer-function control points.
+    pub tf_count: u32,
+    pub _pad: [u32; 2],
+}
+const _: () = assert!(size_of::<FrameUniforms>() == 112);
+
+/// Per-shell constants (WGSL `Shell`), bound with a dynamic offset.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct ShellUniforms {
+    /// Global index of the shell's first slice.
+    pub first_slice: u32,
+    pub _pad: [u32; 3],
+}
+const _: () = assert!(size_of::<ShellUniforms>() == 16);
+
+/// What the assembly stage writes once per tet and frame and the raster stage reads (WGSL
+/// `TetRecord`, 144 bytes).
+///
+/// Barycentric coordinates along the ray `x = t d` (eye space, `d` unit) are
+/// `lambda(t) = lambda_eye + t (grad_x d.x + grad_y d.y + grad_z d.z)`; the encoded scalar is
+/// `scalar.w + t dot(scalar.xyz, d)`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct TetRecord {
+    /// Eye-space vertex positions; `w` is 1 for a usable tet, 0 for a skipped degenerate one.
+    pub pos: [[f32; 4]; 4],
+    /// d lambda_i / d x_eye for i = 0..3.
+    pub grad_x: [f32; 4],
+    /// d lambda_i / d y_eye.
+    pub grad_y: [f32; 4],
+    /// d lambda_i / d z_eye.
+    pub grad_z: [f32; 4],
+    /// Barycentric coordinates of the eye.
+    pub lambda_eye: [f32; 4],
+    /// xyz: eye-space gradient of the encoded scalar; w: the encoded scalar extrapolated to
+    /// the eye.
+    pub scalar: [f32; 4],
+}
+const _: () = assert!(size_of::<TetRecord>() == 144);
+
+/// One transfer-function control point (WGSL `TfPoint`, 32 bytes), its `s` normalized to the
+/// renderer's scalar encoding.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct TfPoint {
+    pub rgb: [f32; 3],
+    /// Extinction per world unit.
+    pub tau: f32,
+    /// Normalized scalar value `(s - s_min) / (s_max - s_min)`.
+    pub s: f32,
+    pub _pad: [f32; 3],
+}
+const _: () = assert!(size_of::<TfPoint>() == 32);
+
+/// One bin of the transfer-function acceleration table (WGSL `TfBin`, 48 bytes): on
+/// `[start, split)` the piecewise-linear TF is exactly `value + slope (u - start)` (colour and
+/// extinction), `split` being the first control point after `start` (or beyond the bin).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct TfBin {
+    /// (r, g, b, tau) at `start`, from the right.
+    pub value: [f32; 4],
+    /// d(r, g, b, tau) / du on `[start, split)`.
+    pub slope: [f32; 4],
+    pub start: f32,
+    pub split: f32,
+    pub _pad: [f32; 2],
+}
+const _: () = assert!(size_of::<TfBin>() == 48);

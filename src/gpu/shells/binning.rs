@@ -1,0 +1,359 @@
+//! CPU binning: every tet's conservative range of distances from the eye, frustum and
+//! transfer-function culling, and all shells' active lists built in one parallel counting sort
+//! (counts, prefix sums, scatter) into one index array with per-shell ranges.
+
+use std::ops::Range;
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+/// Slices are numbered globally: slice `k` lies at distance `t_first + k dz` from the eye, and
+/// shell `s` holds slices `s n .. (s + 1) n`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BinParams {
+    pub eye: DVec3,
+    /// Camera basis (right, up, forward), orthonormal.
+    pub basis: [DVec3; 3],
+    /// Frustum half-slopes: a visible eye-space point has |x| <= slope.x z and |y| <= slope.y z.
+    pub slope: [f64; 2],
+    pub t_first: f64,
+    pub dz: f64,
+    pub slices_per_shell: u32,
+    pub shells: u32,
+    /// A tet with a vertex at eye-space z <= this is a near-plane tet.
+    pub near_z: f64,
+}
+
+/// What binning decided for one tet.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TetBin {
+    /// Entirely outside one plane of the view frustum.
+    Culled,
+    /// Its scalar range maps to zero extinction: it adds nothing.
+    Transparent,
+    /// No slice passes through its distance range.
+    NoSample,
+    /// Drawn in shells `first..=last`, as faces or (near) as a screen-space quad.
+    Drawn { first: u32, last: u32, near: bool },
+}
+
+/// One shell's slices of [`Binning::indices`]: tets drawn by their faces, then near-plane tets.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ShellRange {
+    pub faces: Range<u32>,
+    pub near: Range<u32>,
+}
+
+/// All shells' active lists in one array.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Binning {
+    /// Tet indices, shell by shell.
+    pub indices: Vec<u32>,
+    /// Per shell, its ranges in `indices`.
+    pub shells: Vec<ShellRange>,
+    pub culled: u64,
+    pub transparent: u64,
+    pub no_sample: u64,
+    /// Tets drawn as near-plane quads (counted once however many shells they span).
+    pub near: u64,
+}
+
+/// Conservative distance range `[t_min, t_max]` from the eye (the eye-space origin) of the tet
+/// with eye-space corners `p`: `t_max` is the farthest corner (distance is convex, so its
+/// maximum over the tet is at a corner); `t_min` is the distance to the corners' bounding box,
+/// which holds the tet, so it never exceeds the distance of the tet's nearest point.
+pub fn distance_range(p: &[DVec3; 4]) -> (f64, f64) {
+    let lo = p[0].min(p[1]).min(p[2].min(p[3]));
+    let hi = p[0].max(p[1]).max(p[2].max(p[3]));
+    let nearest = DVec3::ZERO.clamp(lo, hi);
+    let t_max = p.iter().map(|q| q.length()).fold(0.0, f64::max);
+    (nearest.length(), t_max)
+}
+
+/// The global slice range `k_lo..=k_hi` with `t_first + k dz` in `[t_min, t_max]`, widened by a
+/// thousandth of a slice against rounding, clipped to `0..total`; `None` when empty.
+pub fn slice_range(
+    t_min: f64,
+    t_max: f64,
+    t_first: f64,
+    dz: f64,
+    total: u64,
+) -> Option<(u64, u64)> {
+    const MARGIN: f64 = 1e-3;
+    let lo = ((t_min - t_first) / dz - MARGIN).ceil().max(0.0);
+    let hi = ((t_max - t_first) / dz + MARGIN)
+        .floor()
+        .min(total as f64 - 1.0);
+    (lo <= hi).then_some((lo as u64, hi as u64))
+}
+
+/// Frustum outcode of an eye-space point: one bit per plane it is outside of.
+fn outcode(q: DVec3, slope: [f64; 2]) -> u8 {
+    (q.x > slope[0] * q.z) as u8
+        | ((q.x < -slope[0] * q.z) as u8) << 1
+        | ((q.y > slope[1] * q.z) as u8) << 2
+        | ((q.y < -slope[1] * q.z) as u8) << 3
+        | ((q.z <= 0.0) as u8) << 4
+}
+
+/// Decides each tet's shells. `transparent(t)` says whether tet `t` contributes nothing.
+pub fn classify(
+    positions: &[DVec3],
+    tets: &[[u32; 4]],
+    params: &BinParams,
+    transparent: impl Fn(usize) -> bool + Sync,
+) -> Vec<TetBin> {
+    let [r, u, f] = params.basis;
+    let eye_space: Vec<(DVec3, u8)> = positions
+        .par_iter()
+        .map(|&p| {
+            let d = p - params.eye;
+            let q = DVec3::new(r.dot(d), u.dot(d), f.dot(d));
+            (q, outcode(q, params.slope))
+        })
+        .collect();
+    let n = params.slices_per_shell as u64;
+    let total = params.shells as u64 * n;
+    tets.par_iter()
+        .enumerate()
+        .map(|(t, tet)| {
+            let c = tet.map(|v| eye_space[v as usize]);
+            if c[0].1 & c[1].1 & c[2].1 & c[3].1 != 0 {
+                return TetBin::Culled;
+            }
+            if transparent(t) {
+                return TetBin::Transparent;
+            }
+            let p = c.map(|x| x.0);
+            let (t_min, t_max) = distance_range(&p);
+            match slice_range(t_min, t_max, params.t_first, params.dz, total) {
+                None => TetBin::NoSample,
+                Some((lo, hi)) => TetBin::Drawn {
+                    first: (lo / n) as u32,
+                    last: (hi / n) as u32,
+                    near: p.iter().any(|q| q.z <= params.near_z),
+                },
+            }
+        })
+        .collect()
+}
+
+/// Builds every shell's active list with one parallel counting sort over `bins`.
+pub fn sort_into_shells(bins: &[TetBin], shells: u32) -> Binning {
+    let buckets = 2 * shells as usize;
+    let bucket = |shell: u32, near: bool| 2 * shell as usize + near as usize;
+    let chunk = (bins.len() / (4 * rayon::current_num_threads())).max(4096);
+    // Counts: one histogram per chunk.
+    let counts: Vec<Vec<u32>> = bins
+        .par_chunks(chunk)
+        .map(|part| {
+            let mut h = vec![0u32; buckets];
+            for b in part {
+                if let TetBin::Drawn { first, last, near } = *b {
+                    for s in first..=last {
+                        h[bucket(s, near)] += 1;
+                    }
+                }
+            }
+            h
+        })
+        .collect();
+    // Prefix sums: bucket-major, chunk-minor, so each chunk owns one slice per bucket.
+    let total: usize = counts.iter().flatten().map(|&c| c as usize).sum();
+    let mut indices = vec![0u32; total];
+    let mut owned: Vec<Vec<&mut [u32]>> = counts.iter().map(|_| Vec::new()).collect();
+    let mut rest: &mut [u32] = &mut indices;
+    let mut starts = Vec::with_capacity(buckets + 1);
+    let mut at = 0u32;
+    for b in 0..buckets {
+        starts.push(at);
+        for (c, h) in counts.iter().enumerate() {
+            let (head, tail) = std::mem::take(&mut rest).split_at_mut(h[b] as usize);
+            owned[c].push(head);
+            rest = tail;
+            at += h[b];
+        }
+    }
+    starts.push(at);
+    // Scatter: each chunk fills its own slices, in tet order.
+    owned
+        .into_par_iter()
+        .zip(bins.par_chunks(chunk).enumerate())
+        .for_each(|(mut slices, (c, part))| {
+            let mut fill = vec![0usize; buckets];
+            for (i, b) in part.iter().enumerate() {
+                if let TetBin::Drawn { first, last, near } = *b {
+                    for s in first..=last {
+                        let k = bucket(s, near);
+                        slices[k][fill[k]] = (c * chunk + i) as u32;
+                        fill[k] += 1;
+                    }
+                }
+            }
+        });
+    let count = |f: fn(&TetBin) -> bool| bins.par_iter().filter(|b| f(b)).count() as u64;
+    Binning {
+        indices,
+        shells: (0..shells as usize)
+            .map(|s| ShellRange {
+                faces: starts[2 * s]..starts[2 * s + 1],
+                near: starts[2 * s + 1]..starts[2 * s + 2],
+            })
+            .collect(),
+        culled: count(|b| *b == TetBin::Culled),
+        transparent: count(|b| *b == TetBin::Transparent),
+        no_sample: count(|b| *b == TetBin::NoSample),
+        near: count(|b| matches!(b, TetBin::Drawn { near: true, .. })),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// Distance from the origin to the closest point of tet `p` when the origin is outside it:
+    /// the nearest point is then on the boundary, so it is the minimum of the exact
+    /// point-triangle distances to the four faces.
+    fn true_nearest(p: &[DVec3; 4]) -> f64 {
+        const FACES: [[usize; 3]; 4] = [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]];
+        FACES
+            .iter()
+            .map(|f| point_triangle_distance(DVec3::ZERO, p[f[0]], p[f[1]], p[f[2]]))
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// Exact distance from `x` to triangle `abc`: minimum over the interior projection (when it
+    /// falls inside) and the three edges.
+    fn point_triangle_distance(x: DVec3, a: DVec3, b: DVec3, c: DVec3) -> f64 {
+        let seg = |p: DVec3, q: DVec3| {
+            let d = q - p;
+            let s = if d.length_squared() > 0.0 {
+                ((x - p).dot(d) / d.length_squared()).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            (p + d * s - x).length()
+        };
+        let mut best = seg(a, b).min(seg(b, c)).min(seg(c, a));
+        let n = (b - a).cross(c - a);
+        if n.length_squared() > 0.0 {
+            let n = n.normalize();
+            let h = (x - a).dot(n);
+            let y = x - n * h;
+            let inside = [(a, b), (b, c), (c, a)]
+                .iter()
+                .all(|&(p, q)| (q - p).cross(y - p).dot(n) >= 0.0);
+            if inside {
+                best = best.min(h.abs());
+            }
+        }
+        best
+    }
+
+    fn contains_origin(p: &[DVec3; 4]) -> bool {
+        let vol = |a: DVec3, b: DVec3, c: DVec3, d: DVec3| (b - a).dot((c - a).cross(d - a));
+        let o = DVec3::ZERO;
+        let v = vol(p[0], p[1], p[2], p[3]);
+        let s = [
+            vol(o, p[1], p[2], p[3]),
+            vol(p[0], o, p[2], p[3]),
+            vol(p[0], p[1], o, p[3]),
+            vol(p[0], p[1], p[2], o),
+        ];
+        s.iter().all(|&x| x * v >= 0.0)
+    }
+
+    fn point() -> impl Strategy<Value = DVec3> {
+        (-10.0..10.0f64, -10.0..10.0f64, -10.0..10.0f64).prop_map(|(x, y, z)| DVec3::new(x, y, z))
+    }
+
+    proptest! {
+        /// t_min never exceeds the true distance of the tet's nearest point (a lost sample is
+        /// a hole), and t_max is at least the distance of every corner.
+        #[test]
+        fn distance_range_is_conservative(a in point(), b in point(), c in point(), d in point()) {
+            let p = [a, b, c, d];
+            let (t_min, t_max) = distance_range(&p);
+            let truth = if contains_origin(&p) { 0.0 } else { true_nearest(&p) };
+            prop_assert!(t_min <= truth + 1e-12, "t_min {t_min} > true nearest {truth}");
+            for q in p {
+                prop_assert!(t_max >= q.length());
+            }
+        }
+
+        /// Every slice distance inside [t_min, t_max] is in the slice range, none outside by
+        /// more than the margin.
+        #[test]
+        fn slice_range_holds_every_slice_in_range(
+            t_min in 0.0..50.0f64, len in 0.0..20.0f64, t_first in 0.0..5.0f64, dz in 0.01..2.0f64,
+        ) {
+            let t_max = t_min + len;
+            let total = 1000u64;
+            let r = slice_range(t_min, t_max, t_first, dz, total);
+            for k in 0..total {
+                let t = t_first + k as f64 * dz;
+                if t >= t_min && t <= t_max {
+                    let (lo, hi) = r.expect("a slice lies in range");
+                    prop_assert!(lo <= k && k <= hi);
+                }
+            }
+            if let Some((lo, hi)) = r {
+                prop_assert!(t_first + lo as f64 * dz >= t_min - 2e-3 * dz);
+                prop_assert!(t_first + hi as f64 * dz <= t_max + 2e-3 * dz);
+            }
+        }
+    }
+
+    #[test]
+    fn counting_sort_matches_a_sequential_sort() {
+        // Bins in a pattern that exercises every bucket and many chunks.
+        let shells = 7u32;
+        let bins: Vec<TetBin> = (0..50_000u32)
+            .map(|t| match t % 11 {
+                0 => TetBin::Culled,
+                1 => TetBin::NoSample,
+                2 => TetBin::Transparent,
+                k => {
+                    let first = (t / 3) % shells;
+                    TetBin::Drawn {
+                        first,
+                        last: (first + k % 3).min(shells - 1),
+                        near: t % 5 == 0,
+                    }
+                }
+            })
+            .collect();
+        let b = sort_into_shells(&bins, shells);
+        for s in 0..shells {
+            for near in [false, true] {
+                let expect: Vec<u32> = bins
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, b)| {
+                        matches!(b, TetBin::Drawn { first, last, near: n }
+                            if *first <= s && s <= *last && *n == near)
+                    })
+                    .map(|(t, _)| t as u32)
+                    .collect();
+                let r = &b.shells[s as usize];
+                let range = if near {
+                    r.near.clone()
+                } else {
+                    r.faces.clone()
+                };
+                assert_eq!(
+                    &b.indices[range.start as usize..range.end as usize],
+                    &expect[..]
+                );
+            }
+        }
+        assert_eq!(b.culled, 50_000u64.div_ceil(11));
+        assert_eq!(
+            b.near as usize,
+            bins.iter()
+                .filter(|b| matches!(b, TetBin::Drawn { near: true, .. }))
+                .count()
+        );
+    }
+}

@@ -1,0 +1,1311 @@
+//! `--mode shells`: barycentric shell sampling (Georgii & Westermann 2006), the heart of tetvr.
+//!
+//! Eye space is cut into spherical shells around the eye, each holding `n` slices at spacing
+//! `dz` (slice `k` at distance `t_first + k dz`). Per frame:
+//! 1. binning (CPU, rayon): each tet's conservative distance range, frustum and
+//!    transfer-function culling, every shell's active list in one counting sort
+//!    ([`binning`]);
+//! 2. assembly (compute): once per tet, eye-space corners and the eye-to-barycentric
+//!    transform (`shaders/shells_assemble.wgsl`);
+//! 3. raster (one render pass per non-empty shell): front faces of the shell's tets, each
+//!    fragment writing its `n` slice samples (encoded scalar or 0) into `n / 4` colour targets
+//!    under MAX blending (`shaders/shells_raster.wgsl`);
+//! 4. composite (one full-screen pass per shell): transfer function, front to back, blended
+//!    under the accumulation target (`shaders/shells_composite.wgsl`);
+//! 5. readback of the accumulation target.
+//!
+//! Precision: positions are uploaded relative to the mesh's bounding-box centre (subtracted in
+//! f64), and so is the eye, so a mesh far from the origin renders as it does at the origin.
+//! Scalars are normalized to `u = (s - s_min) / (s_max - s_min)` in f64 and encoded as `1 + u`
+//! in the slices, so 0 means "no sample". With 16-bit float slices ([`SliceFormat::Float16`],
+//! or adapters without blendable 32-bit float targets) `1 + u` keeps 10 mantissa bits: `u` is
+//! quantized to 1/1024 of the scalar range, and the accumulation keeps about 3 decimal digits.
+
+pub mod binning;
+pub mod tf_table;
+pub mod twin;
+
+use std::time::Instant;
+
+use bytemuck::Zeroable;
+use glam::DVec3;
+
+use crate::camera::Camera;
+use crate::gpu::gpu_data::{FrameUniforms, ShellUniforms, TetRecord};
+use crate::gpu::{GpuContext, GpuError, shaders};
+use crate::mesh::{MeshError, TetMesh};
+use crate::render::{Frame, RenderError, Renderer, Timings};
+use crate::tf::TransferFunction;
+
+use binning::{BinParams, Binning, ShellRange};
+
+/// The float format of the slice and accumulation targets.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SliceFormat {
+    /// 32-bit floats where the adapter blends them (FLOAT32_BLENDABLE), else 16-bit.
+    #[default]
+    Auto,
+    /// `Rgba32Float`; an error on adapters without FLOAT32_BLENDABLE.
+    Float32,
+    /// `Rgba16Float` (see the module docs for the precision lost).
+    Float16,
+}
+
+/// Settings of the shells renderer.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShellSettings {
+    /// Samples per ray across the mesh's bounding-sphere diameter: `dz = diameter / samples`.
+    pub samples: u32,
+    /// Slice spacing in world units; overrides `samples` when given.
+    pub dz: Option<f64>,
+    /// Slices per shell (4 per colour target); `None` takes the most the adapter offers (32
+    /// with 8 `Rgba32Float` targets).
+    pub slices_per_shell: Option<u32>,
+    /// Inside tolerance: a sample belongs to a tet when its smallest barycentric coordinate is
+    /// at least `-epsilon`. Overlapping claims at shared faces are harmless under MAX (the
+    /// scalar is continuous there); gaps would be holes.
+    pub epsilon: f32,
+    pub format: SliceFormat,
+}
+
+impl Default for ShellSettings {
+    fn default() -> Self {
+        Self {
+            samples: 512,
+            dz: None,
+            slices_per_shell: None,
+            // f32 barycentrics along a ray carry an error of about (distance / tet size) * 1e-7;
+            // 1e-4 covers distances up to ~1000 tet sizes.
+            epsilon: 1e-4,
+            format: SliceFormat::Auto,
+        }
+    }
+}
+
+/// A tet is degenerate (skipped, counted) when the determinant of its edges, each divided by
+/// the longest, is at most this times the product of their lengths: its barycentric transform
+/// would amplify f32 rounding by more than ~1e6. Such a tet has at most 1e-6 of the volume of a
+/// regular tet with the same longest edge, so skipping it loses no visible sample.
+pub const DEGENERATE_TOL: f32 = 1e-6;
+
+/// The most shells a frame may have (a render pass and a composite pass each).
+const MAX_SHELLS: u64 = 1 << 16;
+
+/// The barycentric shell-sampling renderer; see the module docs.
+pub struct ShellsRenderer {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    limits: wgpu::Limits,
+    settings: ShellSettings,
+    format: wgpu::TextureFormat,
+    targets_per_shell: u32,
+    slices_per_shell: u32,
+    timestamps: bool,
+    shell_stride: u64,
+    pipelines: Pipelines,
+    mesh: MeshState,
+    gpu: MeshBuffers,
+    frame_buf: wgpu::Buffer,
+    active_buf: wgpu::Buffer,
+    shell_buf: wgpu::Buffer,
+    tf_buf: wgpu::Buffer,
+    tf_bin_buf: wgpu::Buffer,
+    targets: Option<Targets>,
+}
+
+/// CPU copies the per-frame binning needs, and the frame of reference of the GPU copies.
+struct MeshState {
+    positions: Vec<DVec3>,
+    scalars: Vec<f64>,
+    tets: Vec<[u32; 4]>,
+    /// Bounding-box centre: GPU positions and the eye are relative to it.
+    origin: DVec3,
+    /// Bounding-sphere radius about `origin`.
+    radius: f64,
+    scalar_min: f64,
+    scalar_span: f64,
+}
+
+/// Long-lived GPU copies of the mesh and the per-tet records.
+struct MeshBuffers {
+    positions: wgpu::Buffer,
+    scalars: wgpu::Buffer,
+    records: wgpu::Buffer,
+    degenerate: wgpu::Buffer,
+    assemble_group: wgpu::BindGroup,
+}
+
+/// Pipelines and layouts, built once.
+struct Pipelines {
+    assemble_layout: wgpu::BindGroupLayout,
+    assemble: wgpu::ComputePipeline,
+    raster_layout: wgpu::BindGroupLayout,
+    faces: wgpu::RenderPipeline,
+    near: wgpu::RenderPipeline,
+    composite_layout: wgpu::BindGroupLayout,
+    composite: wgpu::RenderPipeline,
+}
+
+/// Image-size-dependent targets, rebuilt when the size changes.
+struct Targets {
+    width: u32,
+    height: u32,
+    layer_views: Vec<wgpu::TextureView>,
+    slices_view: wgpu::TextureView,
+    accum: wgpu::Texture,
+    accum_view: wgpu::TextureView,
+    readback: wgpu::Buffer,
+    padded_row: u32,
+}
+
+fn ms_since(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry {
+        binding,
+        resource: buffer.as_entire_binding(),
+    }
+}
+
+fn settings_error(msg: impl Into<String>) -> RenderError {
+    RenderError::Settings(msg.into())
+}
+
+impl ShellsRenderer {
+    /// Builds pipelines and uploads the mesh (positions relative to its bounding-box centre,
+    /// normalized active scalars, tets). The device and queue are shared with `ctx`.
+    pub fn new(
+        ctx: &GpuContext,
+        mesh: &TetMesh,
+        settings: ShellSettings,
+    ) -> Result<Self, RenderError> {
+        let device = ctx.device.clone();
+        let queue = ctx.queue.clone();
+        let limits = ctx.limits.clone();
+        let blendable32 = ctx.features.contains(wgpu::Features::FLOAT32_BLENDABLE);
+        let (format, bytes) = match (settings.format, blendable32) {
+            (SliceFormat::Auto, true) | (SliceFormat::Float32, true) => {
+                (wgpu::TextureFormat::Rgba32Float, 16)
+            }
+            (SliceFormat::Float32, false) => {
+                return Err(RenderError::Gpu(GpuError::Missing {
+                    adapter: ctx.info.name.clone(),
+                    what: "blendable 32-bit float targets (FLOAT32_BLENDABLE)".into(),
+                    needed_by: "the shells mode with 32-bit slices (use the 16-bit or auto format)",
+                }));
+            }
+            (SliceFormat::Auto, false) | (SliceFormat::Float16, _) => {
+                (wgpu::TextureFormat::Rgba16Float, 8)
+            }
+        };
+        let max_targets = shaders::MAX_TARGETS
+            .min(limits.max_color_attachments)
+            .min(limits.max_color_attachment_bytes_per_sample / bytes);
+        if max_targets == 0 {
+            return Err(RenderError::Gpu(GpuError::Missing {
+                adapter: ctx.info.name.clone(),
+                what: format!("one {format:?} colour target"),
+                needed_by: "the shells mode",
+            }));
+        }
+        let slices_per_shell = settings.slices_per_shell.unwrap_or(4 * max_targets);
+        if !(1..=4 * max_targets).contains(&slices_per_shell) {
+            return Err(settings_error(format!(
+                "slices per shell must be between 1 and {} on this adapter ({} {format:?} \
+                 targets of 4 slices), not {slices_per_shell}",
+                4 * max_targets,
+                max_targets
+            )));
+        }
+        if settings.samples == 0 {
+            return Err(settings_error("samples per ray must be at least 1"));
+        }
+        if let Some(dz) = settings.dz
+            && !(dz.is_finite() && dz > 0.0)
+        {
+            return Err(settings_error(format!(
+                "slice spacing dz must be positive and finite, not {dz}"
+            )));
+        }
+        if !(settings.epsilon.is_finite() && settings.epsilon >= 0.0) {
+            return Err(settings_error(format!(
+                "the barycentric tolerance epsilon must be >= 0 and finite, not {}",
+                settings.epsilon
+            )));
+        }
+        let targets_per_shell = slices_per_shell.div_ceil(4);
+        let max_binding = limits.max_storage_buffer_binding_size as u64;
+        let record_bytes = mesh.tet_count() as u64 * size_of::<TetRecord>() as u64;
+        if record_bytes > max_binding.min(limits.max_buffer_size) {
+            return Err(settings_error(format!(
+                "the mesh has {} tets; the shells mode keeps one {}-byte record per tet in one \
+                 storage buffer, and this adapter binds at most {max_binding} bytes (at most {} \
+                 tets); split the mesh or use another mode",
+                mesh.tet_count(),
+                size_of::<TetRecord>(),
+                max_binding / size_of::<TetRecord>() as u64
+            )));
+        }
+        let mesh_state = MeshState::new(mesh)?;
+        let pipelines = Pipelines::new(&device, format, targets_per_shell);
+        let storage = |label: &str, bytes: u64, extra: wgpu::BufferUsages| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes.max(16),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | extra,
+                mapped_at_creation: false,
+            })
+        };
+        let none = wgpu::BufferUsages::empty();
+        let positions = storage("shells positions", mesh.vertex_count() as u64 * 16, none);
+        let scalars = storage("shells scalars", mesh.vertex_count() as u64 * 4, none);
+        let tets = storage("shells tets", mesh.tet_count() as u64 * 16, none);
+        let records = storage("shells tet records", record_bytes, none);
+        let degenerate = storage("shells degenerate count", 4, wgpu::BufferUsages::COPY_SRC);
+        queue.write_buffer(&tets, 0, bytemuck::cast_slice(mesh.tets()));
+        let frame_buf = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("shells frame"),
+            size: size_of::<FrameUniforms>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let assemble_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("shells assemble"),
+            layout: &pipelines.assemble_layout,
+            entries: &[
+                entry(0, &frame_buf),
+                entry(1, &positions),
+                entry(2, &scalars),
+                entry(3, &tets),
+                entry(4, &records),
+                entry(5, &degenerate),
+            ],
+        });
+        let gpu = MeshBuffers {
+            positions,
+            scalars,
+            records,
+            degenerate,
+            assemble_group,
+        };
+        let shell_stride = (size_of::<ShellUniforms>() as u64)
+            .next_multiple_of(limits.min_uniform_buffer_offset_alignment as u64);
+        let active_buf = storage("shells active tets", 16, none);
+        let shell_buf = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("shells shell uniforms"),
+            size: shell_stride,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let tf_buf = storage("shells transfer function", 16 * 32, none);
+        let tf_bin_buf = storage("shells transfer function bins", 16, none);
+        let renderer = Self {
+            device,
+            queue,
+            limits,
+            settings,
+            format,
+            targets_per_shell,
+            slices_per_shell,
+            timestamps: ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY),
+            shell_stride,
+            pipelines,
+            mesh: mesh_state,
+            gpu,
+            frame_buf,
+            active_buf,
+            shell_buf,
+            tf_buf,
+            tf_bin_buf,
+            targets: None,
+        };
+        renderer.upload_positions();
+        renderer.upload_scalars();
+        Ok(renderer)
+    }
+
+    /// Slices per shell in use.
+    pub fn slices_per_shell(&self) -> u32 {
+        self.slices_per_shell
+    }
+
+    /// The slice and accumulation target format in use.
+    pub fn format(&self) -> wgpu::TextureFormat {
+        self.format
+    }
+
+    /// Slice spacing in world units.
+    pub fn dz(&self) -> f64 {
+        self.settings
+            .dz
+            .unwrap_or(2.0 * self.mesh.radius / self.settings.samples as f64)
+            .max(f64::MIN_POSITIVE)
+    }
+
+    /// Where this renderer puts the slices for `camera`: `(t_first, dz)`, slice `k` at distance
+    /// `t_first + k dz` from the eye. `t_first` is half a slice beyond the mesh's bounding
+    /// sphere (or beyond the eye, when the eye is inside the sphere).
+    pub fn slice_positions(&self, camera: &Camera) -> (f64, f64) {
+        let dz = self.dz();
+        let dist = (self.mesh.origin - camera.eye).length();
+        ((dist - self.mesh.radius).max(0.0) + 0.5 * dz, dz)
+    }
+
+    fn upload_positions(&self) {
+        let o = self.mesh.origin;
+        let data: Vec<[f32; 4]> = self
+            .mesh
+            .positions
+            .iter()
+            .map(|&p| {
+                let q = (p - o).as_vec3();
+                [q.x, q.y, q.z, 1.0]
+            })
+            .collect();
+        self.queue
+            .write_buffer(&self.gpu.positions, 0, bytemuck::cast_slice(&data));
+    }
+
+    fn upload_scalars(&self) {
+        let (lo, span) = (self.mesh.scalar_min, self.mesh.scalar_span);
+        let data: Vec<f32> = self
+            .mesh
+            .scalars
+            .iter()
+            .map(|&s| ((s - lo) / span) as f32)
+            .collect();
+        self.queue
+            .write_buffer(&self.gpu.scalars, 0, bytemuck::cast_slice(&data));
+    }
+
+    fn ensure_targets(&mut self, width: u32, height: u32) -> Result<(), RenderError> {
+        if let Some(t) = &self.targets
+            && (t.width, t.height) == (width, height)
+        {
+            return Ok(());
+        }
+        let max = self.limits.max_texture_dimension_2d;
+        if width > max || height > max {
+            return Err(settings_error(format!(
+                "image size {width}x{height} exceeds this adapter's largest texture ({max}x{max})"
+            )));
+        }
+        let size = |layers| wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: layers,
+        };
+        let slices = self.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("shells slices"),
+            size: size(self.targets_per_shell),
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: self.format,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        });
+        let layer_views = (0..self.targets_per_shell)
+            .map(|i| {
+                slices.create_view(&wgpu::TextureViewDescriptor {
+                    label: Some("shells slice layer"),
+                    dimension: Some(wgpu::TextureViewDimension::D2),
+                    base_array_layer: i,
+                    array_layer_count: Some(1),
+                    ..Default::default()
+                })
+            })
+            .collect();
+        let slices_view = slices.create_view(&wgpu::TextureViewDescriptor {
+            label: Some("shells slices"),
+            dimension: Some(wgpu::TextureViewDimension::D2Array),
+            ..Default::default()
+        });
+        let accum = self.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("shells accumulation"),
+            size: size(1),
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: self.format,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        let accum_view = accum.create_view(&Default::default());
+        let texel = self.format.block_copy_size(None).unwrap_or(16);
+        let padded_row = (width * texel).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        let readback = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("shells readback"),
+            size: padded_row as u64 * height as u64,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        self.targets = Some(Targets {
+            width,
+            height,
+            layer_views,
+            slices_view,
+            accum,
+            accum_view,
+            readback,
+            padded_row,
+        });
+        Ok(())
+    }
+}
+
+impl MeshState {
+    fn new(mesh: &TetMesh) -> Result<Self, MeshError> {
+        let mut m = Self {
+            positions: mesh.positions().to_vec(),
+            scalars: mesh.scalars()?.to_vec(),
+            tets: mesh.tets().to_vec(),
+            origin: DVec3::ZERO,
+            radius: 0.0,
+            scalar_min: 0.0,
+            scalar_span: 1.0,
+        };
+        m.frame_positions();
+        m.frame_scalars();
+        Ok(m)
+    }
+
+    fn frame_positions(&mut self) {
+        let (lo, hi) = self.positions.iter().fold(
+            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(lo, hi), &p| (lo.min(p), hi.max(p)),
+        );
+        self.origin = (lo + hi) * 0.5;
+        self.radius = ((hi - lo).length() * 0.5).max(f64::MIN_POSITIVE);
+    }
+
+    fn frame_scalars(&mut self) {
+        let (lo, hi) = self
+            .scalars
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &s| {
+                (lo.min(s), hi.max(s))
+            });
+        self.scalar_min = lo;
+        self.scalar_span = if hi > lo { hi - lo } else { 1.0 };
+    }
+}
+
+impl Pipelines {
+    fn new(device: &wgpu::Device, format: wgpu::TextureFormat, targets: u32) -> Self {
+        use wgpu::ShaderStages as S;
+        let module = |label, src: String| {
+            device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(label),
+                source: wgpu::ShaderSource::Wgsl(src.into()),
+            })
+        };
+        let buffer = |binding, visibility, ty| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility,
+            ty: wgpu::BindingType::Buffer {
+                ty,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let uniform = wgpu::BufferBindingType::Uniform;
+        let ro = wgpu::BufferBindingType::Storage { read_only: true };
+        let rw = wgpu::BufferBindingType::Storage { read_only: false };
+        let layout = |label, entries: &[wgpu::BindGroupLayoutEntry]| {
+            device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some(label),
+                entries,
+            })
+        };
+        let pipeline_layout = |bgl: &wgpu::BindGroupLayout| {
+            device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: None,
+                bind_group_layouts: &[Some(bgl)],
+                immediate_size: 0,
+            })
+        };
+
+        let assemble_layout = layout(
+            "shells assemble",
+            &[
+                buffer(0, S::COMPUTE, uniform),
+                buffer(1, S::COMPUTE, ro),
+                buffer(2, S::COMPUTE, ro),
+                buffer(3, S::COMPUTE, ro),
+                buffer(4, S::COMPUTE, rw),
+                buffer(5, S::COMPUTE, rw),
+            ],
+        );
+        let assemble_module = module("shells_assemble", shaders::shells_assemble());
+        let assemble = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("shells assemble"),
+            layout: Some(&pipeline_layout(&assemble_layout)),
+            module: &assemble_module,
+            entry_point: Some("main"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+
+        let raster_layout = layout(
+            "shells raster",
+            &[
+                buffer(0, S::VERTEX_FRAGMENT, uniform),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: S::FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: uniform,
+                        has_dynamic_offset: true,
+                        min_binding_size: wgpu::BufferSize::new(size_of::<ShellUniforms>() as u64),
+                    },
+                    count: None,
+                },
+                buffer(2, S::VERTEX_FRAGMENT, ro),
+                buffer(3, S::VERTEX, ro),
+            ],
+        );
+        let raster_module = module("shells_raster", shaders::shells_raster(targets));
+        let max_blend = wgpu::BlendComponent {
+            src_factor: wgpu::BlendFactor::One,
+            dst_factor: wgpu::BlendFactor::One,
+            operation: wgpu::BlendOperation::Max,
+        };
+        let slice_targets: Vec<Option<wgpu::ColorTargetState>> = (0..targets)
+            .map(|_| {
+                Some(wgpu::ColorTargetState {
+                    format,
+                    blend: Some(wgpu::BlendState {
+                        color: max_blend,
+                        alpha: max_blend,
+                    }),
+                    write_mask: wgpu::ColorWrites::ALL,
+                })
+            })
+            .collect();
+        let raster_pipeline_layout = pipeline_layout(&raster_layout);
+        let raster = |label, entry, cull_mode| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(label),
+                layout: Some(&raster_pipeline_layout),
+                vertex: wgpu::VertexState {
+                    module: &raster_module,
+                    entry_point: Some(entry),
+                    compilation_options: Default::default(),
+                    buffers: &[],
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology: wgpu::PrimitiveTopology::TriangleList,
+                    // Outward faces are counter-clockwise seen from outside; NDC has y up.
+                    front_face: wgpu::FrontFace::Ccw,
+                    cull_mode,
+                    ..Default::default()
+                },
+                depth_stencil: None,
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &raster_module,
+                    entry_point: Some("fs_slices"),
+                    compilation_options: Default::default(),
+                    targets: &slice_targets,
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let faces = raster("shells faces", "vs_faces", Some(wgpu::Face::Back));
+        let near = raster("shells near quads", "vs_near", None);
+
+        let composite_layout = layout(
+            "shells composite",
+            &[
+                buffer(0, S::FRAGMENT, uniform),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: S::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D2Array,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                buffer(2, S::FRAGMENT, ro),
+                buffer(3, S::FRAGMENT, ro),
+            ],
+        );
+        let composite_module = module("shells_composite", shaders::shells_composite());
+        let under = wgpu::BlendComponent {
+            src_factor: wgpu::BlendFactor::OneMinusDstAlpha,
+            dst_factor: wgpu::BlendFactor::One,
+            operation: wgpu::BlendOperation::Add,
+        };
+        let composite = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("shells composite"),
+            layout: Some(&pipeline_layout(&composite_layout)),
+            vertex: wgpu::VertexState {
+                module: &composite_module,
+                entry_point: Some("vs_fullscreen"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: Default::default(),
+            depth_stencil: None,
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &composite_module,
+                entry_point: Some("fs_composite"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format,
+                    blend: Some(wgpu::BlendState {
+                        color: under,
+                        alpha: under,
+                    }),
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        Self {
+            assemble_layout,
+            assemble,
+            raster_layout,
+            faces,
+            near,
+            composite_layout,
+            composite,
+        }
+    }
+}
+
+/// Records the frame's passes and times them: with GPU timestamps (one pair per pass) where the
+/// adapter has them, else by submitting and draining the GPU after each pass (wall clock).
+struct Recorder<'a> {
+    device: &'a wgpu::Device,
+    queue: &'a wgpu::Queue,
+    encoder: Option<wgpu::CommandEncoder>,
+    queries: Option<wgpu::QuerySet>,
+    /// The stage of each timestamp pair, in query order.
+    pairs: Vec<&'static str>,
+    /// Wall-clock stage times (when there are no timestamps).
+    wall: Vec<(&'static str, f64)>,
+    mark: Instant,
+}
+
+impl<'a> Recorder<'a> {
+    fn new(device: &'a wgpu::Device, queue: &'a wgpu::Queue, passes: u32, gpu_clock: bool) -> Self {
+        let queries = (gpu_clock && 2 * passes <= wgpu::QUERY_SET_MAX_QUERIES).then(|| {
+            device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("shells timestamps"),
+                ty: wgpu::QueryType::Timestamp,
+                count: 2 * passes,
+            })
+        });
+        Self {
+            device,
+            queue,
+            encoder: None,
+            queries,
+            pairs: Vec::new(),
+            wall: Vec::new(),
+            mark: Instant::now(),
+        }
+    }
+
+    fn encoder(&mut self) -> &mut wgpu::CommandEncoder {
+        self.encoder.get_or_insert_with(|| {
+            self.device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("shells frame"),
+                })
+        })
+    }
+
+    /// Timestamp query indices (begin, end) for the next pass, charged to `stage`.
+    fn pass_queries(&mut self, stage: &'static str) -> Option<(u32, u32)> {
+        self.queries.as_ref()?;
+        let i = 2 * self.pairs.len() as u32;
+        self.pairs.push(stage);
+        Some((i, i + 1))
+    }
+
+    /// Without timestamps: runs what was recorded and charges its wall time to `stage`.
+    fn end_stage(&mut self, stage: &'static str) -> Result<(), GpuError> {
+        if self.queries.is_some() {
+            return Ok(());
+        }
+        if let Some(enc) = self.encoder.take() {
+            self.queue.submit([enc.finish()]);
+            self.device.poll(wgpu::PollType::wait_indefinitely())?;
+        }
+        let now = Instant::now();
+        let ms = (now - self.mark).as_secs_f64() * 1e3;
+        match self.wall.iter_mut().find(|(s, _)| *s == stage) {
+            Some((_, t)) => *t += ms,
+            None => self.wall.push((stage, ms)),
+        }
+        self.mark = now;
+        Ok(())
+    }
+}
+
+/// Writes `data` to `*buf`, first growing it (to a power of two) when it is too small.
+fn write_grown(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    buf: &mut wgpu::Buffer,
+    data: &[u8],
+    usage: wgpu::BufferUsages,
+) {
+    if buf.size() < data.len() as u64 {
+        *buf = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("shells per-frame data"),
+            size: (data.len() as u64).next_power_of_two(),
+            usage: usage | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+    }
+    if !data.is_empty() {
+        queue.write_buffer(buf, 0, data);
+    }
+}
+
+/// Maps `buf` for reading and waits for it.
+fn map_read(device: &wgpu::Device, buf: &wgpu::Buffer) -> Result<(), GpuError> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    buf.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+        // The receiver outlives the wait below; a send can only fail after it returned.
+        let _ = tx.send(r);
+    });
+    device.poll(wgpu::PollType::wait_indefinitely())?;
+    match rx.recv() {
+        Ok(r) => r.map_err(GpuError::from),
+        Err(_) => Err(GpuError::Map(wgpu::BufferAsyncError)),
+    }
+}
+
+/// IEEE half to single precision.
+fn f16_to_f32(h: u16) -> f32 {
+    let sign = if h & 0x8000 != 0 { -1.0 } else { 1.0 };
+    let exp = ((h >> 10) & 0x1f) as i32;
+    let frac = (h & 0x3ff) as f32;
+    sign * match exp {
+        0 => frac * 2f32.powi(-24),
+        31 if frac == 0.0 => f32::INFINITY,
+        31 => f32::NAN,
+        e => (1.0 + frac / 1024.0) * 2f32.powi(e - 15),
+    }
+}
+
+impl Renderer for ShellsRenderer {
+    fn name(&self) -> &'static str {
+        "shells"
+    }
+
+    fn render(&mut self, camera: &Camera, tf: &TransferFunction) -> Result<Frame, RenderError> {
+        camera.validate()?;
+        let start = Instant::now();
+        let mut timings = Timings::default();
+
+        // This frame's shells.
+        let (right, up, forward) = camera.basis();
+        let th = camera.tan_half_fov();
+        let slope = [th * camera.aspect(), th];
+        let (t_first, dz) = self.slice_positions(camera);
+        let n = self.slices_per_shell;
+        let dist = (self.mesh.origin - camera.eye).length();
+        let slices = ((dist + self.mesh.radius - t_first) / dz).floor() as u64 + 1;
+        let shells = slices.div_ceil(n as u64);
+        if shells > MAX_SHELLS {
+            return Err(settings_error(format!(
+                "dz = {dz} makes {shells} shells of {n} slices across the mesh; at most \
+                 {MAX_SHELLS} are allowed: use fewer samples or a larger dz"
+            )));
+        }
+        // Every sample has eye-space z >= t_first * cos(widest ray angle); near-plane tets are
+        // clipped at half of that, and tets with a corner below it are near-plane tets.
+        let cos_corner = 1.0 / (1.0 + slope[0] * slope[0] + slope[1] * slope[1]).sqrt();
+        let near_z = t_first * cos_corner;
+
+        // 1. Binning.
+        let t0 = Instant::now();
+        let params = BinParams {
+            eye: camera.eye,
+            basis: [right, up, forward],
+            slope,
+            t_first,
+            dz,
+            slices_per_shell: n,
+            shells: shells as u32,
+            near_z,
+        };
+        let (scalars, tets) = (&self.mesh.scalars, &self.mesh.tets);
+        let bins = binning::classify(&self.mesh.positions, tets, &params, |t| {
+            let v = tets[t].map(|i| scalars[i as usize]);
+            tf.is_transparent_on(
+                v[0].min(v[1]).min(v[2].min(v[3])),
+                v[0].max(v[1]).max(v[2].max(v[3])),
+            )
+        });
+        let bin: Binning = binning::sort_into_shells(&bins, shells as u32);
+        drop(bins);
+        timings.stage("binning", ms_since(t0));
+
+        // Upload: frame constants, transfer function, shell constants, active lists.
+        let t1 = Instant::now();
+        let o = self.mesh.origin;
+        let f32x3 = |v: DVec3| v.as_vec3().to_array();
+        let frame = FrameUniforms {
+            right: f32x3(right),
+            epsilon: self.settings.epsilon,
+            up: f32x3(up),
+            near_z: (0.5 * near_z) as f32,
+            forward: f32x3(forward),
+            t_first: t_first as f32,
+            eye: f32x3(camera.eye - o),
+            dz: dz as f32,
+            proj: [(1.0 / slope[0]) as f32, (1.0 / slope[1]) as f32],
+            half_extent: [slope[0] as f32, slope[1] as f32],
+            size: [camera.width as f32, camera.height as f32],
+            degenerate_tol: DEGENERATE_TOL,
+            tet_count: self.mesh.tets.len() as u32,
+            slices_per_shell: n,
+            tf_count: tf.points().len() as u32,
+            _pad: [0; 2],
+        };
+        self.queue
+            .write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&frame));
+        let (lo, span) = (self.mesh.scalar_min, self.mesh.scalar_span);
+        let (tf_points, tf_bins) = tf_table::tf_table(tf, lo, span);
+        let (device, queue) = (&self.device, &self.queue);
+        let storage = wgpu::BufferUsages::STORAGE;
+        let tf_bytes = bytemuck::cast_slice(&tf_points);
+        write_grown(device, queue, &mut self.tf_buf, tf_bytes, storage);
+        let bin_bytes = bytemuck::cast_slice(&tf_bins);
+        write_grown(device, queue, &mut self.tf_bin_buf, bin_bytes, storage);
+        let drawn: Vec<(u32, &ShellRange)> = bin
+            .shells
+            .iter()
+            .enumerate()
+            .filter(|(_, r)| !r.faces.is_empty() || !r.near.is_empty())
+            .map(|(s, r)| (s as u32, r))
+            .collect();
+        let stride = self.shell_stride as usize;
+        let mut shell_data = vec![0u8; stride * drawn.len().max(1)];
+        for (i, (s, _)) in drawn.iter().enumerate() {
+            let u = ShellUniforms {
+                first_slice: s * n,
+                ..Zeroable::zeroed()
+            };
+            shell_data[i * stride..i * stride + size_of::<ShellUniforms>()]
+                .copy_from_slice(bytemuck::bytes_of(&u));
+        }
+        let uniform = wgpu::BufferUsages::UNIFORM;
+        write_grown(device, queue, &mut self.shell_buf, &shell_data, uniform);
+        if bin.indices.len() as u64 * 4 > self.limits.max_storage_buffer_binding_size as u64 {
+            return Err(settings_error(format!(
+                "this view draws {} tet-shell instances, more than one storage binding holds on \
+                 this adapter; use more slices per shell or a larger dz",
+                bin.indices.len()
+            )));
+        }
+        let active = bytemuck::cast_slice(&bin.indices);
+        write_grown(device, queue, &mut self.active_buf, active, storage);
+        self.queue
+            .write_buffer(&self.gpu.degenerate, 0, bytemuck::bytes_of(&0u32));
+        timings.stage("upload", ms_since(t1));
+
+        self.ensure_targets(camera.width, camera.height)?;
+        let targets = self
+            .targets
+            .as_ref()
+            .ok_or_else(|| settings_error("no targets"))?;
+        let raster_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("shells raster"),
+            layout: &self.pipelines.raster_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: self.frame_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: &self.shell_buf,
+                        offset: 0,
+                        size: wgpu::BufferSize::new(size_of::<ShellUniforms>() as u64),
+                    }),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: self.gpu.records.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: self.active_buf.as_entire_binding(),
+                },
+            ],
+        });
+        let composite_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("shells composite"),
+            layout: &self.pipelines.composite_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: self.frame_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(&targets.slices_view),
+                },
+                entry(2, &self.tf_buf),
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: &self.tf_bin_buf,
+                        offset: 0,
+                        size: wgpu::BufferSize::new(std::mem::size_of_val(&tf_bins[..]) as u64),
+                    }),
+                },
+            ],
+        });
+
+        // 2.-4. Assembly, then per non-empty shell: raster and composite.
+        let passes = 1 + 2 * drawn.len().max(1) as u32;
+        let mut rec = Recorder::new(&self.device, &self.queue, passes, self.timestamps);
+        let occlusion = (!drawn.is_empty() && drawn.len() as u32 <= wgpu::QUERY_SET_MAX_QUERIES)
+            .then(|| {
+                self.device.create_query_set(&wgpu::QuerySetDescriptor {
+                    label: Some("shells fragments"),
+                    ty: wgpu::QueryType::Occlusion,
+                    count: drawn.len() as u32,
+                })
+            });
+        {
+            let q = rec.pass_queries("assembly");
+            let writes = q.zip(rec.queries.clone()).map(|((b, e), set)| (set, b, e));
+            let enc = rec.encoder();
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("shells assembly"),
+                timestamp_writes: writes.as_ref().map(|(set, b, e)| {
+                    wgpu::ComputePassTimestampWrites {
+                        query_set: set,
+                        beginning_of_pass_write_index: Some(*b),
+                        end_of_pass_write_index: Some(*e),
+                    }
+                }),
+            });
+            pass.set_pipeline(&self.pipelines.assemble);
+            pass.set_bind_group(0, &self.gpu.assemble_group, &[]);
+            let groups = (self.mesh.tets.len() as u32).div_ceil(64);
+            let x = groups
+                .min(self.limits.max_compute_workgroups_per_dimension)
+                .max(1);
+            pass.dispatch_workgroups(x, groups.div_ceil(x), 1);
+        }
+        rec.end_stage("assembly")?;
+        let clear = wgpu::Operations {
+            load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+            store: wgpu::StoreOp::Store,
+        };
+        if drawn.is_empty() {
+            let enc = rec.encoder();
+            enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("shells empty frame"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &targets.accum_view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: clear,
+                })],
+                ..Default::default()
+            });
+        }
+        let (mut instances, mut triangles) = (0u64, 0u64);
+        for (i, (_, range)) in drawn.iter().enumerate() {
+            let q = rec.pass_queries("raster");
+            let set = rec.queries.clone();
+            let attachments: Vec<Option<wgpu::RenderPassColorAttachment>> = targets
+                .layer_views
+                .iter()
+                .map(|view| {
+                    Some(wgpu::RenderPassColorAttachment {
+                        view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: clear,
+                    })
+                })
+                .collect();
+            {
+                let enc = rec.encoder();
+                let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("shells raster"),
+                    color_attachments: &attachments,
+                    timestamp_writes: q.zip(set.as_ref()).map(|((b, e), set)| {
+                        wgpu::RenderPassTimestampWrites {
+                            query_set: set,
+                            beginning_of_pass_write_index: Some(b),
+                            end_of_pass_write_index: Some(e),
+                        }
+                    }),
+                    occlusion_query_set: occlusion.as_ref(),
+                    ..Default::default()
+                });
+                if occlusion.is_some() {
+                    pass.begin_occlusion_query(i as u32);
+                }
+                let offset = (i as u64 * self.shell_stride) as u32;
+                pass.set_bind_group(0, &raster_group, &[offset]);
+                if !range.faces.is_empty() {
+                    pass.set_pipeline(&self.pipelines.faces);
+                    pass.draw(0..12, range.faces.clone());
+                }
+                if !range.near.is_empty() {
+                    pass.set_pipeline(&self.pipelines.near);
+                    pass.draw(0..6, range.near.clone());
+                }
+                if occlusion.is_some() {
+                    pass.end_occlusion_query();
+                }
+            }
+            instances += range.faces.len() as u64 + range.near.len() as u64;
+            triangles += 4 * range.faces.len() as u64 + 2 * range.near.len() as u64;
+            rec.end_stage("raster")?;
+
+            let q = rec.pass_queries("composite");
+            let set = rec.queries.clone();
+            let timestamp_writes =
+                q.zip(set.as_ref())
+                    .map(|((b, e), set)| wgpu::RenderPassTimestampWrites {
+                        query_set: set,
+                        beginning_of_pass_write_index: Some(b),
+                        end_of_pass_write_index: Some(e),
+                    });
+            {
+                let enc = rec.encoder();
+                let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("shells composite"),
+                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                        view: &targets.accum_view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: if i == 0 {
+                            clear
+                        } else {
+                            wgpu::Operations {
+                                load: wgpu::LoadOp::Load,
+                                store: wgpu::StoreOp::Store,
+                            }
+                        },
+                    })],
+                    timestamp_writes,
+                    ..Default::default()
+                });
+                pass.set_pipeline(&self.pipelines.composite);
+                pass.set_bind_group(0, &composite_group, &[]);
+                pass.draw(0..3, 0..1);
+            }
+            rec.end_stage("composite")?;
+        }
+
+        // 5. Readback: the image, the degenerate count, timestamps and fragment counts.
+        // Stats layout: degenerate count at 0, occlusion results at 256, timestamps after them
+        // (query resolves land on 256-byte boundaries).
+        let occ_at = 256u64;
+        let ts_at = (occ_at + 8 * drawn.len() as u64).next_multiple_of(256);
+        let stats_len = ts_at + 8 * 2 * passes as u64;
+        let stats = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("shells stats readback"),
+            size: stats_len,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let resolve = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("shells query resolve"),
+            size: stats_len,
+            usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let n_ts = 2 * rec.pairs.len() as u32;
+        let ts_set = rec.queries.clone();
+        let (width, height, padded_row) = (targets.width, targets.height, targets.padded_row);
+        {
+            let enc = rec.encoder();
+            enc.copy_texture_to_buffer(
+                wgpu::TexelCopyTextureInfo {
+                    texture: &targets.accum,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d::ZERO,
+                    aspect: wgpu::TextureAspect::All,
+                },
+                wgpu::TexelCopyBufferInfo {
+                    buffer: &targets.readback,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(padded_row),
+                        rows_per_image: Some(height),
+                    },
+                },
+                wgpu::Extent3d {
+                    width,
+                    height,
+                    depth_or_array_layers: 1,
+                },
+            );
+            enc.copy_buffer_to_buffer(&self.gpu.degenerate, 0, &stats, 0, 4);
+            if let Some(occ) = &occlusion {
+                enc.resolve_query_set(occ, 0..drawn.len() as u32, &resolve, occ_at);
+                enc.copy_buffer_to_buffer(&resolve, occ_at, &stats, occ_at, 8 * drawn.len() as u64);
+            }
+            if let Some(set) = &ts_set
+                && n_ts > 0
+            {
+                enc.resolve_query_set(set, 0..n_ts, &resolve, ts_at);
+                enc.copy_buffer_to_buffer(&resolve, ts_at, &stats, ts_at, 8 * n_ts as u64);
+            }
+        }
+        if let Some(enc) = rec.encoder.take() {
+            self.queue.submit([enc.finish()]);
+        }
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(GpuError::from)?;
+        let t_read = Instant::now();
+        map_read(&self.device, &targets.readback)?;
+        map_read(&self.device, &stats)?;
+        let mut image = crate::image::Image::new(width, height);
+        {
+            let data = targets
+                .readback
+                .get_mapped_range(..)
+                .map_err(|e| settings_error(format!("mapping the readback buffer failed: {e}")))?;
+            for (y, row) in image.pixels.chunks_mut(width as usize).enumerate() {
+                let bytes = &data[y * padded_row as usize..];
+                match self.format {
+                    wgpu::TextureFormat::Rgba32Float => {
+                        let src: &[[f32; 4]] = bytemuck::cast_slice(&bytes[..width as usize * 16]);
+                        row.copy_from_slice(src);
+                    }
+                    _ => {
+                        let src: &[[u16; 4]] = bytemuck::cast_slice(&bytes[..width as usize * 8]);
+                        for (d, s) in row.iter_mut().zip(src) {
+                            *d = s.map(f16_to_f32);
+                        }
+                    }
+                }
+            }
+        }
+        targets.readback.unmap();
+        let (degenerate, fragments, gpu_stages) = {
+            let data = stats
+                .get_mapped_range(..)
+                .map_err(|e| settings_error(format!("mapping the stats buffer failed: {e}")))?;
+            let degenerate = u32::from_le_bytes([data[0], data[1], data[2], data[3]]);
+            let words: &[u64] = bytemuck::cast_slice(&data[256..]);
+            let fragments: Option<u64> = occlusion
+                .as_ref()
+                .map(|_| words[..drawn.len()].iter().sum());
+            let ts_at = ts_at as usize;
+            let gpu_stages: Vec<(&'static str, f64)> = if ts_set.is_some() {
+                let ts: &[u64] = bytemuck::cast_slice(&data[ts_at..ts_at + 8 * n_ts as usize]);
+                let period = self.queue.get_timestamp_period() as f64;
+                let mut sums: Vec<(&'static str, f64)> = Vec::new();
+                for (k, stage) in rec.pairs.iter().enumerate() {
+                    let ms = ts[2 * k + 1].saturating_sub(ts[2 * k]) as f64 * period * 1e-6;
+                    match sums.iter_mut().find(|(s, _)| s == stage) {
+                        Some((_, t)) => *t += ms,
+                        None => sums.push((stage, ms)),
+                    }
+                }
+                sums
+            } else {
+                rec.wall.clone()
+            };
+            (degenerate, fragments, gpu_stages)
+        };
+        stats.unmap();
+        for stage in ["assembly", "raster", "composite"] {
+            let ms = gpu_stages
+                .iter()
+                .find(|(s, _)| *s == stage)
+                .map_or(0.0, |&(_, t)| t);
+            timings.stage(stage, ms);
+        }
+        timings.stage("readback", ms_since(t_read));
+        timings.stage("total", ms_since(start));
+        timings.clock = if ts_set.is_some() {
+            "GPU timestamps for assembly, raster, composite; wall clock for binning, upload, \
+             readback (map + convert, after the GPU drained) and total"
+        } else {
+            "wall clock, GPU drained after each stage"
+        };
+        timings.count("tets", self.mesh.tets.len() as u64);
+        timings.count("tets culled", bin.culled);
+        timings.count("tets transparent", bin.transparent);
+        timings.count("tets between slices", bin.no_sample);
+        timings.count("shells", shells);
+        timings.count("shells drawn", drawn.len() as u64);
+        timings.count("tet-shell instances", instances);
+        timings.count("triangles", triangles);
+        timings.count("near-plane tets", bin.near);
+        timings.count("degenerate tets", degenerate as u64);
+        if let Some(f) = fragments {
+            timings.count("fragments (occlusion query)", f);
+        }
+        Ok(Frame { image, timings })
+    }
+
+    fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {
+        if positions.len() != self.mesh.positions.len() {
+            return Err(MeshError::ArrayLength {
+                array: "positions".into(),
+                len: positions.len(),
+                count: self.mesh.positions.len(),
+            }
+            .into());
+        }
+        if let Some(v) = positions.iter().position(|p| !p.is_finite()) {
+            let p = positions[v];
+            return Err(MeshError::NonFiniteCoordinate {
+                vertex: v,
+                x: p.x,
+                y: p.y,
+                z: p.z,
+            }
+            .into());
+        }
+        self.mesh.positions.copy_from_slice(positions);
+        self.mesh.frame_positions();
+        self.upload_positions();
+        Ok(())
+    }
+
+    fn update_scalars(&mut self, scalars: &[f64]) -> Result<(), RenderError> {
+        if scalars.len() != self.mesh.scalars.len() {
+            return Err(MeshError::ArrayLength {
+                array: "scalars".into(),
+                len: scalars.len(),
+                count: self.mesh.scalars.len(),
+            }
+            .into());
+        }
+        if let Some(v) = scalars.iter().position(|s| !s.is_finite()) {
+            return Err(MeshError::NonFiniteScalar {
+                array: "scalars".into(),
+                vertex: v,
+                value: scalars[v],
+            }
+            .into());
+        }
+        self.mesh.scalars.copy_from_slice(scalars);
+        self.mesh.frame_scalars();
+        self.upload_scalars();
+        Ok(())
+    }
+}

@@ -1,0 +1,294 @@
+//! CPU twins of the shells stages' tricky arithmetic, in f32 with the same operations in the
+//! same order as the WGSL, for testing and debugging: the assembly's per-tet record
+//! (`shaders/shells_assemble.wgsl`) and the raster fragment's slice sampling and inside test
+//! (`shaders/shells_raster.wgsl`), and the composite's transfer-function evaluation
+//! (`shaders/shells_composite.wgsl`). They share no code with the reference renderer.
+
+use glam::{Vec3, Vec4};
+
+use crate::gpu::gpu_data::{FrameUniforms, TetRecord, TfBin, TfPoint};
+
+fn v3(a: [f32; 3]) -> Vec3 {
+    Vec3::from_array(a)
+}
+
+fn to_eye(f: &FrameUniforms, p: Vec3) -> Vec3 {
+    let q = p - v3(f.eye);
+    Vec3::new(v3(f.right).dot(q), v3(f.up).dot(q), v3(f.forward).dot(q))
+}
+
+fn rotate(f: &FrameUniforms, g: Vec3) -> Vec3 {
+    Vec3::new(v3(f.right).dot(g), v3(f.up).dot(g), v3(f.forward).dot(g))
+}
+
+/// The assembly stage for one tet: corners `p` relative to the mesh origin, normalized scalars
+/// `s`. `None` for a degenerate tet (which the GPU counts and skips).
+pub fn assemble(f: &FrameUniforms, p: [Vec3; 4], s: [f32; 4]) -> Option<TetRecord> {
+    let (e1, e2, e3) = (p[1] - p[0], p[2] - p[0], p[3] - p[0]);
+    let l = e1.length().max(e2.length().max(e3.length()));
+    let inv_l = 1.0 / l;
+    let (n1, n2, n3) = (e1 * inv_l, e2 * inv_l, e3 * inv_l);
+    let (c23, c31, c12) = (n2.cross(n3), n3.cross(n1), n1.cross(n2));
+    let det = n1.dot(c23);
+    let scale = n1.length() * n2.length() * n3.length();
+    if !(det.abs() > f.degenerate_tol * scale) {
+        return None;
+    }
+    let pos = p.map(|q| to_eye(f, q).extend(1.0).to_array());
+    let k = inv_l / det;
+    let (g1, g2, g3) = (c23 * k, c31 * k, c12 * k);
+    let g0 = -(g1 + g2 + g3);
+    let q = (v3(f.eye) - p[0]) * inv_l;
+    let (l1, l2, l3) = (c23.dot(q) / det, c31.dot(q) / det, c12.dot(q) / det);
+    let lambda_eye = Vec4::new(1.0 - (l1 + l2 + l3), l1, l2, l3);
+    let r = [g0, g1, g2, g3].map(|g| rotate(f, g));
+    let s = Vec4::from_array(s) + Vec4::ONE;
+    let gs = r[0] * s.x + r[1] * s.y + r[2] * s.z + r[3] * s.w;
+    Some(TetRecord {
+        pos,
+        grad_x: [r[0].x, r[1].x, r[2].x, r[3].x],
+        grad_y: [r[0].y, r[1].y, r[2].y, r[3].y],
+        grad_z: [r[0].z, r[1].z, r[2].z, r[3].z],
+        lambda_eye: lambda_eye.to_array(),
+        scalar: gs.extend(lambda_eye.dot(s)).to_array(),
+    })
+}
+
+/// The unit eye-space ray through framebuffer position `xy` (a pixel centre).
+pub fn pixel_ray(f: &FrameUniforms, xy: [f32; 2]) -> Vec3 {
+    let u = (2.0 * xy[0] / f.size[0] - 1.0) * f.half_extent[0];
+    let v = (1.0 - 2.0 * xy[1] / f.size[1]) * f.half_extent[1];
+    Vec3::new(u, v, 1.0).normalize()
+}
+
+/// Barycentric coordinates of the point at distance `t` along unit eye-space ray `d`.
+pub fn barycentric(rec: &TetRecord, d: Vec3, t: f32) -> Vec4 {
+    let gd = Vec4::from_array(rec.grad_x) * d.x
+        + Vec4::from_array(rec.grad_y) * d.y
+        + Vec4::from_array(rec.grad_z) * d.z;
+    Vec4::from_array(rec.lambda_eye) + gd * t
+}
+
+/// The raster fragment for one pixel and shell: each slice's encoded scalar where the sample is
+/// inside the tet (smallest barycentric >= -epsilon), 0 elsewhere.
+pub fn sample_slices(
+    f: &FrameUniforms,
+    rec: &TetRecord,
+    xy: [f32; 2],
+    first_slice: u32,
+) -> Vec<f32> {
+    let d = pixel_ray(f, xy);
+    let sd = Vec3::from_slice(&rec.scalar[..3]).dot(d);
+    (0..f.slices_per_shell)
+        .map(|j| {
+            let t = f.t_first + (first_slice + j) as f32 * f.dz;
+            let lam = barycentric(rec, d, t);
+            if lam.min_element() >= -f.epsilon {
+                rec.scalar[3] + t * sd
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}
+
+/// The composite's TF evaluation at normalized scalar `u`: the bin's linear piece when `u` is
+/// on it, else the search over the control points. Returns (r, g, b, tau).
+pub fn tf_eval(points: &[TfPoint], bins: &[TfBin], u: f32) -> Vec4 {
+    let n = bins.len() as u32;
+    let x = u * n as f32;
+    if x >= 0.0 && x < n as f32 {
+        let b = &bins[(x as u32).min(n - 1) as usize];
+        if u >= b.start && u < b.split {
+            return Vec4::from_array(b.value) + Vec4::from_array(b.slope) * (u - b.start);
+        }
+    }
+    tf_search(points, u)
+}
+
+fn tf_search(tf: &[TfPoint], u: f32) -> Vec4 {
+    let at = |p: &TfPoint| Vec4::new(p.rgb[0], p.rgb[1], p.rgb[2], p.tau);
+    let last = tf.len() - 1;
+    if u <= tf[0].s {
+        return at(&tf[0]);
+    }
+    if u >= tf[last].s {
+        return at(&tf[last]);
+    }
+    let mut j = 1;
+    while j < last && tf[j].s <= u {
+        j += 1;
+    }
+    let (a, b) = (&tf[j - 1], &tf[j]);
+    at(a).lerp(at(b), (u - a.s) / (b.s - a.s))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn frame(eye: Vec3) -> FrameUniforms {
+        // A camera at `eye` looking along +y with z up: right = +x, up = +z, forward = +y.
+        FrameUniforms {
+            right: [1.0, 0.0, 0.0],
+            up: [0.0, 0.0, 1.0],
+            forward: [0.0, 1.0, 0.0],
+            eye: eye.to_array(),
+            epsilon: 1e-4,
+            degenerate_tol: 1e-6,
+            size: [64.0, 48.0],
+            half_extent: [0.5 * 64.0 / 48.0, 0.5],
+            slices_per_shell: 8,
+            dz: 0.05,
+            t_first: 0.5,
+            ..Default::default()
+        }
+    }
+
+    fn point(r: f32) -> impl Strategy<Value = Vec3> {
+        (-r..r, -r..r, -r..r).prop_map(|(x, y, z)| Vec3::new(x, y, z))
+    }
+
+    fn weights() -> impl Strategy<Value = Vec4> {
+        (0.01..1.0f32, 0.01..1.0f32, 0.01..1.0f32, 0.01..1.0f32)
+            .prop_map(|(a, b, c, d)| Vec4::new(a, b, c, d) / (a + b + c + d))
+    }
+
+    /// Tets whose volume is at least 1% of their longest edge cubed: well conditioned.
+    fn good_tet() -> impl Strategy<Value = [Vec3; 4]> {
+        (point(1.0), point(1.0), point(1.0), point(1.0), point(3.0))
+            .prop_map(|(a, b, c, d, o)| [a + o, b + o, c + o, d + o])
+            .prop_filter("well conditioned", |p| {
+                let (e1, e2, e3) = (p[1] - p[0], p[2] - p[0], p[3] - p[0]);
+                let l = e1.length().max(e2.length()).max(e3.length());
+                e1.dot(e2.cross(e3)).abs() > 0.01 * l * l * l
+            })
+    }
+
+    proptest! {
+        /// A point given by barycentric weights w, seen from the eye along its own ray, gets
+        /// back w (round trip through the eye-to-barycentric record), and its encoded scalar.
+        #[test]
+        fn barycentric_round_trip(p in good_tet(), w in weights(), eye in point(8.0), s in (0.0..1.0f32, 0.0..1.0f32, 0.0..1.0f32, 0.0..1.0f32)) {
+            let f = frame(eye);
+            let s = [s.0, s.1, s.2, s.3];
+            let rec = assemble(&f, p, s).expect("well conditioned");
+            let x = p[0] * w.x + p[1] * w.y + p[2] * w.z + p[3] * w.w;
+            let xe = to_eye(&f, x);
+            let t = xe.length();
+            prop_assume!(t > 1e-2);
+            let lam = barycentric(&rec, xe / t, t);
+            // f32 with a 1% conditioned tet at distances up to ~20 edge lengths: the error is
+            // about (t / edge) * cond * 1e-7 ~ 20 * 100 * 1e-7 = 2e-4; 1e-3 leaves headroom.
+            prop_assert!((lam - w).abs().max_element() < 1e-3, "lambda {lam} vs {w}");
+            let enc = rec.scalar[3] + t * Vec3::from_slice(&rec.scalar[..3]).dot(xe / t);
+            let truth = 1.0 + w.dot(Vec4::from_array(s));
+            prop_assert!((enc - truth).abs() < 1e-3, "scalar {enc} vs {truth}");
+        }
+
+        /// Every slice sample that lies inside the tet (weights >= 0.001, so well inside f32
+        /// noise) passes the inside test and gets a value > 0; samples far outside get 0.
+        #[test]
+        fn inside_samples_are_written(p in good_tet(), w in weights(), j in 0u32..8) {
+            let mut f = frame(Vec3::new(0.0, -6.0, 0.0));
+            let x = p[0] * w.x + p[1] * w.y + p[2] * w.z + p[3] * w.w;
+            let xe = to_eye(&f, x);
+            prop_assume!(xe.z > 0.1);
+            // Put slice j of shell 0 exactly at the point's distance, and the pixel on its ray.
+            let t = xe.length();
+            f.t_first = t - j as f32 * f.dz;
+            let d = xe / t;
+            // The framebuffer position whose pixel ray is d (inverse of pixel_ray).
+            let u = d.x / d.z / f.half_extent[0];
+            let v = d.y / d.z / f.half_extent[1];
+            let xy = [(u + 1.0) * 0.5 * f.size[0], (1.0 - v) * 0.5 * f.size[1]];
+            let rec = assemble(&f, p, [0.5; 4]).expect("well conditioned");
+            let lam = barycentric(&rec, pixel_ray(&f, xy), t);
+            prop_assert!(lam.min_element() >= -f.epsilon, "inside point rejected: {lam}");
+            let out = sample_slices(&f, &rec, xy, 0);
+            prop_assert!(out[j as usize] > 0.0);
+            for (k, &v) in out.iter().enumerate() {
+                let lam_k = barycentric(&rec, pixel_ray(&f, xy), f.t_first + k as f32 * f.dz);
+                if lam_k.min_element() < -0.01 {
+                    prop_assert_eq!(v, 0.0);
+                }
+            }
+        }
+    }
+
+    /// The table evaluation equals TransferFunction::eval (f32 rounding aside) for TFs with
+    /// points inside bins, on bin edges, outside the data range, and a step.
+    #[test]
+    fn tf_table_matches_the_transfer_function() {
+        use crate::gpu::shells::tf_table::tf_table;
+        use crate::tf::{ControlPoint, TransferFunction};
+        let cp = |s: f64, r: f64, a: f64| ControlPoint {
+            s,
+            color: [r, 1.0 - r, 0.5 * r],
+            opacity: a,
+        };
+        let (lo, span) = (-3.0, 8.0);
+        let tfs = [
+            vec![cp(-3.0, 0.0, 0.0), cp(5.0, 1.0, 0.9)],
+            vec![
+                cp(-4.0, 0.2, 0.1),
+                cp(0.0, 0.9, 0.5),
+                cp(0.0, 0.1, 0.05),
+                cp(1.3, 0.4, 0.7),
+                cp(9.0, 1.0, 0.2),
+            ],
+            vec![
+                cp(-3.0 + 8.0 * 0.25, 0.5, 0.3),
+                cp(-3.0 + 8.0 * 0.5, 0.7, 0.6),
+            ],
+            vec![cp(1.0, 0.5, 0.5)],
+        ];
+        for points in tfs {
+            let tf = TransferFunction::new(points, 0.5).unwrap();
+            let (pts, bins) = tf_table(&tf, lo, span);
+            for i in 0..=40_000 {
+                let u = i as f64 / 40_000.0 * 1.2 - 0.1;
+                let want = tf.eval(lo + u * span);
+                let got = tf_eval(&pts, &bins, u as f32);
+                let want = Vec4::new(
+                    want.color[0] as f32,
+                    want.color[1] as f32,
+                    want.color[2] as f32,
+                    want.tau as f32,
+                );
+                // f32 rounding of u near a step can pick the other side: skip within 1e-6 of one.
+                if tf
+                    .points()
+                    .iter()
+                    .any(|p| ((p.s - lo) / span - u).abs() < 1e-6)
+                {
+                    continue;
+                }
+                // Values up to ~9 (tau of opacity 0.9 over 0.5): 1e-5 is a few f32 ulps.
+                assert!(
+                    (got - want).abs().max_element() < 1e-5,
+                    "u {u}: {got} vs {want}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn degenerate_tets_are_refused_without_nan() {
+        let f = frame(Vec3::new(0.0, -5.0, 0.0));
+        let flat = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(0.3, 0.3, 0.0)];
+        assert!(assemble(&f, flat, [0.0; 4]).is_none());
+        let point = [Vec3::ONE; 4];
+        assert!(assemble(&f, point, [0.0; 4]).is_none());
+        let sliver = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(0.3, 0.3, 1e-9)];
+        assert!(assemble(&f, sliver, [0.0; 4]).is_none());
+        let fine = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z];
+        let rec = assemble(&f, fine, [0.0; 4]).unwrap();
+        assert!(
+            bytemuck::cast_slice::<TetRecord, f32>(&[rec])
+                .iter()
+                .all(|v| v.is_finite())
+        );
+    }
+}

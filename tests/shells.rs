@@ -1,0 +1,582 @@
+//! The shells mode on the adapter the machine has (lavapipe on CI), against independent
+//! expectations: exact sampled integrals of linear fields on boxes (a linear field is
+//! reproduced exactly by barycentric interpolation, so the expected image needs no mesh), and
+//! the exact reference renderer.
+//!
+//! GPU tests fail (never skip) when there is no adapter.
+
+mod common;
+
+use std::sync::OnceLock;
+
+use glam::{DVec3, UVec3};
+use tetvr::gpu::{AdapterChoice, GpuContext, ShellSettings, ShellsRenderer};
+use tetvr::tf::ControlPoint;
+use tetvr::{Camera, Image, Renderer, TetMesh, TransferFunction, generate};
+
+use common::{Bounds, assert_images_close};
+
+fn ctx() -> &'static GpuContext {
+    static CTX: OnceLock<GpuContext> = OnceLock::new();
+    CTX.get_or_init(|| {
+        GpuContext::new(AdapterChoice::Auto).unwrap_or_else(|e| {
+            panic!("the shells tests need a GPU adapter (Mesa's lavapipe will do): {e}")
+        })
+    })
+}
+
+/// A TF over [lo, hi] with three colours and an opacity bump, unit distance `d_u`.
+fn tf3(lo: f64, hi: f64, d_u: f64) -> TransferFunction {
+    let cp = |u: f64, color: [f64; 3], opacity| ControlPoint {
+        s: lo + (hi - lo) * u,
+        color,
+        opacity,
+    };
+    TransferFunction::new(
+        vec![
+            cp(0.0, [0.1, 0.2, 0.9], 0.05),
+            cp(0.4, [0.2, 0.9, 0.3], 0.4),
+            cp(0.7, [0.9, 0.8, 0.1], 0.1),
+            cp(1.0, [1.0, 0.2, 0.1], 0.6),
+        ],
+        d_u,
+    )
+    .expect("valid TF")
+}
+
+fn look(eye: DVec3, target: DVec3, up: DVec3, fov: f64, w: u32, h: u32) -> Camera {
+    Camera {
+        eye,
+        target,
+        up,
+        fov_y_deg: fov,
+        width: w,
+        height: h,
+    }
+}
+
+/// Signed distance from `p` to the box `[lo, hi]` (negative inside).
+fn box_sd(p: DVec3, lo: DVec3, hi: DVec3) -> f64 {
+    let c = (lo + hi) * 0.5;
+    let q = (p - c).abs() - (hi - lo) * 0.5;
+    q.max(DVec3::ZERO).length() + q.max_element().min(0.0)
+}
+
+/// Whether a point is in a region, and whether it is so close to the region's boundary (or to
+/// skipped degenerate tets) that f32 may decide either way.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Place {
+    inside: bool,
+    ambiguous: bool,
+}
+
+/// A region given by its signed distance (negative inside).
+fn by_distance(sd: f64) -> Place {
+    Place {
+        inside: sd < 0.0,
+        ambiguous: sd.abs() <= MARGIN,
+    }
+}
+
+/// The exact sampled image of a linear `field` on a region: every slice sample
+/// `t_first + k dz` (k from 0 while t <= t_end) inside the region contributes its TF value,
+/// composited front to back in f64. Returns the image and a mask of ambiguous pixels: those
+/// with an ambiguous sample.
+fn expected_sampled(
+    camera: &Camera,
+    (t_first, dz): (f64, f64),
+    t_end: f64,
+    region: impl Fn(DVec3) -> Place,
+    field: impl Fn(DVec3) -> f64,
+    tf: &TransferFunction,
+) -> (Image, Vec<bool>) {
+    let (r, u, f) = camera.basis();
+    let mut img = Image::new(camera.width, camera.height);
+    let mut ambiguous = vec![false; img.pixels.len()];
+    for y in 0..camera.height {
+        for x in 0..camera.width {
+            let d = camera.ray_dir_in(r, u, f, x, y);
+            let (mut c, mut a) = ([0.0f64; 3], 0.0f64);
+            let i = (y * camera.width + x) as usize;
+            let mut k = 0u64;
+            loop {
+                let t = t_first + k as f64 * dz;
+                if t > t_end {
+                    break;
+                }
+                k += 1;
+                let p = camera.eye + d * t;
+                let place = region(p);
+                ambiguous[i] |= place.ambiguous;
+                if place.inside {
+                    let s = tf.eval(field(p));
+                    let alpha = 1.0 - (-s.tau * dz).exp();
+                    for ch in 0..3 {
+                        c[ch] += (1.0 - a) * alpha * s.color[ch];
+                    }
+                    a += (1.0 - a) * alpha;
+                }
+            }
+            img.pixels[i] = [c[0] as f32, c[1] as f32, c[2] as f32, a as f32];
+        }
+    }
+    (img, ambiguous)
+}
+
+/// Copies `actual` into `expected` where `mask` is set (pixels excluded from a comparison) and
+/// returns how many there were.
+fn exclude(expected: &mut Image, actual: &Image, mask: &[bool]) -> usize {
+    let mut n = 0;
+    for ((e, a), &m) in expected.pixels.iter_mut().zip(&actual.pixels).zip(mask) {
+        if m {
+            *e = *a;
+            n += 1;
+        }
+    }
+    n
+}
+
+fn render(
+    mesh: &TetMesh,
+    settings: ShellSettings,
+    camera: &Camera,
+    tf: &TransferFunction,
+) -> (Image, ShellsRenderer, tetvr::Timings) {
+    let mut r = ShellsRenderer::new(ctx(), mesh, settings).expect("renderer");
+    let frame = r.render(camera, tf).expect("frame");
+    (frame.image, r, frame.timings)
+}
+
+fn counter(t: &tetvr::Timings, name: &str) -> u64 {
+    t.counters
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map(|&(_, c)| c)
+        .unwrap_or_else(|| panic!("no counter {name}"))
+}
+
+/// Samples this close to the mesh boundary may fall either way: the GPU accepts samples whose
+/// smallest barycentric is >= -epsilon (1e-4), i.e. up to 1e-4 times a tet's height outside it
+/// (< 1e-4 for the tets below, all edges < 1), plus f32 rounding of the sample position (~1e-6).
+const MARGIN: f64 = 1e-4;
+
+/// Pixels with an ambiguous sample are excluded. With dz ~ 6.8e-3, a boundary crossing has a
+/// sample within MARGIN with probability 2 MARGIN / (dz cos) ~ 3-5% at the angles below, and a
+/// ray through a convex box crosses twice, so at most a tenth of the pixels are excluded
+/// (twice that for the non-convex mesh, whose rays cross four times).
+const MAX_AMBIGUOUS_FRACTION: usize = 10;
+
+/// A linear field on the box [-1, 1]^3 (exact under barycentric interpolation).
+fn linear(p: DVec3) -> f64 {
+    0.3 * p.x - 0.5 * p.y + 0.8 * p.z
+}
+
+/// Bounds for a linear field against its exact sampled image. The GPU differs from the f64
+/// expectation only by f32 rounding: per sample the scalar is off by ~1e-6 of its range and the
+/// TF colour by the TF slope times that; over ~600 samples the accumulated colour error stays
+/// below 1e-4 (measured ~1e-5). Ambiguous pixels (a sample within 1e-4 of the mesh boundary,
+/// where f32 and f64 may disagree on one sample) are excluded and counted.
+const LINEAR_BOUNDS: Bounds = Bounds {
+    max_rmse: 2e-5,
+    max_abs: 2e-4,
+    max_holes: 0,
+    max_spill: 0,
+};
+
+#[test]
+fn constant_field_in_a_box_matches_the_closed_form() {
+    // Constant field: each sample inside adds alpha_1 = 1 - exp(-tau dz), so a pixel whose ray
+    // has N samples in the box has alpha = 1 - exp(-tau N dz) exactly.
+    let (lo, hi) = (DVec3::splat(-1.0), DVec3::splat(1.0));
+    let mesh = generate::box_grid(lo, hi, UVec3::new(8, 7, 6), "c", |_| 2.0);
+    let tf = TransferFunction::new(
+        vec![ControlPoint {
+            s: 2.0,
+            color: [0.8, 0.5, 0.2],
+            opacity: 0.3,
+        }],
+        0.1,
+    )
+    .unwrap();
+    let camera = look(
+        DVec3::new(2.9, -3.7, 2.2),
+        DVec3::new(0.1, 0.05, -0.1),
+        DVec3::Z,
+        40.0,
+        96,
+        80,
+    );
+    let (img, r, timings) = render(&mesh, ShellSettings::default(), &camera, &tf);
+    let slices = r.slice_positions(&camera);
+    let t_end = (camera.eye).length() + 3f64.sqrt();
+    let (mut expect, amb) = expected_sampled(
+        &camera,
+        slices,
+        t_end,
+        |p| by_distance(box_sd(p, lo, hi)),
+        |_| 2.0,
+        &tf,
+    );
+    let n = exclude(&mut expect, &img, &amb);
+    eprintln!("{n} ambiguous pixels of {}", img.pixels.len());
+    assert!(
+        n < img.pixels.len() / MAX_AMBIGUOUS_FRACTION,
+        "{n} ambiguous pixels"
+    );
+    assert_images_close("shells-constant-box", &img, &expect, LINEAR_BOUNDS);
+    assert_eq!(counter(&timings, "degenerate tets"), 0);
+}
+
+#[test]
+fn linear_field_matches_exact_sampling_from_outside() {
+    let (lo, hi) = (DVec3::splat(-1.0), DVec3::splat(1.0));
+    let mesh = generate::box_grid(lo, hi, UVec3::new(6, 5, 7), "lin", linear);
+    let tf = tf3(-1.6, 1.6, 0.05);
+    let camera = look(
+        DVec3::new(-2.4, -3.1, 1.7),
+        DVec3::new(0.05, 0.1, 0.0),
+        DVec3::Z,
+        45.0,
+        128,
+        128,
+    );
+    for slices_per_shell in [None, Some(5)] {
+        let settings = ShellSettings {
+            slices_per_shell,
+            ..Default::default()
+        };
+        let (img, r, _) = render(&mesh, settings, &camera, &tf);
+        let t_end = camera.eye.length() + 3f64.sqrt();
+        let (mut expect, amb) = expected_sampled(
+            &camera,
+            r.slice_positions(&camera),
+            t_end,
+            |p| by_distance(box_sd(p, lo, hi)),
+            linear,
+            &tf,
+        );
+        let n = exclude(&mut expect, &img, &amb);
+        eprintln!("{n} ambiguous pixels of {}", img.pixels.len());
+        assert!(
+            n < img.pixels.len() / MAX_AMBIGUOUS_FRACTION,
+            "{n} ambiguous pixels"
+        );
+        assert_images_close(
+            &format!("shells-linear-{slices_per_shell:?}"),
+            &img,
+            &expect,
+            LINEAR_BOUNDS,
+        );
+    }
+}
+
+/// Renders `mesh` and compares with the exact sampled linear field on `region`.
+fn check_linear(
+    name: &str,
+    mesh: &TetMesh,
+    camera: &Camera,
+    tf: &TransferFunction,
+    region: impl Fn(DVec3) -> Place,
+    field: impl Fn(DVec3) -> f64,
+    crossings: usize,
+) -> (Image, tetvr::Timings) {
+    let (img, r, timings) = render(mesh, ShellSettings::default(), camera, tf);
+    let (lo, hi) = mesh.bounds();
+    let t_end = (camera.eye - (lo + hi) * 0.5).length() + (hi - lo).length() * 0.5;
+    let (mut expect, amb) =
+        expected_sampled(camera, r.slice_positions(camera), t_end, region, field, tf);
+    let n = exclude(&mut expect, &img, &amb);
+    eprintln!("{name}: {n} ambiguous pixels of {}", img.pixels.len());
+    assert!(
+        n < img.pixels.len() * crossings / 2 / MAX_AMBIGUOUS_FRACTION,
+        "{n} ambiguous pixels"
+    );
+    assert_images_close(name, &img, &expect, LINEAR_BOUNDS);
+    (img, timings)
+}
+
+/// Keeps the tets of `mesh` for which `keep(centroid)` holds (vertices stay, some unused).
+fn filter_tets(mesh: &TetMesh, keep: impl Fn(DVec3) -> bool) -> TetMesh {
+    let tets: Vec<[u32; 4]> = (0..mesh.tet_count())
+        .filter(|&t| keep(mesh.tet_corners(t).iter().sum::<DVec3>() / 4.0))
+        .map(|t| mesh.tets()[t])
+        .collect();
+    TetMesh::new(mesh.positions().to_vec(), tets, mesh.arrays().to_vec())
+        .expect("a subset of a valid mesh is valid")
+        .0
+}
+
+#[test]
+fn non_convex_mesh_rays_leave_and_reenter() {
+    // The cube [-1, 1]^3 with the square tunnel |x| < 1/3, |y| < 1/3 along z: seen from the
+    // side at a low angle, most rays cross the tunnel (leave the mesh and re-enter it).
+    let (lo, hi) = (DVec3::splat(-1.0), DVec3::splat(1.0));
+    let grid = generate::box_grid(lo, hi, UVec3::splat(6), "lin", linear);
+    let mesh = filter_tets(&grid, |c| !(c.x.abs() < 1.0 / 3.0 && c.y.abs() < 1.0 / 3.0));
+    assert_eq!(mesh.tet_count(), (216 - 4 * 6) * 6);
+    let tunnel = (
+        DVec3::new(-1.0 / 3.0, -1.0 / 3.0, -5.0),
+        DVec3::new(1.0 / 3.0, 1.0 / 3.0, 5.0),
+    );
+    let region = |p| by_distance(box_sd(p, lo, hi).max(-box_sd(p, tunnel.0, tunnel.1)));
+    let camera = look(
+        DVec3::new(3.3, -1.9, 0.9),
+        DVec3::new(0.0, 0.1, 0.0),
+        DVec3::Z,
+        40.0,
+        128,
+        128,
+    );
+    let tf = tf3(-1.6, 1.6, 0.05);
+    check_linear("shells-non-convex", &mesh, &camera, &tf, region, linear, 4);
+}
+
+#[test]
+fn eye_inside_the_mesh() {
+    // The eye inside the cube: the tets around it have corners behind the eye and are drawn as
+    // clipped screen quads; everything in front must still be sampled.
+    let (lo, hi) = (DVec3::splat(-1.0), DVec3::splat(1.0));
+    let mesh = generate::box_grid(lo, hi, UVec3::new(7, 6, 5), "lin", linear);
+    let camera = look(
+        DVec3::new(0.13, -0.21, 0.07),
+        DVec3::new(1.0, 0.4, 0.3),
+        DVec3::Z,
+        70.0,
+        128,
+        112,
+    );
+    let tf = tf3(-1.6, 1.6, 0.2);
+    let (_, timings) = check_linear(
+        "shells-eye-inside",
+        &mesh,
+        &camera,
+        &tf,
+        |p| by_distance(box_sd(p, lo, hi)),
+        linear,
+        1,
+    );
+    assert!(counter(&timings, "near-plane tets") > 0);
+}
+
+#[test]
+fn head_on_structured_grid_has_no_holes() {
+    // An 8 x 8 x 4 grid of [-1, 1]^2 x [0, 1] seen along +z from (0, 0, -3): the centre ray runs
+    // along a chain of grid edges, the centre row and column lie in grid planes (shared faces),
+    // and at the front face (z = 0, 3 from the eye) pixel centres are 1/4 of a cell apart, so
+    // every 4th pixel's ray passes exactly through front-face vertices and edges.
+    let (lo, hi) = (DVec3::new(-1.0, -1.0, 0.0), DVec3::new(1.0, 1.0, 1.0));
+    let mesh = generate::box_grid(lo, hi, UVec3::new(8, 8, 4), "lin", linear);
+    let size = 65u32;
+    let pixel = 0.25 / 4.0;
+    let fov = 2.0 * (size as f64 * 0.5 * pixel / 3.0).atan().to_degrees();
+    let camera = look(
+        DVec3::new(0.0, 0.0, -3.0),
+        DVec3::new(0.0, 0.0, 1.0),
+        DVec3::Y,
+        fov,
+        size,
+        size,
+    );
+    let tf = tf3(-1.6, 1.6, 0.05);
+    check_linear(
+        "shells-head-on",
+        &mesh,
+        &camera,
+        &tf,
+        |p| by_distance(box_sd(p, lo, hi)),
+        linear,
+        2,
+    );
+}
+
+#[test]
+fn far_from_the_origin_renders_the_same_picture() {
+    // The same mesh and camera translated by (1e5, -2e5, 1e5): positions and the eye are taken
+    // relative to the mesh's bounding-box centre in f64 before rounding to f32, so the GPU sees
+    // the same numbers up to f64 rounding of the translation (~1e-11) and the pictures agree
+    // but for f32 noise. Bound: rmse 1e-6, max 1e-4 (the f32 colour noise of
+    // LINEAR_BOUNDS; a sample flipping in or out would cost ~1e-2).
+    let (lo, hi) = (DVec3::splat(-1.0), DVec3::splat(1.0));
+    let mesh = generate::box_grid(lo, hi, UVec3::new(6, 5, 4), "lin", linear);
+    let shift = DVec3::new(1e5, -2e5, 1e5);
+    let far = TetMesh::new(
+        mesh.positions().iter().map(|&p| p + shift).collect(),
+        mesh.tets().to_vec(),
+        mesh.arrays().to_vec(),
+    )
+    .unwrap()
+    .0;
+    let camera = look(
+        DVec3::new(-2.4, -3.1, 1.7),
+        DVec3::new(0.05, 0.1, 0.0),
+        DVec3::Z,
+        45.0,
+        128,
+        128,
+    );
+    let moved = Camera {
+        eye: camera.eye + shift,
+        target: camera.target + shift,
+        ..camera
+    };
+    let tf = tf3(-1.6, 1.6, 0.05);
+    let (near_img, _, _) = render(&mesh, ShellSettings::default(), &camera, &tf);
+    let (far_img, _, _) = render(&far, ShellSettings::default(), &moved, &tf);
+    let bounds = Bounds {
+        max_rmse: 1e-6,
+        max_abs: 1e-4,
+        max_holes: 0,
+        max_spill: 0,
+    };
+    assert_images_close("shells-far-from-origin", &far_img, &near_img, bounds);
+}
+
+#[test]
+fn slivers_and_zero_volume_tets_give_no_nan_and_no_holes() {
+    // A 6^3 grid of [-1, 1]^3 whose z layers are squashed: one to 1e-5 (slivers with ~3e-5 of
+    // a regular tet's volume, rendered), one to 1e-9 (flat in f32: skipped as degenerate), plus
+    // 36 exactly flat tets on grid planes. The domain is still the cube, the field linear.
+    let (lo, hi) = (DVec3::splat(-1.0), DVec3::splat(1.0));
+    let grid = generate::box_grid(lo, hi, UVec3::splat(6), "z", |p| p.z);
+    // Layer boundaries at z = -1 + k/3 move to these heights.
+    let heights = [-1.0, -0.6, -0.3, -0.3 + 1e-5, 0.2, 0.2 + 1e-9, 1.0];
+    let squash = |z: f64| heights[((z + 1.0) * 3.0).round() as usize];
+    let positions: Vec<DVec3> = grid
+        .positions()
+        .iter()
+        .map(|p| DVec3::new(p.x, p.y, squash(p.z)))
+        .collect();
+    let mut tets = grid.tets().to_vec();
+    let index = |x: u32, y: u32, z: u32| x + 7 * (y + 7 * z);
+    for x in 0..6 {
+        for y in 0..6 {
+            tets.push([
+                index(x, y, 4),
+                index(x + 1, y, 4),
+                index(x + 1, y + 1, 4),
+                index(x, y + 1, 4),
+            ]);
+        }
+    }
+    let values = positions.iter().map(|&p| linear(p)).collect();
+    let mesh = TetMesh::new(
+        positions,
+        tets,
+        vec![tetvr::ScalarArray::new("lin", values)],
+    )
+    .unwrap()
+    .0;
+    let near_layer = |p: DVec3| {
+        [-0.3, 0.2]
+            .iter()
+            .any(|&h| (p.z - h).abs() <= MARGIN + 1e-5)
+    };
+    let region = |p: DVec3| {
+        let place = by_distance(box_sd(p, lo, hi));
+        Place {
+            ambiguous: place.ambiguous || (place.inside && near_layer(p)),
+            ..place
+        }
+    };
+    let camera = look(
+        DVec3::new(2.1, -2.9, 1.9),
+        DVec3::ZERO,
+        DVec3::Z,
+        45.0,
+        128,
+        128,
+    );
+    let tf = tf3(-1.6, 1.6, 0.05);
+    let (_, timings) = check_linear("shells-slivers", &mesh, &camera, &tf, region, linear, 2);
+    // At least the 36 flat tets and the 216 tets of the 1e-9 layer.
+    assert!(
+        counter(&timings, "degenerate tets") >= 36 + 216,
+        "{timings}"
+    );
+}
+
+#[test]
+fn updated_positions_render_as_a_fresh_renderer_does() {
+    // Deforming: one upload, then the same picture as a renderer built on the deformed mesh.
+    let (lo, hi) = (DVec3::splat(-1.0), DVec3::splat(1.0));
+    let mesh = generate::box_grid(lo, hi, UVec3::splat(5), "lin", linear);
+    let bent: Vec<DVec3> = mesh
+        .positions()
+        .iter()
+        .map(|p| *p + DVec3::new(0.2 * (p.z * 2.0).sin(), 0.1 * p.x * p.x, 0.0))
+        .collect();
+    let mut deformed = mesh.clone();
+    deformed.set_positions(bent.clone()).unwrap();
+    let camera = look(
+        DVec3::new(-2.4, -3.1, 1.7),
+        DVec3::ZERO,
+        DVec3::Z,
+        45.0,
+        96,
+        96,
+    );
+    let tf = tf3(-1.6, 1.6, 0.05);
+    let (_, mut r, _) = render(&mesh, ShellSettings::default(), &camera, &tf);
+    r.update_positions(&bent).unwrap();
+    let updated = r.render(&camera, &tf).unwrap().image;
+    let (fresh, _, _) = render(&deformed, ShellSettings::default(), &camera, &tf);
+    // Same inputs, same arithmetic: identical pictures.
+    assert_eq!(updated.compare(&fresh).unwrap().max_abs, 0.0);
+    assert!(r.update_positions(&bent[1..]).is_err());
+    assert!(r.update_scalars(&[f64::NAN; 216]).is_err());
+}
+
+/// Renders `frames` frames after one warm-up and prints the median frame's timings.
+fn bench(
+    name: &str,
+    mesh: &TetMesh,
+    settings: ShellSettings,
+    camera: &Camera,
+    tf: &TransferFunction,
+    frames: usize,
+) -> Image {
+    let mut r = ShellsRenderer::new(ctx(), mesh, settings).expect("renderer");
+    r.render(camera, tf).expect("warm-up frame");
+    let mut runs: Vec<tetvr::Frame> = (0..frames)
+        .map(|_| r.render(camera, tf).expect("frame"))
+        .collect();
+    runs.sort_by(|a, b| {
+        a.timings
+            .get("total")
+            .partial_cmp(&b.timings.get("total"))
+            .expect("finite")
+    });
+    let median = runs.swap_remove(frames / 2);
+    eprintln!("{name}: median of {frames} frames\n{}", median.timings);
+    median.image
+}
+
+/// Frame time on a generated grid of ~187k tets (bluntfin's count) at 512x512.
+#[test]
+#[ignore = "benchmark: run with --ignored --nocapture"]
+fn bench_generated_187k_512() {
+    let (lo, hi) = (DVec3::splat(-1.0), DVec3::splat(1.0));
+    let mesh = generate::box_grid(
+        lo,
+        hi,
+        generate::cells_for_tet_count(187_395),
+        "lin",
+        linear,
+    );
+    let camera = Camera::framing(lo, hi, tetvr::View::ISO, 1.0, 30.0, 512, 512);
+    let tf = tf3(-1.6, 1.6, mesh.diagonal() / 100.0);
+    for n in [32, 16, 8] {
+        let settings = ShellSettings {
+            slices_per_shell: Some(n),
+            ..Default::default()
+        };
+        bench(
+            &format!("generated 187k n={n}"),
+            &mesh,
+            settings,
+            &camera,
+            &tf,
+            3,
+        );
+    }
+}
