@@ -81,7 +81,7 @@ impl Image {
                 sq += d * d;
                 max_abs = max_abs.max(d);
             }
-            if g[3] > 0.01 && !(r[3] >= 0.001) {
+            if is_hole(r, g) {
                 holes += 1;
             }
             if r[3] > 0.01 && g[3] < 0.001 {
@@ -111,7 +111,7 @@ impl Image {
             .zip(&self.pixels)
             .zip(&reference.pixels)
         {
-            if g[3] > 0.01 && !(r[3] >= 0.001) {
+            if is_hole(r, g) {
                 *o = [0.0, 1.0, 1.0, 1.0];
                 continue;
             }
@@ -229,6 +229,12 @@ impl Image {
         }
         Ok(())
     }
+}
+
+/// The reference covers the pixel (alpha > 0.01) and the result leaves it empty (alpha < 0.001
+/// or NaN).
+fn is_hole(result: &[f32; 4], reference: &[f32; 4]) -> bool {
+    reference[3] > 0.01 && (result[3].is_nan() || result[3] < 0.001)
 }
 
 #[cfg(test)]

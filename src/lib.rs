@@ -9,7 +9,9 @@ pub mod camera;
 pub mod generate;
 pub mod gpu;
 pub mod image;
+pub mod io;
 pub mod mesh;
+pub mod reference;
 pub mod render;
 pub mod tf;
 

@@ -7,6 +7,7 @@
 //! reports what it had to repair in a [`BuildReport`].
 
 pub mod split;
+pub mod stats;
 pub mod topology;
 
 use glam::DVec3;

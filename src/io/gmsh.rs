@@ -1,0 +1,638 @@
+//! Gmsh `.msh`: versions 2.2 (ASCII and binary), 4.0 (ASCII) and 4.1 (ASCII and binary).
+//!
+//! Node tags may be sparse and in any order. Elements: 4-node tets, 8-node hexahedra, 6-node
+//! prisms and 5-node pyramids are read (Gmsh's first-order node order for these is the same as
+//! VTK's Hexahedron/Wedge/Pyramid: bottom face counter-clockwise then top face, or base then
+//! apex; see "Node ordering" in the Gmsh manual), 10-node tets through their four corner nodes
+//! (listed first by both Gmsh and VTK); points, lines, triangles and quads of any order are
+//! skipped and counted; any other 3D element is an error.
+//!
+//! `$NodeData` blocks become scalar arrays named by their first string tag (vector and tensor
+//! data become `"<name> magnitude"`). Blocks with the same name fill the same array: partitions
+//! add their nodes, and a later time step overwrites an earlier one (the last step wins). Every
+//! node must have a value in the end. Binary `$NodeData` stores node tags as 4-byte ints (as
+//! Gmsh writes them). Other sections are skipped.
+
+use std::collections::HashMap;
+
+use super::text::Cursor;
+use super::{
+    Assembler, Format, LoadError, LoadErrorKind, Loaded, Location, Scalar, point_array, shown,
+};
+use crate::mesh::split::CellKind;
+use glam::DVec3;
+
+#[derive(Clone, Copy, PartialEq)]
+enum Version {
+    V2,
+    V40,
+    V41,
+}
+
+/// Number of nodes of a Gmsh element type, and its dimension.
+fn element_info(ty: i64) -> Option<(usize, u8)> {
+    Some(match ty {
+        15 => (1, 0),
+        1 => (2, 1),
+        8 => (3, 1),
+        26 => (4, 1),
+        27 => (5, 1),
+        28 => (6, 1),
+        2 => (3, 2),
+        3 => (4, 2),
+        9 => (6, 2),
+        10 => (9, 2),
+        16 => (8, 2),
+        20 => (9, 2),
+        21 => (10, 2),
+        22 => (12, 2),
+        23 | 24 => (15, 2),
+        25 => (21, 2),
+        4 => (4, 3),
+        5 => (8, 3),
+        6 => (6, 3),
+        7 => (5, 3),
+        11 => (10, 3),
+        12 => (27, 3),
+        13 => (18, 3),
+        14 => (14, 3),
+        17 => (20, 3),
+        18 => (15, 3),
+        19 => (13, 3),
+        29 => (20, 3),
+        30 => (35, 3),
+        31 => (56, 3),
+        92 => (64, 3),
+        93 => (125, 3),
+        _ => return None,
+    })
+}
+
+fn solid_kind(ty: i64) -> Option<CellKind> {
+    Some(match ty {
+        4 => CellKind::Tetra,
+        5 => CellKind::Hexahedron,
+        6 => CellKind::Wedge,
+        7 => CellKind::Pyramid,
+        11 => CellKind::QuadraticTetra,
+        _ => return None,
+    })
+}
+
+/// Node tag to 0-based index.
+enum NodeMap {
+    Dense(Vec<u32>),
+    Sparse(HashMap<u64, u32>),
+}
+
+impl NodeMap {
+    fn get(&self, tag: u64) -> Option<u32> {
+        match self {
+            NodeMap::Dense(v) => v.get(tag as usize).copied().filter(|&i| i != u32::MAX),
+            NodeMap::Sparse(m) => m.get(&tag).copied(),
+        }
+    }
+}
+
+struct Reader<'a> {
+    c: Cursor<'a>,
+    version: Version,
+    /// `Some(big_endian)` for binary files.
+    binary: Option<bool>,
+    /// Width of `size_t` in 4.1 binary files.
+    size_t: usize,
+}
+
+impl<'a> Reader<'a> {
+    fn i32(&mut self, section: &str) -> Result<i64, LoadError> {
+        let b = self.c.take(4, section)?;
+        let a = [b[0], b[1], b[2], b[3]];
+        Ok(if self.binary == Some(true) {
+            i32::from_be_bytes(a)
+        } else {
+            i32::from_le_bytes(a)
+        } as i64)
+    }
+
+    fn size_t(&mut self, section: &str) -> Result<u64, LoadError> {
+        let ty = if self.size_t == 4 {
+            Scalar::U32
+        } else {
+            Scalar::U64
+        };
+        let b = self.c.take(ty.size(), section)?;
+        Ok(ty.decode(b, self.binary == Some(true))[0] as u64)
+    }
+
+    /// An integer: binary `int` or `size_t`, or an ASCII token.
+    fn int(&mut self, wide: bool, what: &str, section: &str) -> Result<i64, LoadError> {
+        match self.binary {
+            Some(_) if wide => {
+                let at = self.c.pos;
+                let v = self.size_t(section)?;
+                i64::try_from(v).map_err(|_| self.c.err(at, format!("{what} {v} is too large")))
+            }
+            Some(_) => self.i32(section),
+            None => self.c.parse::<i64>(what),
+        }
+    }
+
+    fn count(&mut self, wide: bool, what: &str, section: &str) -> Result<usize, LoadError> {
+        let at = self.c.pos;
+        let v = self.int(wide, what, section)?;
+        usize::try_from(v).map_err(|_| self.c.err(at, format!("{what} is negative ({v})")))
+    }
+
+    fn expect_end(&mut self, end: &str) -> Result<(), LoadError> {
+        let (at, t) = self.c.expect(end)?;
+        if t != end.as_bytes() {
+            return Err(self
+                .c
+                .err(at, format!("expected {end}, found '{}'", shown(t))));
+        }
+        Ok(())
+    }
+
+    /// Coordinates x, y, z (and `extra` parametric ones, dropped) of one node.
+    fn coords(&mut self, extra: usize, node: usize) -> Result<DVec3, LoadError> {
+        let describe = |_: usize, x: f64| format!("node {node} has the non-finite coordinate {x}");
+        let v = self.c.values(
+            3 + extra,
+            Scalar::F64,
+            self.binary,
+            "$Nodes",
+            Some(&describe),
+        )?;
+        Ok(DVec3::new(v[0], v[1], v[2]))
+    }
+}
+
+pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
+    let mut c = Cursor::new(data, name, None);
+    let (at, t) = c.expect("$MeshFormat")?;
+    if t != b"$MeshFormat" {
+        return Err(c.err_line(
+            at,
+            format!(
+                "not a Gmsh file: expected $MeshFormat, found '{}'",
+                shown(t)
+            ),
+        ));
+    }
+    let (vat, vtok) = c.expect("the format version")?;
+    let version = match vtok {
+        b"2" | b"2.0" | b"2.1" | b"2.2" => Version::V2,
+        b"4" | b"4.0" => Version::V40,
+        b"4.1" => Version::V41,
+        _ => {
+            return Err(LoadError::unsupported(
+                name,
+                Location::Line(c.line_of(vat)),
+                format!(
+                    "MSH version '{}' is not supported; tetvr reads 2.2, 4.0 (ASCII) and 4.1",
+                    shown(vtok)
+                ),
+            ));
+        }
+    };
+    let file_type: u32 = c.parse("the file type (0 ASCII, 1 binary)")?;
+    let size_t: usize = c.parse("the data size")?;
+    c.finish_line();
+    let binary = match file_type {
+        0 => None,
+        1 => {
+            if version == Version::V40 {
+                return Err(LoadError::unsupported(
+                    name,
+                    Location::Line(c.line_of(vat)),
+                    "binary MSH 4.0 is not supported; re-save as MSH 4.1 (gmsh -format msh41)",
+                ));
+            }
+            let at = c.pos;
+            let b = c.take(4, "$MeshFormat")?;
+            let a = [b[0], b[1], b[2], b[3]];
+            if u32::from_le_bytes(a) == 1 {
+                Some(false)
+            } else if u32::from_be_bytes(a) == 1 {
+                Some(true)
+            } else {
+                return Err(c.err_byte(at, "the binary endianness marker is not the integer 1"));
+            }
+        }
+        _ => {
+            return Err(c.err_line(
+                vat,
+                format!("file type {file_type} is neither 0 (ASCII) nor 1 (binary)"),
+            ));
+        }
+    };
+    if version == Version::V41 && binary.is_some() && size_t != 4 && size_t != 8 {
+        return Err(c.err_line(vat, format!("data size {size_t} is not 4 or 8")));
+    }
+    c.by_byte = binary.is_some();
+    let mut r = Reader {
+        c,
+        version,
+        binary,
+        size_t,
+    };
+    r.expect_end("$EndMeshFormat")?;
+
+    let mut positions: Option<(Vec<DVec3>, Vec<u64>, NodeMap)> = None;
+    let mut asm: Option<Assembler> = None;
+    let mut arrays: Vec<(String, usize, Vec<f64>)> = Vec::new();
+    let mut skipped: Vec<String> = Vec::new();
+    while let Some((at, t)) = r.c.token() {
+        match t {
+            b"$Nodes" => {
+                if positions.is_some() {
+                    return Err(r.c.err(at, "a second $Nodes section"));
+                }
+                positions = Some(read_nodes(&mut r)?);
+                r.expect_end("$EndNodes")?;
+            }
+            b"$Elements" => {
+                let (p, _, map) = positions
+                    .as_ref()
+                    .ok_or_else(|| r.c.err(at, "$Elements before $Nodes"))?;
+                if asm.is_some() {
+                    return Err(r.c.err(at, "a second $Elements section"));
+                }
+                let mut a = Assembler::new(p.len());
+                read_elements(&mut r, map, &mut a)?;
+                asm = Some(a);
+                r.expect_end("$EndElements")?;
+            }
+            b"$NodeData" => {
+                let (p, _, map) = positions
+                    .as_ref()
+                    .ok_or_else(|| r.c.err(at, "$NodeData before $Nodes"))?;
+                read_node_data(&mut r, p.len(), map, &mut arrays)?;
+                r.expect_end("$EndNodeData")?;
+            }
+            _ if t.starts_with(b"$") && !t.starts_with(b"$End") => {
+                let section = &t[1..];
+                if section == b"ElementData" || section == b"ElementNodeData" {
+                    // Name the skipped array by its first string tag.
+                    let save = r.c.pos;
+                    if r.c.parse::<usize>("").is_ok_and(|n| n > 0) {
+                        r.c.skip_ws();
+                        let s = r.c.rest_of_line().trim_ascii();
+                        skipped.push(String::from_utf8_lossy(s).trim_matches('"').to_owned());
+                    }
+                    r.c.pos = save;
+                }
+                let mut needle = b"$End".to_vec();
+                needle.extend_from_slice(section);
+                let rest = &r.c.data[r.c.pos..];
+                let i = rest
+                    .windows(needle.len())
+                    .position(|w| w == needle.as_slice())
+                    .ok_or_else(|| {
+                        r.c.err(
+                            at,
+                            format!("section {} has no {}", shown(t), shown(&needle)),
+                        )
+                    })?;
+                r.c.pos += i + needle.len();
+            }
+            _ => {
+                return Err(r.c.err(
+                    at,
+                    format!("expected a section such as $Nodes, found '{}'", shown(t)),
+                ));
+            }
+        }
+    }
+    let end = data.len();
+    let (positions, tags, _) =
+        positions.ok_or_else(|| r.c.err(end, "the file has no $Nodes section"))?;
+    let asm = asm.ok_or_else(|| r.c.err(end, "the file has no $Elements section"))?;
+    let mut out = Vec::with_capacity(arrays.len());
+    for (aname, nc, values) in arrays {
+        if let Some(i) = values.iter().step_by(nc.max(1)).position(|v| v.is_nan()) {
+            return Err(LoadError::new(
+                name,
+                None,
+                LoadErrorKind::Malformed(format!(
+                    "$NodeData '{aname}' gives no value for node {}",
+                    tags[i]
+                )),
+            ));
+        }
+        out.push(point_array(&aname, values, nc));
+    }
+    asm.finish(name, Format::Gmsh, positions, out, skipped)
+}
+
+fn read_nodes(r: &mut Reader) -> Result<(Vec<DVec3>, Vec<u64>, NodeMap), LoadError> {
+    let wide = r.version == Version::V41;
+    let (blocks, total) = match r.version {
+        // 2.2 binary files still give the count as text.
+        Version::V2 => (1, r.c.count("the number of nodes")?),
+        Version::V40 | Version::V41 => {
+            if r.binary.is_some() {
+                r.c.finish_line(); // binary data starts on the line after $Nodes
+            }
+            let b = r.count(wide, "the number of node blocks", "$Nodes")?;
+            let n = r.count(wide, "the number of nodes", "$Nodes")?;
+            if r.version == Version::V41 {
+                r.int(wide, "the minimum node tag", "$Nodes")?;
+                r.int(wide, "the maximum node tag", "$Nodes")?;
+            }
+            (b, n)
+        }
+    };
+    if r.binary.is_some() && r.version == Version::V2 {
+        r.c.finish_line();
+    }
+    // Each node takes at least 4 bytes in any encoding: cap the reservation by the file size.
+    let cap = total.min(r.c.remaining() / 4);
+    let mut positions = Vec::with_capacity(cap);
+    let mut tags: Vec<u64> = Vec::with_capacity(cap);
+    for _ in 0..blocks {
+        let at = r.c.pos;
+        let (n, extra) = match r.version {
+            Version::V2 => (total, 0),
+            Version::V40 | Version::V41 => {
+                let (dim, param) = if r.version == Version::V41 {
+                    let dim = r.int(false, "the entity dimension", "$Nodes")?;
+                    r.int(false, "the entity tag", "$Nodes")?;
+                    (dim, r.int(false, "the parametric flag", "$Nodes")?)
+                } else {
+                    r.int(false, "the entity tag", "$Nodes")?;
+                    let dim = r.int(false, "the entity dimension", "$Nodes")?;
+                    (dim, r.int(false, "the parametric flag", "$Nodes")?)
+                };
+                let n = r.count(wide, "the number of nodes in the block", "$Nodes")?;
+                let extra = if param != 0 {
+                    dim.clamp(0, 3) as usize
+                } else {
+                    0
+                };
+                (n, extra)
+            }
+        };
+        if n > total - tags.len() {
+            return Err(r.c.err(
+                at,
+                format!("node block of {n} nodes exceeds the node count {total}"),
+            ));
+        }
+        if r.version == Version::V41 {
+            let first = tags.len();
+            for _ in 0..n {
+                let t = r.count(wide, "a node tag", "$Nodes")?;
+                tags.push(t as u64);
+            }
+            for i in 0..n {
+                let p = r.coords(extra, first + i)?;
+                positions.push(p);
+            }
+        } else {
+            for _ in 0..n {
+                let t = r.count(false, "a node tag", "$Nodes")? as u64;
+                let p = r.coords(extra, tags.len())?;
+                tags.push(t);
+                positions.push(p);
+            }
+        }
+    }
+    if tags.len() != total {
+        return Err(r.c.err(
+            r.c.pos,
+            format!(
+                "the node blocks hold {} nodes, the header says {total}",
+                tags.len()
+            ),
+        ));
+    }
+    let max = tags.iter().copied().max().unwrap_or(0);
+    let dup = |t: u64| r.c.err(r.c.pos, format!("node tag {t} is defined twice"));
+    let map = if max <= 2 * tags.len() as u64 + 1024 {
+        let mut v = vec![u32::MAX; max as usize + 1];
+        for (i, &t) in tags.iter().enumerate() {
+            if v[t as usize] != u32::MAX {
+                return Err(dup(t));
+            }
+            v[t as usize] = i as u32;
+        }
+        NodeMap::Dense(v)
+    } else {
+        let mut m = HashMap::with_capacity(tags.len());
+        for (i, &t) in tags.iter().enumerate() {
+            if m.insert(t, i as u32).is_some() {
+                return Err(dup(t));
+            }
+        }
+        NodeMap::Sparse(m)
+    };
+    Ok((positions, tags, map))
+}
+
+fn read_elements(r: &mut Reader, map: &NodeMap, asm: &mut Assembler) -> Result<(), LoadError> {
+    let wide = r.version == Version::V41;
+    let (blocks, total) = match r.version {
+        Version::V2 => (usize::MAX, r.c.count("the number of elements")?),
+        Version::V40 | Version::V41 => {
+            if r.binary.is_some() {
+                r.c.finish_line(); // binary data starts on the line after $Elements
+            }
+            let b = r.count(wide, "the number of element blocks", "$Elements")?;
+            let n = r.count(wide, "the number of elements", "$Elements")?;
+            if r.version == Version::V41 {
+                r.int(wide, "the minimum element tag", "$Elements")?;
+                r.int(wide, "the maximum element tag", "$Elements")?;
+            }
+            (b, n)
+        }
+    };
+    if r.binary.is_some() && r.version == Version::V2 {
+        r.c.finish_line();
+    }
+    let mut index = 0usize;
+    let mut nodes: Vec<u64> = Vec::with_capacity(125);
+    let mut block = 0;
+    while block < blocks && !(r.version == Version::V2 && index == total) {
+        block += 1;
+        let at = r.c.pos;
+        // Per block: element type, count, and (2.2) number of tags; 2.2 ASCII has one element
+        // per "block" with its type on its own line.
+        let (ty, n, ntags) = match (r.version, r.binary) {
+            (Version::V2, None) => (0, 1, 0),
+            (Version::V2, Some(_)) => {
+                let ty = r.i32("$Elements")?;
+                let n = r.count(false, "the number of elements in the block", "$Elements")?;
+                let nt = r.count(false, "the number of tags", "$Elements")?;
+                (ty, n, nt)
+            }
+            (Version::V41, _) => {
+                r.int(false, "the entity dimension", "$Elements")?;
+                r.int(false, "the entity tag", "$Elements")?;
+                let ty = r.int(false, "the element type", "$Elements")?;
+                (
+                    ty,
+                    r.count(wide, "the number of elements in the block", "$Elements")?,
+                    0,
+                )
+            }
+            (Version::V40, _) => {
+                r.int(false, "the entity tag", "$Elements")?;
+                r.int(false, "the entity dimension", "$Elements")?;
+                let ty = r.int(false, "the element type", "$Elements")?;
+                (
+                    ty,
+                    r.count(false, "the number of elements in the block", "$Elements")?,
+                    0,
+                )
+            }
+        };
+        if n > total - index {
+            return Err(r.c.err(
+                at,
+                format!("element block of {n} elements exceeds the element count {total}"),
+            ));
+        }
+        for _ in 0..n {
+            let tag = r.count(wide, "an element tag", "$Elements")? as u64;
+            let (ty, ntags) = if r.version == Version::V2 && r.binary.is_none() {
+                let ty = r.int(false, "the element type", "$Elements")?;
+                (ty, r.count(false, "the number of tags", "$Elements")?)
+            } else {
+                (ty, ntags)
+            };
+            for _ in 0..ntags {
+                r.int(false, "an element tag", "$Elements")?;
+            }
+            let loc = Location::Element { index, tag };
+            let Some((nn, dim)) = element_info(ty) else {
+                return Err(LoadError::unsupported(
+                    r.c.name,
+                    loc,
+                    format!("unknown element type {ty}"),
+                ));
+            };
+            nodes.clear();
+            for _ in 0..nn {
+                let t = r.count(wide, "a node tag", "$Elements")? as u64;
+                nodes.push(t);
+            }
+            if dim < 3 {
+                asm.skip();
+            } else if let Some(kind) = solid_kind(ty) {
+                let mut ids = [0i64; 10];
+                for (k, &t) in nodes.iter().enumerate() {
+                    ids[k] = map.get(t).ok_or_else(|| {
+                        LoadError::malformed(
+                            r.c.name,
+                            loc.clone(),
+                            format!("node {t} is not defined"),
+                        )
+                    })? as i64;
+                }
+                asm.cell(kind, ids[..nn].iter().copied())
+                    .map_err(|m| LoadError::malformed(r.c.name, loc.clone(), m))?;
+            } else {
+                return Err(LoadError::unsupported(
+                    r.c.name,
+                    loc,
+                    format!(
+                        "element type {ty} (a {nn}-node 3D element) is not supported; tetvr reads \
+                         tets (4, 11), hexahedra (5), prisms (6) and pyramids (7)"
+                    ),
+                ));
+            }
+            index += 1;
+        }
+    }
+    if index != total {
+        return Err(r.c.err(
+            r.c.pos,
+            format!("the element blocks hold {index} elements, the header says {total}"),
+        ));
+    }
+    Ok(())
+}
+
+fn read_node_data(
+    r: &mut Reader,
+    n_points: usize,
+    map: &NodeMap,
+    arrays: &mut Vec<(String, usize, Vec<f64>)>,
+) -> Result<(), LoadError> {
+    let at = r.c.pos;
+    let nstr = r.c.count("the number of string tags")?;
+    let mut aname = None;
+    for _ in 0..nstr {
+        if r.c.at_end() {
+            return Err(r
+                .c
+                .err(r.c.pos, "file ends inside the $NodeData string tags"));
+        }
+        let s = r.c.rest_of_line().trim_ascii();
+        aname.get_or_insert_with(|| String::from_utf8_lossy(s).trim_matches('"').to_owned());
+    }
+    let aname = aname.unwrap_or_else(|| "NodeData".to_owned());
+    let nreal = r.c.count("the number of real tags")?;
+    for _ in 0..nreal {
+        r.c.parse::<f64>("a real tag")?;
+    }
+    let nint = r.c.count("the number of integer tags")?;
+    let mut ints = Vec::new();
+    for _ in 0..nint {
+        ints.push(r.c.parse::<i64>("an integer tag")?);
+    }
+    let (Some(&nc), Some(&n)) = (ints.get(1), ints.get(2)) else {
+        return Err(r.c.err(
+            at,
+            format!(
+                "$NodeData '{aname}' lacks the component and node counts (integer tags 2 and 3)"
+            ),
+        ));
+    };
+    let nc = usize::try_from(nc)
+        .ok()
+        .filter(|&k| (1..=9).contains(&k))
+        .ok_or_else(|| {
+            r.c.err(
+                at,
+                format!("$NodeData '{aname}' has {nc} components (expected 1 to 9)"),
+            )
+        })?;
+    let n = usize::try_from(n).map_err(|_| {
+        r.c.err(at, format!("$NodeData '{aname}' has a negative node count"))
+    })?;
+    if r.binary.is_some() {
+        r.c.finish_line();
+    }
+    let slot = match arrays.iter().position(|(a, _, _)| *a == aname) {
+        Some(i) if arrays[i].1 == nc => i,
+        Some(_) => {
+            return Err(r.c.err(
+                at,
+                format!("$NodeData '{aname}' changes its number of components"),
+            ));
+        }
+        None => {
+            arrays.push((aname.clone(), nc, vec![f64::NAN; n_points * nc]));
+            arrays.len() - 1
+        }
+    };
+    for _ in 0..n {
+        let tat = r.c.pos;
+        let tag = r.count(false, "a node tag", "$NodeData")? as u64;
+        let i = map.get(tag).ok_or_else(|| {
+            r.c.err(
+                tat,
+                format!("$NodeData '{aname}': node {tag} is not defined"),
+            )
+        })? as usize;
+        let describe = |_: usize, x: f64| {
+            format!("$NodeData '{aname}' has the non-finite value {x} at node {tag}")
+        };
+        let v =
+            r.c.values(nc, Scalar::F64, r.binary, "$NodeData", Some(&describe))?;
+        arrays[slot].2[i * nc..(i + 1) * nc].copy_from_slice(&v);
+    }
+    Ok(())
+}

@@ -1,0 +1,448 @@
+//! Mesh file formats: legacy VTK, VTK XML `.vtu`, Gmsh `.msh` and TetGen `.node`/`.ele` in,
+//! `.vtu` out.
+//!
+//! The readers are written for hostile input: every count is checked against the bytes that are
+//! actually there before anything is allocated, every index and value is validated, and every
+//! problem is a [`LoadError`] naming the file and the place (line, byte offset, cell or
+//! element). Non-tetrahedral 3D cells (voxels, hexahedra, wedges, pyramids) are split into tets
+//! conformingly by [`crate::mesh::split::split_cell`]; quadratic tets keep their corners;
+//! lower-dimensional cells (vertices, lines, triangles, quads, ...) are skipped and counted.
+//!
+//! Per-vertex arrays become [`ScalarArray`]s; the file's active scalars come first (so they are
+//! the mesh's active array). Multi-component point arrays become one `"<name> magnitude"` array
+//! (the Euclidean norm of the components). Anything else (cell data, dataset field data, string
+//! arrays) is named in [`LoadReport::skipped_arrays`].
+
+mod gmsh;
+mod tetgen;
+mod text;
+mod vtk;
+mod vtu;
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use glam::DVec3;
+
+use crate::mesh::split::{CellKind, split_cell};
+use crate::mesh::{MeshError, ScalarArray, TetMesh};
+
+pub use vtu::write_vtu;
+
+/// A mesh file format tetvr reads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    /// Legacy VTK `.vtk` (ASCII or big-endian BINARY), `DATASET UNSTRUCTURED_GRID`.
+    VtkLegacy,
+    /// VTK XML `.vtu` (ascii, base64 binary, appended raw or base64, zlib-compressed).
+    Vtu,
+    /// Gmsh `.msh` versions 2.2, 4.0 (ASCII) and 4.1, ASCII or binary.
+    Gmsh,
+    /// TetGen `.node` + `.ele` pair.
+    TetGen,
+}
+
+impl Format {
+    /// The format for a path's extension (`.vtk`, `.vtu`, `.msh`, `.node`/`.ele`), if known.
+    pub fn from_path(path: &Path) -> Option<Format> {
+        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+        Some(match ext.as_str() {
+            "vtk" => Format::VtkLegacy,
+            "vtu" => Format::Vtu,
+            "msh" => Format::Gmsh,
+            "node" | "ele" => Format::TetGen,
+            _ => return None,
+        })
+    }
+}
+
+/// What a reader found and converted besides the mesh itself.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LoadReport {
+    pub format: Format,
+    /// Tets with negative orientation in the file (or from splitting), reoriented.
+    pub reoriented: usize,
+    /// Non-tet 3D cells converted to tets, with their counts (only kinds that occurred).
+    pub split_cells: Vec<(CellKind, usize)>,
+    /// 0D to 2D cells (vertices, lines, triangles, quads, ...) that were ignored.
+    pub skipped_cells: usize,
+    /// Arrays not usable as per-vertex scalars (cell data, dataset field data, strings, ...).
+    pub skipped_arrays: Vec<String>,
+}
+
+/// A loaded mesh and what the reader did to get it.
+#[derive(Clone, Debug)]
+pub struct Loaded {
+    pub mesh: TetMesh,
+    pub report: LoadReport,
+}
+
+/// Where in a file a problem is.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Location {
+    /// 1-based line of a text file (or of a text part of a binary file).
+    Line(usize),
+    /// 0-based byte offset into the file.
+    Byte(u64),
+    /// 0-based cell index in the order of the file (all cells, skipped ones included).
+    Cell(usize),
+    /// 0-based element index in the file's order and its tag (Gmsh, TetGen).
+    Element { index: usize, tag: u64 },
+}
+
+impl fmt::Display for Location {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Location::Line(l) => write!(f, "line {l}"),
+            Location::Byte(b) => write!(f, "byte {b}"),
+            Location::Cell(c) => write!(f, "cell {c}"),
+            Location::Element { index, tag } => write!(f, "element {index} (tag {tag})"),
+        }
+    }
+}
+
+/// What is wrong with a file.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadErrorKind {
+    #[error("cannot read the file: {0}")]
+    Io(#[from] std::io::Error),
+    /// The file does not follow its format; the message says what was expected.
+    #[error("{0}")]
+    Malformed(String),
+    /// The file stops before the data its headers announce.
+    #[error("file ends inside {section} (expected {missing} more bytes)")]
+    Truncated { section: String, missing: u64 },
+    /// Valid in its format, but not something tetvr reads (the message says what it does read).
+    #[error("{0}")]
+    Unsupported(String),
+    /// The data read is not a valid tetrahedral mesh.
+    #[error(transparent)]
+    Mesh(#[from] MeshError),
+}
+
+/// A file that could not be read as a mesh: the file, the place in it, and the problem.
+#[derive(Debug, thiserror::Error)]
+#[error("{path}: {}{kind}", location_prefix(.location))]
+pub struct LoadError {
+    pub path: String,
+    pub location: Option<Location>,
+    pub kind: LoadErrorKind,
+}
+
+fn location_prefix(location: &Option<Location>) -> String {
+    location
+        .as_ref()
+        .map(|l| format!("{l}: "))
+        .unwrap_or_default()
+}
+
+impl LoadError {
+    pub(crate) fn new(path: &str, location: Option<Location>, kind: LoadErrorKind) -> Self {
+        Self {
+            path: path.to_owned(),
+            location,
+            kind,
+        }
+    }
+
+    pub(crate) fn malformed(path: &str, location: Location, msg: impl Into<String>) -> Self {
+        Self::new(path, Some(location), LoadErrorKind::Malformed(msg.into()))
+    }
+
+    pub(crate) fn unsupported(path: &str, location: Location, msg: impl Into<String>) -> Self {
+        Self::new(path, Some(location), LoadErrorKind::Unsupported(msg.into()))
+    }
+}
+
+/// A `.vtu` file that could not be written.
+#[derive(Debug, thiserror::Error)]
+#[error("{path}: cannot write the mesh: {source}")]
+pub struct WriteError {
+    pub path: String,
+    pub source: std::io::Error,
+}
+
+/// Reads a mesh file, choosing the reader by extension. For TetGen either the `.node` or the
+/// `.ele` file may be given; the other is the sibling with the same stem.
+pub fn load(path: &Path) -> Result<Loaded, LoadError> {
+    let shown = path.display().to_string();
+    let format = Format::from_path(path).ok_or_else(|| {
+        LoadError::new(
+            &shown,
+            None,
+            LoadErrorKind::Unsupported(
+                "unknown extension; tetvr reads .vtk, .vtu, .msh and TetGen .node/.ele".into(),
+            ),
+        )
+    })?;
+    let read = |p: &Path| {
+        std::fs::read(p)
+            .map_err(|e| LoadError::new(&p.display().to_string(), None, LoadErrorKind::Io(e)))
+    };
+    if format == Format::TetGen {
+        let node: PathBuf = path.with_extension("node");
+        let ele: PathBuf = path.with_extension("ele");
+        let (nb, eb) = (read(&node)?, read(&ele)?);
+        return tetgen::read(
+            &nb,
+            &node.display().to_string(),
+            &eb,
+            &ele.display().to_string(),
+        );
+    }
+    load_bytes(&read(path)?, format, &shown)
+}
+
+/// Reads a mesh from memory; `name` is what errors call the file. A TetGen mesh is two files:
+/// read it with [`load_tetgen_bytes`] (this function refuses [`Format::TetGen`] with an error).
+pub fn load_bytes(bytes: &[u8], format: Format, name: &str) -> Result<Loaded, LoadError> {
+    match format {
+        Format::VtkLegacy => vtk::read(bytes, name),
+        Format::Vtu => vtu::read(bytes, name),
+        Format::Gmsh => gmsh::read(bytes, name),
+        Format::TetGen => Err(LoadError::new(
+            name,
+            None,
+            LoadErrorKind::Unsupported(
+                "a TetGen mesh is a .node and an .ele file; use load_tetgen_bytes".into(),
+            ),
+        )),
+    }
+}
+
+/// Reads a TetGen mesh from its `.node` and `.ele` contents; `name` is the common stem that
+/// errors extend with `.node` or `.ele`.
+pub fn load_tetgen_bytes(node: &[u8], ele: &[u8], name: &str) -> Result<Loaded, LoadError> {
+    tetgen::read(node, &format!("{name}.node"), ele, &format!("{name}.ele"))
+}
+
+/// Human name of a cell kind, for messages.
+pub(crate) fn kind_name(kind: CellKind) -> &'static str {
+    match kind {
+        CellKind::Tetra => "tetrahedron",
+        CellKind::Voxel => "voxel",
+        CellKind::Hexahedron => "hexahedron",
+        CellKind::Wedge => "wedge",
+        CellKind::Pyramid => "pyramid",
+        CellKind::QuadraticTetra => "quadratic tetrahedron",
+    }
+}
+
+const KINDS: [CellKind; 6] = [
+    CellKind::Tetra,
+    CellKind::Voxel,
+    CellKind::Hexahedron,
+    CellKind::Wedge,
+    CellKind::Pyramid,
+    CellKind::QuadraticTetra,
+];
+
+/// Collects cells as tets: validates each cell's vertex indices, splits it, and counts kinds.
+pub(crate) struct Assembler {
+    n_points: usize,
+    tets: Vec<[u32; 4]>,
+    counts: [usize; 6],
+    skipped_cells: usize,
+    ids: Vec<u32>,
+}
+
+impl Assembler {
+    pub(crate) fn new(n_points: usize) -> Self {
+        Self {
+            n_points,
+            tets: Vec::new(),
+            counts: [0; 6],
+            skipped_cells: 0,
+            ids: Vec::with_capacity(10),
+        }
+    }
+
+    /// Adds one 3D cell given its 0-based vertex indices (as read, any integer type); the error
+    /// is a message for the reader to locate.
+    pub(crate) fn cell(
+        &mut self,
+        kind: CellKind,
+        ids: impl IntoIterator<Item = i64>,
+    ) -> Result<(), String> {
+        self.ids.clear();
+        for id in ids {
+            if id < 0 || id as u64 >= self.n_points as u64 {
+                return Err(format!(
+                    "vertex index {id} of the {} is out of range (the mesh has {} points)",
+                    kind_name(kind),
+                    self.n_points
+                ));
+            }
+            let id = id as u32;
+            if self.ids.contains(&id) {
+                return Err(format!(
+                    "the {} repeats vertex {id}; a cell needs distinct vertices",
+                    kind_name(kind)
+                ));
+            }
+            self.ids.push(id);
+        }
+        if self.ids.len() != kind.vertex_count() {
+            return Err(format!(
+                "a {} has {} vertices, the file gives {}",
+                kind_name(kind),
+                kind.vertex_count(),
+                self.ids.len()
+            ));
+        }
+        split_cell(kind, &self.ids, &mut self.tets);
+        if let Some(k) = KINDS.iter().position(|&k| k == kind) {
+            self.counts[k] += 1;
+        }
+        Ok(())
+    }
+
+    /// Counts a lower-dimensional cell that is ignored.
+    pub(crate) fn skip(&mut self) {
+        self.skipped_cells += 1;
+    }
+
+    /// Builds the mesh. `arrays` must have the active array first.
+    pub(crate) fn finish(
+        self,
+        path: &str,
+        format: Format,
+        positions: Vec<DVec3>,
+        arrays: Vec<ScalarArray>,
+        skipped_arrays: Vec<String>,
+    ) -> Result<Loaded, LoadError> {
+        let (mesh, build) = TetMesh::new(positions, self.tets, arrays)
+            .map_err(|e| LoadError::new(path, None, LoadErrorKind::Mesh(e)))?;
+        let split_cells = KINDS
+            .iter()
+            .zip(self.counts)
+            .filter(|&(&k, n)| k != CellKind::Tetra && n > 0)
+            .map(|(&k, n)| (k, n))
+            .collect();
+        Ok(Loaded {
+            mesh,
+            report: LoadReport {
+                format,
+                reoriented: build.reoriented,
+                split_cells,
+                skipped_cells: self.skipped_cells,
+                skipped_arrays,
+            },
+        })
+    }
+}
+
+/// Converts a value read from a file (any numeric type, decoded as f64) to an index.
+pub(crate) fn as_index(v: f64) -> Option<i64> {
+    (v.fract() == 0.0 && v.abs() < 9.0e15).then_some(v as i64)
+}
+
+/// The Euclidean norm of each tuple of `ncomp` components.
+pub(crate) fn magnitudes(values: &[f64], ncomp: usize) -> Vec<f64> {
+    values
+        .chunks_exact(ncomp.max(1))
+        .map(|c| c.iter().map(|x| x * x).sum::<f64>().sqrt())
+        .collect()
+}
+
+/// Turns a point array of `ncomp` components into a scalar array: itself, or the magnitude.
+pub(crate) fn point_array(name: &str, values: Vec<f64>, ncomp: usize) -> ScalarArray {
+    if ncomp == 1 {
+        ScalarArray::new(name, values)
+    } else {
+        ScalarArray::new(format!("{name} magnitude"), magnitudes(&values, ncomp))
+    }
+}
+
+/// Positions from a flat x,y,z list.
+pub(crate) fn positions_from(flat: &[f64]) -> Vec<DVec3> {
+    flat.chunks_exact(3)
+        .map(|c| DVec3::new(c[0], c[1], c[2]))
+        .collect()
+}
+
+/// Short, printable excerpt of file bytes for messages.
+pub(crate) fn shown(bytes: &[u8]) -> String {
+    let s = String::from_utf8_lossy(&bytes[..bytes.len().min(40)]);
+    let s: String = s
+        .chars()
+        .map(|c| if c.is_control() { '?' } else { c })
+        .collect();
+    if bytes.len() > 40 {
+        format!("{s}...")
+    } else {
+        s
+    }
+}
+
+/// Numeric element types of the formats (VTK legacy and XML names).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Scalar {
+    I8,
+    U8,
+    I16,
+    U16,
+    I32,
+    U32,
+    I64,
+    U64,
+    F32,
+    F64,
+}
+
+impl Scalar {
+    pub(crate) fn size(self) -> usize {
+        match self {
+            Scalar::I8 | Scalar::U8 => 1,
+            Scalar::I16 | Scalar::U16 => 2,
+            Scalar::I32 | Scalar::U32 | Scalar::F32 => 4,
+            Scalar::I64 | Scalar::U64 | Scalar::F64 => 8,
+        }
+    }
+
+    /// Decodes `bytes` (a whole number of values) to f64.
+    pub(crate) fn decode(self, bytes: &[u8], big_endian: bool) -> Vec<f64> {
+        fn arr<const N: usize>(c: &[u8], big: bool) -> [u8; N] {
+            let mut a = [0u8; N];
+            a.copy_from_slice(c);
+            if !big {
+                a.reverse();
+            }
+            a
+        }
+        // Everything is read as big-endian bytes after the swap above.
+        let n = self.size();
+        let it = bytes.chunks_exact(n);
+        match self {
+            Scalar::I8 => it.map(|c| c[0] as i8 as f64).collect(),
+            Scalar::U8 => it.map(|c| c[0] as f64).collect(),
+            Scalar::I16 => it
+                .map(|c| i16::from_be_bytes(arr(c, big_endian)) as f64)
+                .collect(),
+            Scalar::U16 => it
+                .map(|c| u16::from_be_bytes(arr(c, big_endian)) as f64)
+                .collect(),
+            Scalar::I32 => it
+                .map(|c| i32::from_be_bytes(arr(c, big_endian)) as f64)
+                .collect(),
+            Scalar::U32 => it
+                .map(|c| u32::from_be_bytes(arr(c, big_endian)) as f64)
+                .collect(),
+            Scalar::I64 => it
+                .map(|c| i64::from_be_bytes(arr(c, big_endian)) as f64)
+                .collect(),
+            Scalar::U64 => it
+                .map(|c| u64::from_be_bytes(arr(c, big_endian)) as f64)
+                .collect(),
+            Scalar::F32 => it
+                .map(|c| f32::from_be_bytes(arr(c, big_endian)) as f64)
+                .collect(),
+            Scalar::F64 => it.map(|c| f64::from_be_bytes(arr(c, big_endian))).collect(),
+        }
+    }
+}
+
+/// Index of the first non-finite value, if any.
+pub(crate) fn first_non_finite(values: &[f64]) -> Option<usize> {
+    values.iter().position(|v| !v.is_finite())
+}

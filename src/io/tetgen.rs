@@ -1,0 +1,136 @@
+//! TetGen `.node` + `.ele`: `#` comments, 0- or 1-based numbering (taken from the first point's
+//! index; points must be numbered consecutively from there), 4- or 10-node tets. Point
+//! attributes become arrays `attribute0`, `attribute1`, ...; tet attributes are skipped.
+
+use super::text::Cursor;
+use super::{Assembler, Format, LoadError, Loaded, Location, Scalar};
+use crate::mesh::ScalarArray;
+use crate::mesh::split::CellKind;
+use glam::DVec3;
+
+pub(super) fn read(
+    node: &[u8],
+    node_name: &str,
+    ele: &[u8],
+    ele_name: &str,
+) -> Result<Loaded, LoadError> {
+    let mut c = Cursor::new(node, node_name, Some(b'#'));
+    let n = c.count("the number of points")?;
+    let (dat, dim) = c.expect("the dimension")?;
+    if dim != b"3" {
+        return Err(c.err(dat, "the dimension must be 3 (tetvr reads 3D meshes)"));
+    }
+    let nattr = c.count("the number of point attributes")?;
+    if nattr > c.remaining() {
+        return Err(c.err(
+            dat,
+            format!("{nattr} point attributes cannot fit in the file"),
+        ));
+    }
+    let nbm = c.count("the number of boundary markers (0 or 1)")?;
+    if nbm > 1 {
+        return Err(c.err(
+            dat,
+            format!("expected 0 or 1 boundary markers, found {nbm}"),
+        ));
+    }
+    if n == 0 {
+        return Err(c.err(0, "the .node file lists no points"));
+    }
+    // A point line has at least 4 tokens of 2 bytes: cap the reservation by the file size.
+    let cap = n.min(c.remaining() / 8);
+    let mut positions = Vec::with_capacity(cap);
+    let mut attrs: Vec<Vec<f64>> = (0..nattr).map(|_| Vec::new()).collect();
+    let mut base = 0;
+    for i in 0..n {
+        let (iat, _) = c.expect("a point index")?;
+        c.pos = iat;
+        let idx: usize = c.count("a point index")?;
+        if i == 0 {
+            if idx > 1 {
+                return Err(c.err(
+                    iat,
+                    format!("the first point has index {idx}; TetGen numbering starts at 0 or 1"),
+                ));
+            }
+            base = idx;
+        } else if idx != base + i {
+            return Err(c.err(
+                iat,
+                format!("point index {idx} out of sequence (expected {})", base + i),
+            ));
+        }
+        let describe = |_: usize, x: f64| format!("point {idx} has the non-finite coordinate {x}");
+        let p = c.values(
+            3,
+            Scalar::F64,
+            None,
+            "the point coordinates",
+            Some(&describe),
+        )?;
+        positions.push(DVec3::new(p[0], p[1], p[2]));
+        for (k, a) in attrs.iter_mut().enumerate() {
+            let describe =
+                |_: usize, x: f64| format!("attribute {k} of point {idx} is not finite ({x})");
+            a.push(
+                c.values(
+                    1,
+                    Scalar::F64,
+                    None,
+                    "the point attributes",
+                    Some(&describe),
+                )?[0],
+            );
+        }
+        for _ in 0..nbm {
+            c.parse::<i64>("a boundary marker")?;
+        }
+    }
+    if !c.at_end() {
+        return Err(c.err(c.pos, format!("unexpected data after the {n} points")));
+    }
+
+    let mut e = Cursor::new(ele, ele_name, Some(b'#'));
+    let m = e.count("the number of tetrahedra")?;
+    let (kat, k) = e.expect("the number of nodes per tetrahedron")?;
+    let kind = match k {
+        b"4" => CellKind::Tetra,
+        b"10" => CellKind::QuadraticTetra,
+        _ => return Err(e.err(kat, "nodes per tetrahedron must be 4 or 10")),
+    };
+    let eattr = e.count("the number of tetrahedron attributes")?;
+    let mut asm = Assembler::new(positions.len());
+    let mut ids = [0i64; 10];
+    for i in 0..m {
+        let (tat, _) = e.expect("a tetrahedron index")?;
+        e.pos = tat;
+        let tag: u64 = e.parse("a tetrahedron index")?;
+        for id in ids.iter_mut().take(kind.vertex_count()) {
+            *id = e.parse::<i64>("a point index")?.saturating_sub(base as i64);
+        }
+        for _ in 0..eattr {
+            e.parse::<f64>("a tetrahedron attribute")?;
+        }
+        asm.cell(kind, ids[..kind.vertex_count()].iter().copied())
+            .map_err(|msg| {
+                LoadError::malformed(
+                    ele_name,
+                    Location::Element { index: i, tag },
+                    format!("{msg} (0-based; the file numbers from {base})"),
+                )
+            })?;
+    }
+    if !e.at_end() {
+        return Err(e.err(e.pos, format!("unexpected data after the {m} tetrahedra")));
+    }
+    let arrays = attrs
+        .into_iter()
+        .enumerate()
+        .map(|(k, v)| ScalarArray::new(format!("attribute{k}"), v))
+        .collect();
+    // Tets carried `eattr` attributes each, so this many names fit in the file.
+    let skipped = (0..if m > 0 { eattr } else { 0 })
+        .map(|k| format!("tetrahedron attribute{k}"))
+        .collect();
+    asm.finish(ele_name, Format::TetGen, positions, arrays, skipped)
+}

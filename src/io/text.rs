@@ -1,0 +1,216 @@
+//! A cursor over a file's bytes for the text-with-binary-blocks formats (legacy VTK, Gmsh,
+//! TetGen): whitespace-separated tokens, whole lines, and raw byte blocks, with errors located
+//! by line (text) or byte offset (binary).
+
+use super::{LoadError, LoadErrorKind, Location, Scalar, shown};
+
+pub(crate) struct Cursor<'a> {
+    pub data: &'a [u8],
+    pub pos: usize,
+    pub name: &'a str,
+    /// Comment character that runs to the end of the line (TetGen's `#`).
+    comment: Option<u8>,
+    /// Locate errors by byte offset (binary files) instead of by line.
+    pub by_byte: bool,
+}
+
+impl<'a> Cursor<'a> {
+    pub fn new(data: &'a [u8], name: &'a str, comment: Option<u8>) -> Self {
+        Self {
+            data,
+            pos: 0,
+            name,
+            comment,
+            by_byte: false,
+        }
+    }
+
+    /// 1-based line number of byte offset `at`.
+    pub fn line_of(&self, at: usize) -> usize {
+        1 + self.data[..at.min(self.data.len())]
+            .iter()
+            .filter(|&&b| b == b'\n')
+            .count()
+    }
+
+    pub fn err_line(&self, at: usize, msg: impl Into<String>) -> LoadError {
+        LoadError::malformed(self.name, Location::Line(self.line_of(at)), msg)
+    }
+
+    pub fn err_byte(&self, at: usize, msg: impl Into<String>) -> LoadError {
+        LoadError::malformed(self.name, Location::Byte(at as u64), msg)
+    }
+
+    /// An error at `at`, by line or by byte offset as the file calls for.
+    pub fn err(&self, at: usize, msg: impl Into<String>) -> LoadError {
+        if self.by_byte {
+            self.err_byte(at, msg)
+        } else {
+            self.err_line(at, msg)
+        }
+    }
+
+    pub fn remaining(&self) -> usize {
+        self.data.len().saturating_sub(self.pos)
+    }
+
+    pub fn skip_ws(&mut self) {
+        while let Some(&b) = self.data.get(self.pos) {
+            if b.is_ascii_whitespace() {
+                self.pos += 1;
+            } else if Some(b) == self.comment {
+                while self.data.get(self.pos).is_some_and(|&b| b != b'\n') {
+                    self.pos += 1;
+                }
+            } else {
+                break;
+            }
+        }
+    }
+
+    /// Whether only whitespace (and comments) is left.
+    pub fn at_end(&mut self) -> bool {
+        self.skip_ws();
+        self.pos >= self.data.len()
+    }
+
+    /// The next whitespace-delimited token and its offset.
+    pub fn token(&mut self) -> Option<(usize, &'a [u8])> {
+        self.skip_ws();
+        let start = self.pos;
+        while self
+            .data
+            .get(self.pos)
+            .is_some_and(|&b| !b.is_ascii_whitespace() && Some(b) != self.comment)
+        {
+            self.pos += 1;
+        }
+        (self.pos > start).then(|| (start, &self.data[start..self.pos]))
+    }
+
+    /// The next token; at the end of the file, an error saying what was expected.
+    pub fn expect(&mut self, what: &str) -> Result<(usize, &'a [u8]), LoadError> {
+        self.token().ok_or_else(|| {
+            self.err(
+                self.data.len(),
+                format!("file ends where {what} was expected"),
+            )
+        })
+    }
+
+    /// The next token parsed as `T`.
+    pub fn parse<T: std::str::FromStr>(&mut self, what: &str) -> Result<T, LoadError> {
+        let (at, tok) = self.expect(what)?;
+        std::str::from_utf8(tok)
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .ok_or_else(|| self.err(at, format!("expected {what}, found '{}'", shown(tok))))
+    }
+
+    /// A count: a non-negative integer.
+    pub fn count(&mut self, what: &str) -> Result<usize, LoadError> {
+        let (at, tok) = self.expect(what)?;
+        std::str::from_utf8(tok)
+            .ok()
+            .and_then(|s| s.parse::<usize>().ok())
+            .ok_or_else(|| {
+                self.err(
+                    at,
+                    format!(
+                        "expected {what} (a non-negative integer), found '{}'",
+                        shown(tok)
+                    ),
+                )
+            })
+    }
+
+    /// The rest of the current line (without its newline and a trailing '\r'); moves past it.
+    pub fn rest_of_line(&mut self) -> &'a [u8] {
+        let start = self.pos.min(self.data.len());
+        let end = self.data[start..]
+            .iter()
+            .position(|&b| b == b'\n')
+            .map_or(self.data.len(), |i| start + i);
+        self.pos = (end + 1).min(self.data.len());
+        let line = &self.data[start..end];
+        line.strip_suffix(b"\r").unwrap_or(line)
+    }
+
+    /// Moves past the end of the current line (binary data starts on the next one).
+    pub fn finish_line(&mut self) {
+        self.rest_of_line();
+    }
+
+    /// The next `n` raw bytes; a truncation error naming `section` if they are not there.
+    pub fn take(&mut self, n: usize, section: &str) -> Result<&'a [u8], LoadError> {
+        if n > self.remaining() {
+            return Err(LoadError::new(
+                self.name,
+                Some(Location::Byte(self.pos as u64)),
+                LoadErrorKind::Truncated {
+                    section: section.to_owned(),
+                    missing: (n - self.remaining()) as u64,
+                },
+            ));
+        }
+        let s = &self.data[self.pos..self.pos + n];
+        self.pos += n;
+        Ok(s)
+    }
+
+    /// `count` values of type `ty`, binary (big- or little-endian) or ASCII tokens. With
+    /// `finite`, a NaN or infinite value is an error located at its token or bytes and
+    /// described by `describe(value index, value)`.
+    pub fn values(
+        &mut self,
+        count: usize,
+        ty: Scalar,
+        binary: Option<bool>,
+        section: &str,
+        finite: Option<&dyn Fn(usize, f64) -> String>,
+    ) -> Result<Vec<f64>, LoadError> {
+        match binary {
+            Some(big_endian) => {
+                let start = self.pos;
+                let bytes = count.checked_mul(ty.size()).ok_or_else(|| {
+                    self.err_byte(start, format!("{section}: count {count} is too large"))
+                })?;
+                let raw = self.take(bytes, section)?;
+                let v = ty.decode(raw, big_endian);
+                if let Some(describe) = finite
+                    && let Some(i) = super::first_non_finite(&v)
+                {
+                    return Err(self.err_byte(start + i * ty.size(), describe(i, v[i])));
+                }
+                Ok(v)
+            }
+            None => {
+                let mut v = Vec::with_capacity(count.min(self.remaining() / 2 + 1));
+                for i in 0..count {
+                    let (at, tok) = self.token().ok_or_else(|| {
+                        self.err_line(
+                            self.data.len(),
+                            format!("file ends inside {section}: read {i} of {count} values"),
+                        )
+                    })?;
+                    let x = std::str::from_utf8(tok)
+                        .ok()
+                        .and_then(|s| s.parse::<f64>().ok())
+                        .ok_or_else(|| {
+                            self.err_line(
+                                at,
+                                format!("{section}: expected a number, found '{}'", shown(tok)),
+                            )
+                        })?;
+                    if let Some(describe) = finite
+                        && !x.is_finite()
+                    {
+                        return Err(self.err_line(at, describe(i, x)));
+                    }
+                    v.push(x);
+                }
+                Ok(v)
+            }
+        }
+    }
+}
