@@ -2,28 +2,33 @@
 // sample through the transfer function, and returns the shell's premultiplied colour and
 // alpha, which the pipeline blends "under" the accumulation target:
 // dst = src * (1 - dst.a) + dst. The generated prelude defines TARGETS and load_layers().
-// The body is branch-free: loops with data-dependent branches cost lavapipe ~20 ns per
-// iteration even when no lane takes them.
+// Per sample the body is branch-free: fine-grained data-dependent branches cost lavapipe
+// ~20 ns per sample even when no lane takes them.
 
 @group(0) @binding(1) var slices: texture_2d_array<f32>;
 @group(0) @binding(2) var<uniform> tf: TfPoints;
 
-// Colour and extinction (r, g, b, tau) at normalized scalar u: piecewise linear between control
-// points, constant beyond the ends, exactly as tf::TransferFunction::eval. Every lane walks all
-// segments with the same (uniform) index, so the control points are broadcast reads, not
-// per-lane gathers, and the only branch is the loop's uniform one.
-fn tf_eval(u: f32) -> vec4<f32> {
-    let first = tf.points[0];
-    let last = tf.points[frame.tf_count - 1u];
-    var out = vec4<f32>(first.rgb, first.tau);
-    for (var k = 0u; k + 1u < frame.tf_count; k++) {
-        let a = tf.points[k];
-        let b = tf.points[k + 1u];
-        let on = u > first.s && u >= a.s && u < b.s;
-        let piece = mix(vec4<f32>(a.rgb, a.tau), vec4<f32>(b.rgb, b.tau), (u - a.s) * a.inv_width);
-        out = select(out, piece, on);
-    }
-    return select(out, vec4<f32>(last.rgb, last.tau), u >= last.s);
+// The transfer function, piecewise linear between control points and constant beyond the
+// ends, exactly as tf::TransferFunction::eval: the generated tf_eval(u) starts from point 0,
+// lets every segment k (points k, k + 1) replace the value where u lies on it, and ends with
+// tf_last. Small TFs get these calls with constant k (the points become loop-invariant
+// broadcasts); larger ones a loop.
+
+fn tf_value(k: u32) -> vec4<f32> {
+    let p = tf.points[k];
+    return vec4<f32>(p.rgb, p.tau);
+}
+
+fn tf_segment(out: vec4<f32>, u: f32, k: u32) -> vec4<f32> {
+    let a = tf.points[k];
+    let b = tf.points[k + 1u];
+    let on = u > tf.points[0].s && u >= a.s && u < b.s;
+    let piece = mix(vec4<f32>(a.rgb, a.tau), vec4<f32>(b.rgb, b.tau), (u - a.s) * a.inv_width);
+    return select(out, piece, on);
+}
+
+fn tf_last(out: vec4<f32>, u: f32, last: u32) -> vec4<f32> {
+    return select(out, tf_value(last), u >= tf.points[last].s);
 }
 
 // Composites one sample (encoded scalar e, 0 = none) under the running colour and alpha.
@@ -47,10 +52,14 @@ fn fs_composite(@builtin(position) position: vec4<f32>) -> @location(0) vec4<f32
     var acc = vec4<f32>(0.0);
     for (var i = 0u; i < TARGETS; i++) {
         let e = v[i];
-        acc = under(acc, e.x);
-        acc = under(acc, e.y);
-        acc = under(acc, e.z);
-        acc = under(acc, e.w);
+        // Layers without a sample (outside the shell's part of the mesh) are skipped; the
+        // branch is coherent over screen regions, so whole SIMD groups skip together.
+        if any(e > vec4<f32>(0.0)) {
+            acc = under(acc, e.x);
+            acc = under(acc, e.y);
+            acc = under(acc, e.z);
+            acc = under(acc, e.w);
+        }
     }
     return acc;
 }

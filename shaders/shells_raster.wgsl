@@ -9,9 +9,20 @@
 @group(0) @binding(2) var<storage, read> records: array<TetRecord>;
 @group(0) @binding(3) var<storage, read> active_tets: array<u32>;
 
+// The tet's record travels to the fragments as flat varyings (constant per triangle), which a
+// rasterizer sets up once per triangle, instead of a per-fragment storage read.
 struct Varyings {
     @builtin(position) position: vec4<f32>,
-    @location(0) @interpolate(flat) tet: u32,
+    @location(0) @interpolate(flat) grad_x: vec4<f32>,
+    @location(1) @interpolate(flat) grad_y: vec4<f32>,
+    @location(2) @interpolate(flat) grad_z: vec4<f32>,
+    @location(3) @interpolate(flat) lambda_eye: vec4<f32>,
+    @location(4) @interpolate(flat) scalar: vec4<f32>,
+}
+
+// Varyings of `rec` at clip position `position`.
+fn varyings(position: vec4<f32>, rec: TetRecord) -> Varyings {
+    return Varyings(position, rec.grad_x, rec.grad_y, rec.grad_z, rec.lambda_eye, rec.scalar);
 }
 
 // Local vertices of face f (opposite vertex f), outward for a positive tet: mesh::topology::FACES.
@@ -27,23 +38,20 @@ const NOWHERE = vec4<f32>(0.0, 0.0, 0.0, 1.0);
 
 @vertex
 fn vs_faces(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance: u32) -> Varyings {
-    let tet = active_tets[instance];
+    let rec = records[active_tets[instance]];
     var faces = FACE_VERTICES;
-    let p = records[tet].pos[faces[vertex]];
-    var out: Varyings;
-    out.tet = tet;
-    out.position = select(
+    let p = rec.pos[faces[vertex]];
+    let position = select(
         vec4<f32>(p.x * frame.proj.x, p.y * frame.proj.y, 0.0, p.z),
         NOWHERE,
         p.w == 0.0,
     );
-    return out;
+    return varyings(position, rec);
 }
 
 @vertex
 fn vs_near(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance: u32) -> Varyings {
-    let tet = active_tets[instance];
-    let rec = records[tet];
+    let rec = records[active_tets[instance]];
     // Screen bounds of the tet clipped to z >= near_z: its vertices in front of the plane and
     // its edges' crossings of the plane. Every sample lies in front of the plane (near_z is
     // below the first slice's z on the widest ray), so the bounds hold every fragment needed.
@@ -72,8 +80,6 @@ fn vs_near(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance
     let pad = 4.0 / frame.size;
     let lo_ndc = max(lo * frame.proj - pad, vec2<f32>(-1.0));
     let hi_ndc = min(hi * frame.proj + pad, vec2<f32>(1.0));
-    var out: Varyings;
-    out.tet = tet;
     var corners = QUAD_CORNERS;
     let c = corners[vertex];
     let xy = vec2<f32>(
@@ -81,13 +87,12 @@ fn vs_near(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance
         select(lo_ndc.y, hi_ndc.y, (c & 2u) != 0u),
     );
     let empty = rec.pos[0].w == 0.0 || any(lo_ndc >= hi_ndc);
-    out.position = select(vec4<f32>(xy, 0.0, 1.0), NOWHERE, empty);
-    return out;
+    return varyings(select(vec4<f32>(xy, 0.0, 1.0), NOWHERE, empty), rec);
 }
 
 @fragment
 fn fs_slices(in: Varyings) -> SliceOut {
-    let rec = records[in.tet];
+    let rec = in;
     let d = pixel_ray(in.position.xy);
     let gd = rec.grad_x * d.x + rec.grad_y * d.y + rec.grad_z * d.z;
     let sd = dot(rec.scalar.xyz, d);

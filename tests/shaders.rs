@@ -29,9 +29,14 @@ fn shells_stages_validate() {
         assert_eq!(entry_points(&src), ["vs_faces", "vs_near", "fs_slices"]);
     }
     for targets in 1..=shaders::MAX_TARGETS {
-        let src = shaders::shells_composite(targets);
-        validate(&format!("shells_composite ({targets} layers)"), &src);
-        assert_eq!(entry_points(&src), ["vs_fullscreen", "fs_composite"]);
+        for tf_points in [1, 2, 9, shaders::UNROLLED_TF_POINTS, 200] {
+            let src = shaders::shells_composite(targets, tf_points);
+            validate(
+                &format!("shells_composite ({targets} layers, {tf_points} TF points)"),
+                &src,
+            );
+            assert_eq!(entry_points(&src), ["vs_fullscreen", "fs_composite"]);
+        }
     }
 }
 

@@ -11,7 +11,7 @@ use std::sync::OnceLock;
 
 use glam::{DVec3, UVec3};
 use tetvr::generate::fields::Field;
-use tetvr::gpu::{AdapterChoice, GpuContext, ShellSettings, ShellsRenderer};
+use tetvr::gpu::{AdapterChoice, GpuContext, ShellSettings, ShellsRenderer, SliceFormat};
 use tetvr::reference::ReferenceRenderer;
 use tetvr::tf::ControlPoint;
 use tetvr::{Camera, Image, Renderer, TetMesh, TransferFunction, View, generate};
@@ -566,13 +566,20 @@ fn bench_bluntfin_512() {
     let t = std::time::Instant::now();
     let g = reference(&mesh, &camera, &tf);
     eprintln!("reference: {:?}", t.elapsed());
-    for n in [32, 16] {
+    let variants = [
+        (32, SliceFormat::Auto),
+        (16, SliceFormat::Auto),
+        (8, SliceFormat::Auto),
+        (32, SliceFormat::Float16),
+    ];
+    for (n, format) in variants {
         let settings = ShellSettings {
             slices_per_shell: Some(n),
+            format,
             ..Default::default()
         };
         let img = bench(
-            &format!("bluntfin, {n} slices per shell"),
+            &format!("bluntfin, {n} slices per shell, {format:?}"),
             &mesh,
             settings,
             &camera,

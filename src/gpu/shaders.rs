@@ -34,20 +34,42 @@ pub fn shells_raster(targets: u32) -> String {
     )
 }
 
-/// The shells composite stage reading `targets` layers (1..=[`MAX_TARGETS`]) of 4 slices
-/// (entry points `vs_fullscreen`, `fs_composite`). The generated `load_layers` reads the
-/// layers with constant indices: a loop over a dynamic layer index is an order of magnitude
-/// slower on lavapipe.
-pub fn shells_composite(targets: u32) -> String {
+/// Transfer functions with at most this many control points get a composite variant that
+/// walks their segments with constant indices; larger ones share a looping variant.
+pub const UNROLLED_TF_POINTS: u32 = 32;
+
+/// The shells composite stage reading `targets` layers (1..=[`MAX_TARGETS`]) of 4 slices, for
+/// a transfer function of `tf_points` control points (entry points `vs_fullscreen`,
+/// `fs_composite`). The generated `load_layers` reads the layers with constant indices (a loop
+/// over a dynamic layer index is an order of magnitude slower on lavapipe), and `tf_eval` walks
+/// the TF's segments with constant indices when `tf_points <= UNROLLED_TF_POINTS` (dynamic
+/// indices make every lane gather the control points); `tf_points` only selects the variant.
+pub fn shells_composite(targets: u32, tf_points: u32) -> String {
     let targets = targets.clamp(1, MAX_TARGETS);
     let loads: Vec<String> = (0..targets)
         .map(|i| format!("textureLoad(slices, xy, {i}, 0)"))
         .collect();
+    let tf_eval = if (1..=UNROLLED_TF_POINTS).contains(&tf_points) {
+        let steps: String = (0..tf_points - 1)
+            .map(|k| format!("    out = tf_segment(out, u, {k}u);\n"))
+            .collect();
+        format!(
+            "fn tf_eval(u: f32) -> vec4<f32> {{\n    var out = tf_value(0u);\n{steps}    \
+             return tf_last(out, u, {}u);\n}}\n",
+            tf_points - 1
+        )
+    } else {
+        "fn tf_eval(u: f32) -> vec4<f32> {\n    var out = tf_value(0u);\n    \
+         for (var k = 0u; k + 1u < frame.tf_count; k++) {\n        \
+         out = tf_segment(out, u, k);\n    }\n    \
+         return tf_last(out, u, frame.tf_count - 1u);\n}\n"
+            .to_owned()
+    };
     format!(
-        "{SHARED}\n// Generated: the composite variant reading {targets} layers.\n\
-         const TARGETS: u32 = {targets}u;\n\
+        "{SHARED}\n// Generated: the composite variant reading {targets} layers, TF of {tf_points} \
+         points.\nconst TARGETS: u32 = {targets}u;\n\
          fn load_layers(xy: vec2<i32>) -> array<vec4<f32>, TARGETS> {{\n    \
-         return array<vec4<f32>, TARGETS>({});\n}}\n{SHELLS_COMPOSITE}",
+         return array<vec4<f32>, TARGETS>({});\n}}\n{tf_eval}{SHELLS_COMPOSITE}",
         loads.join(", ")
     )
 }

@@ -25,7 +25,7 @@ pub struct BinParams {
 }
 
 /// What binning decided for one tet.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum TetBin {
     /// Entirely outside one plane of the view frustum.
     Culled,
@@ -33,15 +33,54 @@ pub enum TetBin {
     Transparent,
     /// No slice passes through its distance range.
     NoSample,
-    /// Drawn in shells `first..=last`, as faces or (near) as a screen-space quad.
-    Drawn { first: u32, last: u32, near: bool },
+    /// Drawn in shells `first..=last`, as faces or (near) as a screen-space quad, within
+    /// `screen` (see [`ScreenRect`]).
+    Drawn {
+        first: u32,
+        last: u32,
+        near: bool,
+        screen: ScreenRect,
+    },
 }
 
-/// One shell's slices of [`Binning::indices`]: tets drawn by their faces, then near-plane tets.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+/// A rectangle on the image plane at distance 1, `[x_min, y_min, x_max, y_max]` in eye-space
+/// `x / z` and `y / z`: the projection of a tet (of all its corners in front of the eye), or
+/// everything for a near-plane tet.
+pub type ScreenRect = [f32; 4];
+
+/// The rectangle that holds every other.
+pub const EVERYWHERE: ScreenRect = [
+    f32::NEG_INFINITY,
+    f32::NEG_INFINITY,
+    f32::INFINITY,
+    f32::INFINITY,
+];
+
+/// The rectangle that holds nothing (the identity of [`union`]).
+pub const NOWHERE: ScreenRect = [
+    f32::INFINITY,
+    f32::INFINITY,
+    f32::NEG_INFINITY,
+    f32::NEG_INFINITY,
+];
+
+/// The smallest rectangle holding `a` and `b`.
+pub fn union(a: ScreenRect, b: ScreenRect) -> ScreenRect {
+    [
+        a[0].min(b[0]),
+        a[1].min(b[1]),
+        a[2].max(b[2]),
+        a[3].max(b[3]),
+    ]
+}
+
+/// One shell's slices of [`Binning::indices`] (tets drawn by their faces, then near-plane
+/// tets) and the screen rectangle holding all of them.
+#[derive(Clone, Debug, PartialEq)]
 pub struct ShellRange {
     pub faces: Range<u32>,
     pub near: Range<u32>,
+    pub screen: ScreenRect,
 }
 
 /// All shells' active lists in one array.
@@ -128,11 +167,24 @@ pub fn classify(
             let (t_min, t_max) = distance_range(&p);
             match slice_range(t_min, t_max, params.t_first, params.dz, total) {
                 None => TetBin::NoSample,
-                Some((lo, hi)) => TetBin::Drawn {
-                    first: (lo / n) as u32,
-                    last: (hi / n) as u32,
-                    near: p.iter().any(|q| q.z <= params.near_z),
-                },
+                Some((lo, hi)) => {
+                    let near = p.iter().any(|q| q.z <= params.near_z);
+                    // Not near: every corner has z > near_z > 0, so it projects.
+                    let screen = if near {
+                        EVERYWHERE
+                    } else {
+                        p.iter().fold(NOWHERE, |r, q| {
+                            let (x, y) = ((q.x / q.z) as f32, (q.y / q.z) as f32);
+                            union(r, [x, y, x, y])
+                        })
+                    };
+                    TetBin::Drawn {
+                        first: (lo / n) as u32,
+                        last: (hi / n) as u32,
+                        near,
+                        screen,
+                    }
+                }
             }
         })
         .collect()
@@ -143,21 +195,29 @@ pub fn sort_into_shells(bins: &[TetBin], shells: u32) -> Binning {
     let buckets = 2 * shells as usize;
     let bucket = |shell: u32, near: bool| 2 * shell as usize + near as usize;
     let chunk = (bins.len() / (4 * rayon::current_num_threads())).max(4096);
-    // Counts: one histogram per chunk.
-    let counts: Vec<Vec<u32>> = bins
+    // Counts: one histogram (and one screen rectangle per shell) per chunk.
+    let (counts, rects): (Vec<Vec<u32>>, Vec<Vec<ScreenRect>>) = bins
         .par_chunks(chunk)
         .map(|part| {
             let mut h = vec![0u32; buckets];
+            let mut r = vec![NOWHERE; shells as usize];
             for b in part {
-                if let TetBin::Drawn { first, last, near } = *b {
+                if let TetBin::Drawn {
+                    first,
+                    last,
+                    near,
+                    screen,
+                } = *b
+                {
                     for s in first..=last {
                         h[bucket(s, near)] += 1;
+                        r[s as usize] = union(r[s as usize], screen);
                     }
                 }
             }
-            h
+            (h, r)
         })
-        .collect();
+        .unzip();
     // Prefix sums: bucket-major, chunk-minor, so each chunk owns one slice per bucket.
     let total: usize = counts.iter().flatten().map(|&c| c as usize).sum();
     let mut indices = vec![0u32; total];
@@ -182,7 +242,10 @@ pub fn sort_into_shells(bins: &[TetBin], shells: u32) -> Binning {
         .for_each(|(mut slices, (c, part))| {
             let mut fill = vec![0usize; buckets];
             for (i, b) in part.iter().enumerate() {
-                if let TetBin::Drawn { first, last, near } = *b {
+                if let TetBin::Drawn {
+                    first, last, near, ..
+                } = *b
+                {
                     for s in first..=last {
                         let k = bucket(s, near);
                         slices[k][fill[k]] = (c * chunk + i) as u32;
@@ -198,6 +261,7 @@ pub fn sort_into_shells(bins: &[TetBin], shells: u32) -> Binning {
             .map(|s| ShellRange {
                 faces: starts[2 * s]..starts[2 * s + 1],
                 near: starts[2 * s + 1]..starts[2 * s + 2],
+                screen: rects.iter().fold(NOWHERE, |r, c| union(r, c[s])),
             })
             .collect(),
         culled: count(|b| *b == TetBin::Culled),
@@ -320,6 +384,7 @@ mod tests {
                         first,
                         last: (first + k % 3).min(shells - 1),
                         near: t % 5 == 0,
+                        screen: [t as f32, 0.0, t as f32 + 1.0, 1.0],
                     }
                 }
             })
@@ -331,7 +396,7 @@ mod tests {
                     .iter()
                     .enumerate()
                     .filter(|(_, b)| {
-                        matches!(b, TetBin::Drawn { first, last, near: n }
+                        matches!(b, TetBin::Drawn { first, last, near: n, .. }
                             if *first <= s && s <= *last && *n == near)
                     })
                     .map(|(t, _)| t as u32)

@@ -24,6 +24,7 @@
 pub mod binning;
 pub mod twin;
 
+use std::collections::HashMap;
 use std::time::Instant;
 
 use bytemuck::Zeroable;
@@ -143,7 +144,11 @@ struct Pipelines {
     faces: wgpu::RenderPipeline,
     near: wgpu::RenderPipeline,
     composite_layout: wgpu::BindGroupLayout,
-    composite: wgpu::RenderPipeline,
+    composite_pipeline_layout: wgpu::PipelineLayout,
+    /// Composite variants by TF point count (0: the looping variant for large TFs).
+    composite: HashMap<u32, wgpu::RenderPipeline>,
+    format: wgpu::TextureFormat,
+    targets: u32,
 }
 
 /// Image-size-dependent targets, rebuilt when the size changes.
@@ -567,7 +572,7 @@ impl Pipelines {
                     },
                     count: None,
                 },
-                buffer(2, S::VERTEX_FRAGMENT, ro),
+                buffer(2, S::VERTEX, ro),
                 buffer(3, S::VERTEX, ro),
             ],
         );
@@ -639,40 +644,7 @@ impl Pipelines {
                 buffer(2, S::FRAGMENT, uniform),
             ],
         );
-        let composite_module = module("shells_composite", shaders::shells_composite(targets));
-        let under = wgpu::BlendComponent {
-            src_factor: wgpu::BlendFactor::OneMinusDstAlpha,
-            dst_factor: wgpu::BlendFactor::One,
-            operation: wgpu::BlendOperation::Add,
-        };
-        let composite = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("shells composite"),
-            layout: Some(&pipeline_layout(&composite_layout)),
-            vertex: wgpu::VertexState {
-                module: &composite_module,
-                entry_point: Some("vs_fullscreen"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: Default::default(),
-            depth_stencil: None,
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &composite_module,
-                entry_point: Some("fs_composite"),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format,
-                    blend: Some(wgpu::BlendState {
-                        color: under,
-                        alpha: under,
-                    }),
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        let composite_pipeline_layout = pipeline_layout(&composite_layout);
         Self {
             assemble_layout,
             assemble,
@@ -680,8 +652,62 @@ impl Pipelines {
             faces,
             near,
             composite_layout,
-            composite,
+            composite_pipeline_layout,
+            composite: HashMap::new(),
+            format,
+            targets,
         }
+    }
+
+    /// The composite pipeline for a TF of `tf_points` control points, built on first use (one
+    /// variant per count up to [`shaders::UNROLLED_TF_POINTS`], one for all larger TFs).
+    fn composite(&mut self, device: &wgpu::Device, tf_points: u32) -> &wgpu::RenderPipeline {
+        let key = if tf_points <= shaders::UNROLLED_TF_POINTS {
+            tf_points
+        } else {
+            0
+        };
+        let (layout, format, targets) =
+            (&self.composite_pipeline_layout, self.format, self.targets);
+        self.composite.entry(key).or_insert_with(|| {
+            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("shells_composite"),
+                source: wgpu::ShaderSource::Wgsl(shaders::shells_composite(targets, key).into()),
+            });
+            let under = wgpu::BlendComponent {
+                src_factor: wgpu::BlendFactor::OneMinusDstAlpha,
+                dst_factor: wgpu::BlendFactor::One,
+                operation: wgpu::BlendOperation::Add,
+            };
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("shells composite"),
+                layout: Some(layout),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some("vs_fullscreen"),
+                    compilation_options: Default::default(),
+                    buffers: &[],
+                },
+                primitive: Default::default(),
+                depth_stencil: None,
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some("fs_composite"),
+                    compilation_options: Default::default(),
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format,
+                        blend: Some(wgpu::BlendState {
+                            color: under,
+                            alpha: under,
+                        }),
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        })
     }
 }
 
@@ -782,6 +808,21 @@ pub fn tf_points(tf: &TransferFunction, lo: f64, span: f64) -> Result<TfPoints, 
         };
     }
     Ok(out)
+}
+
+/// The pixel rectangle `[x, y, width, height]` holding the image-plane rectangle `r` (in units
+/// of `x / z`, `y / z`; `slope` is the image's half extent in those units), grown by a pixel,
+/// clamped to the image, at least one pixel.
+fn scissor(r: binning::ScreenRect, slope: [f64; 2], width: u32, height: u32) -> [u32; 4] {
+    let (w, h) = (width as f64, height as f64);
+    let px = |x: f32| ((x as f64 / slope[0] + 1.0) * 0.5 * w).clamp(0.0, w);
+    let py = |y: f32| ((1.0 - y as f64 / slope[1]) * 0.5 * h).clamp(0.0, h);
+    let x0 = (px(r[0]) - 1.0).max(0.0).floor() as u32;
+    let x1 = (px(r[2]) + 1.0).min(w).ceil() as u32;
+    let y0 = (py(r[3]) - 1.0).max(0.0).floor() as u32;
+    let y1 = (py(r[1]) + 1.0).min(h).ceil() as u32;
+    let (x0, y0) = (x0.min(width - 1), y0.min(height - 1));
+    [x0, y0, x1.max(x0 + 1) - x0, y1.max(y0 + 1) - y0]
 }
 
 /// Writes `data` to `*buf`, first growing it (to a power of two) when it is too small.
@@ -995,6 +1036,10 @@ impl Renderer for ShellsRenderer {
             ],
         });
 
+        let composite = self
+            .pipelines
+            .composite(&self.device, tf.points().len() as u32)
+            .clone();
         // 2.-4. Assembly, then per non-empty shell: raster and composite.
         let passes = 1 + 2 * drawn.len().max(1) as u32;
         let mut rec = Recorder::new(&self.device, &self.queue, passes, self.timestamps);
@@ -1048,6 +1093,8 @@ impl Renderer for ShellsRenderer {
         }
         let (mut instances, mut triangles) = (0u64, 0u64);
         for (i, (_, range)) in drawn.iter().enumerate() {
+            // The shell's pixels: its tets' screen rectangle, grown by a pixel against rounding.
+            let [sx, sy, sw, sh] = scissor(range.screen, slope, camera.width, camera.height);
             let q = rec.pass_queries("raster");
             let set = rec.queries.clone();
             let attachments: Vec<Option<wgpu::RenderPassColorAttachment>> = targets
@@ -1080,6 +1127,7 @@ impl Renderer for ShellsRenderer {
                 if occlusion.is_some() {
                     pass.begin_occlusion_query(i as u32);
                 }
+                pass.set_scissor_rect(sx, sy, sw, sh);
                 let offset = (i as u64 * self.shell_stride) as u32;
                 pass.set_bind_group(0, &raster_group, &[offset]);
                 if !range.faces.is_empty() {
@@ -1127,7 +1175,8 @@ impl Renderer for ShellsRenderer {
                     timestamp_writes,
                     ..Default::default()
                 });
-                pass.set_pipeline(&self.pipelines.composite);
+                pass.set_scissor_rect(sx, sy, sw, sh);
+                pass.set_pipeline(&composite);
                 pass.set_bind_group(0, &composite_group, &[]);
                 pass.draw(0..3, 0..1);
             }
