@@ -113,8 +113,8 @@ fn expected_sampled(
                 if place.inside {
                     let s = tf.eval(field(p));
                     let alpha = 1.0 - (-s.tau * dz).exp();
-                    for ch in 0..3 {
-                        c[ch] += (1.0 - a) * alpha * s.color[ch];
+                    for (c, color) in c.iter_mut().zip(s.color) {
+                        *c += (1.0 - a) * alpha * color;
                     }
                     a += (1.0 - a) * alpha;
                 }
@@ -566,10 +566,10 @@ fn bench_bluntfin_512() {
     let t = std::time::Instant::now();
     let g = reference(&mesh, &camera, &tf);
     eprintln!("reference: {:?}", t.elapsed());
+    // The default (32 slices per shell, Rgba32Float), half-size shells, and 16-bit slices.
     let variants = [
         (32, SliceFormat::Auto),
         (16, SliceFormat::Auto),
-        (8, SliceFormat::Auto),
         (32, SliceFormat::Float16),
     ];
     for (n, format) in variants {
@@ -731,4 +731,35 @@ fn non_convex_mesh_and_inside_eye_match_the_reference() {
         let img = shells_with(mesh, 512, &camera, &tf);
         assert_images_close(name, &img, &reference(mesh, &camera, &tf), bounds);
     }
+}
+
+#[test]
+fn large_transfer_functions_use_the_looping_variant_and_match() {
+    // 40 control points (more than UNROLLED_TF_POINTS): the composite walks them in a loop.
+    // The TF is the default one resampled, so the lox bounds apply unchanged.
+    let mesh = lox();
+    let base = default_tf(&mesh);
+    let (lo, hi) = mesh.active_array().and_then(|a| a.range()).unwrap();
+    let points = (0..40)
+        .map(|i| {
+            let s = lo + (hi - lo) * i as f64 / 39.0;
+            let e = base.eval(s);
+            ControlPoint {
+                s,
+                color: e.color,
+                opacity: 1.0 - (-e.tau * base.unit_distance()).exp(),
+            }
+        })
+        .collect();
+    let tf = TransferFunction::new(points, base.unit_distance()).unwrap();
+    assert!(tf.points().len() as u32 > tetvr::gpu::shaders::UNROLLED_TF_POINTS);
+    let (lo, hi) = mesh.bounds();
+    let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 128, 128);
+    let img = shells_with(&mesh, 512, &camera, &tf);
+    assert_images_close(
+        "shells-lox-40-points",
+        &img,
+        &reference(&mesh, &camera, &tf),
+        LOX_BOUNDS,
+    );
 }

@@ -241,7 +241,7 @@ impl ShellsRenderer {
             )));
         }
         let targets_per_shell = slices_per_shell.div_ceil(4);
-        let max_binding = limits.max_storage_buffer_binding_size as u64;
+        let max_binding = limits.max_storage_buffer_binding_size;
         let record_bytes = mesh.tet_count() as u64 * size_of::<TetRecord>() as u64;
         if record_bytes > max_binding.min(limits.max_buffer_size) {
             return Err(settings_error(format!(
@@ -976,7 +976,7 @@ impl Renderer for ShellsRenderer {
         }
         let uniform = wgpu::BufferUsages::UNIFORM;
         write_grown(device, queue, &mut self.shell_buf, &shell_data, uniform);
-        if bin.indices.len() as u64 * 4 > self.limits.max_storage_buffer_binding_size as u64 {
+        if bin.indices.len() as u64 * 4 > self.limits.max_storage_buffer_binding_size {
             return Err(settings_error(format!(
                 "this view draws {} tet-shell instances, more than one storage binding holds on \
                  this adapter; use more slices per shell or a larger dz",

@@ -31,7 +31,9 @@ pub fn assemble(f: &FrameUniforms, p: [Vec3; 4], s: [f32; 4]) -> Option<TetRecor
     let (c23, c31, c12) = (n2.cross(n3), n3.cross(n1), n1.cross(n2));
     let det = n1.dot(c23);
     let scale = n1.length() * n2.length() * n3.length();
-    if !(det.abs() > f.degenerate_tol * scale) {
+    // The shader's `!(a > b)` also refuses NaN (a zero-length tet).
+    let well_conditioned = det.abs() > f.degenerate_tol * scale;
+    if !well_conditioned {
         return None;
     }
     let pos = p.map(|q| to_eye(f, q).extend(1.0).to_array());
