@@ -1,6 +1,18 @@
-fn main() {
-    match tetvr::gpu::GpuContext::new(tetvr::gpu::AdapterChoice::Auto) {
-        Ok(c) => println!("{}", c.report()),
-        Err(e) => eprintln!("{e}"),
+//! The `tetvr` command line: render, info, gpu-info, compare, generate.
+
+mod cli;
+
+use std::process::ExitCode;
+
+use clap::Parser;
+
+fn main() -> ExitCode {
+    let args = cli::Cli::parse();
+    match cli::run(args) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
     }
 }

@@ -15,7 +15,7 @@ use rayon::prelude::*;
 use crate::mesh::split::{CellKind, split_cell};
 use crate::mesh::{MeshError, ScalarArray, TetMesh};
 
-pub use fields::Field;
+pub use fields::{Field, grid};
 
 /// The most tets a generator makes. Face slots are numbered `4 * tet + face` in 32 bits
 /// ([`crate::mesh::Adjacency::build`]), so a mesh with more tets could not be traversed.

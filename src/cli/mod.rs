@@ -1,0 +1,192 @@
+//! Argument definitions and dispatch for the `tetvr` binary.
+
+mod args;
+mod commands;
+
+use std::path::PathBuf;
+
+use clap::{Parser, Subcommand, ValueEnum};
+
+pub use commands::run;
+
+const EXAMPLES: &str = "\
+Examples:
+  tetvr render assets/lox_post_subset_tet.vtk -o lox.png
+  tetvr render mesh.vtu --mode reference --size 256x256 --view -y --tf shock -o ref.png
+  tetvr render mesh.vtk --array Pressure --tf my_tf.json --unit-distance 0.05 -o p.png
+  tetvr render mesh.msh --eye 10,0,2 --target 0,0,0 --up 0,0,1 --fov 40 -o close.png
+  tetvr info ../shared/data/bluntfin_tet.vtk
+  tetvr compare a.png b.png -o diff.png
+  tetvr generate grid --tets 100000 --field marschner-lobb -o ml.vtu
+  tetvr gpu-info";
+
+/// Render tetrahedral meshes (a scalar per vertex) on the GPU, or exactly on the CPU.
+#[derive(Parser, Debug)]
+#[command(name = "tetvr", version, about, after_help = EXAMPLES)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Render a mesh to a PNG.
+    #[command(after_help = EXAMPLES)]
+    Render(RenderArgs),
+    /// Print a mesh's statistics: counts, bounds, scalar ranges, quality, degenerate tets.
+    Info(InfoArgs),
+    /// Show which GPU adapter tetvr would use and the limits that matter to it.
+    GpuInfo,
+    /// Compare two PNGs of the same size: error metrics and a difference image.
+    Compare(CompareArgs),
+    /// Write a generated mesh (structured grid, non-convex shape, or a NIfTI volume) as .vtu.
+    Generate(GenerateArgs),
+}
+
+/// Rendering modes.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    /// `shells` on the GPU when an adapter exists, otherwise `reference` on the CPU.
+    Auto,
+    /// Exact f64 CPU ray caster (the ground truth).
+    Reference,
+    /// Barycentric shell sampling on the GPU (Georgii & Westermann 2006).
+    Shells,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct MeshArgs {
+    /// Mesh file: legacy VTK (.vtk), VTK XML (.vtu), Gmsh (.msh v2/v4) or TetGen (.node/.ele).
+    pub mesh: PathBuf,
+    /// Point scalar array to use (default: the file's active scalars).
+    #[arg(long)]
+    pub array: Option<String>,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct RenderArgs {
+    #[command(flatten)]
+    pub mesh: MeshArgs,
+    /// Output PNG.
+    #[arg(short, long, default_value = "tetvr.png")]
+    pub output: PathBuf,
+    #[arg(long, value_enum, default_value_t = Mode::Auto)]
+    pub mode: Mode,
+    /// Transfer function: a preset (viridis, cool-warm, inferno, shock, isolike, grayscale) or a
+    /// JSON file (tetvr's own format or a ParaView colour map).
+    #[arg(long, default_value = "viridis")]
+    pub tf: String,
+    /// Length over which a control point's opacity is gathered (default: 1/100 of the mesh's
+    /// bounding-box diagonal, or the TF file's own value).
+    #[arg(long)]
+    pub unit_distance: Option<f64>,
+    /// Image size in pixels.
+    #[arg(long, default_value = "512x512", value_parser = args::parse_size)]
+    pub size: (u32, u32),
+    /// Default framing direction: +x, -x, +y, -y, +z, -z, iso, or AZIMUTH,ELEVATION in degrees.
+    #[arg(long, default_value = "iso")]
+    pub view: String,
+    /// Eye distance as a multiple of the distance that fits the mesh's bounding sphere.
+    #[arg(long, default_value_t = 1.0)]
+    pub distance: f64,
+    /// Eye position X,Y,Z (default: from --view and --distance).
+    #[arg(long, value_parser = args::parse_vec3, allow_hyphen_values = true)]
+    pub eye: Option<glam::DVec3>,
+    /// Look-at point X,Y,Z (default: the bounding-box centre).
+    #[arg(long, value_parser = args::parse_vec3, allow_hyphen_values = true)]
+    pub target: Option<glam::DVec3>,
+    /// Up vector X,Y,Z (default: +z, or +y-like for views along z).
+    #[arg(long, value_parser = args::parse_vec3, allow_hyphen_values = true)]
+    pub up: Option<glam::DVec3>,
+    /// Vertical field of view in degrees.
+    #[arg(long, default_value_t = 30.0)]
+    pub fov: f64,
+    /// Background the picture is composited over: white, black, none (transparent) or R,G,B in [0,1].
+    #[arg(long, default_value = "white", value_parser = args::parse_background)]
+    pub background: args::Background,
+    /// Print per-stage timings and work counters.
+    #[arg(long)]
+    pub timings: bool,
+    #[command(flatten)]
+    pub shells: ShellArgs,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct ShellArgs {
+    /// shells: samples per ray across the mesh's depth (its bounding-sphere diameter).
+    #[arg(long, conflicts_with = "dz")]
+    pub samples: Option<u32>,
+    /// shells: distance between samples along a ray, in world units.
+    #[arg(long)]
+    pub dz: Option<f64>,
+    /// shells: slices sampled per fragment and shell (a multiple of 4, at most 4 x the adapter's colour targets).
+    #[arg(long)]
+    pub slices_per_shell: Option<u32>,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct InfoArgs {
+    #[command(flatten)]
+    pub mesh: MeshArgs,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct CompareArgs {
+    /// The result image.
+    pub result: PathBuf,
+    /// The reference image.
+    pub reference: PathBuf,
+    /// Where to write the difference image (heat map; cyan marks holes).
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// Channel difference shown as white in the difference image.
+    #[arg(long, default_value_t = 0.1)]
+    pub scale: f32,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct GenerateArgs {
+    #[command(subcommand)]
+    pub shape: GenerateShape,
+    /// Output .vtu file.
+    #[arg(short, long, global = true, default_value = "generated.vtu")]
+    pub output: PathBuf,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum GenerateShape {
+    /// A box grid, each hexahedron split into 6 tets.
+    Grid {
+        /// About this many tets.
+        #[arg(long, default_value_t = 100_000)]
+        tets: u64,
+        /// Scalar field: gaussians, marschner-lobb, linear, radial, constant:<v>.
+        #[arg(long, default_value = "gaussians")]
+        field: String,
+    },
+    /// A box with a square through-hole (non-convex: rays leave and re-enter).
+    Hole {
+        #[arg(long, default_value_t = 100_000)]
+        tets: u64,
+        #[arg(long, default_value = "gaussians")]
+        field: String,
+    },
+    /// A square-section ring (non-convex).
+    Ring {
+        #[arg(long, default_value_t = 100_000)]
+        tets: u64,
+        #[arg(long, default_value = "gaussians")]
+        field: String,
+    },
+    /// Tetrahedralize a NIfTI volume (.nii or .nii.gz): voxel centres become vertices.
+    Nifti {
+        /// The volume file.
+        input: PathBuf,
+        /// Keep every k-th voxel along each axis.
+        #[arg(long, default_value_t = 1)]
+        downsample: u32,
+        /// Drop cells whose eight corner values are all below this.
+        #[arg(long)]
+        threshold: Option<f64>,
+    },
+}

@@ -1,0 +1,268 @@
+//! The `tetvr` binary as a user runs it.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use tetvr::Image;
+
+fn tetvr(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_tetvr"))
+        .args(args)
+        .output()
+        .expect("run tetvr")
+}
+
+/// Runs tetvr with no Vulkan driver visible, as on a machine without GPU or Mesa.
+fn tetvr_without_vulkan(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_tetvr"))
+        .args(args)
+        .env("VK_ICD_FILENAMES", "/nonexistent/icd.json")
+        .env("VK_DRIVER_FILES", "/nonexistent/icd.json")
+        .output()
+        .expect("run tetvr")
+}
+
+fn text(o: &Output) -> (String, String) {
+    (
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+fn out_dir(name: &str) -> PathBuf {
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join("cli")
+        .join(name);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+const LOX: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/assets/lox_post_subset_tet.vtk"
+);
+
+/// Fraction of pixels that differ from the white background.
+fn covered_fraction(path: &Path) -> f64 {
+    let img = Image::load_png(path).unwrap();
+    let covered = img
+        .pixels
+        .iter()
+        .filter(|p| p[..3].iter().any(|&c| c < 0.98))
+        .count();
+    covered as f64 / img.pixels.len() as f64
+}
+
+#[test]
+fn reference_render_writes_a_picture_of_the_mesh() {
+    let png = out_dir("reference").join("lox.png");
+    let o = tetvr(&[
+        "render",
+        LOX,
+        "--mode",
+        "reference",
+        "--size",
+        "96x80",
+        "-o",
+        png.to_str().unwrap(),
+        "--timings",
+    ]);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stderr}");
+    assert!(
+        stdout.contains("wrote") && stdout.contains("96x80") && stdout.contains("trace"),
+        "{stdout}"
+    );
+    let img = Image::load_png(&png).unwrap();
+    assert_eq!((img.width, img.height), (96, 80));
+    // The default framing fits the bounding sphere, so the mesh covers a good part of the view:
+    // at least 10% of the pixels (measured about 40%) and not all of them.
+    let f = covered_fraction(&png);
+    assert!((0.1..0.95).contains(&f), "covered fraction {f}");
+}
+
+#[test]
+fn shells_render_runs_on_the_software_adapter_and_prints_stages() {
+    let png = out_dir("shells").join("lox.png");
+    let o = tetvr(&[
+        "render",
+        LOX,
+        "--mode",
+        "shells",
+        "--size",
+        "96x80",
+        "-o",
+        png.to_str().unwrap(),
+        "--timings",
+    ]);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stderr}");
+    for stage in ["binning", "assembly", "raster", "composite"] {
+        assert!(stdout.contains(stage), "no {stage} in {stdout}");
+    }
+    let f = covered_fraction(&png);
+    assert!((0.1..0.95).contains(&f), "covered fraction {f}");
+}
+
+#[test]
+fn without_vulkan_auto_falls_back_in_one_line_and_shells_names_the_package() {
+    let png = out_dir("fallback").join("lox.png");
+    let o = tetvr_without_vulkan(&[
+        "render",
+        LOX,
+        "--size",
+        "32x32",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    let (_, stderr) = text(&o);
+    assert!(o.status.success(), "{stderr}");
+    assert_eq!(
+        stderr
+            .lines()
+            .filter(|l| l.contains("no GPU adapter"))
+            .count(),
+        1,
+        "{stderr}"
+    );
+    assert!(png.exists());
+    let o = tetvr_without_vulkan(&[
+        "render",
+        LOX,
+        "--mode",
+        "shells",
+        "--size",
+        "32x32",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    let (_, stderr) = text(&o);
+    assert!(!o.status.success());
+    assert!(
+        stderr.starts_with("error: no GPU adapter") && stderr.contains("mesa-vulkan-drivers"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn info_reports_counts_degenerate_and_reoriented_tets() {
+    let o = tetvr(&[
+        "info",
+        common::shared_data("bluntfin_tet.vtk").to_str().unwrap(),
+    ]);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stderr}");
+    for needle in ["40,960", "187,395", "zero-volume", "77", "duplicate"] {
+        assert!(stdout.contains(needle), "no '{needle}' in\n{stdout}");
+    }
+    let o = tetvr(&[
+        "info",
+        common::shared_data("combustor_tet.vtk").to_str().unwrap(),
+    ]);
+    let (stdout, _) = text(&o);
+    assert!(stdout.contains("2 (reoriented on load)"), "{stdout}");
+}
+
+#[test]
+fn bad_input_is_an_error_naming_the_file_never_a_panic() {
+    let dir = out_dir("bad");
+    let bad = dir.join("broken.vtk");
+    std::fs::write(&bad, "# vtk DataFile Version 4.2\nbroken\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 4 float\n0 0 0\n1 0\n").unwrap();
+    let o = tetvr(&["info", bad.to_str().unwrap()]);
+    let (_, stderr) = text(&o);
+    assert_eq!(o.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.starts_with("error: ")
+            && stderr.contains("broken.vtk")
+            && !stderr.contains("panicked"),
+        "{stderr}"
+    );
+    let o = tetvr(&[
+        "render",
+        LOX,
+        "--array",
+        "Nope",
+        "-o",
+        dir.join("x.png").to_str().unwrap(),
+    ]);
+    let (_, stderr) = text(&o);
+    assert!(
+        stderr.contains("no scalar array named 'Nope'; the mesh has: "),
+        "{stderr}"
+    );
+    let o = tetvr(&[
+        "render",
+        LOX,
+        "--tf",
+        "no-such-preset",
+        "-o",
+        dir.join("x.png").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    let o = tetvr(&[
+        "render",
+        LOX,
+        "--size",
+        "12",
+        "-o",
+        dir.join("x.png").to_str().unwrap(),
+    ]);
+    let (_, stderr) = text(&o);
+    assert!(stderr.contains("WIDTHxHEIGHT"), "{stderr}");
+}
+
+#[test]
+fn generate_then_info_and_compare_round_trip() {
+    let dir = out_dir("generate");
+    let vtu = dir.join("grid.vtu");
+    let o = tetvr(&[
+        "generate",
+        "grid",
+        "--tets",
+        "6000",
+        "--field",
+        "marschner-lobb",
+        "-o",
+        vtu.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o).1);
+    let (stdout, _) = text(&tetvr(&["info", vtu.to_str().unwrap()]));
+    assert!(stdout.contains("6,000"), "{stdout}");
+    let png = dir.join("grid.png");
+    let o = tetvr(&[
+        "render",
+        vtu.to_str().unwrap(),
+        "--mode",
+        "reference",
+        "--size",
+        "24x24",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o).1);
+    let diff = dir.join("diff.png");
+    let (stdout, _) = text(&tetvr(&[
+        "compare",
+        png.to_str().unwrap(),
+        png.to_str().unwrap(),
+        "-o",
+        diff.to_str().unwrap(),
+    ]));
+    assert!(
+        stdout.contains("psnr inf dB") && stdout.contains("holes 0"),
+        "{stdout}"
+    );
+    assert!(diff.exists());
+}
+
+#[test]
+fn help_has_examples() {
+    let (stdout, _) = text(&tetvr(&["render", "--help"]));
+    assert!(
+        stdout.contains("Examples:")
+            && stdout.contains("--mode")
+            && stdout.contains("--slices-per-shell")
+    );
+}
