@@ -19,7 +19,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         return Err("usage: readme_pictures MESH TF DISTANCE_FACTOR OUT.png".into());
     };
     let mesh = io::load(&PathBuf::from(mesh_path))?.mesh;
-    let range = mesh.active_array().and_then(|a| a.range()).ok_or("the mesh has no scalars")?;
+    let range = mesh
+        .active_array()
+        .and_then(|a| a.range())
+        .ok_or("the mesh has no scalars")?;
     let tf = load_tf(tf_spec, range, mesh.diagonal() / 100.0)?;
     let (lo, hi) = mesh.bounds();
     let size = 384;
@@ -36,7 +39,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let reference_s = t.elapsed().as_secs_f64();
     let metrics = frame.image.compare(&reference)?;
     println!("first vs reference: {}", first.image.compare(&reference)?);
-    println!("{}: shells {shells_s:.2} s, reference {reference_s:.2} s on {}", mesh_path, ctx.summary());
+    println!(
+        "{}: shells {shells_s:.2} s, reference {reference_s:.2} s on {}",
+        mesh_path,
+        ctx.summary()
+    );
     println!("shells vs reference: {metrics}");
 
     // Side by side over white: shells | reference | difference scaled so 0.1 is white.
@@ -47,7 +54,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             for x in 0..size {
                 let p = img.get(x, y);
                 let t = 1.0 - p[3];
-                let over_white = if i == 2 { p } else { [p[0] + t, p[1] + t, p[2] + t, 1.0] };
+                let over_white = if i == 2 {
+                    p
+                } else {
+                    [p[0] + t, p[1] + t, p[2] + t, 1.0]
+                };
                 strip.pixels[(y * size * 3 + x + i as u32 * size) as usize] = over_white;
             }
         }
