@@ -90,23 +90,42 @@ fn vs_near(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance
     return varyings(select(vec4<f32>(xy, 0.0, 1.0), NOWHERE, empty), rec);
 }
 
+// Along the fragment's ray, slice j of this shell (0 <= j < slices_per_shell) lies at
+// t_j = t0 + j dz with t0 = t_first + first_slice dz, so every barycentric coordinate is linear
+// in j: lambda(j) = A + j B. The sample is inside when min(lambda) >= -epsilon, i.e. when j lies
+// in [lo, hi], the intersection of the half-lines A_i + j B_i >= -epsilon. Returns
+// (lo, hi, s0, s1): the slice index range and the encoded scalar s(j) = s0 + j s1.
+// The CPU twin is gpu::shells::twin::slice_span.
+fn slice_span(rec: Varyings, d: vec3<f32>) -> vec4<f32> {
+    let gd = rec.grad_x * d.x + rec.grad_y * d.y + rec.grad_z * d.z;
+    let t0 = frame.t_first + f32(shell.first_slice) * frame.dz;
+    let a = rec.lambda_eye + t0 * gd;
+    let b = gd * frame.dz;
+    let r = (-frame.epsilon - a) / b;
+    // Rising coordinates bound j from below, falling ones from above; a constant one admits
+    // every j or none.
+    let big = vec4<f32>(1e30);
+    let flat_lo = select(-big, big, a < vec4<f32>(-frame.epsilon));
+    let lo4 = select(select(flat_lo, -big, b < vec4<f32>(0.0)), r, b > vec4<f32>(0.0));
+    let hi4 = select(big, r, b < vec4<f32>(0.0));
+    let lo = max(max(lo4.x, lo4.y), max(lo4.z, lo4.w));
+    let hi = min(min(min(hi4.x, hi4.y), min(hi4.z, hi4.w)), f32(frame.slices_per_shell - 1u));
+    let sd = dot(rec.scalar.xyz, d);
+    return vec4<f32>(lo, hi, rec.scalar.w + t0 * sd, frame.dz * sd);
+}
+
 @fragment
 fn fs_slices(in: Varyings) -> SliceOut {
-    let rec = in;
-    let d = pixel_ray(in.position.xy);
-    let gd = rec.grad_x * d.x + rec.grad_y * d.y + rec.grad_z * d.z;
-    let sd = dot(rec.scalar.xyz, d);
+    let span = slice_span(in, pixel_ray(in.position.xy));
+    // The ray misses this shell's part of the tet: nothing to write (MAX with 0 is a no-op).
+    if span.x > span.y {
+        discard;
+    }
     var v: array<vec4<f32>, TARGETS>;
     for (var i = 0u; i < TARGETS; i++) {
-        var o = vec4<f32>(0.0);
-        for (var c = 0u; c < 4u; c++) {
-            let j = 4u * i + c;
-            let t = frame.t_first + f32(shell.first_slice + j) * frame.dz;
-            let lam = rec.lambda_eye + t * gd;
-            let inside = min(min(lam.x, lam.y), min(lam.z, lam.w)) >= -frame.epsilon;
-            o[c] = select(0.0, rec.scalar.w + t * sd, inside && j < frame.slices_per_shell);
-        }
-        v[i] = o;
+        let j = vec4<f32>(f32(4u * i)) + vec4<f32>(0.0, 1.0, 2.0, 3.0);
+        let inside = j >= vec4<f32>(span.x) & j <= vec4<f32>(span.y);
+        v[i] = select(vec4<f32>(0.0), span.z + j * span.w, inside);
     }
     return slice_out(v);
 }
