@@ -51,7 +51,7 @@ pub enum CliError {
 
 pub fn run(cli: Cli) -> Result<(), CliError> {
     match cli.command {
-        Command::Render(args) => render(args),
+        Command::Render(args) => render(*args),
         Command::Info(args) => info(args),
         Command::GpuInfo => {
             println!("{}", GpuContext::new(AdapterChoice::from_env())?.report());

@@ -32,7 +32,7 @@ pub struct Cli {
 pub enum Command {
     /// Render a mesh to a PNG.
     #[command(after_help = EXAMPLES)]
-    Render(RenderArgs),
+    Render(Box<RenderArgs>),
     /// Print a mesh's statistics: counts, bounds, scalar ranges, quality, degenerate tets.
     Info(InfoArgs),
     /// Show which GPU adapter tetvr would use and the limits that matter to it.
