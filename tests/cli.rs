@@ -253,6 +253,18 @@ fn generate_then_info_and_compare_round_trip() {
 }
 
 #[test]
+fn negative_views_and_vectors_are_values_not_flags() {
+    let png = out_dir("views").join("v.png");
+    for args in [["--view", "-y"], ["--view", "-30,20"], ["--eye", "-3,-4,1"]] {
+        let mut all = vec!["render", LOX, "--mode", "reference", "--size", "16x16"];
+        all.extend(args);
+        all.extend(["-o", png.to_str().unwrap()]);
+        let o = tetvr(&all);
+        assert!(o.status.success(), "{args:?}: {}", text(&o).1);
+    }
+}
+
+#[test]
 fn help_has_examples() {
     let (stdout, _) = text(&tetvr(&["render", "--help"]));
     assert!(

@@ -84,7 +84,7 @@ pub struct RenderArgs {
     #[arg(long, default_value = "512x512", value_parser = args::parse_size)]
     pub size: (u32, u32),
     /// Default framing direction: +x, -x, +y, -y, +z, -z, iso, or AZIMUTH,ELEVATION in degrees.
-    #[arg(long, default_value = "iso")]
+    #[arg(long, default_value = "iso", allow_hyphen_values = true)]
     pub view: String,
     /// Eye distance as a multiple of the distance that fits the mesh's bounding sphere.
     #[arg(long, default_value_t = 1.0)]
