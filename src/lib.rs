@@ -6,6 +6,7 @@
 //! parameterized by distance from the eye ([`camera`]), premultiplied RGBA images ([`image`]).
 
 pub mod camera;
+pub mod deform;
 pub mod generate;
 pub mod gpu;
 pub mod image;

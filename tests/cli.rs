@@ -265,6 +265,31 @@ fn negative_views_and_vectors_are_values_not_flags() {
 }
 
 #[test]
+fn animate_writes_a_gif_whose_frames_move() {
+    use image::AnimationDecoder;
+    let gif = out_dir("animate").join("lox.gif");
+    let args = [
+        "animate", LOX, "--deform", "twist", "--frames", "3", "--size", "40x40",
+    ];
+    let o = tetvr(&[&args[..], &["-o", gif.to_str().unwrap()]].concat());
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stderr}");
+    assert!(
+        stdout.contains("3 frames") && stdout.contains("render"),
+        "{stdout}"
+    );
+    let file = std::io::BufReader::new(std::fs::File::open(&gif).unwrap());
+    let frames = image::codecs::gif::GifDecoder::new(file)
+        .unwrap()
+        .into_frames()
+        .collect_frames()
+        .unwrap();
+    assert_eq!(frames.len(), 3);
+    // Phase 0 is the rest pose and phase 1/3 is twisted: the pictures differ.
+    assert_ne!(frames[0].buffer().as_raw(), frames[1].buffer().as_raw());
+}
+
+#[test]
 fn help_has_examples() {
     let (stdout, _) = text(&tetvr(&["render", "--help"]));
     assert!(

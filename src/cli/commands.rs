@@ -1,6 +1,6 @@
 //! What each subcommand does.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressStyle};
@@ -17,12 +17,15 @@ use tetvr::tf::file::{TfFileError, load_tf};
 use tetvr::{TetMesh, generate};
 
 use super::{
-    Cli, Command, CompareArgs, GenerateArgs, GenerateShape, InfoArgs, MeshArgs, Mode, RenderArgs,
+    AnimateArgs, Cli, Command, CompareArgs, GenerateArgs, GenerateShape, InfoArgs, MeshArgs, Mode,
+    RenderArgs,
 };
 
 /// Everything a command can fail with; each message says what to fix.
 #[derive(Debug, thiserror::Error)]
 pub enum CliError {
+    #[error("{0}")]
+    Usage(String),
     #[error(transparent)]
     Load(#[from] LoadError),
     #[error(transparent)]
@@ -52,6 +55,7 @@ pub enum CliError {
 pub fn run(cli: Cli) -> Result<(), CliError> {
     match cli.command {
         Command::Render(args) => render(*args),
+        Command::Animate(args) => animate(*args),
         Command::Info(args) => info(args),
         Command::GpuInfo => {
             println!("{}", GpuContext::new(AdapterChoice::from_env())?.report());
@@ -72,49 +76,45 @@ fn load_mesh(args: &MeshArgs) -> Result<Loaded, CliError> {
 
 fn render(args: RenderArgs) -> Result<(), CliError> {
     let Loaded { mesh, .. } = load_mesh(&args.mesh)?;
-    let range = mesh
-        .active_array()
-        .and_then(|a| a.range())
-        .ok_or(MeshError::NoScalars)?;
-    let mut tf = load_tf(&args.tf, range, mesh.diagonal() / 100.0)?;
-    if let Some(u) = args.unit_distance {
-        tf = tf.with_unit_distance(u)?;
-    }
+    let tf = transfer_function(&args, &mesh)?;
     let camera = camera(&args, &mesh)?;
 
     let start = Instant::now();
-    let (image, timings, what) = match args.mode {
-        Mode::Reference => reference(&mesh, &camera, &tf)?,
-        Mode::Shells => shells(
-            GpuContext::new(AdapterChoice::from_env())?,
-            &mesh,
-            &camera,
-            &tf,
-            &args,
-        )?,
-        Mode::Auto => match GpuContext::new(AdapterChoice::from_env()) {
-            Ok(ctx) => shells(ctx, &mesh, &camera, &tf, &args)?,
-            Err(GpuError::NoAdapter { .. }) => {
-                eprintln!(
-                    "note: no GPU adapter (install mesa-vulkan-drivers for a software one); rendering with the exact CPU reference renderer"
-                );
-                reference(&mesh, &camera, &tf)?
-            }
-            Err(e) => return Err(e.into()),
-        },
+    let (image, timings, what) = match choose(args.mode)? {
+        Chosen::Cpu => reference(&mesh, &camera, &tf)?,
+        Chosen::Gpu(ctx) => {
+            let mut renderer = ShellsRenderer::new(&ctx, &mesh, shell_settings(&args))?;
+            let frame = renderer.render(&camera, &tf)?;
+            let what = format!("mode shells on {}", ctx.summary());
+            (frame.image, frame.timings, what)
+        }
     };
     let seconds = start.elapsed().as_secs_f64();
     if args.timings {
         print!("{timings}");
     }
-    image.save_png(&args.output, args.background.color())?;
+    let output = args.output.clone().unwrap_or_else(|| "tetvr.png".into());
+    image.save_png(&output, args.background.color())?;
     println!(
         "wrote {} ({}x{}, {what}, {seconds:.2} s)",
-        args.output.display(),
+        output.display(),
         image.width,
         image.height
     );
     Ok(())
+}
+
+/// `--tf` over the active scalars' range, with `--unit-distance` if given.
+fn transfer_function(args: &RenderArgs, mesh: &TetMesh) -> Result<TransferFunction, CliError> {
+    let range = mesh
+        .active_array()
+        .and_then(|a| a.range())
+        .ok_or(MeshError::NoScalars)?;
+    let tf = load_tf(&args.tf, range, mesh.diagonal() / 100.0)?;
+    Ok(match args.unit_distance {
+        Some(u) => tf.with_unit_distance(u)?,
+        None => tf,
+    })
 }
 
 fn camera(args: &RenderArgs, mesh: &TetMesh) -> Result<Camera, CliError> {
@@ -167,26 +167,144 @@ fn reference(
     ))
 }
 
-fn shells(
-    ctx: GpuContext,
-    mesh: &TetMesh,
-    camera: &Camera,
-    tf: &TransferFunction,
-    args: &RenderArgs,
-) -> Result<(tetvr::Image, Timings, String), CliError> {
+/// Where a mode renders: on a GPU context or with the CPU reference.
+enum Chosen {
+    Gpu(Box<GpuContext>),
+    Cpu,
+}
+
+/// The renderer `mode` asks for. `auto` takes any adapter and otherwise says so in one line and
+/// falls back to the reference; a GPU mode by name without an adapter is an error.
+fn choose(mode: Mode) -> Result<Chosen, CliError> {
+    match mode {
+        Mode::Reference => Ok(Chosen::Cpu),
+        Mode::Shells => Ok(Chosen::Gpu(Box::new(GpuContext::new(
+            AdapterChoice::from_env(),
+        )?))),
+        Mode::Auto => match GpuContext::new(AdapterChoice::from_env()) {
+            Ok(ctx) => Ok(Chosen::Gpu(Box::new(ctx))),
+            Err(GpuError::NoAdapter { .. }) => {
+                eprintln!(
+                    "note: no GPU adapter (install mesa-vulkan-drivers for a software one); rendering with the exact CPU reference renderer"
+                );
+                Ok(Chosen::Cpu)
+            }
+            Err(e) => Err(e.into()),
+        },
+    }
+}
+
+fn shell_settings(args: &RenderArgs) -> ShellSettings {
     let mut settings = ShellSettings::default();
     if let Some(samples) = args.shells.samples {
         settings.samples = samples;
     }
     settings.dz = args.shells.dz;
     settings.slices_per_shell = args.shells.slices_per_shell;
-    let mut renderer = ShellsRenderer::new(&ctx, mesh, settings)?;
-    let frame = renderer.render(camera, tf)?;
-    Ok((
-        frame.image,
-        frame.timings,
-        format!("mode shells on {}", ctx.summary()),
-    ))
+    settings
+}
+
+fn animate(args: AnimateArgs) -> Result<(), CliError> {
+    let r = &args.render;
+    if args.frames == 0 || args.fps == 0 {
+        return Err(CliError::Usage(
+            "--frames and --fps must be at least 1".into(),
+        ));
+    }
+    let output = r.output.clone().unwrap_or_else(|| "tetvr.gif".into());
+    let gif = match output.extension().and_then(|e| e.to_str()) {
+        Some("gif") => true,
+        Some("png") => false,
+        _ => {
+            return Err(CliError::Usage(format!(
+                "{}: animate writes .gif or .png",
+                output.display()
+            )));
+        }
+    };
+    let Loaded { mesh, .. } = load_mesh(&r.mesh)?;
+    let tf = transfer_function(r, &mesh)?;
+    let camera = camera(r, &mesh)?;
+    let (lo, hi) = mesh.bounds();
+    let (mut renderer, what): (Box<dyn Renderer>, String) = match choose(r.mode)? {
+        Chosen::Cpu => (
+            Box::new(ReferenceRenderer::new(&mesh)?),
+            "reference on the CPU".into(),
+        ),
+        Chosen::Gpu(ctx) => (
+            Box::new(ShellsRenderer::new(&ctx, &mesh, shell_settings(r))?),
+            format!("shells on {}", ctx.summary()),
+        ),
+    };
+    let bar = ProgressBar::new(args.frames as u64).with_style(
+        ProgressStyle::with_template("frame {pos}/{len} {bar:40} {eta} left")
+            .expect("a valid template"),
+    );
+    let (mut frames, mut update_ms, mut render_ms) = (Vec::new(), Vec::new(), Vec::new());
+    for i in 0..args.frames {
+        let phase = i as f64 / args.frames as f64;
+        let t = Instant::now();
+        let positions = args
+            .deform
+            .apply(mesh.positions(), lo, hi, args.amplitude, phase);
+        renderer.update_positions(&positions)?;
+        update_ms.push(ms(t));
+        let t = Instant::now();
+        let frame = renderer.render(&camera, &tf)?;
+        render_ms.push(ms(t));
+        frames.push(frame.image);
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let background = r.background.color().or(Some([1.0; 3]).filter(|_| gif));
+    let written = write_animation(&frames, &output, gif, background, args.fps)?;
+    println!(
+        "wrote {written} ({} frames of {}x{}, {what}); per frame, median: deform + update {:.1} ms, render {:.1} ms",
+        frames.len(),
+        camera.width,
+        camera.height,
+        median(&mut update_ms),
+        median(&mut render_ms),
+    );
+    Ok(())
+}
+
+/// Writes the frames as one GIF or as numbered PNGs; returns what was written, for the user.
+fn write_animation(
+    frames: &[Image],
+    output: &Path,
+    gif: bool,
+    background: Option<[f32; 3]>,
+    fps: u32,
+) -> Result<String, CliError> {
+    let io_err = |e: std::io::Error| CliError::Usage(format!("{}: {e}", output.display()));
+    if !gif {
+        let stem = output.with_extension("");
+        let name = |i: usize| format!("{}-{i:04}.png", stem.display());
+        for (i, img) in frames.iter().enumerate() {
+            img.save_png(&PathBuf::from(name(i)), background)?;
+        }
+        return Ok(format!("{} .. {}", name(0), name(frames.len() - 1)));
+    }
+    use image::codecs::gif::{GifEncoder, Repeat};
+    let file = std::fs::File::create(output).map_err(io_err)?;
+    let mut encoder = GifEncoder::new_with_speed(std::io::BufWriter::new(file), 10);
+    let gif_err = |e: image::ImageError| CliError::Usage(format!("{}: {e}", output.display()));
+    encoder.set_repeat(Repeat::Infinite).map_err(gif_err)?;
+    let delay = image::Delay::from_numer_denom_ms(1000, fps);
+    for img in frames {
+        let rgba = image::RgbaImage::from_raw(img.width, img.height, img.to_rgba8(background))
+            .expect("4 bytes per pixel");
+        encoder
+            .encode_frame(image::Frame::from_parts(rgba, 0, 0, delay))
+            .map_err(gif_err)?;
+    }
+    Ok(output.display().to_string())
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
 }
 
 fn info(args: InfoArgs) -> Result<(), CliError> {

@@ -15,6 +15,7 @@ Examples:
   tetvr render mesh.vtu --mode reference --size 256x256 --view -y --tf shock -o ref.png
   tetvr render mesh.vtk --array Pressure --tf my_tf.json --unit-distance 0.05 -o p.png
   tetvr render mesh.msh --eye 10,0,2 --target 0,0,0 --up 0,0,1 --fov 40 -o close.png
+  tetvr animate ../shared/data/kiefer_bracket_tet.vtk --deform twist --frames 24 -o bracket.gif
   tetvr info ../shared/data/bluntfin_tet.vtk
   tetvr compare a.png b.png -o diff.png
   tetvr generate grid --tets 100000 --field marschner-lobb -o ml.vtu
@@ -33,6 +34,9 @@ pub enum Command {
     /// Render a mesh to a PNG.
     #[command(after_help = EXAMPLES)]
     Render(Box<RenderArgs>),
+    /// Render a mesh under an analytic deformation over time, to an animated GIF or PNGs.
+    #[command(after_help = EXAMPLES)]
+    Animate(Box<AnimateArgs>),
     /// Print a mesh's statistics: counts, bounds, scalar ranges, quality, degenerate tets.
     Info(InfoArgs),
     /// Show which GPU adapter tetvr would use and the limits that matter to it.
@@ -67,9 +71,10 @@ pub struct MeshArgs {
 pub struct RenderArgs {
     #[command(flatten)]
     pub mesh: MeshArgs,
-    /// Output PNG.
-    #[arg(short, long, default_value = "tetvr.png")]
-    pub output: PathBuf,
+    /// Output: a PNG (render; default tetvr.png), or for animate a .gif (default tetvr.gif) or
+    /// a .png name that becomes a numbered sequence (name-0000.png, ...).
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
     #[arg(long, value_enum, default_value_t = Mode::Auto)]
     pub mode: Mode,
     /// Transfer function: a preset (viridis, cool-warm, inferno, shock, isolike, grayscale) or a
@@ -109,6 +114,25 @@ pub struct RenderArgs {
     pub timings: bool,
     #[command(flatten)]
     pub shells: ShellArgs,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct AnimateArgs {
+    #[command(flatten)]
+    pub render: RenderArgs,
+    /// Deformation: twist (about the longest axis), bend, or wave (travelling along it).
+    #[arg(long, default_value = "twist")]
+    pub deform: tetvr::deform::Deformation,
+    /// Strength: half-turns at the far end (twist), tip displacement per length (bend), or
+    /// wave height per shortest extent (wave).
+    #[arg(long, default_value_t = 0.5)]
+    pub amplitude: f64,
+    /// Frames in one period of the motion.
+    #[arg(long, default_value_t = 24)]
+    pub frames: u32,
+    /// Frames per second of the GIF.
+    #[arg(long, default_value_t = 12)]
+    pub fps: u32,
 }
 
 #[derive(clap::Args, Debug)]

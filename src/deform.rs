@@ -1,0 +1,125 @@
+//! Analytic deformations over time, for animating real meshes as if a simulation moved them
+//! (`tetvr animate`, `examples/deform.rs`). Topology never changes; only positions do.
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+/// A deformation of the mesh's bounding box, driven by a phase in `[0, 1)` (one period).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Deformation {
+    /// Twist about the box's longest axis: the angle grows linearly along the axis, up to
+    /// `amplitude` half-turns at its far end, swinging with the phase.
+    Twist,
+    /// Bend the longest axis into a parabola towards the second-longest: the far end moves by
+    /// `amplitude` times the axis length, swinging with the phase.
+    Bend,
+    /// A wave travelling along the longest axis, displacing along the shortest axis by up to
+    /// `amplitude` times the box's shortest extent, one wavelength per box length; it grows
+    /// from nothing at the near end, like a flag held at its pole.
+    Wave,
+}
+
+impl std::str::FromStr for Deformation {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "twist" => Ok(Self::Twist),
+            "bend" => Ok(Self::Bend),
+            "wave" => Ok(Self::Wave),
+            _ => Err(format!(
+                "unknown deformation '{s}'; use twist, bend or wave"
+            )),
+        }
+    }
+}
+
+/// Box axes sorted by extent: (longest, middle, shortest) as indices 0..3.
+fn axes(lo: DVec3, hi: DVec3) -> [usize; 3] {
+    let e = hi - lo;
+    let mut a = [0, 1, 2];
+    a.sort_by(|&i, &j| e[j].total_cmp(&e[i]));
+    a
+}
+
+impl Deformation {
+    /// Deformed copies of `rest` (the undeformed positions, with bounding box `[lo, hi]`) at
+    /// `phase`. Amplitude 0 or phase 0 gives back `rest` exactly.
+    pub fn apply(
+        self,
+        rest: &[DVec3],
+        lo: DVec3,
+        hi: DVec3,
+        amplitude: f64,
+        phase: f64,
+    ) -> Vec<DVec3> {
+        let [long, mid, short] = axes(lo, hi);
+        let len = (hi - lo)[long].max(f64::MIN_POSITIVE);
+        let centre = (lo + hi) * 0.5;
+        let swing = (std::f64::consts::TAU * phase).sin();
+        rest.par_iter()
+            .map(|&p| {
+                let u = (p[long] - lo[long]) / len; // 0..1 along the longest axis
+                let mut q = p;
+                match self {
+                    Self::Twist => {
+                        let angle = amplitude * std::f64::consts::PI * u * swing;
+                        let (s, c) = angle.sin_cos();
+                        let (a, b) = (p[mid] - centre[mid], p[short] - centre[short]);
+                        q[mid] = centre[mid] + c * a - s * b;
+                        q[short] = centre[short] + s * a + c * b;
+                    }
+                    Self::Bend => q[mid] += amplitude * len * u * u * swing,
+                    Self::Wave => {
+                        let h = (hi - lo)[short];
+                        q[short] += amplitude
+                            * h
+                            * (std::f64::consts::TAU * (u - phase)).sin()
+                            * u.min(1.0);
+                    }
+                }
+                q
+            })
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn points() -> Vec<DVec3> {
+        (0..50)
+            .map(|i| DVec3::new(i as f64 * 0.2, (i % 7) as f64 * 0.1, (i % 5) as f64 * 0.05))
+            .collect()
+    }
+
+    #[test]
+    fn zero_amplitude_and_zero_phase_are_the_identity() {
+        let p = points();
+        let (lo, hi) = (DVec3::ZERO, DVec3::new(10.0, 0.6, 0.2));
+        for d in [Deformation::Twist, Deformation::Bend] {
+            assert_eq!(d.apply(&p, lo, hi, 0.0, 0.3), p);
+            assert_eq!(d.apply(&p, lo, hi, 0.7, 0.0), p);
+        }
+        assert_eq!(Deformation::Wave.apply(&p, lo, hi, 0.0, 0.3), p);
+    }
+
+    #[test]
+    fn twist_keeps_distances_to_the_axis_and_moves_the_far_end() {
+        let p = points();
+        let (lo, hi) = (DVec3::ZERO, DVec3::new(10.0, 0.6, 0.2));
+        let c = (lo + hi) * 0.5;
+        let q = Deformation::Twist.apply(&p, lo, hi, 0.5, 0.25);
+        for (a, b) in p.iter().zip(&q) {
+            let r = |v: DVec3| ((v.y - c.y).powi(2) + (v.z - c.z).powi(2)).sqrt();
+            assert!((r(*a) - r(*b)).abs() < 1e-12 && a.x == b.x);
+        }
+        assert!(
+            (p[49] - q[49]).length() > 0.1,
+            "the far end turns by a quarter turn"
+        );
+        assert_eq!("bend".parse::<Deformation>(), Ok(Deformation::Bend));
+        assert!("melt".parse::<Deformation>().is_err());
+    }
+}
