@@ -26,6 +26,8 @@ use super::{
 pub enum CliError {
     #[error("{0}")]
     Usage(String),
+    #[error("{path}: cannot write the animation: {message}")]
+    Animation { path: String, message: String },
     #[error(transparent)]
     Load(#[from] LoadError),
     #[error(transparent)]
@@ -277,7 +279,10 @@ fn write_animation(
     background: Option<[f32; 3]>,
     fps: u32,
 ) -> Result<String, CliError> {
-    let io_err = |e: std::io::Error| CliError::Usage(format!("{}: {e}", output.display()));
+    let fail = |message: String| CliError::Animation {
+        path: output.display().to_string(),
+        message,
+    };
     if !gif {
         let stem = output.with_extension("");
         let name = |i: usize| format!("{}-{i:04}.png", stem.display());
@@ -287,9 +292,9 @@ fn write_animation(
         return Ok(format!("{} .. {}", name(0), name(frames.len() - 1)));
     }
     use image::codecs::gif::{GifEncoder, Repeat};
-    let file = std::fs::File::create(output).map_err(io_err)?;
+    let file = std::fs::File::create(output).map_err(|e| fail(e.to_string()))?;
     let mut encoder = GifEncoder::new_with_speed(std::io::BufWriter::new(file), 10);
-    let gif_err = |e: image::ImageError| CliError::Usage(format!("{}: {e}", output.display()));
+    let gif_err = |e: image::ImageError| fail(e.to_string());
     encoder.set_repeat(Repeat::Infinite).map_err(gif_err)?;
     let delay = image::Delay::from_numer_denom_ms(1000, fps);
     for img in frames {
