@@ -2,8 +2,10 @@
 
 mod context;
 pub mod gpu_data;
+pub mod iso;
 pub mod shaders;
 pub mod shells;
 
 pub use context::{AdapterChoice, GpuContext, GpuError};
+pub use iso::{IsoRenderer, IsoSettings};
 pub use shells::{ShellSettings, ShellsRenderer, SliceFormat};

@@ -35,6 +35,7 @@
 mod bvh;
 mod clip;
 mod integrate;
+pub mod iso;
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;

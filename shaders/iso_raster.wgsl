@@ -1,0 +1,164 @@
+// Isosurface raster (`--mode iso`, Georgii & Westermann 2006, section 4): the front faces of
+// every selected tet (those whose scalar range holds an isovalue) are drawn in one instanced
+// pass by vertex pulling from the shells assembly's records. Each fragment takes the exact
+// pixel-centre ray into the tet's barycentric space, where the scalar is linear along the ray,
+// solves for the nearest isovalue crossing inside the tet, writes its distance as the depth
+// (the depth test keeps the nearest surface over all tets) and shades it with a headlight.
+// Appended to shared.wgsl. The CPU ground truth is reference::iso.
+
+// Per-frame isosurface constants; see gpu::iso::IsoUniforms.
+struct Iso {
+    colors: array<vec4<f32>, 16>,
+    values: array<vec4<f32>, 4>,
+    count: u32,
+    smooth_shading: u32,
+    inv_depth_range: f32,
+    _pad0: u32,
+}
+
+@group(0) @binding(1) var<storage, read> records: array<TetRecord>;
+// The selected tets' vertex indices, in instance order (also the assembly's tet list).
+@group(0) @binding(2) var<storage, read> tets: array<vec4<u32>>;
+// Scalars normalized like the isovalues: (s - s_min) / (s_max - s_min).
+@group(0) @binding(3) var<storage, read> scalars: array<f32>;
+// Per-vertex world-space gradients for smooth shading (xyz; w unused).
+@group(0) @binding(4) var<storage, read> vertex_gradients: array<vec4<f32>>;
+@group(0) @binding(5) var<uniform> iso: Iso;
+
+// Headlight Blinn-Phong, the constants of reference::iso::shade.
+const AMBIENT: f32 = 0.15;
+const DIFFUSE: f32 = 0.75;
+const SPECULAR: f32 = 0.25;
+const SHININESS: f32 = 32.0;
+
+struct Varyings {
+    @builtin(position) position: vec4<f32>,
+    @location(0) @interpolate(flat) grad_x: vec4<f32>,
+    @location(1) @interpolate(flat) grad_y: vec4<f32>,
+    @location(2) @interpolate(flat) grad_z: vec4<f32>,
+    @location(3) @interpolate(flat) lambda_eye: vec4<f32>,
+    // The four corners' normalized scalars.
+    @location(4) @interpolate(flat) values: vec4<f32>,
+    // The four corners' vertex gradients in eye space, by component.
+    @location(5) @interpolate(flat) vgrad_x: vec4<f32>,
+    @location(6) @interpolate(flat) vgrad_y: vec4<f32>,
+    @location(7) @interpolate(flat) vgrad_z: vec4<f32>,
+}
+
+struct IsoOut {
+    // Shaded colour, premultiplied, opaque.
+    @location(0) color: vec4<f32>,
+    // xyz: unit world-space normal (scalar gradient direction); w: distance from the eye.
+    @location(1) geometry: vec4<f32>,
+    @builtin(frag_depth) depth: f32,
+}
+
+// Local vertices of face f (opposite vertex f), outward for a positive tet: mesh::topology::FACES.
+const FACE_VERTICES = array<u32, 12>(1u, 2u, 3u, 0u, 3u, 2u, 0u, 1u, 3u, 0u, 2u, 1u);
+// A vertex that makes its triangle empty (all three corners the same).
+const NOWHERE = vec4<f32>(0.0, 0.0, 0.0, 1.0);
+
+// A world-space vector's components along the eye axes.
+fn to_eye_vector(g: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(dot(frame.right, g), dot(frame.up, g), dot(frame.forward, g));
+}
+
+// An eye-space vector in world space (the eye axes are orthonormal).
+fn to_world_vector(g: vec3<f32>) -> vec3<f32> {
+    return frame.right * g.x + frame.up * g.y + frame.forward * g.z;
+}
+
+@vertex
+fn vs_faces(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance: u32) -> Varyings {
+    let rec = records[instance];
+    let idx = tets[instance];
+    var faces = FACE_VERTICES;
+    let p = rec.pos[faces[vertex]];
+    let position = select(
+        vec4<f32>(p.x * frame.proj.x, p.y * frame.proj.y, 0.0, p.z),
+        NOWHERE,
+        p.w == 0.0,
+    );
+    let values = vec4<f32>(scalars[idx.x], scalars[idx.y], scalars[idx.z], scalars[idx.w]);
+    let g0 = to_eye_vector(vertex_gradients[idx.x].xyz);
+    let g1 = to_eye_vector(vertex_gradients[idx.y].xyz);
+    let g2 = to_eye_vector(vertex_gradients[idx.z].xyz);
+    let g3 = to_eye_vector(vertex_gradients[idx.w].xyz);
+    return Varyings(
+        position,
+        rec.grad_x,
+        rec.grad_y,
+        rec.grad_z,
+        rec.lambda_eye,
+        values,
+        vec4<f32>(g0.x, g1.x, g2.x, g3.x),
+        vec4<f32>(g0.y, g1.y, g2.y, g3.y),
+        vec4<f32>(g0.z, g1.z, g2.z, g3.z),
+    );
+}
+
+fn iso_value(k: u32) -> f32 {
+    return iso.values[k / 4u][k % 4u];
+}
+
+@fragment
+fn fs_iso(in: Varyings) -> IsoOut {
+    let d = pixel_ray(in.position.xy);
+    // Barycentrics along the ray: lambda(t) = lambda_eye + t gd.
+    let gd = in.grad_x * d.x + in.grad_y * d.y + in.grad_z * d.z;
+    let s = in.values;
+    let lo = min(min(s.x, s.y), min(s.z, s.w));
+    let hi = max(max(s.x, s.y), max(s.z, s.w));
+    // A constant tet has no isosurface of its own (reference::iso, "Constant scalar").
+    if lo == hi {
+        discard;
+    }
+    var best_t = 3.0e38;
+    var best_k = iso.count;
+    for (var k = 0u; k < iso.count; k++) {
+        let v = iso_value(k);
+        if v < lo || v > hi {
+            continue;
+        }
+        // s(t) - v = dot(lambda(t), s - v): corners on the isovalue contribute exact zeros.
+        let f = s - vec4<f32>(v);
+        let rate = dot(gd, f);
+        if rate == 0.0 {
+            continue;
+        }
+        let t = -dot(in.lambda_eye, f) / rate;
+        let l = in.lambda_eye + t * gd;
+        let inside = min(min(l.x, l.y), min(l.z, l.w)) >= -frame.epsilon;
+        if inside && t >= 0.0 && t < best_t {
+            best_t = t;
+            best_k = k;
+        }
+    }
+    if best_k == iso.count {
+        discard;
+    }
+    // Eye-space gradient of the tet (flat) or of the interpolated vertex gradients (smooth).
+    let flat_n = vec3<f32>(dot(in.grad_x, s), dot(in.grad_y, s), dot(in.grad_z, s));
+    var n = flat_n;
+    if iso.smooth_shading != 0u {
+        let l = clamp(in.lambda_eye + best_t * gd, vec4<f32>(0.0), vec4<f32>(1.0));
+        let g = vec3<f32>(dot(l, in.vgrad_x), dot(l, in.vgrad_y), dot(l, in.vgrad_z));
+        if dot(g, g) > 0.0 {
+            n = g;
+        }
+    }
+    let len = length(n);
+    if !(len > 0.0) {
+        discard;
+    }
+    n = n / len;
+    let ndv = min(abs(dot(n, d)), 1.0);
+    let base = iso.colors[best_k].rgb;
+    let c = clamp(base * (AMBIENT + DIFFUSE * ndv) + SPECULAR * pow(ndv, SHININESS), vec3<f32>(0.0),
+        vec3<f32>(1.0));
+    var out: IsoOut;
+    out.color = vec4<f32>(c, 1.0);
+    out.geometry = vec4<f32>(normalize(to_world_vector(n)), best_t);
+    out.depth = clamp(best_t * iso.inv_depth_range, 0.0, 1.0);
+    return out;
+}

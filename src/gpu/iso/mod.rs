@@ -1,0 +1,921 @@
+//! `--mode iso`: per-pixel isosurfaces (Georgii & Westermann 2006, section 4).
+//!
+//! Per frame:
+//! 1. select (CPU, rayon, cached): the tets whose scalar range `[min, max]` (precomputed per
+//!    tet, refreshed with the scalars) holds an isovalue, in one list; constant tets are left
+//!    out (see [`crate::reference::iso`], "Constant scalar"). The list is rebuilt only when the
+//!    scalars or the isovalues change;
+//! 2. upload: frame constants, the selected tets (when they changed) and, for smooth shading,
+//!    per-vertex gradients recomputed from the current positions with rayon
+//!    ([`crate::reference::iso::vertex_gradients`]);
+//! 3. assembly: the shells assembly stage (`shaders/shells_assemble.wgsl`) over the selected
+//!    tets only, building each one's eye-to-barycentric record;
+//! 4. raster: one instanced pass over the selected tets' front faces with a depth buffer
+//!    (`shaders/iso_raster.wgsl`); each fragment solves the ray/isoplane intersection in the
+//!    tet's barycentric space, keeps it only inside the tet (smallest barycentric >=
+//!    `-epsilon`, so neighbours overlap rather than leave cracks), writes the hit distance as
+//!    its depth and shades it (headlight Blinn-Phong, [`crate::reference::iso::shade`]);
+//! 5. readback of the colour and of the per-pixel normal and distance.
+//!
+//! The transfer function passed to [`Renderer::render`] is ignored: the surfaces take the
+//! colours given with their isovalues in [`IsoSettings`].
+//!
+//! Limitation: tets behind or crossing the eye's plane are drawn through their front faces
+//! only, so with the eye inside the mesh the surface inside the tet holding the eye is lost.
+
+use std::time::Instant;
+
+use bytemuck::{Pod, Zeroable};
+use glam::DVec3;
+use rayon::prelude::*;
+
+use crate::camera::Camera;
+use crate::gpu::gpu_data::{FrameUniforms, TetRecord};
+use crate::gpu::shells::DEGENERATE_TOL;
+use crate::gpu::{GpuContext, GpuError, shaders};
+use crate::image::Image;
+use crate::mesh::{MeshError, TetMesh};
+use crate::reference::iso::vertex_gradients;
+pub use crate::reference::iso::{IsoImage, Shading};
+use crate::render::{Frame, RenderError, Renderer, Timings};
+use crate::tf::TransferFunction;
+
+const ISO_RASTER: &str = include_str!("../../../shaders/iso_raster.wgsl");
+
+/// The raster stage's WGSL: `shared.wgsl` followed by `shaders/iso_raster.wgsl` (entry points
+/// `vs_faces`, `fs_iso`).
+pub fn raster_source() -> String {
+    format!("{}\n{ISO_RASTER}", shaders::SHARED)
+}
+
+/// The most isovalues one pass draws.
+pub const MAX_ISOVALUES: usize = 16;
+
+/// Per-frame isosurface constants (WGSL `Iso` in `shaders/iso_raster.wgsl`, 336 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct IsoUniforms {
+    /// Surface colour of each isovalue (rgb; a unused).
+    pub colors: [[f32; 4]; MAX_ISOVALUES],
+    /// Normalized isovalues `(v - s_min) / (s_max - s_min)`, four to a vector.
+    pub values: [[f32; 4]; MAX_ISOVALUES / 4],
+    pub count: u32,
+    /// 1 for smooth shading.
+    pub smooth_shading: u32,
+    /// `1 / d`, `d` beyond the farthest mesh point from the eye: depth = distance / d.
+    pub inv_depth_range: f32,
+    pub _pad: u32,
+}
+const _: () = assert!(size_of::<IsoUniforms>() == 336);
+
+/// Settings of the isosurface renderer.
+#[derive(Clone, Debug, PartialEq)]
+pub struct IsoSettings {
+    /// (isovalue in data units, linear RGB colour), at most [`MAX_ISOVALUES`]. Empty: one
+    /// isovalue at the middle of the active scalar range, light grey.
+    pub isovalues: Vec<(f64, [f32; 3])>,
+    pub shading: Shading,
+    /// Inside tolerance on the smallest barycentric coordinate (see the shells mode's).
+    pub epsilon: f32,
+}
+
+impl Default for IsoSettings {
+    fn default() -> Self {
+        Self {
+            isovalues: Vec::new(),
+            shading: Shading::Flat,
+            // As ShellSettings::epsilon: covers f32 barycentric error up to ~1000 tet sizes away.
+            epsilon: 1e-4,
+        }
+    }
+}
+
+/// Default surface colour.
+pub const DEFAULT_COLOR: [f32; 3] = [0.8, 0.8, 0.8];
+
+/// The isosurface renderer; see the module docs.
+pub struct IsoRenderer {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    limits: wgpu::Limits,
+    settings: IsoSettings,
+    positions: Vec<DVec3>,
+    scalars: Vec<f64>,
+    tets: Vec<[u32; 4]>,
+    ranges: Vec<(f64, f64)>,
+    origin: DVec3,
+    radius: f64,
+    scalar_min: f64,
+    scalar_span: f64,
+    /// The selected tets (vertex indices), `None` when the scalars or isovalues changed.
+    selection: Option<Vec<[u32; 4]>>,
+    selection_uploaded: bool,
+    pipelines: Pipelines,
+    frame_buf: wgpu::Buffer,
+    iso_buf: wgpu::Buffer,
+    positions_buf: wgpu::Buffer,
+    scalars_buf: wgpu::Buffer,
+    gradients_buf: wgpu::Buffer,
+    selected_buf: wgpu::Buffer,
+    records_buf: wgpu::Buffer,
+    degenerate_buf: wgpu::Buffer,
+    targets: Option<Targets>,
+}
+
+struct Pipelines {
+    assemble_layout: wgpu::BindGroupLayout,
+    assemble: wgpu::ComputePipeline,
+    raster_layout: wgpu::BindGroupLayout,
+    raster: wgpu::RenderPipeline,
+}
+
+struct Targets {
+    width: u32,
+    height: u32,
+    color: wgpu::Texture,
+    geometry: wgpu::Texture,
+    depth_view: wgpu::TextureView,
+    color_readback: wgpu::Buffer,
+    geometry_readback: wgpu::Buffer,
+    padded_row: u32,
+}
+
+const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+fn ms_since(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+fn settings_error(msg: impl Into<String>) -> RenderError {
+    RenderError::Settings(msg.into())
+}
+
+fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry {
+        binding,
+        resource: buffer.as_entire_binding(),
+    }
+}
+
+fn scalar_ranges(tets: &[[u32; 4]], scalars: &[f64]) -> Vec<(f64, f64)> {
+    tets.par_iter()
+        .map(|t| {
+            let v = t.map(|i| scalars[i as usize]);
+            (
+                v[0].min(v[1]).min(v[2].min(v[3])),
+                v[0].max(v[1]).max(v[2].max(v[3])),
+            )
+        })
+        .collect()
+}
+
+fn bounds(positions: &[DVec3]) -> (DVec3, f64) {
+    let (lo, hi) = positions.iter().fold(
+        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        |(lo, hi), &p| (lo.min(p), hi.max(p)),
+    );
+    (
+        (lo + hi) * 0.5,
+        ((hi - lo).length() * 0.5).max(f64::MIN_POSITIVE),
+    )
+}
+
+fn scalar_frame(scalars: &[f64]) -> (f64, f64) {
+    let (lo, hi) = scalars
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &s| {
+            (lo.min(s), hi.max(s))
+        });
+    (lo, if hi > lo { hi - lo } else { 1.0 })
+}
+
+fn check_isovalues(isovalues: &[(f64, [f32; 3])]) -> Result<(), RenderError> {
+    if isovalues.len() > MAX_ISOVALUES {
+        return Err(settings_error(format!(
+            "{} isovalues given; the iso mode draws at most {MAX_ISOVALUES} in one pass",
+            isovalues.len()
+        )));
+    }
+    if let Some((v, _)) = isovalues.iter().find(|(v, _)| !v.is_finite()) {
+        return Err(settings_error(format!(
+            "isovalues must be finite numbers, not {v}"
+        )));
+    }
+    Ok(())
+}
+
+/// Maps `buf` for reading and waits for it.
+fn map_read(device: &wgpu::Device, buf: &wgpu::Buffer) -> Result<(), GpuError> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    buf.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+        // The receiver outlives the wait below; a send can only fail after it returned.
+        let _ = tx.send(r);
+    });
+    device.poll(wgpu::PollType::wait_indefinitely())?;
+    match rx.recv() {
+        Ok(r) => r.map_err(GpuError::from),
+        Err(_) => Err(GpuError::Map(wgpu::BufferAsyncError)),
+    }
+}
+
+impl IsoRenderer {
+    /// Builds the pipelines and uploads the mesh (positions relative to its bounding-box
+    /// centre, normalized active scalars). Empty `settings.isovalues`: one at the middle of the
+    /// active scalar range.
+    pub fn new(
+        ctx: &GpuContext,
+        mesh: &TetMesh,
+        mut settings: IsoSettings,
+    ) -> Result<Self, RenderError> {
+        let scalars = mesh.scalars()?.to_vec();
+        check_isovalues(&settings.isovalues)?;
+        if !(settings.epsilon.is_finite() && settings.epsilon >= 0.0) {
+            return Err(settings_error(format!(
+                "the barycentric tolerance epsilon must be >= 0 and finite, not {}",
+                settings.epsilon
+            )));
+        }
+        let (scalar_min, scalar_span) = scalar_frame(&scalars);
+        if settings.isovalues.is_empty() {
+            settings
+                .isovalues
+                .push((scalar_min + 0.5 * scalar_span, DEFAULT_COLOR));
+        }
+        let limits = ctx.limits.clone();
+        let record_bytes = mesh.tet_count() as u64 * size_of::<TetRecord>() as u64;
+        let max_binding = limits.max_storage_buffer_binding_size;
+        if record_bytes > max_binding.min(limits.max_buffer_size) {
+            return Err(settings_error(format!(
+                "the mesh has {} tets; the iso mode may need one {}-byte record per tet in one \
+                 storage buffer, and this adapter binds at most {max_binding} bytes; split the \
+                 mesh or use another mode",
+                mesh.tet_count(),
+                size_of::<TetRecord>(),
+            )));
+        }
+        let device = ctx.device.clone();
+        let queue = ctx.queue.clone();
+        let storage = |label: &str, bytes: u64, extra: wgpu::BufferUsages| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes.max(16),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | extra,
+                mapped_at_creation: false,
+            })
+        };
+        let none = wgpu::BufferUsages::empty();
+        let nv = mesh.vertex_count() as u64;
+        let uniform = |label: &str, bytes: usize| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        let positions = mesh.positions().to_vec();
+        let (origin, radius) = bounds(&positions);
+        let tets = mesh.tets().to_vec();
+        let ranges = scalar_ranges(&tets, &scalars);
+        let r = Self {
+            pipelines: Pipelines::new(&device),
+            frame_buf: uniform("iso frame", size_of::<FrameUniforms>()),
+            iso_buf: uniform("iso isovalues", size_of::<IsoUniforms>()),
+            positions_buf: storage("iso positions", nv * 16, none),
+            scalars_buf: storage("iso scalars", nv * 4, none),
+            gradients_buf: storage("iso vertex gradients", nv * 16, none),
+            selected_buf: storage("iso selected tets", 16, none),
+            records_buf: storage("iso tet records", 16, none),
+            degenerate_buf: storage("iso degenerate count", 4, wgpu::BufferUsages::COPY_SRC),
+            device,
+            queue,
+            limits,
+            settings,
+            positions,
+            scalars,
+            tets,
+            ranges,
+            origin,
+            radius,
+            scalar_min,
+            scalar_span,
+            selection: None,
+            selection_uploaded: false,
+            targets: None,
+        };
+        r.upload_positions();
+        r.upload_scalars();
+        Ok(r)
+    }
+
+    /// The isovalues (data units) and colours in use.
+    pub fn isovalues(&self) -> &[(f64, [f32; 3])] {
+        &self.settings.isovalues
+    }
+
+    /// Replaces the isovalues (at most [`MAX_ISOVALUES`]; empty: the middle of the range).
+    /// The next frame reselects the tets.
+    pub fn set_isovalues(&mut self, isovalues: Vec<(f64, [f32; 3])>) -> Result<(), RenderError> {
+        check_isovalues(&isovalues)?;
+        self.settings.isovalues = if isovalues.is_empty() {
+            vec![(self.scalar_min + 0.5 * self.scalar_span, DEFAULT_COLOR)]
+        } else {
+            isovalues
+        };
+        self.selection = None;
+        Ok(())
+    }
+
+    /// Selects the tets whose range holds an isovalue (rayon filter over the cached ranges);
+    /// constant tets are never selected.
+    fn select(&self) -> Vec<[u32; 4]> {
+        let isos: Vec<f64> = self.settings.isovalues.iter().map(|&(v, _)| v).collect();
+        self.ranges
+            .par_iter()
+            .zip(self.tets.par_iter())
+            .filter(|((lo, hi), _)| lo < hi && isos.iter().any(|v| lo <= v && v <= hi))
+            .map(|(_, t)| *t)
+            .collect()
+    }
+
+    fn upload_positions(&self) {
+        let o = self.origin;
+        let data: Vec<[f32; 4]> = self
+            .positions
+            .iter()
+            .map(|&p| {
+                let q = (p - o).as_vec3();
+                [q.x, q.y, q.z, 1.0]
+            })
+            .collect();
+        self.queue
+            .write_buffer(&self.positions_buf, 0, bytemuck::cast_slice(&data));
+    }
+
+    fn upload_scalars(&self) {
+        let (lo, span) = (self.scalar_min, self.scalar_span);
+        let data: Vec<f32> = self
+            .scalars
+            .iter()
+            .map(|&s| ((s - lo) / span) as f32)
+            .collect();
+        self.queue
+            .write_buffer(&self.scalars_buf, 0, bytemuck::cast_slice(&data));
+    }
+
+    fn ensure_targets(&mut self, width: u32, height: u32) -> Result<(), RenderError> {
+        if let Some(t) = &self.targets
+            && (t.width, t.height) == (width, height)
+        {
+            return Ok(());
+        }
+        let max = self.limits.max_texture_dimension_2d;
+        if width > max || height > max {
+            return Err(settings_error(format!(
+                "image size {width}x{height} exceeds this adapter's largest texture ({max}x{max})"
+            )));
+        }
+        let texture = |label, format, usage| {
+            self.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d {
+                    width,
+                    height,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+        };
+        let rw = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
+        let color = texture("iso colour", TARGET_FORMAT, rw);
+        let geometry = texture("iso normal and distance", TARGET_FORMAT, rw);
+        let depth = texture(
+            "iso depth",
+            DEPTH_FORMAT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT,
+        );
+        let padded_row = (width * 16).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        let readback = |label| {
+            self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: padded_row as u64 * height as u64,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        self.targets = Some(Targets {
+            width,
+            height,
+            depth_view: depth.create_view(&Default::default()),
+            color_readback: readback("iso colour readback"),
+            geometry_readback: readback("iso geometry readback"),
+            color,
+            geometry,
+            padded_row,
+        });
+        Ok(())
+    }
+
+    /// Renders `camera`'s view: shaded colour plus each pixel's hit distance and normal (the
+    /// same conventions as [`crate::reference::iso::IsoReference::render_surface`]), and the
+    /// frame's timings.
+    pub fn render_surface(&mut self, camera: &Camera) -> Result<(IsoImage, Timings), RenderError> {
+        camera.validate()?;
+        let start = Instant::now();
+        let mut timings = Timings::default();
+
+        // 1. Selection (cached until the scalars or isovalues change).
+        let t0 = Instant::now();
+        if self.selection.is_none() {
+            self.selection = Some(self.select());
+            self.selection_uploaded = false;
+        }
+        let selected = self.selection.as_ref().map_or(0, Vec::len);
+        timings.stage("select", ms_since(t0));
+
+        // 2. Upload.
+        let t1 = Instant::now();
+        let (right, up, forward) = camera.basis();
+        let th = camera.tan_half_fov();
+        let slope = [th * camera.aspect(), th];
+        let o = self.origin;
+        let f32x3 = |v: DVec3| v.as_vec3().to_array();
+        let frame = FrameUniforms {
+            right: f32x3(right),
+            epsilon: self.settings.epsilon,
+            up: f32x3(up),
+            near_z: 0.0,
+            forward: f32x3(forward),
+            t_first: 0.0,
+            eye: f32x3(camera.eye - o),
+            dz: 0.0,
+            proj: [(1.0 / slope[0]) as f32, (1.0 / slope[1]) as f32],
+            half_extent: [slope[0] as f32, slope[1] as f32],
+            size: [camera.width as f32, camera.height as f32],
+            degenerate_tol: DEGENERATE_TOL,
+            tet_count: selected as u32,
+            slices_per_shell: 0,
+            tf_count: 0,
+            _pad: [0; 2],
+        };
+        self.queue
+            .write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&frame));
+        let mut iso = IsoUniforms::zeroed();
+        for (k, &(v, c)) in self.settings.isovalues.iter().enumerate() {
+            iso.values[k / 4][k % 4] = ((v - self.scalar_min) / self.scalar_span) as f32;
+            iso.colors[k] = [c[0], c[1], c[2], 1.0];
+        }
+        iso.count = self.settings.isovalues.len() as u32;
+        iso.smooth_shading = (self.settings.shading == Shading::Smooth) as u32;
+        let far = ((camera.eye - o).length() + self.radius) * 1.001;
+        iso.inv_depth_range = (1.0 / far.max(f64::MIN_POSITIVE)) as f32;
+        self.queue
+            .write_buffer(&self.iso_buf, 0, bytemuck::bytes_of(&iso));
+        if !self.selection_uploaded {
+            let sel = self.selection.as_deref().unwrap_or(&[]);
+            let bytes: &[u8] = bytemuck::cast_slice(sel);
+            let rec_bytes = (sel.len() * size_of::<TetRecord>()) as u64;
+            if self.selected_buf.size() < bytes.len() as u64 {
+                self.selected_buf = self.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("iso selected tets"),
+                    size: (bytes.len() as u64).next_power_of_two(),
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                });
+            }
+            if self.records_buf.size() < rec_bytes {
+                self.records_buf = self.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("iso tet records"),
+                    size: rec_bytes
+                        .next_power_of_two()
+                        .min(self.limits.max_storage_buffer_binding_size)
+                        .max(rec_bytes),
+                    usage: wgpu::BufferUsages::STORAGE,
+                    mapped_at_creation: false,
+                });
+            }
+            if !bytes.is_empty() {
+                self.queue.write_buffer(&self.selected_buf, 0, bytes);
+            }
+            self.selection_uploaded = true;
+        }
+        if self.settings.shading == Shading::Smooth {
+            let g = vertex_gradients(&self.positions, &self.tets, &self.scalars);
+            let inv = 1.0 / self.scalar_span;
+            let data: Vec<[f32; 4]> = g
+                .par_iter()
+                .map(|g| {
+                    let v = (*g * inv).as_vec3();
+                    [v.x, v.y, v.z, 0.0]
+                })
+                .collect();
+            self.queue
+                .write_buffer(&self.gradients_buf, 0, bytemuck::cast_slice(&data));
+        }
+        self.ensure_targets(camera.width, camera.height)?;
+        self.queue.submit([]);
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(GpuError::from)?;
+        timings.stage("upload", ms_since(t1));
+
+        // 3. Assembly over the selected tets.
+        let t2 = Instant::now();
+        let assemble_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("iso assemble"),
+            layout: &self.pipelines.assemble_layout,
+            entries: &[
+                entry(0, &self.frame_buf),
+                entry(1, &self.positions_buf),
+                entry(2, &self.scalars_buf),
+                entry(3, &self.selected_buf),
+                entry(4, &self.records_buf),
+                entry(5, &self.degenerate_buf),
+            ],
+        });
+        let mut enc = self.device.create_command_encoder(&Default::default());
+        enc.clear_buffer(&self.degenerate_buf, 0, None);
+        if selected > 0 {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("iso assembly"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&self.pipelines.assemble);
+            pass.set_bind_group(0, &assemble_group, &[]);
+            let groups = (selected as u32).div_ceil(64);
+            let x = groups
+                .min(self.limits.max_compute_workgroups_per_dimension)
+                .max(1);
+            pass.dispatch_workgroups(x, groups.div_ceil(x), 1);
+        }
+        self.queue.submit([enc.finish()]);
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(GpuError::from)?;
+        timings.stage("assembly", ms_since(t2));
+
+        // 4. Raster: one instanced pass, depth test keeps the nearest hit.
+        let t3 = Instant::now();
+        let targets = self.targets.as_ref().ok_or_else(|| {
+            settings_error("internal: render targets missing after ensure_targets")
+        })?;
+        let raster_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("iso raster"),
+            layout: &self.pipelines.raster_layout,
+            entries: &[
+                entry(0, &self.frame_buf),
+                entry(1, &self.records_buf),
+                entry(2, &self.selected_buf),
+                entry(3, &self.scalars_buf),
+                entry(4, &self.gradients_buf),
+                entry(5, &self.iso_buf),
+            ],
+        });
+        let occlusion = self.device.create_query_set(&wgpu::QuerySetDescriptor {
+            label: Some("iso fragments"),
+            ty: wgpu::QueryType::Occlusion,
+            count: 1,
+        });
+        let color_view = targets.color.create_view(&Default::default());
+        let geometry_view = targets.geometry.create_view(&Default::default());
+        let mut enc = self.device.create_command_encoder(&Default::default());
+        {
+            let clear = |c: wgpu::Color| wgpu::Operations {
+                load: wgpu::LoadOp::Clear(c),
+                store: wgpu::StoreOp::Store,
+            };
+            let miss = wgpu::Color {
+                r: 0.0,
+                g: 0.0,
+                b: 0.0,
+                a: -1.0,
+            };
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("iso raster"),
+                color_attachments: &[
+                    Some(wgpu::RenderPassColorAttachment {
+                        view: &color_view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: clear(wgpu::Color::TRANSPARENT),
+                    }),
+                    Some(wgpu::RenderPassColorAttachment {
+                        view: &geometry_view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: clear(miss),
+                    }),
+                ],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &targets.depth_view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: None,
+                }),
+                occlusion_query_set: Some(&occlusion),
+                ..Default::default()
+            });
+            pass.begin_occlusion_query(0);
+            if selected > 0 {
+                pass.set_pipeline(&self.pipelines.raster);
+                pass.set_bind_group(0, &raster_group, &[]);
+                pass.draw(0..12, 0..selected as u32);
+            }
+            pass.end_occlusion_query();
+        }
+        let stats = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("iso stats readback"),
+            size: 512,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let resolve = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("iso query resolve"),
+            size: 8,
+            usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        enc.resolve_query_set(&occlusion, 0..1, &resolve, 0);
+        enc.copy_buffer_to_buffer(&resolve, 0, &stats, 256, 8);
+        enc.copy_buffer_to_buffer(&self.degenerate_buf, 0, &stats, 0, 4);
+        self.queue.submit([enc.finish()]);
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(GpuError::from)?;
+        timings.stage("raster", ms_since(t3));
+
+        // 5. Readback.
+        let t4 = Instant::now();
+        let (width, height, padded_row) = (targets.width, targets.height, targets.padded_row);
+        let mut enc = self.device.create_command_encoder(&Default::default());
+        for (tex, buf) in [
+            (&targets.color, &targets.color_readback),
+            (&targets.geometry, &targets.geometry_readback),
+        ] {
+            enc.copy_texture_to_buffer(
+                wgpu::TexelCopyTextureInfo {
+                    texture: tex,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d::ZERO,
+                    aspect: wgpu::TextureAspect::All,
+                },
+                wgpu::TexelCopyBufferInfo {
+                    buffer: buf,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(padded_row),
+                        rows_per_image: Some(height),
+                    },
+                },
+                wgpu::Extent3d {
+                    width,
+                    height,
+                    depth_or_array_layers: 1,
+                },
+            );
+        }
+        self.queue.submit([enc.finish()]);
+        map_read(&self.device, &targets.color_readback)?;
+        map_read(&self.device, &targets.geometry_readback)?;
+        map_read(&self.device, &stats)?;
+        let read_rows = |buf: &wgpu::Buffer| -> Result<Vec<[f32; 4]>, RenderError> {
+            let data = buf
+                .get_mapped_range(..)
+                .map_err(|e| settings_error(format!("mapping a readback buffer failed: {e}")))?;
+            let mut out = Vec::with_capacity((width * height) as usize);
+            for y in 0..height as usize {
+                let row = &data[y * padded_row as usize..][..width as usize * 16];
+                out.extend_from_slice(bytemuck::cast_slice::<u8, [f32; 4]>(row));
+            }
+            drop(data);
+            buf.unmap();
+            Ok(out)
+        };
+        let color_px = read_rows(&targets.color_readback)?;
+        let geometry_px = read_rows(&targets.geometry_readback)?;
+        let (degenerate, fragments) = {
+            let data = stats
+                .get_mapped_range(..)
+                .map_err(|e| settings_error(format!("mapping the stats buffer failed: {e}")))?;
+            let degenerate = u32::from_le_bytes([data[0], data[1], data[2], data[3]]);
+            let fragments = u64::from_le_bytes(data[256..264].try_into().unwrap_or([0; 8]));
+            (degenerate, fragments)
+        };
+        stats.unmap();
+        let mut color = Image::new(width, height);
+        color.pixels = color_px;
+        let (depth, normal) = geometry_px
+            .iter()
+            .map(|g| {
+                if g[3] >= 0.0 {
+                    (g[3], [g[0], g[1], g[2]])
+                } else {
+                    (f32::INFINITY, [0.0; 3])
+                }
+            })
+            .unzip();
+        timings.stage("readback", ms_since(t4));
+        timings.stage("total", ms_since(start));
+        timings.clock = "wall clock, GPU drained after each stage";
+        timings.count("tets", self.tets.len() as u64);
+        timings.count("tets selected", selected as u64);
+        timings.count("triangles", 4 * selected as u64);
+        timings.count("degenerate tets", degenerate as u64);
+        timings.count("fragments (occlusion query)", fragments);
+        Ok((
+            IsoImage {
+                color,
+                depth,
+                normal,
+            },
+            timings,
+        ))
+    }
+}
+
+impl Pipelines {
+    fn new(device: &wgpu::Device) -> Self {
+        use wgpu::ShaderStages as S;
+        let buffer = |binding, visibility, ty| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility,
+            ty: wgpu::BindingType::Buffer {
+                ty,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let uniform = wgpu::BufferBindingType::Uniform;
+        let ro = wgpu::BufferBindingType::Storage { read_only: true };
+        let rw = wgpu::BufferBindingType::Storage { read_only: false };
+        let layout = |label, entries: &[wgpu::BindGroupLayoutEntry]| {
+            device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some(label),
+                entries,
+            })
+        };
+        let pipeline_layout = |bgl: &wgpu::BindGroupLayout| {
+            device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: None,
+                bind_group_layouts: &[Some(bgl)],
+                immediate_size: 0,
+            })
+        };
+        let module = |label, src: String| {
+            device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(label),
+                source: wgpu::ShaderSource::Wgsl(src.into()),
+            })
+        };
+        let assemble_layout = layout(
+            "iso assemble",
+            &[
+                buffer(0, S::COMPUTE, uniform),
+                buffer(1, S::COMPUTE, ro),
+                buffer(2, S::COMPUTE, ro),
+                buffer(3, S::COMPUTE, ro),
+                buffer(4, S::COMPUTE, rw),
+                buffer(5, S::COMPUTE, rw),
+            ],
+        );
+        let assemble_module = module("iso assemble (shells_assemble)", shaders::shells_assemble());
+        let assemble = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("iso assemble"),
+            layout: Some(&pipeline_layout(&assemble_layout)),
+            module: &assemble_module,
+            entry_point: Some("main"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        let raster_layout = layout(
+            "iso raster",
+            &[
+                buffer(0, S::VERTEX_FRAGMENT, uniform),
+                buffer(1, S::VERTEX, ro),
+                buffer(2, S::VERTEX, ro),
+                buffer(3, S::VERTEX, ro),
+                buffer(4, S::VERTEX, ro),
+                buffer(5, S::FRAGMENT, uniform),
+            ],
+        );
+        let raster_module = module("iso_raster", raster_source());
+        let target = Some(wgpu::ColorTargetState {
+            format: TARGET_FORMAT,
+            blend: None,
+            write_mask: wgpu::ColorWrites::ALL,
+        });
+        let raster = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("iso raster"),
+            layout: Some(&pipeline_layout(&raster_layout)),
+            vertex: wgpu::VertexState {
+                module: &raster_module,
+                entry_point: Some("vs_faces"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                // Outward faces are counter-clockwise seen from outside; NDC has y up.
+                front_face: wgpu::FrontFace::Ccw,
+                cull_mode: Some(wgpu::Face::Back),
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &raster_module,
+                entry_point: Some("fs_iso"),
+                compilation_options: Default::default(),
+                targets: &[target.clone(), target],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        Self {
+            assemble_layout,
+            assemble,
+            raster_layout,
+            raster,
+        }
+    }
+}
+
+impl Renderer for IsoRenderer {
+    fn name(&self) -> &'static str {
+        "iso"
+    }
+
+    /// The shaded isosurfaces; `_tf` is ignored (colours come with the isovalues).
+    fn render(&mut self, camera: &Camera, _tf: &TransferFunction) -> Result<Frame, RenderError> {
+        let (surface, timings) = self.render_surface(camera)?;
+        Ok(Frame {
+            image: surface.color,
+            timings,
+        })
+    }
+
+    fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {
+        if positions.len() != self.positions.len() {
+            return Err(MeshError::ArrayLength {
+                array: "positions".into(),
+                len: positions.len(),
+                count: self.positions.len(),
+            }
+            .into());
+        }
+        if let Some(v) = positions.iter().position(|p| !p.is_finite()) {
+            let p = positions[v];
+            return Err(MeshError::NonFiniteCoordinate {
+                vertex: v,
+                x: p.x,
+                y: p.y,
+                z: p.z,
+            }
+            .into());
+        }
+        self.positions.copy_from_slice(positions);
+        (self.origin, self.radius) = bounds(&self.positions);
+        self.upload_positions();
+        Ok(())
+    }
+
+    fn update_scalars(&mut self, scalars: &[f64]) -> Result<(), RenderError> {
+        if scalars.len() != self.scalars.len() {
+            return Err(MeshError::ArrayLength {
+                array: "scalars".into(),
+                len: scalars.len(),
+                count: self.scalars.len(),
+            }
+            .into());
+        }
+        if let Some(v) = scalars.iter().position(|s| !s.is_finite()) {
+            return Err(MeshError::NonFiniteScalar {
+                array: "scalars".into(),
+                vertex: v,
+                value: scalars[v],
+            }
+            .into());
+        }
+        self.scalars.copy_from_slice(scalars);
+        (self.scalar_min, self.scalar_span) = scalar_frame(&self.scalars);
+        self.ranges = scalar_ranges(&self.tets, &self.scalars);
+        self.selection = None;
+        self.upload_scalars();
+        Ok(())
+    }
+}

@@ -1,0 +1,299 @@
+//! `--mode iso` against the exact f64 reference isosurface query (`reference::iso`): hit/miss
+//! mismatches (pixels), depth error (world units) and normal angle error (degrees) over the
+//! pixels both hit, for flat and smooth shading, on generated and real meshes; isovalues
+//! exactly on vertex values; a plane seen head-on through an axis-aligned grid (no cracks);
+//! constant fields (no NaN).
+
+mod common;
+
+use std::sync::OnceLock;
+
+use glam::{DVec3, UVec3};
+use tetvr::generate::{self, fields::Field};
+use tetvr::gpu::iso::{IsoImage, IsoRenderer, IsoSettings, Shading};
+use tetvr::gpu::{AdapterChoice, GpuContext};
+use tetvr::reference::ReferenceRenderer;
+use tetvr::reference::iso::IsoReference;
+use tetvr::{Camera, TetMesh, View};
+
+fn ctx() -> &'static GpuContext {
+    static CTX: OnceLock<GpuContext> = OnceLock::new();
+    CTX.get_or_init(|| {
+        GpuContext::new(AdapterChoice::Auto).unwrap_or_else(|e| {
+            panic!("the iso tests need a GPU adapter (Mesa's lavapipe will do): {e}")
+        })
+    })
+}
+
+/// Error figures of a GPU isosurface image against the reference.
+#[derive(Debug, Default)]
+struct IsoErrors {
+    /// Pixels hit by one and missed by the other.
+    mismatches: usize,
+    /// Pixels hit by both.
+    matched: usize,
+    depth_max: f64,
+    depth_mean: f64,
+    /// Matched pixels whose depth differs by more than `depth_tol`.
+    depth_outliers: usize,
+    angle_max_deg: f64,
+    angle_mean_deg: f64,
+    /// Matched pixels whose normals differ by more than `angle_tol_deg`.
+    angle_outliers: usize,
+    /// Non-finite values anywhere in the GPU image.
+    non_finite: usize,
+}
+
+fn compare(gpu: &IsoImage, reference: &IsoImage, depth_tol: f64, angle_tol_deg: f64) -> IsoErrors {
+    let mut e = IsoErrors {
+        non_finite: gpu
+            .color
+            .pixels
+            .iter()
+            .flatten()
+            .chain(gpu.normal.iter().flatten())
+            .filter(|v| !v.is_finite())
+            .count()
+            + gpu.depth.iter().filter(|d| d.is_nan()).count(),
+        ..Default::default()
+    };
+    for i in 0..gpu.depth.len() {
+        let (g, r) = (gpu.depth[i], reference.depth[i]);
+        match (g.is_finite(), r.is_finite()) {
+            (true, true) => {
+                e.matched += 1;
+                let d = (g as f64 - r as f64).abs();
+                e.depth_max = e.depth_max.max(d);
+                e.depth_mean += d;
+                e.depth_outliers += (d > depth_tol) as usize;
+                let (a, b) = (
+                    DVec3::from(gpu.normal[i].map(f64::from)),
+                    DVec3::from(reference.normal[i].map(f64::from)),
+                );
+                let angle = a.dot(b).clamp(-1.0, 1.0).acos().to_degrees();
+                e.angle_max_deg = e.angle_max_deg.max(angle);
+                e.angle_mean_deg += angle;
+                e.angle_outliers += (angle > angle_tol_deg) as usize;
+            }
+            (false, false) => {}
+            _ => e.mismatches += 1,
+        }
+    }
+    if e.matched > 0 {
+        e.depth_mean /= e.matched as f64;
+        e.angle_mean_deg /= e.matched as f64;
+    }
+    e
+}
+
+/// Renders `mesh` with both, compares, and on failure writes the colour pictures.
+fn run(
+    name: &str,
+    mesh: &TetMesh,
+    camera: &Camera,
+    isovalues: Vec<(f64, [f32; 3])>,
+    shading: Shading,
+    depth_tol: f64,
+    angle_tol_deg: f64,
+) -> (IsoErrors, IsoImage, IsoImage) {
+    let values: Vec<f64> = isovalues.iter().map(|v| v.0).collect();
+    let colors: Vec<[f32; 3]> = isovalues.iter().map(|v| v.1).collect();
+    let settings = IsoSettings {
+        isovalues,
+        shading,
+        ..Default::default()
+    };
+    let mut gpu = IsoRenderer::new(ctx(), mesh, settings).expect("iso renderer");
+    let (image, timings) = gpu.render_surface(camera).expect("iso frame");
+    let reference = ReferenceRenderer::new(mesh).expect("reference");
+    let query = IsoReference::new(&reference, &values, shading).expect("iso reference");
+    let expected = query
+        .render_surface(camera, &colors)
+        .expect("reference frame");
+    let e = compare(&image, &expected, depth_tol, angle_tol_deg);
+    eprintln!("{name}: {e:?}\n{timings}");
+    let dir = common::test_output_dir();
+    image
+        .color
+        .save_comparison(&expected.color, &dir, name, 0.1)
+        .expect("write comparison images");
+    (e, image, expected)
+}
+
+fn gaussians() -> TetMesh {
+    generate::fields::grid(Field::Gaussians, UVec3::splat(16), "gaussians").expect("grid")
+}
+
+const RED: [f32; 3] = [0.9, 0.3, 0.2];
+const BLUE: [f32; 3] = [0.2, 0.4, 0.9];
+
+#[test]
+fn gaussians_flat_and_smooth_match_reference() {
+    let mesh = gaussians();
+    let (lo, hi) = mesh.bounds();
+    let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 128, 128);
+    for shading in [Shading::Flat, Shading::Smooth] {
+        let name = format!("iso-gaussians-{shading:?}");
+        let (e, ..) = run(
+            &name,
+            &mesh,
+            &camera,
+            vec![(0.3, RED), (0.6, BLUE)],
+            shading,
+            1e-3,
+            1.0,
+        );
+        assert_eq!(e.non_finite, 0, "{name}");
+        // The two surfaces cover 2083 of the 16384 pixels (measured); far fewer means lost hits.
+        assert!(e.matched > 1800, "{name}: {e:?}");
+        // Measured 0: a pixel whose ray crosses the surface exactly at a tet edge may flip
+        // under f32 rounding, a handful at most.
+        assert!(e.mismatches <= 5, "{name}: {e:?}");
+        // Measured 5.6e-7 mean, 9e-6 max (world units, diagonal 3.46, eye ~7 away): f32 at
+        // that distance resolves ~5e-7; 1e-5 mean and no pixel beyond 1e-3 leave margin.
+        assert!(e.depth_mean <= 1e-5, "{name}: {e:?}");
+        assert_eq!(e.depth_outliers, 0, "{name}: {e:?}");
+        // Normals > 1 degree off: measured 1 (flat, a pixel at a tet edge where the f32 inside
+        // test lets the neighbouring tet, with its own gradient, win), 0 smooth.
+        assert!(e.angle_outliers <= 5, "{name}: {e:?}");
+        assert!(e.angle_mean_deg <= 0.05, "{name}: {e:?}");
+    }
+}
+
+#[test]
+fn bluntfin_flat_and_smooth_match_reference() {
+    let mesh = tetvr::io::load(&common::shared_data("bluntfin_tet.vtk"))
+        .expect("bluntfin loads")
+        .mesh;
+    let (lo, hi) = mesh.bounds();
+    // The isovalue at the 30th percentile of the vertex values: a surface across the fin's
+    // flow field (the middle of the range is a small pocket of 64 pixels).
+    let mut sorted = mesh.scalars().expect("scalars").to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let iso = sorted[sorted.len() * 3 / 10];
+    let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 128, 128);
+    for shading in [Shading::Flat, Shading::Smooth] {
+        let name = format!("iso-bluntfin-{shading:?}");
+        let (e, ..) = run(&name, &mesh, &camera, vec![(iso, RED)], shading, 1e-3, 1.0);
+        assert_eq!(e.non_finite, 0, "{name}");
+        // The surface covers 3791 of 16384 pixels (measured).
+        assert!(e.matched > 3500, "{name}: {e:?}");
+        // Measured 0 (see the Gaussians test for why a few could flip).
+        assert!(e.mismatches <= 5, "{name}: {e:?}");
+        // Measured 6.9e-6 mean, 2.7e-4 max (world units; the fin is ~10 units across).
+        assert!(e.depth_mean <= 1e-4, "{name}: {e:?}");
+        assert_eq!(e.depth_outliers, 0, "{name}: {e:?}");
+        // Measured 2 flat pixels > 1 degree (tet-edge pixels), 0 smooth; mean 0.004 degrees.
+        assert!(e.angle_outliers <= 10, "{name}: {e:?}");
+        assert!(e.angle_mean_deg <= 0.05, "{name}: {e:?}");
+    }
+}
+
+/// A linear field x on an axis-aligned grid with the isovalue on a grid plane (exactly equal
+/// to vertex values there), seen head-on along -x: rays run through shared edges and vertices.
+#[test]
+fn plane_on_grid_vertices_head_on_has_no_cracks() {
+    let mesh = generate::box_grid(
+        DVec3::splat(-1.0),
+        DVec3::splat(1.0),
+        UVec3::splat(8),
+        "x",
+        |p| p.x,
+    );
+    let (lo, hi) = mesh.bounds();
+    let camera = Camera::framing(lo, hi, View::parse("+x").expect("view"), 1.0, 30.0, 96, 96);
+    for iso in [0.25, 0.3] {
+        for shading in [Shading::Flat, Shading::Smooth] {
+            let name = format!("iso-plane-{iso}-{shading:?}");
+            let (e, image, expected) =
+                run(&name, &mesh, &camera, vec![(iso, RED)], shading, 1e-4, 0.01);
+            let hits = |im: &IsoImage| im.depth.iter().filter(|d| d.is_finite()).count();
+            eprintln!(
+                "{name}: gpu hits {} reference hits {}",
+                hits(&image),
+                hits(&expected)
+            );
+            assert_eq!(e.non_finite, 0, "{name}");
+            assert_eq!(e.mismatches, 0, "{name}: {e:?}");
+            assert_eq!(e.depth_outliers, 0, "{name}: {e:?}");
+            assert_eq!(e.angle_outliers, 0, "{name}: {e:?}");
+            // Independently of the reference: every pixel whose ray meets the plane inside
+            // the grid's square (by more than 1e-6) is hit, at the analytic distance (1e-5:
+            // f32 at distance ~4.5 resolves ~5e-7), with normal +x (1e-5 in each component).
+            let mut expected_hits = 0;
+            for y in 0..camera.height {
+                for x in 0..camera.width {
+                    let dir = camera.ray_dir(x, y);
+                    let t = (iso - camera.eye.x) / dir.x;
+                    let p = camera.eye + t * dir;
+                    if p.y.abs().max(p.z.abs()) < 1.0 - 1e-6 {
+                        expected_hits += 1;
+                        let i = (y * camera.width + x) as usize;
+                        assert!(
+                            (image.depth[i] as f64 - t).abs() <= 1e-5,
+                            "{name}: crack or wrong depth at pixel ({x}, {y}): {} vs {t}",
+                            image.depth[i]
+                        );
+                        let n = image.normal[i];
+                        assert!(
+                            (n[0] - 1.0).abs() <= 1e-5 && n[1].abs() <= 1e-5 && n[2].abs() <= 1e-5,
+                            "{name}: normal {n:?} at ({x}, {y})"
+                        );
+                    }
+                }
+            }
+            assert!(
+                expected_hits > 3000,
+                "{name}: the plane fills most of the view"
+            );
+        }
+    }
+}
+
+/// Constant fields: a tet whose values all equal the isovalue draws nothing (never NaN); where
+/// the field is constant on one side (max(x, 0), isovalue 0) the surface is the boundary of the
+/// constant region, hit in the varying tets.
+#[test]
+fn constant_fields_give_no_nan() {
+    let constant =
+        generate::fields::grid(Field::Constant(0.5), UVec3::splat(4), "c").expect("grid");
+    let (lo, hi) = constant.bounds();
+    let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 64, 64);
+    let (e, image, _) = run(
+        "iso-constant",
+        &constant,
+        &camera,
+        vec![(0.5, RED)],
+        Shading::Smooth,
+        1e-4,
+        0.01,
+    );
+    assert_eq!(e.non_finite, 0);
+    assert_eq!(e.matched + e.mismatches, 0, "{e:?}");
+    assert!(image.depth.iter().all(|d| *d == f32::INFINITY));
+
+    let plateau = generate::box_grid(
+        DVec3::splat(-1.0),
+        DVec3::splat(1.0),
+        UVec3::splat(8),
+        "p",
+        |p| p.x.max(0.0),
+    );
+    let camera = Camera::framing(lo, hi, View::parse("-x").expect("view"), 1.0, 30.0, 64, 64);
+    for shading in [Shading::Flat, Shading::Smooth] {
+        let name = format!("iso-plateau-{shading:?}");
+        let (e, ..) = run(
+            &name,
+            &plateau,
+            &camera,
+            vec![(0.0, RED)],
+            shading,
+            1e-4,
+            0.01,
+        );
+        assert_eq!(e.non_finite, 0, "{name}");
+        // The boundary plane x = 0 fills 1296 of 4096 pixels (measured).
+        assert!(e.matched > 1200, "{name}: {e:?}");
+        assert_eq!(e.mismatches, 0, "{name}: {e:?}");
+    }
+}
