@@ -102,6 +102,32 @@ fn shells_render_runs_on_the_software_adapter_and_prints_stages() {
 }
 
 #[test]
+fn iso_render_draws_the_surfaces_asked_for() {
+    let png = out_dir("iso").join("iso.png");
+    let png_arg = png.to_str().unwrap();
+    let args = [
+        "render",
+        LOX,
+        "--mode",
+        "iso",
+        "--iso",
+        "0.9,1.2",
+        "--shading",
+        "smooth",
+    ];
+    let o = tetvr(&[&args[..], &["--size", "64x64", "--timings", "-o", png_arg]].concat());
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stderr}");
+    assert!(
+        stdout.contains("mode iso at 0.9, 1.2") && stdout.contains("tets selected"),
+        "{stdout}"
+    );
+    // Opaque surfaces inside the mesh's silhouette: some pixels, not all (measured about 20%).
+    let f = covered_fraction(&png);
+    assert!((0.02..0.9).contains(&f), "covered fraction {f}");
+}
+
+#[test]
 fn without_vulkan_auto_falls_back_in_one_line_and_shells_names_the_package() {
     let png = out_dir("fallback").join("lox.png");
     let o = tetvr_without_vulkan(&[

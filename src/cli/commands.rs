@@ -5,12 +5,15 @@ use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressStyle};
 use tetvr::camera::{Camera, CameraError, View};
-use tetvr::gpu::{AdapterChoice, GpuContext, GpuError, ShellSettings, ShellsRenderer};
+use tetvr::gpu::{
+    AdapterChoice, GpuContext, GpuError, IsoRenderer, IsoSettings, ShellSettings, ShellsRenderer,
+};
 use tetvr::image::{Image, ImageError};
 use tetvr::io::{self, LoadError, Loaded};
 use tetvr::mesh::MeshError;
 use tetvr::mesh::stats::MeshStats;
 use tetvr::reference::ReferenceRenderer;
+use tetvr::reference::iso::Shading;
 use tetvr::render::{RenderError, Renderer, Timings};
 use tetvr::tf::TransferFunction;
 use tetvr::tf::file::{TfFileError, load_tf};
@@ -18,7 +21,7 @@ use tetvr::{TetMesh, generate};
 
 use super::{
     AnimateArgs, Cli, Command, CompareArgs, GenerateArgs, GenerateShape, InfoArgs, MeshArgs, Mode,
-    RenderArgs,
+    RenderArgs, ShadingArg,
 };
 
 /// Everything a command can fail with; each message says what to fix.
@@ -85,9 +88,8 @@ fn render(args: RenderArgs) -> Result<(), CliError> {
     let (image, timings, what) = match choose(args.mode)? {
         Chosen::Cpu => reference(&mesh, &camera, &tf)?,
         Chosen::Gpu(ctx) => {
-            let mut renderer = ShellsRenderer::new(&ctx, &mesh, shell_settings(&args))?;
+            let (mut renderer, what) = gpu_renderer(&ctx, &mesh, &args, &tf)?;
             let frame = renderer.render(&camera, &tf)?;
-            let what = format!("mode shells on {}", ctx.summary());
             (frame.image, frame.timings, what)
         }
     };
@@ -180,7 +182,7 @@ enum Chosen {
 fn choose(mode: Mode) -> Result<Chosen, CliError> {
     match mode {
         Mode::Reference => Ok(Chosen::Cpu),
-        Mode::Shells => Ok(Chosen::Gpu(Box::new(GpuContext::new(
+        Mode::Shells | Mode::Iso => Ok(Chosen::Gpu(Box::new(GpuContext::new(
             AdapterChoice::from_env(),
         )?))),
         Mode::Auto => match GpuContext::new(AdapterChoice::from_env()) {
@@ -194,6 +196,55 @@ fn choose(mode: Mode) -> Result<Chosen, CliError> {
             Err(e) => Err(e.into()),
         },
     }
+}
+
+/// The GPU renderer of `args.mode` (`auto` means shells) and a description for the user.
+fn gpu_renderer(
+    ctx: &GpuContext,
+    mesh: &TetMesh,
+    args: &RenderArgs,
+    tf: &TransferFunction,
+) -> Result<(Box<dyn Renderer>, String), CliError> {
+    if args.mode != Mode::Iso {
+        let renderer = ShellsRenderer::new(ctx, mesh, shell_settings(args))?;
+        return Ok((
+            Box::new(renderer),
+            format!("mode shells on {}", ctx.summary()),
+        ));
+    }
+    let isovalues = if args.iso.is_empty() {
+        let (lo, hi) = mesh
+            .active_array()
+            .and_then(|a| a.range())
+            .ok_or(MeshError::NoScalars)?;
+        vec![0.5 * (lo + hi)]
+    } else {
+        args.iso.clone()
+    };
+    let described = isovalues
+        .iter()
+        .map(|v| format!("{v}"))
+        .collect::<Vec<_>>()
+        .join(", ");
+    // Each surface takes the transfer function's colour at its isovalue.
+    let isovalues = isovalues
+        .into_iter()
+        .map(|v| (v, tf.eval(v).color.map(|c| c as f32)))
+        .collect();
+    let shading = match args.shading {
+        ShadingArg::Flat => Shading::Flat,
+        ShadingArg::Smooth => Shading::Smooth,
+    };
+    let settings = IsoSettings {
+        isovalues,
+        shading,
+        ..Default::default()
+    };
+    let renderer = IsoRenderer::new(ctx, mesh, settings)?;
+    Ok((
+        Box::new(renderer),
+        format!("mode iso at {described} on {}", ctx.summary()),
+    ))
 }
 
 fn shell_settings(args: &RenderArgs) -> ShellSettings {
@@ -233,10 +284,7 @@ fn animate(args: AnimateArgs) -> Result<(), CliError> {
             Box::new(ReferenceRenderer::new(&mesh)?),
             "reference on the CPU".into(),
         ),
-        Chosen::Gpu(ctx) => (
-            Box::new(ShellsRenderer::new(&ctx, &mesh, shell_settings(r))?),
-            format!("shells on {}", ctx.summary()),
-        ),
+        Chosen::Gpu(ctx) => gpu_renderer(&ctx, &mesh, r, &tf)?,
     };
     let bar = ProgressBar::new(args.frames as u64).with_style(
         ProgressStyle::with_template("frame {pos}/{len} {bar:40} {eta} left")

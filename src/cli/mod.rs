@@ -13,6 +13,7 @@ const EXAMPLES: &str = "\
 Examples:
   tetvr render assets/lox_post_subset_tet.vtk -o lox.png
   tetvr render mesh.vtu --mode reference --size 256x256 --view -y --tf shock -o ref.png
+  tetvr render ../shared/data/bluntfin_tet.vtk --mode iso --iso 0.5,0.7 --shading smooth -o iso.png
   tetvr render mesh.vtk --array Pressure --tf my_tf.json --unit-distance 0.05 -o p.png
   tetvr render mesh.msh --eye 10,0,2 --target 0,0,0 --up 0,0,1 --fov 40 -o close.png
   tetvr animate ../shared/data/kiefer_bracket_tet.vtk --deform twist --frames 24 -o bracket.gif
@@ -56,6 +57,17 @@ pub enum Mode {
     Reference,
     /// Barycentric shell sampling on the GPU (Georgii & Westermann 2006).
     Shells,
+    /// Per-pixel isosurfaces on the GPU (--iso values, coloured by --tf; --shading).
+    Iso,
+}
+
+/// Isosurface shading.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ShadingArg {
+    /// One normal per tet (the gradient of the linear field): faceted, exact.
+    Flat,
+    /// Per-vertex gradients interpolated: smooth.
+    Smooth,
 }
 
 #[derive(clap::Args, Debug)]
@@ -114,6 +126,12 @@ pub struct RenderArgs {
     pub timings: bool,
     #[command(flatten)]
     pub shells: ShellArgs,
+    /// iso: isovalues in data units, comma separated (default: the middle of the scalar range).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub iso: Vec<f64>,
+    /// iso: shading of the surfaces.
+    #[arg(long, value_enum, default_value_t = ShadingArg::Flat)]
+    pub shading: ShadingArg,
 }
 
 #[derive(clap::Args, Debug)]
