@@ -5,6 +5,7 @@ pub mod gpu_data;
 pub mod iso;
 pub mod shaders;
 pub mod shells;
+mod util;
 
 pub use context::{AdapterChoice, GpuContext, GpuError};
 pub use iso::{IsoRenderer, IsoSettings};

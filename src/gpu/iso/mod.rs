@@ -32,6 +32,7 @@ use rayon::prelude::*;
 use crate::camera::Camera;
 use crate::gpu::gpu_data::{FrameUniforms, TetRecord};
 use crate::gpu::shells::DEGENERATE_TOL;
+use crate::gpu::util::{entry, map_read, ms_since, settings_error};
 use crate::gpu::{GpuContext, GpuError, shaders};
 use crate::image::Image;
 use crate::mesh::{MeshError, TetMesh};
@@ -143,21 +144,6 @@ struct Targets {
 const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
-fn ms_since(t: Instant) -> f64 {
-    t.elapsed().as_secs_f64() * 1e3
-}
-
-fn settings_error(msg: impl Into<String>) -> RenderError {
-    RenderError::Settings(msg.into())
-}
-
-fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
-    wgpu::BindGroupEntry {
-        binding,
-        resource: buffer.as_entire_binding(),
-    }
-}
-
 fn scalar_ranges(tets: &[[u32; 4]], scalars: &[f64]) -> Vec<(f64, f64)> {
     tets.par_iter()
         .map(|t| {
@@ -203,20 +189,6 @@ fn check_isovalues(isovalues: &[(f64, [f32; 3])]) -> Result<(), RenderError> {
         )));
     }
     Ok(())
-}
-
-/// Maps `buf` for reading and waits for it.
-fn map_read(device: &wgpu::Device, buf: &wgpu::Buffer) -> Result<(), GpuError> {
-    let (tx, rx) = std::sync::mpsc::channel();
-    buf.slice(..).map_async(wgpu::MapMode::Read, move |r| {
-        // The receiver outlives the wait below; a send can only fail after it returned.
-        let _ = tx.send(r);
-    });
-    device.poll(wgpu::PollType::wait_indefinitely())?;
-    match rx.recv() {
-        Ok(r) => r.map_err(GpuError::from),
-        Err(_) => Err(GpuError::Map(wgpu::BufferAsyncError)),
-    }
 }
 
 impl IsoRenderer {

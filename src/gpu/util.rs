@@ -1,0 +1,38 @@
+//! Small helpers every GPU renderer uses: binding entries, readback, timing, setting errors.
+
+use std::time::Instant;
+
+use crate::gpu::GpuError;
+use crate::render::RenderError;
+
+/// Milliseconds since `t`.
+pub(crate) fn ms_since(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+/// A bind group entry binding all of `buffer`.
+pub(crate) fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry {
+        binding,
+        resource: buffer.as_entire_binding(),
+    }
+}
+
+/// A renderer setting the user must change (the message says how).
+pub(crate) fn settings_error(msg: impl Into<String>) -> RenderError {
+    RenderError::Settings(msg.into())
+}
+
+/// Maps `buf` for reading and waits for it.
+pub(crate) fn map_read(device: &wgpu::Device, buf: &wgpu::Buffer) -> Result<(), GpuError> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    buf.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+        // The receiver outlives the wait below; a send can only fail after it returned.
+        let _ = tx.send(r);
+    });
+    device.poll(wgpu::PollType::wait_indefinitely())?;
+    match rx.recv() {
+        Ok(r) => r.map_err(GpuError::from),
+        Err(_) => Err(GpuError::Map(wgpu::BufferAsyncError)),
+    }
+}
