@@ -129,3 +129,18 @@ fn fs_slices(in: Varyings) -> SliceOut {
     }
     return slice_out(v);
 }
+
+// Clearing the shell's slices within its scissor rectangle only (a full-screen triangle, cut
+// to the rectangle by the scissor), instead of clearing whole targets at the pass start.
+@vertex
+fn vs_clear(@builtin(vertex_index) vertex: u32) -> @builtin(position) vec4<f32> {
+    let x = f32((vertex << 1u) & 2u) * 2.0 - 1.0;
+    let y = f32(vertex & 2u) * 2.0 - 1.0;
+    return vec4<f32>(x, y, 0.0, 1.0);
+}
+
+@fragment
+fn fs_clear() -> SliceOut {
+    var v: array<vec4<f32>, TARGETS>;
+    return slice_out(v);
+}
