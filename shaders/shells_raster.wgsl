@@ -1,5 +1,6 @@
 // Raster (one render pass per shell): each active tet's front faces are drawn by vertex pulling
-// from its record; near-plane tets draw a screen-space quad instead. Every fragment takes the
+// from its record, as 12 vertices of one draw per shell (no instancing: lavapipe runs its
+// vertex pipeline once per instance); near-plane tets draw a screen-space quad instead. Every fragment takes the
 // exact pixel-centre ray into the tet's barycentric space and writes, for each of the shell's
 // slices, the encoded scalar where the sample lies in the tet and 0 elsewhere, into TARGETS
 // colour targets blended with MAX. The generated prelude defines TARGETS, SliceOut and
@@ -37,10 +38,10 @@ const QUAD_CORNERS = array<u32, 6>(0u, 1u, 2u, 2u, 1u, 3u);
 const NOWHERE = vec4<f32>(0.0, 0.0, 0.0, 1.0);
 
 @vertex
-fn vs_faces(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance: u32) -> Varyings {
-    let rec = records[active_tets[instance]];
+fn vs_faces(@builtin(vertex_index) index: u32) -> Varyings {
+    let rec = records[active_tets[index / 12u]];
     var faces = FACE_VERTICES;
-    let p = rec.pos[faces[vertex]];
+    let p = rec.pos[faces[index % 12u]];
     let position = select(
         vec4<f32>(p.x * frame.proj.x, p.y * frame.proj.y, 0.0, p.z),
         NOWHERE,
@@ -50,8 +51,9 @@ fn vs_faces(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instanc
 }
 
 @vertex
-fn vs_near(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance: u32) -> Varyings {
-    let rec = records[active_tets[instance]];
+fn vs_near(@builtin(vertex_index) index: u32) -> Varyings {
+    let rec = records[active_tets[index / 6u]];
+    let vertex = index % 6u;
     // Screen bounds of the tet clipped to z >= near_z: its vertices in front of the plane and
     // its edges' crossings of the plane. Every sample lies in front of the plane (near_z is
     // below the first slice's z on the widest ray), so the bounds hold every fragment needed.

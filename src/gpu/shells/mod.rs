@@ -1016,7 +1016,10 @@ impl Renderer for ShellsRenderer {
         }
         let uniform = wgpu::BufferUsages::UNIFORM;
         write_grown(device, queue, &mut self.shell_buf, &shell_data, uniform);
-        if bin.indices.len() as u64 * 4 > self.limits.max_storage_buffer_binding_size {
+        // Each tet-shell instance is 12 vertices of one draw (vertex indices are u32).
+        if bin.indices.len() as u64 * 4 > self.limits.max_storage_buffer_binding_size
+            || bin.indices.len() as u64 * 12 > u32::MAX as u64
+        {
             return Err(settings_error(format!(
                 "this view draws {} tet-shell instances, more than one storage binding holds on \
                  this adapter; use more slices per shell or a larger dz",
@@ -1180,11 +1183,11 @@ impl Renderer for ShellsRenderer {
                 }
                 if !range.faces.is_empty() {
                     pass.set_pipeline(&self.pipelines.faces);
-                    pass.draw(0..12, range.faces.clone());
+                    pass.draw(12 * range.faces.start..12 * range.faces.end, 0..1);
                 }
                 if !range.near.is_empty() {
                     pass.set_pipeline(&self.pipelines.near);
-                    pass.draw(0..6, range.near.clone());
+                    pass.draw(6 * range.near.start..6 * range.near.end, 0..1);
                 }
                 if occlusion.is_some() {
                     pass.end_occlusion_query();
