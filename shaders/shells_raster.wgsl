@@ -1,6 +1,6 @@
 // Raster (one render pass per shell): each active tet's front faces are drawn by vertex pulling
-// from its record, as 12 vertices of one draw per shell (no instancing: lavapipe runs its
-// vertex pipeline once per instance); near-plane tets draw a screen-space quad instead. Every fragment takes the
+// from its record, 4 vertices and 12 indices per tet in one draw per shell (no instancing:
+// lavapipe runs its vertex pipeline once per instance; indexed, each corner is shaded once); near-plane tets draw a screen-space quad instead. Every fragment takes the
 // exact pixel-centre ray into the tet's barycentric space and writes, for each of the shell's
 // slices, the encoded scalar where the sample lies in the tet and 0 elsewhere, into TARGETS
 // colour targets blended with MAX. The generated prelude defines TARGETS, SliceOut and
@@ -26,8 +26,6 @@ fn varyings(position: vec4<f32>, rec: TetRecord) -> Varyings {
     return Varyings(position, rec.grad_x, rec.grad_y, rec.grad_z, rec.lambda_eye, rec.scalar);
 }
 
-// Local vertices of face f (opposite vertex f), outward for a positive tet: mesh::topology::FACES.
-const FACE_VERTICES = array<u32, 12>(1u, 2u, 3u, 0u, 3u, 2u, 0u, 1u, 3u, 0u, 2u, 1u);
 // The tet's six edges, as pairs of local vertices.
 const EDGE_A = array<u32, 6>(0u, 0u, 0u, 1u, 1u, 2u);
 const EDGE_B = array<u32, 6>(1u, 2u, 3u, 2u, 3u, 3u);
@@ -39,9 +37,10 @@ const NOWHERE = vec4<f32>(0.0, 0.0, 0.0, 1.0);
 
 @vertex
 fn vs_faces(@builtin(vertex_index) index: u32) -> Varyings {
-    let rec = records[active_tets[index / 12u]];
-    var faces = FACE_VERTICES;
-    let p = rec.pos[faces[index % 12u]];
+    // Vertex index 4 k + i is corner i of the shell's k-th tet; the index buffer draws its
+    // faces from these 4 vertices, so each corner is shaded once, not three times.
+    let rec = records[active_tets[index / 4u]];
+    let p = rec.pos[index % 4u];
     let position = select(
         vec4<f32>(p.x * frame.proj.x, p.y * frame.proj.y, 0.0, p.z),
         NOWHERE,

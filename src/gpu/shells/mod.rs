@@ -35,6 +35,7 @@ use crate::gpu::gpu_data::{
     FrameUniforms, MAX_TF_POINTS, ShellUniforms, TetRecord, TfPoint, TfPoints,
 };
 use crate::gpu::{GpuContext, GpuError, shaders};
+use crate::mesh::topology::FACES;
 use crate::mesh::{MeshError, TetMesh};
 use crate::render::{Frame, RenderError, Renderer, Timings};
 use crate::tf::TransferFunction;
@@ -116,6 +117,8 @@ pub struct ShellsRenderer {
     gpu: MeshBuffers,
     frame_buf: wgpu::Buffer,
     active_buf: wgpu::Buffer,
+    /// Face corners of consecutive tets, 12 indices per tet: `4 k + FACES[f][c]`.
+    face_indices: wgpu::Buffer,
     shell_buf: wgpu::Buffer,
     tf_buf: wgpu::Buffer,
     targets: Option<Targets>,
@@ -314,6 +317,12 @@ impl ShellsRenderer {
         let shell_stride = (size_of::<ShellUniforms>() as u64)
             .next_multiple_of(limits.min_uniform_buffer_offset_alignment as u64);
         let active_buf = storage("shells active tets", 16, none);
+        let face_indices = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("shells face indices"),
+            size: 0,
+            usage: wgpu::BufferUsages::INDEX | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
         let shell_buf = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("shells shell uniforms"),
             size: shell_stride,
@@ -341,6 +350,7 @@ impl ShellsRenderer {
             gpu,
             frame_buf,
             active_buf,
+            face_indices,
             shell_buf,
             tf_buf,
             targets: None,
@@ -1016,15 +1026,31 @@ impl Renderer for ShellsRenderer {
         }
         let uniform = wgpu::BufferUsages::UNIFORM;
         write_grown(device, queue, &mut self.shell_buf, &shell_data, uniform);
-        // Each tet-shell instance is 12 vertices of one draw (vertex indices are u32).
+        // Each tet-shell instance is 12 indices of one draw (u32), in an index buffer grown to a
+        // power of two of instances.
+        let tets = bin.indices.len().next_power_of_two();
         if bin.indices.len() as u64 * 4 > self.limits.max_storage_buffer_binding_size
-            || bin.indices.len() as u64 * 12 > u32::MAX as u64
+            || tets as u64 * 12 > u32::MAX as u64
+            || tets as u64 * 48 > self.limits.max_buffer_size
         {
             return Err(settings_error(format!(
                 "this view draws {} tet-shell instances, more than one storage binding holds on \
                  this adapter; use more slices per shell or a larger dz",
                 bin.indices.len()
             )));
+        }
+        if self.face_indices.size() < 48 * tets as u64 {
+            let pattern: Vec<u32> = (0..tets as u32)
+                .flat_map(|k| FACES.iter().flatten().map(move |&c| 4 * k + c as u32))
+                .collect();
+            let index = wgpu::BufferUsages::INDEX;
+            write_grown(
+                device,
+                queue,
+                &mut self.face_indices,
+                bytemuck::cast_slice(&pattern),
+                index,
+            );
         }
         let active = bytemuck::cast_slice(&bin.indices);
         write_grown(device, queue, &mut self.active_buf, active, storage);
@@ -1183,7 +1209,8 @@ impl Renderer for ShellsRenderer {
                 }
                 if !range.faces.is_empty() {
                     pass.set_pipeline(&self.pipelines.faces);
-                    pass.draw(12 * range.faces.start..12 * range.faces.end, 0..1);
+                    pass.set_index_buffer(self.face_indices.slice(..), wgpu::IndexFormat::Uint32);
+                    pass.draw_indexed(12 * range.faces.start..12 * range.faces.end, 0, 0..1);
                 }
                 if !range.near.is_empty() {
                     pass.set_pipeline(&self.pipelines.near);
