@@ -1,5 +1,6 @@
 // Raster (one render pass per shell): each active tet's front faces are drawn by vertex pulling
-// from its record; near-plane tets draw a screen-space quad instead. Every fragment takes the
+// from its record, 4 vertices and 12 indices per tet in one draw per shell (no instancing:
+// lavapipe runs its vertex pipeline once per instance; indexed, each corner is shaded once); near-plane tets draw a screen-space quad instead. Every fragment takes the
 // exact pixel-centre ray into the tet's barycentric space and writes, for each of the shell's
 // slices, the encoded scalar where the sample lies in the tet and 0 elsewhere, into TARGETS
 // colour targets blended with MAX. The generated prelude defines TARGETS, SliceOut and
@@ -25,8 +26,6 @@ fn varyings(position: vec4<f32>, rec: TetRecord) -> Varyings {
     return Varyings(position, rec.grad_x, rec.grad_y, rec.grad_z, rec.lambda_eye, rec.scalar);
 }
 
-// Local vertices of face f (opposite vertex f), outward for a positive tet: mesh::topology::FACES.
-const FACE_VERTICES = array<u32, 12>(1u, 2u, 3u, 0u, 3u, 2u, 0u, 1u, 3u, 0u, 2u, 1u);
 // The tet's six edges, as pairs of local vertices.
 const EDGE_A = array<u32, 6>(0u, 0u, 0u, 1u, 1u, 2u);
 const EDGE_B = array<u32, 6>(1u, 2u, 3u, 2u, 3u, 3u);
@@ -37,10 +36,11 @@ const QUAD_CORNERS = array<u32, 6>(0u, 1u, 2u, 2u, 1u, 3u);
 const NOWHERE = vec4<f32>(0.0, 0.0, 0.0, 1.0);
 
 @vertex
-fn vs_faces(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance: u32) -> Varyings {
-    let rec = records[active_tets[instance]];
-    var faces = FACE_VERTICES;
-    let p = rec.pos[faces[vertex]];
+fn vs_faces(@builtin(vertex_index) index: u32) -> Varyings {
+    // Vertex index 4 k + i is corner i of the shell's k-th tet; the index buffer draws its
+    // faces from these 4 vertices, so each corner is shaded once, not three times.
+    let rec = records[active_tets[index / 4u]];
+    let p = rec.pos[index % 4u];
     let position = select(
         vec4<f32>(p.x * frame.proj.x, p.y * frame.proj.y, 0.0, p.z),
         NOWHERE,
@@ -50,8 +50,9 @@ fn vs_faces(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instanc
 }
 
 @vertex
-fn vs_near(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance: u32) -> Varyings {
-    let rec = records[active_tets[instance]];
+fn vs_near(@builtin(vertex_index) index: u32) -> Varyings {
+    let rec = records[active_tets[index / 6u]];
+    let vertex = index % 6u;
     // Screen bounds of the tet clipped to z >= near_z: its vertices in front of the plane and
     // its edges' crossings of the plane. Every sample lies in front of the plane (near_z is
     // below the first slice's z on the widest ray), so the bounds hold every fragment needed.
@@ -127,5 +128,20 @@ fn fs_slices(in: Varyings) -> SliceOut {
         let inside = j >= vec4<f32>(span.x) & j <= vec4<f32>(span.y);
         v[i] = select(vec4<f32>(0.0), span.z + j * span.w, inside);
     }
+    return slice_out(v);
+}
+
+// Clearing the shell's slices within its scissor rectangle only (a full-screen triangle, cut
+// to the rectangle by the scissor), instead of clearing whole targets at the pass start.
+@vertex
+fn vs_clear(@builtin(vertex_index) vertex: u32) -> @builtin(position) vec4<f32> {
+    let x = f32((vertex << 1u) & 2u) * 2.0 - 1.0;
+    let y = f32(vertex & 2u) * 2.0 - 1.0;
+    return vec4<f32>(x, y, 0.0, 1.0);
+}
+
+@fragment
+fn fs_clear() -> SliceOut {
+    var v: array<vec4<f32>, TARGETS>;
     return slice_out(v);
 }

@@ -26,7 +26,10 @@ fn shells_stages_validate() {
     for targets in 1..=shaders::MAX_TARGETS {
         let src = shaders::shells_raster(targets);
         validate(&format!("shells_raster ({targets} targets)"), &src);
-        assert_eq!(entry_points(&src), ["vs_faces", "vs_near", "fs_slices"]);
+        assert_eq!(
+            entry_points(&src),
+            ["vs_faces", "vs_near", "fs_slices", "vs_clear", "fs_clear"]
+        );
     }
     for targets in 1..=shaders::MAX_TARGETS {
         for tf_points in [1, 2, 9, shaders::UNROLLED_TF_POINTS, 200] {

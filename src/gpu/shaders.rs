@@ -17,7 +17,8 @@ pub fn shells_assemble() -> String {
 }
 
 /// The shells raster stage writing `targets` (1..=[`MAX_TARGETS`]) vec4 colour targets, i.e.
-/// `4 * targets` slices (entry points `vs_faces`, `vs_near`, `fs_slices`).
+/// `4 * targets` slices (entry points `vs_faces`, `vs_near`, `fs_slices`, and `vs_clear`,
+/// `fs_clear`, which zero the slices within the shell's scissor rectangle).
 pub fn shells_raster(targets: u32) -> String {
     let targets = targets.clamp(1, MAX_TARGETS);
     let fields: String = (0..targets)

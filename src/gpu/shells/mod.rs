@@ -35,6 +35,7 @@ use crate::gpu::gpu_data::{
     FrameUniforms, MAX_TF_POINTS, ShellUniforms, TetRecord, TfPoint, TfPoints,
 };
 use crate::gpu::{GpuContext, GpuError, shaders};
+use crate::mesh::topology::FACES;
 use crate::mesh::{MeshError, TetMesh};
 use crate::render::{Frame, RenderError, Renderer, Timings};
 use crate::tf::TransferFunction;
@@ -116,6 +117,8 @@ pub struct ShellsRenderer {
     gpu: MeshBuffers,
     frame_buf: wgpu::Buffer,
     active_buf: wgpu::Buffer,
+    /// Face corners of consecutive tets, 12 indices per tet: `4 k + FACES[f][c]`.
+    face_indices: wgpu::Buffer,
     shell_buf: wgpu::Buffer,
     tf_buf: wgpu::Buffer,
     targets: Option<Targets>,
@@ -150,6 +153,8 @@ struct Pipelines {
     raster_layout: wgpu::BindGroupLayout,
     faces: wgpu::RenderPipeline,
     near: wgpu::RenderPipeline,
+    /// Zeroes the slice targets within the shell's scissor rectangle.
+    clear: wgpu::RenderPipeline,
     composite_layout: wgpu::BindGroupLayout,
     composite_pipeline_layout: wgpu::PipelineLayout,
     /// Composite variants by TF point count (0: the looping variant for large TFs).
@@ -312,6 +317,12 @@ impl ShellsRenderer {
         let shell_stride = (size_of::<ShellUniforms>() as u64)
             .next_multiple_of(limits.min_uniform_buffer_offset_alignment as u64);
         let active_buf = storage("shells active tets", 16, none);
+        let face_indices = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("shells face indices"),
+            size: 0,
+            usage: wgpu::BufferUsages::INDEX | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
         let shell_buf = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("shells shell uniforms"),
             size: shell_stride,
@@ -339,6 +350,7 @@ impl ShellsRenderer {
             gpu,
             frame_buf,
             active_buf,
+            face_indices,
             shell_buf,
             tf_buf,
             targets: None,
@@ -609,37 +621,60 @@ impl Pipelines {
             })
             .collect();
         let raster_pipeline_layout = pipeline_layout(&raster_layout);
-        let raster = |label, entry, cull_mode| {
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some(label),
-                layout: Some(&raster_pipeline_layout),
-                vertex: wgpu::VertexState {
-                    module: &raster_module,
-                    entry_point: Some(entry),
-                    compilation_options: Default::default(),
-                    buffers: &[],
-                },
-                primitive: wgpu::PrimitiveState {
-                    topology: wgpu::PrimitiveTopology::TriangleList,
-                    // Outward faces are counter-clockwise seen from outside; NDC has y up.
-                    front_face: wgpu::FrontFace::Ccw,
-                    cull_mode,
-                    ..Default::default()
-                },
-                depth_stencil: None,
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &raster_module,
-                    entry_point: Some("fs_slices"),
-                    compilation_options: Default::default(),
-                    targets: &slice_targets,
-                }),
-                multiview_mask: None,
-                cache: None,
+        let clear_targets: Vec<Option<wgpu::ColorTargetState>> = (0..targets)
+            .map(|_| {
+                Some(wgpu::ColorTargetState {
+                    format,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })
             })
-        };
-        let faces = raster("shells faces", "vs_faces", Some(wgpu::Face::Back));
-        let near = raster("shells near quads", "vs_near", None);
+            .collect();
+        let raster =
+            |label, entry, fs_entry, cull_mode, targets: &[Option<wgpu::ColorTargetState>]| {
+                device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                    label: Some(label),
+                    layout: Some(&raster_pipeline_layout),
+                    vertex: wgpu::VertexState {
+                        module: &raster_module,
+                        entry_point: Some(entry),
+                        compilation_options: Default::default(),
+                        buffers: &[],
+                    },
+                    primitive: wgpu::PrimitiveState {
+                        topology: wgpu::PrimitiveTopology::TriangleList,
+                        // Outward faces are counter-clockwise seen from outside; NDC has y up.
+                        front_face: wgpu::FrontFace::Ccw,
+                        cull_mode,
+                        ..Default::default()
+                    },
+                    depth_stencil: None,
+                    multisample: Default::default(),
+                    fragment: Some(wgpu::FragmentState {
+                        module: &raster_module,
+                        entry_point: Some(fs_entry),
+                        compilation_options: Default::default(),
+                        targets,
+                    }),
+                    multiview_mask: None,
+                    cache: None,
+                })
+            };
+        let faces = raster(
+            "shells faces",
+            "vs_faces",
+            "fs_slices",
+            Some(wgpu::Face::Back),
+            &slice_targets,
+        );
+        let near = raster(
+            "shells near quads",
+            "vs_near",
+            "fs_slices",
+            None,
+            &slice_targets,
+        );
+        let clear = raster("shells clear", "vs_clear", "fs_clear", None, &clear_targets);
 
         let composite_layout = layout(
             "shells composite",
@@ -665,6 +700,7 @@ impl Pipelines {
             raster_layout,
             faces,
             near,
+            clear,
             composite_layout,
             composite_pipeline_layout,
             composite: HashMap::new(),
@@ -990,12 +1026,31 @@ impl Renderer for ShellsRenderer {
         }
         let uniform = wgpu::BufferUsages::UNIFORM;
         write_grown(device, queue, &mut self.shell_buf, &shell_data, uniform);
-        if bin.indices.len() as u64 * 4 > self.limits.max_storage_buffer_binding_size {
+        // Each tet-shell instance is 12 indices of one draw (u32), in an index buffer grown to a
+        // power of two of instances.
+        let tets = bin.indices.len().next_power_of_two();
+        if bin.indices.len() as u64 * 4 > self.limits.max_storage_buffer_binding_size
+            || tets as u64 * 12 > u32::MAX as u64
+            || tets as u64 * 48 > self.limits.max_buffer_size
+        {
             return Err(settings_error(format!(
                 "this view draws {} tet-shell instances, more than one storage binding holds on \
                  this adapter; use more slices per shell or a larger dz",
                 bin.indices.len()
             )));
+        }
+        if self.face_indices.size() < 48 * tets as u64 {
+            let pattern: Vec<u32> = (0..tets as u32)
+                .flat_map(|k| FACES.iter().flatten().map(move |&c| 4 * k + c as u32))
+                .collect();
+            let index = wgpu::BufferUsages::INDEX;
+            write_grown(
+                device,
+                queue,
+                &mut self.face_indices,
+                bytemuck::cast_slice(&pattern),
+                index,
+            );
         }
         let active = bytemuck::cast_slice(&bin.indices);
         write_grown(device, queue, &mut self.active_buf, active, storage);
@@ -1119,7 +1174,10 @@ impl Renderer for ShellsRenderer {
                         view,
                         depth_slice: None,
                         resolve_target: None,
-                        ops: clear,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Load,
+                            store: wgpu::StoreOp::Store,
+                        },
                     })
                 })
                 .collect();
@@ -1138,19 +1196,25 @@ impl Renderer for ShellsRenderer {
                     occlusion_query_set: occlusion.as_ref(),
                     ..Default::default()
                 });
-                if occlusion.is_some() {
-                    pass.begin_occlusion_query(i as u32);
-                }
                 pass.set_scissor_rect(sx, sy, sw, sh);
                 let offset = (i as u64 * self.shell_stride) as u32;
                 pass.set_bind_group(0, &raster_group, &[offset]);
+                // Zero the slices within the scissor only (the composite reads nothing else): a
+                // clear load op zeroes whole targets for every shell (A/B on bluntfin 512x512,
+                // lavapipe: median frame ~6% faster).
+                pass.set_pipeline(&self.pipelines.clear);
+                pass.draw(0..3, 0..1);
+                if occlusion.is_some() {
+                    pass.begin_occlusion_query(i as u32);
+                }
                 if !range.faces.is_empty() {
                     pass.set_pipeline(&self.pipelines.faces);
-                    pass.draw(0..12, range.faces.clone());
+                    pass.set_index_buffer(self.face_indices.slice(..), wgpu::IndexFormat::Uint32);
+                    pass.draw_indexed(12 * range.faces.start..12 * range.faces.end, 0, 0..1);
                 }
                 if !range.near.is_empty() {
                     pass.set_pipeline(&self.pipelines.near);
-                    pass.draw(0..6, range.near.clone());
+                    pass.draw(6 * range.near.start..6 * range.near.end, 0..1);
                 }
                 if occlusion.is_some() {
                     pass.end_occlusion_query();
