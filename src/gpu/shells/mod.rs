@@ -34,6 +34,7 @@ use crate::camera::Camera;
 use crate::gpu::gpu_data::{
     FrameUniforms, MAX_TF_POINTS, ShellUniforms, TetRecord, TfPoint, TfPoints,
 };
+use crate::gpu::util::{entry, map_read, ms_since, settings_error};
 use crate::gpu::{GpuContext, GpuError, shaders};
 use crate::mesh::topology::FACES;
 use crate::mesh::{MeshError, TetMesh};
@@ -173,21 +174,6 @@ struct Targets {
     accum_view: wgpu::TextureView,
     readback: wgpu::Buffer,
     padded_row: u32,
-}
-
-fn ms_since(t: Instant) -> f64 {
-    t.elapsed().as_secs_f64() * 1e3
-}
-
-fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
-    wgpu::BindGroupEntry {
-        binding,
-        resource: buffer.as_entire_binding(),
-    }
-}
-
-fn settings_error(msg: impl Into<String>) -> RenderError {
-    RenderError::Settings(msg.into())
 }
 
 impl ShellsRenderer {
@@ -893,20 +879,6 @@ fn write_grown(
     }
     if !data.is_empty() {
         queue.write_buffer(buf, 0, data);
-    }
-}
-
-/// Maps `buf` for reading and waits for it.
-fn map_read(device: &wgpu::Device, buf: &wgpu::Buffer) -> Result<(), GpuError> {
-    let (tx, rx) = std::sync::mpsc::channel();
-    buf.slice(..).map_async(wgpu::MapMode::Read, move |r| {
-        // The receiver outlives the wait below; a send can only fail after it returned.
-        let _ = tx.send(r);
-    });
-    device.poll(wgpu::PollType::wait_indefinitely())?;
-    match rx.recv() {
-        Ok(r) => r.map_err(GpuError::from),
-        Err(_) => Err(GpuError::Map(wgpu::BufferAsyncError)),
     }
 }
 
