@@ -1039,10 +1039,7 @@ impl Renderer for ShellsRenderer {
             label: Some("shells raster"),
             layout: &self.pipelines.raster_layout,
             entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: self.frame_buf.as_entire_binding(),
-                },
+                entry(0, &self.frame_buf),
                 wgpu::BindGroupEntry {
                     binding: 1,
                     resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
@@ -1051,24 +1048,15 @@ impl Renderer for ShellsRenderer {
                         size: wgpu::BufferSize::new(size_of::<ShellUniforms>() as u64),
                     }),
                 },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: self.gpu.records.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: self.active_buf.as_entire_binding(),
-                },
+                entry(2, &self.gpu.records),
+                entry(3, &self.active_buf),
             ],
         });
         let composite_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("shells composite"),
             layout: &self.pipelines.composite_layout,
             entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: self.frame_buf.as_entire_binding(),
-                },
+                entry(0, &self.frame_buf),
                 wgpu::BindGroupEntry {
                     binding: 1,
                     resource: wgpu::BindingResource::TextureView(&targets.slices_view),
