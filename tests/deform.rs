@@ -68,3 +68,55 @@ fn shells_and_reference_after_updates_match_the_deformed_mesh() {
     // the bound.
     assert!(before.compare(&after).unwrap().rmse > 10.0 * LOX_BOUNDS.max_rmse);
 }
+
+/// Resident memory of this process in bytes (Linux: /proc/self/statm; software adapters keep
+/// their "GPU" buffers in host memory, so it counts those too).
+#[cfg(target_os = "linux")]
+fn resident_bytes() -> u64 {
+    let statm = std::fs::read_to_string("/proc/self/statm").expect("/proc/self/statm");
+    let pages: u64 = statm
+        .split_whitespace()
+        .nth(1)
+        .and_then(|p| p.parse().ok())
+        .expect("resident pages");
+    pages * 4096
+}
+
+#[cfg(target_os = "linux")]
+#[test]
+fn a_hundred_position_updates_do_not_grow_memory() {
+    let mesh = tetvr::io::load(&common::shared_data("bluntfin_tet.vtk"))
+        .expect("bluntfin loads")
+        .mesh;
+    let (lo, hi) = mesh.bounds();
+    let (s_lo, s_hi) = mesh
+        .active_array()
+        .and_then(|a| a.range())
+        .expect("scalars");
+    let tf = TransferFunction::default_for_range(s_lo, s_hi, mesh.diagonal() / 100.0).unwrap();
+    let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 64, 64);
+    let ctx =
+        GpuContext::new(AdapterChoice::Auto).expect("a GPU adapter (Mesa's lavapipe will do)");
+    let mut shells = ShellsRenderer::new(&ctx, &mesh, ShellSettings::default()).unwrap();
+    let rest = mesh.positions().to_vec();
+    let mut step = |i: u32| {
+        let moved = Deformation::Wave.apply(&rest, lo, hi, 0.3, i as f64 / 100.0);
+        shells.update_positions(&moved).unwrap();
+        if i % 10 == 0 {
+            shells.render(&camera, &tf).unwrap();
+        }
+    };
+    // Warm up: first frames allocate targets, pipelines' caches, staging belts.
+    (0..20).for_each(&mut step);
+    let before = resident_bytes();
+    (20..120).for_each(&mut step);
+    let grown = resident_bytes().saturating_sub(before);
+    // One position upload is 40,960 x 16 bytes = 655 KB, so keeping every upload would grow by
+    // 65 MB; 16 MB leaves room for allocator noise and still catches any per-update leak (and a
+    // per-frame leak of more than 1.6 MB).
+    eprintln!(
+        "resident memory grew by {} KB over 100 updates and 10 frames",
+        grown / 1024
+    );
+    assert!(grown < 16 << 20, "grew by {grown} bytes");
+}
