@@ -1,9 +1,12 @@
 // Isosurface raster (`--mode iso`, Georgii & Westermann 2006, section 4): the front faces of
 // every selected tet (those whose scalar range holds an isovalue) are drawn in one instanced
-// pass by vertex pulling from the shells assembly's records. Each fragment takes the exact
-// pixel-centre ray into the tet's barycentric space, where the scalar is linear along the ray,
-// solves for the nearest isovalue crossing inside the tet, writes its distance as the depth
-// (the depth test keeps the nearest surface over all tets) and shades it with a headlight.
+// pass by vertex pulling from the shells assembly's records; a selected tet with a corner at
+// eye-space z <= frame.near_z (holding the eye, or crossing or behind its plane) draws instead
+// a screen-space quad over its part in front of that plane, as the shells mode's vs_near.
+// Each fragment takes the exact pixel-centre ray into the tet's barycentric space, where the
+// scalar is linear along the ray, solves for the nearest isovalue crossing inside the tet
+// (t > 0), writes its distance as the depth (the depth test keeps the nearest surface over all
+// tets) and shades it with a headlight.
 // Appended to shared.wgsl. The CPU ground truth is reference::iso.
 
 // Per-frame isosurface constants; see gpu::iso::IsoUniforms.
@@ -68,17 +71,71 @@ fn to_world_vector(g: vec3<f32>) -> vec3<f32> {
     return frame.right * g.x + frame.up * g.y + frame.forward * g.z;
 }
 
+// The tet's six edges, as pairs of local vertices.
+const EDGE_A = array<u32, 6>(0u, 0u, 0u, 1u, 1u, 2u);
+const EDGE_B = array<u32, 6>(1u, 2u, 3u, 2u, 3u, 3u);
+// Quad corners (bit 0: x high, bit 1: y high) of two counter-clockwise triangles.
+const QUAD_CORNERS = array<u32, 6>(0u, 1u, 2u, 2u, 1u, 3u);
+
+// Corner `vertex` (0..6) of the screen-space quad of a near-plane tet: the screen bounds of the
+// tet clipped to z >= near_z (its corners in front of the plane and its edges' crossings of
+// it), grown by two pixels against rounding and clamped to the screen; NOWHERE when empty.
+// The same bounds as shells_raster.wgsl's vs_near.
+fn near_quad(rec: TetRecord, vertex: u32) -> vec4<f32> {
+    let zc = frame.near_z;
+    var lo = vec2<f32>(1e30);
+    var hi = vec2<f32>(-1e30);
+    for (var i = 0u; i < 4u; i++) {
+        let p = rec.pos[i].xyz;
+        if p.z >= zc {
+            lo = min(lo, p.xy / p.z);
+            hi = max(hi, p.xy / p.z);
+        }
+    }
+    var ea = EDGE_A;
+    var eb = EDGE_B;
+    for (var e = 0u; e < 6u; e++) {
+        let a = rec.pos[ea[e]].xyz;
+        let b = rec.pos[eb[e]].xyz;
+        if (a.z - zc) * (b.z - zc) < 0.0 {
+            let q = mix(a.xy, b.xy, (zc - a.z) / (b.z - a.z)) / zc;
+            lo = min(lo, q);
+            hi = max(hi, q);
+        }
+    }
+    let pad = 4.0 / frame.size;
+    let lo_ndc = max(lo * frame.proj - pad, vec2<f32>(-1.0));
+    let hi_ndc = min(hi * frame.proj + pad, vec2<f32>(1.0));
+    var corners = QUAD_CORNERS;
+    let c = corners[min(vertex, 5u)];
+    let xy = vec2<f32>(
+        select(lo_ndc.x, hi_ndc.x, (c & 1u) != 0u),
+        select(lo_ndc.y, hi_ndc.y, (c & 2u) != 0u),
+    );
+    let empty = vertex >= 6u || !all(lo_ndc < hi_ndc);
+    return select(vec4<f32>(xy, 0.0, 1.0), NOWHERE, empty);
+}
+
+// Instance k draws selected tet k with 12 vertices: its four faces (3 each) or, for a
+// near-plane tet (a corner at z <= near_z, so its faces may be clipped away or all face
+// away from an eye inside it), its quad (6) and 6 NOWHERE vertices. The classification is
+// per frame, from the tet's eye-space corners.
 @vertex
 fn vs_faces(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance: u32) -> Varyings {
     let rec = records[instance];
     let idx = tets[instance];
     var faces = FACE_VERTICES;
     let p = rec.pos[faces[vertex]];
-    let position = select(
+    let zs = vec4<f32>(rec.pos[0].z, rec.pos[1].z, rec.pos[2].z, rec.pos[3].z);
+    let near = any(zs <= vec4<f32>(frame.near_z));
+    var position = select(
         vec4<f32>(p.x * frame.proj.x, p.y * frame.proj.y, 0.0, p.z),
         NOWHERE,
         p.w == 0.0,
     );
+    if near {
+        position = select(near_quad(rec, vertex), NOWHERE, rec.pos[0].w == 0.0);
+    }
     let values = vec4<f32>(scalars[idx.x], scalars[idx.y], scalars[idx.z], scalars[idx.w]);
     let g0 = to_eye_vector(vertex_gradients[idx.x].xyz);
     let g1 = to_eye_vector(vertex_gradients[idx.y].xyz);
@@ -129,7 +186,8 @@ fn fs_iso(in: Varyings) -> IsoOut {
         let t = -dot(in.lambda_eye, f) / rate;
         let l = in.lambda_eye + t * gd;
         let inside = min(min(l.x, l.y), min(l.z, l.w)) >= -frame.epsilon;
-        if inside && t >= 0.0 && t < best_t {
+        // Hits at or behind the eye (t <= 0) belong to no pixel; depth is t / far.
+        if inside && t > 0.0 && t < best_t {
             best_t = t;
             best_k = k;
         }

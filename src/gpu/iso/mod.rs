@@ -11,7 +11,10 @@
 //! 3. assembly: the shells assembly stage (`shaders/shells_assemble.wgsl`) over the selected
 //!    tets only, building each one's eye-to-barycentric record;
 //! 4. raster: one instanced pass over the selected tets' front faces with a depth buffer
-//!    (`shaders/iso_raster.wgsl`); each fragment solves the ray/isoplane intersection in the
+//!    (`shaders/iso_raster.wgsl`); a tet with a corner at eye-space z <= `near_z` (the
+//!    tet holding the eye, any tet crossing or behind the eye's plane) draws instead a
+//!    screen-space quad over its screen bounds clipped to that plane, as the shells mode's
+//!    near-plane tets, so the eye may be inside the mesh; each fragment solves the ray/isoplane intersection in the
 //!    tet's barycentric space, keeps it only inside the tet (smallest barycentric >=
 //!    `-epsilon`, so neighbours overlap rather than leave cracks), writes the hit distance as
 //!    its depth and shades it (headlight Blinn-Phong, [`crate::reference::iso::shade`]);
@@ -20,8 +23,8 @@
 //! The transfer function passed to [`Renderer::render`] is ignored: the surfaces take the
 //! colours given with their isovalues in [`IsoSettings`].
 //!
-//! Limitation: tets behind or crossing the eye's plane are drawn through their front faces
-//! only, so with the eye inside the mesh the surface inside the tet holding the eye is lost.
+//! Limitation: in a near-plane tet, surface points with eye-space z in `(0, near_z)` project
+//! outside its clipped bounds and may be lost; `near_z` is 1e-5 of the mesh's bounding radius.
 
 use std::time::Instant;
 
@@ -89,6 +92,13 @@ impl Default for IsoSettings {
             epsilon: 1e-4,
         }
     }
+}
+
+/// The eye-space z at or below which a corner makes its tet a near-plane tet: 1e-5 of the
+/// mesh's bounding radius, above the f32 rounding of eye-space coordinates (~1e-7 of the eye's
+/// distance plus the radius) and below any surface detail a pixel resolves.
+fn near_z(radius: f64) -> f32 {
+    (1e-5 * radius) as f32
 }
 
 /// Default surface colour.
@@ -422,7 +432,7 @@ impl IsoRenderer {
             right: f32x3(right),
             epsilon: self.settings.epsilon,
             up: f32x3(up),
-            near_z: 0.0,
+            near_z: near_z(self.radius),
             forward: f32x3(forward),
             t_first: 0.0,
             eye: f32x3(camera.eye - o),
