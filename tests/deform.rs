@@ -102,7 +102,7 @@ fn a_hundred_position_updates_do_not_grow_memory() {
     let mut step = |i: u32| {
         let moved = Deformation::Wave.apply(&rest, lo, hi, 0.3, i as f64 / 100.0);
         shells.update_positions(&moved).unwrap();
-        if i % 10 == 0 {
+        if i.is_multiple_of(10) {
             shells.render(&camera, &tf).unwrap();
         }
     };

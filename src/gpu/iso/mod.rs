@@ -35,7 +35,10 @@ use rayon::prelude::*;
 use crate::camera::Camera;
 use crate::gpu::gpu_data::{FrameUniforms, TetRecord};
 use crate::gpu::shells::DEGENERATE_TOL;
-use crate::gpu::util::{entry, map_read, ms_since, settings_error};
+use crate::gpu::util::{
+    bind_group_layout, buffer_entry, entry, map_read, ms_since, pipeline_layout_for,
+    settings_error, wgsl_module,
+};
 use crate::gpu::{GpuContext, GpuError, shaders};
 use crate::image::Image;
 use crate::mesh::{MeshError, TetMesh};
@@ -726,38 +729,15 @@ impl IsoRenderer {
 impl Pipelines {
     fn new(device: &wgpu::Device) -> Self {
         use wgpu::ShaderStages as S;
-        let buffer = |binding, visibility, ty| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility,
-            ty: wgpu::BindingType::Buffer {
-                ty,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
+        let buffer = buffer_entry;
         let uniform = wgpu::BufferBindingType::Uniform;
         let ro = wgpu::BufferBindingType::Storage { read_only: true };
         let rw = wgpu::BufferBindingType::Storage { read_only: false };
         let layout = |label, entries: &[wgpu::BindGroupLayoutEntry]| {
-            device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some(label),
-                entries,
-            })
+            bind_group_layout(device, label, entries)
         };
-        let pipeline_layout = |bgl: &wgpu::BindGroupLayout| {
-            device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: None,
-                bind_group_layouts: &[Some(bgl)],
-                immediate_size: 0,
-            })
-        };
-        let module = |label, src: String| {
-            device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some(label),
-                source: wgpu::ShaderSource::Wgsl(src.into()),
-            })
-        };
+        let pipeline_layout = |bgl: &wgpu::BindGroupLayout| pipeline_layout_for(device, bgl);
+        let module = |label, src| wgsl_module(device, label, src);
         let assemble_layout = layout(
             "iso assemble",
             &[
