@@ -58,9 +58,6 @@ struct IsoOut {
 
 // Local vertices of face f (opposite vertex f), outward for a positive tet: mesh::topology::FACES.
 const FACE_VERTICES = array<u32, 12>(1u, 2u, 3u, 0u, 3u, 2u, 0u, 1u, 3u, 0u, 2u, 1u);
-// A vertex that makes its triangle empty (all three corners the same).
-const NOWHERE = vec4<f32>(0.0, 0.0, 0.0, 1.0);
-
 // A world-space vector's components along the eye axes.
 fn to_eye_vector(g: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(dot(frame.right, g), dot(frame.up, g), dot(frame.forward, g));
@@ -71,50 +68,6 @@ fn to_world_vector(g: vec3<f32>) -> vec3<f32> {
     return frame.right * g.x + frame.up * g.y + frame.forward * g.z;
 }
 
-// The tet's six edges, as pairs of local vertices.
-const EDGE_A = array<u32, 6>(0u, 0u, 0u, 1u, 1u, 2u);
-const EDGE_B = array<u32, 6>(1u, 2u, 3u, 2u, 3u, 3u);
-// Quad corners (bit 0: x high, bit 1: y high) of two counter-clockwise triangles.
-const QUAD_CORNERS = array<u32, 6>(0u, 1u, 2u, 2u, 1u, 3u);
-
-// Corner `vertex` (0..6) of the screen-space quad of a near-plane tet: the screen bounds of the
-// tet clipped to z >= near_z (its corners in front of the plane and its edges' crossings of
-// it), grown by two pixels against rounding and clamped to the screen; NOWHERE when empty.
-// The same bounds as shells_raster.wgsl's vs_near.
-fn near_quad(rec: TetRecord, vertex: u32) -> vec4<f32> {
-    let zc = frame.near_z;
-    var lo = vec2<f32>(1e30);
-    var hi = vec2<f32>(-1e30);
-    for (var i = 0u; i < 4u; i++) {
-        let p = rec.pos[i].xyz;
-        if p.z >= zc {
-            lo = min(lo, p.xy / p.z);
-            hi = max(hi, p.xy / p.z);
-        }
-    }
-    var ea = EDGE_A;
-    var eb = EDGE_B;
-    for (var e = 0u; e < 6u; e++) {
-        let a = rec.pos[ea[e]].xyz;
-        let b = rec.pos[eb[e]].xyz;
-        if (a.z - zc) * (b.z - zc) < 0.0 {
-            let q = mix(a.xy, b.xy, (zc - a.z) / (b.z - a.z)) / zc;
-            lo = min(lo, q);
-            hi = max(hi, q);
-        }
-    }
-    let pad = 4.0 / frame.size;
-    let lo_ndc = max(lo * frame.proj - pad, vec2<f32>(-1.0));
-    let hi_ndc = min(hi * frame.proj + pad, vec2<f32>(1.0));
-    var corners = QUAD_CORNERS;
-    let c = corners[min(vertex, 5u)];
-    let xy = vec2<f32>(
-        select(lo_ndc.x, hi_ndc.x, (c & 1u) != 0u),
-        select(lo_ndc.y, hi_ndc.y, (c & 2u) != 0u),
-    );
-    let empty = vertex >= 6u || !all(lo_ndc < hi_ndc);
-    return select(vec4<f32>(xy, 0.0, 1.0), NOWHERE, empty);
-}
 
 // Instance k draws selected tet k with 12 vertices: its four faces (3 each) or, for a
 // near-plane tet (a corner at z <= near_z, so its faces may be clipped away or all face
@@ -134,7 +87,7 @@ fn vs_faces(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instanc
         p.w == 0.0,
     );
     if near {
-        position = select(near_quad(rec, vertex), NOWHERE, rec.pos[0].w == 0.0);
+        position = near_quad(rec, vertex);
     }
     let values = vec4<f32>(scalars[idx.x], scalars[idx.y], scalars[idx.z], scalars[idx.w]);
     let g0 = to_eye_vector(vertex_gradients[idx.x].xyz);

@@ -65,3 +65,53 @@ fn pixel_ray(xy: vec2<f32>) -> vec3<f32> {
     let v = (1.0 - 2.0 * xy.y / frame.size.y) * frame.half_extent.y;
     return normalize(vec3<f32>(u, v, 1.0));
 }
+
+// A vertex that makes its triangle empty (all three corners the same).
+const NOWHERE = vec4<f32>(0.0, 0.0, 0.0, 1.0);
+
+// The tet's six edges, as pairs of local vertices.
+const EDGE_A = array<u32, 6>(0u, 0u, 0u, 1u, 1u, 2u);
+const EDGE_B = array<u32, 6>(1u, 2u, 3u, 2u, 3u, 3u);
+// Quad corners (bit 0: x high, bit 1: y high) of two counter-clockwise triangles.
+const QUAD_CORNERS = array<u32, 6>(0u, 1u, 2u, 2u, 1u, 3u);
+
+// Corner `vertex` (0..6) of the screen-space quad of a near-plane tet: the screen bounds of the
+// tet clipped to z >= near_z (its corners in front of the plane and its edges' crossings of
+// it), grown by two pixels against rounding and clamped to the screen; NOWHERE when empty.
+// Every sample lies in front of the plane (shells: near_z is below the first slice's z on the
+// widest ray; iso: hits need t > 0 well past it), so the bounds hold every fragment needed.
+// Degenerate (zeroed) records and vertices past the quad's 6 give NOWHERE too.
+fn near_quad(rec: TetRecord, vertex: u32) -> vec4<f32> {
+    let zc = frame.near_z;
+    var lo = vec2<f32>(1e30);
+    var hi = vec2<f32>(-1e30);
+    for (var i = 0u; i < 4u; i++) {
+        let p = rec.pos[i].xyz;
+        if p.z >= zc {
+            lo = min(lo, p.xy / p.z);
+            hi = max(hi, p.xy / p.z);
+        }
+    }
+    var ea = EDGE_A;
+    var eb = EDGE_B;
+    for (var e = 0u; e < 6u; e++) {
+        let a = rec.pos[ea[e]].xyz;
+        let b = rec.pos[eb[e]].xyz;
+        if (a.z - zc) * (b.z - zc) < 0.0 {
+            let q = mix(a.xy, b.xy, (zc - a.z) / (b.z - a.z)) / zc;
+            lo = min(lo, q);
+            hi = max(hi, q);
+        }
+    }
+    let pad = 4.0 / frame.size;
+    let lo_ndc = max(lo * frame.proj - pad, vec2<f32>(-1.0));
+    let hi_ndc = min(hi * frame.proj + pad, vec2<f32>(1.0));
+    var corners = QUAD_CORNERS;
+    let c = corners[min(vertex, 5u)];
+    let xy = vec2<f32>(
+        select(lo_ndc.x, hi_ndc.x, (c & 1u) != 0u),
+        select(lo_ndc.y, hi_ndc.y, (c & 2u) != 0u),
+    );
+    let empty = vertex >= 6u || rec.pos[0].w == 0.0 || !all(lo_ndc < hi_ndc);
+    return select(vec4<f32>(xy, 0.0, 1.0), NOWHERE, empty);
+}

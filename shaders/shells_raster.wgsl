@@ -26,15 +26,6 @@ fn varyings(position: vec4<f32>, rec: TetRecord) -> Varyings {
     return Varyings(position, rec.grad_x, rec.grad_y, rec.grad_z, rec.lambda_eye, rec.scalar);
 }
 
-// The tet's six edges, as pairs of local vertices.
-const EDGE_A = array<u32, 6>(0u, 0u, 0u, 1u, 1u, 2u);
-const EDGE_B = array<u32, 6>(1u, 2u, 3u, 2u, 3u, 3u);
-// Quad corners (bit 0: x high, bit 1: y high) of two triangles.
-const QUAD_CORNERS = array<u32, 6>(0u, 1u, 2u, 2u, 1u, 3u);
-
-// A vertex that makes its triangle empty (all three corners the same).
-const NOWHERE = vec4<f32>(0.0, 0.0, 0.0, 1.0);
-
 @vertex
 fn vs_faces(@builtin(vertex_index) index: u32) -> Varyings {
     // Vertex index 4 k + i is corner i of the shell's k-th tet; the index buffer draws its
@@ -52,43 +43,7 @@ fn vs_faces(@builtin(vertex_index) index: u32) -> Varyings {
 @vertex
 fn vs_near(@builtin(vertex_index) index: u32) -> Varyings {
     let rec = records[active_tets[index / 6u]];
-    let vertex = index % 6u;
-    // Screen bounds of the tet clipped to z >= near_z: its vertices in front of the plane and
-    // its edges' crossings of the plane. Every sample lies in front of the plane (near_z is
-    // below the first slice's z on the widest ray), so the bounds hold every fragment needed.
-    let zc = frame.near_z;
-    var lo = vec2<f32>(1e30);
-    var hi = vec2<f32>(-1e30);
-    for (var i = 0u; i < 4u; i++) {
-        let p = rec.pos[i].xyz;
-        if p.z >= zc {
-            lo = min(lo, p.xy / p.z);
-            hi = max(hi, p.xy / p.z);
-        }
-    }
-    var ea = EDGE_A;
-    var eb = EDGE_B;
-    for (var e = 0u; e < 6u; e++) {
-        let a = rec.pos[ea[e]].xyz;
-        let b = rec.pos[eb[e]].xyz;
-        if (a.z - zc) * (b.z - zc) < 0.0 {
-            let q = mix(a.xy, b.xy, (zc - a.z) / (b.z - a.z)) / zc;
-            lo = min(lo, q);
-            hi = max(hi, q);
-        }
-    }
-    // To NDC, grown by two pixels against rounding, clamped to the screen.
-    let pad = 4.0 / frame.size;
-    let lo_ndc = max(lo * frame.proj - pad, vec2<f32>(-1.0));
-    let hi_ndc = min(hi * frame.proj + pad, vec2<f32>(1.0));
-    var corners = QUAD_CORNERS;
-    let c = corners[vertex];
-    let xy = vec2<f32>(
-        select(lo_ndc.x, hi_ndc.x, (c & 1u) != 0u),
-        select(lo_ndc.y, hi_ndc.y, (c & 2u) != 0u),
-    );
-    let empty = rec.pos[0].w == 0.0 || any(lo_ndc >= hi_ndc);
-    return varyings(select(vec4<f32>(xy, 0.0, 1.0), NOWHERE, empty), rec);
+    return varyings(near_quad(rec, index % 6u), rec);
 }
 
 // Along the fragment's ray, slice j of this shell (0 <= j < slices_per_shell) lies at
