@@ -6,7 +6,7 @@ mod common;
 use tetvr::deform::Deformation;
 use tetvr::gpu::{AdapterChoice, GpuContext, ShellSettings, ShellsRenderer};
 use tetvr::reference::ReferenceRenderer;
-use tetvr::{Camera, Renderer, TransferFunction, View};
+use tetvr::{Camera, Renderer, TetMesh, TransferFunction, View};
 
 use common::{Bounds, assert_images_close};
 
@@ -20,10 +20,10 @@ const LOX_BOUNDS: Bounds = Bounds {
     max_spill: 0,
 };
 
-#[test]
-fn shells_and_reference_after_updates_match_the_deformed_mesh() {
-    let mut mesh = tetvr::io::load(&common::shared_data("lox_post_subset_tet.vtk"))
-        .expect("lox loads")
+/// A shared data set, the default TF over its scalars, and the default view at `size` squared.
+fn scene(file: &str, size: u32) -> (TetMesh, TransferFunction, Camera) {
+    let mesh = tetvr::io::load(&common::shared_data(file))
+        .expect("the data set loads")
         .mesh;
     let (lo, hi) = mesh.bounds();
     let (s_lo, s_hi) = mesh
@@ -31,7 +31,14 @@ fn shells_and_reference_after_updates_match_the_deformed_mesh() {
         .and_then(|a| a.range())
         .expect("scalars");
     let tf = TransferFunction::default_for_range(s_lo, s_hi, mesh.diagonal() / 100.0).unwrap();
-    let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 128, 128);
+    let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, size, size);
+    (mesh, tf, camera)
+}
+
+#[test]
+fn shells_and_reference_after_updates_match_the_deformed_mesh() {
+    let (mut mesh, tf, camera) = scene("lox_post_subset_tet.vtk", 128);
+    let (lo, hi) = mesh.bounds();
     let ctx = GpuContext::new(AdapterChoice::Auto)
         .expect("the shells tests need a GPU adapter (Mesa's lavapipe will do)");
     let mut shells = ShellsRenderer::new(&ctx, &mesh, ShellSettings::default()).unwrap();
@@ -85,16 +92,8 @@ fn resident_bytes() -> u64 {
 #[cfg(target_os = "linux")]
 #[test]
 fn a_hundred_position_updates_do_not_grow_memory() {
-    let mesh = tetvr::io::load(&common::shared_data("bluntfin_tet.vtk"))
-        .expect("bluntfin loads")
-        .mesh;
+    let (mesh, tf, camera) = scene("bluntfin_tet.vtk", 64);
     let (lo, hi) = mesh.bounds();
-    let (s_lo, s_hi) = mesh
-        .active_array()
-        .and_then(|a| a.range())
-        .expect("scalars");
-    let tf = TransferFunction::default_for_range(s_lo, s_hi, mesh.diagonal() / 100.0).unwrap();
-    let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 64, 64);
     let ctx =
         GpuContext::new(AdapterChoice::Auto).expect("a GPU adapter (Mesa's lavapipe will do)");
     let mut shells = ShellsRenderer::new(&ctx, &mesh, ShellSettings::default()).unwrap();
