@@ -34,7 +34,7 @@ use rayon::prelude::*;
 
 use crate::camera::Camera;
 use crate::gpu::gpu_data::{FrameUniforms, TetRecord};
-use crate::gpu::shells::DEGENERATE_TOL;
+use crate::gpu::shells::{DEGENERATE_TOL, assembly_pipeline};
 use crate::gpu::util::{
     bind_group_layout, buffer_entry, entry, map_read, ms_since, pipeline_layout_for,
     settings_error, wgsl_module,
@@ -732,32 +732,12 @@ impl Pipelines {
         let buffer = buffer_entry;
         let uniform = wgpu::BufferBindingType::Uniform;
         let ro = wgpu::BufferBindingType::Storage { read_only: true };
-        let rw = wgpu::BufferBindingType::Storage { read_only: false };
         let layout = |label, entries: &[wgpu::BindGroupLayoutEntry]| {
             bind_group_layout(device, label, entries)
         };
         let pipeline_layout = |bgl: &wgpu::BindGroupLayout| pipeline_layout_for(device, bgl);
         let module = |label, src| wgsl_module(device, label, src);
-        let assemble_layout = layout(
-            "iso assemble",
-            &[
-                buffer(0, S::COMPUTE, uniform),
-                buffer(1, S::COMPUTE, ro),
-                buffer(2, S::COMPUTE, ro),
-                buffer(3, S::COMPUTE, ro),
-                buffer(4, S::COMPUTE, rw),
-                buffer(5, S::COMPUTE, rw),
-            ],
-        );
-        let assemble_module = module("iso assemble (shells_assemble)", shaders::shells_assemble());
-        let assemble = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("iso assemble"),
-            layout: Some(&pipeline_layout(&assemble_layout)),
-            module: &assemble_module,
-            entry_point: Some("main"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        let (assemble_layout, assemble) = assembly_pipeline(device);
         let raster_layout = layout(
             "iso raster",
             &[

@@ -516,6 +516,38 @@ impl MeshState {
     }
 }
 
+/// The assembly stage (`shaders/shells_assemble.wgsl`): its bind group layout and compute
+/// pipeline, shared by every mode that draws from the per-tet records (shells, iso).
+pub(crate) fn assembly_pipeline(
+    device: &wgpu::Device,
+) -> (wgpu::BindGroupLayout, wgpu::ComputePipeline) {
+    use wgpu::ShaderStages as S;
+    let ro = wgpu::BufferBindingType::Storage { read_only: true };
+    let rw = wgpu::BufferBindingType::Storage { read_only: false };
+    let layout = bind_group_layout(
+        device,
+        "assemble",
+        &[
+            buffer_entry(0, S::COMPUTE, wgpu::BufferBindingType::Uniform),
+            buffer_entry(1, S::COMPUTE, ro),
+            buffer_entry(2, S::COMPUTE, ro),
+            buffer_entry(3, S::COMPUTE, ro),
+            buffer_entry(4, S::COMPUTE, rw),
+            buffer_entry(5, S::COMPUTE, rw),
+        ],
+    );
+    let module = wgsl_module(device, "shells_assemble", shaders::shells_assemble());
+    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some("assemble"),
+        layout: Some(&pipeline_layout_for(device, &layout)),
+        module: &module,
+        entry_point: Some("main"),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    (layout, pipeline)
+}
+
 impl Pipelines {
     fn new(device: &wgpu::Device, format: wgpu::TextureFormat, targets: u32) -> Self {
         use wgpu::ShaderStages as S;
@@ -523,32 +555,12 @@ impl Pipelines {
         let buffer = buffer_entry;
         let uniform = wgpu::BufferBindingType::Uniform;
         let ro = wgpu::BufferBindingType::Storage { read_only: true };
-        let rw = wgpu::BufferBindingType::Storage { read_only: false };
         let layout = |label, entries: &[wgpu::BindGroupLayoutEntry]| {
             bind_group_layout(device, label, entries)
         };
         let pipeline_layout = |bgl: &wgpu::BindGroupLayout| pipeline_layout_for(device, bgl);
 
-        let assemble_layout = layout(
-            "shells assemble",
-            &[
-                buffer(0, S::COMPUTE, uniform),
-                buffer(1, S::COMPUTE, ro),
-                buffer(2, S::COMPUTE, ro),
-                buffer(3, S::COMPUTE, ro),
-                buffer(4, S::COMPUTE, rw),
-                buffer(5, S::COMPUTE, rw),
-            ],
-        );
-        let assemble_module = module("shells_assemble", shaders::shells_assemble());
-        let assemble = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("shells assemble"),
-            layout: Some(&pipeline_layout(&assemble_layout)),
-            module: &assemble_module,
-            entry_point: Some("main"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        let (assemble_layout, assemble) = assembly_pipeline(device);
 
         let raster_layout = layout(
             "shells raster",
