@@ -63,14 +63,6 @@ fn skipped(skip: Skip, on: &Timings, off: &Timings) -> String {
             counter(on, "shells skipped (finished)")
                 + counter(on, "shells skipped (frame stopped)")
         ),
-        Skip::AdaptiveSlices => format!(
-            "{:.1}% tet-shell instances",
-            100.0
-                * frac(
-                    counter(on, "tet-shell instances"),
-                    counter(off, "tet-shell instances")
-                )
-        ),
     }
 }
 
@@ -168,15 +160,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             scene("zoomed", cam(0.3), &default_tf),
             plain(),
         ),
-        (Skip::AdaptiveSlices, plain(), plain()),
     ];
 
     let ctx = GpuContext::new(AdapterChoice::from_env())?;
     eprintln!("adapter: {}", ctx.info.name);
-    println!(
-        "| skip | scene | slices/shell on/off | on ms | off ms | off/on | skipped | PSNR on | PSNR off |"
-    );
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("| skip | scene | on ms | off ms | off/on | skipped | PSNR on | PSNR off |");
+    println!("|---|---|---|---|---|---|---|---|");
     for (skip, matters, not) in cases {
         if !only.is_empty() && !only.contains(&skip) {
             continue;
@@ -204,10 +193,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 eprintln!("on:\n{}off:\n{}", fa.timings, fb.timings);
             }
             println!(
-                "| {skip} | {} ({label}) | {}/{} | {ta:.0} | {tb:.0} | {:.2} | {} | {:.1} | {:.1} |",
+                "| {skip} | {} ({label}) | {ta:.0} | {tb:.0} | {:.2} | {} | {:.1} | {:.1} |",
                 sc.name,
-                on.slices_per_shell(),
-                off.slices_per_shell(),
                 tb / ta,
                 skipped(skip, &fa.timings, &fb.timings),
                 fa.image.compare(&g)?.psnr,

@@ -18,8 +18,6 @@
 //! - **Frustum culling** ([`Skip::Frustum`]): tets entirely outside one plane of the view
 //!   frustum (or behind the eye) are dropped in binning, so shells holding only such tets are
 //!   empty and cost nothing. Off: every tet is binned and left to the rasterizer's clipping.
-//! - **Adaptive slices** ([`Skip::AdaptiveSlices`]): slices per shell follow the tets' depth
-//!   extents (see [`choose_slices_per_shell`]) unless `slices_per_shell` is set.
 
 use std::fmt;
 use std::str::FromStr;
@@ -30,17 +28,15 @@ pub enum Skip {
     TfCull,
     EmptySpace,
     EarlyTermination,
-    AdaptiveSlices,
     Frustum,
 }
 
 impl Skip {
     /// Every skip, in the order of the module docs.
-    pub const ALL: [Skip; 5] = [
+    pub const ALL: [Skip; 4] = [
         Skip::TfCull,
         Skip::EmptySpace,
         Skip::EarlyTermination,
-        Skip::AdaptiveSlices,
         Skip::Frustum,
     ];
 
@@ -50,7 +46,6 @@ impl Skip {
             Skip::TfCull => "tf-cull",
             Skip::EmptySpace => "empty-space",
             Skip::EarlyTermination => "early-termination",
-            Skip::AdaptiveSlices => "adaptive-slices",
             Skip::Frustum => "frustum",
         }
     }
@@ -64,9 +59,7 @@ impl fmt::Display for Skip {
 
 /// A name that is not a skip.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error(
-    "'{0}' is not a skip; the skips are tf-cull, empty-space, early-termination, adaptive-slices, frustum"
-)]
+#[error("'{0}' is not a skip; the skips are tf-cull, empty-space, early-termination, frustum")]
 pub struct UnknownSkip(pub String);
 
 impl FromStr for Skip {
@@ -95,7 +88,6 @@ pub struct Skips {
     pub early_termination: bool,
     /// Accumulated alpha at which a pixel is finished, in `(0, 1]`.
     pub ert_threshold: f32,
-    pub adaptive_slices: bool,
     pub frustum: bool,
 }
 
@@ -112,7 +104,6 @@ impl Skips {
         empty_space: true,
         early_termination: true,
         ert_threshold: DEFAULT_ERT_THRESHOLD,
-        adaptive_slices: true,
         frustum: true,
     };
 
@@ -122,7 +113,6 @@ impl Skips {
         empty_space: false,
         early_termination: false,
         ert_threshold: DEFAULT_ERT_THRESHOLD,
-        adaptive_slices: false,
         frustum: false,
     };
 
@@ -132,7 +122,6 @@ impl Skips {
             Skip::TfCull => self.tf_cull,
             Skip::EmptySpace => self.empty_space,
             Skip::EarlyTermination => self.early_termination,
-            Skip::AdaptiveSlices => self.adaptive_slices,
             Skip::Frustum => self.frustum,
         }
     }
@@ -143,7 +132,6 @@ impl Skips {
             Skip::TfCull => &mut self.tf_cull,
             Skip::EmptySpace => &mut self.empty_space,
             Skip::EarlyTermination => &mut self.early_termination,
-            Skip::AdaptiveSlices => &mut self.adaptive_slices,
             Skip::Frustum => &mut self.frustum,
         } = on;
     }
