@@ -7,7 +7,7 @@
 // defines TILE (gpu::shells::skips::TILE).
 
 // Accumulated alpha at which a pixel is finished (pipeline-overridable).
-override threshold: f32 = 0.998;
+override threshold: f32 = 0.99999;
 
 @group(0) @binding(0) var accum: texture_2d<f32>;
 @group(0) @binding(1) var<storage, read_write> unfinished: array<atomic<u32>>;

@@ -169,7 +169,7 @@ pub struct ShellArgs {
     #[arg(long, value_delimiter = ',')]
     pub no_skip: Vec<tetvr::gpu::Skip>,
     /// shells: accumulated opacity at which a pixel stops receiving work (early ray
-    /// termination; in (0, 1], default 0.998).
+    /// termination; in (0, 1], default 0.99999).
     #[arg(long)]
     pub ert_threshold: Option<f32>,
 }

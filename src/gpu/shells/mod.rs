@@ -177,14 +177,13 @@ struct Pipelines {
     assemble_layout: wgpu::BindGroupLayout,
     assemble: wgpu::ComputePipeline,
     raster_layout: wgpu::BindGroupLayout,
-    faces: wgpu::RenderPipeline,
-    near: wgpu::RenderPipeline,
-    /// Zeroes the slice targets within the shell's scissor rectangle.
-    clear: wgpu::RenderPipeline,
+    /// The raster pipelines without the early-termination depth test.
+    raster: RasterSet,
     composite_layout: wgpu::BindGroupLayout,
     composite_pipeline_layout: wgpu::PipelineLayout,
-    /// Composite variants by TF point count (0: the looping variant for large TFs).
-    composite: HashMap<u32, wgpu::RenderPipeline>,
+    /// Composite variants by TF point count (0: the looping variant for large TFs) and
+    /// whether they test the early-termination mask.
+    composite: HashMap<(u32, bool), wgpu::RenderPipeline>,
     format: wgpu::TextureFormat,
     targets: u32,
     /// Early ray termination: the depth test of every raster and composite pipeline, and the
@@ -192,8 +191,20 @@ struct Pipelines {
     ert: Option<ErtPipelines>,
 }
 
-/// The early-ray-termination pipelines (`shaders/shells_mark.wgsl`).
+/// The pipelines of one raster pass.
+struct RasterSet {
+    faces: wgpu::RenderPipeline,
+    near: wgpu::RenderPipeline,
+    /// Zeroes the slice targets within the shell's scissor rectangle.
+    clear: wgpu::RenderPipeline,
+}
+
+/// The early-ray-termination pipelines (`shaders/shells_mark.wgsl`), and the raster pipelines
+/// that test the mask. Passes before any pixel can finish use the untested pipelines (a depth
+/// test costs llvmpipe ~10% of the raster and ~20% of the composite time when it rejects
+/// nothing).
 struct ErtPipelines {
+    raster: RasterSet,
     mark_layout: wgpu::BindGroupLayout,
     mark: wgpu::RenderPipeline,
     tiles_layout: wgpu::BindGroupLayout,
@@ -680,7 +691,7 @@ fn ert_depth_test(ert: bool) -> Option<wgpu::DepthStencilState> {
 }
 
 impl ErtPipelines {
-    fn new(device: &wgpu::Device, threshold: f32) -> Self {
+    fn new(device: &wgpu::Device, threshold: f32, raster: RasterSet) -> Self {
         use wgpu::ShaderStages as S;
         let module = wgsl_module(device, "shells_mark", shaders::shells_mark());
         let constants = [("threshold", threshold as f64)];
@@ -745,6 +756,7 @@ impl ErtPipelines {
             cache: None,
         });
         Self {
+            raster,
             mark_layout,
             mark,
             tiles_layout,
@@ -818,51 +830,66 @@ impl Pipelines {
                 })
             })
             .collect();
-        let raster =
-            |label, entry, fs_entry, cull_mode, targets: &[Option<wgpu::ColorTargetState>]| {
-                device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                    label: Some(label),
-                    layout: Some(&raster_pipeline_layout),
-                    vertex: wgpu::VertexState {
-                        module: &raster_module,
-                        entry_point: Some(entry),
-                        compilation_options: Default::default(),
-                        buffers: &[],
-                    },
-                    primitive: wgpu::PrimitiveState {
-                        topology: wgpu::PrimitiveTopology::TriangleList,
-                        // Outward faces are counter-clockwise seen from outside; NDC has y up.
-                        front_face: wgpu::FrontFace::Ccw,
-                        cull_mode,
-                        ..Default::default()
-                    },
-                    depth_stencil: ert_depth_test(ert.is_some()),
-                    multisample: Default::default(),
-                    fragment: Some(wgpu::FragmentState {
-                        module: &raster_module,
-                        entry_point: Some(fs_entry),
-                        compilation_options: Default::default(),
-                        targets,
-                    }),
-                    multiview_mask: None,
-                    cache: None,
-                })
-            };
-        let faces = raster(
-            "shells faces",
-            "vs_faces",
-            "fs_slices",
-            Some(wgpu::Face::Back),
-            &slice_targets,
-        );
-        let near = raster(
-            "shells near quads",
-            "vs_near",
-            "fs_slices",
-            None,
-            &slice_targets,
-        );
-        let clear = raster("shells clear", "vs_clear", "fs_clear", None, &clear_targets);
+        let raster = |label,
+                      entry,
+                      fs_entry,
+                      cull_mode,
+                      targets: &[Option<wgpu::ColorTargetState>],
+                      depth: bool| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(label),
+                layout: Some(&raster_pipeline_layout),
+                vertex: wgpu::VertexState {
+                    module: &raster_module,
+                    entry_point: Some(entry),
+                    compilation_options: Default::default(),
+                    buffers: &[],
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology: wgpu::PrimitiveTopology::TriangleList,
+                    // Outward faces are counter-clockwise seen from outside; NDC has y up.
+                    front_face: wgpu::FrontFace::Ccw,
+                    cull_mode,
+                    ..Default::default()
+                },
+                depth_stencil: ert_depth_test(depth),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &raster_module,
+                    entry_point: Some(fs_entry),
+                    compilation_options: Default::default(),
+                    targets,
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let raster_set = |depth| RasterSet {
+            faces: raster(
+                "shells faces",
+                "vs_faces",
+                "fs_slices",
+                Some(wgpu::Face::Back),
+                &slice_targets,
+                depth,
+            ),
+            near: raster(
+                "shells near quads",
+                "vs_near",
+                "fs_slices",
+                None,
+                &slice_targets,
+                depth,
+            ),
+            clear: raster(
+                "shells clear",
+                "vs_clear",
+                "fs_clear",
+                None,
+                &clear_targets,
+                depth,
+            ),
+        };
 
         let composite_layout = layout(
             "shells composite",
@@ -886,21 +913,24 @@ impl Pipelines {
             assemble_layout,
             assemble,
             raster_layout,
-            faces,
-            near,
-            clear,
+            raster: raster_set(false),
             composite_layout,
             composite_pipeline_layout,
             composite: HashMap::new(),
             format,
             targets,
-            ert: ert.map(|threshold| ErtPipelines::new(device, threshold)),
+            ert: ert.map(|threshold| ErtPipelines::new(device, threshold, raster_set(true))),
         }
     }
 
     /// The composite pipeline for a TF of `tf_points` control points, built on first use (one
     /// variant per count up to [`shaders::UNROLLED_TF_POINTS`], one for all larger TFs).
-    fn composite(&mut self, device: &wgpu::Device, tf_points: u32) -> &wgpu::RenderPipeline {
+    fn composite(
+        &mut self,
+        device: &wgpu::Device,
+        tf_points: u32,
+        depth: bool,
+    ) -> &wgpu::RenderPipeline {
         let key = if tf_points <= shaders::UNROLLED_TF_POINTS {
             tf_points
         } else {
@@ -908,8 +938,8 @@ impl Pipelines {
         };
         let (layout, format, targets) =
             (&self.composite_pipeline_layout, self.format, self.targets);
-        let depth_stencil = ert_depth_test(self.ert.is_some());
-        self.composite.entry(key).or_insert_with(|| {
+        let depth_stencil = ert_depth_test(depth);
+        self.composite.entry((key, depth)).or_insert_with(|| {
             let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some("shells_composite"),
                 source: wgpu::ShaderSource::Wgsl(shaders::shells_composite(targets, key).into()),
@@ -1341,10 +1371,14 @@ impl Renderer for ShellsRenderer {
             ],
         });
 
+        let points = tf.points().len() as u32;
         let composite = self
             .pipelines
-            .composite(&self.device, tf.points().len() as u32)
+            .composite(&self.device, points, false)
             .clone();
+        let composite_tested = skips
+            .early_termination
+            .then(|| self.pipelines.composite(&self.device, points, true).clone());
         // 2.-4. Assembly, then per non-empty shell: raster and composite.
         let ert_passes = if skips.early_termination {
             drawn.len() + ERT_CHECKS
@@ -1442,23 +1476,26 @@ impl Renderer for ShellsRenderer {
                 }
             }
             let [sx, sy, sw, sh] = rect;
-            // The termination mask: cleared to 1 (nothing finished) by the first pass.
-            let depth = |first: bool| {
-                ert.map(|(t, _)| wgpu::RenderPassDepthStencilAttachment {
-                    view: &t.depth_view,
-                    depth_ops: Some(if first {
-                        wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(1.0),
-                            store: wgpu::StoreOp::Store,
-                        }
-                    } else {
-                        wgpu::Operations {
-                            load: wgpu::LoadOp::Load,
-                            store: wgpu::StoreOp::Store,
-                        }
-                    }),
-                    stencil_ops: None,
-                })
+            // The termination mask: cleared to 1 (nothing finished) by the first mark pass,
+            // tested by the passes after it.
+            let tested = first_finishing.is_some_and(|f| i > f);
+            let depth = |on: bool, first: bool| {
+                ert.filter(|_| on)
+                    .map(|(t, _)| wgpu::RenderPassDepthStencilAttachment {
+                        view: &t.depth_view,
+                        depth_ops: Some(if first {
+                            wgpu::Operations {
+                                load: wgpu::LoadOp::Clear(1.0),
+                                store: wgpu::StoreOp::Store,
+                            }
+                        } else {
+                            wgpu::Operations {
+                                load: wgpu::LoadOp::Load,
+                                store: wgpu::StoreOp::Store,
+                            }
+                        }),
+                        stencil_ops: None,
+                    })
             };
             let q = rec.pass_queries("raster");
             let set = rec.queries.clone();
@@ -1480,7 +1517,7 @@ impl Renderer for ShellsRenderer {
                 let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                     label: Some("shells raster"),
                     color_attachments: &attachments,
-                    depth_stencil_attachment: depth(i == 0),
+                    depth_stencil_attachment: depth(tested, false),
                     timestamp_writes: q.zip(set.as_ref()).map(|((b, e), set)| {
                         wgpu::RenderPassTimestampWrites {
                             query_set: set,
@@ -1497,19 +1534,23 @@ impl Renderer for ShellsRenderer {
                 // Zero the slices within the scissor only (the composite reads nothing else): a
                 // clear load op zeroes whole targets for every shell (A/B on bluntfin 512x512,
                 // lavapipe: median frame ~6% faster).
-                pass.set_pipeline(&self.pipelines.clear);
+                let set = match ert {
+                    Some((_, p)) if tested => &p.raster,
+                    _ => &self.pipelines.raster,
+                };
+                pass.set_pipeline(&set.clear);
                 pass.draw(0..3, 0..1);
                 if occlusion.is_some() {
                     pass.begin_occlusion_query(occlusion_index);
                     queries_used += 1;
                 }
                 if !range.faces.is_empty() {
-                    pass.set_pipeline(&self.pipelines.faces);
+                    pass.set_pipeline(&set.faces);
                     pass.set_index_buffer(self.face_indices.slice(..), wgpu::IndexFormat::Uint32);
                     pass.draw_indexed(12 * range.faces.start..12 * range.faces.end, 0, 0..1);
                 }
                 if !range.near.is_empty() {
-                    pass.set_pipeline(&self.pipelines.near);
+                    pass.set_pipeline(&set.near);
                     pass.draw(6 * range.near.start..6 * range.near.end, 0..1);
                 }
                 if occlusion.is_some() {
@@ -1539,12 +1580,15 @@ impl Renderer for ShellsRenderer {
                         resolve_target: None,
                         ops: if i == 0 { clear } else { load },
                     })],
-                    depth_stencil_attachment: depth(false),
+                    depth_stencil_attachment: depth(tested, false),
                     timestamp_writes,
                     ..Default::default()
                 });
                 pass.set_scissor_rect(sx, sy, sw, sh);
-                pass.set_pipeline(&composite);
+                match &composite_tested {
+                    Some(c) if tested => pass.set_pipeline(c),
+                    _ => pass.set_pipeline(&composite),
+                }
                 pass.set_bind_group(0, &composite_group, &[]);
                 pass.draw(0..3, 0..1);
             }
@@ -1565,7 +1609,7 @@ impl Renderer for ShellsRenderer {
                 let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                     label: Some("shells mark"),
                     color_attachments: &[],
-                    depth_stencil_attachment: depth(false),
+                    depth_stencil_attachment: depth(true, first_finishing == Some(i)),
                     timestamp_writes: q.zip(set.as_ref()).map(|((b, e), set)| {
                         wgpu::RenderPassTimestampWrites {
                             query_set: set,
