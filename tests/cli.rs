@@ -324,3 +324,36 @@ fn help_has_examples() {
             && stdout.contains("--slices-per-shell")
     );
 }
+
+#[test]
+fn no_skip_turns_skips_off_and_unknown_skips_are_named() {
+    // With early ray termination off its counters are absent; with it on they are printed.
+    let png = out_dir("no-skip").join("lox.png");
+    let png_arg = png.to_str().unwrap();
+    let base = ["render", LOX, "--size", "48x40", "-o", png_arg, "--timings"];
+    let on = tetvr(&[&base[..], &["--ert-threshold", "0.99"]].concat());
+    let (stdout, stderr) = text(&on);
+    assert!(on.status.success(), "{stderr}");
+    assert!(stdout.contains("pixels finished"), "{stdout}");
+    let off = tetvr(
+        &[
+            &base[..],
+            &["--no-skip", "early-termination,tf-cull,frustum"],
+        ]
+        .concat(),
+    );
+    let (stdout, stderr) = text(&off);
+    assert!(off.status.success(), "{stderr}");
+    assert!(!stdout.contains("pixels finished"), "{stdout}");
+    let bad = tetvr(&[&base[..], &["--no-skip", "frustrum"]].concat());
+    let (_, stderr) = text(&bad);
+    assert!(!bad.status.success());
+    assert!(
+        stderr.contains("frustrum") && stderr.contains("early-termination"),
+        "{stderr}"
+    );
+    let bad = tetvr(&[&base[..], &["--ert-threshold", "1.5"]].concat());
+    let (_, stderr) = text(&bad);
+    assert!(!bad.status.success());
+    assert!(stderr.contains("threshold"), "{stderr}");
+}

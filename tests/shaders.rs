@@ -41,6 +41,9 @@ fn shells_stages_validate() {
             assert_eq!(entry_points(&src), ["vs_fullscreen", "fs_composite"]);
         }
     }
+    let src = shaders::shells_mark();
+    validate("shells_mark", &src);
+    assert_eq!(entry_points(&src), ["vs_mark", "fs_mark", "tiles"]);
 }
 
 /// The WGSL structs have the sizes the Rust `gpu_data` twins assert at compile time.

@@ -254,6 +254,12 @@ fn shell_settings(args: &RenderArgs) -> ShellSettings {
     }
     settings.dz = args.shells.dz;
     settings.slices_per_shell = args.shells.slices_per_shell;
+    for &skip in &args.shells.no_skip {
+        settings.skips.set(skip, false);
+    }
+    if let Some(t) = args.shells.ert_threshold {
+        settings.skips.ert_threshold = t;
+    }
     settings
 }
 

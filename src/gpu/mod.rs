@@ -9,4 +9,5 @@ mod util;
 
 pub use context::{AdapterChoice, GpuContext, GpuError};
 pub use iso::{IsoRenderer, IsoSettings};
+pub use shells::skips::{Skip, Skips};
 pub use shells::{ShellSettings, ShellsRenderer, SliceFormat};

@@ -7,6 +7,7 @@ pub const SHARED: &str = include_str!("../../shaders/shared.wgsl");
 const SHELLS_ASSEMBLE: &str = include_str!("../../shaders/shells_assemble.wgsl");
 const SHELLS_RASTER: &str = include_str!("../../shaders/shells_raster.wgsl");
 const SHELLS_COMPOSITE: &str = include_str!("../../shaders/shells_composite.wgsl");
+const SHELLS_MARK: &str = include_str!("../../shaders/shells_mark.wgsl");
 
 /// The most colour targets a raster variant may write (WebGPU's cap on colour attachments).
 pub const MAX_TARGETS: u32 = 8;
@@ -72,5 +73,15 @@ pub fn shells_composite(targets: u32, tf_points: u32) -> String {
          fn load_layers(xy: vec2<i32>) -> array<vec4<f32>, TARGETS> {{\n    \
          return array<vec4<f32>, TARGETS>({});\n}}\n{tf_eval}{SHELLS_COMPOSITE}",
         loads.join(", ")
+    )
+}
+
+/// The shells early-ray-termination stage (entry points `vs_mark`, `fs_mark`, and the compute
+/// entry point `tiles`), with the tile size of [`crate::gpu::shells::skips::TILE`]. The
+/// threshold is the pipeline-overridable constant `threshold`.
+pub fn shells_mark() -> String {
+    format!(
+        "// Generated: the tile side in pixels.\nconst TILE: u32 = {}u;\n{SHELLS_MARK}",
+        crate::gpu::shells::skips::TILE
     )
 }

@@ -22,6 +22,9 @@ pub struct BinParams {
     pub shells: u32,
     /// A tet with a vertex at eye-space z <= this is a near-plane tet.
     pub near_z: f64,
+    /// Whether tets entirely outside one plane of the view frustum are culled (else they are
+    /// binned like any other and left to the rasterizer's clipping).
+    pub frustum: bool,
 }
 
 /// What binning decided for one tet.
@@ -157,7 +160,7 @@ pub fn classify(
         .enumerate()
         .map(|(t, tet)| {
             let c = tet.map(|v| eye_space[v as usize]);
-            if c[0].1 & c[1].1 & c[2].1 & c[3].1 != 0 {
+            if params.frustum && c[0].1 & c[1].1 & c[2].1 & c[3].1 != 0 {
                 return TetBin::Culled;
             }
             if transparent(t) {
