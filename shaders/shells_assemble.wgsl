@@ -28,7 +28,8 @@ fn main(
     @builtin(local_invocation_index) lid: u32,
 ) {
     let t = (wid.y * groups.x + wid.x) * 64u + lid;
-    if t >= frame.tet_count {
+    // A chunked mesh binds a window of `tets` per dispatch: its length is the chunk's count.
+    if t >= min(frame.tet_count, arrayLength(&tets)) {
         return;
     }
     let idx = tets[t];

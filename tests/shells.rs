@@ -763,3 +763,54 @@ fn large_transfer_functions_use_the_looping_variant_and_match() {
         LOX_BOUNDS,
     );
 }
+
+#[test]
+fn a_mesh_beyond_one_storage_binding_is_drawn_in_chunks() {
+    // The same adapter told it may bind only 64 KiB per storage binding: lox's 8,750 records
+    // (1.26 MB) become chunks of at most 455 tets (rounded down to a multiple of the offset
+    // alignment), about 20 of them. Chunks only
+    // split where records are bound, and MAX blending does not care about draw order, so the
+    // picture must be bit-identical to the unchunked one, with the eye outside and inside.
+    let base = ctx();
+    let small = GpuContext {
+        limits: wgpu::Limits {
+            max_storage_buffer_binding_size: 64 << 10,
+            ..base.limits.clone()
+        },
+        adapter: base.adapter.clone(),
+        device: base.device.clone(),
+        queue: base.queue.clone(),
+        info: base.info.clone(),
+        features: base.features,
+    };
+    let mesh = lox();
+    let (lo, hi) = mesh.bounds();
+    let tf = default_tf(&mesh);
+    let outside = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 96, 96);
+    let inside = Camera {
+        eye: outside.target + 0.1 * (outside.eye - outside.target),
+        ..outside
+    };
+    let settings = ShellSettings {
+        samples: 256,
+        ..Default::default()
+    };
+    let mut whole = ShellsRenderer::new(base, &mesh, settings).expect("unchunked renderer");
+    let mut chunked = ShellsRenderer::new(&small, &mesh, settings).expect("chunked renderer");
+    for camera in [&outside, &inside] {
+        let a = whole.render(camera, &tf).expect("unchunked frame").image;
+        let frame = chunked.render(camera, &tf).expect("chunked frame");
+        assert!(
+            counter(&frame.timings, "record chunks") >= 19,
+            "{}",
+            frame.timings
+        );
+        let b = frame.image;
+        let m = b.compare(&a).expect("same size");
+        assert_eq!(m.max_abs, 0.0, "chunked differs from unchunked: {m:?}");
+        assert!(
+            a.pixels.iter().any(|p| p[3] > 0.01),
+            "the scene is not empty"
+        );
+    }
+}

@@ -20,6 +20,11 @@
 //! What a scene does not need is skipped: transparent tets, empty shells, finished pixels,
 //! tets outside the frustum ([`skips`], each skip switched by [`ShellSettings::skips`]).
 //!
+//! Meshes whose per-tet records exceed one storage binding (about 932k tets on lavapipe's
+//! 128 MiB) are assembled and drawn in chunks: the records live in one buffer, each chunk binds
+//! its window of it, and a shell's active list (tet ids ascending, as binning leaves them) is
+//! drawn chunk by chunk with chunk-local ids.
+//!
 //! Precision: positions are uploaded relative to the mesh's bounding-box centre (subtracted in
 //! f64), and so is the eye, so a mesh far from the origin renders as it does at the origin.
 //! Scalars are normalized to `u = (s - s_min) / (s_max - s_min)` in f64 and encoded as `1 + u`
@@ -32,6 +37,7 @@ pub mod skips;
 pub mod twin;
 
 use std::collections::HashMap;
+use std::ops::Range;
 use std::time::Instant;
 
 use bytemuck::Zeroable;
@@ -169,7 +175,24 @@ struct MeshBuffers {
     scalars: wgpu::Buffer,
     records: wgpu::Buffer,
     degenerate: wgpu::Buffer,
-    assemble_group: wgpu::BindGroup,
+    /// Tets per chunk (every chunk but the last is full): see [`chunk_tets`].
+    chunk_tets: u32,
+    /// Per chunk, the assembly bind group over its windows of the tet and record buffers.
+    chunks: Vec<wgpu::BindGroup>,
+}
+
+/// Tets per chunk when the per-tet records do not fit one storage binding: as many as one
+/// binding of `max_binding` bytes holds, rounded down to a multiple of `align` tets so that each
+/// chunk's windows into the tet (16-byte) and record buffers start at offsets the adapter
+/// accepts (`min_storage_buffer_offset_alignment`, a power of two of at most 256 bytes). `None`
+/// when one binding cannot hold even `align` records.
+pub fn chunk_tets(tets: u64, max_binding: u64, align: u64) -> Option<u64> {
+    let per_binding = max_binding / size_of::<TetRecord>() as u64;
+    if tets <= per_binding {
+        return Some(tets.max(1));
+    }
+    let chunk = per_binding / align * align;
+    (chunk > 0).then_some(chunk)
 }
 
 /// Pipelines and layouts, built once.
@@ -311,18 +334,26 @@ impl ShellsRenderer {
             )));
         }
         let targets_per_shell = slices_per_shell.div_ceil(4);
-        let max_binding = limits.max_storage_buffer_binding_size;
+        // Records beyond one storage binding are assembled and drawn in chunks, each bound as
+        // a window of the one record buffer; the buffer itself must fit.
         let record_bytes = mesh.tet_count() as u64 * size_of::<TetRecord>() as u64;
-        if record_bytes > max_binding.min(limits.max_buffer_size) {
+        let align = limits.min_storage_buffer_offset_alignment as u64;
+        let chunk = chunk_tets(
+            mesh.tet_count() as u64,
+            limits.max_storage_buffer_binding_size,
+            align,
+        );
+        let Some(chunk) = chunk.filter(|_| record_bytes <= limits.max_buffer_size) else {
             return Err(settings_error(format!(
                 "the mesh has {} tets; the shells mode keeps one {}-byte record per tet in one \
-                 storage buffer, and this adapter binds at most {max_binding} bytes (at most {} \
-                 tets); split the mesh or use another mode",
+                 buffer, and this adapter's buffers hold at most {} bytes (at most {} tets); \
+                 split the mesh or use another mode",
                 mesh.tet_count(),
                 size_of::<TetRecord>(),
-                max_binding / size_of::<TetRecord>() as u64
+                limits.max_buffer_size,
+                limits.max_buffer_size / size_of::<TetRecord>() as u64
             )));
-        }
+        };
         let mesh_state = MeshState::new(mesh)?;
         let ert = settings.skips.early_termination.then_some(threshold);
         let pipelines = Pipelines::new(&device, format, targets_per_shell, ert);
@@ -338,7 +369,11 @@ impl ShellsRenderer {
         let positions = storage("shells positions", mesh.vertex_count() as u64 * 16, none);
         let scalars = storage("shells scalars", mesh.vertex_count() as u64 * 4, none);
         let tets = storage("shells tets", mesh.tet_count() as u64 * 16, none);
-        let records = storage("shells tet records", record_bytes, none);
+        let records = storage(
+            "shells tet records",
+            record_bytes.max(size_of::<TetRecord>() as u64),
+            none,
+        );
         let degenerate = storage("shells degenerate count", 4, wgpu::BufferUsages::COPY_SRC);
         queue.write_buffer(&tets, 0, bytemuck::cast_slice(mesh.tets()));
         let frame_buf = device.create_buffer(&wgpu::BufferDescriptor {
@@ -347,24 +382,30 @@ impl ShellsRenderer {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let assemble_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("shells assemble"),
-            layout: &pipelines.assemble_layout,
-            entries: &[
-                entry(0, &frame_buf),
-                entry(1, &positions),
-                entry(2, &scalars),
-                entry(3, &tets),
-                entry(4, &records),
-                entry(5, &degenerate),
-            ],
-        });
+        let chunks = (0..mesh.tet_count().div_ceil(chunk as usize).max(1) as u64)
+            .map(|c| {
+                let count = chunk.min((mesh.tet_count() as u64).saturating_sub(c * chunk).max(1));
+                device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("shells assemble"),
+                    layout: &pipelines.assemble_layout,
+                    entries: &[
+                        entry(0, &frame_buf),
+                        entry(1, &positions),
+                        entry(2, &scalars),
+                        window(3, &tets, 16, c * chunk, count),
+                        window(4, &records, size_of::<TetRecord>() as u64, c * chunk, count),
+                        entry(5, &degenerate),
+                    ],
+                })
+            })
+            .collect();
         let gpu = MeshBuffers {
             positions,
             scalars,
             records,
             degenerate,
-            assemble_group,
+            chunk_tets: chunk as u32,
+            chunks,
         };
         let shell_stride = (size_of::<ShellUniforms>() as u64)
             .next_multiple_of(limits.min_uniform_buffer_offset_alignment as u64);
@@ -1146,6 +1187,52 @@ fn scissor(r: binning::ScreenRect, slope: [f64; 2], width: u32, height: u32) -> 
     [x0, y0, x1.max(x0 + 1) - x0, y1.max(y0 + 1) - y0]
 }
 
+/// A bind group entry for elements `first..first + count` of `buffer`, each `stride` bytes.
+fn window(
+    binding: u32,
+    buffer: &wgpu::Buffer,
+    stride: u64,
+    first: u64,
+    count: u64,
+) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry {
+        binding,
+        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+            buffer,
+            offset: first * stride,
+            size: wgpu::BufferSize::new(count * stride),
+        }),
+    }
+}
+
+/// The parts of `range` (positions in `ids`, whose tet ids ascend within it, as binning leaves
+/// them) that fall in each chunk of `chunk_tets` tets, as (chunk, part).
+fn by_chunk(ids: &[u32], range: Range<u32>, chunk_tets: u32) -> Vec<(usize, Range<u32>)> {
+    let mut parts = Vec::new();
+    let mut start = range.start;
+    while start < range.end {
+        let c = ids[start as usize] / chunk_tets;
+        let rest = &ids[start as usize..range.end as usize];
+        let end = start + rest.partition_point(|&t| t / chunk_tets == c) as u32;
+        parts.push((c as usize, start..end));
+        start = end;
+    }
+    parts
+}
+
+/// The active list as the raster shaders index it: tet ids relative to their chunk's first.
+fn chunk_local<'a>(ids: &'a [u32], gpu: &MeshBuffers) -> std::borrow::Cow<'a, [u32]> {
+    let chunk_tets = gpu.chunk_tets;
+    if gpu.chunks.len() == 1 {
+        ids.into()
+    } else {
+        ids.par_iter()
+            .map(|&t| t % chunk_tets)
+            .collect::<Vec<_>>()
+            .into()
+    }
+}
+
 /// Writes `data` to `*buf`, first growing it (to a power of two) when it is too small.
 fn write_grown(
     device: &wgpu::Device,
@@ -1330,8 +1417,14 @@ impl Renderer for ShellsRenderer {
                 index,
             );
         }
-        let active = bytemuck::cast_slice(&bin.indices);
-        write_grown(device, queue, &mut self.active_buf, active, storage);
+        let active = chunk_local(&bin.indices, &self.gpu);
+        write_grown(
+            device,
+            queue,
+            &mut self.active_buf,
+            bytemuck::cast_slice(&active),
+            storage,
+        );
         self.queue
             .write_buffer(&self.gpu.degenerate, 0, bytemuck::bytes_of(&0u32));
         timings.stage("upload", ms_since(t1));
@@ -1341,23 +1434,24 @@ impl Renderer for ShellsRenderer {
             .targets
             .as_ref()
             .ok_or_else(|| settings_error("no targets"))?;
-        let raster_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("shells raster"),
-            layout: &self.pipelines.raster_layout,
-            entries: &[
-                entry(0, &self.frame_buf),
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                        buffer: &self.shell_buf,
-                        offset: 0,
-                        size: wgpu::BufferSize::new(size_of::<ShellUniforms>() as u64),
-                    }),
-                },
-                entry(2, &self.gpu.records),
-                entry(3, &self.active_buf),
-            ],
-        });
+        // One raster bind group per chunk of records; a chunk's active ids are chunk-local.
+        let chunk = self.gpu.chunk_tets as u64;
+        let raster_groups: Vec<wgpu::BindGroup> = (0..self.gpu.chunks.len() as u64)
+            .map(|c| {
+                let count = chunk.min(self.mesh.tets.len() as u64 - c * chunk).max(1);
+                let record = size_of::<TetRecord>() as u64;
+                self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("shells raster"),
+                    layout: &self.pipelines.raster_layout,
+                    entries: &[
+                        entry(0, &self.frame_buf),
+                        window(1, &self.shell_buf, size_of::<ShellUniforms>() as u64, 0, 1),
+                        window(2, &self.gpu.records, record, c * chunk, count),
+                        entry(3, &self.active_buf),
+                    ],
+                })
+            })
+            .collect();
         let composite_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("shells composite"),
             layout: &self.pipelines.composite_layout,
@@ -1410,12 +1504,16 @@ impl Renderer for ShellsRenderer {
                 }),
             });
             pass.set_pipeline(&self.pipelines.assemble);
-            pass.set_bind_group(0, &self.gpu.assemble_group, &[]);
-            let groups = (self.mesh.tets.len() as u32).div_ceil(64);
-            let x = groups
-                .min(self.limits.max_compute_workgroups_per_dimension)
-                .max(1);
-            pass.dispatch_workgroups(x, groups.div_ceil(x), 1);
+            let chunk = self.gpu.chunk_tets as usize;
+            for (c, group) in self.gpu.chunks.iter().enumerate() {
+                pass.set_bind_group(0, group, &[]);
+                let tets = chunk.min(self.mesh.tets.len() - c * chunk) as u32;
+                let groups = tets.div_ceil(64);
+                let x = groups
+                    .min(self.limits.max_compute_workgroups_per_dimension)
+                    .max(1);
+                pass.dispatch_workgroups(x, groups.div_ceil(x), 1);
+            }
         }
         rec.end_stage("assembly")?;
         let clear = wgpu::Operations {
@@ -1530,7 +1628,7 @@ impl Renderer for ShellsRenderer {
                 });
                 pass.set_scissor_rect(sx, sy, sw, sh);
                 let offset = (i as u64 * self.shell_stride) as u32;
-                pass.set_bind_group(0, &raster_group, &[offset]);
+                pass.set_bind_group(0, &raster_groups[0], &[offset]);
                 // Zero the slices within the scissor only (the composite reads nothing else): a
                 // clear load op zeroes whole targets for every shell (A/B on bluntfin 512x512,
                 // lavapipe: median frame ~6% faster).
@@ -1544,14 +1642,22 @@ impl Renderer for ShellsRenderer {
                     pass.begin_occlusion_query(occlusion_index);
                     queries_used += 1;
                 }
+                let chunks =
+                    |r: &Range<u32>| by_chunk(&bin.indices, r.clone(), self.gpu.chunk_tets);
                 if !range.faces.is_empty() {
                     pass.set_pipeline(&set.faces);
                     pass.set_index_buffer(self.face_indices.slice(..), wgpu::IndexFormat::Uint32);
-                    pass.draw_indexed(12 * range.faces.start..12 * range.faces.end, 0, 0..1);
+                    for (c, part) in chunks(&range.faces) {
+                        pass.set_bind_group(0, &raster_groups[c], &[offset]);
+                        pass.draw_indexed(12 * part.start..12 * part.end, 0, 0..1);
+                    }
                 }
                 if !range.near.is_empty() {
                     pass.set_pipeline(&set.near);
-                    pass.draw(6 * range.near.start..6 * range.near.end, 0..1);
+                    for (c, part) in chunks(&range.near) {
+                        pass.set_bind_group(0, &raster_groups[c], &[offset]);
+                        pass.draw(6 * part.start..6 * part.end, 0..1);
+                    }
                 }
                 if occlusion.is_some() {
                     pass.end_occlusion_query();
@@ -1654,7 +1760,7 @@ impl Renderer for ShellsRenderer {
                     self.queue.write_buffer(
                         &self.active_buf,
                         4 * from as u64,
-                        bytemuck::cast_slice(&bin.indices[from..to]),
+                        bytemuck::cast_slice(&chunk_local(&bin.indices[from..to], &self.gpu)),
                     );
                 }
                 tiles = Some(m);
@@ -1806,6 +1912,7 @@ impl Renderer for ShellsRenderer {
             "wall clock, GPU drained after each stage"
         };
         timings.count("tets", self.mesh.tets.len() as u64);
+        timings.count("record chunks", self.gpu.chunks.len() as u64);
         timings.count("tets culled", bin.culled);
         timings.count("tets transparent", bin.transparent);
         timings.count("tets between slices", bin.no_sample);
@@ -1881,5 +1988,37 @@ impl Renderer for ShellsRenderer {
         self.transparent = None;
         self.upload_scalars();
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn chunks_fill_a_binding_on_aligned_offsets() {
+        let record = size_of::<TetRecord>() as u64;
+        // Fits: one chunk of all tets (at least 1, so an empty mesh still binds something).
+        assert_eq!(chunk_tets(1000, 1000 * record, 256), Some(1000));
+        assert_eq!(chunk_tets(0, 1 << 20, 256), Some(1));
+        // lavapipe: 128 MiB bindings hold 932,067 records; chunks round down to 931,840.
+        let chunk = chunk_tets(2_000_000, 128 << 20, 256).unwrap();
+        assert_eq!(chunk, 931_840);
+        assert_eq!(chunk * record % 256, 0);
+        assert_eq!(chunk * 16 % 256, 0);
+        // A binding smaller than one aligned group of records cannot be chunked.
+        assert_eq!(chunk_tets(1000, 100 * record, 256), None);
+    }
+
+    #[test]
+    fn active_ranges_split_at_chunk_boundaries() {
+        let ids = [1, 2, 5, 9, 10, 11, 20, 3, 4];
+        assert_eq!(
+            by_chunk(&ids, 0..7, 10),
+            vec![(0, 0..4), (1, 4..6), (2, 6..7)]
+        );
+        assert_eq!(by_chunk(&ids, 7..9, 10), vec![(0, 7..9)]);
+        assert_eq!(by_chunk(&ids, 3..3, 10), vec![]);
+        assert_eq!(by_chunk(&ids, 4..6, 1000), vec![(0, 4..6)]);
     }
 }
