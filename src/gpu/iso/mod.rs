@@ -1,10 +1,11 @@
 //! `--mode iso`: per-pixel isosurfaces (Georgii & Westermann 2006, section 4).
 //!
 //! Per frame:
-//! 1. select (CPU, rayon, cached): the tets whose scalar range `[min, max]` (precomputed per
-//!    tet, refreshed with the scalars) holds an isovalue, in one list; constant tets are left
-//!    out (see [`crate::reference::iso`], "Constant scalar"). The list is rebuilt only when the
-//!    scalars or the isovalues change;
+//! 1. select (CPU, cached): the tets whose scalar range holds an isovalue, in one list;
+//!    constant tets are left out (see [`crate::reference::iso`], "Constant scalar"). A
+//!    span-space index ([`select::IntervalIndex`], rebuilt with rayon only when the scalars
+//!    change, stage "select index") answers a new isovalue without scanning every tet; the
+//!    list is recomputed only when the scalars or the isovalues change;
 //! 2. upload: frame constants, the selected tets (when they changed) and, for smooth shading,
 //!    per-vertex gradients recomputed from the current positions with rayon
 //!    ([`crate::reference::iso::vertex_gradients`]);
@@ -25,6 +26,8 @@
 //!
 //! Limitation: in a near-plane tet, surface points with eye-space z in `(0, near_z)` project
 //! outside its clipped bounds and may be lost; `near_z` is 1e-5 of the mesh's bounding radius.
+
+pub mod select;
 
 use std::time::Instant;
 
@@ -116,7 +119,8 @@ pub struct IsoRenderer {
     positions: Vec<DVec3>,
     scalars: Vec<f64>,
     tets: Vec<[u32; 4]>,
-    ranges: Vec<(f64, f64)>,
+    /// The span-space index of the current scalars; `None` after they changed.
+    index: Option<select::IntervalIndex>,
     origin: DVec3,
     radius: f64,
     scalar_min: f64,
@@ -156,18 +160,6 @@ struct Targets {
 
 const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
-
-fn scalar_ranges(tets: &[[u32; 4]], scalars: &[f64]) -> Vec<(f64, f64)> {
-    tets.par_iter()
-        .map(|t| {
-            let v = t.map(|i| scalars[i as usize]);
-            (
-                v[0].min(v[1]).min(v[2].min(v[3])),
-                v[0].max(v[1]).max(v[2].max(v[3])),
-            )
-        })
-        .collect()
-}
 
 fn bounds(positions: &[DVec3]) -> (DVec3, f64) {
     let (lo, hi) = positions.iter().fold(
@@ -262,7 +254,6 @@ impl IsoRenderer {
         let positions = mesh.positions().to_vec();
         let (origin, radius) = bounds(&positions);
         let tets = mesh.tets().to_vec();
-        let ranges = scalar_ranges(&tets, &scalars);
         let r = Self {
             pipelines: Pipelines::new(&device),
             frame_buf: uniform("iso frame", size_of::<FrameUniforms>()),
@@ -280,7 +271,7 @@ impl IsoRenderer {
             positions,
             scalars,
             tets,
-            ranges,
+            index: None,
             origin,
             radius,
             scalar_min,
@@ -312,15 +303,17 @@ impl IsoRenderer {
         Ok(())
     }
 
-    /// Selects the tets whose range holds an isovalue (rayon filter over the cached ranges);
-    /// constant tets are never selected.
-    fn select(&self) -> Vec<[u32; 4]> {
+    /// The tets whose range holds an isovalue, from the span-space
+    /// index (built first if the scalars changed); constant tets are never selected.
+    fn select(&mut self) -> Vec<[u32; 4]> {
+        let index = self
+            .index
+            .get_or_insert_with(|| select::IntervalIndex::build(&self.tets, &self.scalars));
         let isos: Vec<f64> = self.settings.isovalues.iter().map(|&(v, _)| v).collect();
-        self.ranges
+        index
+            .select(&isos)
             .par_iter()
-            .zip(self.tets.par_iter())
-            .filter(|((lo, hi), _)| lo < hi && isos.iter().any(|v| lo <= v && v <= hi))
-            .map(|(_, t)| *t)
+            .map(|&i| self.tets[i as usize])
             .collect()
     }
 
@@ -416,6 +409,11 @@ impl IsoRenderer {
         let mut timings = Timings::default();
 
         // 1. Selection (cached until the scalars or isovalues change).
+        let t0 = Instant::now();
+        if self.index.is_none() {
+            self.index = Some(select::IntervalIndex::build(&self.tets, &self.scalars));
+        }
+        timings.stage("select index", ms_since(t0));
         let t0 = Instant::now();
         if self.selection.is_none() {
             self.selection = Some(self.select());
@@ -855,7 +853,7 @@ impl Renderer for IsoRenderer {
         }
         self.scalars.copy_from_slice(scalars);
         (self.scalar_min, self.scalar_span) = scalar_frame(&self.scalars);
-        self.ranges = scalar_ranges(&self.tets, &self.scalars);
+        self.index = None;
         self.selection = None;
         self.upload_scalars();
         Ok(())
