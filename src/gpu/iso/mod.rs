@@ -6,9 +6,9 @@
 //!    span-space index ([`select::IntervalIndex`], rebuilt with rayon only when the scalars
 //!    change, stage "select index") answers a new isovalue without scanning every tet; the
 //!    list is recomputed only when the scalars or the isovalues change;
-//! 2. upload: frame constants, the selected tets (when they changed) and, for smooth shading,
-//!    per-vertex gradients recomputed from the current positions with rayon
-//!    ([`crate::reference::iso::vertex_gradients`]);
+//! 2. upload: frame constants and the selected tets (when they changed);
+//! 2b. gradients (smooth shading only): a compute pass recomputes every vertex's gradient from
+//!    the current positions, the volume-weighted mean over its tets ([`gradients`]);
 //! 3. assembly: the shells assembly stage (`shaders/shells_assemble.wgsl`) over the selected
 //!    tets only, building each one's eye-to-barycentric record;
 //! 4. raster: one instanced pass over the selected tets' front faces with a depth buffer
@@ -27,6 +27,7 @@
 //! Limitation: in a near-plane tet, surface points with eye-space z in `(0, near_z)` project
 //! outside its clipped bounds and may be lost; `near_z` is 1e-5 of the mesh's bounding radius.
 
+pub mod gradients;
 pub mod select;
 
 use std::time::Instant;
@@ -45,7 +46,6 @@ use crate::gpu::util::{
 use crate::gpu::{GpuContext, GpuError, shaders};
 use crate::image::Image;
 use crate::mesh::{MeshError, TetMesh};
-use crate::reference::iso::vertex_gradients;
 pub use crate::reference::iso::{IsoImage, Shading};
 use crate::render::{Frame, RenderError, Renderer, Timings};
 use crate::tf::TransferFunction;
@@ -119,6 +119,8 @@ pub struct IsoRenderer {
     positions: Vec<DVec3>,
     scalars: Vec<f64>,
     tets: Vec<[u32; 4]>,
+    /// The smooth-shading gradient stage; `None` for flat shading.
+    gradient_stage: Option<gradients::GradientStage>,
     /// The span-space index of the current scalars; `None` after they changed.
     index: Option<select::IntervalIndex>,
     origin: DVec3,
@@ -253,6 +255,7 @@ impl IsoRenderer {
         };
         let positions = mesh.positions().to_vec();
         let (origin, radius) = bounds(&positions);
+        let smooth = settings.shading == Shading::Smooth;
         let tets = mesh.tets().to_vec();
         let r = Self {
             pipelines: Pipelines::new(&device),
@@ -260,7 +263,16 @@ impl IsoRenderer {
             iso_buf: uniform("iso isovalues", size_of::<IsoUniforms>()),
             positions_buf: storage("iso positions", nv * 16, none),
             scalars_buf: storage("iso scalars", nv * 4, none),
-            gradients_buf: storage("iso vertex gradients", nv * 16, none),
+            // One gradient per vertex, written by the gradient stage (smooth shading); zeros,
+            // unused, for flat shading.
+            gradients_buf: storage(
+                "iso vertex gradients",
+                nv * 16,
+                wgpu::BufferUsages::COPY_SRC,
+            ),
+            gradient_stage: smooth.then(|| {
+                gradients::GradientStage::new(&device, &queue, &tets, mesh.vertex_count())
+            }),
             selected_buf: storage("iso selected tets", 16, none),
             records_buf: storage("iso tet records", 16, none),
             degenerate_buf: storage("iso degenerate count", 4, wgpu::BufferUsages::COPY_SRC),
@@ -317,27 +329,63 @@ impl IsoRenderer {
             .collect()
     }
 
-    fn upload_positions(&self) {
+    /// The vertex positions as the GPU stages read them: relative to the mesh's bounding-box
+    /// centre, f32, `w = 1`.
+    pub fn gpu_positions(&self) -> Vec<[f32; 4]> {
         let o = self.origin;
-        let data: Vec<[f32; 4]> = self
-            .positions
-            .iter()
+        self.positions
+            .par_iter()
             .map(|&p| {
                 let q = (p - o).as_vec3();
                 [q.x, q.y, q.z, 1.0]
             })
-            .collect();
+            .collect()
+    }
+
+    /// The scalars as the GPU stages read them: `(s - s_min) / (s_max - s_min)`, f32.
+    pub fn gpu_scalars(&self) -> Vec<f32> {
+        let (lo, span) = (self.scalar_min, self.scalar_span);
+        self.scalars
+            .par_iter()
+            .map(|&s| ((s - lo) / span) as f32)
+            .collect()
+    }
+
+    /// The per-vertex gradients the last frame's gradient stage wrote (normalized-scalar
+    /// units, `w = 0`), read back from the GPU; `None` for flat shading. For tests against
+    /// [`gradients::vertex_gradients_twin`] and for debugging.
+    pub fn read_vertex_gradients(&self) -> Result<Option<Vec<[f32; 4]>>, RenderError> {
+        if self.gradient_stage.is_none() {
+            return Ok(None);
+        }
+        let size = self.gradients_buf.size();
+        let readback = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("iso gradients readback"),
+            size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut enc = self.device.create_command_encoder(&Default::default());
+        enc.copy_buffer_to_buffer(&self.gradients_buf, 0, &readback, 0, size);
+        self.queue.submit([enc.finish()]);
+        map_read(&self.device, &readback)?;
+        let data = readback
+            .get_mapped_range(..)
+            .map_err(|e| settings_error(format!("mapping the gradients readback failed: {e}")))?;
+        let out = bytemuck::cast_slice::<u8, [f32; 4]>(&data).to_vec();
+        drop(data);
+        readback.unmap();
+        Ok(Some(out))
+    }
+
+    fn upload_positions(&self) {
+        let data = self.gpu_positions();
         self.queue
             .write_buffer(&self.positions_buf, 0, bytemuck::cast_slice(&data));
     }
 
     fn upload_scalars(&self) {
-        let (lo, span) = (self.scalar_min, self.scalar_span);
-        let data: Vec<f32> = self
-            .scalars
-            .iter()
-            .map(|&s| ((s - lo) / span) as f32)
-            .collect();
+        let data = self.gpu_scalars();
         self.queue
             .write_buffer(&self.scalars_buf, 0, bytemuck::cast_slice(&data));
     }
@@ -488,25 +536,31 @@ impl IsoRenderer {
             }
             self.selection_uploaded = true;
         }
-        if self.settings.shading == Shading::Smooth {
-            let g = vertex_gradients(&self.positions, &self.tets, &self.scalars);
-            let inv = 1.0 / self.scalar_span;
-            let data: Vec<[f32; 4]> = g
-                .par_iter()
-                .map(|g| {
-                    let v = (*g * inv).as_vec3();
-                    [v.x, v.y, v.z, 0.0]
-                })
-                .collect();
-            self.queue
-                .write_buffer(&self.gradients_buf, 0, bytemuck::cast_slice(&data));
-        }
         self.ensure_targets(camera.width, camera.height)?;
         self.queue.submit([]);
         self.device
             .poll(wgpu::PollType::wait_indefinitely())
             .map_err(GpuError::from)?;
         timings.stage("upload", ms_since(t1));
+
+        // 2b. Smooth shading: every vertex's gradient from the current positions.
+        if let Some(stage) = &self.gradient_stage {
+            let t = Instant::now();
+            let mut enc = self.device.create_command_encoder(&Default::default());
+            stage.encode(
+                &self.device,
+                &mut enc,
+                &self.positions_buf,
+                &self.scalars_buf,
+                &self.gradients_buf,
+                self.limits.max_compute_workgroups_per_dimension,
+            );
+            self.queue.submit([enc.finish()]);
+            self.device
+                .poll(wgpu::PollType::wait_indefinitely())
+                .map_err(GpuError::from)?;
+            timings.stage("gradients", ms_since(t));
+        }
 
         // 3. Assembly over the selected tets.
         let t2 = Instant::now();
