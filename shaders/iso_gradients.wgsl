@@ -1,5 +1,6 @@
 // Per-vertex gradients for smooth isosurface shading (`--mode iso --shading smooth`),
-// recomputed every frame from the current positions: one invocation per vertex gathers the
+// recomputed every frame from the current positions, for the vertices of the selected tets
+// only (the raster reads no others): one invocation per listed vertex gathers the
 // tets around it (CSR adjacency built once at load: vertex v's tets are
 // vertex_tets[offsets[v] .. offsets[v + 1]]) and takes the volume-weighted mean of their
 // gradients, sum(|V| grad) / sum(|V|) = sum(sign(det) g) / sum(|det|), where det is six times
@@ -15,13 +16,16 @@
 @group(0) @binding(3) var<storage, read> offsets: array<u32>;
 @group(0) @binding(4) var<storage, read> vertex_tets: array<u32>;
 @group(0) @binding(5) var<storage, read_write> gradients: array<vec4<f32>>;
+// The vertices to update (those of the selected tets), each once.
+@group(0) @binding(6) var<storage, read> vertices: array<u32>;
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    let v = id.x + id.y * groups.x * 64u;
-    if v >= arrayLength(&gradients) {
+    let i = id.x + id.y * groups.x * 64u;
+    if i >= arrayLength(&vertices) {
         return;
     }
+    let v = vertices[i];
     var sum = vec3<f32>(0.0);
     var weight = 0.0;
     for (var k = offsets[v]; k < offsets[v + 1u]; k++) {

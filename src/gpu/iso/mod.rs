@@ -7,19 +7,20 @@
 //!    change, stage "select index") answers a new isovalue without scanning every tet; the
 //!    list is recomputed only when the scalars or the isovalues change;
 //! 2. upload: frame constants and the selected tets (when they changed);
-//! 2b. gradients (smooth shading only): a compute pass recomputes every vertex's gradient from
-//!    the current positions, the volume-weighted mean over its tets ([`gradients`]);
-//! 3. assembly: the shells assembly stage (`shaders/shells_assemble.wgsl`) over the selected
+//! 3. gradients (smooth shading only): a compute pass recomputes the gradient of every vertex
+//!    of a selected tet from the current positions, the volume-weighted mean over its tets
+//!    ([`gradients`]);
+//! 4. assembly: the shells assembly stage (`shaders/shells_assemble.wgsl`) over the selected
 //!    tets only, building each one's eye-to-barycentric record;
-//! 4. raster: one instanced pass over the selected tets' front faces with a depth buffer
+//! 5. raster: one instanced pass over the selected tets' front faces with a depth buffer
 //!    (`shaders/iso_raster.wgsl`); a tet with a corner at eye-space z <= `near_z` (the
 //!    tet holding the eye, any tet crossing or behind the eye's plane) draws instead a
 //!    screen-space quad over its screen bounds clipped to that plane, as the shells mode's
-//!    near-plane tets, so the eye may be inside the mesh; each fragment solves the ray/isoplane intersection in the
-//!    tet's barycentric space, keeps it only inside the tet (smallest barycentric >=
+//!    near-plane tets, so the eye may be inside the mesh; each fragment solves the
+//!    ray/isoplane intersection in the tet's barycentric space, keeps it only inside the tet (smallest barycentric >=
 //!    `-epsilon`, so neighbours overlap rather than leave cracks), writes the hit distance as
 //!    its depth and shades it (headlight Blinn-Phong, [`crate::reference::iso::shade`]);
-//! 5. readback of the colour and of the per-pixel normal and distance.
+//! 6. readback of the colour and of the per-pixel normal and distance.
 //!
 //! The transfer function passed to [`Renderer::render`] is ignored: the surfaces take the
 //! colours given with their isovalues in [`IsoSettings`].
@@ -57,6 +58,9 @@ const ISO_RASTER: &str = include_str!("../../../shaders/iso_raster.wgsl");
 pub fn raster_source() -> String {
     format!("{}\n{ISO_RASTER}", shaders::SHARED)
 }
+
+/// `(vertex, gradient)` pairs read back from the gradient stage (`xyz`, `w = 0`).
+pub type VertexGradients = Vec<(u32, [f32; 4])>;
 
 /// The most isovalues one pass draws.
 pub const MAX_ISOVALUES: usize = 16;
@@ -121,6 +125,9 @@ pub struct IsoRenderer {
     tets: Vec<[u32; 4]>,
     /// The smooth-shading gradient stage; `None` for flat shading.
     gradient_stage: Option<gradients::GradientStage>,
+    /// The vertices of the selected tets and their GPU list, for the gradient stage (smooth
+    /// shading, non-empty selection).
+    gradient_vertices: Option<(Vec<u32>, wgpu::Buffer)>,
     /// The span-space index of the current scalars; `None` after they changed.
     index: Option<select::IntervalIndex>,
     origin: DVec3,
@@ -222,15 +229,19 @@ impl IsoRenderer {
                 .push((scalar_min + 0.5 * scalar_span, DEFAULT_COLOR));
         }
         let limits = ctx.limits.clone();
-        let record_bytes = mesh.tet_count() as u64 * size_of::<TetRecord>() as u64;
-        let max_binding = limits.max_storage_buffer_binding_size;
-        if record_bytes > max_binding.min(limits.max_buffer_size) {
+        // The largest per-tet buffers over the whole mesh hold 16 bytes a tet (the gradient
+        // stage's tet list and vertex-tet adjacency); records exist only for the selected
+        // tets and are checked when a selection is made.
+        let tet_bytes = mesh.tet_count() as u64 * 16;
+        let max_binding = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size);
+        if tet_bytes > max_binding {
             return Err(settings_error(format!(
-                "the mesh has {} tets; the iso mode may need one {}-byte record per tet in one \
-                 storage buffer, and this adapter binds at most {max_binding} bytes; split the \
-                 mesh or use another mode",
+                "the mesh has {} tets; the iso mode keeps 16 bytes per tet in one storage \
+                 buffer, and this adapter binds at most {max_binding} bytes; split the mesh or \
+                 use another mode",
                 mesh.tet_count(),
-                size_of::<TetRecord>(),
             )));
         }
         let device = ctx.device.clone();
@@ -270,6 +281,7 @@ impl IsoRenderer {
                 nv * 16,
                 wgpu::BufferUsages::COPY_SRC,
             ),
+            gradient_vertices: None,
             gradient_stage: smooth.then(|| {
                 gradients::GradientStage::new(&device, &queue, &tets, mesh.vertex_count())
             }),
@@ -352,12 +364,13 @@ impl IsoRenderer {
     }
 
     /// The per-vertex gradients the last frame's gradient stage wrote (normalized-scalar
-    /// units, `w = 0`), read back from the GPU; `None` for flat shading. For tests against
-    /// [`gradients::vertex_gradients_twin`] and for debugging.
-    pub fn read_vertex_gradients(&self) -> Result<Option<Vec<[f32; 4]>>, RenderError> {
-        if self.gradient_stage.is_none() {
+    /// units, `w = 0`), read back from the GPU, as `(vertex, gradient)` for each vertex of a
+    /// selected tet; `None` for flat shading or before a frame selected any tet. For tests
+    /// against [`gradients::vertex_gradients_twin`] and for debugging.
+    pub fn read_vertex_gradients(&self) -> Result<Option<VertexGradients>, RenderError> {
+        let Some((vertices, _)) = &self.gradient_vertices else {
             return Ok(None);
-        }
+        };
         let size = self.gradients_buf.size();
         let readback = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("iso gradients readback"),
@@ -372,7 +385,8 @@ impl IsoRenderer {
         let data = readback
             .get_mapped_range(..)
             .map_err(|e| settings_error(format!("mapping the gradients readback failed: {e}")))?;
-        let out = bytemuck::cast_slice::<u8, [f32; 4]>(&data).to_vec();
+        let all = bytemuck::cast_slice::<u8, [f32; 4]>(&data);
+        let out = vertices.iter().map(|&v| (v, all[v as usize])).collect();
         drop(data);
         readback.unmap();
         Ok(Some(out))
@@ -512,6 +526,20 @@ impl IsoRenderer {
             let sel = self.selection.as_deref().unwrap_or(&[]);
             let bytes: &[u8] = bytemuck::cast_slice(sel);
             let rec_bytes = (sel.len() * size_of::<TetRecord>()) as u64;
+            let max_binding = self
+                .limits
+                .max_storage_buffer_binding_size
+                .min(self.limits.max_buffer_size);
+            if rec_bytes > max_binding {
+                return Err(settings_error(format!(
+                    "the isovalues meet {} tets; the iso mode keeps one {}-byte record per \
+                     selected tet in one storage buffer, and this adapter binds at most \
+                     {max_binding} bytes; draw fewer isovalues, split the mesh or use another \
+                     mode",
+                    sel.len(),
+                    size_of::<TetRecord>(),
+                )));
+            }
             if self.selected_buf.size() < bytes.len() as u64 {
                 self.selected_buf = self.device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("iso selected tets"),
@@ -534,6 +562,20 @@ impl IsoRenderer {
             if !bytes.is_empty() {
                 self.queue.write_buffer(&self.selected_buf, 0, bytes);
             }
+            if self.gradient_stage.is_some() {
+                let vertices = gradients::vertices_of(sel);
+                self.gradient_vertices = (!vertices.is_empty()).then(|| {
+                    let buf = self.device.create_buffer(&wgpu::BufferDescriptor {
+                        label: Some("iso gradient vertices"),
+                        size: vertices.len() as u64 * 4,
+                        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                        mapped_at_creation: false,
+                    });
+                    self.queue
+                        .write_buffer(&buf, 0, bytemuck::cast_slice(&vertices));
+                    (vertices, buf)
+                });
+            }
             self.selection_uploaded = true;
         }
         self.ensure_targets(camera.width, camera.height)?;
@@ -543,8 +585,10 @@ impl IsoRenderer {
             .map_err(GpuError::from)?;
         timings.stage("upload", ms_since(t1));
 
-        // 2b. Smooth shading: every vertex's gradient from the current positions.
-        if let Some(stage) = &self.gradient_stage {
+        // 3. Smooth shading: every vertex's gradient from the current positions.
+        if let (Some(stage), Some((vertices, list))) =
+            (&self.gradient_stage, &self.gradient_vertices)
+        {
             let t = Instant::now();
             let mut enc = self.device.create_command_encoder(&Default::default());
             stage.encode(
@@ -553,6 +597,8 @@ impl IsoRenderer {
                 &self.positions_buf,
                 &self.scalars_buf,
                 &self.gradients_buf,
+                list,
+                vertices.len() as u32,
                 self.limits.max_compute_workgroups_per_dimension,
             );
             self.queue.submit([enc.finish()]);
@@ -562,7 +608,7 @@ impl IsoRenderer {
             timings.stage("gradients", ms_since(t));
         }
 
-        // 3. Assembly over the selected tets.
+        // 4. Assembly over the selected tets.
         let t2 = Instant::now();
         let assemble_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("iso assemble"),
@@ -597,7 +643,7 @@ impl IsoRenderer {
             .map_err(GpuError::from)?;
         timings.stage("assembly", ms_since(t2));
 
-        // 4. Raster: one instanced pass, depth test keeps the nearest hit.
+        // 5. Raster: one instanced pass, depth test keeps the nearest hit.
         let t3 = Instant::now();
         let targets = self.targets.as_ref().ok_or_else(|| {
             settings_error("internal: render targets missing after ensure_targets")
@@ -689,7 +735,7 @@ impl IsoRenderer {
             .map_err(GpuError::from)?;
         timings.stage("raster", ms_since(t3));
 
-        // 5. Readback.
+        // 6. Readback.
         let t4 = Instant::now();
         let (width, height, padded_row) = (targets.width, targets.height, targets.padded_row);
         let mut enc = self.device.create_command_encoder(&Default::default());
