@@ -51,22 +51,6 @@ pub struct Surface {
     pub triangles: Vec<[u32; 3]>,
 }
 
-impl Surface {
-    /// Number of distinct undirected edges of the triangles.
-    pub fn edge_count(&self) -> usize {
-        let mut edges: Vec<(u32, u32)> = self
-            .triangles
-            .par_iter()
-            .flat_map_iter(|t| {
-                (0..3).map(move |i| (t[i].min(t[(i + 1) % 3]), t[i].max(t[(i + 1) % 3])))
-            })
-            .collect();
-        edges.par_sort_unstable();
-        edges.dedup();
-        edges.len()
-    }
-}
-
 /// The isosurfaces of `scalars` over the mesh `positions`/`tets` at each of `isovalues`, in
 /// that order (see the module docs). Indices must be valid vertex ids, as in any
 /// [`crate::TetMesh`].
