@@ -7,6 +7,7 @@
 
 pub mod camera;
 pub mod deform;
+pub mod export;
 pub mod generate;
 pub mod gpu;
 pub mod image;

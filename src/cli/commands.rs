@@ -20,8 +20,8 @@ use tetvr::tf::file::{TfFileError, load_tf};
 use tetvr::{TetMesh, generate};
 
 use super::{
-    AnimateArgs, Cli, Command, CompareArgs, GenerateArgs, GenerateShape, InfoArgs, MeshArgs, Mode,
-    RenderArgs, ShadingArg,
+    AnimateArgs, Cli, Command, CompareArgs, GenerateArgs, GenerateShape, InfoArgs, IsoExportArgs,
+    MeshArgs, Mode, RenderArgs, ShadingArg,
 };
 
 /// Everything a command can fail with; each message says what to fix.
@@ -55,6 +55,8 @@ pub enum CliError {
     Field(#[from] generate::fields::FieldParseError),
     #[error(transparent)]
     Volume(#[from] generate::volume::VolumeError),
+    #[error(transparent)]
+    Export(#[from] tetvr::export::ExportError),
 }
 
 pub fn run(cli: Cli) -> Result<(), CliError> {
@@ -62,6 +64,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Render(args) => render(*args),
         Command::Animate(args) => animate(*args),
         Command::Info(args) => info(args),
+        Command::IsoExport(args) => iso_export(args),
         Command::GpuInfo => {
             println!("{}", GpuContext::new(AdapterChoice::from_env())?.report());
             Ok(())
@@ -364,6 +367,53 @@ fn write_animation(
 fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
+}
+
+fn iso_export(args: IsoExportArgs) -> Result<(), CliError> {
+    if let Some(v) = args.iso.iter().find(|v| !v.is_finite()) {
+        return Err(CliError::Usage(format!(
+            "--iso: isovalues must be finite numbers, not {v}"
+        )));
+    }
+    let Loaded { mesh, .. } = load_mesh(&args.mesh)?;
+    let range = mesh
+        .active_array()
+        .and_then(|a| a.range())
+        .ok_or(MeshError::NoScalars)?;
+    let tf = load_tf(&args.tf, range, mesh.diagonal() / 100.0)?;
+    let isovalues = if args.iso.is_empty() {
+        vec![0.5 * (range.0 + range.1)]
+    } else {
+        args.iso.clone()
+    };
+    let t = Instant::now();
+    let surfaces =
+        tetvr::export::isosurfaces(mesh.positions(), mesh.tets(), mesh.scalars()?, &isovalues);
+    let extract_s = t.elapsed().as_secs_f64();
+    let colored: Vec<tetvr::export::Colored> = surfaces
+        .iter()
+        .map(|surface| tetvr::export::Colored {
+            surface,
+            color: tf.eval(surface.isovalue).color.map(|c| c as f32),
+        })
+        .collect();
+    let counts = tetvr::export::write_glb(&args.output, &colored, range)?;
+    for s in &surfaces {
+        println!(
+            "  isovalue {}: {} vertices, {} triangles",
+            s.isovalue,
+            s.positions.len(),
+            s.triangles.len()
+        );
+    }
+    println!(
+        "wrote {} ({} surfaces, {} vertices, {} triangles; marching tetrahedra {extract_s:.2} s)",
+        args.output.display(),
+        counts.surfaces,
+        counts.vertices,
+        counts.triangles
+    );
+    Ok(())
 }
 
 fn info(args: InfoArgs) -> Result<(), CliError> {

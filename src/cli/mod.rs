@@ -14,6 +14,7 @@ Examples:
   tetvr render assets/lox_post_subset_tet.vtk -o lox.png
   tetvr render mesh.vtu --mode reference --size 256x256 --view -y --tf shock -o ref.png
   tetvr render ../shared/data/bluntfin_tet.vtk --mode iso --iso 0.5,0.7 --shading smooth -o iso.png
+  tetvr iso-export ../shared/data/bluntfin_tet.vtk --iso 0.5,0.7 --tf viridis -o fin.glb
   tetvr render mesh.vtk --array Pressure --tf my_tf.json --unit-distance 0.05 -o p.png
   tetvr render mesh.msh --eye 10,0,2 --target 0,0,0 --up 0,0,1 --fov 40 -o close.png
   tetvr animate ../shared/data/kiefer_bracket_tet.vtk --deform twist --frames 24 -o bracket.gif
@@ -38,6 +39,9 @@ pub enum Command {
     /// Render a mesh under an analytic deformation over time, to an animated GIF or PNGs.
     #[command(after_help = EXAMPLES)]
     Animate(Box<AnimateArgs>),
+    /// Extract isosurfaces (marching tetrahedra, on the CPU) and write them as glTF binary (.glb).
+    #[command(after_help = EXAMPLES)]
+    IsoExport(IsoExportArgs),
     /// Print a mesh's statistics: counts, bounds, scalar ranges, quality, degenerate tets.
     Info(InfoArgs),
     /// Show which GPU adapter tetvr would use and the limits that matter to it.
@@ -172,6 +176,21 @@ pub struct ShellArgs {
     /// termination; in (0, 1], default 0.99999).
     #[arg(long)]
     pub ert_threshold: Option<f32>,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct IsoExportArgs {
+    #[command(flatten)]
+    pub mesh: MeshArgs,
+    /// Isovalues in data units, comma separated (default: the middle of the scalar range).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub iso: Vec<f64>,
+    /// Transfer function giving each surface its colour (at its isovalue): a preset or a JSON file.
+    #[arg(long, default_value = "viridis")]
+    pub tf: String,
+    /// Output .glb file.
+    #[arg(short, long, default_value = "isosurface.glb")]
+    pub output: PathBuf,
 }
 
 #[derive(clap::Args, Debug)]

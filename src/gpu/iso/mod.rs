@@ -1,30 +1,35 @@
 //! `--mode iso`: per-pixel isosurfaces (Georgii & Westermann 2006, section 4).
 //!
 //! Per frame:
-//! 1. select (CPU, rayon, cached): the tets whose scalar range `[min, max]` (precomputed per
-//!    tet, refreshed with the scalars) holds an isovalue, in one list; constant tets are left
-//!    out (see [`crate::reference::iso`], "Constant scalar"). The list is rebuilt only when the
-//!    scalars or the isovalues change;
-//! 2. upload: frame constants, the selected tets (when they changed) and, for smooth shading,
-//!    per-vertex gradients recomputed from the current positions with rayon
-//!    ([`crate::reference::iso::vertex_gradients`]);
-//! 3. assembly: the shells assembly stage (`shaders/shells_assemble.wgsl`) over the selected
+//! 1. select (CPU, cached): the tets whose scalar range holds an isovalue, in one list;
+//!    constant tets are left out (see [`crate::reference::iso`], "Constant scalar"). A
+//!    span-space index ([`select::IntervalIndex`], rebuilt with rayon only when the scalars
+//!    change, stage "select index") answers a new isovalue without scanning every tet; the
+//!    list is recomputed only when the scalars or the isovalues change;
+//! 2. upload: frame constants and the selected tets (when they changed);
+//! 3. gradients (smooth shading only): a compute pass recomputes the gradient of every vertex
+//!    of a selected tet from the current positions, the volume-weighted mean over its tets
+//!    ([`gradients`]);
+//! 4. assembly: the shells assembly stage (`shaders/shells_assemble.wgsl`) over the selected
 //!    tets only, building each one's eye-to-barycentric record;
-//! 4. raster: one instanced pass over the selected tets' front faces with a depth buffer
+//! 5. raster: one instanced pass over the selected tets' front faces with a depth buffer
 //!    (`shaders/iso_raster.wgsl`); a tet with a corner at eye-space z <= `near_z` (the
 //!    tet holding the eye, any tet crossing or behind the eye's plane) draws instead a
 //!    screen-space quad over its screen bounds clipped to that plane, as the shells mode's
-//!    near-plane tets, so the eye may be inside the mesh; each fragment solves the ray/isoplane intersection in the
-//!    tet's barycentric space, keeps it only inside the tet (smallest barycentric >=
+//!    near-plane tets, so the eye may be inside the mesh; each fragment solves the
+//!    ray/isoplane intersection in the tet's barycentric space, keeps it only inside the tet (smallest barycentric >=
 //!    `-epsilon`, so neighbours overlap rather than leave cracks), writes the hit distance as
 //!    its depth and shades it (headlight Blinn-Phong, [`crate::reference::iso::shade`]);
-//! 5. readback of the colour and of the per-pixel normal and distance.
+//! 6. readback of the colour and of the per-pixel normal and distance.
 //!
 //! The transfer function passed to [`Renderer::render`] is ignored: the surfaces take the
 //! colours given with their isovalues in [`IsoSettings`].
 //!
 //! Limitation: in a near-plane tet, surface points with eye-space z in `(0, near_z)` project
 //! outside its clipped bounds and may be lost; `near_z` is 1e-5 of the mesh's bounding radius.
+
+pub mod gradients;
+pub mod select;
 
 use std::time::Instant;
 
@@ -42,7 +47,6 @@ use crate::gpu::util::{
 use crate::gpu::{GpuContext, GpuError, shaders};
 use crate::image::Image;
 use crate::mesh::{MeshError, TetMesh};
-use crate::reference::iso::vertex_gradients;
 pub use crate::reference::iso::{IsoImage, Shading};
 use crate::render::{Frame, RenderError, Renderer, Timings};
 use crate::tf::TransferFunction;
@@ -54,6 +58,9 @@ const ISO_RASTER: &str = include_str!("../../../shaders/iso_raster.wgsl");
 pub fn raster_source() -> String {
     format!("{}\n{ISO_RASTER}", shaders::SHARED)
 }
+
+/// `(vertex, gradient)` pairs read back from the gradient stage (`xyz`, `w = 0`).
+pub type VertexGradients = Vec<(u32, [f32; 4])>;
 
 /// The most isovalues one pass draws.
 pub const MAX_ISOVALUES: usize = 16;
@@ -116,7 +123,13 @@ pub struct IsoRenderer {
     positions: Vec<DVec3>,
     scalars: Vec<f64>,
     tets: Vec<[u32; 4]>,
-    ranges: Vec<(f64, f64)>,
+    /// The smooth-shading gradient stage; `None` for flat shading.
+    gradient_stage: Option<gradients::GradientStage>,
+    /// The vertices of the selected tets and their GPU list, for the gradient stage (smooth
+    /// shading, non-empty selection).
+    gradient_vertices: Option<(Vec<u32>, wgpu::Buffer)>,
+    /// The span-space index of the current scalars; `None` after they changed.
+    index: Option<select::IntervalIndex>,
     origin: DVec3,
     radius: f64,
     scalar_min: f64,
@@ -156,18 +169,6 @@ struct Targets {
 
 const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
-
-fn scalar_ranges(tets: &[[u32; 4]], scalars: &[f64]) -> Vec<(f64, f64)> {
-    tets.par_iter()
-        .map(|t| {
-            let v = t.map(|i| scalars[i as usize]);
-            (
-                v[0].min(v[1]).min(v[2].min(v[3])),
-                v[0].max(v[1]).max(v[2].max(v[3])),
-            )
-        })
-        .collect()
-}
 
 fn bounds(positions: &[DVec3]) -> (DVec3, f64) {
     let (lo, hi) = positions.iter().fold(
@@ -228,15 +229,19 @@ impl IsoRenderer {
                 .push((scalar_min + 0.5 * scalar_span, DEFAULT_COLOR));
         }
         let limits = ctx.limits.clone();
-        let record_bytes = mesh.tet_count() as u64 * size_of::<TetRecord>() as u64;
-        let max_binding = limits.max_storage_buffer_binding_size;
-        if record_bytes > max_binding.min(limits.max_buffer_size) {
+        // The largest per-tet buffers over the whole mesh hold 16 bytes a tet (the gradient
+        // stage's tet list and vertex-tet adjacency); records exist only for the selected
+        // tets and are checked when a selection is made.
+        let tet_bytes = mesh.tet_count() as u64 * 16;
+        let max_binding = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size);
+        if tet_bytes > max_binding {
             return Err(settings_error(format!(
-                "the mesh has {} tets; the iso mode may need one {}-byte record per tet in one \
-                 storage buffer, and this adapter binds at most {max_binding} bytes; split the \
-                 mesh or use another mode",
+                "the mesh has {} tets; the iso mode keeps 16 bytes per tet in one storage \
+                 buffer, and this adapter binds at most {max_binding} bytes; split the mesh or \
+                 use another mode",
                 mesh.tet_count(),
-                size_of::<TetRecord>(),
             )));
         }
         let device = ctx.device.clone();
@@ -261,15 +266,25 @@ impl IsoRenderer {
         };
         let positions = mesh.positions().to_vec();
         let (origin, radius) = bounds(&positions);
+        let smooth = settings.shading == Shading::Smooth;
         let tets = mesh.tets().to_vec();
-        let ranges = scalar_ranges(&tets, &scalars);
         let r = Self {
             pipelines: Pipelines::new(&device),
             frame_buf: uniform("iso frame", size_of::<FrameUniforms>()),
             iso_buf: uniform("iso isovalues", size_of::<IsoUniforms>()),
             positions_buf: storage("iso positions", nv * 16, none),
             scalars_buf: storage("iso scalars", nv * 4, none),
-            gradients_buf: storage("iso vertex gradients", nv * 16, none),
+            // One gradient per vertex, written by the gradient stage (smooth shading); zeros,
+            // unused, for flat shading.
+            gradients_buf: storage(
+                "iso vertex gradients",
+                nv * 16,
+                wgpu::BufferUsages::COPY_SRC,
+            ),
+            gradient_vertices: None,
+            gradient_stage: smooth.then(|| {
+                gradients::GradientStage::new(&device, &queue, &tets, mesh.vertex_count())
+            }),
             selected_buf: storage("iso selected tets", 16, none),
             records_buf: storage("iso tet records", 16, none),
             degenerate_buf: storage("iso degenerate count", 4, wgpu::BufferUsages::COPY_SRC),
@@ -280,7 +295,7 @@ impl IsoRenderer {
             positions,
             scalars,
             tets,
-            ranges,
+            index: None,
             origin,
             radius,
             scalar_min,
@@ -312,39 +327,79 @@ impl IsoRenderer {
         Ok(())
     }
 
-    /// Selects the tets whose range holds an isovalue (rayon filter over the cached ranges);
-    /// constant tets are never selected.
-    fn select(&self) -> Vec<[u32; 4]> {
+    /// The tets whose range holds an isovalue, from the span-space
+    /// index (built first if the scalars changed); constant tets are never selected.
+    fn select(&mut self) -> Vec<[u32; 4]> {
+        let index = self
+            .index
+            .get_or_insert_with(|| select::IntervalIndex::build(&self.tets, &self.scalars));
         let isos: Vec<f64> = self.settings.isovalues.iter().map(|&(v, _)| v).collect();
-        self.ranges
+        index
+            .select(&isos)
             .par_iter()
-            .zip(self.tets.par_iter())
-            .filter(|((lo, hi), _)| lo < hi && isos.iter().any(|v| lo <= v && v <= hi))
-            .map(|(_, t)| *t)
+            .map(|&i| self.tets[i as usize])
             .collect()
     }
 
-    fn upload_positions(&self) {
+    /// The vertex positions as the GPU stages read them: relative to the mesh's bounding-box
+    /// centre, f32, `w = 1`.
+    pub fn gpu_positions(&self) -> Vec<[f32; 4]> {
         let o = self.origin;
-        let data: Vec<[f32; 4]> = self
-            .positions
-            .iter()
+        self.positions
+            .par_iter()
             .map(|&p| {
                 let q = (p - o).as_vec3();
                 [q.x, q.y, q.z, 1.0]
             })
-            .collect();
+            .collect()
+    }
+
+    /// The scalars as the GPU stages read them: `(s - s_min) / (s_max - s_min)`, f32.
+    pub fn gpu_scalars(&self) -> Vec<f32> {
+        let (lo, span) = (self.scalar_min, self.scalar_span);
+        self.scalars
+            .par_iter()
+            .map(|&s| ((s - lo) / span) as f32)
+            .collect()
+    }
+
+    /// The per-vertex gradients the last frame's gradient stage wrote (normalized-scalar
+    /// units, `w = 0`), read back from the GPU, as `(vertex, gradient)` for each vertex of a
+    /// selected tet; `None` for flat shading or before a frame selected any tet. For tests
+    /// against [`gradients::vertex_gradients_twin`] and for debugging.
+    pub fn read_vertex_gradients(&self) -> Result<Option<VertexGradients>, RenderError> {
+        let Some((vertices, _)) = &self.gradient_vertices else {
+            return Ok(None);
+        };
+        let size = self.gradients_buf.size();
+        let readback = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("iso gradients readback"),
+            size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut enc = self.device.create_command_encoder(&Default::default());
+        enc.copy_buffer_to_buffer(&self.gradients_buf, 0, &readback, 0, size);
+        self.queue.submit([enc.finish()]);
+        map_read(&self.device, &readback)?;
+        let data = readback
+            .get_mapped_range(..)
+            .map_err(|e| settings_error(format!("mapping the gradients readback failed: {e}")))?;
+        let all = bytemuck::cast_slice::<u8, [f32; 4]>(&data);
+        let out = vertices.iter().map(|&v| (v, all[v as usize])).collect();
+        drop(data);
+        readback.unmap();
+        Ok(Some(out))
+    }
+
+    fn upload_positions(&self) {
+        let data = self.gpu_positions();
         self.queue
             .write_buffer(&self.positions_buf, 0, bytemuck::cast_slice(&data));
     }
 
     fn upload_scalars(&self) {
-        let (lo, span) = (self.scalar_min, self.scalar_span);
-        let data: Vec<f32> = self
-            .scalars
-            .iter()
-            .map(|&s| ((s - lo) / span) as f32)
-            .collect();
+        let data = self.gpu_scalars();
         self.queue
             .write_buffer(&self.scalars_buf, 0, bytemuck::cast_slice(&data));
     }
@@ -417,6 +472,11 @@ impl IsoRenderer {
 
         // 1. Selection (cached until the scalars or isovalues change).
         let t0 = Instant::now();
+        if self.index.is_none() {
+            self.index = Some(select::IntervalIndex::build(&self.tets, &self.scalars));
+        }
+        timings.stage("select index", ms_since(t0));
+        let t0 = Instant::now();
         if self.selection.is_none() {
             self.selection = Some(self.select());
             self.selection_uploaded = false;
@@ -466,6 +526,20 @@ impl IsoRenderer {
             let sel = self.selection.as_deref().unwrap_or(&[]);
             let bytes: &[u8] = bytemuck::cast_slice(sel);
             let rec_bytes = (sel.len() * size_of::<TetRecord>()) as u64;
+            let max_binding = self
+                .limits
+                .max_storage_buffer_binding_size
+                .min(self.limits.max_buffer_size);
+            if rec_bytes > max_binding {
+                return Err(settings_error(format!(
+                    "the isovalues meet {} tets; the iso mode keeps one {}-byte record per \
+                     selected tet in one storage buffer, and this adapter binds at most \
+                     {max_binding} bytes; draw fewer isovalues, split the mesh or use another \
+                     mode",
+                    sel.len(),
+                    size_of::<TetRecord>(),
+                )));
+            }
             if self.selected_buf.size() < bytes.len() as u64 {
                 self.selected_buf = self.device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("iso selected tets"),
@@ -488,20 +562,21 @@ impl IsoRenderer {
             if !bytes.is_empty() {
                 self.queue.write_buffer(&self.selected_buf, 0, bytes);
             }
+            if self.gradient_stage.is_some() {
+                let vertices = gradients::vertices_of(sel);
+                self.gradient_vertices = (!vertices.is_empty()).then(|| {
+                    let buf = self.device.create_buffer(&wgpu::BufferDescriptor {
+                        label: Some("iso gradient vertices"),
+                        size: vertices.len() as u64 * 4,
+                        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                        mapped_at_creation: false,
+                    });
+                    self.queue
+                        .write_buffer(&buf, 0, bytemuck::cast_slice(&vertices));
+                    (vertices, buf)
+                });
+            }
             self.selection_uploaded = true;
-        }
-        if self.settings.shading == Shading::Smooth {
-            let g = vertex_gradients(&self.positions, &self.tets, &self.scalars);
-            let inv = 1.0 / self.scalar_span;
-            let data: Vec<[f32; 4]> = g
-                .par_iter()
-                .map(|g| {
-                    let v = (*g * inv).as_vec3();
-                    [v.x, v.y, v.z, 0.0]
-                })
-                .collect();
-            self.queue
-                .write_buffer(&self.gradients_buf, 0, bytemuck::cast_slice(&data));
         }
         self.ensure_targets(camera.width, camera.height)?;
         self.queue.submit([]);
@@ -510,7 +585,30 @@ impl IsoRenderer {
             .map_err(GpuError::from)?;
         timings.stage("upload", ms_since(t1));
 
-        // 3. Assembly over the selected tets.
+        // 3. Smooth shading: every vertex's gradient from the current positions.
+        if let (Some(stage), Some((vertices, list))) =
+            (&self.gradient_stage, &self.gradient_vertices)
+        {
+            let t = Instant::now();
+            let mut enc = self.device.create_command_encoder(&Default::default());
+            stage.encode(
+                &self.device,
+                &mut enc,
+                &self.positions_buf,
+                &self.scalars_buf,
+                &self.gradients_buf,
+                list,
+                vertices.len() as u32,
+                self.limits.max_compute_workgroups_per_dimension,
+            );
+            self.queue.submit([enc.finish()]);
+            self.device
+                .poll(wgpu::PollType::wait_indefinitely())
+                .map_err(GpuError::from)?;
+            timings.stage("gradients", ms_since(t));
+        }
+
+        // 4. Assembly over the selected tets.
         let t2 = Instant::now();
         let assemble_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("iso assemble"),
@@ -545,7 +643,7 @@ impl IsoRenderer {
             .map_err(GpuError::from)?;
         timings.stage("assembly", ms_since(t2));
 
-        // 4. Raster: one instanced pass, depth test keeps the nearest hit.
+        // 5. Raster: one instanced pass, depth test keeps the nearest hit.
         let t3 = Instant::now();
         let targets = self.targets.as_ref().ok_or_else(|| {
             settings_error("internal: render targets missing after ensure_targets")
@@ -637,7 +735,7 @@ impl IsoRenderer {
             .map_err(GpuError::from)?;
         timings.stage("raster", ms_since(t3));
 
-        // 5. Readback.
+        // 6. Readback.
         let t4 = Instant::now();
         let (width, height, padded_row) = (targets.width, targets.height, targets.padded_row);
         let mut enc = self.device.create_command_encoder(&Default::default());
@@ -855,7 +953,7 @@ impl Renderer for IsoRenderer {
         }
         self.scalars.copy_from_slice(scalars);
         (self.scalar_min, self.scalar_span) = scalar_frame(&self.scalars);
-        self.ranges = scalar_ranges(&self.tets, &self.scalars);
+        self.index = None;
         self.selection = None;
         self.upload_scalars();
         Ok(())

@@ -1,0 +1,173 @@
+//! Marching tetrahedra on the CPU (rayon): the isosurfaces of a tet mesh's piecewise-linear
+//! field as welded, consistently oriented triangle meshes.
+//!
+//! **Crossings.** For isovalue `v` a vertex is *below* when its scalar is `< v` and *above*
+//! otherwise (`>= v`), as if `v` were lowered by an infinitesimal amount. A tet with 1 or 3
+//! corners below gives one triangle, with 2 a quad (two triangles); its corners are the
+//! crossings on the edges from a below to an above corner. A crossing on edge `(a, b)` with
+//! `s_b == v` is vertex `b` itself; otherwise it is the point where the linear field on the edge
+//! equals `v`.
+//!
+//! **Welding is exact**: each crossing is keyed by what it lies on, the vertex id or the edge's
+//! sorted vertex ids, and its position is computed once from that key, so neighbouring tets
+//! share the very same vertex without any epsilon. A triangle with two equal keys (an isovalue
+//! equal to vertex values collapses crossings onto a vertex) is dropped. Tets whose four values
+//! all equal `v` give nothing, as in the renderers (the surface is the boundary of the constant
+//! region; see [`crate::reference::iso`]).
+//!
+//! **Orientation**: every triangle winds counter-clockwise seen from the side of *increasing*
+//! scalar, so its geometric normal `(p1 - p0) x (p2 - p0)` points along the field gradient
+//! (outwards for a radial field, the glTF front face seen from outside). A triangle of a
+//! zero-volume tet has no gradient and keeps its construction order.
+//!
+//! **Normals** are smooth: the per-vertex gradients of [`vertex_gradients`] (volume-weighted
+//! means over each vertex's tets) interpolated linearly along the crossing's edge and made
+//! unit; where that vanishes, the area-weighted mean of the vertex's triangle normals.
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use crate::reference::iso::{tet_gradient, vertex_gradients};
+
+/// What a surface vertex lies on; see the module docs ("Welding").
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+enum Key {
+    /// A mesh vertex whose scalar equals the isovalue.
+    Vertex(u32),
+    /// The crossing on the edge between two mesh vertices (smaller id first).
+    Edge(u32, u32),
+}
+
+/// One isosurface as an indexed triangle mesh.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Surface {
+    /// The isovalue, in data units.
+    pub isovalue: f64,
+    /// Vertex positions, world units.
+    pub positions: Vec<DVec3>,
+    /// Unit vertex normals pointing towards increasing scalar.
+    pub normals: Vec<DVec3>,
+    /// Triangles (indices into `positions`), counter-clockwise seen from increasing scalar.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// The isosurfaces of `scalars` over the mesh `positions`/`tets` at each of `isovalues`, in
+/// that order (see the module docs). Indices must be valid vertex ids, as in any
+/// [`crate::TetMesh`].
+pub fn isosurfaces(
+    positions: &[DVec3],
+    tets: &[[u32; 4]],
+    scalars: &[f64],
+    isovalues: &[f64],
+) -> Vec<Surface> {
+    let gradients = vertex_gradients(positions, tets, scalars);
+    isovalues
+        .iter()
+        .map(|&v| isosurface(positions, tets, scalars, &gradients, v))
+        .collect()
+}
+
+fn isosurface(
+    positions: &[DVec3],
+    tets: &[[u32; 4]],
+    scalars: &[f64],
+    gradients: &[DVec3],
+    v: f64,
+) -> Surface {
+    let position = |k: Key| match k {
+        Key::Vertex(i) => positions[i as usize],
+        Key::Edge(a, b) => {
+            let (sa, sb) = (scalars[a as usize], scalars[b as usize]);
+            let u = (v - sa) / (sb - sa);
+            positions[a as usize].lerp(positions[b as usize], u)
+        }
+    };
+    // The crossing on the edge from below-corner `a` to above-corner `b`.
+    let crossing = |a: u32, b: u32| {
+        if scalars[b as usize] == v {
+            Key::Vertex(b)
+        } else {
+            Key::Edge(a.min(b), a.max(b))
+        }
+    };
+    let key_triangles: Vec<[Key; 3]> = tets
+        .par_iter()
+        .flat_map_iter(|t| {
+            let s = t.map(|i| scalars[i as usize]);
+            let below: Vec<u32> = (0..4).filter(|&i| s[i] < v).map(|i| t[i]).collect();
+            let above: Vec<u32> = (0..4).filter(|&i| s[i] >= v).map(|i| t[i]).collect();
+            let polygon: Vec<Key> = match (below.as_slice(), above.as_slice()) {
+                ([a], [b0, b1, b2]) => {
+                    vec![crossing(*a, *b0), crossing(*a, *b1), crossing(*a, *b2)]
+                }
+                ([a0, a1, a2], [b]) => {
+                    vec![crossing(*a0, *b), crossing(*a1, *b), crossing(*a2, *b)]
+                }
+                // The four crossings in cyclic order around the quad.
+                ([a0, a1], [b0, b1]) => vec![
+                    crossing(*a0, *b0),
+                    crossing(*a0, *b1),
+                    crossing(*a1, *b1),
+                    crossing(*a1, *b0),
+                ],
+                _ => Vec::new(),
+            };
+            let gradient = tet_gradient(t.map(|i| positions[i as usize]), s);
+            let fan = (2..polygon.len()).map(move |i| [polygon[0], polygon[i - 1], polygon[i]]);
+            fan.filter(|k| k[0] != k[1] && k[1] != k[2] && k[0] != k[2])
+                .map(move |k| {
+                    let p = k.map(position);
+                    let n = (p[1] - p[0]).cross(p[2] - p[0]);
+                    match gradient {
+                        Some(g) if n.dot(g) < 0.0 => [k[0], k[2], k[1]],
+                        _ => k,
+                    }
+                })
+                .collect::<Vec<_>>()
+        })
+        .collect();
+
+    let mut keys: Vec<Key> = key_triangles.par_iter().flatten().copied().collect();
+    keys.par_sort_unstable();
+    keys.dedup();
+    let index = |k: &Key| keys.binary_search(k).unwrap_or(0) as u32;
+    let triangles: Vec<[u32; 3]> = key_triangles
+        .par_iter()
+        .map(|t| [index(&t[0]), index(&t[1]), index(&t[2])])
+        .collect();
+    let positions_out: Vec<DVec3> = keys.par_iter().map(|&k| position(k)).collect();
+    let mut normals: Vec<DVec3> = keys
+        .par_iter()
+        .map(|&k| {
+            match k {
+                Key::Vertex(i) => gradients[i as usize],
+                Key::Edge(a, b) => {
+                    let (sa, sb) = (scalars[a as usize], scalars[b as usize]);
+                    gradients[a as usize].lerp(gradients[b as usize], (v - sa) / (sb - sa))
+                }
+            }
+            .normalize_or_zero()
+        })
+        .collect();
+    if normals.contains(&DVec3::ZERO) {
+        let mut face_sum = vec![DVec3::ZERO; normals.len()];
+        for t in &triangles {
+            let p = t.map(|i| positions_out[i as usize]);
+            let n = (p[1] - p[0]).cross(p[2] - p[0]);
+            for &i in t {
+                face_sum[i as usize] += n;
+            }
+        }
+        for (n, f) in normals.iter_mut().zip(face_sum) {
+            if *n == DVec3::ZERO {
+                *n = f.normalize_or_zero();
+            }
+        }
+    }
+    Surface {
+        isovalue: v,
+        positions: positions_out,
+        normals,
+        triangles,
+    }
+}

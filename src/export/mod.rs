@@ -1,0 +1,270 @@
+//! Isosurfaces as meshes for other tools: marching tetrahedra ([`marching`]) written as glTF
+//! binary (`.glb`, [`write_glb`]), which any glTF viewer opens.
+//!
+//! Layout of the file: one node `isosurfaces` whose translation is the centre of the surfaces'
+//! bounding box, with one child node and mesh per non-empty isovalue (`isosurface <v>`). Each
+//! mesh has one triangle primitive with `POSITION` (f32, relative to that centre, so f32 keeps
+//! its ~7 digits relative to the surfaces' extent even for meshes far from the origin),
+//! `NORMAL` (f32, unit, towards increasing scalar) and `u32` indices, and a double-sided
+//! material whose `baseColorFactor` is the isovalue's colour. Every buffer view holds 4-byte
+//! elements, so all are 4-byte aligned; `POSITION` accessors carry `min`/`max` as the spec
+//! requires.
+
+pub mod marching;
+
+use std::borrow::Cow;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use glam::DVec3;
+use gltf::json;
+use json::validation::Checked::Valid;
+use json::validation::USize64;
+
+pub use marching::{Surface, isosurfaces};
+
+/// Why an isosurface could not be exported.
+#[derive(Debug, thiserror::Error)]
+pub enum ExportError {
+    #[error("{path}: cannot write the glTF file: {source}")]
+    Write {
+        path: String,
+        source: std::io::Error,
+    },
+    #[error(
+        "no isosurface to export: isovalues {isovalues} miss the scalar range [{lo}, {hi}] \
+         (or only meet tets where the field is constant); choose values inside the range"
+    )]
+    Empty { isovalues: String, lo: f64, hi: f64 },
+    #[error(
+        "the isosurfaces have {vertices} vertices and {bytes} bytes of geometry; a .glb holds at \
+         most 4 GiB and u32 indices; export fewer isovalues or a coarser mesh"
+    )]
+    TooLarge { vertices: usize, bytes: usize },
+    #[error("encoding the glTF file failed: {0}")]
+    Encode(String),
+}
+
+/// A surface to export with its colour (linear RGB in [0, 1]).
+#[derive(Clone, Copy, Debug)]
+pub struct Colored<'a> {
+    pub surface: &'a Surface,
+    pub color: [f32; 3],
+}
+
+/// Counts of what was written.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ExportCounts {
+    pub surfaces: usize,
+    pub vertices: usize,
+    pub triangles: usize,
+}
+
+/// The surfaces (empty ones are left out) as the bytes of a `.glb`, and what they hold; see
+/// the module docs for the layout.
+pub fn glb_bytes(surfaces: &[Colored]) -> Result<(Vec<u8>, ExportCounts), ExportError> {
+    let kept: Vec<&Colored> = surfaces
+        .iter()
+        .filter(|c| !c.surface.triangles.is_empty())
+        .collect();
+    let vertices: usize = kept.iter().map(|c| c.surface.positions.len()).sum();
+    let triangles: usize = kept.iter().map(|c| c.surface.triangles.len()).sum();
+    let bytes = 24 * vertices + 12 * triangles;
+    // The JSON chunk and headers add a few kilobytes per surface; keep well below u32::MAX.
+    if bytes > (u32::MAX as usize) - (1 << 20) || vertices > u32::MAX as usize {
+        return Err(ExportError::TooLarge { vertices, bytes });
+    }
+    let (lo, hi) = kept
+        .iter()
+        .flat_map(|c| &c.surface.positions)
+        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), &p| {
+            (lo.min(p), hi.max(p))
+        });
+    // Rounded to f32 first: the file's translation is f32, and positions are stored relative
+    // to exactly that translation, so translation + position is the f64 point to f32 rounding
+    // of the (small) relative coordinates.
+    let centre = if lo.is_finite() {
+        ((lo + hi) * 0.5).as_vec3().as_dvec3()
+    } else {
+        DVec3::ZERO
+    };
+
+    let mut root = json::Root::default();
+    let mut bin: Vec<u8> = Vec::with_capacity(bytes);
+    let buffer = root.push(json::Buffer {
+        byte_length: USize64::from(bytes),
+        extensions: None,
+        extras: Default::default(),
+        name: None,
+        uri: None,
+    });
+    let mut push_view = |root: &mut json::Root, data: &[u8], target: json::buffer::Target| {
+        let view = root.push(json::buffer::View {
+            buffer,
+            byte_length: USize64::from(data.len()),
+            byte_offset: Some(USize64::from(bin.len())),
+            byte_stride: None,
+            extensions: None,
+            extras: Default::default(),
+            name: None,
+            target: Some(Valid(target)),
+        });
+        bin.extend_from_slice(data);
+        view
+    };
+    let accessor = |view, count: usize, component, type_, bounds: Option<([f32; 3], [f32; 3])>| {
+        json::Accessor {
+            buffer_view: Some(view),
+            byte_offset: None,
+            count: USize64::from(count),
+            component_type: Valid(json::accessor::GenericComponentType(component)),
+            extensions: None,
+            extras: Default::default(),
+            type_: Valid(type_),
+            min: bounds.map(|b| json::Value::from(b.0.to_vec())),
+            max: bounds.map(|b| json::Value::from(b.1.to_vec())),
+            name: None,
+            normalized: false,
+            sparse: None,
+        }
+    };
+    let mut children = Vec::new();
+    for c in &kept {
+        let s = c.surface;
+        let pos: Vec<[f32; 3]> = s
+            .positions
+            .iter()
+            .map(|&p| (p - centre).as_vec3().to_array())
+            .collect();
+        let (pmin, pmax) = pos.iter().fold(
+            ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
+            |(lo, hi), p| {
+                (
+                    [lo[0].min(p[0]), lo[1].min(p[1]), lo[2].min(p[2])],
+                    [hi[0].max(p[0]), hi[1].max(p[1]), hi[2].max(p[2])],
+                )
+            },
+        );
+        let normals: Vec<[f32; 3]> = s
+            .normals
+            .iter()
+            .map(|n| n.as_vec3().normalize_or_zero().to_array())
+            .collect();
+        use json::accessor::{ComponentType as C, Type as T};
+        use json::buffer::Target;
+        let pv = push_view(&mut root, bytemuck::cast_slice(&pos), Target::ArrayBuffer);
+        let nv = push_view(
+            &mut root,
+            bytemuck::cast_slice(&normals),
+            Target::ArrayBuffer,
+        );
+        let iv = push_view(
+            &mut root,
+            bytemuck::cast_slice(&s.triangles),
+            Target::ElementArrayBuffer,
+        );
+        let positions = root.push(accessor(pv, pos.len(), C::F32, T::Vec3, Some((pmin, pmax))));
+        let normals = root.push(accessor(nv, normals.len(), C::F32, T::Vec3, None));
+        let indices = root.push(accessor(iv, 3 * s.triangles.len(), C::U32, T::Scalar, None));
+        let name = format!("isosurface {}", s.isovalue);
+        let [r, g, b] = c.color.map(|v| v.clamp(0.0, 1.0));
+        let material = root.push(json::Material {
+            double_sided: true,
+            name: Some(name.clone()),
+            pbr_metallic_roughness: json::material::PbrMetallicRoughness {
+                base_color_factor: json::material::PbrBaseColorFactor([r, g, b, 1.0]),
+                metallic_factor: json::material::StrengthFactor(0.0),
+                roughness_factor: json::material::StrengthFactor(0.6),
+                ..Default::default()
+            },
+            ..Default::default()
+        });
+        let mesh = root.push(json::Mesh {
+            extensions: None,
+            extras: Default::default(),
+            name: Some(name.clone()),
+            primitives: vec![json::mesh::Primitive {
+                attributes: BTreeMap::from([
+                    (Valid(json::mesh::Semantic::Positions), positions),
+                    (Valid(json::mesh::Semantic::Normals), normals),
+                ]),
+                extensions: None,
+                extras: Default::default(),
+                indices: Some(indices),
+                material: Some(material),
+                mode: Valid(json::mesh::Mode::Triangles),
+                targets: None,
+            }],
+            weights: None,
+        });
+        children.push(root.push(json::Node {
+            mesh: Some(mesh),
+            name: Some(name),
+            ..Default::default()
+        }));
+    }
+    let top = root.push(json::Node {
+        children: Some(children),
+        name: Some("isosurfaces".into()),
+        translation: Some(centre.as_vec3().to_array()),
+        ..Default::default()
+    });
+    let scene = root.push(json::Scene {
+        extensions: None,
+        extras: Default::default(),
+        name: Some("tetvr isosurfaces".into()),
+        nodes: vec![top],
+    });
+    root.scene = Some(scene);
+    root.asset.generator = Some(format!("tetvr {}", env!("CARGO_PKG_VERSION")));
+    let json_text = root
+        .to_string()
+        .map_err(|e| ExportError::Encode(e.to_string()))?;
+    let glb = gltf::binary::Glb {
+        header: gltf::binary::Header {
+            magic: *b"glTF",
+            version: 2,
+            // to_vec computes and writes the real length.
+            length: 0,
+        },
+        json: Cow::Owned(json_text.into_bytes()),
+        bin: Some(Cow::Owned(bin)),
+    };
+    let data = glb
+        .to_vec()
+        .map_err(|e| ExportError::Encode(e.to_string()))?;
+    Ok((
+        data,
+        ExportCounts {
+            surfaces: kept.len(),
+            vertices,
+            triangles,
+        },
+    ))
+}
+
+/// Writes the surfaces to `path` as a `.glb` (see [`glb_bytes`]); an error if every surface is
+/// empty (`range` is the scalar range, for the message).
+pub fn write_glb(
+    path: &Path,
+    surfaces: &[Colored],
+    range: (f64, f64),
+) -> Result<ExportCounts, ExportError> {
+    if surfaces.iter().all(|c| c.surface.triangles.is_empty()) {
+        return Err(ExportError::Empty {
+            isovalues: surfaces
+                .iter()
+                .map(|c| c.surface.isovalue.to_string())
+                .collect::<Vec<_>>()
+                .join(", "),
+            lo: range.0,
+            hi: range.1,
+        });
+    }
+    let (data, counts) = glb_bytes(surfaces)?;
+    std::fs::write(path, data).map_err(|source| ExportError::Write {
+        path: path.display().to_string(),
+        source,
+    })?;
+    Ok(counts)
+}

@@ -1,0 +1,245 @@
+//! The smooth-shading stage: per-vertex gradients recomputed on the GPU every frame
+//! (`shaders/iso_gradients.wgsl`), since vertices may move between frames; only for the
+//! vertices of the selected tets ([`vertices_of`]), the only ones the raster reads.
+//!
+//! Definition (the same as the reference's f64 [`crate::reference::iso::vertex_gradients`],
+//! computed independently): at each vertex, the volume-weighted mean of the gradients of the
+//! tets around it, `sum |V| grad / sum |V|`, leaving out zero-volume tets; zero where every
+//! adjacent tet has zero volume. A vertex-to-tets adjacency in CSR form ([`VertexTets`]) is
+//! built once at load; each invocation gathers its vertex's tets, so no float atomics are
+//! needed. [`vertex_gradients_twin`] is the stage's CPU twin, in f32 with the shader's
+//! operation order, for tests.
+
+use rayon::prelude::*;
+
+use crate::gpu::util::{bind_group_layout, buffer_entry, entry, pipeline_layout_for, wgsl_module};
+
+const ISO_GRADIENTS: &str = include_str!("../../../shaders/iso_gradients.wgsl");
+
+/// The gradient stage's WGSL (`shaders/iso_gradients.wgsl`, standalone; entry point `main`).
+pub fn gradients_source() -> &'static str {
+    ISO_GRADIENTS
+}
+
+/// Vertex-to-tets adjacency in CSR form: vertex `v`'s tets are
+/// `tets[offsets[v] as usize..offsets[v + 1] as usize]`, in increasing tet order.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct VertexTets {
+    pub offsets: Vec<u32>,
+    pub tets: Vec<u32>,
+}
+
+impl VertexTets {
+    /// The adjacency of `tets` over `vertex_count` vertices (a counting sort; indices must be
+    /// below `vertex_count`, as in any [`crate::TetMesh`]).
+    pub fn build(tets: &[[u32; 4]], vertex_count: usize) -> Self {
+        let mut offsets = vec![0u32; vertex_count + 1];
+        for t in tets {
+            for &v in t {
+                offsets[v as usize + 1] += 1;
+            }
+        }
+        for v in 0..vertex_count {
+            offsets[v + 1] += offsets[v];
+        }
+        let mut next = offsets.clone();
+        let mut out = vec![0u32; 4 * tets.len()];
+        for (i, t) in tets.iter().enumerate() {
+            for &v in t {
+                out[next[v as usize] as usize] = i as u32;
+                next[v as usize] += 1;
+            }
+        }
+        Self { offsets, tets: out }
+    }
+}
+
+/// The distinct vertices of `tets`, ascending.
+pub fn vertices_of(tets: &[[u32; 4]]) -> Vec<u32> {
+    let mut v: Vec<u32> = tets.par_iter().flat_map_iter(|t| *t).collect();
+    v.par_sort_unstable();
+    v.dedup();
+    v
+}
+
+/// CPU twin of `shaders/iso_gradients.wgsl`: the same f32 inputs (positions relative to the
+/// mesh centre in `xyz`, normalized scalars), the same arithmetic in the same order.
+pub fn vertex_gradients_twin(
+    positions: &[[f32; 4]],
+    scalars: &[f32],
+    tets: &[[u32; 4]],
+    adjacency: &VertexTets,
+) -> Vec<[f32; 4]> {
+    use glam::Vec3;
+    let p = |i: u32| Vec3::from_slice(&positions[i as usize][..3]);
+    (0..adjacency.offsets.len().saturating_sub(1))
+        .into_par_iter()
+        .map(|v| {
+            let (mut sum, mut weight) = (Vec3::ZERO, 0.0f32);
+            let range = adjacency.offsets[v] as usize..adjacency.offsets[v + 1] as usize;
+            for &k in &adjacency.tets[range] {
+                let t = tets[k as usize];
+                let p0 = p(t[0]);
+                let (e1, e2, e3) = (p(t[1]) - p0, p(t[2]) - p0, p(t[3]) - p0);
+                let s0 = scalars[t[0] as usize];
+                let (c23, c31, c12) = (e2.cross(e3), e3.cross(e1), e1.cross(e2));
+                let det = e1.dot(c23);
+                let g = (scalars[t[1] as usize] - s0) * c23
+                    + (scalars[t[2] as usize] - s0) * c31
+                    + (scalars[t[3] as usize] - s0) * c12;
+                if det != 0.0 {
+                    sum += det.signum() * g;
+                    weight += det.abs();
+                }
+            }
+            let out = if weight > 0.0 {
+                sum / weight
+            } else {
+                Vec3::ZERO
+            };
+            [out.x, out.y, out.z, 0.0]
+        })
+        .collect()
+}
+
+/// The GPU stage: pipeline and the adjacency buffers (uploaded once).
+pub(super) struct GradientStage {
+    layout: wgpu::BindGroupLayout,
+    pipeline: wgpu::ComputePipeline,
+    tets_buf: wgpu::Buffer,
+    offsets_buf: wgpu::Buffer,
+    vertex_tets_buf: wgpu::Buffer,
+}
+
+impl GradientStage {
+    pub(super) fn new(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        tets: &[[u32; 4]],
+        vertex_count: usize,
+    ) -> Self {
+        use wgpu::ShaderStages as S;
+        let ro = wgpu::BufferBindingType::Storage { read_only: true };
+        let rw = wgpu::BufferBindingType::Storage { read_only: false };
+        let layout = bind_group_layout(
+            device,
+            "iso gradients",
+            &[
+                buffer_entry(0, S::COMPUTE, ro),
+                buffer_entry(1, S::COMPUTE, ro),
+                buffer_entry(2, S::COMPUTE, ro),
+                buffer_entry(3, S::COMPUTE, ro),
+                buffer_entry(4, S::COMPUTE, ro),
+                buffer_entry(5, S::COMPUTE, rw),
+                buffer_entry(6, S::COMPUTE, ro),
+            ],
+        );
+        let module = wgsl_module(device, "iso_gradients", ISO_GRADIENTS.to_string());
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("iso gradients"),
+            layout: Some(&pipeline_layout_for(device, &layout)),
+            module: &module,
+            entry_point: Some("main"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        let adjacency = VertexTets::build(tets, vertex_count);
+        let upload = |label: &str, bytes: &[u8]| {
+            let buf = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: (bytes.len() as u64).max(16),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            queue.write_buffer(&buf, 0, bytes);
+            buf
+        };
+        Self {
+            tets_buf: upload("iso gradient tets", bytemuck::cast_slice(tets)),
+            offsets_buf: upload(
+                "iso vertex-tet offsets",
+                bytemuck::cast_slice(&adjacency.offsets),
+            ),
+            vertex_tets_buf: upload("iso vertex tets", bytemuck::cast_slice(&adjacency.tets)),
+            layout,
+            pipeline,
+        }
+    }
+
+    /// Records the pass writing the gradient of each vertex listed in `vertices` (a buffer of
+    /// exactly `count` u32s: the shader takes the count from its length) into `gradients`.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn encode(
+        &self,
+        device: &wgpu::Device,
+        enc: &mut wgpu::CommandEncoder,
+        positions: &wgpu::Buffer,
+        scalars: &wgpu::Buffer,
+        gradients: &wgpu::Buffer,
+        vertices: &wgpu::Buffer,
+        count: u32,
+        max_groups_per_dimension: u32,
+    ) {
+        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("iso gradients"),
+            layout: &self.layout,
+            entries: &[
+                entry(0, positions),
+                entry(1, scalars),
+                entry(2, &self.tets_buf),
+                entry(3, &self.offsets_buf),
+                entry(4, &self.vertex_tets_buf),
+                entry(5, gradients),
+                entry(6, vertices),
+            ],
+        });
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("iso gradients"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &group, &[]);
+        let groups = count.div_ceil(64).max(1);
+        let x = groups.min(max_groups_per_dimension).max(1);
+        pass.dispatch_workgroups(x, groups.div_ceil(x), 1);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn adjacency_lists_each_tet_under_its_vertices() {
+        let tets = [[0, 1, 2, 3], [1, 2, 3, 4]];
+        let a = VertexTets::build(&tets, 6);
+        assert_eq!(a.offsets, [0, 1, 3, 5, 7, 8, 8]);
+        assert_eq!(a.tets, [0, 0, 1, 0, 1, 0, 1, 1]);
+    }
+
+    /// A linear field has the same gradient in every tet, so every vertex gets it; a
+    /// zero-volume tet is left out and a vertex only it touches gets 0.
+    #[test]
+    fn twin_reproduces_a_linear_gradient() {
+        let positions = [
+            [0.0, 0.0, 0.0, 1.0],
+            [1.0, 0.0, 0.0, 1.0],
+            [0.0, 1.0, 0.0, 1.0],
+            [0.0, 0.0, 1.0, 1.0],
+            [1.0, 1.0, 1.0, 1.0],
+            [2.0, 0.0, 0.0, 1.0],
+        ];
+        let field = |p: [f32; 4]| 2.0 * p[0] - p[1] + 0.5 * p[2];
+        let scalars: Vec<f32> = positions.iter().map(|&p| field(p)).collect();
+        // Tet 2 is flat (vertices 0, 1, 5 collinear).
+        let tets = [[0, 1, 2, 3], [1, 2, 3, 4], [0, 1, 5, 2]];
+        let g = vertex_gradients_twin(&positions, &scalars, &tets, &VertexTets::build(&tets, 6));
+        for (v, gv) in g.iter().enumerate().take(5) {
+            let d = glam::Vec3::from_slice(&gv[..3]) - glam::Vec3::new(2.0, -1.0, 0.5);
+            // Exact inputs of size 1 to 2: f32 rounding of a few products.
+            assert!(d.length() <= 1e-6, "vertex {v}: {gv:?}");
+        }
+        // Vertex 5 lies only in the flat tet.
+        assert_eq!(g[5], [0.0; 4]);
+    }
+}
