@@ -529,3 +529,37 @@ fn deformed_and_rescaled_mesh_matches_reference() {
         assert!(worst <= 1e-5, "{name}: {worst}");
     }
 }
+
+#[test]
+fn frustum_culling_drops_tets_out_of_view_and_changes_nothing() {
+    // Zoomed in (eye at 0.4 of the framing distance): part of the surfaces lies outside the
+    // view. A culled tet lies entirely outside one frustum plane, so none of its fragments
+    // could land on screen: the picture must be bit-identical with culling on and off.
+    let mesh = gaussians();
+    let (lo, hi) = mesh.bounds();
+    let camera = Camera::framing(lo, hi, View::ISO, 0.4, 30.0, 96, 96);
+    let frame = |frustum: bool| {
+        let settings = IsoSettings {
+            isovalues: vec![(0.3, RED), (0.6, BLUE)],
+            shading: Shading::Smooth,
+            frustum,
+            ..Default::default()
+        };
+        let mut r = IsoRenderer::new(ctx(), &mesh, settings).expect("iso renderer");
+        r.render_surface(&camera).expect("iso frame")
+    };
+    let ((on, t_on), (off, t_off)) = (frame(true), frame(false));
+    let culled = |t: &tetvr::Timings| {
+        t.counters
+            .iter()
+            .find(|(n, _)| *n == "tets culled (frustum)")
+            .map_or(0, |c| c.1)
+    };
+    let selected = t_on.counters.iter().find(|(n, _)| *n == "tets selected");
+    eprintln!("culled {} of {selected:?}", culled(&t_on));
+    assert!(culled(&t_on) > 0, "{t_on}");
+    assert_eq!(culled(&t_off), 0, "{t_off}");
+    assert_eq!(on.color.compare(&off.color).expect("same size").max_abs, 0.0);
+    assert!(on.depth.iter().zip(&off.depth).all(|(a, b)| a.to_bits() == b.to_bits()));
+    assert!(on.color.pixels.iter().any(|p| p[3] > 0.0), "the view shows a surface");
+}

@@ -241,6 +241,7 @@ fn gpu_renderer(
     let settings = IsoSettings {
         isovalues,
         shading,
+        frustum: !args.shells.no_skip.contains(&tetvr::gpu::Skip::Frustum),
         ..Default::default()
     };
     let renderer = IsoRenderer::new(ctx, mesh, settings)?;

@@ -168,8 +168,8 @@ pub struct ShellArgs {
     /// shells: slices sampled per fragment and shell (a multiple of 4, at most 4 x the adapter's colour targets).
     #[arg(long)]
     pub slices_per_shell: Option<u32>,
-    /// shells: work-skipping to turn off (all on by default), comma separated: tf-cull,
-    /// empty-space, early-termination, frustum.
+    /// Work-skipping to turn off (all on by default), comma separated: tf-cull, empty-space,
+    /// early-termination (shells), frustum (shells, iso).
     #[arg(long, value_delimiter = ',')]
     pub no_skip: Vec<tetvr::gpu::Skip>,
     /// shells: accumulated opacity at which a pixel stops receiving work (early ray

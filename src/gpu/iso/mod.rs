@@ -6,7 +6,9 @@
 //!    span-space index ([`select::IntervalIndex`], rebuilt with rayon only when the scalars
 //!    change, stage "select index") answers a new isovalue without scanning every tet; the
 //!    list is recomputed only when the scalars or the isovalues change;
-//! 2. upload: frame constants and the selected tets (when they changed);
+//!    Frustum culling ([`IsoSettings::frustum`]) then drops, every frame, the selected tets
+//!    entirely outside one plane of the view frustum (stage "frustum");
+//! 2. upload: frame constants and the tets to draw;
 //! 3. gradients (smooth shading only): a compute pass recomputes the gradient of every vertex
 //!    of a selected tet from the current positions, the volume-weighted mean over its tets
 //!    ([`gradients`]);
@@ -39,7 +41,7 @@ use rayon::prelude::*;
 
 use crate::camera::Camera;
 use crate::gpu::gpu_data::{FrameUniforms, TetRecord};
-use crate::gpu::shells::{DEGENERATE_TOL, assembly_pipeline};
+use crate::gpu::shells::{DEGENERATE_TOL, assembly_pipeline, binning};
 use crate::gpu::util::{
     bind_group_layout, buffer_entry, entry, map_read, ms_since, pipeline_layout_for,
     settings_error, wgsl_module,
@@ -91,6 +93,9 @@ pub struct IsoSettings {
     pub shading: Shading,
     /// Inside tolerance on the smallest barycentric coordinate (see the shells mode's).
     pub epsilon: f32,
+    /// Frustum culling (`--no-skip frustum` turns it off): selected tets entirely outside one
+    /// plane of the view frustum are neither assembled nor drawn.
+    pub frustum: bool,
 }
 
 impl Default for IsoSettings {
@@ -100,6 +105,7 @@ impl Default for IsoSettings {
             shading: Shading::Flat,
             // As ShellSettings::epsilon: covers f32 barycentric error up to ~1000 tet sizes away.
             epsilon: 1e-4,
+            frustum: true,
         }
     }
 }
@@ -481,14 +487,28 @@ impl IsoRenderer {
             self.selection = Some(self.select());
             self.selection_uploaded = false;
         }
-        let selected = self.selection.as_ref().map_or(0, Vec::len);
+        let all_selected = self.selection.as_ref().map_or(0, Vec::len);
         timings.stage("select", ms_since(t0));
 
-        // 2. Upload.
-        let t1 = Instant::now();
+        // Frustum culling of the selection, per frame (the camera or the positions moved).
         let (right, up, forward) = camera.basis();
         let th = camera.tan_half_fov();
         let slope = [th * camera.aspect(), th];
+        let t0 = Instant::now();
+        let visible: Option<Vec<[u32; 4]>> = self.settings.frustum.then(|| {
+            let codes =
+                binning::to_eye_space(&self.positions, camera.eye, [right, up, forward], slope);
+            let sel = self.selection.as_deref().unwrap_or(&[]);
+            sel.par_iter()
+                .filter(|t| t.iter().fold(0xff, |a, &v| a & codes[v as usize].1) == 0)
+                .copied()
+                .collect()
+        });
+        let selected = visible.as_ref().map_or(all_selected, Vec::len);
+        timings.stage("frustum", ms_since(t0));
+
+        // 2. Upload.
+        let t1 = Instant::now();
         let o = self.origin;
         let f32x3 = |v: DVec3| v.as_vec3().to_array();
         let frame = FrameUniforms {
@@ -559,7 +579,7 @@ impl IsoRenderer {
                     mapped_at_creation: false,
                 });
             }
-            if !bytes.is_empty() {
+            if !bytes.is_empty() && visible.is_none() {
                 self.queue.write_buffer(&self.selected_buf, 0, bytes);
             }
             if self.gradient_stage.is_some() {
@@ -577,6 +597,10 @@ impl IsoRenderer {
                 });
             }
             self.selection_uploaded = true;
+        }
+        if let Some(v) = visible.as_ref().filter(|v| !v.is_empty()) {
+            self.queue
+                .write_buffer(&self.selected_buf, 0, bytemuck::cast_slice(v));
         }
         self.ensure_targets(camera.width, camera.height)?;
         self.queue.submit([]);
@@ -809,7 +833,8 @@ impl IsoRenderer {
         timings.stage("total", ms_since(start));
         timings.clock = "wall clock, GPU drained after each stage";
         timings.count("tets", self.tets.len() as u64);
-        timings.count("tets selected", selected as u64);
+        timings.count("tets selected", all_selected as u64);
+        timings.count("tets culled (frustum)", (all_selected - selected) as u64);
         timings.count("triangles", 4 * selected as u64);
         timings.count("degenerate tets", degenerate as u64);
         timings.count("fragments (occlusion query)", fragments);

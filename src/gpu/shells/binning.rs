@@ -129,13 +129,32 @@ pub fn slice_range(
     (lo <= hi).then_some((lo as u64, hi as u64))
 }
 
-/// Frustum outcode of an eye-space point: one bit per plane it is outside of.
-fn outcode(q: DVec3, slope: [f64; 2]) -> u8 {
+/// Frustum outcode of an eye-space point: one bit per plane it is outside of. A tet whose
+/// corners' outcodes share a bit lies entirely outside that plane.
+pub fn outcode(q: DVec3, slope: [f64; 2]) -> u8 {
     (q.x > slope[0] * q.z) as u8
         | ((q.x < -slope[0] * q.z) as u8) << 1
         | ((q.y > slope[1] * q.z) as u8) << 2
         | ((q.y < -slope[1] * q.z) as u8) << 3
         | ((q.z <= 0.0) as u8) << 4
+}
+
+/// Every position in eye space (`basis` = right, up, forward from `eye`) with its frustum
+/// [`outcode`].
+pub fn to_eye_space(
+    positions: &[DVec3],
+    eye: DVec3,
+    [r, u, f]: [DVec3; 3],
+    slope: [f64; 2],
+) -> Vec<(DVec3, u8)> {
+    positions
+        .par_iter()
+        .map(|&p| {
+            let d = p - eye;
+            let q = DVec3::new(r.dot(d), u.dot(d), f.dot(d));
+            (q, outcode(q, slope))
+        })
+        .collect()
 }
 
 /// Decides each tet's shells. `transparent(t)` says whether tet `t` contributes nothing.
@@ -145,15 +164,7 @@ pub fn classify(
     params: &BinParams,
     transparent: impl Fn(usize) -> bool + Sync,
 ) -> Vec<TetBin> {
-    let [r, u, f] = params.basis;
-    let eye_space: Vec<(DVec3, u8)> = positions
-        .par_iter()
-        .map(|&p| {
-            let d = p - params.eye;
-            let q = DVec3::new(r.dot(d), u.dot(d), f.dot(d));
-            (q, outcode(q, params.slope))
-        })
-        .collect();
+    let eye_space = to_eye_space(positions, params.eye, params.basis, params.slope);
     let n = params.slices_per_shell as u64;
     let total = params.shells as u64 * n;
     tets.par_iter()
