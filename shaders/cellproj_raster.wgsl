@@ -146,21 +146,32 @@ fn mean_transmittance(a: f32, b: f32) -> f32 {
     return sum * h;
 }
 
-// Extinction (w) and colour (rgb) at u, from the TF interval holding `mid`.
-fn tf_at(u: f32, mid: f32) -> vec4<f32> {
-    let n = frame.tf_count;
-    var j = 0u;
-    for (var k = 0u; k < n; k++) {
-        if tf.points[k].s <= mid {
-            j = k + 1u;
+// The number of control points with s < u (strict) or s <= u: binary search.
+fn points_below(u: f32, strict: bool) -> u32 {
+    var lo = 0u;
+    var hi = frame.tf_count;
+    while lo < hi {
+        let mid = (lo + hi) / 2u;
+        let s = tf.points[mid].s;
+        if s < u || (!strict && s == u) {
+            lo = mid + 1u;
+        } else {
+            hi = mid;
         }
     }
-    let a = select(j - 1u, 0u, j == 0u);
-    let b = min(select(j, 0u, j == 0u), n - 1u);
+    return lo;
+}
+
+// Extinction (w) and colour (rgb) at u on the interval between points j - 1 and j (both the end
+// point outside the TF's range); preint::NormalizedTf::on_interval.
+fn on_interval(j: u32, u: f32) -> vec4<f32> {
+    let last = frame.tf_count - 1u;
+    let a = min(max(j, 1u) - 1u, last);
+    let b = min(j, last);
     let pa = tf.points[a];
     let pb = tf.points[b];
-    // inv_width is 0 at a step and at the last point; below the first point w is 0.
-    let w = select(clamp((u - pa.s) * pa.inv_width, 0.0, 1.0), 0.0, j == 0u || a == b);
+    // inv_width is 1 / (next.s - s), 0 at a step and at the last point.
+    let w = select(0.0, clamp((u - pa.s) * pa.inv_width, 0.0, 1.0), b == a + 1u);
     return mix(vec4<f32>(pa.rgb, pa.tau), vec4<f32>(pb.rgb, pb.tau), w);
 }
 
@@ -169,14 +180,14 @@ struct Acc {
     trans: f32,
 }
 
-// Composites the piece from u0 to u1 of length l behind `acc` (preint::integrate_piece).
-fn piece(acc: Acc, u0: f32, u1: f32, l: f32) -> Acc {
+// Composites the piece from u0 to u1 of length l on interval j behind `acc`
+// (preint::integrate_piece).
+fn piece(acc: Acc, j: u32, u0: f32, u1: f32, l: f32) -> Acc {
     if !(l > 0.0) {
         return acc;
     }
-    let mid = 0.5 * (u0 + u1);
-    let fa = tf_at(u0, mid);
-    let fb = tf_at(u1, mid);
+    let fa = on_interval(j, u0);
+    let fb = on_interval(j, u1);
     let a = fa.w * l;
     let b = fb.w * l;
     let t = exp(-0.5 * (a + b));
@@ -185,6 +196,7 @@ fn piece(acc: Acc, u0: f32, u1: f32, l: f32) -> Acc {
     return Acc(acc.color + acc.trans * c, acc.trans * t);
 }
 
+// The walk of preint::integrate: j is the first control point ahead, each crossing moves it.
 @fragment
 fn fs_exact(in: Varyings) -> @location(0) vec4<f32> {
     let seg = segment(in);
@@ -195,21 +207,29 @@ fn fs_exact(in: Varyings) -> @location(0) vec4<f32> {
     let u_back = seg.y;
     let len = seg.z;
     let du = u_back - u_front;
+    let up = du >= 0.0;
     let n = frame.tf_count;
+    var j = points_below(u_front, !up);
     var acc = Acc(vec3<f32>(0.0), 1.0);
-    var f0 = 0.0;
     var s0 = u_front;
-    if du != 0.0 {
-        for (var k = 0u; k < n; k++) {
-            let iso = select(tf.points[n - 1u - k].s, tf.points[k].s, du > 0.0);
-            let f = (iso - u_front) / du;
-            if f > f0 && f < 1.0 {
-                acc = piece(acc, s0, iso, len * (f - f0));
-                f0 = f;
-                s0 = iso;
-            }
+    // At most one piece per control point, plus the last.
+    for (var step = 0u; step <= n; step++) {
+        var s1 = u_back;
+        var crossing = false;
+        if up && j < n && tf.points[min(j, n - 1u)].s < u_back {
+            s1 = tf.points[j].s;
+            crossing = true;
+        } else if !up && j > 0u && tf.points[max(j, 1u) - 1u].s > u_back {
+            s1 = tf.points[j - 1u].s;
+            crossing = true;
         }
+        let l = select(len * (s1 - s0) / du, len, du == 0.0);
+        acc = piece(acc, j, s0, s1, l);
+        if !crossing {
+            break;
+        }
+        s0 = s1;
+        j = select(j - 1u, j + 1u, up);
     }
-    acc = piece(acc, s0, u_back, len * (1.0 - f0));
     return vec4<f32>(acc.color, 1.0 - acc.trans);
 }

@@ -35,7 +35,10 @@ fn default_view(mesh: &TetMesh, size: u32) -> (TransferFunction, Camera) {
     let (lo, hi) = mesh.bounds();
     let (s_lo, s_hi) = mesh.active_array().and_then(|a| a.range()).unwrap();
     let tf = TransferFunction::default_for_range(s_lo, s_hi, mesh.diagonal() / 100.0).unwrap();
-    (tf, Camera::framing(lo, hi, View::ISO, 1.0, 30.0, size, size))
+    (
+        tf,
+        Camera::framing(lo, hi, View::ISO, 1.0, 30.0, size, size),
+    )
 }
 
 fn load(name: &str) -> TetMesh {
@@ -45,7 +48,8 @@ fn load(name: &str) -> TetMesh {
 }
 
 fn lox() -> TetMesh {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/lox_post_subset_tet.vtk");
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/lox_post_subset_tet.vtk");
     tetvr::io::load(&path).expect("the asset loads").mesh
 }
 
@@ -90,7 +94,12 @@ fn check_both(
     let t = render(mesh, Integrate::Table, camera, tf);
     assert_images_close(&format!("cellproj-{name}-exact"), &e, &expected, exact);
     assert_images_close(&format!("cellproj-{name}-table"), &t, &expected, table);
-    assert_images_close(&format!("cellproj-{name}-table-vs-exact"), &t, &e, table_vs_exact);
+    assert_images_close(
+        &format!("cellproj-{name}-table-vs-exact"),
+        &t,
+        &e,
+        table_vs_exact,
+    );
 }
 
 const fn bounds(max_rmse: f64, max_abs: f64) -> Bounds {
@@ -212,10 +221,20 @@ fn tf_change_rebuilds_the_table() {
     // across the step costs 10x more than with the default; measured rmse 3.5e-4, max 2.3e-3;
     // bounds about 3x.
     let expected = reference(&mesh, &camera, &sharp);
-    assert_images_close("cellproj-sharp-tf-table", &changed.image, &expected, bounds(1e-3, 1e-2));
+    assert_images_close(
+        "cellproj-sharp-tf-table",
+        &changed.image,
+        &expected,
+        bounds(1e-3, 1e-2),
+    );
     // The exact integrator has no interpolation: f32 only (measured rmse 9.2e-6, max 5.7e-4).
     let exact = render(&mesh, Integrate::Exact, &camera, &sharp);
-    assert_images_close("cellproj-sharp-tf-exact", &exact, &expected, bounds(3e-5, 2e-3));
+    assert_images_close(
+        "cellproj-sharp-tf-exact",
+        &exact,
+        &expected,
+        bounds(3e-5, 2e-3),
+    );
 }
 
 /// After `update_positions` (sort, upload and assembly only, no rebuild) the renderer draws
@@ -235,7 +254,12 @@ fn deformed_mesh_matches_reference() {
     let fresh = render(&mesh, Integrate::Exact, &camera, &tf);
     // Same positions, origin, order and f32 arithmetic: the same picture (1e-6 leaves room for
     // nothing but a different rounding path, which there is not).
-    assert_images_close("cellproj-twisted-vs-fresh", &got, &fresh, bounds(1e-6, 1e-5));
+    assert_images_close(
+        "cellproj-twisted-vs-fresh",
+        &got,
+        &fresh,
+        bounds(1e-6, 1e-5),
+    );
     let expected = reference(&mesh, &camera, &tf);
     // The twisted subset is further from Delaunay: the sort check finds 5.0e-2 of the pairs on
     // a ray in the wrong order (2.7e-2 untwisted), and the error sits where they are. Measured
@@ -269,7 +293,11 @@ fn flat_tets_and_eye_inside() {
     for (name, camera) in [("outside", outside), ("inside", inside)] {
         let mut r = CellProjRenderer::new(ctx(), &mesh, settings(Integrate::Exact)).unwrap();
         let frame = r.render(&camera, &tf).unwrap();
-        let flat = frame.timings.counters.iter().find(|c| c.0 == "flat tets skipped");
+        let flat = frame
+            .timings
+            .counters
+            .iter()
+            .find(|c| c.0 == "flat tets skipped");
         assert_eq!(flat.map(|c| c.1), Some(2));
         let expected = reference(&mesh, &camera, &tf);
         // A grid (right order): f32 only; measured rmse 4.0e-7 (outside) and 1.5e-7 (inside,

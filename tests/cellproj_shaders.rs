@@ -6,15 +6,28 @@ use tetvr::gpu::cellproj::{CellProjUniforms, raster_source};
 #[test]
 fn cellproj_raster_validates() {
     let src = raster_source();
-    let module = naga::front::wgsl::parse_str(&src)
-        .unwrap_or_else(|e| panic!("cellproj_raster: WGSL parse error:\n{}", e.emit_to_string(&src)));
+    let module = naga::front::wgsl::parse_str(&src).unwrap_or_else(|e| {
+        panic!(
+            "cellproj_raster: WGSL parse error:\n{}",
+            e.emit_to_string(&src)
+        )
+    });
     naga::valid::Validator::new(
         naga::valid::ValidationFlags::all(),
         naga::valid::Capabilities::all(),
     )
     .validate(&module)
-    .unwrap_or_else(|e| panic!("cellproj_raster: validation error:\n{}", e.emit_to_string(&src)));
-    let names: Vec<_> = module.entry_points.iter().map(|e| e.name.as_str()).collect();
+    .unwrap_or_else(|e| {
+        panic!(
+            "cellproj_raster: validation error:\n{}",
+            e.emit_to_string(&src)
+        )
+    });
+    let names: Vec<_> = module
+        .entry_points
+        .iter()
+        .map(|e| e.name.as_str())
+        .collect();
     assert_eq!(names, ["vs_faces", "fs_table", "fs_exact"]);
     let size = module
         .types

@@ -619,10 +619,7 @@ impl Renderer for CellProjRenderer {
         };
         self.queue
             .write_buffer(&self.cellproj_buf, 0, bytemuck::bytes_of(&constants));
-        let indices: Vec<[u32; 4]> = order
-            .par_iter()
-            .map(|&t| self.tets[t as usize])
-            .collect();
+        let indices: Vec<[u32; 4]> = order.par_iter().map(|&t| self.tets[t as usize]).collect();
         if !indices.is_empty() {
             self.queue
                 .write_buffer(&self.order_buf, 0, bytemuck::cast_slice(&indices));

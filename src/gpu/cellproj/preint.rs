@@ -67,16 +67,11 @@ impl NormalizedTf {
         }
     }
 
-    /// Extinction and colour at `u`, taken from the interval that holds `mid` (so a step, two
-    /// points at one `u`, is taken from the side the piece lies on).
-    fn at(&self, u: f64, mid: f64) -> (f64, [f64; 3]) {
+    /// Extinction and colour at `u` on the TF interval between points `j - 1` and `j` (both
+    /// the end point outside the TF's range).
+    fn on_interval(&self, j: usize, u: f64) -> (f64, [f64; 3]) {
         let n = self.u.len();
-        let j = self.u.iter().take_while(|&&v| v <= mid).count();
-        let (a, b) = match j {
-            0 => (0, 0),
-            j if j >= n => (n - 1, n - 1),
-            j => (j - 1, j),
-        };
+        let (a, b) = (j.saturating_sub(1).min(n - 1), j.min(n - 1));
         let w = if self.u[b] > self.u[a] {
             ((u - self.u[a]) / (self.u[b] - self.u[a])).clamp(0.0, 1.0)
         } else {
@@ -115,11 +110,7 @@ pub fn mean_transmittance(a: f64, b: f64) -> f64 {
 }
 
 /// Premultiplied colour and transmittance of one piece with linear extinction and colour.
-pub fn integrate_piece(
-    tau: [f64; 2],
-    color: [[f64; 3]; 2],
-    length: f64,
-) -> ([f64; 3], f64) {
+pub fn integrate_piece(tau: [f64; 2], color: [[f64; 3]; 2], length: f64) -> ([f64; 3], f64) {
     let (a, b) = (tau[0] * length, tau[1] * length);
     let t = (-0.5 * (a + b)).exp();
     let m = mean_transmittance(a, b);
@@ -129,37 +120,52 @@ pub fn integrate_piece(
 
 /// Premultiplied RGBA (alpha = 1 - transmittance) of a segment of `length` along which the
 /// normalized scalar goes linearly from `u_front` to `u_back`, exactly for the
-/// piecewise-linear TF (split at every control point the segment crosses).
+/// piecewise-linear TF. The walk visits the TF intervals in the order the segment meets them:
+/// `j` is the first control point ahead (binary search once), each crossing moves it by one,
+/// and a step (two points at one `u`) gives an empty piece between its sides.
 pub fn integrate(tf: &NormalizedTf, u_front: f64, u_back: f64, length: f64) -> [f64; 4] {
     if !(length > 0.0 && length.is_finite()) {
         return [0.0; 4];
     }
-    let du = u_back - u_front;
     let n = tf.u.len();
+    let du = u_back - u_front;
+    let up = du >= 0.0;
+    let mut j = if up {
+        tf.u.partition_point(|&v| v <= u_front)
+    } else {
+        tf.u.partition_point(|&v| v < u_front)
+    };
     let (mut color, mut trans) = ([0.0; 3], 1.0);
-    let (mut f0, mut s0) = (0.0, u_front);
-    let piece = |s1: f64, f1: f64, color: &mut [f64; 3], trans: &mut f64, s0: f64, f0: f64| {
-        let l = length * (f1 - f0);
+    let mut s0 = u_front;
+    loop {
+        let next = if up {
+            (j < n && tf.u[j] < u_back).then(|| tf.u[j])
+        } else {
+            (j > 0 && tf.u[j - 1] > u_back).then(|| tf.u[j - 1])
+        };
+        let s1 = next.unwrap_or(u_back);
+        let l = if du == 0.0 {
+            length
+        } else {
+            length * (s1 - s0) / du
+        };
         if l > 0.0 {
-            let mid = 0.5 * (s0 + s1);
-            let (ta, ca) = tf.at(s0, mid);
-            let (tb, cb) = tf.at(s1, mid);
+            let (ta, ca) = tf.on_interval(j, s0);
+            let (tb, cb) = tf.on_interval(j, s1);
             let (c, t) = integrate_piece([ta, tb], [ca, cb], l);
             for (acc, c) in color.iter_mut().zip(c) {
-                *acc += *trans * c;
+                *acc += trans * c;
             }
-            *trans *= t;
+            trans *= t;
         }
-    };
-    for k in 0..n {
-        let iso = if du > 0.0 { tf.u[k] } else { tf.u[n - 1 - k] };
-        let f = (iso - u_front) / du;
-        if f > f0 && f < 1.0 {
-            piece(iso, f, &mut color, &mut trans, s0, f0);
-            (f0, s0) = (f, iso);
+        match next {
+            Some(s) => {
+                s0 = s;
+                j = if up { j + 1 } else { j - 1 };
+            }
+            None => break,
         }
     }
-    piece(u_back, 1.0, &mut color, &mut trans, s0, f0);
     [color[0], color[1], color[2], 1.0 - trans]
 }
 
@@ -294,7 +300,10 @@ mod tests {
             assert!((1.0 - t - a).abs() < 1e-15, "tau {tau}");
             for (i, ci) in c.iter().enumerate() {
                 // f32-level: the quadrature's truncation at STOP_DEPTH costs exp(-16).
-                assert!((ci - [0.3, 0.6, 0.9][i] * a).abs() < 2e-7, "tau {tau}: {ci}");
+                assert!(
+                    (ci - [0.3, 0.6, 0.9][i] * a).abs() < 2e-7,
+                    "tau {tau}: {ci}"
+                );
             }
         }
     }
@@ -334,13 +343,21 @@ mod tests {
             (0.25, 0.35, 0.01),
             (0.5, 0.5, 0.0),
             (-0.2, 1.3, 0.7),
+            (0.3, 0.7, 0.4),
+            (0.7, 0.3, 0.4),
+            (0.3, 0.1, 0.2),
+            (0.1, 0.3, 0.2),
+            (0.3, 0.3, 0.5),
         ] {
             let got = integrate(&norm, a, b, l);
             let (c, t) = integrate_segment(&tf, a, b, l);
             let want = [c[0], c[1], c[2], 1.0 - t];
             for k in 0..4 {
                 // f32-level agreement (STOP_DEPTH truncation), both converged to 1e-9 otherwise.
-                assert!((got[k] - want[k]).abs() < 2e-7, "{a} {b} {l}: {got:?} {want:?}");
+                assert!(
+                    (got[k] - want[k]).abs() < 2e-7,
+                    "{a} {b} {l}: {got:?} {want:?}"
+                );
             }
         }
     }

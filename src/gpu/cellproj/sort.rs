@@ -212,7 +212,10 @@ pub fn sort_check(reference: &ReferenceRenderer, camera: &Camera, stride: u32) -
         }
     }
     let stride = stride.max(1);
-    let (w, h) = (camera.width.div_ceil(stride), camera.height.div_ceil(stride));
+    let (w, h) = (
+        camera.width.div_ceil(stride),
+        camera.height.div_ceil(stride),
+    );
     let (right, up, forward) = camera.basis();
     let per_ray: Vec<[u64; 3]> = (0..w * h)
         .into_par_iter()
@@ -278,9 +281,15 @@ mod tests {
     #[test]
     fn flat_tets_have_no_sphere() {
         let z = DVec3::ZERO;
-        assert_eq!(circumcentre_offset([z, DVec3::X, DVec3::Y, DVec3::X + DVec3::Y]), None);
+        assert_eq!(
+            circumcentre_offset([z, DVec3::X, DVec3::Y, DVec3::X + DVec3::Y]),
+            None
+        );
         assert_eq!(circumcentre_offset([z, z, z, z]), None);
-        assert_eq!(circumcentre_offset([z, DVec3::X, DVec3::NAN, DVec3::Z]), None);
+        assert_eq!(
+            circumcentre_offset([z, DVec3::X, DVec3::NAN, DVec3::Z]),
+            None
+        );
     }
 
     proptest! {
