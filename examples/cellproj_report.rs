@@ -15,13 +15,16 @@ use tetvr::reference::ReferenceRenderer;
 use tetvr::tf::file::load_tf;
 use tetvr::{Camera, Image, Renderer, Timings, TransferFunction, View, io};
 
+/// (stage, median milliseconds).
+type Stages = Vec<(&'static str, f64)>;
+
 /// Median of each stage over `frames` frames after one warm-up.
 fn median_frames(
     r: &mut CellProjRenderer,
     camera: &Camera,
     tf: &TransferFunction,
     frames: usize,
-) -> Result<(Image, Vec<(&'static str, f64)>), Box<dyn std::error::Error>> {
+) -> Result<(Image, Stages), Box<dyn std::error::Error>> {
     let first = r.render(camera, tf)?;
     let mut all: Vec<Timings> = Vec::new();
     for _ in 0..frames {

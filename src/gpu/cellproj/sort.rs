@@ -50,7 +50,8 @@ pub fn circumcentre_offset(p: [DVec3; 4]) -> Option<DVec3> {
     let (n1, n2, n3) = (e1 / l, e2 / l, e3 / l);
     let det = n1.dot(n2.cross(n3));
     let scale = (l1 / l) * (l2 / l) * (l3 / l);
-    if !(det.abs() > DEGENERATE_TOL as f64 * scale) {
+    // (A NaN determinant cannot pass the finiteness test on `w` below.)
+    if det.abs() <= DEGENERATE_TOL as f64 * scale {
         return None;
     }
     // w = (|e1|^2 (e2 x e3) + |e2|^2 (e3 x e1) + |e3|^2 (e1 x e2)) / (2 det(E)), in units of l.
