@@ -102,6 +102,51 @@ fn shells_render_runs_on_the_software_adapter_and_prints_stages() {
 }
 
 #[test]
+fn cellproj_render_prints_the_sort_stage_and_checks_the_order() {
+    let stdout = render_lox("cellproj");
+    for stage in [
+        "sort",
+        "preint table",
+        "assembly",
+        "raster",
+        "flat tets skipped",
+    ] {
+        assert!(stdout.contains(stage), "no {stage} in {stdout}");
+    }
+    let png = out_dir("cellproj-exact").join("lox.png");
+    let png_arg = png.to_str().unwrap();
+    let args = [
+        "render",
+        LOX,
+        "--mode",
+        "cellproj",
+        "--integrate",
+        "exact",
+        "--sort-check",
+    ];
+    let o = tetvr(&[&args[..], &["--size", "64x64", "-o", png_arg]].concat());
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stderr}");
+    assert!(
+        stdout.contains("exact segments") && stdout.contains("power-sort check"),
+        "{stdout}"
+    );
+    assert!(png.with_file_name("lox-sort-check.png").exists());
+    // --sort-check belongs to cellproj.
+    let o = tetvr(&[
+        "render",
+        LOX,
+        "--mode",
+        "reference",
+        "--sort-check",
+        "-o",
+        png_arg,
+    ]);
+    assert!(!o.status.success());
+    assert!(text(&o).1.contains("--mode cellproj"));
+}
+
+#[test]
 fn iso_render_draws_the_surfaces_asked_for() {
     let png = out_dir("iso").join("iso.png");
     let png_arg = png.to_str().unwrap();

@@ -559,7 +559,18 @@ fn frustum_culling_drops_tets_out_of_view_and_changes_nothing() {
     eprintln!("culled {} of {selected:?}", culled(&t_on));
     assert!(culled(&t_on) > 0, "{t_on}");
     assert_eq!(culled(&t_off), 0, "{t_off}");
-    assert_eq!(on.color.compare(&off.color).expect("same size").max_abs, 0.0);
-    assert!(on.depth.iter().zip(&off.depth).all(|(a, b)| a.to_bits() == b.to_bits()));
-    assert!(on.color.pixels.iter().any(|p| p[3] > 0.0), "the view shows a surface");
+    assert_eq!(
+        on.color.compare(&off.color).expect("same size").max_abs,
+        0.0
+    );
+    assert!(
+        on.depth
+            .iter()
+            .zip(&off.depth)
+            .all(|(a, b)| a.to_bits() == b.to_bits())
+    );
+    assert!(
+        on.color.pixels.iter().any(|p| p[3] > 0.0),
+        "the view shows a surface"
+    );
 }

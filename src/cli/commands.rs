@@ -5,8 +5,10 @@ use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressStyle};
 use tetvr::camera::{Camera, CameraError, View};
+use tetvr::gpu::cellproj::sort::sort_check;
 use tetvr::gpu::{
-    AdapterChoice, GpuContext, GpuError, IsoRenderer, IsoSettings, ShellSettings, ShellsRenderer,
+    AdapterChoice, CellProjRenderer, CellProjSettings, GpuContext, GpuError, Integrate,
+    IsoRenderer, IsoSettings, ShellSettings, ShellsRenderer,
 };
 use tetvr::image::{Image, ImageError};
 use tetvr::io::{self, LoadError, Loaded};
@@ -20,8 +22,8 @@ use tetvr::tf::file::{TfFileError, load_tf};
 use tetvr::{TetMesh, generate};
 
 use super::{
-    AnimateArgs, Cli, Command, CompareArgs, GenerateArgs, GenerateShape, InfoArgs, IsoExportArgs,
-    MeshArgs, Mode, RenderArgs, ShadingArg,
+    AnimateArgs, Cli, Command, CompareArgs, GenerateArgs, GenerateShape, InfoArgs, IntegrateArg,
+    IsoExportArgs, MeshArgs, Mode, RenderArgs, ShadingArg,
 };
 
 /// Everything a command can fail with; each message says what to fix.
@@ -83,6 +85,11 @@ fn load_mesh(args: &MeshArgs) -> Result<Loaded, CliError> {
 }
 
 fn render(args: RenderArgs) -> Result<(), CliError> {
+    if args.cellproj.sort_check && args.mode != Mode::Cellproj {
+        return Err(CliError::Usage(
+            "--sort-check checks the cell projection's order: use it with --mode cellproj".into(),
+        ));
+    }
     let Loaded { mesh, .. } = load_mesh(&args.mesh)?;
     let tf = transfer_function(&args, &mesh)?;
     let camera = camera(&args, &mesh)?;
@@ -102,6 +109,19 @@ fn render(args: RenderArgs) -> Result<(), CliError> {
     }
     let output = args.output.clone().unwrap_or_else(|| "tetvr.png".into());
     image.save_png(&output, args.background.color())?;
+    if args.cellproj.sort_check {
+        let check = sort_check(&ReferenceRenderer::new(&mesh)?, &camera, 4);
+        let stem = output
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .unwrap_or("tetvr");
+        let mask = output.with_file_name(format!("{stem}-sort-check.png"));
+        check.mask.save_png(&mask, Some([1.0; 3]))?;
+        println!(
+            "{check}\nwrote {} (red: a wrong pair, yellow: a wrong tie)",
+            mask.display()
+        );
+    }
     println!(
         "wrote {} ({}x{}, {what}, {seconds:.2} s)",
         output.display(),
@@ -185,7 +205,7 @@ enum Chosen {
 fn choose(mode: Mode) -> Result<Chosen, CliError> {
     match mode {
         Mode::Reference => Ok(Chosen::Cpu),
-        Mode::Shells | Mode::Iso => Ok(Chosen::Gpu(Box::new(GpuContext::new(
+        Mode::Shells | Mode::Iso | Mode::Cellproj => Ok(Chosen::Gpu(Box::new(GpuContext::new(
             AdapterChoice::from_env(),
         )?))),
         Mode::Auto => match GpuContext::new(AdapterChoice::from_env()) {
@@ -208,6 +228,29 @@ fn gpu_renderer(
     args: &RenderArgs,
     tf: &TransferFunction,
 ) -> Result<(Box<dyn Renderer>, String), CliError> {
+    if args.mode == Mode::Cellproj {
+        let settings = CellProjSettings {
+            integrate: match args.cellproj.integrate {
+                IntegrateArg::Table => Integrate::Table,
+                IntegrateArg::Exact => Integrate::Exact,
+            },
+            table_size: args.cellproj.table_size,
+            table_lengths: (args.cellproj.table_size / 2).max(2),
+            frustum: !args.shells.no_skip.contains(&tetvr::gpu::Skip::Frustum),
+        };
+        let renderer = CellProjRenderer::new(ctx, mesh, settings)?;
+        let how = match settings.integrate {
+            Integrate::Table => format!(
+                "{}x{}x{} pre-integration table",
+                settings.table_size, settings.table_size, settings.table_lengths
+            ),
+            Integrate::Exact => "exact segments".into(),
+        };
+        return Ok((
+            Box::new(renderer),
+            format!("mode cellproj ({how}) on {}", ctx.summary()),
+        ));
+    }
     if args.mode != Mode::Iso {
         let renderer = ShellsRenderer::new(ctx, mesh, shell_settings(args))?;
         return Ok((

@@ -14,6 +14,7 @@ Examples:
   tetvr render assets/lox_post_subset_tet.vtk -o lox.png
   tetvr render mesh.vtu --mode reference --size 256x256 --view -y --tf shock -o ref.png
   tetvr render ../shared/data/bluntfin_tet.vtk --mode iso --iso 0.5,0.7 --shading smooth -o iso.png
+  tetvr render ../shared/data/bluntfin_tet.vtk --mode cellproj --integrate exact --timings --sort-check -o cp.png
   tetvr iso-export ../shared/data/bluntfin_tet.vtk --iso 0.5,0.7 --tf viridis -o fin.glb
   tetvr render mesh.vtk --array Pressure --tf my_tf.json --unit-distance 0.05 -o p.png
   tetvr render mesh.msh --eye 10,0,2 --target 0,0,0 --up 0,0,1 --fov 40 -o close.png
@@ -63,6 +64,17 @@ pub enum Mode {
     Shells,
     /// Per-pixel isosurfaces on the GPU (--iso values, coloured by --tf; --shading).
     Iso,
+    /// Cell projection on the GPU in a power-sort order (--integrate, --table-size, --sort-check).
+    Cellproj,
+}
+
+/// How cell projection integrates each tet's segment.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum IntegrateArg {
+    /// Trilinear lookup in a 3D pre-integration table (front scalar, back scalar, length).
+    Table,
+    /// Exactly for the piecewise-linear TF, per fragment.
+    Exact,
 }
 
 /// Isosurface shading.
@@ -130,6 +142,8 @@ pub struct RenderArgs {
     pub timings: bool,
     #[command(flatten)]
     pub shells: ShellArgs,
+    #[command(flatten)]
+    pub cellproj: CellProjArgs,
     /// iso: isovalues in data units, comma separated (default: the middle of the scalar range).
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub iso: Vec<f64>,
@@ -169,7 +183,7 @@ pub struct ShellArgs {
     #[arg(long)]
     pub slices_per_shell: Option<u32>,
     /// Work-skipping to turn off (all on by default), comma separated: tf-cull, empty-space,
-    /// early-termination (shells), frustum (shells, iso).
+    /// early-termination (shells), frustum (shells, iso, cellproj).
     #[arg(long, value_delimiter = ',')]
     pub no_skip: Vec<tetvr::gpu::Skip>,
     /// shells: accumulated opacity at which a pixel stops receiving work (early ray
@@ -191,6 +205,20 @@ pub struct IsoExportArgs {
     /// Output .glb file.
     #[arg(short, long, default_value = "isosurface.glb")]
     pub output: PathBuf,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct CellProjArgs {
+    /// cellproj: segment integration.
+    #[arg(long, value_enum, default_value_t = IntegrateArg::Table)]
+    pub integrate: IntegrateArg,
+    /// cellproj: pre-integration table samples per scalar axis (and half as many lengths).
+    #[arg(long, default_value_t = 128)]
+    pub table_size: u32,
+    /// cellproj: check the sort against the true order along every 4th pixel's ray; prints the
+    /// wrongly ordered tet pairs and writes a mask of them beside the output (NAME-sort-check.png).
+    #[arg(long)]
+    pub sort_check: bool,
 }
 
 #[derive(clap::Args, Debug)]

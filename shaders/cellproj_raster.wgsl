@@ -1,0 +1,235 @@
+// Cell projection raster (`--mode cellproj`, Georgii & Westermann 2006, section 5): every tet
+// is drawn once, in the back-to-front power order the CPU sorted (instance k is the k-th tet of
+// that order; the assembly stage built its record at index k), front faces only, so each pixel
+// a tet covers gets exactly one fragment of it. A tet with a corner at eye-space z <=
+// frame.near_z draws instead a screen-space quad over its part in front of that plane
+// (near_quad), so the eye may be inside the mesh.
+// Each fragment clips the pixel-centre ray against the tet's four face planes in barycentric
+// space (entry: the last plane it enters, clamped at the eye; exit: the first it leaves),
+// takes the scalar at both ends from the record's linear scalar, and integrates the segment
+// either from the 3D pre-integration table (fs_table) or exactly for the piecewise-linear TF
+// (fs_exact). The output, premultiplied RGBA, is blended "over" what is behind:
+// dst = src + (1 - src.a) dst.
+// Appended to shared.wgsl. CPU twin: gpu::cellproj::preint.
+
+// See gpu::cellproj::CellProjUniforms.
+struct CellProj {
+    table_size: u32,
+    table_lengths: u32,
+    inv_length_step: f32,
+    _pad0: u32,
+}
+
+@group(0) @binding(1) var<storage, read> records: array<TetRecord>;
+@group(0) @binding(2) var<uniform> tf: TfPoints;
+@group(0) @binding(3) var<uniform> cellproj: CellProj;
+// (front scalar, back scalar, length level) -> premultiplied RGBA; read with textureLoad and
+// interpolated here (Rgba32Float is not filterable everywhere).
+@group(0) @binding(4) var table: texture_3d<f32>;
+
+struct Varyings {
+    @builtin(position) position: vec4<f32>,
+    @location(0) @interpolate(flat) grad_x: vec4<f32>,
+    @location(1) @interpolate(flat) grad_y: vec4<f32>,
+    @location(2) @interpolate(flat) grad_z: vec4<f32>,
+    @location(3) @interpolate(flat) lambda_eye: vec4<f32>,
+    @location(4) @interpolate(flat) scalar: vec4<f32>,
+}
+
+// Local vertices of face f (opposite vertex f), outward for a positive tet: mesh::topology::FACES.
+const FACE_VERTICES = array<u32, 12>(1u, 2u, 3u, 0u, 3u, 2u, 0u, 1u, 3u, 0u, 2u, 1u);
+
+// Instance k draws the k-th tet of the order with 12 vertices: its four faces (the back faces
+// are culled) or, for a near-plane tet, its quad (6) and 6 NOWHERE vertices.
+@vertex
+fn vs_faces(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance: u32) -> Varyings {
+    let rec = records[instance];
+    var faces = FACE_VERTICES;
+    let p = rec.pos[faces[vertex]];
+    let zs = vec4<f32>(rec.pos[0].z, rec.pos[1].z, rec.pos[2].z, rec.pos[3].z);
+    var position = select(
+        vec4<f32>(p.x * frame.proj.x, p.y * frame.proj.y, 0.0, p.z),
+        NOWHERE,
+        p.w == 0.0,
+    );
+    if any(zs <= vec4<f32>(frame.near_z)) {
+        position = near_quad(rec, vertex);
+    }
+    return Varyings(position, rec.grad_x, rec.grad_y, rec.grad_z, rec.lambda_eye, rec.scalar);
+}
+
+// The ray's segment in the tet: (front scalar, back scalar, length), normalized scalars
+// clamped to [0, 1]; length <= 0 when the ray misses it (rounding at edges).
+fn segment(in: Varyings) -> vec3<f32> {
+    let d = pixel_ray(in.position.xy);
+    // Barycentrics along the ray: lambda(t) = lambda_eye + t gd.
+    let gd = in.grad_x * d.x + in.grad_y * d.y + in.grad_z * d.z;
+    var t_in = 0.0;
+    var t_out = 3.0e38;
+    for (var i = 0u; i < 4u; i++) {
+        let g = gd[i];
+        let l = in.lambda_eye[i];
+        if g > 0.0 {
+            t_in = max(t_in, -l / g);
+        } else if g < 0.0 {
+            t_out = min(t_out, -l / g);
+        } else if l < 0.0 {
+            t_out = -1.0;
+        }
+    }
+    if !(t_out > t_in) || t_out > 1.0e37 {
+        return vec3<f32>(0.0, 0.0, -1.0);
+    }
+    // Encoded scalar 1 + u along the ray.
+    let ds = dot(in.scalar.xyz, d);
+    let u_in = clamp(in.scalar.w + t_in * ds - 1.0, 0.0, 1.0);
+    let u_out = clamp(in.scalar.w + t_out * ds - 1.0, 0.0, 1.0);
+    return vec3<f32>(u_in, u_out, t_out - t_in);
+}
+
+// --- table ---
+
+fn texel(i: u32, j: u32, k: u32) -> vec4<f32> {
+    return textureLoad(table, vec3<u32>(i, j, k), 0);
+}
+
+// Trilinear interpolation of the table (preint::PreintTable::lookup).
+fn table_lookup(seg: vec3<f32>) -> vec4<f32> {
+    let n = f32(cellproj.table_size - 1u);
+    let m = f32(cellproj.table_lengths - 1u);
+    let p = clamp(vec3<f32>(seg.x * n, seg.y * n, seg.z * cellproj.inv_length_step),
+        vec3<f32>(0.0), vec3<f32>(n, n, m));
+    let i = min(vec3<u32>(floor(p)), vec3<u32>(cellproj.table_size - 2u, cellproj.table_size - 2u,
+        cellproj.table_lengths - 2u));
+    let w = p - vec3<f32>(i);
+    let c00 = mix(texel(i.x, i.y, i.z), texel(i.x + 1u, i.y, i.z), w.x);
+    let c10 = mix(texel(i.x, i.y + 1u, i.z), texel(i.x + 1u, i.y + 1u, i.z), w.x);
+    let c01 = mix(texel(i.x, i.y, i.z + 1u), texel(i.x + 1u, i.y, i.z + 1u), w.x);
+    let c11 = mix(texel(i.x, i.y + 1u, i.z + 1u), texel(i.x + 1u, i.y + 1u, i.z + 1u), w.x);
+    return mix(mix(c00, c10, w.y), mix(c01, c11, w.y), w.z);
+}
+
+@fragment
+fn fs_table(in: Varyings) -> @location(0) vec4<f32> {
+    let seg = segment(in);
+    if !(seg.z > 0.0) {
+        discard;
+    }
+    return table_lookup(seg);
+}
+
+// --- exact ---
+
+// Gauss-Legendre, 4 points on [0, 1] (preint::GL_X, GL_W).
+const GL_X = vec4<f32>(0.069431844, 0.33000948, 0.66999052, 0.93056816);
+const GL_W = vec4<f32>(0.17392742, 0.32607258, 0.32607258, 0.17392742);
+// preint::SUB_DEPTH and STOP_DEPTH.
+const SUB_DEPTH: f32 = 0.5;
+const STOP_DEPTH: f32 = 16.0;
+
+// int_0^1 exp(-(a v + (b - a) v^2 / 2)) dv (preint::mean_transmittance).
+fn mean_transmittance(a: f32, b: f32) -> f32 {
+    let depth = 0.5 * (a + b);
+    let stop = min(depth, STOP_DEPTH);
+    let k = 0.5 * (b - a);
+    var v_stop = 1.0;
+    if stop < depth {
+        v_stop = 2.0 * stop / (a + sqrt(max(a * a + 4.0 * k * stop, 0.0)));
+    }
+    let n = max(ceil(stop / SUB_DEPTH), 1.0);
+    let h = v_stop / n;
+    var sum = 0.0;
+    for (var i = 0u; i < u32(n); i++) {
+        let v = (vec4<f32>(f32(i)) + GL_X) * h;
+        sum += dot(GL_W, exp(-(a * v + k * v * v)));
+    }
+    return sum * h;
+}
+
+// The number of control points with s < u (strict) or s <= u: binary search.
+fn points_below(u: f32, strict: bool) -> u32 {
+    var lo = 0u;
+    var hi = frame.tf_count;
+    while lo < hi {
+        let mid = (lo + hi) / 2u;
+        let s = tf.points[mid].s;
+        if s < u || (!strict && s == u) {
+            lo = mid + 1u;
+        } else {
+            hi = mid;
+        }
+    }
+    return lo;
+}
+
+// Extinction (w) and colour (rgb) at u on the interval between points j - 1 and j (both the end
+// point outside the TF's range); preint::NormalizedTf::on_interval.
+fn on_interval(j: u32, u: f32) -> vec4<f32> {
+    let last = frame.tf_count - 1u;
+    let a = min(max(j, 1u) - 1u, last);
+    let b = min(j, last);
+    let pa = tf.points[a];
+    let pb = tf.points[b];
+    // inv_width is 1 / (next.s - s), 0 at a step and at the last point.
+    let w = select(0.0, clamp((u - pa.s) * pa.inv_width, 0.0, 1.0), b == a + 1u);
+    return mix(vec4<f32>(pa.rgb, pa.tau), vec4<f32>(pb.rgb, pb.tau), w);
+}
+
+struct Acc {
+    color: vec3<f32>,
+    trans: f32,
+}
+
+// Composites the piece from u0 to u1 of length l on interval j behind `acc`
+// (preint::integrate_piece).
+fn piece(acc: Acc, j: u32, u0: f32, u1: f32, l: f32) -> Acc {
+    if !(l > 0.0) {
+        return acc;
+    }
+    let fa = on_interval(j, u0);
+    let fb = on_interval(j, u1);
+    let a = fa.w * l;
+    let b = fb.w * l;
+    let t = exp(-0.5 * (a + b));
+    let m = mean_transmittance(a, b);
+    let c = fa.rgb * (1.0 - m) + fb.rgb * (m - t);
+    return Acc(acc.color + acc.trans * c, acc.trans * t);
+}
+
+// The walk of preint::integrate: j is the first control point ahead, each crossing moves it.
+@fragment
+fn fs_exact(in: Varyings) -> @location(0) vec4<f32> {
+    let seg = segment(in);
+    if !(seg.z > 0.0) {
+        discard;
+    }
+    let u_front = seg.x;
+    let u_back = seg.y;
+    let len = seg.z;
+    let du = u_back - u_front;
+    let up = du >= 0.0;
+    let n = frame.tf_count;
+    var j = points_below(u_front, !up);
+    var acc = Acc(vec3<f32>(0.0), 1.0);
+    var s0 = u_front;
+    // At most one piece per control point, plus the last.
+    for (var step = 0u; step <= n; step++) {
+        var s1 = u_back;
+        var crossing = false;
+        if up && j < n && tf.points[min(j, n - 1u)].s < u_back {
+            s1 = tf.points[j].s;
+            crossing = true;
+        } else if !up && j > 0u && tf.points[max(j, 1u) - 1u].s > u_back {
+            s1 = tf.points[j - 1u].s;
+            crossing = true;
+        }
+        let l = select(len * (s1 - s0) / du, len, du == 0.0);
+        acc = piece(acc, j, s0, s1, l);
+        if !crossing {
+            break;
+        }
+        s0 = s1;
+        j = select(j - 1u, j + 1u, up);
+    }
+    return vec4<f32>(acc.color, 1.0 - acc.trans);
+}
