@@ -91,6 +91,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             integrate: Integrate::Table,
             table_size: n,
             table_lengths: n / 2,
+            ..Default::default()
         };
         let mut r = CellProjRenderer::new(&ctx, &mesh, settings)?;
         let frame = r.render(&camera, &tf)?;
