@@ -402,3 +402,23 @@ fn no_skip_turns_skips_off_and_unknown_skips_are_named() {
     assert!(!bad.status.success());
     assert!(stderr.contains("threshold"), "{stderr}");
 }
+
+#[test]
+fn output_into_a_closed_pipe_ends_quietly() {
+    // `tetvr info mesh | head -1`: the reader goes away before tetvr writes. Without the
+    // default SIGPIPE action, println! would panic with "failed printing to stdout".
+    let mesh = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/assets/lox_post_subset_tet.vtk"
+    );
+    let mut child = Command::new(env!("CARGO_BIN_EXE_tetvr"))
+        .args(["info", mesh])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("run tetvr");
+    drop(child.stdout.take());
+    let out = child.wait_with_output().expect("tetvr ends");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}
