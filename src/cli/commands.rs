@@ -55,6 +55,8 @@ pub enum CliError {
     Field(#[from] generate::fields::FieldParseError),
     #[error(transparent)]
     Volume(#[from] generate::volume::VolumeError),
+    #[error(transparent)]
+    Bench(Box<tetvr::bench::BenchError>),
 }
 
 pub fn run(cli: Cli) -> Result<(), CliError> {
@@ -68,6 +70,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         }
         Command::Compare(args) => compare(args),
         Command::Generate(args) => generate(args),
+        Command::Bench(args) => super::bench::bench(args),
     }
 }
 
