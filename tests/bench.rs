@@ -156,3 +156,32 @@ fn unknown_scenes_and_modes_are_named() {
         );
     }
 }
+
+#[test]
+fn without_an_adapter_the_bench_runs_the_reference_only_and_says_so() {
+    let out = out_dir("bench-no-adapter");
+    let o = Command::new(env!("CARGO_BIN_EXE_tetvr"))
+        .args(["bench", "--quick", "--scenes", "lox", "--out"])
+        .arg(&out)
+        .env("VK_ICD_FILENAMES", "/nonexistent/icd.json")
+        .env("VK_DRIVER_FILES", "/nonexistent/icd.json")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("the bench runs the reference only"),
+        "{stderr}"
+    );
+    let csv = std::fs::read_to_string(out.join("bench.csv")).unwrap();
+    let mode = CSV_COLUMNS.iter().position(|c| *c == "mode").unwrap();
+    let modes: Vec<String> = csv
+        .lines()
+        .skip(1)
+        .map(|l| split_csv(l)[mode].clone())
+        .collect();
+    // lox has two views.
+    assert_eq!(modes, ["reference", "reference"], "{csv}");
+    let skipped = std::fs::read_to_string(out.join("skipped.csv")).unwrap();
+    assert!(skipped.contains("no GPU adapter"), "{skipped}");
+}
