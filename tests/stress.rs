@@ -227,6 +227,9 @@ struct Case {
     not_applicable: &'static [(&'static str, &'static str)],
     /// Bounds that differ from the mode's default: (mode, rmse, holes).
     bounds: Vec<(&'static str, f64, usize)>,
+    /// Truths that are empty pictures by design; any other must cover pixels, so that no case
+    /// passes by showing nothing.
+    empty: Vec<Truth>,
 }
 
 impl Case {
@@ -239,6 +242,7 @@ impl Case {
             closed_form: None,
             not_applicable: &[],
             bounds: Vec::new(),
+            empty: Vec::new(),
         }
     }
 
@@ -311,6 +315,13 @@ fn check(case: Case) {
             }
         };
         let truth = truth_image(&case, mode.truth);
+        let covered = truth.pixels.iter().filter(|p| p[3] > 0.01).count();
+        if (covered == 0) != case.empty.contains(&mode.truth) {
+            failures.push(format!(
+                "{}: {}: the truth covers {covered} pixels",
+                case.name, mode.name
+            ));
+        }
         let m = image.compare(&truth).unwrap();
         if case.twin.is_none() && case.closed_form.is_none() && mode.name == "reference" {
             // Its own truth: only finiteness can be checked.
@@ -538,12 +549,20 @@ fn eye_inside_on_a_face_plane_and_at_a_vertex() {
     // The twin's eye is 1e-9 away, off every face plane and vertex: its exact picture differs
     // by about 1e-9 times the picture's gradient with respect to the eye (a few per unit near
     // the eye), so the reference is held to 1e-8 here; the GPU bounds are far above that.
+    // Each eye looks down the field's gradient from where the field exceeds the isovalue, so
+    // the isosurface is in view.
     let target = DVec3::new(-0.9, -0.7, -0.55);
     let nudge = DVec3::new(1e-9, -2e-9, 1.5e-9);
+    let g = grid();
+    // Grid vertex (4, 3, 3) at (1/3, 0, 0) and a point of the grid plane z = 0, both taken
+    // from the mesh so that they are exactly a vertex and exactly on the plane.
+    let vertex = g.positions()[4 + 7 * (3 + 7 * 3)];
+    let on_plane = DVec3::new(0.13, 0.29, g.positions()[7 * 7 * 3].z);
+    assert_eq!((vertex.y, vertex.z, on_plane.z), (0.0, 0.0, 0.0));
     for (name, eye) in [
         ("eye inside", DVec3::new(0.13, 0.29, 0.11)),
-        ("eye on a face plane (z = 0)", DVec3::new(0.13, 0.29, 0.0)),
-        ("eye at a vertex", DVec3::new(0.0, 0.0, 0.0)),
+        ("eye on a face plane (z = 0)", on_plane),
+        ("eye at a vertex", vertex),
     ] {
         let cam = look(eye, target, DVec3::Z, 70.0);
         let twin_cam = Camera {
@@ -621,6 +640,7 @@ fn constant_field() {
     let mut case = Case::new("constant field", s.clone(), None);
     case.closed_form = Some(homogeneous_cube(&cam, sample.color, sample.tau));
     // The iso truth (exact first hit) is empty: iso's picture must be exactly empty.
+    case.empty = vec![Truth::Iso];
     check(case.bound("iso", 0.0, 0));
 }
 
@@ -633,6 +653,7 @@ fn transfer_function_opacity_zero_and_nearly_one() {
     s.tf = tf_with_opacity(0.3, |_| 0.0);
     let mut case = Case::new("TF opacity 0", s, None);
     case.closed_form = Some(Image::new(SIZE, SIZE));
+    case.empty = vec![Truth::Volume];
     case.not_applicable = NO_TF;
     check(case.bound("reference", 0.0, 0).bound("shells", 0.0, 0));
     // Opacity 0.9999 per unit distance 0.3 (tau = 31 per unit): rays saturate within ~0.15 of
