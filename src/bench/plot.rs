@@ -136,6 +136,8 @@ fn draw(
         .configure_mesh()
         .x_desc(x_desc)
         .y_desc(y_desc)
+        .x_label_formatter(&tick)
+        .y_label_formatter(&tick)
         .draw()
         .map_err(|e| fail(&e))?;
     for (i, (name, pts)) in series.iter().enumerate() {
@@ -157,4 +159,26 @@ fn draw(
         .draw()
         .map_err(|e| fail(&e))?;
     root.present().map_err(|e| fail(&e))
+}
+
+/// A compact axis label: integers as such, other values in short scientific notation.
+fn tick(v: &f64) -> String {
+    if *v >= 1.0 && *v < 1e6 && (v - v.round()).abs() < 1e-6 * v {
+        format!("{:.0}", v.round())
+    } else {
+        format!("{v:.0e}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::tick;
+
+    #[test]
+    fn ticks_are_short() {
+        assert_eq!(tick(&100.0), "100");
+        assert_eq!(tick(&99.99999999999999), "100");
+        assert_eq!(tick(&9.999999999999999e-6), "1e-5");
+        assert_eq!(tick(&2e7), "2e7");
+    }
 }
