@@ -21,6 +21,7 @@ Examples:
   tetvr info ../shared/data/bluntfin_tet.vtk
   tetvr compare a.png b.png -o diff.png
   tetvr generate grid --tets 100000 --field marschner-lobb -o ml.vtu
+  tetvr bench --quick --out bench-out
   tetvr gpu-info";
 
 /// Render tetrahedral meshes (a scalar per vertex) on the GPU, or exactly on the CPU.
@@ -194,7 +195,7 @@ pub struct CompareArgs {
 #[command(after_help = "\
 Examples:
   tetvr bench --quick                       # lox subset and a 10k grid at 128x128, 3 runs
-  tetvr bench --out docs/bench              # the full bench (minutes to an hour)
+  tetvr bench --out docs/bench              # the full bench (8 minutes on lavapipe, 2 cores)
   tetvr bench --scenes bluntfin,grid-1m --modes shells,reference --runs 5")]
 pub struct BenchArgs {
     /// The smoke-test bench: two small scenes, two shells settings, iso and the reference.
@@ -209,7 +210,8 @@ pub struct BenchArgs {
     /// Image size (default 128x128 with --quick, else 256x256).
     #[arg(long, value_parser = args::parse_size)]
     pub size: Option<(u32, u32)>,
-    /// Scenes to run, comma separated (default: all, or the quick ones with --quick).
+    /// Scenes to run, comma separated (default: all, or the quick ones with --quick); an
+    /// unknown name lists them.
     #[arg(long, value_delimiter = ',')]
     pub scenes: Vec<String>,
     /// Modes to run, comma separated (default: all).
