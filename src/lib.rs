@@ -5,6 +5,7 @@
 //! emission-absorption with a piecewise-linear transfer function ([`tf`]), pixel-centre rays
 //! parameterized by distance from the eye ([`camera`]), premultiplied RGBA images ([`image`]).
 
+pub mod bench;
 pub mod camera;
 pub mod deform;
 pub mod export;

@@ -88,4 +88,10 @@ pub trait Renderer {
 
     /// New values of the active scalar array (same count).
     fn update_scalars(&mut self, scalars: &[f64]) -> Result<(), RenderError>;
+
+    /// Bytes of GPU buffers and textures this renderer holds now (0 for CPU renderers): what
+    /// `tetvr bench` reports as GPU memory.
+    fn gpu_memory(&self) -> u64 {
+        0
+    }
 }

@@ -59,6 +59,8 @@ pub enum CliError {
     Volume(#[from] generate::volume::VolumeError),
     #[error(transparent)]
     Export(#[from] tetvr::export::ExportError),
+    #[error(transparent)]
+    Bench(Box<tetvr::bench::BenchError>),
 }
 
 pub fn run(cli: Cli) -> Result<(), CliError> {
@@ -73,6 +75,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         }
         Command::Compare(args) => compare(args),
         Command::Generate(args) => generate(args),
+        Command::Bench(args) => super::bench::bench(args),
     }
 }
 

@@ -1,6 +1,7 @@
 //! Argument definitions and dispatch for the `tetvr` binary.
 
 mod args;
+mod bench;
 mod commands;
 
 use std::path::PathBuf;
@@ -22,6 +23,7 @@ Examples:
   tetvr info ../shared/data/bluntfin_tet.vtk
   tetvr compare a.png b.png -o diff.png
   tetvr generate grid --tets 100000 --field marschner-lobb -o ml.vtu
+  tetvr bench --quick --out bench-out
   tetvr gpu-info";
 
 /// Render tetrahedral meshes (a scalar per vertex) on the GPU, or exactly on the CPU.
@@ -51,6 +53,9 @@ pub enum Command {
     Compare(CompareArgs),
     /// Write a generated mesh (structured grid, non-convex shape, or a NIfTI volume) as .vtu.
     Generate(GenerateArgs),
+    /// Measure frame time, stage split, GPU memory and error against the exact reference for
+    /// every scene x view x mode x setting; write a CSV and SVG plots.
+    Bench(BenchArgs),
 }
 
 /// Rendering modes.
@@ -239,6 +244,37 @@ pub struct CompareArgs {
     /// Channel difference shown as white in the difference image.
     #[arg(long, default_value_t = 0.1)]
     pub scale: f32,
+}
+
+#[derive(clap::Args, Debug)]
+#[command(after_help = "\
+Examples:
+  tetvr bench --quick                       # lox subset and a 10k grid at 128x128, 3 runs
+  tetvr bench --out docs/bench              # the full bench (8 minutes on lavapipe, 2 cores)
+  tetvr bench --scenes bluntfin,grid-1m --modes shells,reference --runs 5")]
+pub struct BenchArgs {
+    /// The smoke-test bench: two small scenes, two shells settings, iso and the reference.
+    #[arg(long)]
+    pub quick: bool,
+    /// Output folder: bench.csv, skipped.csv, the SVG plots, and cache/ (reference images).
+    #[arg(long, default_value = "bench-out")]
+    pub out: PathBuf,
+    /// Timed frames per measurement (default 3 with --quick, else 5).
+    #[arg(long)]
+    pub runs: Option<usize>,
+    /// Image size (default 128x128 with --quick, else 256x256).
+    #[arg(long, value_parser = args::parse_size)]
+    pub size: Option<(u32, u32)>,
+    /// Scenes to run, comma separated (default: all, or the quick ones with --quick); an
+    /// unknown name lists them.
+    #[arg(long, value_delimiter = ',')]
+    pub scenes: Vec<String>,
+    /// Modes to run, comma separated (default: all).
+    #[arg(long, value_delimiter = ',')]
+    pub modes: Vec<String>,
+    /// The folder of the real data sets.
+    #[arg(long, default_value = "../shared/data")]
+    pub data: PathBuf,
 }
 
 #[derive(clap::Args, Debug)]

@@ -983,4 +983,34 @@ impl Renderer for IsoRenderer {
         self.upload_scalars();
         Ok(())
     }
+
+    fn gpu_memory(&self) -> u64 {
+        let buffers = [
+            &self.frame_buf,
+            &self.iso_buf,
+            &self.positions_buf,
+            &self.scalars_buf,
+            &self.gradients_buf,
+            &self.selected_buf,
+            &self.records_buf,
+            &self.degenerate_buf,
+        ]
+        .iter()
+        .map(|b| b.size())
+        .sum::<u64>();
+        let targets = self.targets.as_ref().map_or(0, |t| {
+            let texture = |x: &wgpu::Texture| {
+                let s = x.size();
+                let texel = x.format().block_copy_size(None).unwrap_or(4) as u64;
+                s.width as u64 * s.height as u64 * s.depth_or_array_layers as u64 * texel
+            };
+            // Colour, geometry and a 4-byte depth target, and two readback buffers.
+            texture(&t.color)
+                + texture(&t.geometry)
+                + t.width as u64 * t.height as u64 * 4
+                + t.color_readback.size()
+                + t.geometry_readback.size()
+        });
+        buffers + targets
+    }
 }

@@ -1989,6 +1989,33 @@ impl Renderer for ShellsRenderer {
         self.upload_scalars();
         Ok(())
     }
+
+    fn gpu_memory(&self) -> u64 {
+        let g = &self.gpu;
+        // The tets buffer lives only in the assembly bind group: 16 bytes per tet.
+        let tets = (self.mesh.tets.len() as u64 * 16).max(16);
+        let buffers = [
+            &g.positions,
+            &g.scalars,
+            &g.records,
+            &g.degenerate,
+            &self.frame_buf,
+            &self.active_buf,
+            &self.face_indices,
+            &self.shell_buf,
+            &self.tf_buf,
+        ]
+        .iter()
+        .map(|b| b.size())
+        .sum::<u64>();
+        let targets = self.targets.as_ref().map_or(0, |t| {
+            let texel = self.format.block_copy_size(None).unwrap_or(16) as u64;
+            let layer = t.width as u64 * t.height as u64 * texel;
+            // The slice layers, the accumulation target and the readback buffer.
+            layer * (self.targets_per_shell as u64 + 1) + t.readback.size()
+        });
+        buffers + tets + targets
+    }
 }
 
 #[cfg(test)]

@@ -1,0 +1,950 @@
+//! `tetvr bench`: run time against error, for every scene x view x mode x quality setting.
+//!
+//! - **Scenes** ([`catalogue`]): the real meshes of `../shared/data`, generated grids from 10k
+//!   to 10M tets, a non-convex box with a hole, and a deforming mesh; each with its views
+//!   ([`ViewKind`]: outside, grazing, eye inside).
+//! - **Configurations** ([`configurations`]): a mode name, a setting label and a constructor of a
+//!   [`Renderer`]. A new mode or setting joins the bench by adding one entry there.
+//! - **Measurement** ([`measure`]): warm-up frames, then the median wall time of `runs` frames
+//!   (each frame reads its image back, so the GPU is drained), per-stage medians from
+//!   [`Frame::timings`](crate::render::Frame), tets per second, GPU memory
+//!   ([`Renderer::gpu_memory`]) and the error metrics of DESIGN.md against the exact reference
+//!   ([`crate::image::Image::compare`]); reference images are cached ([`cache`]).
+//! - **Truth per mode.** Volume modes are compared with the reference ray caster's image. The
+//!   iso mode is compared with the exact first-hit isosurface of the same isovalue
+//!   ([`crate::reference::iso::IsoReference`]), shaded with the same headlight model and
+//!   colour: its image error then measures hit/miss mismatches (as holes and spill), depth and
+//!   normal errors (as colour differences) together.
+//! - **Output** ([`write_csv`], [`plot`]): a CSV with one row per measurement, and SVG plots.
+
+pub mod cache;
+pub mod plot;
+
+use std::collections::BTreeMap;
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use glam::DVec3;
+
+use crate::camera::{Camera, View};
+use crate::deform::Deformation;
+use crate::generate::{self, Field};
+use crate::gpu::{GpuContext, IsoRenderer, IsoSettings, ShellSettings, ShellsRenderer};
+use crate::image::{ErrorMetrics, Image};
+use crate::io;
+use crate::mesh::TetMesh;
+use crate::reference::ReferenceRenderer;
+use crate::reference::iso::{IsoReference, Shading};
+use crate::render::{RenderError, Renderer};
+use crate::tf::TransferFunction;
+use crate::tf::file::load_tf;
+
+use cache::{CacheError, Fnv1a, REFERENCE_VERSION, ReferenceCache};
+
+/// Everything the bench can fail with; each message says what to fix.
+#[derive(Debug, thiserror::Error)]
+pub enum BenchError {
+    #[error("unknown scene '{0}'; choose from: {1}")]
+    UnknownScene(String, String),
+    #[error("unknown mode '{0}'; choose from: {1}")]
+    UnknownMode(String, String),
+    #[error(
+        "{path}: the data set of scene '{scene}' is missing; pass --data DIR (the folder of \
+         ../shared/data) or leave the scene out with --scenes"
+    )]
+    MissingData { scene: String, path: String },
+    #[error("scene '{scene}': {source}")]
+    Load {
+        scene: String,
+        source: io::LoadError,
+    },
+    #[error("scene '{scene}': {message}")]
+    Scene { scene: String, message: String },
+    #[error("scene '{scene}', reference image: {source}")]
+    Reference { scene: String, source: RenderError },
+    #[error(transparent)]
+    Cache(#[from] CacheError),
+    #[error("{path}: cannot write: {source}")]
+    Write {
+        path: String,
+        source: std::io::Error,
+    },
+    #[error("{path}: cannot draw the plot: {message}")]
+    Plot { path: String, message: String },
+}
+
+/// A camera placement relative to a scene's mesh.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum ViewKind {
+    /// The default isometric view from outside, the mesh's bounding sphere filling the picture.
+    Outside,
+    /// Nearly edge-on to the mesh's top (+z) side: 2 degrees of elevation, rays grazing faces.
+    Grazing,
+    /// The eye at the bounding-box centre (only for convex meshes, where that is inside).
+    Inside,
+}
+
+impl ViewKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Outside => "outside",
+            Self::Grazing => "grazing",
+            Self::Inside => "inside",
+        }
+    }
+
+    /// The camera of this view on the box `[lo, hi]`.
+    pub fn camera(self, lo: DVec3, hi: DVec3, width: u32, height: u32) -> Camera {
+        match self {
+            Self::Outside => Camera::framing(lo, hi, View::ISO, 1.0, 30.0, width, height),
+            Self::Grazing => {
+                let view = View {
+                    azimuth_deg: 30.0,
+                    elevation_deg: 2.0,
+                };
+                Camera::framing(lo, hi, view, 1.0, 30.0, width, height)
+            }
+            Self::Inside => {
+                let centre = (lo + hi) * 0.5;
+                Camera {
+                    eye: centre,
+                    target: centre - View::ISO.direction() * (hi - lo).length(),
+                    up: DVec3::Z,
+                    fov_y_deg: 70.0,
+                    width,
+                    height,
+                }
+            }
+        }
+    }
+}
+
+/// Where a scene's mesh comes from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Source {
+    /// A file of the data folder (`--data`); `assets/` is tried too, for the bundled mesh.
+    Data(&'static str),
+    /// A cube grid of about this many tets with the Gaussians field.
+    Grid(u64),
+    /// A box with a square through-hole (non-convex), about this many tets.
+    Hole(u64),
+    /// A data file rendered after [`Renderer::update_positions`] moved it by a deformation
+    /// (amplitude, phase), against the reference of the deformed mesh.
+    Deformed(&'static str, Deformation, f64, f64),
+}
+
+/// A scene of the catalogue: a name, where its mesh comes from, and its views.
+#[derive(Clone, Debug)]
+pub struct SceneSpec {
+    pub name: &'static str,
+    pub source: Source,
+    pub views: &'static [ViewKind],
+}
+
+/// The scenes of the full bench, in order of size within each group.
+pub fn catalogue() -> Vec<SceneSpec> {
+    use ViewKind::*;
+    let spec = |name, source, views| SceneSpec {
+        name,
+        source,
+        views,
+    };
+    vec![
+        spec(
+            "lox",
+            Source::Data("lox_post_subset_tet.vtk"),
+            &[Outside, Grazing],
+        ),
+        spec(
+            "bluntfin",
+            Source::Data("bluntfin_tet.vtk"),
+            &[Outside, Grazing],
+        ),
+        spec(
+            "oxygen-post",
+            Source::Data("oxygen_post_tet.vtk"),
+            &[Outside],
+        ),
+        spec("combustor", Source::Data("combustor_tet.vtk"), &[Outside]),
+        spec(
+            "grid-10k",
+            Source::Grid(10_000),
+            &[Outside, Grazing, Inside],
+        ),
+        spec(
+            "grid-100k",
+            Source::Grid(100_000),
+            &[Outside, Grazing, Inside],
+        ),
+        // The largest cube grid whose per-tet records fit lavapipe's 128 MiB storage binding
+        // (893,262 tets; 932k fit), beside the 1M and 10M grids that need chunking there.
+        spec("grid-900k", Source::Grid(900_000), &[Outside]),
+        spec("grid-1m", Source::Grid(1_000_000), &[Outside]),
+        spec("grid-10m", Source::Grid(10_000_000), &[Outside]),
+        spec("hole-100k", Source::Hole(100_000), &[Outside, Grazing]),
+        spec(
+            "bracket-twist",
+            Source::Deformed("kiefer_bracket_tet.vtk", Deformation::Twist, 0.4, 0.25),
+            &[Outside],
+        ),
+    ]
+}
+
+/// The scenes of `tetvr bench --quick`.
+pub const QUICK_SCENES: &[&str] = &["lox", "grid-10k"];
+
+/// A loaded scene: the mesh renderers are built on, what each frame hands them, and the truth.
+pub struct Scene {
+    pub name: String,
+    /// The mesh as loaded (renderers are built on it).
+    pub mesh: TetMesh,
+    /// For a deforming scene, the positions each frame passes to `update_positions`.
+    pub deformed: Option<Vec<DVec3>>,
+    /// The deformed mesh of a deforming scene (see [`Self::truth_mesh`]).
+    deformed_mesh: Option<TetMesh>,
+    pub tf: TransferFunction,
+    /// The isovalue of the iso configurations: the middle of the scalar range.
+    pub isovalue: f64,
+    /// Content hash of `truth_mesh` (positions, tets, active scalars).
+    pub hash: u64,
+    pub views: Vec<(ViewKind, Camera)>,
+}
+
+impl Scene {
+    /// Loads or generates the mesh of `spec`, with the `viridis` TF over its range and the
+    /// cameras of its views at `size`.
+    pub fn load(spec: &SceneSpec, data: &Path, size: (u32, u32)) -> Result<Self, BenchError> {
+        let scene_err = |message: String| BenchError::Scene {
+            scene: spec.name.into(),
+            message,
+        };
+        let file =
+            |name: &str| -> Result<TetMesh, BenchError> {
+                let candidates = [data.join(name), Path::new("assets").join(name)];
+                let path = candidates.iter().find(|p| p.exists()).ok_or_else(|| {
+                    BenchError::MissingData {
+                        scene: spec.name.into(),
+                        path: candidates[0].display().to_string(),
+                    }
+                })?;
+                io::load(path)
+                    .map(|l| l.mesh)
+                    .map_err(|source| BenchError::Load {
+                        scene: spec.name.into(),
+                        source,
+                    })
+            };
+        let generated =
+            |r: Result<TetMesh, generate::GenerateError>| r.map_err(|e| scene_err(e.to_string()));
+        let (mesh, deformed) = match spec.source {
+            Source::Data(name) => (file(name)?, None),
+            Source::Grid(tets) => (
+                generated(generate::grid(
+                    Field::Gaussians,
+                    generate::cells_for_tet_count(tets),
+                    "gaussians",
+                ))?,
+                None,
+            ),
+            Source::Hole(tets) => (
+                generated(generate::shapes::box_with_hole(tets, Field::Gaussians))?,
+                None,
+            ),
+            Source::Deformed(name, deformation, amplitude, phase) => {
+                let mesh = file(name)?;
+                let (lo, hi) = mesh.bounds();
+                let moved = deformation.apply(mesh.positions(), lo, hi, amplitude, phase);
+                (mesh, Some(moved))
+            }
+        };
+        let deformed_mesh = match &deformed {
+            Some(p) => {
+                let mut m = mesh.clone();
+                m.set_positions(p.clone())
+                    .map_err(|e| scene_err(e.to_string()))?;
+                Some(m)
+            }
+            None => None,
+        };
+        let truth_mesh = deformed_mesh.as_ref().unwrap_or(&mesh);
+        let range = mesh
+            .active_array()
+            .and_then(|a| a.range())
+            .ok_or_else(|| scene_err("the mesh has no scalar array".into()))?;
+        let tf = load_tf("viridis", range, mesh.diagonal() / 100.0)
+            .map_err(|e| scene_err(e.to_string()))?;
+        let (lo, hi) = truth_mesh.bounds();
+        let views = spec
+            .views
+            .iter()
+            .map(|&v| (v, v.camera(lo, hi, size.0, size.1)))
+            .collect();
+        Ok(Self {
+            name: spec.name.into(),
+            hash: mesh_hash(truth_mesh),
+            isovalue: 0.5 * (range.0 + range.1),
+            mesh,
+            deformed,
+            deformed_mesh,
+            tf,
+            views,
+        })
+    }
+
+    /// The mesh as rendered (deformed where the scene deforms): the reference's input.
+    pub fn truth_mesh(&self) -> &TetMesh {
+        self.deformed_mesh.as_ref().unwrap_or(&self.mesh)
+    }
+
+    /// The colour of the iso configurations' surface: the TF's colour at the isovalue.
+    pub fn iso_color(&self) -> [f32; 3] {
+        self.tf.eval(self.isovalue).color.map(|c| c as f32)
+    }
+}
+
+/// FNV-1a of a mesh's positions, tets and active scalars.
+pub fn mesh_hash(mesh: &TetMesh) -> u64 {
+    let mut h = Fnv1a::default();
+    h.u64(mesh.vertex_count() as u64);
+    for p in mesh.positions() {
+        h.f64(p.x).f64(p.y).f64(p.z);
+    }
+    h.bytes(bytemuck::cast_slice(mesh.tets()));
+    for &s in mesh.scalars().unwrap_or(&[]) {
+        h.f64(s);
+    }
+    h.finish()
+}
+
+/// What a configuration's image is compared with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Truth {
+    /// The reference ray caster's image of the scene's TF.
+    Volume,
+    /// The exact first-hit isosurface at the scene's isovalue, shaded as given.
+    Iso(Shading),
+}
+
+/// Builds a configuration's renderer for a scene (on the GPU context when it needs one).
+pub type Builder =
+    Box<dyn Fn(Option<&GpuContext>, &Scene) -> Result<Box<dyn Renderer>, RenderError>>;
+
+/// One mode at one quality setting.
+pub struct Config {
+    /// The mode's name, as `--mode` spells it.
+    pub mode: &'static str,
+    /// The quality setting, e.g. `samples 512`.
+    pub setting: String,
+    pub truth: Truth,
+    /// Whether it needs a GPU adapter.
+    pub gpu: bool,
+    /// One timed frame and no warm-up: for the reference, whose frames take seconds and whose
+    /// time does not depend on caches warming up.
+    pub single_run: bool,
+    pub build: Builder,
+}
+
+fn gpu_ctx(ctx: Option<&GpuContext>) -> Result<&GpuContext, RenderError> {
+    ctx.ok_or_else(|| RenderError::Settings("this configuration needs a GPU adapter".into()))
+}
+
+fn shells(samples: u32, slices_per_shell: Option<u32>) -> Config {
+    let setting = match slices_per_shell {
+        Some(n) => format!("samples {samples}, {n} per shell"),
+        None => format!("samples {samples}"),
+    };
+    Config {
+        mode: "shells",
+        setting,
+        truth: Truth::Volume,
+        gpu: true,
+        single_run: false,
+        build: Box::new(move |ctx, scene| {
+            let settings = ShellSettings {
+                samples,
+                slices_per_shell,
+                ..ShellSettings::default()
+            };
+            Ok(Box::new(ShellsRenderer::new(
+                gpu_ctx(ctx)?,
+                &scene.mesh,
+                settings,
+            )?))
+        }),
+    }
+}
+
+fn iso(shading: Shading) -> Config {
+    Config {
+        mode: "iso",
+        setting: match shading {
+            Shading::Flat => "flat".into(),
+            Shading::Smooth => "smooth".into(),
+        },
+        truth: Truth::Iso(shading),
+        gpu: true,
+        single_run: false,
+        build: Box::new(move |ctx, scene| {
+            let settings = IsoSettings {
+                isovalues: vec![(scene.isovalue, scene.iso_color())],
+                shading,
+                ..IsoSettings::default()
+            };
+            Ok(Box::new(IsoRenderer::new(
+                gpu_ctx(ctx)?,
+                &scene.mesh,
+                settings,
+            )?))
+        }),
+    }
+}
+
+fn reference() -> Config {
+    Config {
+        mode: "reference",
+        setting: "exact f64".into(),
+        truth: Truth::Volume,
+        gpu: false,
+        single_run: true,
+        build: Box::new(|_, scene| Ok(Box::new(ReferenceRenderer::new(&scene.mesh)?))),
+    }
+}
+
+/// The configurations of the bench: `quick` keeps two shells settings, flat iso and the
+/// reference. Modes and settings join here.
+pub fn configurations(quick: bool) -> Vec<Config> {
+    let mut c = if quick {
+        vec![shells(128, None), shells(512, None), iso(Shading::Flat)]
+    } else {
+        vec![
+            shells(128, None),
+            shells(256, None),
+            shells(512, None),
+            shells(1024, None),
+            shells(512, Some(32)),
+            iso(Shading::Flat),
+            iso(Shading::Smooth),
+        ]
+    };
+    c.push(reference());
+    c
+}
+
+/// The names of the modes among `configs`, for messages.
+pub fn mode_names(configs: &[Config]) -> String {
+    let mut names: Vec<&str> = configs.iter().map(|c| c.mode).collect();
+    names.dedup();
+    names.join(", ")
+}
+
+/// One measurement: a configuration on one view of one scene.
+#[derive(Clone, Debug)]
+pub struct Row {
+    pub scene: String,
+    pub tets: usize,
+    pub view: &'static str,
+    pub width: u32,
+    pub height: u32,
+    pub mode: &'static str,
+    pub setting: String,
+    pub runs: usize,
+    /// Median, fastest and slowest frame, milliseconds.
+    pub median_ms: f64,
+    pub min_ms: f64,
+    pub max_ms: f64,
+    /// Tets of the mesh per second of median frame time.
+    pub tets_per_s: f64,
+    pub gpu_bytes: u64,
+    pub error: ErrorMetrics,
+    /// Per-stage medians (ms), in the order the renderer reports them.
+    pub stages: Vec<(String, f64)>,
+}
+
+/// A configuration that could not run on a scene, and why.
+#[derive(Clone, Debug)]
+pub struct Skipped {
+    pub scene: String,
+    pub view: String,
+    pub mode: String,
+    pub setting: String,
+    pub reason: String,
+}
+
+/// How to measure.
+#[derive(Clone, Debug)]
+pub struct Options {
+    /// Timed frames per measurement (at least 1).
+    pub runs: usize,
+    /// Untimed frames before them.
+    pub warmup: usize,
+}
+
+/// The reference image of `truth` for `scene` seen by `camera`, from `cache` when there.
+pub fn truth_image(
+    scene: &Scene,
+    camera: &Camera,
+    truth: Truth,
+    cache: &mut ReferenceCache,
+) -> Result<Image, BenchError> {
+    let mut key = Fnv1a::default();
+    key.u64(REFERENCE_VERSION as u64).u64(scene.hash);
+    for v in [camera.eye, camera.target, camera.up] {
+        key.f64(v.x).f64(v.y).f64(v.z);
+    }
+    key.f64(camera.fov_y_deg)
+        .u64(camera.width as u64)
+        .u64(camera.height as u64);
+    match truth {
+        Truth::Volume => {
+            key.str("volume").f64(scene.tf.unit_distance());
+            for p in scene.tf.points() {
+                key.f64(p.s).f64(p.opacity);
+                p.color.iter().for_each(|&c| {
+                    key.f64(c);
+                });
+            }
+        }
+        Truth::Iso(shading) => {
+            key.str("iso")
+                .str(&format!("{shading:?}"))
+                .f64(scene.isovalue);
+            scene.iso_color().iter().for_each(|&c| {
+                key.u64(c.to_bits() as u64);
+            });
+        }
+    }
+    let reference_err = |source| BenchError::Reference {
+        scene: scene.name.clone(),
+        source,
+    };
+    cache.get_or_render(key.finish(), || {
+        let r = ReferenceRenderer::new(scene.truth_mesh()).map_err(reference_err)?;
+        match truth {
+            Truth::Volume => r
+                .render_image(camera, &scene.tf, None)
+                .map_err(reference_err),
+            Truth::Iso(shading) => {
+                let q = IsoReference::new(&r, &[scene.isovalue], shading).map_err(reference_err)?;
+                Ok(q.render_surface(camera, &[scene.iso_color()])
+                    .map_err(reference_err)?
+                    .color)
+            }
+        }
+    })
+}
+
+/// Times `renderer` on `camera` (see the module docs) and compares its last frame with `truth`.
+#[allow(clippy::too_many_arguments)]
+pub fn measure(
+    renderer: &mut dyn Renderer,
+    scene: &Scene,
+    view: ViewKind,
+    camera: &Camera,
+    config: &Config,
+    truth: &Image,
+    options: &Options,
+) -> Result<Row, RenderError> {
+    let (warmup, runs) = if config.single_run {
+        (0, 1)
+    } else {
+        (options.warmup, options.runs.max(1))
+    };
+    let mut frame_ms = Vec::with_capacity(runs);
+    let mut stages: BTreeMap<&'static str, (usize, Vec<f64>)> = BTreeMap::new();
+    let mut last = None;
+    for i in 0..warmup + runs {
+        let start = Instant::now();
+        let mut update_ms = None;
+        if let Some(p) = &scene.deformed {
+            renderer.update_positions(p)?;
+            update_ms = Some(start.elapsed().as_secs_f64() * 1e3);
+        }
+        let frame = renderer.render(camera, &scene.tf)?;
+        let ms = start.elapsed().as_secs_f64() * 1e3;
+        if i >= warmup {
+            frame_ms.push(ms);
+            let timed = update_ms.map(|u| ("update", u)).into_iter();
+            for (k, (name, t)) in timed
+                .chain(frame.timings.stages.iter().copied())
+                .enumerate()
+            {
+                stages.entry(name).or_insert((k, Vec::new())).1.push(t);
+            }
+        }
+        last = Some(frame.image);
+    }
+    let image = last.expect("at least one frame");
+    let error = image.compare(truth).map_err(|e| {
+        RenderError::Settings(format!("the frame and its reference differ in size: {e}"))
+    })?;
+    let mut stages: Vec<(usize, String, f64)> = stages
+        .into_iter()
+        .map(|(name, (k, mut v))| (k, name.to_string(), median(&mut v)))
+        .collect();
+    stages.sort_by_key(|s| s.0);
+    let median_ms = median(&mut frame_ms);
+    Ok(Row {
+        scene: scene.name.clone(),
+        tets: scene.mesh.tet_count(),
+        view: view.name(),
+        width: camera.width,
+        height: camera.height,
+        mode: config.mode,
+        setting: config.setting.clone(),
+        runs,
+        median_ms,
+        min_ms: frame_ms.iter().copied().fold(f64::INFINITY, f64::min),
+        max_ms: frame_ms.iter().copied().fold(0.0, f64::max),
+        tets_per_s: scene.mesh.tet_count() as f64 / (median_ms * 1e-3).max(f64::MIN_POSITIVE),
+        gpu_bytes: renderer.gpu_memory(),
+        error,
+        stages: stages.into_iter().map(|(_, n, t)| (n, t)).collect(),
+    })
+}
+
+/// What to run: scenes, configurations, image size, where the data lives, how to measure.
+pub struct Plan {
+    pub scenes: Vec<SceneSpec>,
+    pub configs: Vec<Config>,
+    pub size: (u32, u32),
+    /// The folder of the real data sets (`../shared/data`).
+    pub data: PathBuf,
+    pub options: Options,
+}
+
+impl Plan {
+    /// Measurements the plan makes at most (for a progress bar).
+    pub fn steps(&self) -> u64 {
+        self.scenes
+            .iter()
+            .map(|s| (s.views.len() * self.configs.len()) as u64)
+            .sum()
+    }
+}
+
+/// The measurements of a bench run and what could not run.
+#[derive(Debug, Default)]
+pub struct Report {
+    pub rows: Vec<Row>,
+    pub skipped: Vec<Skipped>,
+}
+
+/// Runs `plan`: scenes one at a time (so only one large mesh is in memory), each configuration
+/// built once per scene and measured on each view. A configuration that cannot run on a scene
+/// (no adapter, a limit of the adapter, a renderer error) is recorded as skipped with the
+/// reason, and the bench goes on. `progress(what, steps)` is called after each step.
+pub fn run(
+    plan: &Plan,
+    ctx: Option<&GpuContext>,
+    cache: &mut ReferenceCache,
+    progress: &mut dyn FnMut(&str, u64),
+) -> Result<Report, BenchError> {
+    let mut report = Report::default();
+    for spec in &plan.scenes {
+        let skip = |report: &mut Report, config: &Config, view: &str, reason: &str| {
+            report.skipped.push(Skipped {
+                scene: spec.name.into(),
+                view: view.into(),
+                mode: config.mode.into(),
+                setting: config.setting.clone(),
+                reason: reason.into(),
+            })
+        };
+        // GPU configurations first: the reference runs only if one of them could render.
+        let mut runnable: Vec<&Config> = Vec::new();
+        for c in &plan.configs {
+            if c.gpu && ctx.is_none() {
+                skip(&mut report, c, "all", "no GPU adapter");
+                progress(
+                    &format!("{} {}: skipped", spec.name, c.mode),
+                    spec.views.len() as u64,
+                );
+            } else {
+                runnable.push(c);
+            }
+        }
+        runnable.sort_by_key(|c| !c.gpu);
+        if runnable.is_empty() {
+            continue;
+        }
+        let wants_gpu = runnable.iter().any(|c| c.gpu);
+        let mut gpu_built = false;
+        progress(&format!("loading {}", spec.name), 0);
+        let scene = Scene::load(spec, &plan.data, plan.size)?;
+        let first_row = report.rows.len();
+        let mut truths: Vec<(ViewKind, Truth, Image)> = Vec::new();
+        for config in runnable {
+            let what = format!("{} {} {}", scene.name, config.mode, config.setting);
+            if !config.gpu && wants_gpu && !gpu_built {
+                let reason = "no GPU configuration could render this scene (see their reasons), \
+                              so its reference would measure nothing";
+                skip(&mut report, config, "all", reason);
+                progress(&what, scene.views.len() as u64);
+                continue;
+            }
+            let mut renderer = match (config.build)(ctx, &scene) {
+                Ok(r) => {
+                    gpu_built |= config.gpu;
+                    r
+                }
+                Err(e) => {
+                    skip(&mut report, config, "all", &e.to_string());
+                    progress(&what, scene.views.len() as u64);
+                    continue;
+                }
+            };
+            for (view, camera) in &scene.views {
+                let found = truths
+                    .iter()
+                    .position(|(v, t, _)| v == view && *t == config.truth);
+                let k = match found {
+                    Some(k) => k,
+                    None => {
+                        progress(&format!("{what}: reference {}", view.name()), 0);
+                        let image = truth_image(&scene, camera, config.truth, cache)?;
+                        truths.push((*view, config.truth, image));
+                        truths.len() - 1
+                    }
+                };
+                let truth = &truths[k].2;
+                match measure(
+                    renderer.as_mut(),
+                    &scene,
+                    *view,
+                    camera,
+                    config,
+                    truth,
+                    &plan.options,
+                ) {
+                    Ok(row) => report.rows.push(row),
+                    Err(e) => skip(&mut report, config, view.name(), &e.to_string()),
+                }
+                progress(&format!("{what} {}", view.name()), 1);
+            }
+        }
+        // Grouped by view, configurations in plan order within each.
+        report.rows[first_row..]
+            .sort_by_key(|r| spec.views.iter().position(|v| v.name() == r.view));
+    }
+    Ok(report)
+}
+
+/// Median of `v` (the upper one of an even count); NaN for an empty slice.
+pub fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
+/// The CSV header of [`write_csv`].
+pub const CSV_COLUMNS: &[&str] = &[
+    "scene",
+    "tets",
+    "view",
+    "width",
+    "height",
+    "mode",
+    "setting",
+    "runs",
+    "median_ms",
+    "min_ms",
+    "max_ms",
+    "tets_per_s",
+    "gpu_bytes",
+    "rmse",
+    "max_abs",
+    "psnr_db",
+    "holes",
+    "spill",
+    "non_finite",
+    "stages_ms",
+    "adapter",
+    "machine",
+    "date",
+];
+
+/// Where and when a bench ran, written into every row and plot.
+#[derive(Clone, Debug)]
+pub struct Environment {
+    pub adapter: String,
+    pub machine: String,
+    /// `YYYY-MM-DD`, UTC.
+    pub date: String,
+}
+
+impl Environment {
+    /// This machine's CPU model and core count, today's date, and `adapter`.
+    pub fn detect(adapter: String) -> Self {
+        let model = std::fs::read_to_string("/proc/cpuinfo")
+            .ok()
+            .and_then(|s| {
+                s.lines()
+                    .find(|l| l.starts_with("model name"))
+                    .and_then(|l| l.split(':').nth(1))
+                    .map(|m| m.trim().to_string())
+            })
+            .unwrap_or_else(|| std::env::consts::ARCH.to_string());
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        Self {
+            adapter,
+            machine: format!("{model}, {cores} cores, {}", std::env::consts::OS),
+            date: today(),
+        }
+    }
+}
+
+/// Today's date (UTC) as `YYYY-MM-DD`, from the system clock.
+fn today() -> String {
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    date_of_day((secs / 86_400) as i64)
+}
+
+/// The date `days` after 1970-01-01 (Hinnant's civil-from-days algorithm).
+fn date_of_day(days: i64) -> String {
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + (m <= 2) as i64;
+    format!("{y:04}-{m:02}-{d:02}")
+}
+
+/// A CSV field, quoted when it holds a comma or a quote.
+fn field(s: &str) -> String {
+    if s.contains([',', '"', '\n']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
+
+/// Writes `rows` as CSV ([`CSV_COLUMNS`]); stages as `name=ms` pairs joined by `;`.
+pub fn write_csv(path: &Path, rows: &[Row], env: &Environment) -> Result<(), BenchError> {
+    let fail = |source| BenchError::Write {
+        path: path.display().to_string(),
+        source,
+    };
+    let mut out = std::io::BufWriter::new(std::fs::File::create(path).map_err(fail)?);
+    writeln!(out, "{}", CSV_COLUMNS.join(",")).map_err(fail)?;
+    for r in rows {
+        let stages = r
+            .stages
+            .iter()
+            .map(|(n, t)| format!("{n}={t:.3}"))
+            .collect::<Vec<_>>()
+            .join(";");
+        let e = &r.error;
+        let cells = [
+            field(&r.scene),
+            r.tets.to_string(),
+            r.view.to_string(),
+            r.width.to_string(),
+            r.height.to_string(),
+            r.mode.to_string(),
+            field(&r.setting),
+            r.runs.to_string(),
+            format!("{:.3}", r.median_ms),
+            format!("{:.3}", r.min_ms),
+            format!("{:.3}", r.max_ms),
+            format!("{:.0}", r.tets_per_s),
+            r.gpu_bytes.to_string(),
+            format!("{:.4e}", e.rmse),
+            format!("{:.4e}", e.max_abs),
+            format!("{:.2}", e.psnr),
+            e.holes.to_string(),
+            e.spill.to_string(),
+            e.non_finite.to_string(),
+            field(&stages),
+            field(&env.adapter),
+            field(&env.machine),
+            env.date.clone(),
+        ];
+        writeln!(out, "{}", cells.join(",")).map_err(fail)?;
+    }
+    out.flush().map_err(fail)
+}
+
+/// Writes the configurations that could not run, with why, as CSV.
+pub fn write_skipped(path: &Path, skipped: &[Skipped]) -> Result<(), BenchError> {
+    let fail = |source| BenchError::Write {
+        path: path.display().to_string(),
+        source,
+    };
+    let mut text = String::from("scene,view,mode,setting,reason\n");
+    for s in skipped {
+        text += &[&s.scene, &s.view, &s.mode, &s.setting, &s.reason]
+            .map(|f| field(f))
+            .join(",");
+        text.push('\n');
+    }
+    std::fs::write(path, text).map_err(fail)
+}
+
+/// A plain-text table of `rows` for the terminal.
+pub fn table(rows: &[Row]) -> String {
+    let mut s = format!(
+        "{:<14} {:<8} {:<10} {:<22} {:>10} {:>12} {:>10} {:>9} {:>6}\n",
+        "scene", "view", "mode", "setting", "median ms", "tets/s", "GPU MiB", "PSNR dB", "holes"
+    );
+    for r in rows {
+        s += &format!(
+            "{:<14} {:<8} {:<10} {:<22} {:>10.1} {:>12.3e} {:>10.1} {:>9.1} {:>6}\n",
+            r.scene,
+            r.view,
+            r.mode,
+            r.setting,
+            r.median_ms,
+            r.tets_per_s,
+            r.gpu_bytes as f64 / (1 << 20) as f64,
+            r.error.psnr,
+            r.error.holes
+        );
+    }
+    s
+}
+
+/// Output paths of a bench run in `dir`.
+pub fn csv_path(dir: &Path) -> PathBuf {
+    dir.join("bench.csv")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn median_and_csv_quoting() {
+        assert_eq!(median(&mut [3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(&mut [4.0, 1.0]), 4.0);
+        assert!(median(&mut []).is_nan());
+        assert_eq!(field("a,b"), "\"a,b\"");
+        assert_eq!(field("x\"y"), "\"x\"\"y\"");
+        assert_eq!(field("plain"), "plain");
+    }
+
+    #[test]
+    fn dates_of_known_days() {
+        assert_eq!(date_of_day(0), "1970-01-01");
+        // 54 years with 13 leap days (1972 to 2020).
+        assert_eq!(date_of_day(54 * 365 + 13), "2024-01-01");
+        assert_eq!(date_of_day(54 * 365 + 13 + 59), "2024-02-29");
+    }
+
+    #[test]
+    fn catalogue_names_are_unique_and_quick_scenes_exist() {
+        let c = catalogue();
+        let mut names: Vec<_> = c.iter().map(|s| s.name).collect();
+        names.sort();
+        names.dedup();
+        assert_eq!(names.len(), c.len());
+        for q in QUICK_SCENES {
+            assert!(names.contains(q), "{q}");
+        }
+    }
+}

@@ -1,0 +1,187 @@
+//! `tetvr bench --quick`, the CI smoke test of the bench: it must produce the CSV with every
+//! scene x view x configuration, finite figures, and the plots (how fast is not checked).
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use tetvr::bench::{self, CSV_COLUMNS, QUICK_SCENES};
+
+fn out_dir(name: &str) -> PathBuf {
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+fn tetvr_bench(args: &[&str]) -> String {
+    let o = Command::new(env!("CARGO_BIN_EXE_tetvr"))
+        .arg("bench")
+        .args(args)
+        .output()
+        .expect("run tetvr");
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    );
+    assert!(o.status.success(), "{stdout}\n{stderr}");
+    stdout
+}
+
+/// Splits one CSV line, honouring double-quoted fields.
+fn split_csv(line: &str) -> Vec<String> {
+    let (mut fields, mut cur, mut quoted) = (Vec::new(), String::new(), false);
+    let mut chars = line.chars().peekable();
+    while let Some(c) = chars.next() {
+        match (c, quoted) {
+            ('"', true) if chars.peek() == Some(&'"') => {
+                cur.push('"');
+                chars.next();
+            }
+            ('"', _) => quoted = !quoted,
+            (',', false) => fields.push(std::mem::take(&mut cur)),
+            _ => cur.push(c),
+        }
+    }
+    fields.push(cur);
+    fields
+}
+
+#[test]
+fn quick_bench_writes_the_csv_and_the_plots() {
+    let out = out_dir("bench-quick");
+    let out_s = out.to_str().unwrap();
+    let stdout = tetvr_bench(&["--quick", "--out", out_s]);
+    assert!(
+        stdout.contains("adapter: ") && stdout.contains("machine: "),
+        "{stdout}"
+    );
+
+    let csv = std::fs::read_to_string(out.join("bench.csv")).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(split_csv(lines.next().unwrap()), CSV_COLUMNS);
+    let col = |name: &str| CSV_COLUMNS.iter().position(|c| *c == name).unwrap();
+    let rows: Vec<Vec<String>> = lines.map(split_csv).collect();
+
+    // Every quick scene x view x configuration has a row (the tests run with an adapter).
+    let configs = bench::configurations(true);
+    let catalogue = bench::catalogue();
+    let mut expected = 0;
+    for spec in catalogue.iter().filter(|s| QUICK_SCENES.contains(&s.name)) {
+        for view in spec.views {
+            for c in &configs {
+                expected += 1;
+                assert!(
+                    rows.iter().any(|r| r[col("scene")] == spec.name
+                        && r[col("view")] == view.name()
+                        && r[col("mode")] == c.mode
+                        && r[col("setting")] == c.setting),
+                    "no row for {} {} {} {}:\n{csv}",
+                    spec.name,
+                    view.name(),
+                    c.mode,
+                    c.setting
+                );
+            }
+        }
+    }
+    assert_eq!(rows.len(), expected, "{csv}");
+
+    for r in &rows {
+        assert_eq!(r.len(), CSV_COLUMNS.len(), "{r:?}");
+        let num = |name: &str| -> f64 { r[col(name)].parse().unwrap() };
+        for name in [
+            "median_ms",
+            "min_ms",
+            "max_ms",
+            "tets_per_s",
+            "rmse",
+            "max_abs",
+        ] {
+            assert!(num(name).is_finite() && num(name) >= 0.0, "{name}: {r:?}");
+        }
+        assert!(num("median_ms") > 0.0 && num("tets_per_s") > 0.0, "{r:?}");
+        assert_eq!(num("non_finite"), 0.0, "{r:?}");
+        if r[col("mode")] == "reference" {
+            // The timed reference frame is the cached truth image, bit for bit.
+            assert_eq!((num("rmse"), num("psnr_db")), (0.0, f64::INFINITY), "{r:?}");
+            assert_eq!(num("gpu_bytes"), 0.0);
+        } else {
+            assert!(
+                num("psnr_db").is_finite() && num("gpu_bytes") > 0.0,
+                "{r:?}"
+            );
+            // Every stage split names at least the frame's stages with their times.
+            assert!(r[col("stages_ms")].contains('='), "{r:?}");
+        }
+    }
+
+    // The plots: one error-against-time plot per scene and view, and the scaling plot, each
+    // naming the adapter.
+    for spec in catalogue.iter().filter(|s| QUICK_SCENES.contains(&s.name)) {
+        for view in spec.views {
+            let svg = out.join(format!("pareto-{}-{}.svg", spec.name, view.name()));
+            let text = std::fs::read_to_string(&svg).unwrap();
+            assert!(
+                text.starts_with("<svg") && text.contains("<polyline"),
+                "{svg:?}"
+            );
+        }
+    }
+    let scaling = std::fs::read_to_string(out.join("scaling.svg")).unwrap();
+    let adapter = &rows[0][col("adapter")];
+    let first_word = adapter.split(' ').next().unwrap();
+    assert!(scaling.contains("<polyline") && scaling.contains(first_word));
+
+    // A second run finds every reference image in the cache.
+    let again = tetvr_bench(&[
+        "--quick", "--out", out_s, "--scenes", "lox", "--modes", "iso",
+    ]);
+    assert!(
+        again.contains("reference images: 2 from the cache, 0 computed"),
+        "{again}"
+    );
+}
+
+#[test]
+fn unknown_scenes_and_modes_are_named() {
+    for (flag, value) in [("--scenes", "nosuch"), ("--modes", "raymarch")] {
+        let o = Command::new(env!("CARGO_BIN_EXE_tetvr"))
+            .args(["bench", "--quick", flag, value, "--out"])
+            .arg(out_dir("bench-unknown"))
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success() && stderr.contains(value) && stderr.contains("choose from"),
+            "{stderr}"
+        );
+    }
+}
+
+#[test]
+fn without_an_adapter_the_bench_runs_the_reference_only_and_says_so() {
+    let out = out_dir("bench-no-adapter");
+    let o = Command::new(env!("CARGO_BIN_EXE_tetvr"))
+        .args(["bench", "--quick", "--scenes", "lox", "--out"])
+        .arg(&out)
+        .env("VK_ICD_FILENAMES", "/nonexistent/icd.json")
+        .env("VK_DRIVER_FILES", "/nonexistent/icd.json")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("the bench runs the reference only"),
+        "{stderr}"
+    );
+    let csv = std::fs::read_to_string(out.join("bench.csv")).unwrap();
+    let mode = CSV_COLUMNS.iter().position(|c| *c == "mode").unwrap();
+    let modes: Vec<String> = csv
+        .lines()
+        .skip(1)
+        .map(|l| split_csv(l)[mode].clone())
+        .collect();
+    // lox has two views.
+    assert_eq!(modes, ["reference", "reference"], "{csv}");
+    let skipped = std::fs::read_to_string(out.join("skipped.csv")).unwrap();
+    assert!(skipped.contains("no GPU adapter"), "{skipped}");
+}
