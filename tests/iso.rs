@@ -574,3 +574,49 @@ fn frustum_culling_drops_tets_out_of_view_and_changes_nothing() {
         "the view shows a surface"
     );
 }
+
+#[test]
+fn selections_beyond_one_storage_binding_are_drawn_in_chunks() {
+    // The same adapter told it may bind only 512 KiB per storage binding: enough for the
+    // 24,576 tets' 16-byte index list (393 KB), which iso keeps whole, but not for the 4,480
+    // selected tets' records (645 KB), which are assembled and drawn in two chunks, each a
+    // window of one buffer. The depth test keeps the nearest hit whatever the draw order, so
+    // the picture must be bit-identical to the unchunked one.
+    let base = ctx();
+    let small = GpuContext {
+        limits: wgpu::Limits {
+            max_storage_buffer_binding_size: 512 << 10,
+            ..base.limits.clone()
+        },
+        adapter: base.adapter.clone(),
+        device: base.device.clone(),
+        queue: base.queue.clone(),
+        info: base.info.clone(),
+        features: base.features,
+    };
+    let mesh = gaussians();
+    let (lo, hi) = mesh.bounds();
+    let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 96, 96);
+    let settings = IsoSettings {
+        isovalues: vec![(0.3, RED), (0.6, BLUE)],
+        shading: Shading::Smooth,
+        ..Default::default()
+    };
+    let frame = |ctx: &GpuContext| {
+        let mut r = IsoRenderer::new(ctx, &mesh, settings.clone()).expect("iso renderer");
+        r.render_surface(&camera).expect("iso frame").0
+    };
+    let (whole, chunked) = (frame(base), frame(&small));
+    assert_eq!(
+        chunked
+            .color
+            .compare(&whole.color)
+            .expect("same size")
+            .max_abs,
+        0.0
+    );
+    assert!(
+        whole.color.pixels.iter().any(|p| p[3] > 0.0),
+        "the view shows a surface"
+    );
+}

@@ -46,7 +46,9 @@ use rayon::prelude::*;
 
 use crate::camera::Camera;
 use crate::gpu::gpu_data::{FrameUniforms, TetRecord, TfPoints};
-use crate::gpu::shells::{DEGENERATE_TOL, assembly_pipeline, binning, f16_to_f32, tf_points};
+use crate::gpu::shells::{
+    DEGENERATE_TOL, assembly_pipeline, binning, chunk_tets, f16_to_f32, tf_points, window,
+};
 use crate::gpu::util::{
     bind_group_layout, buffer_entry, entry, map_read, ms_since, pipeline_layout_for,
     settings_error, wgsl_module,
@@ -154,6 +156,8 @@ pub struct CellProjRenderer {
     positions_buf: wgpu::Buffer,
     scalars_buf: wgpu::Buffer,
     order_buf: wgpu::Buffer,
+    /// Tets per chunk of records (see [`chunk_tets`]).
+    chunk_tets: u32,
     records_buf: wgpu::Buffer,
     degenerate_buf: wgpu::Buffer,
     targets: Option<Targets>,
@@ -253,17 +257,25 @@ impl CellProjRenderer {
                 settings.table_size, settings.table_lengths
             )));
         }
+        // Records beyond one storage binding are assembled and drawn in chunks of the sorted
+        // order (each bound as a window of the one record buffer, drawn one after the other,
+        // so the order holds); the buffer itself must fit.
         let record_bytes = mesh.tet_count() as u64 * size_of::<TetRecord>() as u64;
-        let max_binding = limits.max_storage_buffer_binding_size;
-        if record_bytes > max_binding.min(limits.max_buffer_size) {
+        let chunk = chunk_tets(
+            mesh.tet_count() as u64,
+            limits.max_storage_buffer_binding_size,
+            limits.min_storage_buffer_offset_alignment as u64,
+        );
+        let Some(chunk) = chunk.filter(|_| record_bytes <= limits.max_buffer_size) else {
             return Err(settings_error(format!(
                 "the mesh has {} tets; cell projection needs one {}-byte record per tet in one \
-                 storage buffer, and this adapter binds at most {max_binding} bytes; split the \
-                 mesh or use another mode",
+                 buffer, and this adapter's buffers hold at most {} bytes; split the mesh or use \
+                 another mode",
                 mesh.tet_count(),
                 size_of::<TetRecord>(),
+                limits.max_buffer_size,
             )));
-        }
+        };
         let format = if ctx.features.contains(wgpu::Features::FLOAT32_BLENDABLE) {
             wgpu::TextureFormat::Rgba32Float
         } else {
@@ -303,6 +315,7 @@ impl CellProjRenderer {
             positions_buf: storage("cellproj positions", nv * 16, none),
             scalars_buf: storage("cellproj scalars", nv * 4, none),
             order_buf: storage("cellproj sorted tets", nt * 16, none),
+            chunk_tets: chunk as u32,
             records_buf: storage("cellproj tet records", record_bytes, none),
             degenerate_buf: storage("cellproj degenerate count", 4, wgpu::BufferUsages::COPY_SRC),
             device,
@@ -645,20 +658,14 @@ impl Renderer for CellProjRenderer {
             .map_err(GpuError::from)?;
         timings.stage("upload", ms_since(t1));
 
-        // 4. Assembly, in the sorted order.
+        // 4. Assembly, in the sorted order, chunk by chunk (windows of the sorted tets and of
+        // the records; one chunk unless the records exceed a storage binding).
         let t2 = Instant::now();
-        let assemble_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("cellproj assemble"),
-            layout: &self.pipelines.assemble_layout,
-            entries: &[
-                entry(0, &self.frame_buf),
-                entry(1, &self.positions_buf),
-                entry(2, &self.scalars_buf),
-                entry(3, &self.order_buf),
-                entry(4, &self.records_buf),
-                entry(5, &self.degenerate_buf),
-            ],
-        });
+        let chunk = self.chunk_tets as u64;
+        let chunks: Vec<(u64, u64)> = (0..(drawn as u64).div_ceil(chunk))
+            .map(|c| (c * chunk, chunk.min(drawn as u64 - c * chunk)))
+            .collect();
+        let record = size_of::<TetRecord>() as u64;
         let mut enc = self.device.create_command_encoder(&Default::default());
         enc.clear_buffer(&self.degenerate_buf, 0, None);
         if drawn > 0 {
@@ -667,12 +674,26 @@ impl Renderer for CellProjRenderer {
                 timestamp_writes: None,
             });
             pass.set_pipeline(&self.pipelines.assemble);
-            pass.set_bind_group(0, &assemble_group, &[]);
-            let groups = (drawn as u32).div_ceil(64);
-            let x = groups
-                .min(self.limits.max_compute_workgroups_per_dimension)
-                .max(1);
-            pass.dispatch_workgroups(x, groups.div_ceil(x), 1);
+            for &(first, count) in &chunks {
+                let group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("cellproj assemble"),
+                    layout: &self.pipelines.assemble_layout,
+                    entries: &[
+                        entry(0, &self.frame_buf),
+                        entry(1, &self.positions_buf),
+                        entry(2, &self.scalars_buf),
+                        window(3, &self.order_buf, 16, first, count),
+                        window(4, &self.records_buf, record, first, count),
+                        entry(5, &self.degenerate_buf),
+                    ],
+                });
+                pass.set_bind_group(0, &group, &[]);
+                let groups = (count as u32).div_ceil(64);
+                let x = groups
+                    .min(self.limits.max_compute_workgroups_per_dimension)
+                    .max(1);
+                pass.dispatch_workgroups(x, groups.div_ceil(x), 1);
+            }
         }
         self.queue.submit([enc.finish()]);
         self.device
@@ -693,20 +714,26 @@ impl Renderer for CellProjRenderer {
             Integrate::Exact => (&self.no_table, &self.pipelines.raster_exact),
         };
         let table_view = table.create_view(&Default::default());
-        let raster_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("cellproj raster"),
-            layout: &self.pipelines.raster_layout,
-            entries: &[
-                entry(0, &self.frame_buf),
-                entry(1, &self.records_buf),
-                entry(2, &self.tf_buf),
-                entry(3, &self.cellproj_buf),
-                wgpu::BindGroupEntry {
-                    binding: 4,
-                    resource: wgpu::BindingResource::TextureView(&table_view),
-                },
-            ],
-        });
+        let raster_groups: Vec<(wgpu::BindGroup, u64)> = chunks
+            .iter()
+            .map(|&(first, count)| {
+                let group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("cellproj raster"),
+                    layout: &self.pipelines.raster_layout,
+                    entries: &[
+                        entry(0, &self.frame_buf),
+                        window(1, &self.records_buf, record, first, count),
+                        entry(2, &self.tf_buf),
+                        entry(3, &self.cellproj_buf),
+                        wgpu::BindGroupEntry {
+                            binding: 4,
+                            resource: wgpu::BindingResource::TextureView(&table_view),
+                        },
+                    ],
+                });
+                (group, count)
+            })
+            .collect();
         let occlusion = self.device.create_query_set(&wgpu::QuerySetDescriptor {
             label: Some("cellproj fragments"),
             ty: wgpu::QueryType::Occlusion,
@@ -731,10 +758,11 @@ impl Renderer for CellProjRenderer {
                 ..Default::default()
             });
             pass.begin_occlusion_query(0);
-            if drawn > 0 {
-                pass.set_pipeline(pipeline);
-                pass.set_bind_group(0, &raster_group, &[]);
-                pass.draw(0..12, 0..drawn as u32);
+            pass.set_pipeline(pipeline);
+            // Chunks in the sorted order, one after the other: blending follows it.
+            for (group, count) in &raster_groups {
+                pass.set_bind_group(0, group, &[]);
+                pass.draw(0..12, 0..*count as u32);
             }
             pass.end_occlusion_query();
         }

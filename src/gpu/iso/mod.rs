@@ -41,7 +41,7 @@ use rayon::prelude::*;
 
 use crate::camera::Camera;
 use crate::gpu::gpu_data::{FrameUniforms, TetRecord};
-use crate::gpu::shells::{DEGENERATE_TOL, assembly_pipeline, binning};
+use crate::gpu::shells::{DEGENERATE_TOL, assembly_pipeline, binning, chunk_tets, window};
 use crate::gpu::util::{
     bind_group_layout, buffer_entry, entry, map_read, ms_since, pipeline_layout_for,
     settings_error, wgsl_module,
@@ -143,6 +143,8 @@ pub struct IsoRenderer {
     /// The selected tets (vertex indices), `None` when the scalars or isovalues changed.
     selection: Option<Vec<[u32; 4]>>,
     selection_uploaded: bool,
+    /// Selected tets per chunk of records (see [`chunk_tets`]).
+    chunk_tets: u32,
     pipelines: Pipelines,
     frame_buf: wgpu::Buffer,
     iso_buf: wgpu::Buffer,
@@ -308,6 +310,7 @@ impl IsoRenderer {
             scalar_span,
             selection: None,
             selection_uploaded: false,
+            chunk_tets: 1,
             targets: None,
         };
         r.upload_positions();
@@ -545,21 +548,26 @@ impl IsoRenderer {
         if !self.selection_uploaded {
             let sel = self.selection.as_deref().unwrap_or(&[]);
             let bytes: &[u8] = bytemuck::cast_slice(sel);
+            // Records beyond one storage binding are assembled and drawn in chunks, each
+            // bound as a window of the one record buffer; the buffer itself must fit.
             let rec_bytes = (sel.len() * size_of::<TetRecord>()) as u64;
-            let max_binding = self
-                .limits
-                .max_storage_buffer_binding_size
-                .min(self.limits.max_buffer_size);
-            if rec_bytes > max_binding {
+            let chunk = chunk_tets(
+                sel.len() as u64,
+                self.limits.max_storage_buffer_binding_size,
+                self.limits.min_storage_buffer_offset_alignment as u64,
+            );
+            let max_buffer = self.limits.max_buffer_size;
+            let Some(chunk) = chunk.filter(|_| rec_bytes <= max_buffer) else {
                 return Err(settings_error(format!(
                     "the isovalues meet {} tets; the iso mode keeps one {}-byte record per \
-                     selected tet in one storage buffer, and this adapter binds at most \
-                     {max_binding} bytes; draw fewer isovalues, split the mesh or use another \
+                     selected tet in one buffer, and this adapter's buffers hold at most \
+                     {max_buffer} bytes; draw fewer isovalues, split the mesh or use another \
                      mode",
                     sel.len(),
                     size_of::<TetRecord>(),
                 )));
-            }
+            };
+            self.chunk_tets = chunk as u32;
             if self.selected_buf.size() < bytes.len() as u64 {
                 self.selected_buf = self.device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("iso selected tets"),
@@ -571,10 +579,7 @@ impl IsoRenderer {
             if self.records_buf.size() < rec_bytes {
                 self.records_buf = self.device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("iso tet records"),
-                    size: rec_bytes
-                        .next_power_of_two()
-                        .min(self.limits.max_storage_buffer_binding_size)
-                        .max(rec_bytes),
+                    size: rec_bytes.next_power_of_two().min(max_buffer).max(rec_bytes),
                     usage: wgpu::BufferUsages::STORAGE,
                     mapped_at_creation: false,
                 });
@@ -632,20 +637,14 @@ impl IsoRenderer {
             timings.stage("gradients", ms_since(t));
         }
 
-        // 4. Assembly over the selected tets.
+        // 4. Assembly over the selected tets, chunk by chunk (windows of the tet list and the
+        // records; one chunk unless the records exceed a storage binding).
         let t2 = Instant::now();
-        let assemble_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("iso assemble"),
-            layout: &self.pipelines.assemble_layout,
-            entries: &[
-                entry(0, &self.frame_buf),
-                entry(1, &self.positions_buf),
-                entry(2, &self.scalars_buf),
-                entry(3, &self.selected_buf),
-                entry(4, &self.records_buf),
-                entry(5, &self.degenerate_buf),
-            ],
-        });
+        let chunk = self.chunk_tets.max(1) as u64;
+        let chunks: Vec<(u64, u64)> = (0..(selected as u64).div_ceil(chunk))
+            .map(|c| (c * chunk, chunk.min(selected as u64 - c * chunk)))
+            .collect();
+        let record = size_of::<TetRecord>() as u64;
         let mut enc = self.device.create_command_encoder(&Default::default());
         enc.clear_buffer(&self.degenerate_buf, 0, None);
         if selected > 0 {
@@ -654,12 +653,26 @@ impl IsoRenderer {
                 timestamp_writes: None,
             });
             pass.set_pipeline(&self.pipelines.assemble);
-            pass.set_bind_group(0, &assemble_group, &[]);
-            let groups = (selected as u32).div_ceil(64);
-            let x = groups
-                .min(self.limits.max_compute_workgroups_per_dimension)
-                .max(1);
-            pass.dispatch_workgroups(x, groups.div_ceil(x), 1);
+            for &(first, count) in &chunks {
+                let group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("iso assemble"),
+                    layout: &self.pipelines.assemble_layout,
+                    entries: &[
+                        entry(0, &self.frame_buf),
+                        entry(1, &self.positions_buf),
+                        entry(2, &self.scalars_buf),
+                        window(3, &self.selected_buf, 16, first, count),
+                        window(4, &self.records_buf, record, first, count),
+                        entry(5, &self.degenerate_buf),
+                    ],
+                });
+                pass.set_bind_group(0, &group, &[]);
+                let groups = (count as u32).div_ceil(64);
+                let x = groups
+                    .min(self.limits.max_compute_workgroups_per_dimension)
+                    .max(1);
+                pass.dispatch_workgroups(x, groups.div_ceil(x), 1);
+            }
         }
         self.queue.submit([enc.finish()]);
         self.device
@@ -672,18 +685,24 @@ impl IsoRenderer {
         let targets = self.targets.as_ref().ok_or_else(|| {
             settings_error("internal: render targets missing after ensure_targets")
         })?;
-        let raster_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("iso raster"),
-            layout: &self.pipelines.raster_layout,
-            entries: &[
-                entry(0, &self.frame_buf),
-                entry(1, &self.records_buf),
-                entry(2, &self.selected_buf),
-                entry(3, &self.scalars_buf),
-                entry(4, &self.gradients_buf),
-                entry(5, &self.iso_buf),
-            ],
-        });
+        let raster_groups: Vec<(wgpu::BindGroup, u64)> = chunks
+            .iter()
+            .map(|&(first, count)| {
+                let group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("iso raster"),
+                    layout: &self.pipelines.raster_layout,
+                    entries: &[
+                        entry(0, &self.frame_buf),
+                        window(1, &self.records_buf, record, first, count),
+                        window(2, &self.selected_buf, 16, first, count),
+                        entry(3, &self.scalars_buf),
+                        entry(4, &self.gradients_buf),
+                        entry(5, &self.iso_buf),
+                    ],
+                });
+                (group, count)
+            })
+            .collect();
         let occlusion = self.device.create_query_set(&wgpu::QuerySetDescriptor {
             label: Some("iso fragments"),
             ty: wgpu::QueryType::Occlusion,
@@ -731,10 +750,10 @@ impl IsoRenderer {
                 ..Default::default()
             });
             pass.begin_occlusion_query(0);
-            if selected > 0 {
-                pass.set_pipeline(&self.pipelines.raster);
-                pass.set_bind_group(0, &raster_group, &[]);
-                pass.draw(0..12, 0..selected as u32);
+            pass.set_pipeline(&self.pipelines.raster);
+            for (group, count) in &raster_groups {
+                pass.set_bind_group(0, group, &[]);
+                pass.draw(0..12, 0..*count as u32);
             }
             pass.end_occlusion_query();
         }

@@ -1188,7 +1188,7 @@ fn scissor(r: binning::ScreenRect, slope: [f64; 2], width: u32, height: u32) -> 
 }
 
 /// A bind group entry for elements `first..first + count` of `buffer`, each `stride` bytes.
-fn window(
+pub(crate) fn window(
     binding: u32,
     buffer: &wgpu::Buffer,
     stride: u64,
