@@ -30,15 +30,18 @@ use glam::DVec3;
 use crate::camera::{Camera, View};
 use crate::deform::Deformation;
 use crate::generate::{self, Field};
-use crate::gpu::{GpuContext, IsoRenderer, IsoSettings, ShellSettings, ShellsRenderer};
+use crate::gpu::{
+    CellProjRenderer, CellProjSettings, GpuContext, Integrate, IsoRenderer, IsoSettings,
+    ShellSettings, ShellsRenderer, Skip, Skips,
+};
 use crate::image::{ErrorMetrics, Image};
 use crate::io;
 use crate::mesh::TetMesh;
 use crate::reference::ReferenceRenderer;
 use crate::reference::iso::{IsoReference, Shading};
 use crate::render::{RenderError, Renderer};
-use crate::tf::TransferFunction;
 use crate::tf::file::load_tf;
+use crate::tf::{ControlPoint, TransferFunction};
 
 use cache::{CacheError, Fnv1a, REFERENCE_VERSION, ReferenceCache};
 
@@ -83,6 +86,9 @@ pub enum ViewKind {
     Grazing,
     /// The eye at the bounding-box centre (only for convex meshes, where that is inside).
     Inside,
+    /// The outside view with the eye at 0.3 of its distance: much of the mesh is out of view
+    /// (where frustum culling matters).
+    Zoomed,
 }
 
 impl ViewKind {
@@ -91,6 +97,7 @@ impl ViewKind {
             Self::Outside => "outside",
             Self::Grazing => "grazing",
             Self::Inside => "inside",
+            Self::Zoomed => "zoomed",
         }
     }
 
@@ -98,6 +105,7 @@ impl ViewKind {
     pub fn camera(self, lo: DVec3, hi: DVec3, width: u32, height: u32) -> Camera {
         match self {
             Self::Outside => Camera::framing(lo, hi, View::ISO, 1.0, 30.0, width, height),
+            Self::Zoomed => Camera::framing(lo, hi, View::ISO, 0.3, 30.0, width, height),
             Self::Grazing => {
                 let view = View {
                     azimuth_deg: 30.0,
@@ -134,11 +142,73 @@ pub enum Source {
     Deformed(&'static str, Deformation, f64, f64),
 }
 
-/// A scene of the catalogue: a name, where its mesh comes from, and its views.
+/// The transfer function of a scene, over its mesh's scalar range.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Look {
+    /// The `viridis` preset (opacity ramp to 0.1 per 1/100 of the diagonal).
+    Viridis,
+    /// Transparent below the scalar that only 10% of the tets reach, then a ramp: about 90% of
+    /// the tets contribute nothing (where transfer-function culling and empty space matter).
+    Top10,
+    /// Opaque (0.99 per unit distance) above the scalar that 70% of the tets reach: an
+    /// isosurface-like picture where most rays end early (where early ray termination matters).
+    Opaque,
+}
+
+impl Look {
+    /// This look's transfer function for `mesh`, unit distance 1/100 of its diagonal.
+    pub fn transfer_function(self, mesh: &TetMesh) -> Result<TransferFunction, String> {
+        let (lo, hi) = mesh
+            .active_array()
+            .and_then(|a| a.range())
+            .ok_or("the mesh has no scalar array")?;
+        let d_u = mesh.diagonal() / 100.0;
+        // The scalar that a fraction `q` of the tets' maxima stay below.
+        let quantile = |q: f64| -> Result<f64, String> {
+            let mut maxima: Vec<f64> = (mesh.tet_scalar_ranges().map_err(|e| e.to_string())?)
+                .iter()
+                .map(|r| r.1)
+                .collect();
+            maxima.sort_by(f64::total_cmp);
+            let k = ((maxima.len() as f64 * q) as usize).min(maxima.len().saturating_sub(1));
+            maxima
+                .get(k)
+                .copied()
+                .ok_or_else(|| "the mesh has no tets".into())
+        };
+        let cp = |s: f64, color: [f64; 3], opacity| ControlPoint { s, color, opacity };
+        let points = match self {
+            Look::Viridis => return load_tf("viridis", (lo, hi), d_u).map_err(|e| e.to_string()),
+            Look::Top10 => {
+                let s = quantile(0.9)?;
+                vec![
+                    cp(lo, [0.2, 0.3, 0.9], 0.0),
+                    cp(s, [0.2, 0.3, 0.9], 0.0),
+                    cp(hi, [1.0, 0.8, 0.1], 0.3),
+                ]
+            }
+            Look::Opaque => {
+                let s = quantile(0.3)?;
+                let c = [0.9, 0.7, 0.4];
+                vec![
+                    cp(lo, c, 0.0),
+                    cp(s - 0.01 * (hi - lo), c, 0.0),
+                    cp(s, c, 0.99),
+                    cp(hi, c, 0.99),
+                ]
+            }
+        };
+        TransferFunction::new(points, d_u).map_err(|e| e.to_string())
+    }
+}
+
+/// A scene of the catalogue: a name, where its mesh comes from, its transfer function and its
+/// views.
 #[derive(Clone, Debug)]
 pub struct SceneSpec {
     pub name: &'static str,
     pub source: Source,
+    pub look: Look,
     pub views: &'static [ViewKind],
 }
 
@@ -148,8 +218,10 @@ pub fn catalogue() -> Vec<SceneSpec> {
     let spec = |name, source, views| SceneSpec {
         name,
         source,
+        look: Look::Viridis,
         views,
     };
+    let look = |look, spec: SceneSpec| SceneSpec { look, ..spec };
     vec![
         spec(
             "lox",
@@ -159,7 +231,23 @@ pub fn catalogue() -> Vec<SceneSpec> {
         spec(
             "bluntfin",
             Source::Data("bluntfin_tet.vtk"),
-            &[Outside, Grazing],
+            &[Outside, Grazing, Zoomed],
+        ),
+        look(
+            Look::Top10,
+            spec(
+                "bluntfin-top10",
+                Source::Data("bluntfin_tet.vtk"),
+                &[Outside],
+            ),
+        ),
+        look(
+            Look::Opaque,
+            spec(
+                "bluntfin-opaque",
+                Source::Data("bluntfin_tet.vtk"),
+                &[Outside],
+            ),
         ),
         spec(
             "oxygen-post",
@@ -272,8 +360,7 @@ impl Scene {
             .active_array()
             .and_then(|a| a.range())
             .ok_or_else(|| scene_err("the mesh has no scalar array".into()))?;
-        let tf = load_tf("viridis", range, mesh.diagonal() / 100.0)
-            .map_err(|e| scene_err(e.to_string()))?;
+        let tf = spec.look.transfer_function(&mesh).map_err(scene_err)?;
         let (lo, hi) = truth_mesh.bounds();
         let views = spec
             .views
@@ -342,7 +429,16 @@ pub struct Config {
     /// One timed frame and no warm-up: for the reference, whose frames take seconds and whose
     /// time does not depend on caches warming up.
     pub single_run: bool,
+    /// The scenes it runs on (by name prefix); empty: every scene.
+    pub scenes: &'static [&'static str],
     pub build: Builder,
+}
+
+impl Config {
+    /// Whether this configuration runs on the scene named `scene`.
+    pub fn runs_on(&self, scene: &str) -> bool {
+        self.scenes.is_empty() || self.scenes.iter().any(|p| scene.starts_with(p))
+    }
 }
 
 fn gpu_ctx(ctx: Option<&GpuContext>) -> Result<&GpuContext, RenderError> {
@@ -360,6 +456,7 @@ fn shells(samples: u32, slices_per_shell: Option<u32>) -> Config {
         truth: Truth::Volume,
         gpu: true,
         single_run: false,
+        scenes: &[],
         build: Box::new(move |ctx, scene| {
             let settings = ShellSettings {
                 samples,
@@ -385,6 +482,7 @@ fn iso(shading: Shading) -> Config {
         truth: Truth::Iso(shading),
         gpu: true,
         single_run: false,
+        scenes: &[],
         build: Box::new(move |ctx, scene| {
             let settings = IsoSettings {
                 isovalues: vec![(scene.isovalue, scene.iso_color())],
@@ -407,28 +505,127 @@ fn reference() -> Config {
         truth: Truth::Volume,
         gpu: false,
         single_run: true,
+        scenes: &[],
         build: Box::new(|_, scene| Ok(Box::new(ReferenceRenderer::new(&scene.mesh)?))),
     }
 }
 
-/// The configurations of the bench: `quick` keeps two shells settings, flat iso and the
-/// reference. Modes and settings join here.
+/// The shells mode at 512 samples with one skip turned off, on the blunt fin scenes (the
+/// scenes where each skip matters, and the plain one where it should not): the skip's
+/// speedup is this row's time over the `samples 512` row's.
+fn shells_without(skip: Skip) -> Config {
+    Config {
+        mode: "shells",
+        setting: format!("samples 512, no {skip}"),
+        truth: Truth::Volume,
+        gpu: true,
+        single_run: false,
+        scenes: &["bluntfin"],
+        build: Box::new(move |ctx, scene| {
+            let settings = ShellSettings {
+                skips: Skips::ALL.without(skip),
+                ..ShellSettings::default()
+            };
+            Ok(Box::new(ShellsRenderer::new(
+                gpu_ctx(ctx)?,
+                &scene.mesh,
+                settings,
+            )?))
+        }),
+    }
+}
+
+fn cellproj(integrate: Integrate, table_size: u32) -> Config {
+    Config {
+        mode: "cellproj",
+        setting: match integrate {
+            Integrate::Table => format!("table {table_size}"),
+            Integrate::Exact => "exact".into(),
+        },
+        truth: Truth::Volume,
+        gpu: true,
+        single_run: false,
+        scenes: &[],
+        build: Box::new(move |ctx, scene| {
+            let settings = CellProjSettings {
+                integrate,
+                table_size,
+                table_lengths: (table_size / 2).max(2),
+                ..CellProjSettings::default()
+            };
+            Ok(Box::new(CellProjRenderer::new(
+                gpu_ctx(ctx)?,
+                &scene.mesh,
+                settings,
+            )?))
+        }),
+    }
+}
+
+/// The configurations of the bench: `quick` keeps two shells settings, flat iso, the default
+/// cell projection and the reference. Modes and settings join here.
 pub fn configurations(quick: bool) -> Vec<Config> {
     let mut c = if quick {
-        vec![shells(128, None), shells(512, None), iso(Shading::Flat)]
-    } else {
         vec![
+            shells(128, None),
+            shells(512, None),
+            iso(Shading::Flat),
+            cellproj(Integrate::Table, 128),
+        ]
+    } else {
+        let mut c = vec![
             shells(128, None),
             shells(256, None),
             shells(512, None),
             shells(1024, None),
             shells(512, Some(32)),
+        ];
+        c.extend(Skip::ALL.map(shells_without));
+        c.extend([
             iso(Shading::Flat),
             iso(Shading::Smooth),
-        ]
+            cellproj(Integrate::Table, 64),
+            cellproj(Integrate::Table, 128),
+            cellproj(Integrate::Exact, 128),
+        ]);
+        c
     };
     c.push(reference());
     c
+}
+
+/// A markdown table of each skip's effect: for every `samples 512, no SKIP` row, its time and
+/// error beside those of the `samples 512` row (all skips on) of the same scene and view.
+pub fn skips_table(rows: &[Row]) -> String {
+    let mut out = String::from(
+        "| skip turned off | scene | view | all skips on | skip off | speedup | PSNR on | PSNR off |\n\
+         |---|---|---|---|---|---|---|---|\n",
+    );
+    for off in rows
+        .iter()
+        .filter(|r| r.setting.starts_with("samples 512, no "))
+    {
+        let on = rows.iter().find(|r| {
+            r.scene == off.scene
+                && r.view == off.view
+                && r.mode == "shells"
+                && r.setting == "samples 512"
+        });
+        if let Some(on) = on {
+            out += &format!(
+                "| {} | {} | {} | {:.0} ms | {:.0} ms | {:.2}x | {:.1} dB | {:.1} dB |\n",
+                &off.setting["samples 512, no ".len()..],
+                off.scene,
+                off.view,
+                on.median_ms,
+                off.median_ms,
+                off.median_ms / on.median_ms,
+                on.error.psnr,
+                off.error.psnr
+            );
+        }
+    }
+    out
 }
 
 /// The names of the modes among `configs`, for messages.
@@ -618,7 +815,10 @@ impl Plan {
     pub fn steps(&self) -> u64 {
         self.scenes
             .iter()
-            .map(|s| (s.views.len() * self.configs.len()) as u64)
+            .map(|s| {
+                let configs = self.configs.iter().filter(|c| c.runs_on(s.name)).count();
+                (s.views.len() * configs) as u64
+            })
             .sum()
     }
 }
@@ -654,6 +854,9 @@ pub fn run(
         // GPU configurations first: the reference runs only if one of them could render.
         let mut runnable: Vec<&Config> = Vec::new();
         for c in &plan.configs {
+            if !c.runs_on(spec.name) {
+                continue;
+            }
             if c.gpu && ctx.is_none() {
                 skip(&mut report, c, "all", "no GPU adapter");
                 progress(

@@ -118,6 +118,15 @@ pub fn bench(args: BenchArgs) -> Result<(), CliError> {
         written.push(path.display().to_string());
     }
 
+    let skips = bench::skips_table(&report.rows);
+    if skips.lines().count() > 2 {
+        let path = args.out.join("skips.md");
+        std::fs::write(&path, &skips).map_err(|source| BenchError::Write {
+            path: path.display().to_string(),
+            source,
+        })?;
+        written.push(path.display().to_string());
+    }
     print!("{}", bench::table(&report.rows));
     for s in &report.skipped {
         println!(
