@@ -68,14 +68,11 @@ fn skipped(skip: Skip, on: &Timings, off: &Timings) -> String {
                 + counter(on, "shells skipped (frame stopped)")
         ),
         Skip::AdaptiveSlices => format!(
-            "n {} (off {}), {:.1}% instances",
+            "n {} (off {}), instances x{:.2}",
             counter(on, "slices per shell"),
             counter(off, "slices per shell"),
-            100.0
-                * frac(
-                    counter(on, "tet-shell instances"),
-                    counter(off, "tet-shell instances")
-                ),
+            counter(on, "tet-shell instances") as f64
+                / counter(off, "tet-shell instances").max(1) as f64,
         ),
     }
 }
