@@ -1,7 +1,8 @@
-//! What each skip of the shells renderer buys, on bluntfin at 512x512.
+//! What each skip of the shells renderer buys, on bluntfin at 512x512 (adaptive slices also on
+//! lox, a coarse box grid and a thin slab).
 //!
 //! `cargo run --example skips_bench -- [frames] [skip...]`: for each skip (default:
-//! all), a scene where it matters and one where it does not; per scene, the median frame time
+//! all), scenes where it matters and one where it does not; per scene, the median frame time
 //! with every skip on and with that one skip off (`frames` frames each, default 7, after a
 //! warm-up, alternating on/off frame by frame so both see the same machine load), the fraction
 //! of work skipped, and the PSNR of both pictures against the exact reference. References are
@@ -9,15 +10,18 @@
 //! `SKIPS_BENCH_OUT=dir`, the pictures are written there and the stage timings printed.
 
 use std::path::PathBuf;
+use std::rc::Rc;
 
+use glam::{DVec3, UVec3};
 use tetvr::gpu::{AdapterChoice, GpuContext, ShellSettings, ShellsRenderer, Skip, Skips};
 use tetvr::reference::ReferenceRenderer;
 use tetvr::tf::ControlPoint;
 use tetvr::{Camera, Frame, Image, Renderer, TetMesh, Timings, TransferFunction, View};
 
-/// One scene: a camera and a transfer function.
+/// One scene: a mesh, a camera and a transfer function.
 struct Scene {
     name: &'static str,
+    mesh: Rc<TetMesh>,
     camera: Camera,
     tf: TransferFunction,
 }
@@ -63,10 +67,18 @@ fn skipped(skip: Skip, on: &Timings, off: &Timings) -> String {
             counter(on, "shells skipped (finished)")
                 + counter(on, "shells skipped (frame stopped)")
         ),
+        Skip::AdaptiveSlices => format!(
+            "n {} (off {}), instances x{:.2}",
+            counter(on, "slices per shell"),
+            counter(off, "slices per shell"),
+            counter(on, "tet-shell instances") as f64
+                / counter(off, "tet-shell instances").max(1) as f64,
+        ),
     }
 }
 
-fn reference(mesh: &TetMesh, scene: &Scene) -> Result<Image, Box<dyn std::error::Error>> {
+fn reference(scene: &Scene) -> Result<Image, Box<dyn std::error::Error>> {
+    let mesh = &scene.mesh;
     let (w, h) = (scene.camera.width, scene.camera.height);
     let cache = std::env::temp_dir().join(format!("tetvr_skips_{}_{w}x{h}.f32", scene.name));
     if let Ok(bytes) = std::fs::read(&cache)
@@ -106,8 +118,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .skip(1)
         .map(|a| a.parse())
         .collect::<Result<_, _>>()?;
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/bluntfin_tet.vtk");
-    let mesh = tetvr::io::load(&path)?.mesh;
+    let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
+    let mesh = Rc::new(tetvr::io::load(&data.join("bluntfin_tet.vtk"))?.mesh);
     let (lo, hi) = mesh.bounds();
     let (slo, shi) = mesh
         .active_array()
@@ -143,22 +155,79 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     )?;
     let scene = |name, camera, tf: &TransferFunction| Scene {
         name,
+        mesh: mesh.clone(),
         camera,
         tf: tf.clone(),
     };
     let plain = || scene("default", cam(1.0), &default_tf);
-    let cases: Vec<(Skip, Scene, Scene)> = vec![
-        (Skip::TfCull, scene("top10", cam(1.0), &top10), plain()),
-        (Skip::EmptySpace, scene("top10", cam(1.0), &top10), plain()),
+    // Other meshes, framed from the ISO view (the slab face-on) with their default TF.
+    let other =
+        |name, mesh: TetMesh, view: View, size| -> Result<Scene, Box<dyn std::error::Error>> {
+            let (lo, hi) = mesh.bounds();
+            let (slo, shi) = mesh
+                .active_array()
+                .and_then(|a| a.range())
+                .ok_or("no scalars")?;
+            let tf = TransferFunction::default_for_range(slo, shi, mesh.diagonal() / 100.0)?;
+            Ok(Scene {
+                name,
+                camera: Camera::framing(lo, hi, view, 1.0, 30.0, size, size),
+                mesh: Rc::new(mesh),
+                tf,
+            })
+        };
+    let lox = tetvr::io::load(&data.join("lox_post_subset_tet.vtk"))?.mesh;
+    let centre = DVec3::splat(0.5);
+    // 12^3 cells of 6 tets (10,368), each ~40 slices deep at 512 samples.
+    let coarse =
+        tetvr::generate::box_grid(DVec3::ZERO, DVec3::ONE, UVec3::splat(12), "coarse", |p| {
+            (p - centre).length()
+        });
+    // One cell thick (13,824 tets, 1 x 1 x 0.03), face-on: every tet a slice or two deep and
+    // a few hundred pixels wide.
+    let slab = tetvr::generate::box_grid(
+        DVec3::ZERO,
+        DVec3::new(1.0, 1.0, 0.03),
+        UVec3::new(48, 48, 1),
+        "slab",
+        |p| 0.5 + 0.5 * (9.0 * p.x).sin() * (7.0 * p.y).cos(),
+    );
+    let cases: Vec<(Skip, Scene, &str)> = vec![
+        (Skip::TfCull, scene("top10", cam(1.0), &top10), "matters"),
+        (Skip::TfCull, plain(), "does not"),
+        (
+            Skip::EmptySpace,
+            scene("top10", cam(1.0), &top10),
+            "matters",
+        ),
+        (Skip::EmptySpace, plain(), "does not"),
         (
             Skip::EarlyTermination,
             scene("opaque", cam(1.0), &steep),
-            plain(),
+            "matters",
         ),
+        (Skip::EarlyTermination, plain(), "does not"),
         (
             Skip::Frustum,
             scene("zoomed", cam(0.3), &default_tf),
-            plain(),
+            "matters",
+        ),
+        (Skip::Frustum, plain(), "does not"),
+        (
+            Skip::AdaptiveSlices,
+            other("slab", slab, View::parse("+z")?, 512)?,
+            "matters",
+        ),
+        (
+            Skip::AdaptiveSlices,
+            other("coarse", coarse, View::ISO, 512)?,
+            "matters",
+        ),
+        (Skip::AdaptiveSlices, plain(), "does not"),
+        (
+            Skip::AdaptiveSlices,
+            other("lox", lox, View::ISO, 384)?,
+            "does not",
         ),
     ];
 
@@ -166,41 +235,40 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     eprintln!("adapter: {}", ctx.info.name);
     println!("| skip | scene | on ms | off ms | off/on | skipped | PSNR on | PSNR off |");
     println!("|---|---|---|---|---|---|---|---|");
-    for (skip, matters, not) in cases {
+    for (skip, sc, label) in cases {
         if !only.is_empty() && !only.contains(&skip) {
             continue;
         }
-        for (sc, label) in [(matters, "matters"), (not, "does not")] {
-            let g = reference(&mesh, &sc)?;
-            let with = |skips: Skips| ShellSettings {
-                skips,
-                ..Default::default()
-            };
-            let mut on = ShellsRenderer::new(&ctx, &mesh, with(Skips::ALL))?;
-            let mut off = ShellsRenderer::new(&ctx, &mesh, with(Skips::ALL.without(skip)))?;
-            on.render(&sc.camera, &sc.tf)?;
-            off.render(&sc.camera, &sc.tf)?;
-            let (mut a, mut b) = (Vec::new(), Vec::new());
-            for _ in 0..frames {
-                a.push(on.render(&sc.camera, &sc.tf)?);
-                b.push(off.render(&sc.camera, &sc.tf)?);
-            }
-            let (ta, tb) = (median_total(&mut a), median_total(&mut b));
-            let (fa, fb) = (&a[0], &b[0]);
-            if let Ok(dir) = std::env::var("SKIPS_BENCH_OUT") {
-                let png = PathBuf::from(dir).join(format!("{}-{skip}.png", sc.name));
-                fa.image.save_png(&png, Some([1.0; 3]))?;
-                eprintln!("on:\n{}off:\n{}", fa.timings, fb.timings);
-            }
-            println!(
-                "| {skip} | {} ({label}) | {ta:.0} | {tb:.0} | {:.2} | {} | {:.1} | {:.1} |",
-                sc.name,
-                tb / ta,
-                skipped(skip, &fa.timings, &fb.timings),
-                fa.image.compare(&g)?.psnr,
-                fb.image.compare(&g)?.psnr,
-            );
+        let mesh = &*sc.mesh;
+        let g = reference(&sc)?;
+        let with = |skips: Skips| ShellSettings {
+            skips,
+            ..Default::default()
+        };
+        let mut on = ShellsRenderer::new(&ctx, mesh, with(Skips::ALL))?;
+        let mut off = ShellsRenderer::new(&ctx, mesh, with(Skips::ALL.without(skip)))?;
+        on.render(&sc.camera, &sc.tf)?;
+        off.render(&sc.camera, &sc.tf)?;
+        let (mut a, mut b) = (Vec::new(), Vec::new());
+        for _ in 0..frames {
+            a.push(on.render(&sc.camera, &sc.tf)?);
+            b.push(off.render(&sc.camera, &sc.tf)?);
         }
+        let (ta, tb) = (median_total(&mut a), median_total(&mut b));
+        let (fa, fb) = (&a[0], &b[0]);
+        if let Ok(dir) = std::env::var("SKIPS_BENCH_OUT") {
+            let png = PathBuf::from(dir).join(format!("{}-{skip}.png", sc.name));
+            fa.image.save_png(&png, Some([1.0; 3]))?;
+            eprintln!("on:\n{}off:\n{}", fa.timings, fb.timings);
+        }
+        println!(
+            "| {skip} | {} ({label}) | {ta:.0} | {tb:.0} | {:.2} | {} | {:.1} | {:.1} |",
+            sc.name,
+            tb / ta,
+            skipped(skip, &fa.timings, &fb.timings),
+            fa.image.compare(&g)?.psnr,
+            fb.image.compare(&g)?.psnr,
+        );
     }
     Ok(())
 }

@@ -422,3 +422,33 @@ fn output_into_a_closed_pipe_ends_quietly() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!stderr.contains("panicked"), "{stderr}");
 }
+
+#[test]
+fn adaptive_slices_can_be_turned_off_and_a_fixed_count_overrides_them() {
+    // The chosen count is printed with the timings; an explicit --slices-per-shell is used
+    // as given whether or not adaptive slices are on.
+    let png = out_dir("no-skip-adaptive").join("lox.png");
+    let png_arg = png.to_str().unwrap();
+    let base = ["render", LOX, "--size", "48x40", "-o", png_arg, "--timings"];
+    let slices = |stdout: &str| -> u32 {
+        let line = stdout
+            .lines()
+            .find(|l| l.trim_start().starts_with("slices per shell"))
+            .unwrap_or_else(|| panic!("no slices-per-shell counter in\n{stdout}"));
+        line.split_whitespace().last().unwrap().parse().unwrap()
+    };
+    for extra in [
+        &["--slices-per-shell", "8"][..],
+        &["--slices-per-shell", "8", "--no-skip", "adaptive-slices"][..],
+    ] {
+        let out = tetvr(&[&base[..], extra].concat());
+        let (stdout, stderr) = text(&out);
+        assert!(out.status.success(), "{stderr}");
+        assert_eq!(slices(&stdout), 8, "{stdout}");
+    }
+    let off = tetvr(&[&base[..], &["--no-skip", "adaptive-slices"]].concat());
+    let (stdout, stderr) = text(&off);
+    assert!(off.status.success(), "{stderr}");
+    // Off, the count is the adapter's fixed default: whole colour targets of 4 slices.
+    assert_eq!(slices(&stdout) % 4, 0, "{stdout}");
+}

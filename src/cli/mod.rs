@@ -184,11 +184,11 @@ pub struct ShellArgs {
     /// shells: distance between samples along a ray, in world units.
     #[arg(long)]
     pub dz: Option<f64>,
-    /// shells: slices sampled per fragment and shell (a multiple of 4, at most 4 x the adapter's colour targets).
+    /// shells: slices sampled per fragment and shell (a multiple of 4, at most 4 x the adapter's colour targets); fixed for every frame, overriding adaptive slices.
     #[arg(long)]
     pub slices_per_shell: Option<u32>,
     /// Work-skipping to turn off (all on by default), comma separated: tf-cull, empty-space,
-    /// early-termination (shells), frustum (shells, iso, cellproj).
+    /// early-termination, adaptive-slices (shells), frustum (shells, iso, cellproj).
     #[arg(long, value_delimiter = ',')]
     pub no_skip: Vec<tetvr::gpu::Skip>,
     /// shells: accumulated opacity at which a pixel stops receiving work (early ray

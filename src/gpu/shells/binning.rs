@@ -1,5 +1,6 @@
-//! CPU binning: every tet's conservative range of distances from the eye, frustum and
-//! transfer-function culling, and all shells' active lists built in one parallel counting sort
+//! CPU binning: every tet's conservative range of distances from the eye (as a range of
+//! slices), frustum and transfer-function culling, and, once the frame's slices per shell are
+//! chosen ([`super::adaptive`]), all shells' active lists built in one parallel counting sort
 //! (counts, prefix sums, scatter) into one index array with per-shell ranges.
 
 use std::ops::Range;
@@ -7,8 +8,8 @@ use std::ops::Range;
 use glam::DVec3;
 use rayon::prelude::*;
 
-/// Slices are numbered globally: slice `k` lies at distance `t_first + k dz` from the eye, and
-/// shell `s` holds slices `s n .. (s + 1) n`.
+/// Slices are numbered globally: slice `k` lies at distance `t_first + k dz` from the eye (and
+/// with `n` slices per shell, shell `s` holds slices `s n .. (s + 1) n`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BinParams {
     pub eye: DVec3,
@@ -18,8 +19,8 @@ pub struct BinParams {
     pub slope: [f64; 2],
     pub t_first: f64,
     pub dz: f64,
-    pub slices_per_shell: u32,
-    pub shells: u32,
+    /// Slices across the mesh: `0..slices`.
+    pub slices: u64,
     /// A tet with a vertex at eye-space z <= this is a near-plane tet.
     pub near_z: f64,
     /// Whether tets entirely outside one plane of the view frustum are culled (else they are
@@ -36,11 +37,11 @@ pub enum TetBin {
     Transparent,
     /// No slice passes through its distance range.
     NoSample,
-    /// Drawn in shells `first..=last`, as faces or (near) as a screen-space quad, within
+    /// Sampled by slices `lo..=hi`, drawn as faces or (near) as a screen-space quad, within
     /// `screen` (see [`ScreenRect`]).
     Drawn {
-        first: u32,
-        last: u32,
+        lo: u32,
+        hi: u32,
         near: bool,
         screen: ScreenRect,
     },
@@ -165,8 +166,7 @@ pub fn classify(
     transparent: impl Fn(usize) -> bool + Sync,
 ) -> Vec<TetBin> {
     let eye_space = to_eye_space(positions, params.eye, params.basis, params.slope);
-    let n = params.slices_per_shell as u64;
-    let total = params.shells as u64 * n;
+    let total = params.slices.min(u32::MAX as u64);
     tets.par_iter()
         .enumerate()
         .map(|(t, tet)| {
@@ -193,8 +193,8 @@ pub fn classify(
                         })
                     };
                     TetBin::Drawn {
-                        first: (lo / n) as u32,
-                        last: (hi / n) as u32,
+                        lo: lo as u32,
+                        hi: hi as u32,
                         near,
                         screen,
                     }
@@ -204,8 +204,12 @@ pub fn classify(
         .collect()
 }
 
-/// Builds every shell's active list with one parallel counting sort over `bins`.
-pub fn sort_into_shells(bins: &[TetBin], shells: u32) -> Binning {
+/// Builds every shell's active list with one parallel counting sort over `bins`, for `n`
+/// slices per shell and `shells` shells (slices beyond `shells * n` are dropped).
+pub fn sort_into_shells(bins: &[TetBin], n: u32, shells: u32) -> Binning {
+    let n = n.max(1);
+    // A tet's shells, clipped to the frame's.
+    let span = |lo: u32, hi: u32| lo / n..=(hi / n).min(shells.saturating_sub(1));
     let buckets = 2 * shells as usize;
     let bucket = |shell: u32, near: bool| 2 * shell as usize + near as usize;
     let chunk = (bins.len() / (4 * rayon::current_num_threads())).max(4096);
@@ -217,13 +221,13 @@ pub fn sort_into_shells(bins: &[TetBin], shells: u32) -> Binning {
             let mut r = vec![NOWHERE; shells as usize];
             for b in part {
                 if let TetBin::Drawn {
-                    first,
-                    last,
+                    lo,
+                    hi,
                     near,
                     screen,
                 } = *b
                 {
-                    for s in first..=last {
+                    for s in span(lo, hi) {
                         h[bucket(s, near)] += 1;
                         r[s as usize] = union(r[s as usize], screen);
                     }
@@ -256,11 +260,8 @@ pub fn sort_into_shells(bins: &[TetBin], shells: u32) -> Binning {
         .for_each(|(mut slices, (c, part))| {
             let mut fill = vec![0usize; buckets];
             for (i, b) in part.iter().enumerate() {
-                if let TetBin::Drawn {
-                    first, last, near, ..
-                } = *b
-                {
-                    for s in first..=last {
+                if let TetBin::Drawn { lo, hi, near, .. } = *b {
+                    for s in span(lo, hi) {
                         let k = bucket(s, near);
                         slices[k][fill[k]] = (c * chunk + i) as u32;
                         fill[k] += 1;
@@ -386,32 +387,32 @@ mod tests {
     #[test]
     fn counting_sort_matches_a_sequential_sort() {
         // Bins in a pattern that exercises every bucket and many chunks.
-        let shells = 7u32;
+        let (n, shells) = (3u32, 7u32);
         let bins: Vec<TetBin> = (0..50_000u32)
             .map(|t| match t % 11 {
                 0 => TetBin::Culled,
                 1 => TetBin::NoSample,
                 2 => TetBin::Transparent,
                 k => {
-                    let first = (t / 3) % shells;
+                    let lo = (t / 3) % (n * shells);
                     TetBin::Drawn {
-                        first,
-                        last: (first + k % 3).min(shells - 1),
+                        lo,
+                        hi: (lo + k % 7).min(n * shells - 1),
                         near: t % 5 == 0,
                         screen: [t as f32, 0.0, t as f32 + 1.0, 1.0],
                     }
                 }
             })
             .collect();
-        let b = sort_into_shells(&bins, shells);
+        let b = sort_into_shells(&bins, n, shells);
         for s in 0..shells {
             for near in [false, true] {
                 let expect: Vec<u32> = bins
                     .iter()
                     .enumerate()
                     .filter(|(_, b)| {
-                        matches!(b, TetBin::Drawn { first, last, near: n, .. }
-                            if *first <= s && s <= *last && *n == near)
+                        matches!(b, TetBin::Drawn { lo, hi, near: m, .. }
+                            if *lo / n <= s && s <= *hi / n && *m == near)
                     })
                     .map(|(t, _)| t as u32)
                     .collect();

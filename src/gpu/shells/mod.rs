@@ -3,8 +3,8 @@
 //! Eye space is cut into spherical shells around the eye, each holding `n` slices at spacing
 //! `dz` (slice `k` at distance `t_first + k dz`). Per frame:
 //! 1. binning (CPU, rayon): each tet's conservative distance range, frustum and
-//!    transfer-function culling, every shell's active list in one counting sort
-//!    ([`binning`]);
+//!    transfer-function culling, the frame's `n` chosen from the tets' slice ranges
+//!    ([`adaptive`]), every shell's active list in one counting sort ([`binning`]);
 //! 2. assembly (compute): once per tet, eye-space corners and the eye-to-barycentric
 //!    transform (`shaders/shells_assemble.wgsl`);
 //! 3. raster (one render pass per non-empty shell): front faces of the shell's tets, each
@@ -32,6 +32,7 @@
 //! or adapters without blendable 32-bit float targets) `1 + u` keeps 10 mantissa bits: `u` is
 //! quantized to 1/1024 of the scalar range, and the accumulation keeps about 3 decimal digits.
 
+pub mod adaptive;
 pub mod binning;
 pub mod skips;
 pub mod twin;
@@ -80,8 +81,10 @@ pub struct ShellSettings {
     pub samples: u32,
     /// Slice spacing in world units; overrides `samples` when given.
     pub dz: Option<f64>,
-    /// Slices per shell (4 per colour target); `None` takes the most the adapter offers (32
-    /// with 8 `Rgba32Float` targets), or [`SOFTWARE_SLICES_PER_SHELL`] on software adapters.
+    /// Slices per shell (4 per colour target), fixed for every frame; it overrides
+    /// [`Skips::adaptive_slices`]. `None`: chosen per frame ([`adaptive`]) when that skip is
+    /// on, else the most the adapter offers (32 with 8 `Rgba32Float` targets), or
+    /// [`SOFTWARE_SLICES_PER_SHELL`] on software adapters.
     pub slices_per_shell: Option<u32>,
     /// Inside tolerance: a sample belongs to a tet when its smallest barycentric coordinate is
     /// at least `-epsilon`. Overlapping claims at shared faces are harmless under MAX (the
@@ -113,7 +116,7 @@ impl Default for ShellSettings {
 /// regular tet with the same longest edge, so skipping it loses no visible sample.
 pub const DEGENERATE_TOL: f32 = 1e-6;
 
-/// Default slices per shell on software (CPU) adapters. Measured on lavapipe (2 cores,
+/// Default fixed slices per shell on software (CPU) adapters. Measured on lavapipe (2 cores,
 /// bluntfin 512x512, 4 A/B pairs of 7-frame medians): 16 slices per shell took 0.82-0.93 times
 /// the frame time of 32 (fewer fragments blend 8 targets where tets span few slices; the
 /// composite reads half the layers per shell), 8 slices was no faster than 16 (more tet-shell
@@ -136,7 +139,13 @@ pub struct ShellsRenderer {
     limits: wgpu::Limits,
     settings: ShellSettings,
     format: wgpu::TextureFormat,
-    targets_per_shell: u32,
+    /// The fixed slices per shell, or `None` when chosen per frame among `candidates`.
+    fixed_slices: Option<u32>,
+    candidates: Vec<u32>,
+    model: adaptive::CostModel,
+    /// Layers of the slice texture: the colour targets of the largest count in use.
+    slice_layers: u32,
+    /// The last frame's slices per shell (before the first frame: the fixed or default count).
     slices_per_shell: u32,
     timestamps: bool,
     shell_stride: u64,
@@ -195,26 +204,28 @@ pub fn chunk_tets(tets: u64, max_binding: u64, align: u64) -> Option<u64> {
     (chunk > 0).then_some(chunk)
 }
 
-/// Pipelines and layouts, built once.
+/// Layouts and the pipelines that do not depend on the slices per shell, built once; raster
+/// and composite variants, built on first use and kept.
 struct Pipelines {
     assemble_layout: wgpu::BindGroupLayout,
     assemble: wgpu::ComputePipeline,
     raster_layout: wgpu::BindGroupLayout,
-    /// The raster pipelines without the early-termination depth test.
-    raster: RasterSet,
+    raster_pipeline_layout: wgpu::PipelineLayout,
+    /// Raster variants by colour target count and whether they test the early-termination
+    /// mask.
+    raster: HashMap<(u32, bool), RasterSet>,
     composite_layout: wgpu::BindGroupLayout,
     composite_pipeline_layout: wgpu::PipelineLayout,
-    /// Composite variants by TF point count (0: the looping variant for large TFs) and
-    /// whether they test the early-termination mask.
-    composite: HashMap<(u32, bool), wgpu::RenderPipeline>,
+    /// Composite variants by colour target count, TF point count (0: the looping variant for
+    /// large TFs) and whether they test the early-termination mask.
+    composite: HashMap<(u32, u32, bool), wgpu::RenderPipeline>,
     format: wgpu::TextureFormat,
-    targets: u32,
-    /// Early ray termination: the depth test of every raster and composite pipeline, and the
-    /// mark and tile pipelines.
+    /// Early ray termination: the mark and tile pipelines.
     ert: Option<ErtPipelines>,
 }
 
 /// The pipelines of one raster pass.
+#[derive(Clone)]
 struct RasterSet {
     faces: wgpu::RenderPipeline,
     near: wgpu::RenderPipeline,
@@ -222,12 +233,11 @@ struct RasterSet {
     clear: wgpu::RenderPipeline,
 }
 
-/// The early-ray-termination pipelines (`shaders/shells_mark.wgsl`), and the raster pipelines
-/// that test the mask. Passes before any pixel can finish use the untested pipelines (a depth
-/// test costs llvmpipe ~10% of the raster and ~20% of the composite time when it rejects
-/// nothing).
+/// The early-ray-termination pipelines (`shaders/shells_mark.wgsl`). The raster and composite
+/// passes after the first mark pass use variants that test the mask; passes before any pixel
+/// can finish use the untested ones (a depth test costs llvmpipe ~10% of the raster and ~20%
+/// of the composite time when it rejects nothing).
 struct ErtPipelines {
-    raster: RasterSet,
     mark_layout: wgpu::BindGroupLayout,
     mark: wgpu::RenderPipeline,
     tiles_layout: wgpu::BindGroupLayout,
@@ -295,14 +305,17 @@ impl ShellsRenderer {
                 needed_by: "the shells mode",
             }));
         }
-        let slices_per_shell =
-            settings
-                .slices_per_shell
-                .unwrap_or(if ctx.info.device_type == wgpu::DeviceType::Cpu {
-                    (4 * max_targets).min(SOFTWARE_SLICES_PER_SHELL)
-                } else {
-                    4 * max_targets
-                });
+        let software = ctx.info.device_type == wgpu::DeviceType::Cpu;
+        let default_slices = if software {
+            (4 * max_targets).min(SOFTWARE_SLICES_PER_SHELL)
+        } else {
+            4 * max_targets
+        };
+        let fixed_slices = match settings.slices_per_shell {
+            None if settings.skips.adaptive_slices => None,
+            n => Some(n.unwrap_or(default_slices)),
+        };
+        let slices_per_shell = fixed_slices.unwrap_or(default_slices);
         if !(1..=4 * max_targets).contains(&slices_per_shell) {
             return Err(settings_error(format!(
                 "slices per shell must be between 1 and {} on this adapter ({} {format:?} \
@@ -333,7 +346,10 @@ impl ShellsRenderer {
                 settings.epsilon
             )));
         }
-        let targets_per_shell = slices_per_shell.div_ceil(4);
+        let (candidates, slice_layers) = match fixed_slices {
+            Some(n) => (Vec::new(), n.div_ceil(4)),
+            None => (adaptive::candidates(4 * max_targets), max_targets),
+        };
         // Records beyond one storage binding are assembled and drawn in chunks, each bound as
         // a window of the one record buffer; the buffer itself must fit.
         let record_bytes = mesh.tet_count() as u64 * size_of::<TetRecord>() as u64;
@@ -356,7 +372,7 @@ impl ShellsRenderer {
         };
         let mesh_state = MeshState::new(mesh)?;
         let ert = settings.skips.early_termination.then_some(threshold);
-        let pipelines = Pipelines::new(&device, format, targets_per_shell, ert);
+        let pipelines = Pipelines::new(&device, format, ert);
         let storage = |label: &str, bytes: u64, extra: wgpu::BufferUsages| {
             device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
@@ -434,7 +450,14 @@ impl ShellsRenderer {
             limits,
             settings,
             format,
-            targets_per_shell,
+            fixed_slices,
+            candidates,
+            model: if software {
+                adaptive::CostModel::SOFTWARE
+            } else {
+                adaptive::CostModel::GPU
+            },
+            slice_layers,
             slices_per_shell,
             timestamps: ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY),
             shell_stride,
@@ -454,7 +477,8 @@ impl ShellsRenderer {
         Ok(renderer)
     }
 
-    /// Slices per shell in use.
+    /// Slices per shell of the last frame (chosen per frame with
+    /// [`Skips::adaptive_slices`]); before the first frame, the fixed or default count.
     pub fn slices_per_shell(&self) -> u32 {
         self.slices_per_shell
     }
@@ -527,7 +551,7 @@ impl ShellsRenderer {
         };
         let slices = self.device.create_texture(&wgpu::TextureDescriptor {
             label: Some("shells slices"),
-            size: size(self.targets_per_shell),
+            size: size(self.slice_layers),
             mip_level_count: 1,
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
@@ -535,7 +559,7 @@ impl ShellsRenderer {
             usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
             view_formats: &[],
         });
-        let layer_views = (0..self.targets_per_shell)
+        let layer_views = (0..self.slice_layers)
             .map(|i| {
                 slices.create_view(&wgpu::TextureViewDescriptor {
                     label: Some("shells slice layer"),
@@ -732,7 +756,7 @@ fn ert_depth_test(ert: bool) -> Option<wgpu::DepthStencilState> {
 }
 
 impl ErtPipelines {
-    fn new(device: &wgpu::Device, threshold: f32, raster: RasterSet) -> Self {
+    fn new(device: &wgpu::Device, threshold: f32) -> Self {
         use wgpu::ShaderStages as S;
         let module = wgsl_module(device, "shells_mark", shaders::shells_mark());
         let constants = [("threshold", threshold as f64)];
@@ -797,7 +821,6 @@ impl ErtPipelines {
             cache: None,
         });
         Self {
-            raster,
             mark_layout,
             mark,
             tiles_layout,
@@ -807,14 +830,8 @@ impl ErtPipelines {
 }
 
 impl Pipelines {
-    fn new(
-        device: &wgpu::Device,
-        format: wgpu::TextureFormat,
-        targets: u32,
-        ert: Option<f32>,
-    ) -> Self {
+    fn new(device: &wgpu::Device, format: wgpu::TextureFormat, ert: Option<f32>) -> Self {
         use wgpu::ShaderStages as S;
-        let module = |label, src| wgsl_module(device, label, src);
         let buffer = buffer_entry;
         let uniform = wgpu::BufferBindingType::Uniform;
         let ro = wgpu::BufferBindingType::Storage { read_only: true };
@@ -843,94 +860,7 @@ impl Pipelines {
                 buffer(3, S::VERTEX, ro),
             ],
         );
-        let raster_module = module("shells_raster", shaders::shells_raster(targets));
-        let max_blend = wgpu::BlendComponent {
-            src_factor: wgpu::BlendFactor::One,
-            dst_factor: wgpu::BlendFactor::One,
-            operation: wgpu::BlendOperation::Max,
-        };
-        let slice_targets: Vec<Option<wgpu::ColorTargetState>> = (0..targets)
-            .map(|_| {
-                Some(wgpu::ColorTargetState {
-                    format,
-                    blend: Some(wgpu::BlendState {
-                        color: max_blend,
-                        alpha: max_blend,
-                    }),
-                    write_mask: wgpu::ColorWrites::ALL,
-                })
-            })
-            .collect();
         let raster_pipeline_layout = pipeline_layout(&raster_layout);
-        let clear_targets: Vec<Option<wgpu::ColorTargetState>> = (0..targets)
-            .map(|_| {
-                Some(wgpu::ColorTargetState {
-                    format,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })
-            })
-            .collect();
-        let raster = |label,
-                      entry,
-                      fs_entry,
-                      cull_mode,
-                      targets: &[Option<wgpu::ColorTargetState>],
-                      depth: bool| {
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some(label),
-                layout: Some(&raster_pipeline_layout),
-                vertex: wgpu::VertexState {
-                    module: &raster_module,
-                    entry_point: Some(entry),
-                    compilation_options: Default::default(),
-                    buffers: &[],
-                },
-                primitive: wgpu::PrimitiveState {
-                    topology: wgpu::PrimitiveTopology::TriangleList,
-                    // Outward faces are counter-clockwise seen from outside; NDC has y up.
-                    front_face: wgpu::FrontFace::Ccw,
-                    cull_mode,
-                    ..Default::default()
-                },
-                depth_stencil: ert_depth_test(depth),
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &raster_module,
-                    entry_point: Some(fs_entry),
-                    compilation_options: Default::default(),
-                    targets,
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
-        };
-        let raster_set = |depth| RasterSet {
-            faces: raster(
-                "shells faces",
-                "vs_faces",
-                "fs_slices",
-                Some(wgpu::Face::Back),
-                &slice_targets,
-                depth,
-            ),
-            near: raster(
-                "shells near quads",
-                "vs_near",
-                "fs_slices",
-                None,
-                &slice_targets,
-                depth,
-            ),
-            clear: raster(
-                "shells clear",
-                "vs_clear",
-                "fs_clear",
-                None,
-                &clear_targets,
-                depth,
-            ),
-        };
 
         let composite_layout = layout(
             "shells composite",
@@ -954,14 +884,97 @@ impl Pipelines {
             assemble_layout,
             assemble,
             raster_layout,
-            raster: raster_set(false),
+            raster_pipeline_layout,
+            raster: HashMap::new(),
             composite_layout,
             composite_pipeline_layout,
             composite: HashMap::new(),
             format,
-            targets,
-            ert: ert.map(|threshold| ErtPipelines::new(device, threshold, raster_set(true))),
+            ert: ert.map(|threshold| ErtPipelines::new(device, threshold)),
         }
+    }
+
+    /// The raster pipelines writing `targets` colour targets, testing the early-termination
+    /// mask when `depth`, built on first use.
+    fn raster(&mut self, device: &wgpu::Device, targets: u32, depth: bool) -> &RasterSet {
+        let (format, raster_pipeline_layout) = (self.format, &self.raster_pipeline_layout);
+        self.raster.entry((targets, depth)).or_insert_with(|| {
+            let raster_module =
+                wgsl_module(device, "shells_raster", shaders::shells_raster(targets));
+            let max_blend = wgpu::BlendComponent {
+                src_factor: wgpu::BlendFactor::One,
+                dst_factor: wgpu::BlendFactor::One,
+                operation: wgpu::BlendOperation::Max,
+            };
+            let slice_targets: Vec<Option<wgpu::ColorTargetState>> = (0..targets)
+                .map(|_| {
+                    Some(wgpu::ColorTargetState {
+                        format,
+                        blend: Some(wgpu::BlendState {
+                            color: max_blend,
+                            alpha: max_blend,
+                        }),
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })
+                })
+                .collect();
+            let clear_targets: Vec<Option<wgpu::ColorTargetState>> = (0..targets)
+                .map(|_| {
+                    Some(wgpu::ColorTargetState {
+                        format,
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })
+                })
+                .collect();
+            let raster =
+                |label, entry, fs_entry, cull_mode, targets: &[Option<wgpu::ColorTargetState>]| {
+                    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                        label: Some(label),
+                        layout: Some(raster_pipeline_layout),
+                        vertex: wgpu::VertexState {
+                            module: &raster_module,
+                            entry_point: Some(entry),
+                            compilation_options: Default::default(),
+                            buffers: &[],
+                        },
+                        primitive: wgpu::PrimitiveState {
+                            topology: wgpu::PrimitiveTopology::TriangleList,
+                            // Outward faces are counter-clockwise seen from outside; NDC has y up.
+                            front_face: wgpu::FrontFace::Ccw,
+                            cull_mode,
+                            ..Default::default()
+                        },
+                        depth_stencil: ert_depth_test(depth),
+                        multisample: Default::default(),
+                        fragment: Some(wgpu::FragmentState {
+                            module: &raster_module,
+                            entry_point: Some(fs_entry),
+                            compilation_options: Default::default(),
+                            targets,
+                        }),
+                        multiview_mask: None,
+                        cache: None,
+                    })
+                };
+            RasterSet {
+                faces: raster(
+                    "shells faces",
+                    "vs_faces",
+                    "fs_slices",
+                    Some(wgpu::Face::Back),
+                    &slice_targets,
+                ),
+                near: raster(
+                    "shells near quads",
+                    "vs_near",
+                    "fs_slices",
+                    None,
+                    &slice_targets,
+                ),
+                clear: raster("shells clear", "vs_clear", "fs_clear", None, &clear_targets),
+            }
+        })
     }
 
     /// The composite pipeline for a TF of `tf_points` control points, built on first use (one
@@ -969,6 +982,7 @@ impl Pipelines {
     fn composite(
         &mut self,
         device: &wgpu::Device,
+        targets: u32,
         tf_points: u32,
         depth: bool,
     ) -> &wgpu::RenderPipeline {
@@ -977,48 +991,51 @@ impl Pipelines {
         } else {
             0
         };
-        let (layout, format, targets) =
-            (&self.composite_pipeline_layout, self.format, self.targets);
+        let (layout, format) = (&self.composite_pipeline_layout, self.format);
         let depth_stencil = ert_depth_test(depth);
-        self.composite.entry((key, depth)).or_insert_with(|| {
-            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("shells_composite"),
-                source: wgpu::ShaderSource::Wgsl(shaders::shells_composite(targets, key).into()),
-            });
-            let under = wgpu::BlendComponent {
-                src_factor: wgpu::BlendFactor::OneMinusDstAlpha,
-                dst_factor: wgpu::BlendFactor::One,
-                operation: wgpu::BlendOperation::Add,
-            };
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some("shells composite"),
-                layout: Some(layout),
-                vertex: wgpu::VertexState {
-                    module: &module,
-                    entry_point: Some("vs_fullscreen"),
-                    compilation_options: Default::default(),
-                    buffers: &[],
-                },
-                primitive: Default::default(),
-                depth_stencil,
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &module,
-                    entry_point: Some("fs_composite"),
-                    compilation_options: Default::default(),
-                    targets: &[Some(wgpu::ColorTargetState {
-                        format,
-                        blend: Some(wgpu::BlendState {
-                            color: under,
-                            alpha: under,
-                        }),
-                        write_mask: wgpu::ColorWrites::ALL,
-                    })],
-                }),
-                multiview_mask: None,
-                cache: None,
+        self.composite
+            .entry((targets, key, depth))
+            .or_insert_with(|| {
+                let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some("shells_composite"),
+                    source: wgpu::ShaderSource::Wgsl(
+                        shaders::shells_composite(targets, key).into(),
+                    ),
+                });
+                let under = wgpu::BlendComponent {
+                    src_factor: wgpu::BlendFactor::OneMinusDstAlpha,
+                    dst_factor: wgpu::BlendFactor::One,
+                    operation: wgpu::BlendOperation::Add,
+                };
+                device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                    label: Some("shells composite"),
+                    layout: Some(layout),
+                    vertex: wgpu::VertexState {
+                        module: &module,
+                        entry_point: Some("vs_fullscreen"),
+                        compilation_options: Default::default(),
+                        buffers: &[],
+                    },
+                    primitive: Default::default(),
+                    depth_stencil,
+                    multisample: Default::default(),
+                    fragment: Some(wgpu::FragmentState {
+                        module: &module,
+                        entry_point: Some("fs_composite"),
+                        compilation_options: Default::default(),
+                        targets: &[Some(wgpu::ColorTargetState {
+                            format,
+                            blend: Some(wgpu::BlendState {
+                                color: under,
+                                alpha: under,
+                            }),
+                            write_mask: wgpu::ColorWrites::ALL,
+                        })],
+                    }),
+                    multiview_mask: None,
+                    cache: None,
+                })
             })
-        })
     }
 }
 
@@ -1282,17 +1299,25 @@ impl Renderer for ShellsRenderer {
         let th = camera.tan_half_fov();
         let slope = [th * camera.aspect(), th];
         let (t_first, dz) = self.slice_positions(camera);
-        let n = self.slices_per_shell;
         let skips = self.settings.skips;
         let dist = (self.mesh.origin - camera.eye).length();
         let slices = ((dist + self.mesh.radius - t_first) / dz).floor() as u64 + 1;
-        let shells = slices.div_ceil(n as u64);
-        if shells > MAX_SHELLS {
-            return Err(settings_error(format!(
-                "dz = {dz} makes {shells} shells of {n} slices across the mesh; at most \
-                 {MAX_SHELLS} are allowed: use fewer samples or a larger dz"
-            )));
+        // The counts of slices per shell this frame may use: at most MAX_SHELLS shells.
+        let allowed: Vec<u32> = match self.fixed_slices {
+            Some(n) => vec![n],
+            None => self.candidates.clone(),
         }
+        .into_iter()
+        .filter(|&n| slices.div_ceil(n as u64) <= MAX_SHELLS)
+        .collect();
+        let Some(&largest) = allowed.last() else {
+            let n = self.fixed_slices.unwrap_or(4 * self.slice_layers);
+            return Err(settings_error(format!(
+                "dz = {dz} makes {} shells of {n} slices across the mesh; at most \
+                 {MAX_SHELLS} are allowed: use fewer samples or a larger dz",
+                slices.div_ceil(n as u64)
+            )));
+        };
         // Every sample has eye-space z >= t_first * cos(widest ray angle); near-plane tets are
         // clipped at half of that, and tets with a corner below it are near-plane tets.
         let cos_corner = 1.0 / (1.0 + slope[0] * slope[0] + slope[1] * slope[1]).sqrt();
@@ -1306,8 +1331,7 @@ impl Renderer for ShellsRenderer {
             slope,
             t_first,
             dz,
-            slices_per_shell: n,
-            shells: shells as u32,
+            slices,
             near_z,
             frustum: skips.frustum,
         };
@@ -1325,7 +1349,22 @@ impl Renderer for ShellsRenderer {
         let bins = binning::classify(&self.mesh.positions, &self.mesh.tets, &params, |t| {
             transparent.get(t).copied().unwrap_or(false)
         });
-        let mut bin: Binning = binning::sort_into_shells(&bins, shells as u32);
+        // Slices per shell: fixed, or the least predicted work among the allowed counts (the
+        // largest when the slices are too many to profile).
+        let n = if self.fixed_slices.is_some() {
+            largest
+        } else {
+            let pixels = |r| {
+                let [_, _, w, h] = scissor(r, slope, camera.width, camera.height);
+                w as f64 * h as f64
+            };
+            adaptive::profile(&bins, &allowed, slices, pixels)
+                .and_then(|work| adaptive::choose(&work, &self.model))
+                .unwrap_or(largest)
+        };
+        self.slices_per_shell = n;
+        let shells = slices.div_ceil(n as u64);
+        let mut bin: Binning = binning::sort_into_shells(&bins, n, shells as u32);
         timings.stage("binning", ms_since(t0));
 
         // Upload: frame constants, transfer function, shell constants, active lists.
@@ -1466,13 +1505,20 @@ impl Renderer for ShellsRenderer {
         });
 
         let points = tf.points().len() as u32;
+        let t = n.div_ceil(4);
         let composite = self
             .pipelines
-            .composite(&self.device, points, false)
+            .composite(&self.device, t, points, false)
             .clone();
-        let composite_tested = skips
+        let composite_tested = skips.early_termination.then(|| {
+            self.pipelines
+                .composite(&self.device, t, points, true)
+                .clone()
+        });
+        let raster = self.pipelines.raster(&self.device, t, false).clone();
+        let raster_tested = skips
             .early_termination
-            .then(|| self.pipelines.composite(&self.device, points, true).clone());
+            .then(|| self.pipelines.raster(&self.device, t, true).clone());
         // 2.-4. Assembly, then per non-empty shell: raster and composite.
         let ert_passes = if skips.early_termination {
             drawn.len() + ERT_CHECKS
@@ -1600,6 +1646,7 @@ impl Renderer for ShellsRenderer {
             let attachments: Vec<Option<wgpu::RenderPassColorAttachment>> = targets
                 .layer_views
                 .iter()
+                .take(t as usize)
                 .map(|view| {
                     Some(wgpu::RenderPassColorAttachment {
                         view,
@@ -1632,9 +1679,9 @@ impl Renderer for ShellsRenderer {
                 // Zero the slices within the scissor only (the composite reads nothing else): a
                 // clear load op zeroes whole targets for every shell (A/B on bluntfin 512x512,
                 // lavapipe: median frame ~6% faster).
-                let set = match ert {
-                    Some((_, p)) if tested => &p.raster,
-                    _ => &self.pipelines.raster,
+                let set = match &raster_tested {
+                    Some(r) if tested => r,
+                    _ => &raster,
                 };
                 pass.set_pipeline(&set.clear);
                 pass.draw(0..3, 0..1);
@@ -1916,6 +1963,7 @@ impl Renderer for ShellsRenderer {
         timings.count("tets culled", bin.culled);
         timings.count("tets transparent", bin.transparent);
         timings.count("tets between slices", bin.no_sample);
+        timings.count("slices per shell", n as u64);
         timings.count("shells", shells);
         timings.count("shells drawn", drawn.len() as u64);
         timings.count("tet-shell instances", instances);
@@ -2012,7 +2060,7 @@ impl Renderer for ShellsRenderer {
             let texel = self.format.block_copy_size(None).unwrap_or(16) as u64;
             let layer = t.width as u64 * t.height as u64 * texel;
             // The slice layers, the accumulation target and the readback buffer.
-            layer * (self.targets_per_shell as u64 + 1) + t.readback.size()
+            layer * (self.slice_layers as u64 + 1) + t.readback.size()
         });
         buffers + tets + targets
     }

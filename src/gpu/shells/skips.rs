@@ -18,6 +18,12 @@
 //! - **Frustum culling** ([`Skip::Frustum`]): tets entirely outside one plane of the view
 //!   frustum (or behind the eye) are dropped in binning, so shells holding only such tets are
 //!   empty and cost nothing. Off: every tet is binned and left to the rasterizer's clipping.
+//! - **Adaptive slices** ([`Skip::AdaptiveSlices`]): each frame's slices per shell are chosen
+//!   from the tets' depth extents in slices so that the predicted work is least (see
+//!   [`super::adaptive`]): thin tets get few slices per shell (fewer empty slices written per
+//!   fragment), deep ones many (fewer instances and passes). Slice positions do not depend on
+//!   it. Off, or with an explicit [`super::ShellSettings::slices_per_shell`] (which overrides
+//!   it), every frame uses that fixed count or the adapter's default.
 
 use std::fmt;
 use std::str::FromStr;
@@ -29,15 +35,17 @@ pub enum Skip {
     EmptySpace,
     EarlyTermination,
     Frustum,
+    AdaptiveSlices,
 }
 
 impl Skip {
     /// Every skip, in the order of the module docs.
-    pub const ALL: [Skip; 4] = [
+    pub const ALL: [Skip; 5] = [
         Skip::TfCull,
         Skip::EmptySpace,
         Skip::EarlyTermination,
         Skip::Frustum,
+        Skip::AdaptiveSlices,
     ];
 
     /// The command-line name.
@@ -47,6 +55,7 @@ impl Skip {
             Skip::EmptySpace => "empty-space",
             Skip::EarlyTermination => "early-termination",
             Skip::Frustum => "frustum",
+            Skip::AdaptiveSlices => "adaptive-slices",
         }
     }
 }
@@ -59,7 +68,10 @@ impl fmt::Display for Skip {
 
 /// A name that is not a skip.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("'{0}' is not a skip; the skips are tf-cull, empty-space, early-termination, frustum")]
+#[error(
+    "'{0}' is not a skip; the skips are tf-cull, empty-space, early-termination, frustum, \
+     adaptive-slices"
+)]
 pub struct UnknownSkip(pub String);
 
 impl FromStr for Skip {
@@ -92,6 +104,8 @@ pub struct Skips {
     /// Accumulated alpha at which a pixel is finished, in `(0, 1]`.
     pub ert_threshold: f32,
     pub frustum: bool,
+    /// Slices per shell chosen per frame (unless fixed by the settings).
+    pub adaptive_slices: bool,
 }
 
 impl Default for Skips {
@@ -108,6 +122,7 @@ impl Skips {
         early_termination: true,
         ert_threshold: DEFAULT_ERT_THRESHOLD,
         frustum: true,
+        adaptive_slices: true,
     };
 
     /// Every skip off: the renderer does all the work a scene could need.
@@ -117,6 +132,7 @@ impl Skips {
         early_termination: false,
         ert_threshold: DEFAULT_ERT_THRESHOLD,
         frustum: false,
+        adaptive_slices: false,
     };
 
     /// Whether `skip` is on.
@@ -126,6 +142,7 @@ impl Skips {
             Skip::EmptySpace => self.empty_space,
             Skip::EarlyTermination => self.early_termination,
             Skip::Frustum => self.frustum,
+            Skip::AdaptiveSlices => self.adaptive_slices,
         }
     }
 
@@ -136,6 +153,7 @@ impl Skips {
             Skip::EmptySpace => &mut self.empty_space,
             Skip::EarlyTermination => &mut self.early_termination,
             Skip::Frustum => &mut self.frustum,
+            Skip::AdaptiveSlices => &mut self.adaptive_slices,
         } = on;
     }
 
