@@ -448,14 +448,8 @@ fn inverted_tets_and_duplicate_vertices() {
         Some(scene(g.clone(), cam)),
     );
     case.mirrored = true;
-    // The reference skips tets that motion turned inside out, as it skips zero-volume ones
-    // (reference/clip.rs): right for a fold, where the inverted tets overlap their neighbours,
-    // but it leaves a mirrored mesh empty (rmse 0.29, 2293 holes at 65x65). Shells and iso
-    // draw inverted tets through their barycentric transforms and match the mirrored truth.
-    case.not_applicable = &[(
-        "reference",
-        "skips inverted-by-motion tets by design: a mirrored mesh renders empty",
-    )];
+    // Every mode draws the inside-out tets as the point sets they are (the reference clips
+    // them with two corners swapped; the GPU modes through their barycentric transforms).
     check(case);
     // Duplicate vertices: the cube cut at x = 0 into two meshes whose seam vertices are
     // duplicated; rays cross the seam without a hole.

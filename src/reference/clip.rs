@@ -111,21 +111,25 @@ fn face_along_ray(mut f: [DVec3; 3], origin: DVec3, dir: DVec3) -> (f64, f64) {
 }
 
 /// Clips the ray `origin + t dir` (`dir` normalized, `t >= 0`) against the tet with corners
-/// `p` (positively oriented) and vertex scalars `s`. Returns the segment's
-/// `(t_in, t_out, s_in, s_out)` when it has positive length.
+/// `p` and vertex scalars `s`. Returns the segment's `(t_in, t_out, s_in, s_out)` when it has
+/// positive length. A negatively oriented tet (turned inside out by a deformation, e.g. a
+/// mirrored mesh) is the same point set with two corners swapped, and is clipped as such.
 pub(crate) fn clip_tet(
-    p: [DVec3; 4],
-    s: [f64; 4],
+    mut p: [DVec3; 4],
+    mut s: [f64; 4],
     origin: DVec3,
     dir: DVec3,
 ) -> Option<(f64, f64, f64, f64)> {
-    // Zero volume to working precision: no interior, nothing to integrate. This also covers
-    // inverted tets of a deformed mesh (negative volume: the four half-spaces do not meet).
+    // Zero volume to working precision: no interior, nothing to integrate.
     let (e1, e2, e3) = (p[1] - p[0], p[2] - p[0], p[3] - p[0]);
     let det = e1.dot(e2.cross(e3));
     // Written so that a NaN (from overflowing coordinates) also lands here.
-    if det.is_nan() || det <= FLAT * e1.length() * e2.length() * e3.length() {
+    if det.is_nan() || det.abs() <= FLAT * e1.length() * e2.length() * e3.length() {
         return None;
+    }
+    if det < 0.0 {
+        p.swap(2, 3);
+        s.swap(2, 3);
     }
     // Bounding sphere: a cheap guarantee that the segment stays finite and inside the tet's
     // neighbourhood whatever rounding does to the face constraints.
@@ -189,6 +193,18 @@ mod tests {
         let (t0, _, s0, _) = clip_tet(UNIT, s, DVec3::new(0.1, 0.1, 0.1), DVec3::Z).unwrap();
         assert_eq!(t0, 0.0);
         assert!((s0 - 0.6).abs() < 1e-15);
+    }
+
+    #[test]
+    fn an_inside_out_tet_clips_as_the_same_point_set() {
+        // Corners 2 and 3 swapped (negative volume, as a mirroring deformation leaves them):
+        // the same segment, with the scalars following their corners.
+        let s = [0.0, 1.0, 2.0, 3.0];
+        let inverted = [UNIT[0], UNIT[1], UNIT[3], UNIT[2]];
+        let (o, d) = (DVec3::new(0.2, 0.1, -1.0), DVec3::Z);
+        let a = clip_tet(UNIT, s, o, d).unwrap();
+        let b = clip_tet(inverted, [s[0], s[1], s[3], s[2]], o, d).unwrap();
+        assert_eq!(a, b);
     }
 
     #[test]
