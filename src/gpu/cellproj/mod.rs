@@ -900,4 +900,31 @@ impl Renderer for CellProjRenderer {
         self.upload_scalars();
         Ok(())
     }
+
+    fn gpu_memory(&self) -> u64 {
+        let texture = |x: &wgpu::Texture| {
+            let s = x.size();
+            let texel = x.format().block_copy_size(None).unwrap_or(16) as u64;
+            s.width as u64 * s.height as u64 * s.depth_or_array_layers as u64 * texel
+        };
+        let buffers: u64 = [
+            &self.frame_buf,
+            &self.tf_buf,
+            &self.cellproj_buf,
+            &self.positions_buf,
+            &self.scalars_buf,
+            &self.order_buf,
+            &self.records_buf,
+            &self.degenerate_buf,
+        ]
+        .iter()
+        .map(|b| b.size())
+        .sum();
+        let table = self.table.as_ref().map_or(0, |t| texture(&t.texture));
+        let targets = self
+            .targets
+            .as_ref()
+            .map_or(0, |t| texture(&t.color) + t.readback.size());
+        buffers + texture(&self.no_table) + table + targets
+    }
 }
