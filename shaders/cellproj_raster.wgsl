@@ -10,7 +10,8 @@
 // either from the 3D pre-integration table (fs_table) or exactly for the piecewise-linear TF
 // (fs_exact). The output, premultiplied RGBA, is blended "over" what is behind:
 // dst = src + (1 - src.a) dst.
-// Appended to shared.wgsl. CPU twin: gpu::cellproj::preint.
+// Appended to shared.wgsl. CPU twins: gpu::cellproj::twin (segment), gpu::cellproj::preint
+// (integration).
 
 // See gpu::cellproj::CellProjUniforms.
 struct CellProj {
@@ -58,26 +59,42 @@ fn vs_faces(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instanc
     return Varyings(position, rec.grad_x, rec.grad_y, rec.grad_z, rec.lambda_eye, rec.scalar);
 }
 
+// A face the ray runs along: |d . grad lambda_i| at most this times |grad lambda_i| (the sine
+// of the angle between ray and plane; f32 rounding of the ray and the record gives ~1e-7).
+// twin::PARALLEL.
+const PARALLEL: f32 = 1e-5;
+
 // The ray's segment in the tet: (front scalar, back scalar, length), normalized scalars
-// clamped to [0, 1]; length <= 0 when the ray misses it (rounding at edges).
+// clamped to [0, 1]; length <= 0 when the ray misses it (rounding at edges). CPU twin:
+// gpu::cellproj::twin::segment.
+// A face the ray runs along (PARALLEL) does not clip: there -lambda/g is the ratio of two
+// rounding errors. Such a ray lies in the face plane up to rounding, and the rasterizer gave
+// its pixel to exactly one of the tets sharing the plane (the top-left rule on the edges
+// that lie on the plane's image line), so that tet keeps its whole chord between the other
+// faces, unless the chord's middle lies outside the face by more than frame.epsilon (a
+// near-plane quad covers pixels outside the tet).
 fn segment(in: Varyings) -> vec3<f32> {
     let d = pixel_ray(in.position.xy);
     // Barycentrics along the ray: lambda(t) = lambda_eye + t gd.
     let gd = in.grad_x * d.x + in.grad_y * d.y + in.grad_z * d.z;
+    let norm = sqrt(in.grad_x * in.grad_x + in.grad_y * in.grad_y + in.grad_z * in.grad_z);
+    let along = abs(gd) <= PARALLEL * norm;
     var t_in = 0.0;
     var t_out = 3.0e38;
     for (var i = 0u; i < 4u; i++) {
         let g = gd[i];
         let l = in.lambda_eye[i];
+        if along[i] {
+            continue;
+        }
         if g > 0.0 {
             t_in = max(t_in, -l / g);
-        } else if g < 0.0 {
+        } else {
             t_out = min(t_out, -l / g);
-        } else if l < 0.0 {
-            t_out = -1.0;
         }
     }
-    if !(t_out > t_in) || t_out > 1.0e37 {
+    let middle = in.lambda_eye + (0.5 * (t_in + t_out)) * gd;
+    if !(t_out > t_in) || t_out > 1.0e37 || any(along & (middle < vec4<f32>(-frame.epsilon))) {
         return vec3<f32>(0.0, 0.0, -1.0);
     }
     // Encoded scalar 1 + u along the ray.

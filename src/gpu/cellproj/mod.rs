@@ -16,7 +16,8 @@
 //! 5. raster: one instanced draw in that order (the API blends primitives in submission order)
 //!    of each tet's front faces, or of its screen quad when it has a corner at or behind
 //!    `near_z` (the eye inside the mesh); each fragment clips its ray against the four face
-//!    planes in barycentric space, integrates the segment and is blended "over" the frame
+//!    planes in barycentric space (a face the ray runs along does not clip; CPU twin
+//!    [`twin::segment`]), integrates the segment and is blended "over" the frame
 //!    (`shaders/cellproj_raster.wgsl`);
 //! 6. readback.
 //!
@@ -37,6 +38,7 @@
 
 pub mod preint;
 pub mod sort;
+pub mod twin;
 
 use std::time::Instant;
 
@@ -615,7 +617,7 @@ impl Renderer for CellProjRenderer {
         let f32x3 = |v: DVec3| v.as_vec3().to_array();
         let frame = FrameUniforms {
             right: f32x3(right),
-            epsilon: 0.0,
+            epsilon: twin::INSIDE_TOL,
             up: f32x3(up),
             near_z: near_z(self.radius),
             forward: f32x3(forward),
