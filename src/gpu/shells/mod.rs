@@ -141,6 +141,9 @@ pub struct ShellsRenderer {
     format: wgpu::TextureFormat,
     /// The fixed slices per shell, or `None` when chosen per frame among `candidates`.
     fixed_slices: Option<u32>,
+    /// The count used without adaptive slices, and kept by them unless another is predicted to
+    /// be clearly cheaper ([`adaptive::MARGIN`]).
+    default_slices: u32,
     candidates: Vec<u32>,
     model: adaptive::CostModel,
     /// Layers of the slice texture: the colour targets of the largest count in use.
@@ -451,6 +454,7 @@ impl ShellsRenderer {
             settings,
             format,
             fixed_slices,
+            default_slices,
             candidates,
             model: if software {
                 adaptive::CostModel::SOFTWARE
@@ -1359,7 +1363,9 @@ impl Renderer for ShellsRenderer {
                 w as f64 * h as f64
             };
             adaptive::profile(&bins, &allowed, slices, pixels)
-                .and_then(|work| adaptive::choose(&work, &self.model))
+                .and_then(|work| {
+                    adaptive::choose(&work, &self.model, self.default_slices, adaptive::MARGIN)
+                })
                 .unwrap_or(largest)
         };
         self.slices_per_shell = n;
