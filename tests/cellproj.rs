@@ -395,17 +395,7 @@ fn meshes_beyond_one_storage_binding_are_drawn_in_chunks() {
     // (1.26 MB) are assembled and drawn in about 20 chunks of the sorted order, one after the
     // other, so the blending order is unchanged and the picture must be bit-identical.
     let base = ctx();
-    let small = GpuContext {
-        limits: wgpu::Limits {
-            max_storage_buffer_binding_size: 64 << 10,
-            ..base.limits.clone()
-        },
-        adapter: base.adapter.clone(),
-        device: base.device.clone(),
-        queue: base.queue.clone(),
-        info: base.info.clone(),
-        features: base.features,
-    };
+    let small = common::with_storage_binding_limit(base, 64 << 10);
     let mesh = lox();
     let (tf, camera) = default_view(&mesh, 96);
     let frame = |ctx: &GpuContext| {

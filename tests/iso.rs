@@ -583,17 +583,7 @@ fn selections_beyond_one_storage_binding_are_drawn_in_chunks() {
     // window of one buffer. The depth test keeps the nearest hit whatever the draw order, so
     // the picture must be bit-identical to the unchunked one.
     let base = ctx();
-    let small = GpuContext {
-        limits: wgpu::Limits {
-            max_storage_buffer_binding_size: 512 << 10,
-            ..base.limits.clone()
-        },
-        adapter: base.adapter.clone(),
-        device: base.device.clone(),
-        queue: base.queue.clone(),
-        info: base.info.clone(),
-        features: base.features,
-    };
+    let small = common::with_storage_binding_limit(base, 512 << 10);
     let mesh = gaussians();
     let (lo, hi) = mesh.bounds();
     let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 96, 96);

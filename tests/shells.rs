@@ -772,17 +772,7 @@ fn a_mesh_beyond_one_storage_binding_is_drawn_in_chunks() {
     // split where records are bound, and MAX blending does not care about draw order, so the
     // picture must be bit-identical to the unchunked one, with the eye outside and inside.
     let base = ctx();
-    let small = GpuContext {
-        limits: wgpu::Limits {
-            max_storage_buffer_binding_size: 64 << 10,
-            ..base.limits.clone()
-        },
-        adapter: base.adapter.clone(),
-        device: base.device.clone(),
-        queue: base.queue.clone(),
-        info: base.info.clone(),
-        features: base.features,
-    };
+    let small = common::with_storage_binding_limit(base, 64 << 10);
     let mesh = lox();
     let (lo, hi) = mesh.bounds();
     let tf = default_tf(&mesh);

@@ -685,17 +685,7 @@ fn mesh_larger_than_one_storage_binding() {
     // chunks, each bound as a window of one buffer, and must match the truth as usual.
     let c = ctx();
     let limit = 1 << 16;
-    let small = GpuContext {
-        adapter: c.adapter.clone(),
-        device: c.device.clone(),
-        queue: c.queue.clone(),
-        info: c.info.clone(),
-        limits: wgpu::Limits {
-            max_storage_buffer_binding_size: limit,
-            ..c.limits.clone()
-        },
-        features: c.features,
-    };
+    let small = common::with_storage_binding_limit(c, limit);
     let g = grid();
     let cam = outside();
     let t = tf(0.3);

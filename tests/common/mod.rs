@@ -56,3 +56,23 @@ pub fn assert_images_close(
     eprintln!("{name}: {m}");
     m
 }
+
+/// The same adapter and device as `ctx`, declared to bind at most `bytes` per storage buffer:
+/// the renderers then split their per-tet records into chunks as they would on an adapter
+/// with that limit, so chunking is tested with small meshes.
+pub fn with_storage_binding_limit(
+    ctx: &tetvr::gpu::GpuContext,
+    bytes: u64,
+) -> tetvr::gpu::GpuContext {
+    tetvr::gpu::GpuContext {
+        adapter: ctx.adapter.clone(),
+        device: ctx.device.clone(),
+        queue: ctx.queue.clone(),
+        info: ctx.info.clone(),
+        limits: wgpu::Limits {
+            max_storage_buffer_binding_size: bytes,
+            ..ctx.limits.clone()
+        },
+        features: ctx.features,
+    }
+}

@@ -41,7 +41,10 @@ use rayon::prelude::*;
 
 use crate::camera::Camera;
 use crate::gpu::gpu_data::{FrameUniforms, TetRecord};
-use crate::gpu::shells::{DEGENERATE_TOL, assembly_pipeline, binning, chunk_tets, window};
+use crate::gpu::shells::{
+    AssemblyBuffers, DEGENERATE_TOL, assembly_pipeline, binning, chunk_ranges, chunk_tets,
+    encode_assembly, window,
+};
 use crate::gpu::util::{
     bind_group_layout, buffer_entry, entry, map_read, ms_since, pipeline_layout_for,
     settings_error, wgsl_module,
@@ -640,40 +643,20 @@ impl IsoRenderer {
         // 4. Assembly over the selected tets, chunk by chunk (windows of the tet list and the
         // records; one chunk unless the records exceed a storage binding).
         let t2 = Instant::now();
-        let chunk = self.chunk_tets.max(1) as u64;
-        let chunks: Vec<(u64, u64)> = (0..(selected as u64).div_ceil(chunk))
-            .map(|c| (c * chunk, chunk.min(selected as u64 - c * chunk)))
-            .collect();
+        let chunks = chunk_ranges(selected as u64, self.chunk_tets as u64);
         let record = size_of::<TetRecord>() as u64;
         let mut enc = self.device.create_command_encoder(&Default::default());
-        enc.clear_buffer(&self.degenerate_buf, 0, None);
-        if selected > 0 {
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("iso assembly"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(&self.pipelines.assemble);
-            for &(first, count) in &chunks {
-                let group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("iso assemble"),
-                    layout: &self.pipelines.assemble_layout,
-                    entries: &[
-                        entry(0, &self.frame_buf),
-                        entry(1, &self.positions_buf),
-                        entry(2, &self.scalars_buf),
-                        window(3, &self.selected_buf, 16, first, count),
-                        window(4, &self.records_buf, record, first, count),
-                        entry(5, &self.degenerate_buf),
-                    ],
-                });
-                pass.set_bind_group(0, &group, &[]);
-                let groups = (count as u32).div_ceil(64);
-                let x = groups
-                    .min(self.limits.max_compute_workgroups_per_dimension)
-                    .max(1);
-                pass.dispatch_workgroups(x, groups.div_ceil(x), 1);
-            }
-        }
+        let buffers = AssemblyBuffers {
+            frame: &self.frame_buf,
+            positions: &self.positions_buf,
+            scalars: &self.scalars_buf,
+            tets: &self.selected_buf,
+            records: &self.records_buf,
+            degenerate: &self.degenerate_buf,
+        };
+        let stage = (&self.pipelines.assemble_layout, &self.pipelines.assemble);
+        let max_groups = self.limits.max_compute_workgroups_per_dimension;
+        encode_assembly(&self.device, &mut enc, stage, &buffers, &chunks, max_groups);
         self.queue.submit([enc.finish()]);
         self.device
             .poll(wgpu::PollType::wait_indefinitely())

@@ -715,6 +715,66 @@ impl MeshState {
     }
 }
 
+/// `count` list entries in chunks of `chunk`: (first, count) of each.
+pub(crate) fn chunk_ranges(count: u64, chunk: u64) -> Vec<(u64, u64)> {
+    let chunk = chunk.max(1);
+    (0..count.div_ceil(chunk))
+        .map(|c| (c * chunk, chunk.min(count - c * chunk)))
+        .collect()
+}
+
+/// The buffers of one assembly: `tets` lists the tets to assemble (vertex indices, 16 bytes
+/// each), and record `k` of `records` is built from entry `k`.
+pub(crate) struct AssemblyBuffers<'a> {
+    pub frame: &'a wgpu::Buffer,
+    pub positions: &'a wgpu::Buffer,
+    pub scalars: &'a wgpu::Buffer,
+    pub tets: &'a wgpu::Buffer,
+    pub records: &'a wgpu::Buffer,
+    pub degenerate: &'a wgpu::Buffer,
+}
+
+/// Encodes the assembly of the listed tets in one compute pass, chunk by chunk (`chunks` from
+/// [`chunk_ranges`]: windows of the tet list and of the records, so records beyond one storage
+/// binding are fine), after zeroing the degenerate count.
+pub(crate) fn encode_assembly(
+    device: &wgpu::Device,
+    enc: &mut wgpu::CommandEncoder,
+    (layout, pipeline): (&wgpu::BindGroupLayout, &wgpu::ComputePipeline),
+    b: &AssemblyBuffers,
+    chunks: &[(u64, u64)],
+    max_groups: u32,
+) {
+    enc.clear_buffer(b.degenerate, 0, None);
+    if chunks.is_empty() {
+        return;
+    }
+    let record = size_of::<TetRecord>() as u64;
+    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        label: Some("assembly"),
+        timestamp_writes: None,
+    });
+    pass.set_pipeline(pipeline);
+    for &(first, count) in chunks {
+        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("assemble"),
+            layout,
+            entries: &[
+                entry(0, b.frame),
+                entry(1, b.positions),
+                entry(2, b.scalars),
+                window(3, b.tets, 16, first, count),
+                window(4, b.records, record, first, count),
+                entry(5, b.degenerate),
+            ],
+        });
+        pass.set_bind_group(0, &group, &[]);
+        let groups = (count as u32).div_ceil(64);
+        let x = groups.min(max_groups).max(1);
+        pass.dispatch_workgroups(x, groups.div_ceil(x), 1);
+    }
+}
+
 /// The assembly stage (`shaders/shells_assemble.wgsl`): its bind group layout and compute
 /// pipeline, shared by every mode that draws from the per-tet records (shells, iso).
 pub(crate) fn assembly_pipeline(
