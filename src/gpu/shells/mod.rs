@@ -1647,7 +1647,8 @@ impl Renderer for ShellsRenderer {
         }
         let (mut instances, mut triangles) = (0u64, 0u64);
         let ert = targets.ert.as_ref().zip(self.pipelines.ert.as_ref());
-        // Tile masks are read back after every `check_every` shells (at most ERT_CHECKS).
+        // Tile masks are read back every `interval` shells (at most ERT_CHECKS times); a mask
+        // with no finished tile doubles the interval, since each readback drains the GPU.
         // No pixel can finish before its ray has gathered -ln(1 - threshold) of optical depth,
         // at most tau_max dz per sample: shells before that get no termination work.
         let tau_max = tf.taus().iter().copied().fold(0.0, f64::max);
@@ -1655,9 +1656,10 @@ impl Renderer for ShellsRenderer {
         let can_finish =
             |shell: u32| (shell as f64 + 1.0) * n as f64 * dz * tau_max * 1.01 >= depth_needed;
         let first_finishing = drawn.iter().position(|&(s, _)| can_finish(s));
-        let check_every = (drawn.len() - first_finishing.unwrap_or(drawn.len()))
+        let mut interval = (drawn.len() - first_finishing.unwrap_or(drawn.len()))
             .div_ceil(ERT_CHECKS)
             .max(1);
+        let mut next_check = first_finishing.unwrap_or(0) + interval - 1;
         let mut drawn = drawn;
         let mut tets_finished = 0u64;
         let mut tiles: Option<TileMask> = None;
@@ -1844,10 +1846,13 @@ impl Renderer for ShellsRenderer {
                 pass.draw(0..3, 0..1);
             }
             rec.end_stage("termination")?;
-            let since = i - first_finishing.unwrap_or(0);
-            if (since + 1) % check_every == 0 && i + 1 < drawn.len() {
+            if i >= next_check && i + 1 < drawn.len() {
                 let m = read_tiles(&mut rec, ert_pipelines, ert_targets, targets)?;
                 checks += 1;
+                if m.unfinished.iter().all(|&u| u) {
+                    interval *= 2;
+                }
+                next_check = i + interval;
                 // Later shells drop the tets whose pixels all lie in finished tiles.
                 let keep = |t: &u32| match bins[*t as usize] {
                     binning::TetBin::Drawn { screen, .. } => m
