@@ -2,10 +2,34 @@
 
 use std::time::Instant;
 
+use glam::DVec3;
+
 use crate::gpu::GpuError;
+use crate::mesh::bounding_box;
 use crate::render::RenderError;
 
 /// Milliseconds since `t`.
+/// The GPU modes' frame of reference for positions: the bounding-box centre (GPU positions
+/// and the eye are relative to it) and the bounding-sphere radius about it.
+pub(crate) fn bounding_sphere(positions: &[DVec3]) -> (DVec3, f64) {
+    let (lo, hi) = bounding_box(positions);
+    (
+        (lo + hi) * 0.5,
+        ((hi - lo).length() * 0.5).max(f64::MIN_POSITIVE),
+    )
+}
+
+/// The GPU modes' frame for scalars, normalized as `(s - min) / span`: `(min, span)`, with
+/// span 1 for a constant field.
+pub(crate) fn scalar_frame(scalars: &[f64]) -> (f64, f64) {
+    let (lo, hi) = scalars
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &s| {
+            (lo.min(s), hi.max(s))
+        });
+    (lo, if hi > lo { hi - lo } else { 1.0 })
+}
+
 pub(crate) fn ms_since(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }

@@ -233,14 +233,7 @@ impl TetMesh {
     /// turned inside out are *not* reoriented: their vertex order is part of the topology, and a
     /// renderer must treat them as it treats any degenerate tet.
     pub fn set_positions(&mut self, positions: Vec<DVec3>) -> Result<(), MeshError> {
-        if positions.len() != self.positions.len() {
-            return Err(MeshError::ArrayLength {
-                array: "positions".into(),
-                len: positions.len(),
-                count: self.positions.len(),
-            });
-        }
-        check_positions(&positions)?;
+        check_new_positions(&positions, self.positions.len())?;
         self.positions = positions;
         Ok(())
     }
@@ -266,16 +259,7 @@ impl TetMesh {
 
     /// Axis-aligned bounding box (min, max).
     pub fn bounds(&self) -> (DVec3, DVec3) {
-        self.positions
-            .par_iter()
-            .fold(
-                || (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-                |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-            )
-            .reduce(
-                || (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-                |a, b| (a.0.min(b.0), a.1.max(b.1)),
-            )
+        bounding_box(&self.positions)
     }
 
     /// Length of the bounding-box diagonal (the default TF unit distance is 1/100 of it).
@@ -286,18 +270,7 @@ impl TetMesh {
 
     /// (min, max) of the active scalars over each tet's four vertices.
     pub fn tet_scalar_ranges(&self) -> Result<Vec<(f64, f64)>, MeshError> {
-        let s = self.scalars()?;
-        Ok(self
-            .tets
-            .par_iter()
-            .map(|t| {
-                let v = t.map(|i| s[i as usize]);
-                (
-                    v[0].min(v[1]).min(v[2].min(v[3])),
-                    v[0].max(v[1]).max(v[2].max(v[3])),
-                )
-            })
-            .collect())
+        Ok(tet_ranges(&self.tets, self.scalars()?))
     }
 
     /// Face adjacency (each tet's four neighbours) and boundary faces.
@@ -327,22 +300,68 @@ fn check_positions(positions: &[DVec3]) -> Result<(), MeshError> {
     }
 }
 
-fn check_array(a: &ScalarArray, count: usize) -> Result<(), MeshError> {
-    if a.values.len() != count {
+/// Checks positions that replace those of a mesh of `count` vertices (a deforming mesh, a
+/// renderer's `update_positions`): as many, all finite.
+pub fn check_new_positions(positions: &[DVec3], count: usize) -> Result<(), MeshError> {
+    if positions.len() != count {
         return Err(MeshError::ArrayLength {
-            array: a.name.clone(),
-            len: a.values.len(),
+            array: "positions".into(),
+            len: positions.len(),
             count,
         });
     }
-    match a.values.iter().position(|v| !v.is_finite()) {
+    check_positions(positions)
+}
+
+/// Checks the values of scalar array `array` for a mesh of `count` vertices: as many, all
+/// finite.
+pub fn check_values(array: &str, values: &[f64], count: usize) -> Result<(), MeshError> {
+    if values.len() != count {
+        return Err(MeshError::ArrayLength {
+            array: array.into(),
+            len: values.len(),
+            count,
+        });
+    }
+    match values.iter().position(|v| !v.is_finite()) {
         Some(v) => Err(MeshError::NonFiniteScalar {
-            array: a.name.clone(),
+            array: array.into(),
             vertex: v,
-            value: a.values[v],
+            value: values[v],
         }),
         None => Ok(()),
     }
+}
+
+fn check_array(a: &ScalarArray, count: usize) -> Result<(), MeshError> {
+    check_values(&a.name, &a.values, count)
+}
+
+/// Axis-aligned bounding box (min, max) of `positions`.
+pub fn bounding_box(positions: &[DVec3]) -> (DVec3, DVec3) {
+    positions
+        .par_iter()
+        .fold(
+            || (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+        )
+        .reduce(
+            || (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |a, b| (a.0.min(b.0), a.1.max(b.1)),
+        )
+}
+
+/// Each tet's (smallest, largest) vertex scalar.
+pub fn tet_ranges(tets: &[[u32; 4]], scalars: &[f64]) -> Vec<(f64, f64)> {
+    tets.par_iter()
+        .map(|t| {
+            let v = t.map(|i| scalars[i as usize]);
+            (
+                v[0].min(v[1]).min(v[2].min(v[3])),
+                v[0].max(v[1]).max(v[2].max(v[3])),
+            )
+        })
+        .collect()
 }
 
 fn range_of(values: &[f64]) -> Option<(f64, f64)> {

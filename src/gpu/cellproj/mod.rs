@@ -53,12 +53,12 @@ use crate::gpu::shells::{
     encode_assembly, f16_to_f32, tf_points, window,
 };
 use crate::gpu::util::{
-    bind_group_layout, buffer_entry, entry, map_read, ms_since, pipeline_layout_for,
-    settings_error, wgsl_module,
+    bind_group_layout, bounding_sphere, buffer_entry, entry, map_read, ms_since,
+    pipeline_layout_for, scalar_frame, settings_error, wgsl_module,
 };
 use crate::gpu::{GpuContext, GpuError, shaders};
 use crate::image::Image;
-use crate::mesh::{MeshError, TetMesh};
+use crate::mesh::{TetMesh, check_new_positions, check_values, tet_ranges};
 use crate::render::{Frame, RenderError, Renderer, Timings};
 use crate::tf::TransferFunction;
 
@@ -182,38 +182,6 @@ struct Targets {
     padded_row: u32,
 }
 
-fn bounds(positions: &[DVec3]) -> (DVec3, f64) {
-    let (lo, hi) = positions.iter().fold(
-        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-        |(lo, hi), &p| (lo.min(p), hi.max(p)),
-    );
-    (
-        (lo + hi) * 0.5,
-        ((hi - lo).length() * 0.5).max(f64::MIN_POSITIVE),
-    )
-}
-
-fn scalar_frame(scalars: &[f64]) -> (f64, f64) {
-    let (lo, hi) = scalars
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &s| {
-            (lo.min(s), hi.max(s))
-        });
-    (lo, if hi > lo { hi - lo } else { 1.0 })
-}
-
-fn scalar_ranges(tets: &[[u32; 4]], scalars: &[f64]) -> Vec<(f64, f64)> {
-    tets.par_iter()
-        .map(|t| {
-            let v = t.map(|i| scalars[i as usize]);
-            (
-                v[0].min(v[1]).min(v[2].min(v[3])),
-                v[0].max(v[1]).max(v[2].max(v[3])),
-            )
-        })
-        .collect()
-}
-
 fn longest_edge(positions: &[DVec3], tets: &[[u32; 4]]) -> f64 {
     tets.par_iter()
         .map(|t| {
@@ -307,7 +275,7 @@ impl CellProjRenderer {
         let nt = mesh.tet_count() as u64;
         let positions = mesh.positions().to_vec();
         let tets = mesh.tets().to_vec();
-        let (origin, radius) = bounds(&positions);
+        let (origin, radius) = bounding_sphere(&positions);
         let (scalar_min, scalar_span) = scalar_frame(&scalars);
         let r = Self {
             pipelines: Pipelines::new(&device, format),
@@ -326,7 +294,7 @@ impl CellProjRenderer {
             limits,
             settings,
             format,
-            ranges: scalar_ranges(&tets, &scalars),
+            ranges: tet_ranges(&tets, &scalars),
             max_edge: longest_edge(&positions, &tets),
             spheres: None,
             positions,
@@ -834,26 +802,9 @@ impl Renderer for CellProjRenderer {
     }
 
     fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {
-        if positions.len() != self.positions.len() {
-            return Err(MeshError::ArrayLength {
-                array: "positions".into(),
-                len: positions.len(),
-                count: self.positions.len(),
-            }
-            .into());
-        }
-        if let Some(v) = positions.iter().position(|p| !p.is_finite()) {
-            let p = positions[v];
-            return Err(MeshError::NonFiniteCoordinate {
-                vertex: v,
-                x: p.x,
-                y: p.y,
-                z: p.z,
-            }
-            .into());
-        }
+        check_new_positions(positions, self.positions.len())?;
         self.positions.copy_from_slice(positions);
-        (self.origin, self.radius) = bounds(&self.positions);
+        (self.origin, self.radius) = bounding_sphere(&self.positions);
         self.max_edge = longest_edge(&self.positions, &self.tets);
         self.spheres = None;
         self.upload_positions();
@@ -861,25 +812,10 @@ impl Renderer for CellProjRenderer {
     }
 
     fn update_scalars(&mut self, scalars: &[f64]) -> Result<(), RenderError> {
-        if scalars.len() != self.scalars.len() {
-            return Err(MeshError::ArrayLength {
-                array: "scalars".into(),
-                len: scalars.len(),
-                count: self.scalars.len(),
-            }
-            .into());
-        }
-        if let Some(v) = scalars.iter().position(|s| !s.is_finite()) {
-            return Err(MeshError::NonFiniteScalar {
-                array: "scalars".into(),
-                vertex: v,
-                value: scalars[v],
-            }
-            .into());
-        }
+        check_values("scalars", scalars, self.scalars.len())?;
         self.scalars.copy_from_slice(scalars);
         (self.scalar_min, self.scalar_span) = scalar_frame(&self.scalars);
-        self.ranges = scalar_ranges(&self.tets, &self.scalars);
+        self.ranges = tet_ranges(&self.tets, &self.scalars);
         self.upload_scalars();
         Ok(())
     }

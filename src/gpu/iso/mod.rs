@@ -46,12 +46,12 @@ use crate::gpu::shells::{
     encode_assembly, window,
 };
 use crate::gpu::util::{
-    bind_group_layout, buffer_entry, entry, map_read, ms_since, pipeline_layout_for,
-    settings_error, wgsl_module,
+    bind_group_layout, bounding_sphere, buffer_entry, entry, map_read, ms_since,
+    pipeline_layout_for, scalar_frame, settings_error, wgsl_module,
 };
 use crate::gpu::{GpuContext, GpuError, shaders};
 use crate::image::Image;
-use crate::mesh::{MeshError, TetMesh};
+use crate::mesh::{TetMesh, check_new_positions, check_values};
 pub use crate::reference::iso::{IsoImage, Shading};
 use crate::render::{Frame, RenderError, Renderer, Timings};
 use crate::tf::TransferFunction;
@@ -181,26 +181,6 @@ struct Targets {
 const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
-fn bounds(positions: &[DVec3]) -> (DVec3, f64) {
-    let (lo, hi) = positions.iter().fold(
-        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-        |(lo, hi), &p| (lo.min(p), hi.max(p)),
-    );
-    (
-        (lo + hi) * 0.5,
-        ((hi - lo).length() * 0.5).max(f64::MIN_POSITIVE),
-    )
-}
-
-fn scalar_frame(scalars: &[f64]) -> (f64, f64) {
-    let (lo, hi) = scalars
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &s| {
-            (lo.min(s), hi.max(s))
-        });
-    (lo, if hi > lo { hi - lo } else { 1.0 })
-}
-
 fn check_isovalues(isovalues: &[(f64, [f32; 3])]) -> Result<(), RenderError> {
     if isovalues.len() > MAX_ISOVALUES {
         return Err(settings_error(format!(
@@ -276,7 +256,7 @@ impl IsoRenderer {
             })
         };
         let positions = mesh.positions().to_vec();
-        let (origin, radius) = bounds(&positions);
+        let (origin, radius) = bounding_sphere(&positions);
         let smooth = settings.shading == Shading::Smooth;
         let tets = mesh.tets().to_vec();
         let r = Self {
@@ -937,47 +917,15 @@ impl Renderer for IsoRenderer {
     }
 
     fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {
-        if positions.len() != self.positions.len() {
-            return Err(MeshError::ArrayLength {
-                array: "positions".into(),
-                len: positions.len(),
-                count: self.positions.len(),
-            }
-            .into());
-        }
-        if let Some(v) = positions.iter().position(|p| !p.is_finite()) {
-            let p = positions[v];
-            return Err(MeshError::NonFiniteCoordinate {
-                vertex: v,
-                x: p.x,
-                y: p.y,
-                z: p.z,
-            }
-            .into());
-        }
+        check_new_positions(positions, self.positions.len())?;
         self.positions.copy_from_slice(positions);
-        (self.origin, self.radius) = bounds(&self.positions);
+        (self.origin, self.radius) = bounding_sphere(&self.positions);
         self.upload_positions();
         Ok(())
     }
 
     fn update_scalars(&mut self, scalars: &[f64]) -> Result<(), RenderError> {
-        if scalars.len() != self.scalars.len() {
-            return Err(MeshError::ArrayLength {
-                array: "scalars".into(),
-                len: scalars.len(),
-                count: self.scalars.len(),
-            }
-            .into());
-        }
-        if let Some(v) = scalars.iter().position(|s| !s.is_finite()) {
-            return Err(MeshError::NonFiniteScalar {
-                array: "scalars".into(),
-                vertex: v,
-                value: scalars[v],
-            }
-            .into());
-        }
+        check_values("scalars", scalars, self.scalars.len())?;
         self.scalars.copy_from_slice(scalars);
         (self.scalar_min, self.scalar_span) = scalar_frame(&self.scalars);
         self.index = None;

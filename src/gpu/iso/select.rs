@@ -18,6 +18,8 @@
 
 use rayon::prelude::*;
 
+use crate::mesh::tet_ranges;
+
 /// Entries per leaf block of the max-tree.
 pub const BLOCK: usize = 32;
 
@@ -41,15 +43,10 @@ pub struct IntervalIndex {
 impl IntervalIndex {
     /// The index of the tets' scalar ranges for per-vertex `scalars`.
     pub fn build(tets: &[[u32; 4]], scalars: &[f64]) -> Self {
-        let mut entries: Vec<(f64, f64, u32)> = tets
-            .par_iter()
+        let mut entries: Vec<(f64, f64, u32)> = tet_ranges(tets, scalars)
+            .into_par_iter()
             .enumerate()
-            .filter_map(|(i, t)| {
-                let v = t.map(|i| scalars[i as usize]);
-                let lo = v[0].min(v[1]).min(v[2].min(v[3]));
-                let hi = v[0].max(v[1]).max(v[2].max(v[3]));
-                (lo < hi).then_some((lo, hi, i as u32))
-            })
+            .filter_map(|(i, (lo, hi))| (lo < hi).then_some((lo, hi, i as u32)))
             .collect();
         entries.par_sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
         let lo_sorted = entries.par_iter().map(|e| e.0).collect();

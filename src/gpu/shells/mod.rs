@@ -50,12 +50,12 @@ use crate::gpu::gpu_data::{
     FrameUniforms, MAX_TF_POINTS, ShellUniforms, TetRecord, TfPoint, TfPoints,
 };
 use crate::gpu::util::{
-    bind_group_layout, buffer_entry, entry, map_read, ms_since, pipeline_layout_for,
-    settings_error, wgsl_module,
+    bind_group_layout, bounding_sphere, buffer_entry, entry, map_read, ms_since,
+    pipeline_layout_for, scalar_frame, settings_error, wgsl_module,
 };
 use crate::gpu::{GpuContext, GpuError, shaders};
 use crate::mesh::topology::FACES;
-use crate::mesh::{MeshError, TetMesh};
+use crate::mesh::{MeshError, TetMesh, check_new_positions, check_values, tet_ranges};
 use crate::render::{Frame, RenderError, Renderer, Timings};
 use crate::tf::TransferFunction;
 
@@ -683,35 +683,12 @@ impl MeshState {
     }
 
     fn frame_positions(&mut self) {
-        let (lo, hi) = self.positions.iter().fold(
-            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-            |(lo, hi), &p| (lo.min(p), hi.max(p)),
-        );
-        self.origin = (lo + hi) * 0.5;
-        self.radius = ((hi - lo).length() * 0.5).max(f64::MIN_POSITIVE);
+        (self.origin, self.radius) = bounding_sphere(&self.positions);
     }
 
     fn frame_scalars(&mut self) {
-        let (lo, hi) = self
-            .scalars
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &s| {
-                (lo.min(s), hi.max(s))
-            });
-        self.scalar_min = lo;
-        self.scalar_span = if hi > lo { hi - lo } else { 1.0 };
-        let s = &self.scalars;
-        self.ranges = self
-            .tets
-            .par_iter()
-            .map(|t| {
-                let v = t.map(|i| s[i as usize]);
-                (
-                    v[0].min(v[1]).min(v[2].min(v[3])),
-                    v[0].max(v[1]).max(v[2].max(v[3])),
-                )
-            })
-            .collect();
+        (self.scalar_min, self.scalar_span) = scalar_frame(&self.scalars);
+        self.ranges = tet_ranges(&self.tets, &self.scalars);
     }
 }
 
@@ -2061,24 +2038,7 @@ impl Renderer for ShellsRenderer {
     }
 
     fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {
-        if positions.len() != self.mesh.positions.len() {
-            return Err(MeshError::ArrayLength {
-                array: "positions".into(),
-                len: positions.len(),
-                count: self.mesh.positions.len(),
-            }
-            .into());
-        }
-        if let Some(v) = positions.iter().position(|p| !p.is_finite()) {
-            let p = positions[v];
-            return Err(MeshError::NonFiniteCoordinate {
-                vertex: v,
-                x: p.x,
-                y: p.y,
-                z: p.z,
-            }
-            .into());
-        }
+        check_new_positions(positions, self.mesh.positions.len())?;
         self.mesh.positions.copy_from_slice(positions);
         self.mesh.frame_positions();
         self.upload_positions();
@@ -2086,22 +2046,7 @@ impl Renderer for ShellsRenderer {
     }
 
     fn update_scalars(&mut self, scalars: &[f64]) -> Result<(), RenderError> {
-        if scalars.len() != self.mesh.scalars.len() {
-            return Err(MeshError::ArrayLength {
-                array: "scalars".into(),
-                len: scalars.len(),
-                count: self.mesh.scalars.len(),
-            }
-            .into());
-        }
-        if let Some(v) = scalars.iter().position(|s| !s.is_finite()) {
-            return Err(MeshError::NonFiniteScalar {
-                array: "scalars".into(),
-                vertex: v,
-                value: scalars[v],
-            }
-            .into());
-        }
+        check_values("scalars", scalars, self.mesh.scalars.len())?;
         self.mesh.scalars.copy_from_slice(scalars);
         self.mesh.frame_scalars();
         self.transparent = None;
