@@ -450,19 +450,29 @@ fn shells(samples: u32, slices_per_shell: Option<u32>) -> Config {
         Some(n) => format!("samples {samples}, {n} per shell"),
         None => format!("samples {samples}"),
     };
+    let settings = ShellSettings {
+        samples,
+        slices_per_shell,
+        ..ShellSettings::default()
+    };
+    shells_with(setting, &[], settings)
+}
+
+/// The shells mode with `settings`, on the scenes named by the prefixes `scenes` (all when
+/// empty).
+fn shells_with(
+    setting: String,
+    scenes: &'static [&'static str],
+    settings: ShellSettings,
+) -> Config {
     Config {
         mode: "shells",
         setting,
         truth: Truth::Volume,
         gpu: true,
         single_run: false,
-        scenes: &[],
+        scenes,
         build: Box::new(move |ctx, scene| {
-            let settings = ShellSettings {
-                samples,
-                slices_per_shell,
-                ..ShellSettings::default()
-            };
             Ok(Box::new(ShellsRenderer::new(
                 gpu_ctx(ctx)?,
                 &scene.mesh,
@@ -514,25 +524,11 @@ fn reference() -> Config {
 /// scenes where each skip matters, and the plain one where it should not): the skip's
 /// speedup is this row's time over the `samples 512` row's.
 fn shells_without(skip: Skip) -> Config {
-    Config {
-        mode: "shells",
-        setting: format!("samples 512, no {skip}"),
-        truth: Truth::Volume,
-        gpu: true,
-        single_run: false,
-        scenes: &["bluntfin"],
-        build: Box::new(move |ctx, scene| {
-            let settings = ShellSettings {
-                skips: Skips::ALL.without(skip),
-                ..ShellSettings::default()
-            };
-            Ok(Box::new(ShellsRenderer::new(
-                gpu_ctx(ctx)?,
-                &scene.mesh,
-                settings,
-            )?))
-        }),
-    }
+    let settings = ShellSettings {
+        skips: Skips::ALL.without(skip),
+        ..ShellSettings::default()
+    };
+    shells_with(format!("samples 512, no {skip}"), &["bluntfin"], settings)
 }
 
 fn cellproj(integrate: Integrate, table_size: u32) -> Config {
