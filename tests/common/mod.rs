@@ -76,3 +76,36 @@ pub fn with_storage_binding_limit(
         features: ctx.features,
     }
 }
+
+/// Parses and validates WGSL with naga, panicking with the error's source span; `name` says
+/// which stage (and variant) it is.
+pub fn validated_wgsl(name: &str, src: &str) -> naga::Module {
+    let module = naga::front::wgsl::parse_str(src)
+        .unwrap_or_else(|e| panic!("{name}: WGSL parse error:\n{}", e.emit_to_string(src)));
+    naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::all(),
+    )
+    .validate(&module)
+    .unwrap_or_else(|e| panic!("{name}: validation error:\n{}", e.emit_to_string(src)));
+    module
+}
+
+/// The names of a module's entry points, in source order.
+pub fn entry_points(module: &naga::Module) -> Vec<&str> {
+    module
+        .entry_points
+        .iter()
+        .map(|e| e.name.as_str())
+        .collect()
+}
+
+/// The size in bytes of WGSL struct `name`, as naga lays it out.
+pub fn wgsl_struct_size(module: &naga::Module, name: &str) -> usize {
+    module
+        .types
+        .iter()
+        .find(|(_, t)| t.name.as_deref() == Some(name))
+        .map(|(_, t)| t.inner.size(module.to_ctx()) as usize)
+        .unwrap_or_else(|| panic!("the WGSL has no struct {name}"))
+}
