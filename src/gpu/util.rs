@@ -30,6 +30,40 @@ pub(crate) fn scalar_frame(scalars: &[f64]) -> (f64, f64) {
     (lo, if hi > lo { hi - lo } else { 1.0 })
 }
 
+/// An error unless a `width` x `height` image fits this adapter's 2D textures.
+pub(crate) fn check_image_size(
+    limits: &wgpu::Limits,
+    width: u32,
+    height: u32,
+) -> Result<(), RenderError> {
+    let max = limits.max_texture_dimension_2d;
+    if width > max || height > max {
+        return Err(settings_error(format!(
+            "image size {width}x{height} exceeds this adapter's largest texture ({max}x{max})"
+        )));
+    }
+    Ok(())
+}
+
+/// A mappable buffer that a `width` x `height` texture of `texel` bytes per pixel is copied
+/// into, and its row pitch (rows padded to the copy alignment).
+pub(crate) fn readback_buffer(
+    device: &wgpu::Device,
+    label: &str,
+    width: u32,
+    height: u32,
+    texel: u32,
+) -> (wgpu::Buffer, u32) {
+    let padded_row = (width * texel).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+    let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: padded_row as u64 * height as u64,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    (buffer, padded_row)
+}
+
 pub(crate) fn ms_since(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }

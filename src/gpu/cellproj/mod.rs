@@ -53,8 +53,8 @@ use crate::gpu::shells::{
     encode_assembly, f16_to_f32, tf_points, window,
 };
 use crate::gpu::util::{
-    bind_group_layout, bounding_sphere, buffer_entry, entry, map_read, ms_since,
-    pipeline_layout_for, scalar_frame, settings_error, wgsl_module,
+    bind_group_layout, bounding_sphere, buffer_entry, check_image_size, entry, map_read, ms_since,
+    pipeline_layout_for, readback_buffer, scalar_frame, settings_error, wgsl_module,
 };
 use crate::gpu::{GpuContext, GpuError, shaders};
 use crate::image::Image;
@@ -391,12 +391,7 @@ impl CellProjRenderer {
         {
             return Ok(());
         }
-        let max = self.limits.max_texture_dimension_2d;
-        if width > max || height > max {
-            return Err(settings_error(format!(
-                "image size {width}x{height} exceeds this adapter's largest texture ({max}x{max})"
-            )));
-        }
+        check_image_size(&self.limits, width, height)?;
         let color = self.device.create_texture(&wgpu::TextureDescriptor {
             label: Some("cellproj colour"),
             size: wgpu::Extent3d {
@@ -412,13 +407,8 @@ impl CellProjRenderer {
             view_formats: &[],
         });
         let texel = self.format.block_copy_size(None).unwrap_or(16);
-        let padded_row = (width * texel).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
-        let readback = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("cellproj readback"),
-            size: padded_row as u64 * height as u64,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let (readback, padded_row) =
+            readback_buffer(&self.device, "cellproj readback", width, height, texel);
         self.targets = Some(Targets {
             width,
             height,

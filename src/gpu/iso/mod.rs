@@ -46,8 +46,8 @@ use crate::gpu::shells::{
     encode_assembly, window,
 };
 use crate::gpu::util::{
-    bind_group_layout, bounding_sphere, buffer_entry, entry, map_read, ms_since,
-    pipeline_layout_for, scalar_frame, settings_error, wgsl_module,
+    bind_group_layout, bounding_sphere, buffer_entry, check_image_size, entry, map_read, ms_since,
+    pipeline_layout_for, readback_buffer, scalar_frame, settings_error, wgsl_module,
 };
 use crate::gpu::{GpuContext, GpuError, shaders};
 use crate::image::Image;
@@ -402,12 +402,7 @@ impl IsoRenderer {
         {
             return Ok(());
         }
-        let max = self.limits.max_texture_dimension_2d;
-        if width > max || height > max {
-            return Err(settings_error(format!(
-                "image size {width}x{height} exceeds this adapter's largest texture ({max}x{max})"
-            )));
-        }
+        check_image_size(&self.limits, width, height)?;
         let texture = |label, format, usage| {
             self.device.create_texture(&wgpu::TextureDescriptor {
                 label: Some(label),
@@ -432,21 +427,15 @@ impl IsoRenderer {
             DEPTH_FORMAT,
             wgpu::TextureUsages::RENDER_ATTACHMENT,
         );
-        let padded_row = (width * 16).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
-        let readback = |label| {
-            self.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: padded_row as u64 * height as u64,
-                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            })
-        };
+        let readback = |label| readback_buffer(&self.device, label, width, height, 16);
+        let (color_readback, padded_row) = readback("iso colour readback");
+        let (geometry_readback, _) = readback("iso geometry readback");
         self.targets = Some(Targets {
             width,
             height,
             depth_view: depth.create_view(&Default::default()),
-            color_readback: readback("iso colour readback"),
-            geometry_readback: readback("iso geometry readback"),
+            color_readback,
+            geometry_readback,
             color,
             geometry,
             padded_row,
