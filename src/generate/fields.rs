@@ -26,7 +26,8 @@ pub enum Field {
 }
 
 /// Field names accepted by [`Field::from_str`], for messages and `--help`.
-pub const FIELD_CHOICES: &str = "gaussians, marschner-lobb, linear, radial, constant:<value>";
+pub(crate) const FIELD_CHOICES: &str =
+    "gaussians, marschner-lobb, linear, radial, constant:<value>";
 
 /// A string that names no [`Field`].
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]

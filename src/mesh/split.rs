@@ -10,10 +10,15 @@
 /// Cell types tetvr reads; numbering and vertex order follow VTK (`vtkCellType.h`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum CellKind {
+    /// 4-node tetrahedron (VTK 10), kept as it is.
     Tetra,
+    /// 8-node axis-aligned hexahedron in VTK's voxel order (VTK 11): 6 tets.
     Voxel,
+    /// 8-node hexahedron (VTK 12): 6 tets.
     Hexahedron,
+    /// 6-node triangular prism (VTK 13): 3 tets.
     Wedge,
+    /// 5-node pyramid (VTK 14): 2 tets.
     Pyramid,
     /// 10-node tetrahedron: rendered through its four corner nodes.
     QuadraticTetra,
@@ -52,7 +57,7 @@ const PYRAMID_FACES: [&[usize]; 5] = [
 
 impl CellKind {
     /// The kind for a VTK cell type id, if tetvr reads it.
-    pub fn from_vtk(id: u32) -> Option<Self> {
+    pub(crate) fn from_vtk(id: u32) -> Option<Self> {
         Some(match id {
             10 => Self::Tetra,
             11 => Self::Voxel,
@@ -100,7 +105,7 @@ impl CellKind {
 
 /// Appends the tets of one cell (global vertex indices `v`, `v.len() == kind.vertex_count()`)
 /// to `out`. Orientation is not fixed here; [`crate::mesh::TetMesh::new`] reorients.
-pub fn split_cell(kind: CellKind, v: &[u32], out: &mut Vec<[u32; 4]>) {
+pub(crate) fn split_cell(kind: CellKind, v: &[u32], out: &mut Vec<[u32; 4]>) {
     debug_assert_eq!(v.len(), kind.vertex_count());
     if matches!(kind, CellKind::Tetra | CellKind::QuadraticTetra) {
         out.push([v[0], v[1], v[2], v[3]]);

@@ -42,17 +42,17 @@ pub enum Shading {
 }
 
 /// Ambient term of [`shade`].
-pub const AMBIENT: f64 = 0.15;
+pub(crate) const AMBIENT: f64 = 0.15;
 /// Diffuse weight of [`shade`].
-pub const DIFFUSE: f64 = 0.75;
+pub(crate) const DIFFUSE: f64 = 0.75;
 /// Specular weight of [`shade`] (white highlight).
-pub const SPECULAR: f64 = 0.25;
+pub(crate) const SPECULAR: f64 = 0.25;
 /// Blinn-Phong exponent of [`shade`].
-pub const SHININESS: f64 = 32.0;
+pub(crate) const SHININESS: f64 = 32.0;
 
 /// The first isosurface hit along a ray.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct IsoHit {
+pub(crate) struct IsoHit {
     /// Distance from the ray origin (the ray direction is unit).
     pub t: f64,
     /// Unit world-space gradient direction at the hit (towards increasing scalar).
@@ -87,7 +87,7 @@ fn gradient_times_det(p: [DVec3; 4], s: [f64; 4]) -> (DVec3, f64) {
 
 /// The gradient of the linear interpolant of scalars `s` over the tet with corners `p`; `None`
 /// for a tet of zero volume (or non-finite input).
-pub fn tet_gradient(p: [DVec3; 4], s: [f64; 4]) -> Option<DVec3> {
+pub(crate) fn tet_gradient(p: [DVec3; 4], s: [f64; 4]) -> Option<DVec3> {
     let (g, det) = gradient_times_det(p, s);
     let grad = g / det;
     (det != 0.0 && grad.is_finite()).then_some(grad)
@@ -112,7 +112,11 @@ pub fn barycentric(p: [DVec3; 4], x: DVec3) -> Option<[f64; 4]> {
 /// gradients weighted by their volumes (`sum |V| grad / sum |V|`); zero at a vertex whose tets
 /// all have zero volume. Per-tet terms are computed in parallel; the scatter to vertices is
 /// sequential (4 additions per tet).
-pub fn vertex_gradients(positions: &[DVec3], tets: &[[u32; 4]], scalars: &[f64]) -> Vec<DVec3> {
+pub(crate) fn vertex_gradients(
+    positions: &[DVec3],
+    tets: &[[u32; 4]],
+    scalars: &[f64],
+) -> Vec<DVec3> {
     let terms: Vec<(DVec3, f64)> = tets
         .par_iter()
         .map(|t| {
@@ -141,7 +145,7 @@ pub fn vertex_gradients(positions: &[DVec3], tets: &[[u32; 4]], scalars: &[f64])
 
 /// Headlight Blinn-Phong: `base (AMBIENT + DIFFUSE n.v) + SPECULAR (n.v)^SHININESS`, with
 /// `n.v = |normal . dir|` (two-sided), clamped to [0, 1], opaque. `normal` and `dir` unit.
-pub fn shade(base: [f32; 3], normal: DVec3, dir: DVec3) -> [f32; 4] {
+pub(crate) fn shade(base: [f32; 3], normal: DVec3, dir: DVec3) -> [f32; 4] {
     let ndv = normal.dot(dir).abs().min(1.0);
     let spec = SPECULAR * ndv.powf(SHININESS);
     let c = base.map(|b| ((b as f64) * (AMBIENT + DIFFUSE * ndv) + spec).clamp(0.0, 1.0) as f32);
@@ -186,7 +190,7 @@ impl<'a> IsoReference<'a> {
     }
 
     /// The first hit of the ray `origin + t dir`, `t >= 0`, `dir` unit (see the module docs).
-    pub fn first_hit(&self, origin: DVec3, dir: DVec3) -> Option<IsoHit> {
+    pub(crate) fn first_hit(&self, origin: DVec3, dir: DVec3) -> Option<IsoHit> {
         let mesh = self.reference.mesh();
         for seg in self.reference.segments(origin, dir) {
             if seg.s_in == seg.s_out {
