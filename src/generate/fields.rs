@@ -26,8 +26,7 @@ pub enum Field {
 }
 
 /// Field names accepted by [`Field::from_str`], for messages and `--help`.
-pub(crate) const FIELD_CHOICES: &str =
-    "gaussians, marschner-lobb, linear, radial, constant:<value>";
+pub const FIELD_CHOICES: &str = "gaussians, marschner-lobb, linear, radial, constant:<value>";
 
 /// A string that names no [`Field`].
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]

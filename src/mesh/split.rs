@@ -105,7 +105,7 @@ impl CellKind {
 
 /// Appends the tets of one cell (global vertex indices `v`, `v.len() == kind.vertex_count()`)
 /// to `out`. Orientation is not fixed here; [`crate::mesh::TetMesh::new`] reorients.
-pub(crate) fn split_cell(kind: CellKind, v: &[u32], out: &mut Vec<[u32; 4]>) {
+pub fn split_cell(kind: CellKind, v: &[u32], out: &mut Vec<[u32; 4]>) {
     debug_assert_eq!(v.len(), kind.vertex_count());
     if matches!(kind, CellKind::Tetra | CellKind::QuadraticTetra) {
         out.push([v[0], v[1], v[2], v[3]]);

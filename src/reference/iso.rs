@@ -42,13 +42,13 @@ pub enum Shading {
 }
 
 /// Ambient term of [`shade`].
-pub(crate) const AMBIENT: f64 = 0.15;
+pub const AMBIENT: f64 = 0.15;
 /// Diffuse weight of [`shade`].
-pub(crate) const DIFFUSE: f64 = 0.75;
+pub const DIFFUSE: f64 = 0.75;
 /// Specular weight of [`shade`] (white highlight).
-pub(crate) const SPECULAR: f64 = 0.25;
+pub const SPECULAR: f64 = 0.25;
 /// Blinn-Phong exponent of [`shade`].
-pub(crate) const SHININESS: f64 = 32.0;
+pub const SHININESS: f64 = 32.0;
 
 /// The first isosurface hit along a ray.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -112,11 +112,7 @@ pub fn barycentric(p: [DVec3; 4], x: DVec3) -> Option<[f64; 4]> {
 /// gradients weighted by their volumes (`sum |V| grad / sum |V|`); zero at a vertex whose tets
 /// all have zero volume. Per-tet terms are computed in parallel; the scatter to vertices is
 /// sequential (4 additions per tet).
-pub(crate) fn vertex_gradients(
-    positions: &[DVec3],
-    tets: &[[u32; 4]],
-    scalars: &[f64],
-) -> Vec<DVec3> {
+pub fn vertex_gradients(positions: &[DVec3], tets: &[[u32; 4]], scalars: &[f64]) -> Vec<DVec3> {
     let terms: Vec<(DVec3, f64)> = tets
         .par_iter()
         .map(|t| {
@@ -145,7 +141,7 @@ pub(crate) fn vertex_gradients(
 
 /// Headlight Blinn-Phong: `base (AMBIENT + DIFFUSE n.v) + SPECULAR (n.v)^SHININESS`, with
 /// `n.v = |normal . dir|` (two-sided), clamped to [0, 1], opaque. `normal` and `dir` unit.
-pub(crate) fn shade(base: [f32; 3], normal: DVec3, dir: DVec3) -> [f32; 4] {
+pub fn shade(base: [f32; 3], normal: DVec3, dir: DVec3) -> [f32; 4] {
     let ndv = normal.dot(dir).abs().min(1.0);
     let spec = SPECULAR * ndv.powf(SHININESS);
     let c = base.map(|b| ((b as f64) * (AMBIENT + DIFFUSE * ndv) + spec).clamp(0.0, 1.0) as f32);

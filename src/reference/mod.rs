@@ -51,10 +51,10 @@ use crate::tf::TransferFunction;
 
 use bvh::{BoxRay, Bvh};
 pub use clip::Segment;
-pub(crate) use integrate::integrate_segment;
+pub use integrate::integrate_segment;
 
 /// Transmittance below which a ray stops (see the module docs for why it keeps 1e-6).
-pub(crate) const MIN_TRANSMITTANCE: f64 = 1e-9;
+pub const MIN_TRANSMITTANCE: f64 = 1e-9;
 
 /// The exact f64 ray caster over one mesh; see the module docs.
 #[derive(Clone, Debug)]
