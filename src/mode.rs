@@ -161,3 +161,88 @@ pub fn iso_surfaces(tf: &TransferFunction, isovalues: &[f64]) -> Vec<(f64, [f32;
         .map(|&v| (v, tf.eval(v).color.map(|c| c as f32)))
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Mutex;
+
+    use glam::UVec3;
+
+    use super::*;
+    use crate::camera::{Camera, View};
+    use crate::generate::{Field, grid};
+
+    fn scene() -> (TetMesh, Camera, TransferFunction) {
+        let mesh = grid(Field::Gaussians, UVec3::splat(3), "f").unwrap();
+        let (lo, hi) = mesh.bounds();
+        let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 12, 9);
+        let tf = TransferFunction::default_for_range(0.0, 1.0, mesh.diagonal() / 100.0).unwrap();
+        (mesh, camera, tf)
+    }
+
+    #[test]
+    fn auto_without_an_adapter_is_the_reference_and_says_so() {
+        let auto = ModeSettings::Auto(ShellSettings::default());
+        assert!(matches!(auto.resolve(None), ModeSettings::Reference(_)));
+        assert_eq!(auto.note(None), Some(CPU_FALLBACK_NOTE));
+        assert_eq!(auto.describe(None), "mode reference, exact f64 on the CPU");
+        let (mesh, ..) = scene();
+        assert_eq!(auto.build(None, &mesh).unwrap().name(), "reference");
+        let reference = ModeSettings::Reference(ReferenceSettings::default());
+        assert_eq!(reference.note(None), None);
+    }
+
+    #[test]
+    fn a_gpu_mode_without_a_gpu_names_the_mesa_package() {
+        let (mesh, ..) = scene();
+        for mode in [
+            ModeSettings::Shells(ShellSettings::default()),
+            ModeSettings::Iso(IsoSettings::default()),
+            ModeSettings::CellProj(CellProjSettings::default()),
+        ] {
+            let message = match mode.build(None, &mesh) {
+                Err(e) => e.to_string(),
+                Ok(_) => panic!("{} built without a GPU", mode.name()),
+            };
+            assert!(message.contains("mesa-vulkan-drivers"), "{message}");
+        }
+    }
+
+    /// The reference behind the trait renders the same image, bit for bit, as called directly,
+    /// and reports every row once, ending at the image's height.
+    #[test]
+    fn the_reference_reports_its_rows_and_renders_the_same_image() {
+        let (mesh, camera, tf) = scene();
+        let rows = std::sync::Arc::new(Mutex::new(Vec::new()));
+        let seen = rows.clone();
+        let mode = ModeSettings::Reference(ReferenceSettings {
+            progress: Some(Progress::new(move |done, total| {
+                seen.lock().unwrap().push((done, total))
+            })),
+        });
+        let frame = mode
+            .build(None, &mesh)
+            .unwrap()
+            .render(&camera, &tf)
+            .unwrap();
+        let direct = ReferenceRenderer::new(&mesh)
+            .unwrap()
+            .render_image(&camera, &tf, None)
+            .unwrap();
+        assert_eq!(frame.image, direct);
+        let mut rows = rows.lock().unwrap().clone();
+        rows.sort();
+        let want: Vec<(u64, u64)> = (1..=9).map(|done| (done, 9)).collect();
+        assert_eq!(rows, want);
+    }
+
+    #[test]
+    fn iso_surfaces_take_the_tf_colour_at_their_isovalue() {
+        let (.., tf) = scene();
+        let surfaces = iso_surfaces(&tf, &[0.25, 0.75]);
+        for (&(v, color), want) in surfaces.iter().zip([0.25, 0.75]) {
+            assert_eq!(v, want);
+            assert_eq!(color, tf.eval(want).color.map(|c| c as f32));
+        }
+    }
+}
