@@ -3,8 +3,9 @@
 //! - **Scenes** ([`catalogue`]): the real meshes of `../shared/data`, generated grids from 10k
 //!   to 10M tets, a non-convex box with a hole, and a deforming mesh; each with its views
 //!   ([`ViewKind`]: outside, grazing, eye inside).
-//! - **Configurations** ([`configurations`]): a mode name, a setting label and a constructor of a
-//!   [`Renderer`]. A new mode or setting joins the bench by adding one entry there.
+//! - **Configurations** ([`configurations`]): a mode name, a setting label and the mode's
+//!   [`ModeSettings`] for a scene, which build its [`Renderer`] as every front end does. A new
+//!   mode or setting joins the bench by adding one entry there.
 //! - **Measurement** ([`measure`]): warm-up frames, then the median wall time of `runs` frames
 //!   (each frame reads its image back, so the GPU is drained), per-stage medians from
 //!   [`Frame::timings`](tetvr::render::Frame), tets per second, GPU memory
