@@ -10,17 +10,17 @@
 use std::path::PathBuf;
 
 use tetvr::gpu::cellproj::sort::sort_check;
-use tetvr::gpu::{AdapterChoice, CellProjRenderer, CellProjSettings, GpuContext, Integrate};
+use tetvr::gpu::{AdapterChoice, CellProjSettings, GpuContext, Integrate};
 use tetvr::reference::ReferenceRenderer;
 use tetvr::tf::file::load_tf;
-use tetvr::{Camera, Image, Renderer, Timings, TransferFunction, View, io};
+use tetvr::{Camera, Image, ModeSettings, Renderer, Timings, TransferFunction, View, io};
 
 /// (stage, median milliseconds).
 type Stages = Vec<(&'static str, f64)>;
 
 /// Median of each stage over `frames` frames after one warm-up.
 fn median_frames(
-    r: &mut CellProjRenderer,
+    r: &mut dyn Renderer,
     camera: &Camera,
     tf: &TransferFunction,
     frames: usize,
@@ -71,8 +71,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             integrate,
             ..Default::default()
         };
-        let mut r = CellProjRenderer::new(&ctx, &mesh, settings)?;
-        let (image, stages) = median_frames(&mut r, &camera, &tf, 5)?;
+        let mut r = ModeSettings::CellProj(settings).build(Some(&ctx), &mesh)?;
+        let (image, stages) = median_frames(r.as_mut(), &camera, &tf, 5)?;
         let split: Vec<String> = stages
             .iter()
             .map(|(n, ms)| format!("{n} {ms:.1}"))
@@ -93,7 +93,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             table_lengths: n / 2,
             ..Default::default()
         };
-        let mut r = CellProjRenderer::new(&ctx, &mesh, settings)?;
+        let mut r = ModeSettings::CellProj(settings).build(Some(&ctx), &mesh)?;
         let frame = r.render(&camera, &tf)?;
         println!(
             "table {n}x{n}x{}: build {:.1} ms, vs reference {}",

@@ -11,8 +11,8 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use tetvr::deform::Deformation;
-use tetvr::gpu::{AdapterChoice, GpuContext, ShellSettings, ShellsRenderer};
-use tetvr::{Camera, Renderer, TransferFunction, View, io};
+use tetvr::gpu::{AdapterChoice, GpuContext, ShellSettings};
+use tetvr::{Camera, ModeSettings, TransferFunction, View, io};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -34,7 +34,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 384, 384);
 
     let ctx = GpuContext::new(AdapterChoice::from_env())?;
-    let mut renderer = ShellsRenderer::new(&ctx, &mesh, ShellSettings::default())?;
+    let mut renderer = ModeSettings::Shells(ShellSettings::default()).build(Some(&ctx), &mesh)?;
     for i in 0..frames {
         let t = Instant::now();
         let moved = deformation.apply(mesh.positions(), lo, hi, 0.5, i as f64 / frames as f64);

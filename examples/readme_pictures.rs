@@ -8,10 +8,10 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use tetvr::gpu::{AdapterChoice, GpuContext, ShellSettings, ShellsRenderer};
+use tetvr::gpu::{AdapterChoice, GpuContext, ShellSettings};
 use tetvr::reference::ReferenceRenderer;
 use tetvr::tf::file::load_tf;
-use tetvr::{Camera, Image, Renderer, View, io};
+use tetvr::{Camera, Image, ModeSettings, View, io};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -29,7 +29,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let camera = Camera::framing(lo, hi, View::ISO, distance.parse()?, 30.0, size, size);
 
     let ctx = GpuContext::new(AdapterChoice::from_env())?;
-    let mut shells = ShellsRenderer::new(&ctx, &mesh, ShellSettings::default())?;
+    let mut shells = ModeSettings::Shells(ShellSettings::default()).build(Some(&ctx), &mesh)?;
     let first = shells.render(&camera, &tf)?; // warm-up
     let t = Instant::now();
     let frame = shells.render(&camera, &tf)?;

@@ -13,10 +13,10 @@ use std::path::PathBuf;
 use std::rc::Rc;
 
 use glam::{DVec3, UVec3};
-use tetvr::gpu::{AdapterChoice, GpuContext, ShellSettings, ShellsRenderer, Skip, Skips};
+use tetvr::gpu::{AdapterChoice, GpuContext, ShellSettings, Skip, Skips};
 use tetvr::reference::ReferenceRenderer;
 use tetvr::tf::ControlPoint;
-use tetvr::{Camera, Frame, Image, Renderer, TetMesh, Timings, TransferFunction, View};
+use tetvr::{Camera, Frame, Image, ModeSettings, TetMesh, Timings, TransferFunction, View};
 
 /// One scene: a mesh, a camera and a transfer function.
 struct Scene {
@@ -245,8 +245,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             skips,
             ..Default::default()
         };
-        let mut on = ShellsRenderer::new(&ctx, mesh, with(Skips::ALL))?;
-        let mut off = ShellsRenderer::new(&ctx, mesh, with(Skips::ALL.without(skip)))?;
+        let build = |skips| ModeSettings::Shells(with(skips)).build(Some(&ctx), mesh);
+        let mut on = build(Skips::ALL)?;
+        let mut off = build(Skips::ALL.without(skip))?;
         on.render(&sc.camera, &sc.tf)?;
         off.render(&sc.camera, &sc.tf)?;
         let (mut a, mut b) = (Vec::new(), Vec::new());

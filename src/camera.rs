@@ -8,11 +8,17 @@ use glam::DVec3;
 /// A perspective camera: eye, target, up, vertical field of view, image size in pixels.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Camera {
+    /// Eye position, world units.
     pub eye: DVec3,
+    /// The point the camera looks at (the centre of the image).
     pub target: DVec3,
+    /// Up direction (need not be orthogonal to the view direction, nor parallel to it).
     pub up: DVec3,
+    /// Vertical field of view in degrees, in (0, 180).
     pub fov_y_deg: f64,
+    /// Image width in pixels (at least 1).
     pub width: u32,
+    /// Image height in pixels (at least 1).
     pub height: u32,
 }
 
@@ -22,17 +28,23 @@ pub enum CameraError {
     #[error(
         "the eye and the target are the same point; move the eye (--eye) or the target (--target)"
     )]
+    /// The eye and the target coincide: no viewing direction.
     EyeAtTarget,
+    /// The up vector is zero or parallel to the viewing direction.
     #[error("the up vector is zero or parallel to the viewing direction; pick another --up")]
     BadUp,
+    /// The field of view (degrees) is not in (0, 180).
     #[error("field of view {0} degrees is outside (0, 180); use e.g. --fov 30")]
     BadFov(f64),
+    /// The image has no pixels (width x height).
     #[error("image size {0}x{1} is empty; use e.g. --size 512x512")]
     EmptyImage(u32, u32),
     #[error(
         "unknown view '{0}'; use one of +x, -x, +y, -y, +z, -z, iso, or AZIMUTH,ELEVATION in degrees"
     )]
+    /// A view name that is not one of the known directions.
     UnknownView(String),
+    /// A position, direction or angle is NaN or infinite.
     #[error("the camera setting is not finite; check the numbers given")]
     NotFinite,
 }
@@ -41,7 +53,9 @@ pub enum CameraError {
 /// (azimuth from +x towards +y, elevation towards +z).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct View {
+    /// Degrees from +x towards +y.
     pub azimuth_deg: f64,
+    /// Degrees above the xy plane, in [-90, 90].
     pub elevation_deg: f64,
 }
 
@@ -162,11 +176,11 @@ impl Camera {
     }
 
     /// `tan(fov_y / 2)`: the image plane's half height at distance 1.
-    pub fn tan_half_fov(&self) -> f64 {
+    pub(crate) fn tan_half_fov(&self) -> f64 {
         (self.fov_y_deg.to_radians() * 0.5).tan()
     }
 
-    pub fn aspect(&self) -> f64 {
+    pub(crate) fn aspect(&self) -> f64 {
         self.width as f64 / self.height as f64
     }
 

@@ -6,23 +6,34 @@ use std::path::Path;
 /// A premultiplied RGBA image over transparent black, row-major, y down.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Image {
+    /// Width in pixels.
     pub width: u32,
+    /// Height in pixels.
     pub height: u32,
+    /// `width * height` pixels, row by row from the top, premultiplied RGBA in [0, 1].
     pub pixels: Vec<[f32; 4]>,
 }
 
+/// Problems reading, writing or comparing images; each names the file or the sizes.
 #[derive(Debug, thiserror::Error)]
 pub enum ImageError {
+    /// A PNG could not be written (the folder is missing or not writable, the disk is full).
     #[error("{path}: cannot write the PNG: {source}")]
     Write {
+        /// The PNG file.
         path: String,
+        /// The encoder's or the system's error.
         source: image::ImageError,
     },
+    /// A PNG could not be read or decoded.
     #[error("{path}: cannot read the PNG: {source}")]
     Read {
+        /// The PNG file.
         path: String,
+        /// The decoder's or the system's error.
         source: image::ImageError,
     },
+    /// Two images to compare differ in size (width x height of each).
     #[error("images differ in size: {0}x{1} and {2}x{3}; render both at the same --size")]
     SizeMismatch(u32, u32, u32, u32),
 }
@@ -55,6 +66,7 @@ impl std::fmt::Display for ErrorMetrics {
 }
 
 impl Image {
+    /// A transparent black image of `width` x `height` pixels.
     pub fn new(width: u32, height: u32) -> Self {
         Self {
             width,
@@ -63,6 +75,7 @@ impl Image {
         }
     }
 
+    /// The pixel at column `x`, row `y` (from the top); panics outside the image.
     pub fn get(&self, x: u32, y: u32) -> [f32; 4] {
         self.pixels[(y * self.width + x) as usize]
     }

@@ -1,5 +1,7 @@
-//! The `tetvr` command line: render, info, gpu-info, compare, generate.
+//! The `tetvr` command line: render, animate, iso-export, info, gpu-info, compare, generate,
+//! bench. The bench (scenes, measurement, CSV, plots) lives here, outside the library.
 
+mod bench;
 mod cli;
 
 use std::process::ExitCode;

@@ -4,6 +4,8 @@
 //! A renderer is created once for a mesh (pipelines, buffers, acceleration structures) and then
 //! renders many frames; a deforming mesh hands it new positions or scalars between frames.
 
+use std::sync::Arc;
+
 use glam::DVec3;
 
 use crate::camera::{Camera, CameraError};
@@ -12,16 +14,22 @@ use crate::image::Image;
 use crate::mesh::MeshError;
 use crate::tf::{TfError, TransferFunction};
 
+/// Why a renderer could not be built or could not render; each variant says what to fix.
 #[derive(Debug, thiserror::Error)]
 pub enum RenderError {
+    /// The camera is unusable (see [`CameraError`]).
     #[error(transparent)]
     Camera(#[from] CameraError),
+    /// The mesh (or new positions or scalars for it) is unusable, e.g. it has no scalars.
     #[error(transparent)]
     Mesh(#[from] MeshError),
+    /// The transfer function is invalid.
     #[error(transparent)]
     Tf(#[from] TfError),
+    /// No adapter, or the adapter refused or failed the work (limits, device loss).
     #[error(transparent)]
     Gpu(#[from] GpuError),
+    /// The mode's settings do not fit the mesh or adapter; the message names the setting.
     #[error("{0}")]
     Settings(String),
 }
@@ -38,10 +46,12 @@ pub struct Timings {
 }
 
 impl Timings {
+    /// Records that stage `name` took `ms` milliseconds.
     pub fn stage(&mut self, name: &'static str, ms: f64) {
         self.stages.push((name, ms));
     }
 
+    /// Records a work counter, e.g. `("tets drawn", n)`.
     pub fn count(&mut self, name: &'static str, n: u64) {
         self.counters.push((name, n));
     }
@@ -68,10 +78,35 @@ impl std::fmt::Display for Timings {
     }
 }
 
+/// A report of a long frame's progress: called with (units done, units in all), e.g. image rows,
+/// possibly from several threads at once. Cloning shares the same callback.
+#[derive(Clone)]
+pub struct Progress(Arc<dyn Fn(u64, u64) + Send + Sync>);
+
+impl Progress {
+    /// Wraps `report(done, total)`.
+    pub fn new(report: impl Fn(u64, u64) + Send + Sync + 'static) -> Self {
+        Self(Arc::new(report))
+    }
+
+    /// The callback, as the reference's row loop takes it.
+    pub(crate) fn as_fn(&self) -> &(dyn Fn(u64, u64) + Sync) {
+        &*self.0
+    }
+}
+
+impl std::fmt::Debug for Progress {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Progress(..)")
+    }
+}
+
 /// One rendered frame.
 #[derive(Clone, Debug)]
 pub struct Frame {
+    /// The picture, premultiplied RGBA over transparent black.
     pub image: Image,
+    /// How long its stages took and how much work they did.
     pub timings: Timings,
 }
 

@@ -16,7 +16,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::image::Image;
+use tetvr::image::Image;
 
 /// Version of the reference renderer's output: bump it when a change to `reference` changes
 /// its images, so cached ones are recomputed.

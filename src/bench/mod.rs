@@ -3,16 +3,17 @@
 //! - **Scenes** ([`catalogue`]): the real meshes of `../shared/data`, generated grids from 10k
 //!   to 10M tets, a non-convex box with a hole, and a deforming mesh; each with its views
 //!   ([`ViewKind`]: outside, grazing, eye inside).
-//! - **Configurations** ([`configurations`]): a mode name, a setting label and a constructor of a
-//!   [`Renderer`]. A new mode or setting joins the bench by adding one entry there.
+//! - **Configurations** ([`configurations`]): a mode name, a setting label and the mode's
+//!   [`ModeSettings`] for a scene, which build its [`Renderer`] as every front end does. A new
+//!   mode or setting joins the bench by adding one entry there.
 //! - **Measurement** ([`measure`]): warm-up frames, then the median wall time of `runs` frames
 //!   (each frame reads its image back, so the GPU is drained), per-stage medians from
-//!   [`Frame::timings`](crate::render::Frame), tets per second, GPU memory
+//!   [`Frame::timings`](tetvr::render::Frame), tets per second, GPU memory
 //!   ([`Renderer::gpu_memory`]) and the error metrics of DESIGN.md against the exact reference
-//!   ([`crate::image::Image::compare`]); reference images are cached ([`cache`]).
+//!   ([`tetvr::image::Image::compare`]); reference images are cached ([`cache`]).
 //! - **Truth per mode.** Volume modes are compared with the reference ray caster's image. The
 //!   iso mode is compared with the exact first-hit isosurface of the same isovalue
-//!   ([`crate::reference::iso::IsoReference`]), shaded with the same headlight model and
+//!   ([`tetvr::reference::iso::IsoReference`]), shaded with the same headlight model and
 //!   colour: its image error then measures hit/miss mismatches (as holes and spill), depth and
 //!   normal errors (as colour differences) together.
 //! - **Output** ([`write_csv`], [`plot`]): a CSV with one row per measurement, and SVG plots.
@@ -27,21 +28,21 @@ use std::time::Instant;
 
 use glam::DVec3;
 
-use crate::camera::{Camera, View};
-use crate::deform::Deformation;
-use crate::generate::{self, Field};
-use crate::gpu::{
-    CellProjRenderer, CellProjSettings, GpuContext, Integrate, IsoRenderer, IsoSettings,
-    ShellSettings, ShellsRenderer, Skip, Skips,
+use tetvr::camera::{Camera, View};
+use tetvr::deform::Deformation;
+use tetvr::generate::{self, Field};
+use tetvr::gpu::{
+    CellProjSettings, GpuContext, Integrate, IsoSettings, ShellSettings, Skip, Skips,
 };
-use crate::image::{ErrorMetrics, Image};
-use crate::io;
-use crate::mesh::TetMesh;
-use crate::reference::ReferenceRenderer;
-use crate::reference::iso::{IsoReference, Shading};
-use crate::render::{RenderError, Renderer};
-use crate::tf::file::load_tf;
-use crate::tf::{ControlPoint, TransferFunction};
+use tetvr::image::{ErrorMetrics, Image};
+use tetvr::io;
+use tetvr::mesh::TetMesh;
+use tetvr::mode::{ModeSettings, ReferenceSettings};
+use tetvr::reference::ReferenceRenderer;
+use tetvr::reference::iso::{IsoReference, Shading};
+use tetvr::render::{RenderError, Renderer};
+use tetvr::tf::file::load_tf;
+use tetvr::tf::{ControlPoint, TransferFunction};
 
 use cache::{CacheError, Fnv1a, REFERENCE_VERSION, ReferenceCache};
 
@@ -413,9 +414,8 @@ pub enum Truth {
     Iso(Shading),
 }
 
-/// Builds a configuration's renderer for a scene (on the GPU context when it needs one).
-pub type Builder =
-    Box<dyn Fn(Option<&GpuContext>, &Scene) -> Result<Box<dyn Renderer>, RenderError>>;
+/// A configuration's mode settings for a scene (iso takes the scene's isovalue and colour).
+pub type SettingsFor = Box<dyn Fn(&Scene) -> ModeSettings>;
 
 /// One mode at one quality setting.
 pub struct Config {
@@ -431,7 +431,7 @@ pub struct Config {
     pub single_run: bool,
     /// The scenes it runs on (by name prefix); empty: every scene.
     pub scenes: &'static [&'static str],
-    pub build: Builder,
+    pub settings: SettingsFor,
 }
 
 impl Config {
@@ -439,10 +439,6 @@ impl Config {
     pub fn runs_on(&self, scene: &str) -> bool {
         self.scenes.is_empty() || self.scenes.iter().any(|p| scene.starts_with(p))
     }
-}
-
-fn gpu_ctx(ctx: Option<&GpuContext>) -> Result<&GpuContext, RenderError> {
-    ctx.ok_or_else(|| RenderError::Settings("this configuration needs a GPU adapter".into()))
 }
 
 fn shells(samples: u32, slices_per_shell: Option<u32>) -> Config {
@@ -472,13 +468,7 @@ fn shells_with(
         gpu: true,
         single_run: false,
         scenes,
-        build: Box::new(move |ctx, scene| {
-            Ok(Box::new(ShellsRenderer::new(
-                gpu_ctx(ctx)?,
-                &scene.mesh,
-                settings,
-            )?))
-        }),
+        settings: Box::new(move |_| ModeSettings::Shells(settings)),
     }
 }
 
@@ -493,17 +483,12 @@ fn iso(shading: Shading) -> Config {
         gpu: true,
         single_run: false,
         scenes: &[],
-        build: Box::new(move |ctx, scene| {
-            let settings = IsoSettings {
+        settings: Box::new(move |scene| {
+            ModeSettings::Iso(IsoSettings {
                 isovalues: vec![(scene.isovalue, scene.iso_color())],
                 shading,
                 ..IsoSettings::default()
-            };
-            Ok(Box::new(IsoRenderer::new(
-                gpu_ctx(ctx)?,
-                &scene.mesh,
-                settings,
-            )?))
+            })
         }),
     }
 }
@@ -516,7 +501,7 @@ fn reference() -> Config {
         gpu: false,
         single_run: true,
         scenes: &[],
-        build: Box::new(|_, scene| Ok(Box::new(ReferenceRenderer::new(&scene.mesh)?))),
+        settings: Box::new(|_| ModeSettings::Reference(ReferenceSettings::default())),
     }
 }
 
@@ -542,18 +527,13 @@ fn cellproj(integrate: Integrate, table_size: u32) -> Config {
         gpu: true,
         single_run: false,
         scenes: &[],
-        build: Box::new(move |ctx, scene| {
-            let settings = CellProjSettings {
+        settings: Box::new(move |_| {
+            ModeSettings::CellProj(CellProjSettings {
                 integrate,
                 table_size,
                 table_lengths: (table_size / 2).max(2),
                 ..CellProjSettings::default()
-            };
-            Ok(Box::new(CellProjRenderer::new(
-                gpu_ctx(ctx)?,
-                &scene.mesh,
-                settings,
-            )?))
+            })
         }),
     }
 }
@@ -882,7 +862,7 @@ pub fn run(
                 progress(&what, scene.views.len() as u64);
                 continue;
             }
-            let mut renderer = match (config.build)(ctx, &scene) {
+            let mut renderer = match (config.settings)(&scene).build(ctx, &scene.mesh) {
                 Ok(r) => {
                     gpu_built |= config.gpu;
                     r

@@ -3,10 +3,10 @@
 
 use std::time::Instant;
 
-use indicatif::{ProgressBar, ProgressStyle};
-use tetvr::bench::{
+use crate::bench::{
     self, BenchError, Environment, Options, Plan, QUICK_SCENES, cache::ReferenceCache, plot,
 };
+use indicatif::{ProgressBar, ProgressStyle};
 use tetvr::gpu::{AdapterChoice, GpuContext, GpuError};
 
 use super::BenchArgs;

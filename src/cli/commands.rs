@@ -7,16 +7,17 @@ use indicatif::{ProgressBar, ProgressStyle};
 use tetvr::camera::{Camera, CameraError, View};
 use tetvr::gpu::cellproj::sort::sort_check;
 use tetvr::gpu::{
-    AdapterChoice, CellProjRenderer, CellProjSettings, GpuContext, GpuError, Integrate,
-    IsoRenderer, IsoSettings, ShellSettings, ShellsRenderer,
+    AdapterChoice, CellProjSettings, GpuContext, GpuError, Integrate, IsoSettings, ShellSettings,
+    Skip,
 };
 use tetvr::image::{Image, ImageError};
 use tetvr::io::{self, LoadError, Loaded};
 use tetvr::mesh::MeshError;
 use tetvr::mesh::stats::MeshStats;
+use tetvr::mode::{ModeSettings, ReferenceSettings, iso_surfaces};
 use tetvr::reference::ReferenceRenderer;
 use tetvr::reference::iso::Shading;
-use tetvr::render::{RenderError, Renderer, Timings};
+use tetvr::render::{Progress, RenderError};
 use tetvr::tf::TransferFunction;
 use tetvr::tf::file::{TfFileError, load_tf};
 use tetvr::{TetMesh, generate};
@@ -60,7 +61,7 @@ pub enum CliError {
     #[error(transparent)]
     Export(#[from] tetvr::export::ExportError),
     #[error(transparent)]
-    Bench(Box<tetvr::bench::BenchError>),
+    Bench(Box<crate::bench::BenchError>),
 }
 
 pub fn run(cli: Cli) -> Result<(), CliError> {
@@ -98,17 +99,16 @@ fn render(args: RenderArgs) -> Result<(), CliError> {
     let camera = camera(&args, &mesh)?;
 
     let start = Instant::now();
-    let (image, timings, what) = match choose(args.mode)? {
-        Chosen::Cpu => reference(&mesh, &camera, &tf)?,
-        Chosen::Gpu(ctx) => {
-            let (mut renderer, what) = gpu_renderer(&ctx, &mesh, &args, &tf)?;
-            let frame = renderer.render(&camera, &tf)?;
-            (frame.image, frame.timings, what)
-        }
-    };
+    let (mode, gpu) = open_mode(&args, &mesh, &tf)?;
+    let (mode, bar) = with_row_bar(mode.resolve(gpu.as_ref()), camera.height);
+    let frame = mode.build(gpu.as_ref(), &mesh)?.render(&camera, &tf)?;
+    if let Some(bar) = bar {
+        bar.finish_and_clear();
+    }
+    let (image, what) = (frame.image, mode.describe(gpu.as_ref()));
     let seconds = start.elapsed().as_secs_f64();
     if args.timings {
-        print!("{timings}");
+        print!("{}", frame.timings);
     }
     let output = args.output.clone().unwrap_or_else(|| "tetvr.png".into());
     image.save_png(&output, args.background.color())?;
@@ -169,132 +169,78 @@ fn camera(args: &RenderArgs, mesh: &TetMesh) -> Result<Camera, CliError> {
     Ok(c)
 }
 
-fn reference(
+/// The mode `args` ask for and the GPU it renders on, opened; `auto` without an adapter says in
+/// one line that it falls back to the reference, a GPU mode by name without one is an error.
+fn open_mode(
+    args: &RenderArgs,
     mesh: &TetMesh,
-    camera: &Camera,
     tf: &TransferFunction,
-) -> Result<(tetvr::Image, Timings, String), CliError> {
-    let mut timings = Timings {
-        clock: "wall clock",
-        ..Default::default()
+) -> Result<(ModeSettings, Option<GpuContext>), CliError> {
+    let mode = mode_settings(args, mesh, tf)?;
+    let gpu = mode.open_gpu(AdapterChoice::from_env())?;
+    if let Some(note) = mode.note(gpu.as_ref()) {
+        eprintln!("note: {note}");
+    }
+    Ok((mode, gpu))
+}
+
+/// The reference with a progress bar of its rows; other modes as they are, without one.
+fn with_row_bar(mode: ModeSettings, rows: u32) -> (ModeSettings, Option<ProgressBar>) {
+    let ModeSettings::Reference(_) = mode else {
+        return (mode, None);
     };
-    let t = Instant::now();
-    let renderer = ReferenceRenderer::new(mesh)?;
-    timings.stage("bvh", ms(t));
-    let bar = ProgressBar::new(camera.height as u64).with_style(
+    let bar = ProgressBar::new(rows as u64).with_style(
         ProgressStyle::with_template("reference {bar:40} {pos}/{len} rows, {eta} left")
             .expect("a valid template"),
     );
-    let t = Instant::now();
-    let image = renderer.render_image(camera, tf, Some(&|done, _| bar.set_position(done)))?;
-    bar.finish_and_clear();
-    timings.stage("trace", ms(t));
-    timings.count("rays", camera.width as u64 * camera.height as u64);
-    Ok((
-        image,
-        timings,
-        "mode reference, exact f64 on the CPU".into(),
-    ))
+    let rows_done = bar.clone();
+    let settings = ReferenceSettings {
+        progress: Some(Progress::new(move |done, _| rows_done.set_position(done))),
+    };
+    (ModeSettings::Reference(settings), Some(bar))
 }
 
-/// Where a mode renders: on a GPU context or with the CPU reference.
-enum Chosen {
-    Gpu(Box<GpuContext>),
-    Cpu,
-}
-
-/// The renderer `mode` asks for. `auto` takes any adapter and otherwise says so in one line and
-/// falls back to the reference; a GPU mode by name without an adapter is an error.
-fn choose(mode: Mode) -> Result<Chosen, CliError> {
-    match mode {
-        Mode::Reference => Ok(Chosen::Cpu),
-        Mode::Shells | Mode::Iso | Mode::Cellproj => Ok(Chosen::Gpu(Box::new(GpuContext::new(
-            AdapterChoice::from_env(),
-        )?))),
-        Mode::Auto => match GpuContext::new(AdapterChoice::from_env()) {
-            Ok(ctx) => Ok(Chosen::Gpu(Box::new(ctx))),
-            Err(GpuError::NoAdapter { .. }) => {
-                eprintln!(
-                    "note: no GPU adapter (install mesa-vulkan-drivers for a software one); rendering with the exact CPU reference renderer"
-                );
-                Ok(Chosen::Cpu)
-            }
-            Err(e) => Err(e.into()),
-        },
-    }
-}
-
-/// The GPU renderer of `args.mode` (`auto` means shells) and a description for the user.
-fn gpu_renderer(
-    ctx: &GpuContext,
-    mesh: &TetMesh,
+/// The settings of `args.mode` from the command line.
+fn mode_settings(
     args: &RenderArgs,
+    mesh: &TetMesh,
     tf: &TransferFunction,
-) -> Result<(Box<dyn Renderer>, String), CliError> {
-    if args.mode == Mode::Cellproj {
-        let settings = CellProjSettings {
+) -> Result<ModeSettings, CliError> {
+    let frustum = !args.shells.no_skip.contains(&Skip::Frustum);
+    Ok(match args.mode {
+        Mode::Auto => ModeSettings::Auto(shell_settings(args)),
+        Mode::Reference => ModeSettings::Reference(ReferenceSettings::default()),
+        Mode::Shells => ModeSettings::Shells(shell_settings(args)),
+        Mode::Cellproj => ModeSettings::CellProj(CellProjSettings {
             integrate: match args.cellproj.integrate {
                 IntegrateArg::Table => Integrate::Table,
                 IntegrateArg::Exact => Integrate::Exact,
             },
             table_size: args.cellproj.table_size,
             table_lengths: (args.cellproj.table_size / 2).max(2),
-            frustum: !args.shells.no_skip.contains(&tetvr::gpu::Skip::Frustum),
-        };
-        let renderer = CellProjRenderer::new(ctx, mesh, settings)?;
-        let how = match settings.integrate {
-            Integrate::Table => format!(
-                "{}x{}x{} pre-integration table",
-                settings.table_size, settings.table_size, settings.table_lengths
-            ),
-            Integrate::Exact => "exact segments".into(),
-        };
-        return Ok((
-            Box::new(renderer),
-            format!("mode cellproj ({how}) on {}", ctx.summary()),
-        ));
-    }
-    if args.mode != Mode::Iso {
-        let renderer = ShellsRenderer::new(ctx, mesh, shell_settings(args))?;
-        return Ok((
-            Box::new(renderer),
-            format!("mode shells on {}", ctx.summary()),
-        ));
-    }
-    let isovalues = if args.iso.is_empty() {
-        let (lo, hi) = mesh
-            .active_array()
-            .and_then(|a| a.range())
-            .ok_or(MeshError::NoScalars)?;
-        vec![0.5 * (lo + hi)]
-    } else {
-        args.iso.clone()
-    };
-    let described = isovalues
-        .iter()
-        .map(|v| format!("{v}"))
-        .collect::<Vec<_>>()
-        .join(", ");
-    // Each surface takes the transfer function's colour at its isovalue.
-    let isovalues = isovalues
-        .into_iter()
-        .map(|v| (v, tf.eval(v).color.map(|c| c as f32)))
-        .collect();
-    let shading = match args.shading {
-        ShadingArg::Flat => Shading::Flat,
-        ShadingArg::Smooth => Shading::Smooth,
-    };
-    let settings = IsoSettings {
-        isovalues,
-        shading,
-        frustum: !args.shells.no_skip.contains(&tetvr::gpu::Skip::Frustum),
-        ..Default::default()
-    };
-    let renderer = IsoRenderer::new(ctx, mesh, settings)?;
-    Ok((
-        Box::new(renderer),
-        format!("mode iso at {described} on {}", ctx.summary()),
-    ))
+            frustum,
+        }),
+        Mode::Iso => {
+            let isovalues = if args.iso.is_empty() {
+                let (lo, hi) = mesh
+                    .active_array()
+                    .and_then(|a| a.range())
+                    .ok_or(MeshError::NoScalars)?;
+                vec![0.5 * (lo + hi)]
+            } else {
+                args.iso.clone()
+            };
+            ModeSettings::Iso(IsoSettings {
+                isovalues: iso_surfaces(tf, &isovalues),
+                shading: match args.shading {
+                    ShadingArg::Flat => Shading::Flat,
+                    ShadingArg::Smooth => Shading::Smooth,
+                },
+                frustum,
+                ..Default::default()
+            })
+        }
+    })
 }
 
 fn shell_settings(args: &RenderArgs) -> ShellSettings {
@@ -335,13 +281,9 @@ fn animate(args: AnimateArgs) -> Result<(), CliError> {
     let tf = transfer_function(r, &mesh)?;
     let camera = camera(r, &mesh)?;
     let (lo, hi) = mesh.bounds();
-    let (mut renderer, what): (Box<dyn Renderer>, String) = match choose(r.mode)? {
-        Chosen::Cpu => (
-            Box::new(ReferenceRenderer::new(&mesh)?),
-            "reference on the CPU".into(),
-        ),
-        Chosen::Gpu(ctx) => gpu_renderer(&ctx, &mesh, r, &tf)?,
-    };
+    let (mode, gpu) = open_mode(r, &mesh, &tf)?;
+    let mut renderer = mode.build(gpu.as_ref(), &mesh)?;
+    let what = mode.describe(gpu.as_ref());
     let bar = ProgressBar::new(args.frames as u64).with_style(
         ProgressStyle::with_template("frame {pos}/{len} {bar:40} {eta} left")
             .expect("a valid template"),

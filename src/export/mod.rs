@@ -26,21 +26,39 @@ pub use marching::{Surface, isosurfaces};
 /// Why an isosurface could not be exported.
 #[derive(Debug, thiserror::Error)]
 pub enum ExportError {
+    /// The file could not be written.
     #[error("{path}: cannot write the glTF file: {source}")]
     Write {
+        /// The output file.
         path: String,
+        /// Why the system refused.
         source: std::io::Error,
     },
+    /// No isovalue produced a triangle.
     #[error(
         "no isosurface to export: isovalues {isovalues} miss the scalar range [{lo}, {hi}] \
          (or only meet tets where the field is constant); choose values inside the range"
     )]
-    Empty { isovalues: String, lo: f64, hi: f64 },
+    Empty {
+        /// The isovalues asked for, comma separated.
+        isovalues: String,
+        /// The scalar range's minimum.
+        lo: f64,
+        /// The scalar range's maximum.
+        hi: f64,
+    },
+    /// The surfaces exceed what a .glb can hold.
     #[error(
         "the isosurfaces have {vertices} vertices and {bytes} bytes of geometry; a .glb holds at \
          most 4 GiB and u32 indices; export fewer isovalues or a coarser mesh"
     )]
-    TooLarge { vertices: usize, bytes: usize },
+    TooLarge {
+        /// Vertices over all surfaces.
+        vertices: usize,
+        /// Bytes of geometry.
+        bytes: usize,
+    },
+    /// The glTF encoder failed (the message is its own).
     #[error("encoding the glTF file failed: {0}")]
     Encode(String),
 }
@@ -48,15 +66,20 @@ pub enum ExportError {
 /// A surface to export with its colour (linear RGB in [0, 1]).
 #[derive(Clone, Copy, Debug)]
 pub struct Colored<'a> {
+    /// The triangles.
     pub surface: &'a Surface,
+    /// Their colour.
     pub color: [f32; 3],
 }
 
 /// Counts of what was written.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct ExportCounts {
+    /// Surfaces (glTF meshes) written.
     pub surfaces: usize,
+    /// Vertices over all surfaces.
     pub vertices: usize,
+    /// Triangles over all surfaces.
     pub triangles: usize,
 }
 

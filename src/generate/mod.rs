@@ -24,12 +24,27 @@ pub const MAX_GENERATED_TETS: u64 = 1 << 30;
 /// Why a generator could not make a mesh.
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
 pub enum GenerateError {
+    /// A grid with no cell along some axis.
     #[error("a grid needs at least one cell along each axis, got {x} x {y} x {z}")]
-    NoCells { x: u32, y: u32, z: u32 },
+    NoCells {
+        /// Cells along x.
+        x: u32,
+        /// Cells along y.
+        y: u32,
+        /// Cells along z.
+        z: u32,
+    },
+    /// More tets than a generator makes.
     #[error(
         "{requested} tets asked for; generators make at most {max} (tetvr numbers tet faces in 32 bits)"
     )]
-    TooManyTets { requested: u64, max: u64 },
+    TooManyTets {
+        /// Tets asked for.
+        requested: u64,
+        /// The most a generator makes.
+        max: u64,
+    },
+    /// The generated mesh failed validation (a field gave non-finite values).
     #[error(transparent)]
     Mesh(#[from] MeshError),
 }

@@ -40,45 +40,96 @@ impl Default for VolumeToTets {
 /// Why a volume could not be turned into tets; every message names the file.
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
 pub enum VolumeError {
+    /// The file is missing or not NIfTI-1.
     #[error("{path}: cannot read it as NIfTI-1 (.nii or .nii.gz): {message}")]
-    Read { path: String, message: String },
+    Read {
+        /// The volume file.
+        path: String,
+        /// The reader's message.
+        message: String,
+    },
+    /// The volume is not three-dimensional.
     #[error(
         "{path}: has dimensions {dims:?}; tetvr needs a 3D scalar volume (x, y, z, and any further dimension of size 1)"
     )]
-    NotVolume3d { path: String, dims: Vec<usize> },
+    NotVolume3d {
+        /// The volume file.
+        path: String,
+        /// Its dimensions.
+        dims: Vec<usize>,
+    },
+    /// A downsample factor of 0.
     #[error("{path}: downsample factor {factor} is invalid; use 1 (every voxel) or more")]
-    BadDownsample { path: String, factor: u32 },
+    BadDownsample {
+        /// The volume file.
+        path: String,
+        /// The factor given.
+        factor: u32,
+    },
+    /// Downsampling leaves no cell along some axis.
     #[error(
         "{path}: downsampling {dims:?} voxels by {factor} leaves fewer than 2 samples along an axis; use a smaller factor"
     )]
     TooSmall {
+        /// The volume file.
         path: String,
+        /// Voxels along x, y, z.
         dims: [usize; 3],
+        /// The factor given.
         factor: u32,
     },
+    /// The header's voxel spacing is zero or not finite.
     #[error("{path}: voxel spacing pixdim[1..4] = {spacing:?} must be non-zero and finite")]
-    BadSpacing { path: String, spacing: [f32; 3] },
+    BadSpacing {
+        /// The volume file.
+        path: String,
+        /// pixdim[1..4] of the header.
+        spacing: [f32; 3],
+    },
+    /// A voxel value is NaN or infinite.
     #[error("{path}: voxel ({x}, {y}, {z}) has the non-finite value {value}")]
     NonFinite {
+        /// The volume file.
         path: String,
+        /// The voxel's x index.
         x: usize,
+        /// The voxel's y index.
         y: usize,
+        /// The voxel's z index.
         z: usize,
+        /// Its value.
         value: f64,
     },
+    /// The threshold is NaN or infinite.
     #[error("{path}: threshold {threshold} must be a finite number")]
-    BadThreshold { path: String, threshold: f64 },
+    BadThreshold {
+        /// The volume file.
+        path: String,
+        /// The threshold given.
+        threshold: f64,
+    },
+    /// The threshold drops every cell.
     #[error(
         "{path}: every cell is below the threshold {threshold} (intensities range from {lo} to {hi}); lower it"
     )]
     AllBelowThreshold {
+        /// The volume file.
         path: String,
+        /// The threshold given.
         threshold: f64,
+        /// The smallest intensity.
         lo: f64,
+        /// The largest intensity.
         hi: f64,
     },
+    /// The tets could not be made (too many of them).
     #[error("{path}: {source}")]
-    Generate { path: String, source: GenerateError },
+    Generate {
+        /// The volume file.
+        path: String,
+        /// Why the generator refused.
+        source: GenerateError,
+    },
 }
 
 /// Reads the NIfTI-1 volume at `path` (gzip-compressed if it ends in `.gz`) and splits it into

@@ -44,7 +44,7 @@ pub enum Format {
 
 impl Format {
     /// The format for a path's extension (`.vtk`, `.vtu`, `.msh`, `.node`/`.ele`), if known.
-    pub fn from_path(path: &Path) -> Option<Format> {
+    pub(crate) fn from_path(path: &Path) -> Option<Format> {
         let ext = path.extension()?.to_str()?.to_ascii_lowercase();
         Some(match ext.as_str() {
             "vtk" => Format::VtkLegacy,
@@ -59,6 +59,7 @@ impl Format {
 /// What a reader found and converted besides the mesh itself.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LoadReport {
+    /// The file format read.
     pub format: Format,
     /// Tets with negative orientation in the file (or from splitting), reoriented.
     pub reoriented: usize,
@@ -73,7 +74,9 @@ pub struct LoadReport {
 /// A loaded mesh and what the reader did to get it.
 #[derive(Clone, Debug)]
 pub struct Loaded {
+    /// The mesh, its tets positively oriented.
     pub mesh: TetMesh,
+    /// What was converted or ignored on the way.
     pub report: LoadReport,
 }
 
@@ -87,7 +90,12 @@ pub enum Location {
     /// 0-based cell index in the order of the file (all cells, skipped ones included).
     Cell(usize),
     /// 0-based element index in the file's order and its tag (Gmsh, TetGen).
-    Element { index: usize, tag: u64 },
+    Element {
+        /// 0-based index in the file's order.
+        index: usize,
+        /// The element's tag (its number in the file).
+        tag: u64,
+    },
 }
 
 impl fmt::Display for Location {
@@ -104,6 +112,7 @@ impl fmt::Display for Location {
 /// What is wrong with a file.
 #[derive(Debug, thiserror::Error)]
 pub enum LoadErrorKind {
+    /// The file cannot be opened or read (missing, no permission).
     #[error("cannot read the file: {0}")]
     Io(#[from] std::io::Error),
     /// The file does not follow its format; the message says what was expected.
@@ -111,7 +120,12 @@ pub enum LoadErrorKind {
     Malformed(String),
     /// The file stops before the data its headers announce.
     #[error("file ends inside {section} (expected {missing} more bytes)")]
-    Truncated { section: String, missing: u64 },
+    Truncated {
+        /// The part of the file being read, e.g. `POINTS`.
+        section: String,
+        /// Bytes still expected.
+        missing: u64,
+    },
     /// Valid in its format, but not something tetvr reads (the message says what it does read).
     #[error("{0}")]
     Unsupported(String),
@@ -124,8 +138,11 @@ pub enum LoadErrorKind {
 #[derive(Debug, thiserror::Error)]
 #[error("{path}: {}{kind}", location_prefix(.location))]
 pub struct LoadError {
+    /// The file, as given.
     pub path: String,
+    /// Where in it, when known.
     pub location: Option<Location>,
+    /// What is wrong.
     pub kind: LoadErrorKind,
 }
 
@@ -158,7 +175,9 @@ impl LoadError {
 #[derive(Debug, thiserror::Error)]
 #[error("{path}: cannot write the mesh: {source}")]
 pub struct WriteError {
+    /// The file, as given.
     pub path: String,
+    /// Why the system refused.
     pub source: std::io::Error,
 }
 

@@ -18,11 +18,14 @@ pub use topology::{Adjacency, BoundaryFace, NO_NEIGHBOR};
 /// A named per-vertex scalar field.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ScalarArray {
+    /// The array's name as in the file (unique within a mesh).
     pub name: String,
+    /// One value per vertex, in data units.
     pub values: Vec<f64>,
 }
 
 impl ScalarArray {
+    /// An array named `name` with one value per vertex (checked when added to a mesh).
     pub fn new(name: impl Into<String>, values: Vec<f64>) -> Self {
         Self {
             name: name.into(),
@@ -47,39 +50,76 @@ pub struct BuildReport {
 /// name (see [`crate::io::LoadError`]).
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
 pub enum MeshError {
+    /// No tets are left (the file has none, or only cells tetvr ignores).
     #[error("the mesh has no tetrahedra (after splitting other cell types)")]
     NoTets,
+    /// A tet names a vertex that does not exist.
     #[error("tet {tet} uses vertex index {index}, but the mesh has only {count} vertices")]
     IndexOutOfRange {
+        /// 0-based tet index.
         tet: usize,
+        /// The vertex index it uses.
         index: u64,
+        /// Vertices in the mesh.
         count: usize,
     },
+    /// A tet names the same vertex twice.
     #[error("tet {tet} repeats vertex {index}: a tetrahedron needs four distinct vertices")]
-    RepeatedIndex { tet: usize, index: u32 },
+    RepeatedIndex {
+        /// 0-based tet index.
+        tet: usize,
+        /// The repeated vertex index.
+        index: u32,
+    },
+    /// A vertex position is NaN or infinite.
     #[error("vertex {vertex} has a non-finite coordinate ({x}, {y}, {z})")]
     NonFiniteCoordinate {
+        /// 0-based vertex index.
         vertex: usize,
+        /// Its x coordinate.
         x: f64,
+        /// Its y coordinate.
         y: f64,
+        /// Its z coordinate.
         z: f64,
     },
+    /// A scalar value is NaN or infinite.
     #[error("scalar array '{array}' has the non-finite value {value} at vertex {vertex}")]
     NonFiniteScalar {
+        /// The array's name.
         array: String,
+        /// 0-based vertex index.
         vertex: usize,
+        /// The value.
         value: f64,
     },
+    /// A scalar array has not one value per vertex.
     #[error("scalar array '{array}' has {len} values, but the mesh has {count} vertices")]
     ArrayLength {
+        /// The array's name.
         array: String,
+        /// Values it has.
         len: usize,
+        /// Vertices in the mesh.
         count: usize,
     },
+    /// More vertices than 32-bit indices can name.
     #[error("the mesh has {count} vertices; tetvr indexes vertices with 32 bits (at most {max})")]
-    TooManyVertices { count: usize, max: u64 },
+    TooManyVertices {
+        /// Vertices in the mesh.
+        count: usize,
+        /// The most tetvr indexes.
+        max: u64,
+    },
+    /// The array asked for (`--array`) is not in the mesh.
     #[error("no scalar array named '{name}'; the mesh has: {available}")]
-    NoSuchArray { name: String, available: String },
+    NoSuchArray {
+        /// The name asked for.
+        name: String,
+        /// The mesh's array names, comma separated.
+        available: String,
+    },
+    /// The mesh has no per-vertex scalars, which every mode renders.
     #[error("the mesh has no per-vertex scalar array to render; add POINT_DATA to the file")]
     NoScalars,
 }
@@ -154,22 +194,27 @@ impl TetMesh {
         ))
     }
 
+    /// Vertex positions in world units.
     pub fn positions(&self) -> &[DVec3] {
         &self.positions
     }
 
+    /// The tets as four vertex indices each, positively oriented.
     pub fn tets(&self) -> &[[u32; 4]] {
         &self.tets
     }
 
+    /// Every per-vertex scalar array, in file order.
     pub fn arrays(&self) -> &[ScalarArray] {
         &self.arrays
     }
 
+    /// Number of vertices.
     pub fn vertex_count(&self) -> usize {
         self.positions.len()
     }
 
+    /// Number of tets.
     pub fn tet_count(&self) -> usize {
         self.tets.len()
     }
@@ -201,7 +246,7 @@ impl TetMesh {
     }
 
     /// The names of all arrays, comma separated (for messages).
-    pub fn array_names(&self) -> String {
+    pub(crate) fn array_names(&self) -> String {
         if self.arrays.is_empty() {
             return "(none)".to_owned();
         }
@@ -302,7 +347,7 @@ fn check_positions(positions: &[DVec3]) -> Result<(), MeshError> {
 
 /// Checks positions that replace those of a mesh of `count` vertices (a deforming mesh, a
 /// renderer's `update_positions`): as many, all finite.
-pub fn check_new_positions(positions: &[DVec3], count: usize) -> Result<(), MeshError> {
+pub(crate) fn check_new_positions(positions: &[DVec3], count: usize) -> Result<(), MeshError> {
     if positions.len() != count {
         return Err(MeshError::ArrayLength {
             array: "positions".into(),
@@ -315,7 +360,7 @@ pub fn check_new_positions(positions: &[DVec3], count: usize) -> Result<(), Mesh
 
 /// Checks the values of scalar array `array` for a mesh of `count` vertices: as many, all
 /// finite.
-pub fn check_values(array: &str, values: &[f64], count: usize) -> Result<(), MeshError> {
+pub(crate) fn check_values(array: &str, values: &[f64], count: usize) -> Result<(), MeshError> {
     if values.len() != count {
         return Err(MeshError::ArrayLength {
             array: array.into(),
@@ -338,7 +383,7 @@ fn check_array(a: &ScalarArray, count: usize) -> Result<(), MeshError> {
 }
 
 /// Axis-aligned bounding box (min, max) of `positions`.
-pub fn bounding_box(positions: &[DVec3]) -> (DVec3, DVec3) {
+pub(crate) fn bounding_box(positions: &[DVec3]) -> (DVec3, DVec3) {
     positions
         .par_iter()
         .fold(
@@ -352,7 +397,7 @@ pub fn bounding_box(positions: &[DVec3]) -> (DVec3, DVec3) {
 }
 
 /// Each tet's (smallest, largest) vertex scalar.
-pub fn tet_ranges(tets: &[[u32; 4]], scalars: &[f64]) -> Vec<(f64, f64)> {
+pub(crate) fn tet_ranges(tets: &[[u32; 4]], scalars: &[f64]) -> Vec<(f64, f64)> {
     tets.par_iter()
         .map(|t| {
             let v = t.map(|i| scalars[i as usize]);

@@ -10,10 +10,15 @@
 /// Cell types tetvr reads; numbering and vertex order follow VTK (`vtkCellType.h`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum CellKind {
+    /// 4-node tetrahedron (VTK 10), kept as it is.
     Tetra,
+    /// 8-node axis-aligned hexahedron in VTK's voxel order (VTK 11): 6 tets.
     Voxel,
+    /// 8-node hexahedron (VTK 12): 6 tets.
     Hexahedron,
+    /// 6-node triangular prism (VTK 13): 3 tets.
     Wedge,
+    /// 5-node pyramid (VTK 14): 2 tets.
     Pyramid,
     /// 10-node tetrahedron: rendered through its four corner nodes.
     QuadraticTetra,
@@ -52,7 +57,7 @@ const PYRAMID_FACES: [&[usize]; 5] = [
 
 impl CellKind {
     /// The kind for a VTK cell type id, if tetvr reads it.
-    pub fn from_vtk(id: u32) -> Option<Self> {
+    pub(crate) fn from_vtk(id: u32) -> Option<Self> {
         Some(match id {
             10 => Self::Tetra,
             11 => Self::Voxel,

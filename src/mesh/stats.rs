@@ -42,8 +42,11 @@ const ORIENT_ERROR_BOUND: f64 = (7.0 + 56.0 * f64::EPSILON / 2.0) * f64::EPSILON
 /// Counts of values in equal-width bins over `[lo, hi)`, with the values outside counted apart.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Histogram {
+    /// Lower edge of the first bin.
     pub lo: f64,
+    /// Upper edge of the last bin.
     pub hi: f64,
+    /// Values per bin, equal widths from `lo` to `hi`.
     pub counts: Vec<usize>,
     /// Values below `lo` (including -inf, e.g. the log of a zero volume).
     pub below: usize,
@@ -79,7 +82,7 @@ impl Histogram {
     }
 
     /// The bin-wise sum of two histograms with the same bins.
-    pub fn merge(mut self, other: &Self) -> Self {
+    pub(crate) fn merge(mut self, other: &Self) -> Self {
         debug_assert!(self.lo == other.lo && self.hi == other.hi);
         for (a, b) in self.counts.iter_mut().zip(&other.counts) {
             *a += b;
@@ -90,7 +93,7 @@ impl Histogram {
     }
 
     /// The bounds `[start, end)` of bin `i`.
-    pub fn bin_range(&self, i: usize) -> (f64, f64) {
+    pub(crate) fn bin_range(&self, i: usize) -> (f64, f64) {
         let w = (self.hi - self.lo) / self.counts.len() as f64;
         (self.lo + i as f64 * w, self.lo + (i + 1) as f64 * w)
     }
@@ -104,6 +107,7 @@ impl Histogram {
 /// The range of one scalar array.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ArrayStats {
+    /// The array's name.
     pub name: String,
     /// (min, max); `None` only for an array without values.
     pub range: Option<(f64, f64)>,
@@ -114,24 +118,34 @@ pub struct ArrayStats {
 /// Everything `tetvr info` reports about a mesh. See the module docs for the definitions.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MeshStats {
+    /// Vertex count.
     pub vertices: usize,
+    /// Tet count.
     pub tets: usize,
     /// Axis-aligned bounding box (min, max) and the length of its diagonal.
     pub bounds: (DVec3, DVec3),
+    /// Length of the bounding box's diagonal, world units.
     pub diagonal: f64,
+    /// Each scalar array's range.
     pub arrays: Vec<ArrayStats>,
     /// Sum of the tets' absolute volumes, and their min, mean and max.
     pub total_volume: f64,
+    /// Smallest absolute tet volume.
     pub min_volume: f64,
+    /// Mean absolute tet volume.
     pub mean_volume: f64,
+    /// Largest absolute tet volume.
     pub max_volume: f64,
     /// log10(|V| / mean |V|) over bins of one decade from 1e-12 to 1e2; zero volumes fall below.
     pub relative_volume: Histogram,
     /// Quality `q` ([`tet_quality`]): min, mean, and log10(q) over half-decade bins from
     /// [`NEAR_DEGENERATE_QUALITY`] to 1 (so `below` counts zero-volume plus near-degenerate tets).
     pub min_quality: f64,
+    /// Mean quality `q`.
     pub mean_quality: f64,
+    /// log10(q) over half-decade bins (see [`Self::min_quality`]).
     pub quality: Histogram,
+    /// Tets of zero volume within f64 rounding (see the module docs).
     pub zero_volume_tets: usize,
     /// Near-degenerate tets, not counting the zero-volume ones.
     pub near_degenerate_tets: usize,
@@ -141,10 +155,13 @@ pub struct MeshStats {
     /// Tets that [`TetMesh::new`] reoriented when the mesh was built, when the caller knows it
     /// (from the build or load report).
     pub reoriented: Option<usize>,
+    /// Vertices at exactly the same position as an earlier one.
     pub duplicate_vertices: usize,
     /// Vertices that no tet uses.
     pub unused_vertices: usize,
+    /// Faces with no neighbour across them.
     pub boundary_faces: usize,
+    /// Faces shared by more than two tets.
     pub non_manifold_faces: usize,
     /// [`crate::mesh::Adjacency::is_convex`]: rays enter and leave the mesh once.
     pub convex: bool,
@@ -354,7 +371,7 @@ fn unused_vertices(mesh: &TetMesh) -> usize {
 }
 
 /// `n` with thousands separators: 40960 -> "40,960".
-pub fn thousands(n: usize) -> String {
+pub(crate) fn thousands(n: usize) -> String {
     let digits = n.to_string();
     let mut out = String::with_capacity(digits.len() + digits.len() / 3);
     for (i, ch) in digits.chars().enumerate() {

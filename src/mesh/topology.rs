@@ -17,15 +17,20 @@ pub const FACES: [[usize; 3]; 4] = [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]];
 /// A face on the mesh boundary: tet, local face index, and its vertices in outward order.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct BoundaryFace {
+    /// The tet the face belongs to.
     pub tet: u32,
+    /// Its local face index (0 to 3, opposite that vertex; see [`FACES`]).
     pub face: u8,
+    /// Its vertices, counter-clockwise seen from outside.
     pub vertices: [u32; 3],
 }
 
 /// Each tet's four neighbours across its faces ([`NO_NEIGHBOR`] on the boundary).
 #[derive(Clone, Debug)]
 pub struct Adjacency {
+    /// Per tet, the tet across each local face ([`NO_NEIGHBOR`] where there is none).
     pub neighbors: Vec<[u32; 4]>,
+    /// Every face with no neighbour across it.
     pub boundary: Vec<BoundaryFace>,
     /// Faces shared by more than two tets (not a manifold); they count as boundary faces.
     pub non_manifold_faces: usize,

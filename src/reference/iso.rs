@@ -52,7 +52,7 @@ pub const SHININESS: f64 = 32.0;
 
 /// The first isosurface hit along a ray.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct IsoHit {
+pub(crate) struct IsoHit {
     /// Distance from the ray origin (the ray direction is unit).
     pub t: f64,
     /// Unit world-space gradient direction at the hit (towards increasing scalar).
@@ -87,7 +87,7 @@ fn gradient_times_det(p: [DVec3; 4], s: [f64; 4]) -> (DVec3, f64) {
 
 /// The gradient of the linear interpolant of scalars `s` over the tet with corners `p`; `None`
 /// for a tet of zero volume (or non-finite input).
-pub fn tet_gradient(p: [DVec3; 4], s: [f64; 4]) -> Option<DVec3> {
+pub(crate) fn tet_gradient(p: [DVec3; 4], s: [f64; 4]) -> Option<DVec3> {
     let (g, det) = gradient_times_det(p, s);
     let grad = g / det;
     (det != 0.0 && grad.is_finite()).then_some(grad)
@@ -186,7 +186,7 @@ impl<'a> IsoReference<'a> {
     }
 
     /// The first hit of the ray `origin + t dir`, `t >= 0`, `dir` unit (see the module docs).
-    pub fn first_hit(&self, origin: DVec3, dir: DVec3) -> Option<IsoHit> {
+    pub(crate) fn first_hit(&self, origin: DVec3, dir: DVec3) -> Option<IsoHit> {
         let mesh = self.reference.mesh();
         for seg in self.reference.segments(origin, dir) {
             if seg.s_in == seg.s_out {

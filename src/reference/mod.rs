@@ -46,12 +46,12 @@ use rayon::prelude::*;
 use crate::camera::Camera;
 use crate::image::Image;
 use crate::mesh::TetMesh;
-use crate::render::{Frame, RenderError, Renderer, Timings};
+use crate::render::{Frame, Progress, RenderError, Renderer, Timings};
 use crate::tf::TransferFunction;
 
 use bvh::{BoxRay, Bvh};
 pub use clip::Segment;
-pub use integrate::{MAX_SUB_DEPTH, integrate_segment};
+pub use integrate::integrate_segment;
 
 /// Transmittance below which a ray stops (see the module docs for why it keeps 1e-6).
 pub const MIN_TRANSMITTANCE: f64 = 1e-9;
@@ -63,6 +63,8 @@ pub struct ReferenceRenderer {
     bvh: Bvh,
     /// Time of the last BVH build, reported (once) by the next [`Renderer::render`].
     bvh_ms: Option<f64>,
+    /// Told of each finished row by [`Renderer::render`].
+    progress: Option<Progress>,
 }
 
 /// Per-thread buffers reused across rays.
@@ -83,7 +85,14 @@ impl ReferenceRenderer {
             mesh: mesh.clone(),
             bvh,
             bvh_ms: Some(elapsed_ms(start)),
+            progress: None,
         })
+    }
+
+    /// This renderer with `progress` told (rows done, rows in the image) after each row of a
+    /// [`Renderer::render`] frame; `None` tells nobody.
+    pub fn with_progress(self, progress: Option<Progress>) -> Self {
+        Self { progress, ..self }
     }
 
     /// The mesh being rendered (with any updated positions or scalars).
@@ -234,7 +243,8 @@ impl Renderer for ReferenceRenderer {
             timings.stage("bvh", ms);
         }
         let start = Instant::now();
-        let (image, segments) = self.render_counted(camera, tf, None)?;
+        let progress = self.progress.as_ref().map(Progress::as_fn);
+        let (image, segments) = self.render_counted(camera, tf, progress)?;
         timings.stage("trace", elapsed_ms(start));
         timings.count("rays", camera.width as u64 * camera.height as u64);
         timings.count("segments", segments);

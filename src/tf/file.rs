@@ -60,37 +60,70 @@ fn preset_text(name: &str) -> Option<&'static str> {
 /// `preset 'name'` for a built-in preset.
 #[derive(Debug, thiserror::Error)]
 pub enum TfFileError {
+    /// The spec is neither a preset's name nor a file.
     #[error("'{spec}' is neither a transfer function preset ({presets}) nor an existing file")]
-    NotFound { spec: String, presets: String },
+    NotFound {
+        /// The `--tf` value.
+        spec: String,
+        /// The preset names, comma separated.
+        presets: String,
+    },
+    /// The file exists but cannot be read.
     #[error("{file}: cannot read the transfer function: {source}")]
     Read {
+        /// The file.
         file: String,
+        /// Why the system refused.
         source: std::io::Error,
     },
+    /// The file cannot be written.
     #[error("{file}: cannot write the transfer function: {source}")]
     Write {
+        /// The file.
         file: String,
+        /// Why the system refused.
         source: std::io::Error,
     },
+    /// The file is not JSON.
     #[error("{file}: line {line} column {column}: not valid JSON: {message}")]
     Json {
+        /// The file.
         file: String,
+        /// 1-based line of the error.
         line: usize,
+        /// 1-based column of the error.
         column: usize,
+        /// The JSON parser's message.
         message: String,
     },
+    /// The JSON is neither tetvr's format nor a ParaView colour map.
     #[error("{file}: {location}: {message}")]
     Format {
+        /// The file.
         file: String,
+        /// The JSON path of the problem, e.g. `points[3]`.
         location: String,
+        /// What was expected there.
         message: String,
     },
+    /// The control points read are not a valid transfer function.
     #[error("{file}: {source}")]
-    Tf { file: String, source: TfError },
+    Tf {
+        /// The file.
+        file: String,
+        /// What is wrong with the points.
+        source: TfError,
+    },
+    /// A preset cannot be placed on an empty or non-finite scalar range.
     #[error(
         "the data range [{lo}, {hi}] must be finite with lo <= hi to place a transfer function on it"
     )]
-    BadDataRange { lo: f64, hi: f64 },
+    BadDataRange {
+        /// The range's minimum.
+        lo: f64,
+        /// The range's maximum.
+        hi: f64,
+    },
 }
 
 /// Loads a transfer function for data in `data_range`: `spec` is a preset name (see

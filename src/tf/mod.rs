@@ -6,35 +6,53 @@
 pub mod file;
 
 /// Opacities are clamped to this before conversion to extinction, so `tau` stays finite.
-pub const MAX_OPACITY: f64 = 0.9999;
+pub(crate) const MAX_OPACITY: f64 = 0.9999;
 
 /// One control point: scalar value (data units), linear RGB colour in [0, 1], opacity per
 /// unit distance in [0, 1].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ControlPoint {
+    /// Scalar value, data units.
     pub s: f64,
+    /// Linear RGB, each in [0, 1].
     pub color: [f64; 3],
+    /// Opacity gathered over one unit distance, in [0, 1].
     pub opacity: f64,
 }
 
 /// Colour and extinction at one scalar value.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TfSample {
+    /// Linear RGB, each in [0, 1].
     pub color: [f64; 3],
+    /// Extinction per world unit, at least 0.
     pub tau: f64,
 }
 
+/// Why a transfer function is invalid; each message says which control point or value.
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
 pub enum TfError {
+    /// No control points were given.
     #[error("a transfer function needs at least one control point")]
     NoPoints,
+    /// Control point `index` (0-based) has a NaN or infinite value.
     #[error("control point {index} is not finite: every s, r, g, b, a must be a number")]
-    NotFinite { index: usize },
+    NotFinite {
+        /// 0-based control point index.
+        index: usize,
+    },
+    /// Control point `index` has a colour channel or opacity `value` outside [0, 1].
     #[error("control point {index} has colour or opacity {value} outside [0, 1]")]
-    OutOfRange { index: usize, value: f64 },
+    OutOfRange {
+        /// 0-based control point index.
+        index: usize,
+        /// The offending colour channel or opacity.
+        value: f64,
+    },
     #[error(
         "unit distance {0} must be positive and finite (it is the length over which a point's opacity is gathered)"
     )]
+    /// The unit distance is zero, negative or not finite.
     BadUnitDistance(f64),
 }
 
@@ -96,15 +114,17 @@ impl TransferFunction {
         Self::new(points, unit_distance)
     }
 
+    /// The control points, sorted by `s`.
     pub fn points(&self) -> &[ControlPoint] {
         &self.points
     }
 
     /// Extinction of each control point, in the order of [`Self::points`].
-    pub fn taus(&self) -> &[f64] {
+    pub(crate) fn taus(&self) -> &[f64] {
         &self.taus
     }
 
+    /// The length `d_u` (world units) over which a point's opacity is gathered.
     pub fn unit_distance(&self) -> f64 {
         self.unit_distance
     }
