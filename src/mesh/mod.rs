@@ -6,6 +6,7 @@
 //! (`(b - a) . ((c - a) x (d - a)) >= 0`, VTK's convention). [`TetMesh::new`] enforces this and
 //! reports what it had to repair in a [`BuildReport`].
 
+pub mod name;
 pub mod split;
 pub mod stats;
 pub mod topology;
@@ -64,13 +65,13 @@ pub enum MeshError {
         y: f64,
         z: f64,
     },
-    #[error("scalar array '{array}' has the non-finite value {value} at vertex {vertex}")]
+    #[error("scalar array '{}' has the non-finite value {value} at vertex {vertex}", name::shown_name(.array))]
     NonFiniteScalar {
         array: String,
         vertex: usize,
         value: f64,
     },
-    #[error("scalar array '{array}' has {len} values, but the mesh has {count} vertices")]
+    #[error("scalar array '{}' has {len} values, but the mesh has {count} vertices", name::shown_name(.array))]
     ArrayLength {
         array: String,
         len: usize,
@@ -78,7 +79,7 @@ pub enum MeshError {
     },
     #[error("the mesh has {count} vertices; tetvr indexes vertices with 32 bits (at most {max})")]
     TooManyVertices { count: usize, max: u64 },
-    #[error("no scalar array named '{name}'; the mesh has: {available}")]
+    #[error("no scalar array named '{}'; the mesh has: {available}", name::shown_name(.name))]
     NoSuchArray { name: String, available: String },
     #[error("the mesh has no per-vertex scalar array to render; add POINT_DATA to the file")]
     NoScalars,
@@ -200,16 +201,13 @@ impl TetMesh {
         }
     }
 
-    /// The names of all arrays, comma separated (for messages).
+    /// The names of the arrays, comma separated and safe to print (for messages; see
+    /// [`name::shown_list`]).
     pub fn array_names(&self) -> String {
         if self.arrays.is_empty() {
             return "(none)".to_owned();
         }
-        self.arrays
-            .iter()
-            .map(|a| a.name.as_str())
-            .collect::<Vec<_>>()
-            .join(", ")
+        name::shown_list(self.arrays.iter().map(|a| a.name.as_str()))
     }
 
     /// Adds (or replaces, by name) a scalar array and makes it active.
