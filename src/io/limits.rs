@@ -12,7 +12,7 @@
 use std::cell::Cell;
 use std::fmt;
 
-use super::{LoadError, LoadErrorKind};
+use super::{LoadError, LoadErrorKind, OverBudget};
 
 /// Limits on what reading one mesh file may take. `ReadLimits::default()` allows 8 GiB.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -107,12 +107,12 @@ impl<'a> Budget<'a> {
             return Err(LoadError::new(
                 self.name,
                 None,
-                LoadErrorKind::OverBudget {
+                LoadErrorKind::OverBudget(Box::new(OverBudget {
                     what: what(),
                     needed: bytes,
                     total,
                     limit: self.limit,
-                },
+                })),
             ));
         }
         self.used.set(total);

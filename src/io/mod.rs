@@ -124,17 +124,24 @@ pub enum LoadErrorKind {
     #[error(transparent)]
     Mesh(#[from] MeshError),
     /// Reading the file would take more memory than [`ReadLimits::max_memory`] allows.
-    #[error(
-        "{what} needs {}, which brings the memory for reading this file to {}, over the limit of {}; \
-         raise it with --max-memory (ReadLimits::max_memory in the library)",
-        Bytes(*.needed), Bytes(*.total), Bytes(*.limit)
-    )]
-    OverBudget {
-        what: String,
-        needed: u64,
-        total: u64,
-        limit: u64,
-    },
+    #[error(transparent)]
+    OverBudget(Box<OverBudget>),
+}
+
+/// What a file needed beyond [`ReadLimits::max_memory`].
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "{what} needs {}, which brings the memory for reading this file to {}, over the limit of {}; \
+     raise it with --max-memory (ReadLimits::max_memory in the library)",
+    Bytes(*.needed), Bytes(*.total), Bytes(*.limit)
+)]
+pub struct OverBudget {
+    /// The data that needed the memory, e.g. "Points DataArray (60000000 values)".
+    pub what: String,
+    /// Bytes it needed, and the total with what was taken before it.
+    pub needed: u64,
+    pub total: u64,
+    pub limit: u64,
 }
 
 /// A file that could not be read as a mesh: the file, the place in it, and the problem.
