@@ -137,12 +137,23 @@ fn msh(text: String) -> Input {
 fn load_within_bounds(name: &str, input: &Input) -> Result<Loaded, String> {
     let (result, cost) = measured(|| input.load(name));
     let bound = 16 * input.len() + 32 * MIB;
+    println!(
+        "{name}: {:.2} MB in {:.3} s, peak {:.1} MiB (bound {:.1} MiB)",
+        input.len() as f64 / 1e6,
+        cost.seconds,
+        cost.peak as f64 / MIB as f64,
+        bound as f64 / MIB as f64
+    );
     assert!(
         cost.seconds < 1.0 && cost.peak < bound,
         "{name}: {cost:?}, bounds 1 s and {bound} bytes"
     );
     result.map_err(|e| {
         let msg = e.to_string();
+        assert!(
+            msg.starts_with(name),
+            "{name}: the message does not name the file: {msg}"
+        );
         assert!(
             !msg.chars().any(char::is_control) && msg.len() < 2000,
             "{name}: unprintable or long message: {}",
@@ -730,6 +741,32 @@ fn hostile_corpus_gives_clear_errors_within_time_and_memory_bounds() {
             }
             None => {
                 load_within_bounds(file, input).unwrap_or_else(|e| panic!("{file}: {e}"));
+            }
+        }
+    }
+}
+
+/// The on-disk corpus (hand-made malformed files and the valid fixtures) within the same
+/// bounds, read from disk as `tetvr` reads them.
+#[test]
+fn on_disk_corpus_stays_within_the_bounds() {
+    let _s = serial();
+    let root = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/corpus"));
+    for dir in ["malformed", "valid"] {
+        for entry in std::fs::read_dir(root.join(dir)).unwrap() {
+            let path = entry.unwrap().path();
+            let len = std::fs::metadata(&path).unwrap().len() as usize;
+            let (result, cost) = measured(|| tetvr::io::load(&path));
+            let bound = 16 * len + 32 * MIB;
+            let shown = path.display().to_string();
+            assert!(cost.seconds < 1.0 && cost.peak < bound, "{shown}: {cost:?}");
+            match (dir, result) {
+                ("valid", r) => assert!(r.is_ok(), "{shown}: {:?}", r.err()),
+                (_, Ok(_)) => panic!("{shown}: a malformed file loaded"),
+                (_, Err(e)) => {
+                    let msg = e.to_string();
+                    assert!(!msg.chars().any(char::is_control), "{}", msg.escape_debug());
+                }
             }
         }
     }

@@ -4,7 +4,10 @@
 //! The readers are written for hostile input: every count is checked against the bytes that are
 //! actually there before anything is allocated, every index and value is validated, and every
 //! problem is a [`LoadError`] naming the file and the place (line, byte offset, cell or
-//! element). Non-tetrahedral 3D cells (voxels, hexahedra, wedges, pyramids) are split into tets
+//! element). Time is linear in the file (line numbers are counted only for an error; arrays are
+//! found by name in maps), and memory is charged to a budget with a ceiling,
+//! [`ReadLimits`], before it is taken (see the `limits` module). Array names are kept exactly
+//! as read; show them through [`crate::mesh::name`]. Non-tetrahedral 3D cells (voxels, hexahedra, wedges, pyramids) are split into tets
 //! conformingly by [`crate::mesh::split::split_cell`]; quadratic tets keep their corners;
 //! lower-dimensional cells (vertices, lines, triangles, quads, ...) are skipped and counted.
 //!

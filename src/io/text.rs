@@ -177,14 +177,14 @@ impl<'a> Cursor<'a> {
         Ok(())
     }
 
-    /// Calls `each(value index, offset, token)` for the next `count` text tokens.
+    /// Calls `each(value index, offset, token)` for the next `count` text tokens (checked
+    /// with [`Cursor::check_room`] first by the caller).
     fn tokens(
         &mut self,
         count: usize,
         section: &str,
         mut each: impl FnMut(&Self, usize, usize, &'a [u8]) -> Result<(), LoadError>,
     ) -> Result<(), LoadError> {
-        self.check_room(count, section)?;
         for i in 0..count {
             let (at, tok) = self.token().ok_or_else(|| {
                 self.err_line(
@@ -302,6 +302,7 @@ impl<'a> Cursor<'a> {
         if binary.is_some() {
             return self.binary(count, ty, section).map(|_| ());
         }
+        self.check_room(count, section)?;
         self.tokens(count, section, |c, _, at, tok| match parse_float(tok) {
             Some(_) => Ok(()),
             None => Err(c.err_line(
