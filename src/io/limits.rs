@@ -6,7 +6,7 @@
 //! (at most 8 bytes of f64 per byte of `UInt8`). Compressed data is checked against the
 //! declared point and cell counts before it is inflated, and against zlib's largest ratio.
 //! What is left, an honest file whose declared mesh is huge, is capped by
-//! [`ReadLimits::max_memory`]: every allocation sized by the file is charged to a [`Budget`]
+//! [`ReadLimits::max_memory`]: every allocation sized by the file is charged to a `Budget`
 //! first, and the read stops with [`LoadErrorKind::OverBudget`] before the memory is taken.
 
 use std::cell::Cell;
