@@ -130,17 +130,21 @@ fn line_of(data: &[u8], at: usize) -> usize {
         .count()
 }
 
+/// An element's attributes. Repeated keys are found with a set: quick-xml's own check compares
+/// each key with all before it, quadratic in an element of many thousand attributes.
 fn attrs_of(e: &BytesStart) -> Result<Vec<(String, String)>, String> {
     let mut out = Vec::new();
-    for a in e.attributes() {
+    let mut keys = HashSet::new();
+    for a in e.attributes().with_checks(false) {
         let a = a.map_err(|e| format!("bad XML attribute: {e}"))?;
+        let key = String::from_utf8_lossy(a.key.as_ref()).into_owned();
+        if !keys.insert(key.clone()) {
+            return Err(format!("attribute '{}' is repeated", shown(key.as_bytes())));
+        }
         let v = a
             .unescape_value()
             .map_err(|e| format!("bad XML attribute value: {e}"))?;
-        out.push((
-            String::from_utf8_lossy(a.key.as_ref()).into_owned(),
-            v.into_owned(),
-        ));
+        out.push((key, v.into_owned()));
     }
     Ok(out)
 }
