@@ -31,8 +31,8 @@ use std::fmt;
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::TetMesh;
 use super::name::shown_name;
+use super::{TetMesh, pow2, scaled};
 
 /// Quality below which a (nonzero-volume) tet counts as near-degenerate; see the module docs.
 pub const NEAR_DEGENERATE_QUALITY: f64 = 1e-6;
@@ -168,26 +168,6 @@ impl TetMeasure {
     fn volume(&self) -> f64 {
         self.scaled_volume * pow2(self.exp3)
     }
-}
-
-/// `2^e` for any `e`, exact where it is representable (0 below, infinite above f64's range).
-fn pow2(e: i32) -> f64 {
-    // Two factors, each within f64's exponent range, so no intermediate overflows early.
-    let half = e / 2;
-    2f64.powi(half) * 2f64.powi(e - half)
-}
-
-/// The corners scaled by a power of two, `2^-k`, that brings the largest coordinate into
-/// [0.5, 1), and `k`. Scaling by a power of two is exact, so every measure taken on the scaled
-/// corners is the exact measure up to the factor, without overflow for any finite input.
-fn scaled(c: [DVec3; 4]) -> ([DVec3; 4], i32) {
-    let largest = c.iter().map(|p| p.abs().max_element()).fold(0.0, f64::max);
-    if largest == 0.0 {
-        return (c, 0);
-    }
-    let k = largest.log2().floor() as i32 + 1;
-    let s = pow2(-k);
-    (c.map(|p| p * s), k)
 }
 
 /// Volume, quality and zero-volume test of one tet, from the orientation determinant of the
@@ -850,9 +830,13 @@ mod tests {
         let tiny = [DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z];
         let mut p = huge.to_vec();
         p.extend(tiny);
-        let (mesh, _) = TetMesh::new(p, vec![[0, 1, 2, 3], [4, 5, 6, 7]], vec![]).unwrap();
+        // `regular()` is negatively oriented: the huge copy is reoriented (its orientation
+        // determinant was NaN before, and the tet stayed inverted).
+        let (mesh, report) = TetMesh::new(p, vec![[0, 1, 2, 3], [4, 5, 6, 7]], vec![]).unwrap();
+        assert_eq!(report.reoriented, 1);
         let s = MeshStats::compute(&mesh, None);
         assert_eq!((s.zero_volume_tets, s.near_degenerate_tets), (0, 0));
+        assert_eq!(s.inverted_tets, 0);
         assert!(s.total_volume.is_infinite() && s.min_volume == 1.0 / 6.0);
         // The unit tet is ~1e-924 of the mean: below the histogram; the huge one is 2x the mean.
         let h = &s.relative_volume;
