@@ -195,6 +195,27 @@ impl File<'_> {
             .map_or(0, |&v| v as u64)
     }
 
+    /// The file ends inside an array's block: `need` bytes of it, `have` there.
+    fn truncated(&self, at: usize, what: &str, need: u64, have: usize) -> LoadError {
+        LoadError::new(
+            self.name,
+            Some(Location::Byte(at as u64)),
+            LoadErrorKind::Truncated {
+                section: format!("DataArray '{}'", shown_name(what)),
+                missing: need.saturating_sub(have as u64),
+            },
+        )
+    }
+
+    /// Header word `i` of a block.
+    fn word(&self, raw: &[u8], i: usize, at: usize, what: &str) -> Result<u64, LoadError> {
+        let h = self.header;
+        let b = raw
+            .get(i * h..(i + 1) * h)
+            .ok_or_else(|| self.truncated(at, what, ((i + 1) * h) as u64, raw.len()))?;
+        Ok(self.uint(b))
+    }
+
     /// Reads a binary block (header, then data or compressed blocks) from `raw`. `check` sees
     /// the decoded size the header declares before anything is inflated or copied.
     fn block<'b>(
@@ -204,55 +225,51 @@ impl File<'_> {
         what: &str,
         check: &dyn Fn(u64) -> Result<(), LoadError>,
     ) -> Result<Cow<'b, [u8]>, LoadError> {
-        let h = self.header;
-        let trunc = |need: u64| {
-            LoadError::new(
-                self.name,
-                Some(Location::Byte(at as u64)),
-                LoadErrorKind::Truncated {
-                    section: format!("DataArray '{}'", shown_name(what)),
-                    missing: need.saturating_sub(raw.len() as u64),
-                },
-            )
-        };
-        let word = |i: usize| -> Result<u64, LoadError> {
-            let b = raw
-                .get(i * h..(i + 1) * h)
-                .ok_or_else(|| trunc(((i + 1) * h) as u64))?;
-            Ok(self.uint(b))
-        };
-        if !self.compressed {
-            let n = word(0)?;
-            let end = (h as u64).saturating_add(n);
-            if end > raw.len() as u64 {
-                return Err(trunc(end));
-            }
-            check(n)?;
-            return Ok(Cow::Borrowed(&raw[h..end as usize]));
+        if self.compressed {
+            return self.zlib_block(raw, at, what, check).map(Cow::Owned);
         }
+        let n = self.word(raw, 0, at, what)?;
+        let end = (self.header as u64).saturating_add(n);
+        if end > raw.len() as u64 {
+            return Err(self.truncated(at, what, end, raw.len()));
+        }
+        check(n)?;
+        Ok(Cow::Borrowed(&raw[self.header..end as usize]))
+    }
+
+    /// A compressed block: VTK's header (number of blocks, block size, last block size, each
+    /// block's compressed size), then the zlib streams. Every size is checked (against the
+    /// bytes there, zlib's largest ratio, and `check`) before anything is inflated.
+    fn zlib_block(
+        &self,
+        raw: &[u8],
+        at: usize,
+        what: &str,
+        check: &dyn Fn(u64) -> Result<(), LoadError>,
+    ) -> Result<Vec<u8>, LoadError> {
+        let word = |i: usize| self.word(raw, i, at, what);
         let nb = word(0)?;
         let (bs, last) = (word(1)?, word(2)?);
-        let header_end = nb.saturating_add(3).saturating_mul(h as u64);
+        let header_end = nb.saturating_add(3).saturating_mul(self.header as u64);
         if header_end > raw.len() as u64 {
-            return Err(trunc(header_end));
+            return Err(self.truncated(at, what, header_end, raw.len()));
         }
         let nb = nb as usize;
-        let sizes: Vec<u64> = (0..nb).map(|i| word(3 + i)).collect::<Result<_, _>>()?;
-        let compressed = sizes.iter().fold(0u64, |s, &c| s.saturating_add(c));
-        if header_end.saturating_add(compressed) > raw.len() as u64 {
-            return Err(trunc(header_end.saturating_add(compressed)));
+        let compressed: Vec<u64> = (0..nb).map(|i| word(3 + i)).collect::<Result<_, _>>()?;
+        let in_total = compressed.iter().fold(0u64, |s, &c| s.saturating_add(c));
+        if header_end.saturating_add(in_total) > raw.len() as u64 {
+            let need = header_end.saturating_add(in_total);
+            return Err(self.truncated(at, what, need, raw.len()));
         }
-        let block_size = |i: usize| if i + 1 == nb && last != 0 { last } else { bs };
-        let total = (0..nb).fold(0u64, |s, i| s.saturating_add(block_size(i)));
-        if total
-            > compressed
-                .saturating_mul(ZLIB_MAX_RATIO)
-                .saturating_add(1024)
-        {
+        let sizes: Vec<u64> = (0..nb)
+            .map(|i| if i + 1 == nb && last != 0 { last } else { bs })
+            .collect();
+        let total = sizes.iter().fold(0u64, |s, &c| s.saturating_add(c));
+        if total > in_total.saturating_mul(ZLIB_MAX_RATIO).saturating_add(1024) {
             return Err(self.err(
                 at,
                 format!(
-                    "DataArray '{}' declares {total} bytes from {compressed} compressed bytes, more than zlib can produce",
+                    "DataArray '{}' declares {total} bytes from {in_total} compressed bytes, more than zlib can produce",
                     shown_name(what)
                 ),
             ));
@@ -260,36 +277,34 @@ impl File<'_> {
         check(total)?;
         let mut out = Vec::with_capacity(total as usize);
         let mut pos = header_end as usize;
-        for (i, &cs) in sizes.iter().enumerate() {
+        for (i, (&cs, &size)) in compressed.iter().zip(&sizes).enumerate() {
             let src = &raw[pos..pos + cs as usize];
-            let size = block_size(i);
-            let before = out.len();
-            // At most one byte more than declared is inflated: enough to tell it is wrong.
-            flate2::read::ZlibDecoder::new(src)
-                .take(size.saturating_add(1))
-                .read_to_end(&mut out)
-                .map_err(|e| {
-                    self.err(
-                        at,
-                        format!(
-                            "DataArray '{}': block {i} is not valid zlib data: {e}",
-                            shown_name(what)
-                        ),
-                    )
-                })?;
-            if (out.len() - before) as u64 != size {
-                return Err(self.err(
+            self.inflate(src, size, &mut out).map_err(|m| {
+                self.err(
                     at,
-                    format!(
-                        "DataArray '{}': block {i} decompresses to {} bytes, the header says {size}",
-                        shown_name(what),
-                        out.len() - before
-                    ),
-                ));
-            }
+                    format!("DataArray '{}': block {i} {m}", shown_name(what)),
+                )
+            })?;
             pos += cs as usize;
         }
-        Ok(Cow::Owned(out))
+        Ok(out)
+    }
+
+    /// Inflates one zlib stream of declared `size` onto `out`: at most one byte more than
+    /// declared is inflated, enough to tell that it is wrong.
+    fn inflate(&self, src: &[u8], size: u64, out: &mut Vec<u8>) -> Result<(), String> {
+        let before = out.len();
+        flate2::read::ZlibDecoder::new(src)
+            .take(size.saturating_add(1))
+            .read_to_end(out)
+            .map_err(|e| format!("is not valid zlib data: {e}"))?;
+        let got = out.len() - before;
+        if got as u64 != size {
+            return Err(format!(
+                "decompresses to {got} bytes, the header says {size}"
+            ));
+        }
+        Ok(())
     }
 
     /// The binary bytes of an array in `binary` or `appended` format; `check` as for
