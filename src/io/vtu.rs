@@ -149,6 +149,21 @@ fn attrs_of(e: &BytesStart) -> Result<Vec<(String, String)>, String> {
     Ok(out)
 }
 
+/// The whitespace-separated tokens of text, with their offsets.
+fn tokens(t: &[u8]) -> impl Iterator<Item = (usize, &[u8])> {
+    let mut i = 0;
+    std::iter::from_fn(move || {
+        while i < t.len() && t[i].is_ascii_whitespace() {
+            i += 1;
+        }
+        let s = i;
+        while i < t.len() && !t[i].is_ascii_whitespace() {
+            i += 1;
+        }
+        (s < i).then(|| (s, &t[s..i]))
+    })
+}
+
 fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
     hay.windows(needle.len()).position(|w| w == needle)
 }
@@ -416,44 +431,19 @@ impl File<'_> {
         self.bytes(a, &check)
     }
 
-    /// The whitespace-separated tokens of an ascii array with their offsets in the text, at
-    /// most `want.count + 1` of them (one more tells that there are too many).
-    fn tokens<'t>(
-        &self,
-        a: &'t Array,
-        want: Option<&Want>,
-    ) -> Result<Vec<(usize, &'t [u8])>, LoadError> {
-        let t = &a.text;
-        let room = t.len().div_ceil(2);
+    /// How many tokens of an ascii array to read, at most: `want.count + 1` (one more tells
+    /// that there are too many), or all the text can hold. Checks that the text can hold
+    /// `want.count` numbers, and charges the decoded values to the budget.
+    fn ascii_limit(&self, a: &Array, want: Option<&Want>) -> Result<usize, LoadError> {
+        let room = a.text.len().div_ceil(2);
         if let Some(w) = want
             && w.count > room
         {
-            return Err(self.err(
-                a.at,
-                (w.wrong)(
-                    t.split(u8::is_ascii_whitespace)
-                        .filter(|s| !s.is_empty())
-                        .count(),
-                ),
-            ));
+            return Err(self.err(a.at, (w.wrong)(tokens(&a.text).count())));
         }
-        let limit = want.map_or(room, |w| w.count + 1);
-        self.budget.charge_items(limit.min(room), 8, || a.label())?;
-        let mut out = Vec::with_capacity(limit.min(room));
-        let mut i = 0;
-        while i < t.len() && out.len() < limit {
-            while i < t.len() && t[i].is_ascii_whitespace() {
-                i += 1;
-            }
-            let s = i;
-            while i < t.len() && !t[i].is_ascii_whitespace() {
-                i += 1;
-            }
-            if s < i {
-                out.push((s, &t[s..i]));
-            }
-        }
-        Ok(out)
+        let limit = want.map_or(room, |w| (w.count + 1).min(room));
+        self.budget.charge_items(limit, 8, || a.label())?;
+        Ok(limit)
     }
 
     /// The line of an offset in an array's text: counted only for an error.
@@ -472,9 +462,9 @@ impl File<'_> {
         let ty = self.scalar(a)?;
         let what = shown_name(a.name());
         let v = if self.format(a)? == "ascii" {
-            let tokens = self.tokens(a, want)?;
-            let mut v = Vec::with_capacity(tokens.len());
-            for (s, tok) in tokens {
+            let limit = self.ascii_limit(a, want)?;
+            let mut v = Vec::with_capacity(limit);
+            for (s, tok) in tokens(&a.text).take(limit) {
                 let x = std::str::from_utf8(tok)
                     .ok()
                     .and_then(|s| s.parse::<f64>().ok())
@@ -520,9 +510,9 @@ impl File<'_> {
         let ty = self.scalar(a)?;
         let what = shown_name(a.name());
         let v = if self.format(a)? == "ascii" {
-            let tokens = self.tokens(a, Some(want))?;
-            let mut v = Vec::with_capacity(tokens.len());
-            for (s, tok) in tokens {
+            let limit = self.ascii_limit(a, Some(want))?;
+            let mut v = Vec::with_capacity(limit);
+            for (s, tok) in tokens(&a.text).take(limit) {
                 v.push(parse_int(tok).ok_or_else(|| {
                     LoadError::malformed(
                         self.name,
