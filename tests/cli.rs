@@ -231,6 +231,41 @@ fn info_reports_counts_degenerate_and_reoriented_tets() {
     assert!(stdout.contains("2 (reoriented on load)"), "{stdout}");
 }
 
+/// `--max-memory` caps what reading a mesh may take, and names from the file reach the
+/// terminal escaped (a cell array named by an escape sequence that would clear the screen).
+#[test]
+fn info_obeys_max_memory_and_prints_file_names_escaped() {
+    let dir = out_dir("max_memory");
+    let mesh = dir.join("tet.vtk");
+    std::fs::write(
+        &mesh,
+        "# vtk DataFile Version 3.0\nt\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 4 float\n\
+         0 0 0 1 0 0 0 1 0 0 0 1\nCELLS 1 5\n4 0 1 2 3\nCELL_TYPES 1\n10\nCELL_DATA 1\n\
+         SCALARS \u{1b}[2J float 1\nLOOKUP_TABLE default\n7\n",
+    )
+    .unwrap();
+    let path = mesh.to_str().unwrap();
+    let o = tetvr(&["info", path, "--max-memory", "200"]);
+    let (_, stderr) = text(&o);
+    assert_eq!(o.status.code(), Some(1), "{stderr}");
+    for part in ["tet.vtk: ", "over the limit of 200 bytes", "--max-memory"] {
+        assert!(stderr.contains(part), "'{part}' missing from: {stderr}");
+    }
+    let o = tetvr(&["info", path, "--max-memory", "1G"]);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stderr}");
+    assert!(
+        stdout.contains("ignored: \\u{1b}[2J") && !stdout.contains('\u{1b}'),
+        "{stdout}"
+    );
+    let o = tetvr(&["info", path, "--max-memory", "lots"]);
+    assert!(
+        text(&o).1.contains("'lots' is not a size"),
+        "{}",
+        text(&o).1
+    );
+}
+
 #[test]
 fn bad_input_is_an_error_naming_the_file_never_a_panic() {
     let dir = out_dir("bad");

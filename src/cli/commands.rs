@@ -13,6 +13,7 @@ use tetvr::gpu::{
 use tetvr::image::{Image, ImageError};
 use tetvr::io::{self, LoadError, Loaded};
 use tetvr::mesh::MeshError;
+use tetvr::mesh::name::shown_list;
 use tetvr::mesh::stats::MeshStats;
 use tetvr::mode::{ModeSettings, ReferenceSettings, iso_surfaces};
 use tetvr::reference::ReferenceRenderer;
@@ -81,7 +82,11 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
 }
 
 fn load_mesh(args: &MeshArgs) -> Result<Loaded, CliError> {
-    let mut loaded = io::load(&args.mesh)?;
+    let mut limits = io::ReadLimits::default();
+    if let Some(bytes) = args.max_memory {
+        limits.max_memory = bytes;
+    }
+    let mut loaded = io::load_with(&args.mesh, &limits)?;
     if let Some(name) = &args.array {
         loaded.mesh.set_active_array(name)?;
     }
@@ -426,7 +431,7 @@ fn info(args: InfoArgs) -> Result<(), CliError> {
     if !report.skipped_arrays.is_empty() {
         println!(
             "  arrays not usable as point scalars, ignored: {}",
-            report.skipped_arrays.join(", ")
+            shown_list(report.skipped_arrays.iter().map(String::as_str))
         );
     }
     print!("{}", MeshStats::compute(&mesh, Some(report.reoriented)));

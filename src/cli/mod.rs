@@ -98,6 +98,10 @@ pub struct MeshArgs {
     /// Point scalar array to use (default: the file's active scalars).
     #[arg(long)]
     pub array: Option<String>,
+    /// Most memory reading the mesh may take, e.g. 8G, 512M (default 8G): files whose declared
+    /// mesh needs more are refused with what they need.
+    #[arg(long, value_parser = tetvr::io::parse_size)]
+    pub max_memory: Option<u64>,
 }
 
 #[derive(clap::Args, Debug)]

@@ -12,13 +12,19 @@
 //! add their nodes, and a later time step overwrites an earlier one (the last step wins). Every
 //! node must have a value in the end. Binary `$NodeData` stores node tags as 4-byte ints (as
 //! Gmsh writes them). Other sections are skipped.
+//!
+//! A block's values are kept as (node, values) entries until the end, when each array is laid
+//! out per node: memory follows the values in the file, not blocks x nodes (a file of many
+//! empty 9-component blocks reserves nothing).
 
 use std::collections::HashMap;
 
 use super::text::Cursor;
 use super::{
-    Assembler, Format, LoadError, LoadErrorKind, Loaded, Location, Scalar, point_array, shown,
+    Assembler, Budget, Format, LoadError, LoadErrorKind, Loaded, Location, Scalar, point_array,
+    shown,
 };
+use crate::mesh::name::shown_name;
 use crate::mesh::split::CellKind;
 use glam::DVec3;
 
@@ -167,8 +173,52 @@ impl<'a> Reader<'a> {
     }
 }
 
-pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
-    let mut c = Cursor::new(data, name, None);
+/// The values of one array as read: node indices and `nc` values for each, in file order.
+struct NodeArray {
+    name: String,
+    nc: usize,
+    nodes: Vec<u32>,
+    values: Vec<f64>,
+}
+
+/// The arrays so far, found by name in constant time (files may hold many thousand blocks).
+#[derive(Default)]
+struct NodeArrays {
+    list: Vec<NodeArray>,
+    slots: HashMap<String, usize>,
+}
+
+impl NodeArray {
+    /// The values laid out per node (the last value given for a node wins); an error names
+    /// the first node without one.
+    fn dense(self, tags: &[u64], budget: &Budget, file: &str) -> Result<Vec<f64>, LoadError> {
+        let nc = self.nc;
+        let shown_n = shown_name(&self.name);
+        budget.charge_items(tags.len().saturating_mul(nc), 8, || {
+            format!("$NodeData '{shown_n}' for {} nodes", tags.len())
+        })?;
+        let mut out = vec![f64::NAN; tags.len() * nc];
+        for (k, &i) in self.nodes.iter().enumerate() {
+            let i = i as usize;
+            out[i * nc..(i + 1) * nc].copy_from_slice(&self.values[k * nc..(k + 1) * nc]);
+        }
+        // Values read are finite: NaN marks a node without one.
+        match out.iter().step_by(nc).position(|v| v.is_nan()) {
+            Some(i) => Err(LoadError::new(
+                file,
+                None,
+                LoadErrorKind::Malformed(format!(
+                    "$NodeData '{shown_n}' gives no value for node {}",
+                    tags[i]
+                )),
+            )),
+            None => Ok(out),
+        }
+    }
+}
+
+pub(super) fn read(data: &[u8], name: &str, budget: &Budget) -> Result<Loaded, LoadError> {
+    let mut c = Cursor::new(data, name, None, budget);
     let (at, t) = c.expect("$MeshFormat")?;
     if t != b"$MeshFormat" {
         return Err(c.err_line(
@@ -240,7 +290,7 @@ pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
 
     let mut positions: Option<(Vec<DVec3>, Vec<u64>, NodeMap)> = None;
     let mut asm: Option<Assembler> = None;
-    let mut arrays: Vec<(String, usize, Vec<f64>)> = Vec::new();
+    let mut arrays = NodeArrays::default();
     let mut skipped: Vec<String> = Vec::new();
     while let Some((at, t)) = r.c.token() {
         match t {
@@ -258,16 +308,16 @@ pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
                 if asm.is_some() {
                     return Err(r.c.err(at, "a second $Elements section"));
                 }
-                let mut a = Assembler::new(p.len());
+                let mut a = Assembler::new(p.len(), budget);
                 read_elements(&mut r, map, &mut a)?;
                 asm = Some(a);
                 r.expect_end("$EndElements")?;
             }
             b"$NodeData" => {
-                let (p, _, map) = positions
+                let (_, _, map) = positions
                     .as_ref()
                     .ok_or_else(|| r.c.err(at, "$NodeData before $Nodes"))?;
-                read_node_data(&mut r, p.len(), map, &mut arrays)?;
+                read_node_data(&mut r, map, &mut arrays)?;
                 r.expect_end("$EndNodeData")?;
             }
             _ if t.starts_with(b"$") && !t.starts_with(b"$End") => {
@@ -308,19 +358,10 @@ pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
     let (positions, tags, _) =
         positions.ok_or_else(|| r.c.err(end, "the file has no $Nodes section"))?;
     let asm = asm.ok_or_else(|| r.c.err(end, "the file has no $Elements section"))?;
-    let mut out = Vec::with_capacity(arrays.len());
-    for (aname, nc, values) in arrays {
-        if let Some(i) = values.iter().step_by(nc.max(1)).position(|v| v.is_nan()) {
-            return Err(LoadError::new(
-                name,
-                None,
-                LoadErrorKind::Malformed(format!(
-                    "$NodeData '{aname}' gives no value for node {}",
-                    tags[i]
-                )),
-            ));
-        }
-        out.push(point_array(&aname, values, nc));
+    let mut out = Vec::with_capacity(arrays.list.len());
+    for a in arrays.list {
+        let (aname, nc) = (a.name.clone(), a.nc);
+        out.push(point_array(&aname, a.dense(&tags, budget, name)?, nc));
     }
     asm.finish(name, Format::Gmsh, positions, out, skipped)
 }
@@ -348,6 +389,9 @@ fn read_nodes(r: &mut Reader) -> Result<(Vec<DVec3>, Vec<u64>, NodeMap), LoadErr
     }
     // Each node takes at least 4 bytes in any encoding: cap the reservation by the file size.
     let cap = total.min(r.c.remaining() / 4);
+    r.c.budget.charge_items(cap, size_of::<DVec3>() + 8, || {
+        format!("the positions and tags of {cap} nodes")
+    })?;
     let mut positions = Vec::with_capacity(cap);
     let mut tags: Vec<u64> = Vec::with_capacity(cap);
     for _ in 0..blocks {
@@ -409,6 +453,9 @@ fn read_nodes(r: &mut Reader) -> Result<(Vec<DVec3>, Vec<u64>, NodeMap), LoadErr
     }
     let max = tags.iter().copied().max().unwrap_or(0);
     let dup = |t: u64| r.c.err(r.c.pos, format!("node tag {t} is defined twice"));
+    r.c.budget.charge_items(tags.len(), 16, || {
+        format!("the index of {} node tags", tags.len())
+    })?;
     let map = if max <= 2 * tags.len() as u64 + 1024 {
         let mut v = vec![u32::MAX; max as usize + 1];
         for (i, &t) in tags.iter().enumerate() {
@@ -530,8 +577,9 @@ fn read_elements(r: &mut Reader, map: &NodeMap, asm: &mut Assembler) -> Result<(
                         )
                     })? as i64;
                 }
-                asm.cell(kind, ids[..nn].iter().copied())
-                    .map_err(|m| LoadError::malformed(r.c.name, loc.clone(), m))?;
+                asm.cell(kind, &ids[..nn], |m| {
+                    LoadError::malformed(r.c.name, loc.clone(), m)
+                })?;
             } else {
                 return Err(LoadError::unsupported(
                     r.c.name,
@@ -554,12 +602,7 @@ fn read_elements(r: &mut Reader, map: &NodeMap, asm: &mut Assembler) -> Result<(
     Ok(())
 }
 
-fn read_node_data(
-    r: &mut Reader,
-    n_points: usize,
-    map: &NodeMap,
-    arrays: &mut Vec<(String, usize, Vec<f64>)>,
-) -> Result<(), LoadError> {
+fn read_node_data(r: &mut Reader, map: &NodeMap, arrays: &mut NodeArrays) -> Result<(), LoadError> {
     let at = r.c.pos;
     let nstr = r.c.count("the number of string tags")?;
     let mut aname = None;
@@ -573,6 +616,7 @@ fn read_node_data(
         aname.get_or_insert_with(|| String::from_utf8_lossy(s).trim_matches('"').to_owned());
     }
     let aname = aname.unwrap_or_else(|| "NodeData".to_owned());
+    let shown_n = shown_name(&aname);
     let nreal = r.c.count("the number of real tags")?;
     for _ in 0..nreal {
         r.c.parse::<f64>("a real tag")?;
@@ -586,7 +630,7 @@ fn read_node_data(
         return Err(r.c.err(
             at,
             format!(
-                "$NodeData '{aname}' lacks the component and node counts (integer tags 2 and 3)"
+                "$NodeData '{shown_n}' lacks the component and node counts (integer tags 2 and 3)"
             ),
         ));
     };
@@ -596,43 +640,75 @@ fn read_node_data(
         .ok_or_else(|| {
             r.c.err(
                 at,
-                format!("$NodeData '{aname}' has {nc} components (expected 1 to 9)"),
+                format!("$NodeData '{shown_n}' has {nc} components (expected 1 to 9)"),
             )
         })?;
     let n = usize::try_from(n).map_err(|_| {
-        r.c.err(at, format!("$NodeData '{aname}' has a negative node count"))
+        r.c.err(
+            at,
+            format!("$NodeData '{shown_n}' has a negative node count"),
+        )
     })?;
     if r.binary.is_some() {
         r.c.finish_line();
     }
-    let slot = match arrays.iter().position(|(a, _, _)| *a == aname) {
-        Some(i) if arrays[i].1 == nc => i,
+    // An entry takes a 4-byte tag and nc 8-byte values in binary, and at least two bytes per
+    // number in text: check the count against the file before reserving for it.
+    let entry = if r.binary.is_some() {
+        4 + 8 * nc
+    } else {
+        2 * (1 + nc)
+    };
+    if n > r.c.remaining() / entry {
+        return Err(r.c.err(
+            at,
+            format!(
+                "$NodeData '{shown_n}' announces {n} nodes, more than the {} bytes left can hold",
+                r.c.remaining()
+            ),
+        ));
+    }
+    let slot = match arrays.slots.get(&aname) {
+        Some(&i) if arrays.list[i].nc == nc => i,
         Some(_) => {
             return Err(r.c.err(
                 at,
-                format!("$NodeData '{aname}' changes its number of components"),
+                format!("$NodeData '{shown_n}' changes its number of components"),
             ));
         }
         None => {
-            arrays.push((aname.clone(), nc, vec![f64::NAN; n_points * nc]));
-            arrays.len() - 1
+            arrays.slots.insert(aname.clone(), arrays.list.len());
+            arrays.list.push(NodeArray {
+                name: aname.clone(),
+                nc,
+                nodes: Vec::new(),
+                values: Vec::new(),
+            });
+            arrays.list.len() - 1
         }
     };
+    r.c.budget.charge_items(n, 4 + 8 * nc, || {
+        format!("$NodeData '{shown_n}' ({n} nodes)")
+    })?;
+    let a = &mut arrays.list[slot];
+    a.nodes.reserve(n);
+    a.values.reserve(n * nc);
     for _ in 0..n {
         let tat = r.c.pos;
         let tag = r.count(false, "a node tag", "$NodeData")? as u64;
         let i = map.get(tag).ok_or_else(|| {
             r.c.err(
                 tat,
-                format!("$NodeData '{aname}': node {tag} is not defined"),
+                format!("$NodeData '{shown_n}': node {tag} is not defined"),
             )
-        })? as usize;
+        })?;
         let describe = |_: usize, x: f64| {
-            format!("$NodeData '{aname}' has the non-finite value {x} at node {tag}")
+            format!("$NodeData '{shown_n}' has the non-finite value {x} at node {tag}")
         };
         let v =
             r.c.values(nc, Scalar::F64, r.binary, "$NodeData", Some(&describe))?;
-        arrays[slot].2[i * nc..(i + 1) * nc].copy_from_slice(&v);
+        a.nodes.push(i);
+        a.values.extend_from_slice(&v);
     }
     Ok(())
 }

@@ -4,7 +4,10 @@
 //! The readers are written for hostile input: every count is checked against the bytes that are
 //! actually there before anything is allocated, every index and value is validated, and every
 //! problem is a [`LoadError`] naming the file and the place (line, byte offset, cell or
-//! element). Non-tetrahedral 3D cells (voxels, hexahedra, wedges, pyramids) are split into tets
+//! element). Time is linear in the file (line numbers are counted only for an error; arrays are
+//! found by name in maps), and memory is charged to a budget with a ceiling,
+//! [`ReadLimits`], before it is taken (see the `limits` module). Array names are kept exactly
+//! as read; show them through [`crate::mesh::name`]. Non-tetrahedral 3D cells (voxels, hexahedra, wedges, pyramids) are split into tets
 //! conformingly by [`crate::mesh::split::split_cell`]; quadratic tets keep their corners;
 //! lower-dimensional cells (vertices, lines, triangles, quads, ...) are skipped and counted.
 //!
@@ -14,6 +17,7 @@
 //! arrays) is named in [`LoadReport::skipped_arrays`].
 
 mod gmsh;
+mod limits;
 mod tetgen;
 mod text;
 mod vtk;
@@ -27,7 +31,10 @@ use glam::DVec3;
 use crate::mesh::split::{CellKind, split_cell};
 use crate::mesh::{MeshError, ScalarArray, TetMesh};
 
+pub use limits::{Bytes, ReadLimits, parse_size};
 pub use vtu::write_vtu;
+
+pub(crate) use limits::Budget;
 
 /// A mesh file format tetvr reads.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -67,7 +74,8 @@ pub struct LoadReport {
     pub split_cells: Vec<(CellKind, usize)>,
     /// 0D to 2D cells (vertices, lines, triangles, quads, ...) that were ignored.
     pub skipped_cells: usize,
-    /// Arrays not usable as per-vertex scalars (cell data, dataset field data, strings, ...).
+    /// Arrays not usable as per-vertex scalars (cell data, dataset field data, strings, ...),
+    /// named exactly as in the file: show them through [`crate::mesh::name::shown_list`].
     pub skipped_arrays: Vec<String>,
 }
 
@@ -132,6 +140,27 @@ pub enum LoadErrorKind {
     /// The data read is not a valid tetrahedral mesh.
     #[error(transparent)]
     Mesh(#[from] MeshError),
+    /// Reading the file would take more memory than [`ReadLimits::max_memory`] allows.
+    #[error(transparent)]
+    OverBudget(Box<OverBudget>),
+}
+
+/// What a file needed beyond [`ReadLimits::max_memory`].
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "{what} needs {}, which brings the memory for reading this file to {}, over the limit of {}; \
+     raise it with --max-memory (ReadLimits::max_memory in the library)",
+    Bytes(*.needed), Bytes(*.total), Bytes(*.limit)
+)]
+pub struct OverBudget {
+    /// The data that needed the memory, e.g. "Points DataArray (60000000 values)".
+    pub what: String,
+    /// Bytes it needed.
+    pub needed: u64,
+    /// Bytes in all: what it needed with what was taken before it.
+    pub total: u64,
+    /// The limit in bytes ([`ReadLimits::max_memory`]).
+    pub limit: u64,
 }
 
 /// A file that could not be read as a mesh: the file, the place in it, and the problem.
@@ -181,9 +210,15 @@ pub struct WriteError {
     pub source: std::io::Error,
 }
 
-/// Reads a mesh file, choosing the reader by extension. For TetGen either the `.node` or the
-/// `.ele` file may be given; the other is the sibling with the same stem.
+/// Reads a mesh file, choosing the reader by extension, within the default [`ReadLimits`]. For
+/// TetGen either the `.node` or the `.ele` file may be given; the other is the sibling with the
+/// same stem.
 pub fn load(path: &Path) -> Result<Loaded, LoadError> {
+    load_with(path, &ReadLimits::default())
+}
+
+/// [`load`] within `limits`.
+pub fn load_with(path: &Path, limits: &ReadLimits) -> Result<Loaded, LoadError> {
     let shown = path.display().to_string();
     let format = Format::from_path(path).ok_or_else(|| {
         LoadError::new(
@@ -195,30 +230,45 @@ pub fn load(path: &Path) -> Result<Loaded, LoadError> {
         )
     })?;
     let read = |p: &Path| {
-        std::fs::read(p)
-            .map_err(|e| LoadError::new(&p.display().to_string(), None, LoadErrorKind::Io(e)))
+        let name = p.display().to_string();
+        let io = |e| LoadError::new(&name, None, LoadErrorKind::Io(e));
+        // The file's bytes are the first charge on the budget: refuse before reading them.
+        let len = std::fs::metadata(p).map_err(io)?.len();
+        Budget::new(&name, limits).charge(len, || "the file itself".into())?;
+        std::fs::read(p).map_err(io)
     };
     if format == Format::TetGen {
         let node: PathBuf = path.with_extension("node");
         let ele: PathBuf = path.with_extension("ele");
         let (nb, eb) = (read(&node)?, read(&ele)?);
-        return tetgen::read(
-            &nb,
-            &node.display().to_string(),
-            &eb,
-            &ele.display().to_string(),
-        );
+        let (node, ele) = (node.display().to_string(), ele.display().to_string());
+        return tetgen_with_budget(&nb, &node, &eb, &ele, limits);
     }
-    load_bytes(&read(path)?, format, &shown)
+    load_bytes_with(&read(path)?, format, &shown, limits)
 }
 
-/// Reads a mesh from memory; `name` is what errors call the file. A TetGen mesh is two files:
-/// read it with [`load_tetgen_bytes`] (this function refuses [`Format::TetGen`] with an error).
+/// Reads a mesh from memory within the default [`ReadLimits`]; `name` is what errors call the
+/// file. A TetGen mesh is two files: read it with [`load_tetgen_bytes`] (this function refuses
+/// [`Format::TetGen`] with an error).
 pub fn load_bytes(bytes: &[u8], format: Format, name: &str) -> Result<Loaded, LoadError> {
+    load_bytes_with(bytes, format, name, &ReadLimits::default())
+}
+
+/// [`load_bytes`] within `limits` (the bytes given count against them).
+pub fn load_bytes_with(
+    bytes: &[u8],
+    format: Format,
+    name: &str,
+    limits: &ReadLimits,
+) -> Result<Loaded, LoadError> {
+    let budget = Budget::new(name, limits);
+    if format != Format::TetGen {
+        budget.charge(bytes.len() as u64, || "the file itself".into())?;
+    }
     match format {
-        Format::VtkLegacy => vtk::read(bytes, name),
-        Format::Vtu => vtu::read(bytes, name),
-        Format::Gmsh => gmsh::read(bytes, name),
+        Format::VtkLegacy => vtk::read(bytes, name, &budget),
+        Format::Vtu => vtu::read(bytes, name, &budget),
+        Format::Gmsh => gmsh::read(bytes, name, &budget),
         Format::TetGen => Err(LoadError::new(
             name,
             None,
@@ -229,10 +279,34 @@ pub fn load_bytes(bytes: &[u8], format: Format, name: &str) -> Result<Loaded, Lo
     }
 }
 
-/// Reads a TetGen mesh from its `.node` and `.ele` contents; `name` is the common stem that
-/// errors extend with `.node` or `.ele`.
+/// Reads a TetGen mesh from its `.node` and `.ele` contents within the default
+/// [`ReadLimits`]; `name` is the common stem that errors extend with `.node` or `.ele`.
 pub fn load_tetgen_bytes(node: &[u8], ele: &[u8], name: &str) -> Result<Loaded, LoadError> {
-    tetgen::read(node, &format!("{name}.node"), ele, &format!("{name}.ele"))
+    load_tetgen_bytes_with(node, ele, name, &ReadLimits::default())
+}
+
+/// [`load_tetgen_bytes`] within `limits`.
+pub fn load_tetgen_bytes_with(
+    node: &[u8],
+    ele: &[u8],
+    name: &str,
+    limits: &ReadLimits,
+) -> Result<Loaded, LoadError> {
+    let (node_name, ele_name) = (format!("{name}.node"), format!("{name}.ele"));
+    tetgen_with_budget(node, &node_name, ele, &ele_name, limits)
+}
+
+fn tetgen_with_budget(
+    node: &[u8],
+    node_name: &str,
+    ele: &[u8],
+    ele_name: &str,
+    limits: &ReadLimits,
+) -> Result<Loaded, LoadError> {
+    let budget = Budget::new(ele_name, limits);
+    let files = node.len() as u64 + ele.len() as u64;
+    budget.charge(files, || "the .node and .ele files themselves".into())?;
+    tetgen::read(node, node_name, ele, ele_name, &budget)
 }
 
 /// Human name of a cell kind, for messages.
@@ -257,57 +331,73 @@ const KINDS: [CellKind; 6] = [
 ];
 
 /// Collects cells as tets: validates each cell's vertex indices, splits it, and counts kinds.
-pub(crate) struct Assembler {
+/// The tets are charged to the reader's budget as their list grows.
+pub(crate) struct Assembler<'a> {
     n_points: usize,
     tets: Vec<[u32; 4]>,
+    /// Tets paid for in the budget so far.
+    charged: usize,
+    budget: &'a Budget<'a>,
     counts: [usize; 6],
     skipped_cells: usize,
     ids: Vec<u32>,
 }
 
-impl Assembler {
-    pub(crate) fn new(n_points: usize) -> Self {
+impl<'a> Assembler<'a> {
+    pub(crate) fn new(n_points: usize, budget: &'a Budget<'a>) -> Self {
         Self {
             n_points,
             tets: Vec::new(),
+            charged: 0,
+            budget,
             counts: [0; 6],
             skipped_cells: 0,
             ids: Vec::with_capacity(10),
         }
     }
 
-    /// Adds one 3D cell given its 0-based vertex indices (as read, any integer type); the error
-    /// is a message for the reader to locate.
+    /// Adds one 3D cell given its 0-based vertex indices as read; `locate` turns a message
+    /// about the cell into an error at its place in the file. The count is checked before the
+    /// indices, so a cell listing a million vertices costs nothing more than reading them.
     pub(crate) fn cell(
         &mut self,
         kind: CellKind,
-        ids: impl IntoIterator<Item = i64>,
-    ) -> Result<(), String> {
-        self.ids.clear();
-        for id in ids {
-            if id < 0 || id as u64 >= self.n_points as u64 {
-                return Err(format!(
-                    "vertex index {id} of the {} is out of range (the mesh has {} points)",
-                    kind_name(kind),
-                    self.n_points
-                ));
-            }
-            let id = id as u32;
-            if self.ids.contains(&id) {
-                return Err(format!(
-                    "the {} repeats vertex {id}; a cell needs distinct vertices",
-                    kind_name(kind)
-                ));
-            }
-            self.ids.push(id);
-        }
-        if self.ids.len() != kind.vertex_count() {
-            return Err(format!(
+        ids: &[i64],
+        locate: impl Fn(String) -> LoadError,
+    ) -> Result<(), LoadError> {
+        if ids.len() != kind.vertex_count() {
+            return Err(locate(format!(
                 "a {} has {} vertices, the file gives {}",
                 kind_name(kind),
                 kind.vertex_count(),
-                self.ids.len()
-            ));
+                ids.len()
+            )));
+        }
+        self.ids.clear();
+        for &id in ids {
+            if id < 0 || id as u64 >= self.n_points as u64 {
+                return Err(locate(format!(
+                    "vertex index {id} of the {} is out of range (the mesh has {} points)",
+                    kind_name(kind),
+                    self.n_points
+                )));
+            }
+            let id = id as u32;
+            if self.ids.contains(&id) {
+                return Err(locate(format!(
+                    "the {} repeats vertex {id}; a cell needs distinct vertices",
+                    kind_name(kind)
+                )));
+            }
+            self.ids.push(id);
+        }
+        // A cell splits into at most 6 tets; pay for the list's growth ahead, doubling.
+        if self.tets.len() + 6 > self.charged {
+            let more = self.charged.max(1024);
+            self.budget.charge_items(more, size_of::<[u32; 4]>(), || {
+                format!("the tetrahedra beyond the first {}", self.charged)
+            })?;
+            self.charged += more;
         }
         split_cell(kind, &self.ids, &mut self.tets);
         if let Some(k) = KINDS.iter().position(|&k| k == kind) {
@@ -351,9 +441,20 @@ impl Assembler {
     }
 }
 
-/// Converts a value read from a file (any numeric type, decoded as f64) to an index.
+/// A floating-point value read where an integer belongs: the integer, if it is one that i64
+/// holds.
 pub(crate) fn as_index(v: f64) -> Option<i64> {
-    (v.fract() == 0.0 && v.abs() < 9.0e15).then_some(v as i64)
+    const LIMIT: f64 = 9_223_372_036_854_775_808.0; // 2^63
+    (v.fract() == 0.0 && (-LIMIT..LIMIT).contains(&v)).then_some(v as i64)
+}
+
+/// An integer token of a text file, exactly (also a float token holding an integer, as some
+/// writers produce).
+pub(crate) fn parse_int(tok: &[u8]) -> Option<i64> {
+    let s = std::str::from_utf8(tok).ok()?;
+    s.parse::<i64>()
+        .ok()
+        .or_else(|| s.parse::<f64>().ok().and_then(as_index))
 }
 
 /// The Euclidean norm of each tuple of `ncomp` components.
@@ -373,11 +474,16 @@ pub(crate) fn point_array(name: &str, values: Vec<f64>, ncomp: usize) -> ScalarA
     }
 }
 
-/// Positions from a flat x,y,z list.
-pub(crate) fn positions_from(flat: &[f64]) -> Vec<DVec3> {
-    flat.chunks_exact(3)
+/// Positions from a flat x,y,z list, charged to the budget.
+pub(crate) fn positions_from(flat: &[f64], budget: &Budget) -> Result<Vec<DVec3>, LoadError> {
+    let n = flat.len() / 3;
+    budget.charge_items(n, size_of::<DVec3>(), || {
+        format!("the positions of {n} points")
+    })?;
+    Ok(flat
+        .chunks_exact(3)
         .map(|c| DVec3::new(c[0], c[1], c[2]))
-        .collect()
+        .collect())
 }
 
 /// Short, printable excerpt of file bytes for messages.
@@ -419,17 +525,35 @@ impl Scalar {
         }
     }
 
+    /// Decodes `bytes` (a whole number of values) to i64 exactly: integers as they are, floats
+    /// when they hold an integer. The error is the first value that is not an i64, as text.
+    pub(crate) fn decode_ints(self, bytes: &[u8], big_endian: bool) -> Result<Vec<i64>, String> {
+        let it = bytes.chunks_exact(8);
+        match self {
+            Scalar::I64 => Ok(it.map(|c| i64::from_be_bytes(arr(c, big_endian))).collect()),
+            Scalar::U64 => it
+                .map(|c| {
+                    let v = u64::from_be_bytes(arr(c, big_endian));
+                    i64::try_from(v).map_err(|_| v.to_string())
+                })
+                .collect(),
+            Scalar::F32 | Scalar::F64 => self
+                .decode(bytes, big_endian)
+                .into_iter()
+                .map(|x| as_index(x).ok_or_else(|| x.to_string()))
+                .collect(),
+            // Up to 32 bits: exact in f64.
+            _ => Ok(self
+                .decode(bytes, big_endian)
+                .into_iter()
+                .map(|x| x as i64)
+                .collect()),
+        }
+    }
+
     /// Decodes `bytes` (a whole number of values) to f64.
     pub(crate) fn decode(self, bytes: &[u8], big_endian: bool) -> Vec<f64> {
-        fn arr<const N: usize>(c: &[u8], big: bool) -> [u8; N] {
-            let mut a = [0u8; N];
-            a.copy_from_slice(c);
-            if !big {
-                a.reverse();
-            }
-            a
-        }
-        // Everything is read as big-endian bytes after the swap above.
+        // Everything is read as big-endian bytes after `arr`'s swap.
         let n = self.size();
         let it = bytes.chunks_exact(n);
         match self {
@@ -459,6 +583,16 @@ impl Scalar {
             Scalar::F64 => it.map(|c| f64::from_be_bytes(arr(c, big_endian))).collect(),
         }
     }
+}
+
+/// `N` bytes of a value as big-endian (swapped from little-endian unless `big`).
+fn arr<const N: usize>(c: &[u8], big: bool) -> [u8; N] {
+    let mut a = [0u8; N];
+    a.copy_from_slice(c);
+    if !big {
+        a.reverse();
+    }
+    a
 }
 
 /// Index of the first non-finite value, if any.

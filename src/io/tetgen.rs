@@ -1,9 +1,10 @@
 //! TetGen `.node` + `.ele`: `#` comments, 0- or 1-based numbering (taken from the first point's
 //! index; points must be numbered consecutively from there), 4- or 10-node tets. Point
-//! attributes become arrays `attribute0`, `attribute1`, ...; tet attributes are skipped.
+//! attributes become arrays `attribute0`, `attribute1`, ...; tet attributes are skipped and
+//! reported as one entry with their count.
 
 use super::text::Cursor;
-use super::{Assembler, Format, LoadError, Loaded, Location, Scalar};
+use super::{Assembler, Budget, Format, LoadError, Loaded, Location, Scalar};
 use crate::mesh::ScalarArray;
 use crate::mesh::split::CellKind;
 use glam::DVec3;
@@ -13,15 +14,17 @@ pub(super) fn read(
     node_name: &str,
     ele: &[u8],
     ele_name: &str,
+    budget: &Budget,
 ) -> Result<Loaded, LoadError> {
-    let mut c = Cursor::new(node, node_name, Some(b'#'));
+    let mut c = Cursor::new(node, node_name, Some(b'#'), budget);
     let n = c.count("the number of points")?;
     let (dat, dim) = c.expect("the dimension")?;
     if dim != b"3" {
         return Err(c.err(dat, "the dimension must be 3 (tetvr reads 3D meshes)"));
     }
     let nattr = c.count("the number of point attributes")?;
-    if nattr > c.remaining() {
+    // Each attribute takes at least two bytes per point.
+    if nattr > c.remaining() / 2 {
         return Err(c.err(
             dat,
             format!("{nattr} point attributes cannot fit in the file"),
@@ -37,10 +40,19 @@ pub(super) fn read(
     if n == 0 {
         return Err(c.err(0, "the .node file lists no points"));
     }
-    // A point line has at least 4 tokens of 2 bytes: cap the reservation by the file size.
-    let cap = n.min(c.remaining() / 8);
-    let mut positions = Vec::with_capacity(cap);
-    let mut attrs: Vec<Vec<f64>> = (0..nattr).map(|_| Vec::new()).collect();
+    // A point line has at least 4 + nattr tokens of 2 bytes: check the count by the file size.
+    if n > c.remaining() / (8 + 2 * nattr) {
+        return Err(c.err(
+            dat,
+            format!("{n} points of {nattr} attributes cannot fit in the file"),
+        ));
+    }
+    budget.charge_items(n, size_of::<DVec3>() + 8 * nattr, || {
+        format!("{n} points with {nattr} attributes")
+    })?;
+    let mut positions = Vec::with_capacity(n);
+    // Point attributes row by row (point after point), split into arrays at the end.
+    let mut attrs: Vec<f64> = Vec::with_capacity(n * nattr);
     let mut base = 0;
     for i in 0..n {
         let (iat, _) = c.expect("a point index")?;
@@ -69,19 +81,16 @@ pub(super) fn read(
             Some(&describe),
         )?;
         positions.push(DVec3::new(p[0], p[1], p[2]));
-        for (k, a) in attrs.iter_mut().enumerate() {
-            let describe =
-                |_: usize, x: f64| format!("attribute {k} of point {idx} is not finite ({x})");
-            a.push(
-                c.values(
-                    1,
-                    Scalar::F64,
-                    None,
-                    "the point attributes",
-                    Some(&describe),
-                )?[0],
-            );
-        }
+        let describe =
+            |k: usize, x: f64| format!("attribute {k} of point {idx} is not finite ({x})");
+        let a = c.values(
+            nattr,
+            Scalar::F64,
+            None,
+            "the point attributes",
+            Some(&describe),
+        )?;
+        attrs.extend_from_slice(&a);
         for _ in 0..nbm {
             c.parse::<i64>("a boundary marker")?;
         }
@@ -90,7 +99,7 @@ pub(super) fn read(
         return Err(c.err(c.pos, format!("unexpected data after the {n} points")));
     }
 
-    let mut e = Cursor::new(ele, ele_name, Some(b'#'));
+    let mut e = Cursor::new(ele, ele_name, Some(b'#'), budget);
     let m = e.count("the number of tetrahedra")?;
     let (kat, k) = e.expect("the number of nodes per tetrahedron")?;
     let kind = match k {
@@ -99,7 +108,7 @@ pub(super) fn read(
         _ => return Err(e.err(kat, "nodes per tetrahedron must be 4 or 10")),
     };
     let eattr = e.count("the number of tetrahedron attributes")?;
-    let mut asm = Assembler::new(positions.len());
+    let mut asm = Assembler::new(positions.len(), budget);
     let mut ids = [0i64; 10];
     for i in 0..m {
         let (tat, _) = e.expect("a tetrahedron index")?;
@@ -111,26 +120,30 @@ pub(super) fn read(
         for _ in 0..eattr {
             e.parse::<f64>("a tetrahedron attribute")?;
         }
-        asm.cell(kind, ids[..kind.vertex_count()].iter().copied())
-            .map_err(|msg| {
-                LoadError::malformed(
-                    ele_name,
-                    Location::Element { index: i, tag },
-                    format!("{msg} (0-based; the file numbers from {base})"),
-                )
-            })?;
+        asm.cell(kind, &ids[..kind.vertex_count()], |msg| {
+            LoadError::malformed(
+                ele_name,
+                Location::Element { index: i, tag },
+                format!("{msg} (0-based; the file numbers from {base})"),
+            )
+        })?;
     }
     if !e.at_end() {
         return Err(e.err(e.pos, format!("unexpected data after the {m} tetrahedra")));
     }
-    let arrays = attrs
-        .into_iter()
-        .enumerate()
-        .map(|(k, v)| ScalarArray::new(format!("attribute{k}"), v))
+    let arrays = (0..nattr)
+        .map(|k| {
+            let v = attrs.iter().skip(k).step_by(nattr).copied().collect();
+            ScalarArray::new(format!("attribute{k}"), v)
+        })
         .collect();
-    // Tets carried `eattr` attributes each, so this many names fit in the file.
-    let skipped = (0..if m > 0 { eattr } else { 0 })
-        .map(|k| format!("tetrahedron attribute{k}"))
-        .collect();
+    let skipped = match eattr {
+        0 => vec![],
+        1 => vec!["tetrahedron attribute0".to_owned()],
+        _ => vec![format!(
+            "{eattr} tetrahedron attributes (attribute0 .. attribute{})",
+            eattr - 1
+        )],
+    };
     asm.finish(ele_name, Format::TetGen, positions, arrays, skipped)
 }

@@ -2,12 +2,14 @@
 //! TetGen): whitespace-separated tokens, whole lines, and raw byte blocks, with errors located
 //! by line (text) or byte offset (binary).
 
-use super::{LoadError, LoadErrorKind, Location, Scalar, shown};
+use super::{Budget, LoadError, LoadErrorKind, Location, Scalar, shown};
 
 pub(crate) struct Cursor<'a> {
     pub data: &'a [u8],
     pub pos: usize,
     pub name: &'a str,
+    /// What the decoded values are charged to.
+    pub budget: &'a Budget<'a>,
     /// Comment character that runs to the end of the line (TetGen's `#`).
     comment: Option<u8>,
     /// Locate errors by byte offset (binary files) instead of by line.
@@ -15,17 +17,18 @@ pub(crate) struct Cursor<'a> {
 }
 
 impl<'a> Cursor<'a> {
-    pub fn new(data: &'a [u8], name: &'a str, comment: Option<u8>) -> Self {
+    pub fn new(data: &'a [u8], name: &'a str, comment: Option<u8>, budget: &'a Budget<'a>) -> Self {
         Self {
             data,
             pos: 0,
             name,
+            budget,
             comment,
             by_byte: false,
         }
     }
 
-    /// 1-based line number of byte offset `at`.
+    /// 1-based line number of byte offset `at` (counted from the start: for errors only).
     pub fn line_of(&self, at: usize) -> usize {
         1 + self.data[..at.min(self.data.len())]
             .iter()
@@ -158,6 +161,53 @@ impl<'a> Cursor<'a> {
         Ok(s)
     }
 
+    /// Checks that `count` text values can be in the rest of the file (a value takes at least
+    /// one byte and a separator) before anything is reserved for them.
+    fn check_room(&self, count: usize, section: &str) -> Result<(), LoadError> {
+        let room = self.remaining().div_ceil(2);
+        if count > room {
+            return Err(self.err_line(
+                self.pos,
+                format!(
+                    "file ends inside {section}: {count} values are announced, the {} bytes left hold at most {room}",
+                    self.remaining()
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Calls `each(value index, offset, token)` for the next `count` text tokens (checked
+    /// with [`Cursor::check_room`] first by the caller).
+    fn tokens(
+        &mut self,
+        count: usize,
+        section: &str,
+        mut each: impl FnMut(&Self, usize, usize, &'a [u8]) -> Result<(), LoadError>,
+    ) -> Result<(), LoadError> {
+        for i in 0..count {
+            let (at, tok) = self.token().ok_or_else(|| {
+                self.err_line(
+                    self.data.len(),
+                    format!("file ends inside {section}: read {i} of {count} values"),
+                )
+            })?;
+            each(self, i, at, tok)?;
+        }
+        Ok(())
+    }
+
+    /// The bytes of `count` binary values of `ty`, checked to be in the file.
+    fn binary(&mut self, count: usize, ty: Scalar, section: &str) -> Result<&'a [u8], LoadError> {
+        let bytes = count.checked_mul(ty.size()).ok_or_else(|| {
+            self.err_byte(
+                self.pos,
+                format!("{section}: {count} values cannot fit in any file"),
+            )
+        })?;
+        self.take(bytes, section)
+    }
+
     /// `count` values of type `ty`, binary (big- or little-endian) or ASCII tokens. With
     /// `finite`, a NaN or infinite value is an error located at its token or bytes and
     /// described by `describe(value index, value)`.
@@ -169,48 +219,100 @@ impl<'a> Cursor<'a> {
         section: &str,
         finite: Option<&dyn Fn(usize, f64) -> String>,
     ) -> Result<Vec<f64>, LoadError> {
-        match binary {
-            Some(big_endian) => {
-                let start = self.pos;
-                let bytes = count.checked_mul(ty.size()).ok_or_else(|| {
-                    self.err_byte(start, format!("{section}: count {count} is too large"))
-                })?;
-                let raw = self.take(bytes, section)?;
-                let v = ty.decode(raw, big_endian);
-                if let Some(describe) = finite
-                    && let Some(i) = super::first_non_finite(&v)
-                {
-                    return Err(self.err_byte(start + i * ty.size(), describe(i, v[i])));
-                }
-                Ok(v)
+        if let Some(big_endian) = binary {
+            let start = self.pos;
+            let raw = self.binary(count, ty, section)?;
+            self.charge(count, section)?;
+            let v = ty.decode(raw, big_endian);
+            if let Some(describe) = finite
+                && let Some(i) = super::first_non_finite(&v)
+            {
+                return Err(self.err_byte(start + i * ty.size(), describe(i, v[i])));
             }
-            None => {
-                let mut v = Vec::with_capacity(count.min(self.remaining() / 2 + 1));
-                for i in 0..count {
-                    let (at, tok) = self.token().ok_or_else(|| {
-                        self.err_line(
-                            self.data.len(),
-                            format!("file ends inside {section}: read {i} of {count} values"),
-                        )
-                    })?;
-                    let x = std::str::from_utf8(tok)
-                        .ok()
-                        .and_then(|s| s.parse::<f64>().ok())
-                        .ok_or_else(|| {
-                            self.err_line(
-                                at,
-                                format!("{section}: expected a number, found '{}'", shown(tok)),
-                            )
-                        })?;
-                    if let Some(describe) = finite
-                        && !x.is_finite()
-                    {
-                        return Err(self.err_line(at, describe(i, x)));
-                    }
-                    v.push(x);
-                }
-                Ok(v)
-            }
+            return Ok(v);
         }
+        self.check_room(count, section)?;
+        self.charge(count, section)?;
+        let mut v = Vec::with_capacity(count);
+        self.tokens(count, section, |c, i, at, tok| {
+            let x = parse_float(tok).ok_or_else(|| {
+                c.err_line(
+                    at,
+                    format!("{section}: expected a number, found '{}'", shown(tok)),
+                )
+            })?;
+            if let Some(describe) = finite
+                && !x.is_finite()
+            {
+                return Err(c.err_line(at, describe(i, x)));
+            }
+            v.push(x);
+            Ok(())
+        })?;
+        Ok(v)
     }
+
+    /// `count` integers (cell lists, offsets, types) of type `ty`, exactly: a float must hold
+    /// an integer.
+    pub fn ints(
+        &mut self,
+        count: usize,
+        ty: Scalar,
+        binary: Option<bool>,
+        section: &str,
+    ) -> Result<Vec<i64>, LoadError> {
+        if let Some(big_endian) = binary {
+            let start = self.pos;
+            let raw = self.binary(count, ty, section)?;
+            self.charge(count, section)?;
+            return ty.decode_ints(raw, big_endian).map_err(|v| {
+                self.err_byte(start, format!("{section}: {v} is not an integer index"))
+            });
+        }
+        self.check_room(count, section)?;
+        self.charge(count, section)?;
+        let mut v = Vec::with_capacity(count);
+        self.tokens(count, section, |c, _, at, tok| {
+            let x = super::parse_int(tok).ok_or_else(|| {
+                c.err_line(
+                    at,
+                    format!("{section}: expected an integer, found '{}'", shown(tok)),
+                )
+            })?;
+            v.push(x);
+            Ok(())
+        })?;
+        Ok(v)
+    }
+
+    /// Charges `count` decoded 8-byte values of `section` to the budget.
+    fn charge(&self, count: usize, section: &str) -> Result<(), LoadError> {
+        self.budget
+            .charge_items(count, 8, || format!("{section} ({count} values)"))
+    }
+
+    /// Moves past `count` values that are not kept (each still checked to be a number).
+    pub fn skip_values(
+        &mut self,
+        count: usize,
+        ty: Scalar,
+        binary: Option<bool>,
+        section: &str,
+    ) -> Result<(), LoadError> {
+        if binary.is_some() {
+            return self.binary(count, ty, section).map(|_| ());
+        }
+        self.check_room(count, section)?;
+        self.tokens(count, section, |c, _, at, tok| match parse_float(tok) {
+            Some(_) => Ok(()),
+            None => Err(c.err_line(
+                at,
+                format!("{section}: expected a number, found '{}'", shown(tok)),
+            )),
+        })
+    }
+}
+
+fn parse_float(tok: &[u8]) -> Option<f64> {
+    std::str::from_utf8(tok).ok()?.parse::<f64>().ok()
 }

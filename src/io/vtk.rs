@@ -8,10 +8,11 @@
 
 use super::text::Cursor;
 use super::{
-    Assembler, Format, LoadError, Loaded, Location, Scalar, as_index, point_array, positions_from,
+    Assembler, Budget, Format, LoadError, Loaded, Location, Scalar, point_array, positions_from,
     shown,
 };
 use crate::mesh::ScalarArray;
+use crate::mesh::name::shown_name;
 use crate::mesh::split::CellKind;
 
 /// What a VTK cell type id means to tetvr.
@@ -81,9 +82,9 @@ fn decode_name(raw: &[u8]) -> String {
 
 enum RawCells {
     /// 4.2 layout: `n` cells in one stream of (count, indices...).
-    Counted { n: usize, stream: Vec<f64> },
+    Counted { n: usize, stream: Vec<i64> },
     /// 5.1 layout.
-    Offsets { offsets: Vec<f64>, conn: Vec<f64> },
+    Offsets { offsets: Vec<i64>, conn: Vec<i64> },
 }
 
 #[derive(Clone, Copy, PartialEq)]
@@ -152,11 +153,19 @@ impl<'a> Reader<'a> {
     ) -> Result<Vec<f64>, LoadError> {
         self.c.values(count, ty, self.binary, section, finite)
     }
+
+    fn ints(&mut self, count: usize, ty: Scalar, section: &str) -> Result<Vec<i64>, LoadError> {
+        self.c.ints(count, ty, self.binary, section)
+    }
+
+    fn skip(&mut self, count: usize, ty: Scalar, section: &str) -> Result<(), LoadError> {
+        self.c.skip_values(count, ty, self.binary, section)
+    }
 }
 
-pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
+pub(super) fn read(data: &[u8], name: &str, budget: &Budget) -> Result<Loaded, LoadError> {
     let mut r = Reader {
-        c: Cursor::new(data, name, None),
+        c: Cursor::new(data, name, None, budget),
         binary: None,
     };
     let first = r.c.rest_of_line();
@@ -190,7 +199,7 @@ pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
 
     let mut positions: Option<Vec<f64>> = None;
     let mut cells: Option<(usize, RawCells)> = None;
-    let mut types: Option<(usize, Vec<f64>)> = None;
+    let mut types: Option<(usize, Vec<i64>)> = None;
     let mut arrays: Vec<ScalarArray> = Vec::new();
     let mut active: Option<usize> = None;
     let mut skipped: Vec<String> = Vec::new();
@@ -228,7 +237,13 @@ pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
                 let ty = r.ty(args_at, args.get(1))?;
                 let count = n
                     .checked_mul(3)
-                    .ok_or_else(|| r.err(at, "too many points"))?;
+                    .filter(|c| c.checked_mul(ty.size()).is_some())
+                    .ok_or_else(|| {
+                        r.err(
+                            at,
+                            format!("POINTS announces {n} points, more than any file holds"),
+                        )
+                    })?;
                 let describe =
                     |i: usize, x: f64| format!("point {} has the non-finite coordinate {x}", i / 3);
                 positions = Some(r.values(count, ty, "POINTS", Some(&describe))?);
@@ -242,7 +257,7 @@ pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
                     r.c.token();
                     let (a, t) = r.args();
                     let ty = r.ty(a, t.first())?;
-                    let offsets = r.values(n, ty, "OFFSETS", None)?;
+                    let offsets = r.ints(n, ty, "OFFSETS")?;
                     let (a, kw) = r.c.expect("CONNECTIVITY")?;
                     if !kw.eq_ignore_ascii_case(b"CONNECTIVITY") {
                         return Err(
@@ -251,17 +266,17 @@ pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
                     }
                     let (a, t) = r.args();
                     let ty = r.ty(a, t.first())?;
-                    let conn = r.values(size, ty, "CONNECTIVITY", None)?;
+                    let conn = r.ints(size, ty, "CONNECTIVITY")?;
                     cells = Some((at, RawCells::Offsets { offsets, conn }));
                 } else {
                     r.c.pos = save;
-                    let stream = r.values(size, Scalar::I32, "CELLS", None)?;
+                    let stream = r.ints(size, Scalar::I32, "CELLS")?;
                     cells = Some((at, RawCells::Counted { n, stream }));
                 }
             }
             b"CELL_TYPES" => {
                 let n = r.count(args_at, args.first(), "the number of cell types")?;
-                types = Some((at, r.values(n, Scalar::I32, "CELL_TYPES", None)?));
+                types = Some((at, r.ints(n, Scalar::I32, "CELL_TYPES")?));
             }
             b"POINT_DATA" => {
                 let n = r.count(args_at, args.first(), "the number of point values")?;
@@ -321,15 +336,22 @@ pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
                         _ => r.c.pos = save,
                     }
                 }
-                let count = n
-                    .checked_mul(ncomp)
-                    .ok_or_else(|| r.err(at, format!("{what} '{arr_name}' is too large")))?;
+                let count = n.checked_mul(ncomp).ok_or_else(|| {
+                    r.err(
+                        at,
+                        format!(
+                            "{what} '{}' announces {n} x {ncomp} values, more than any file holds",
+                            shown_name(&arr_name)
+                        ),
+                    )
+                })?;
                 let usable = matches!(section, Section::Point(_))
                     && matches!(kw.as_slice(), b"SCALARS" | b"VECTORS" | b"NORMALS");
                 if usable && ncomp > 0 {
                     let describe = |i: usize, x: f64| {
                         format!(
-                            "array '{arr_name}' has the non-finite value {x} at point {}",
+                            "array '{}' has the non-finite value {x} at point {}",
+                            shown_name(&arr_name),
                             i / ncomp
                         )
                     };
@@ -339,7 +361,7 @@ pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
                         active = Some(arrays.len() - 1);
                     }
                 } else {
-                    r.values(count, ty, &what, None)?;
+                    r.skip(count, ty, &what)?;
                     skipped.push(arr_name);
                 }
             }
@@ -354,7 +376,7 @@ pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
                 } else {
                     Scalar::F32
                 };
-                r.values(count, ty, "COLOR_SCALARS", None)?;
+                r.skip(count, ty, "COLOR_SCALARS")?;
                 skipped.push(decode_name(args.first().copied().unwrap_or(b"")));
             }
             b"LOOKUP_TABLE" => {
@@ -367,7 +389,7 @@ pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
                 } else {
                     Scalar::F32
                 };
-                r.values(count, ty, "LOOKUP_TABLE", None)?;
+                r.skip(count, ty, "LOOKUP_TABLE")?;
             }
             b"FIELD" => {
                 let narrays = r.count(args_at, args.get(1), "the number of field arrays")?;
@@ -383,21 +405,29 @@ pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
                     let nt = r.count(h_at, h.get(1), "the number of tuples")?;
                     let ty = r.ty(h_at, h.get(2))?;
                     let count = nc.checked_mul(nt).ok_or_else(|| {
-                        r.err(a_at, format!("field array '{aname}' is too large"))
+                        r.err(
+                            a_at,
+                            format!(
+                                "field array '{}' announces {nc} x {nt} values, more than any file holds",
+                                shown_name(&aname)
+                            ),
+                        )
                     })?;
                     match section {
                         Section::Point(n) if nt == n && nc > 0 => {
                             let describe = |i: usize, x: f64| {
                                 format!(
-                                    "array '{aname}' has the non-finite value {x} at point {}",
+                                    "array '{}' has the non-finite value {x} at point {}",
+                                    shown_name(&aname),
                                     i / nc
                                 )
                             };
-                            let v = r.values(count, ty, &aname, Some(&describe))?;
+                            let section = format!("field array '{}'", shown_name(&aname));
+                            let v = r.values(count, ty, &section, Some(&describe))?;
                             arrays.push(point_array(&aname, v, nc));
                         }
                         _ => {
-                            r.values(count, ty, &aname, None)?;
+                            r.skip(count, ty, &format!("field array '{}'", shown_name(&aname)))?;
                             skipped.push(aname);
                         }
                     }
@@ -428,37 +458,27 @@ pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
             format!("POINT_DATA has {n} values, but POINTS has {n_points} points"),
         ));
     }
-    let mut asm = Assembler::new(n_points);
-    let mut ids: Vec<i64> = Vec::with_capacity(16);
-    let mut add =
-        |i: usize, list: &[f64]| -> Result<(), LoadError> {
-            let cell_err = |msg: String| LoadError::malformed(name, Location::Cell(i), msg);
-            let ty = as_index(types[i]).unwrap_or(-1);
-            match classify(ty) {
-                Class::Skip => {
-                    asm.skip();
-                    Ok(())
-                }
-                Class::Unsupported(what) => Err(LoadError::unsupported(
-                    name,
-                    Location::Cell(i),
-                    format!(
-                        "cell type {} ({what}) is not supported; tetvr reads tetrahedra, voxels, \
-                     hexahedra, wedges, pyramids and quadratic tetrahedra",
-                        types[i]
-                    ),
-                )),
-                Class::Solid(kind) => {
-                    ids.clear();
-                    for &x in list {
-                        ids.push(as_index(x).ok_or_else(|| {
-                            cell_err(format!("vertex index {x} is not an integer"))
-                        })?);
-                    }
-                    asm.cell(kind, ids.iter().copied()).map_err(cell_err)
-                }
+    let mut asm = Assembler::new(n_points, budget);
+    let mut add = |i: usize, list: &[i64]| -> Result<(), LoadError> {
+        match classify(types[i]) {
+            Class::Skip => {
+                asm.skip();
+                Ok(())
             }
-        };
+            Class::Unsupported(what) => Err(LoadError::unsupported(
+                name,
+                Location::Cell(i),
+                format!(
+                    "cell type {} ({what}) is not supported; tetvr reads tetrahedra, voxels, \
+                     hexahedra, wedges, pyramids and quadratic tetrahedra",
+                    types[i]
+                ),
+            )),
+            Class::Solid(kind) => asm.cell(kind, list, |m| {
+                LoadError::malformed(name, Location::Cell(i), m)
+            }),
+        }
+    };
     match cells {
         RawCells::Counted { n, stream } => {
             if types.len() != n {
@@ -474,9 +494,7 @@ pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
             for i in 0..n {
                 let cnt = stream
                     .get(k)
-                    .and_then(|&c| as_index(c))
-                    .filter(|&c| c >= 0)
-                    .map(|c| c as usize)
+                    .and_then(|&c| usize::try_from(c).ok())
                     .ok_or_else(|| {
                         LoadError::malformed(
                             name,
@@ -484,13 +502,16 @@ pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
                             "the CELLS list ends or has an invalid vertex count here",
                         )
                     })?;
-                let list = stream.get(k + 1..k + 1 + cnt).ok_or_else(|| {
-                    LoadError::malformed(
-                        name,
-                        Location::Cell(i),
-                        format!("the cell's {cnt} vertices run past the end of the CELLS list"),
-                    )
-                })?;
+                let list = stream
+                    .get(k + 1..)
+                    .and_then(|rest| rest.get(..cnt))
+                    .ok_or_else(|| {
+                        LoadError::malformed(
+                            name,
+                            Location::Cell(i),
+                            format!("the cell's {cnt} vertices run past the end of the CELLS list"),
+                        )
+                    })?;
                 add(i, list)?;
                 k += 1 + cnt;
             }
@@ -516,24 +537,21 @@ pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
                 ));
             }
             for i in 0..n {
-                let (a, b) = (as_index(offsets[i]), as_index(offsets[i + 1]));
-                let list = match (a, b) {
-                    (Some(a), Some(b)) if 0 <= a && a <= b && b as usize <= conn.len() => {
-                        &conn[a as usize..b as usize]
-                    }
-                    _ => {
-                        return Err(LoadError::malformed(
+                let (a, b) = (offsets[i], offsets[i + 1]);
+                let list = usize::try_from(a)
+                    .ok()
+                    .zip(usize::try_from(b).ok())
+                    .and_then(|(a, b)| conn.get(a..b))
+                    .ok_or_else(|| {
+                        LoadError::malformed(
                             name,
                             Location::Cell(i),
                             format!(
-                                "OFFSETS {} .. {} is not a range in CONNECTIVITY (length {})",
-                                offsets[i],
-                                offsets[i + 1],
+                                "OFFSETS {a} .. {b} is not a range in CONNECTIVITY (length {})",
                                 conn.len()
                             ),
-                        ));
-                    }
-                };
+                        )
+                    })?;
                 add(i, list)?;
             }
         }
@@ -542,13 +560,8 @@ pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
         let s = arrays.remove(a);
         arrays.insert(0, s);
     }
-    asm.finish(
-        name,
-        Format::VtkLegacy,
-        positions_from(&positions),
-        arrays,
-        skipped,
-    )
+    let positions = positions_from(&positions, budget)?;
+    asm.finish(name, Format::VtkLegacy, positions, arrays, skipped)
 }
 
 /// Skips a `METADATA` block (text lines up to an empty line), if one starts here.

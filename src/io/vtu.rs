@@ -12,6 +12,7 @@
 //! stream by stream, splitting after each padded quartet, reads both.
 
 use std::borrow::Cow;
+use std::collections::{HashMap, HashSet};
 use std::io::{Read, Write};
 use std::path::Path;
 
@@ -20,10 +21,11 @@ use quick_xml::events::{BytesStart, Event};
 
 use super::vtk::{Class, classify};
 use super::{
-    Assembler, Format, LoadError, LoadErrorKind, Loaded, Location, Scalar, WriteError, as_index,
-    point_array, positions_from, shown,
+    Assembler, Budget, Format, LoadError, LoadErrorKind, Loaded, Location, Scalar, WriteError,
+    parse_int, point_array, positions_from, shown,
 };
 use crate::mesh::TetMesh;
+use crate::mesh::name::shown_name;
 
 fn scalar_type(name: &str) -> Option<Scalar> {
     Some(match name {
@@ -72,6 +74,20 @@ impl Array {
     fn name(&self) -> &str {
         self.attr("Name").unwrap_or("")
     }
+
+    /// The array for messages: `Points DataArray` (points have no name) or `DataArray 'name'`.
+    fn label(&self) -> String {
+        match self.part {
+            Part::Points => "Points DataArray".to_owned(),
+            _ => format!("DataArray '{}'", shown_name(self.name())),
+        }
+    }
+
+    /// The `offset` of an appended array.
+    fn offset(&self) -> Option<usize> {
+        self.attr("offset")
+            .and_then(|o| o.trim().parse::<usize>().ok())
+    }
 }
 
 #[derive(Default)]
@@ -86,6 +102,7 @@ struct Piece {
 struct File<'a> {
     data: &'a [u8],
     name: &'a str,
+    budget: &'a Budget<'a>,
     big_endian: bool,
     /// Header integer width in bytes (4 or 8).
     header: usize,
@@ -96,6 +113,16 @@ struct File<'a> {
     appended_offsets: Vec<usize>,
 }
 
+/// How many values an array must hold, and the message when it holds `found` instead.
+struct Want<'w> {
+    count: usize,
+    wrong: &'w dyn Fn(usize) -> String,
+}
+
+/// zlib's largest compression ratio (a run of one byte): no block can inflate to more than
+/// this many times its compressed size, plus a small constant for tiny blocks.
+const ZLIB_MAX_RATIO: u64 = 1032;
+
 fn line_of(data: &[u8], at: usize) -> usize {
     1 + data[..at.min(data.len())]
         .iter()
@@ -103,19 +130,38 @@ fn line_of(data: &[u8], at: usize) -> usize {
         .count()
 }
 
+/// An element's attributes. Repeated keys are found with a set: quick-xml's own check compares
+/// each key with all before it, quadratic in an element of many thousand attributes.
 fn attrs_of(e: &BytesStart) -> Result<Vec<(String, String)>, String> {
     let mut out = Vec::new();
-    for a in e.attributes() {
+    let mut keys = HashSet::new();
+    for a in e.attributes().with_checks(false) {
         let a = a.map_err(|e| format!("bad XML attribute: {e}"))?;
+        let key = String::from_utf8_lossy(a.key.as_ref()).into_owned();
+        if !keys.insert(key.clone()) {
+            return Err(format!("attribute '{}' is repeated", shown(key.as_bytes())));
+        }
         let v = a
             .unescape_value()
             .map_err(|e| format!("bad XML attribute value: {e}"))?;
-        out.push((
-            String::from_utf8_lossy(a.key.as_ref()).into_owned(),
-            v.into_owned(),
-        ));
+        out.push((key, v.into_owned()));
     }
     Ok(out)
+}
+
+/// The whitespace-separated tokens of text, with their offsets.
+fn tokens(t: &[u8]) -> impl Iterator<Item = (usize, &[u8])> {
+    let mut i = 0;
+    std::iter::from_fn(move || {
+        while i < t.len() && t[i].is_ascii_whitespace() {
+            i += 1;
+        }
+        let s = i;
+        while i < t.len() && !t[i].is_ascii_whitespace() {
+            i += 1;
+        }
+        (s < i).then(|| (s, &t[s..i]))
+    })
 }
 
 fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
@@ -164,202 +210,344 @@ impl File<'_> {
             .map_or(0, |&v| v as u64)
     }
 
-    /// Reads a binary block (header, then data or compressed blocks) from `raw`.
-    fn block<'b>(&self, raw: &'b [u8], at: usize, what: &str) -> Result<Cow<'b, [u8]>, LoadError> {
-        let h = self.header;
-        let trunc = |need: usize, have: usize| {
-            LoadError::new(
-                self.name,
-                Some(Location::Byte(at as u64)),
-                LoadErrorKind::Truncated {
-                    section: format!("DataArray '{what}'"),
-                    missing: (need - have) as u64,
-                },
-            )
-        };
-        let word = |i: usize| -> Result<u64, LoadError> {
-            let b = raw
-                .get(i * h..(i + 1) * h)
-                .ok_or_else(|| trunc((i + 1) * h, raw.len()))?;
-            Ok(self.uint(b))
-        };
-        if !self.compressed {
-            let n = word(0)?;
-            let n = usize::try_from(n).unwrap_or(usize::MAX);
-            let end = h.saturating_add(n);
-            return raw
-                .get(h..end)
-                .map(Cow::Borrowed)
-                .ok_or_else(|| trunc(end, raw.len()));
-        }
-        let nb = usize::try_from(word(0)?).unwrap_or(usize::MAX);
-        let bs = word(1)?;
-        let last = word(2)?;
-        if nb > raw.len() / h {
-            return Err(trunc(nb.saturating_mul(h), raw.len()));
-        }
-        let mut pos = (3 + nb) * h;
-        if pos > raw.len() {
-            return Err(trunc(pos, raw.len()));
-        }
-        let mut out = Vec::new();
-        for i in 0..nb {
-            let cs = usize::try_from(word(3 + i)?).unwrap_or(usize::MAX);
-            let size = if i + 1 == nb && last != 0 { last } else { bs };
-            let src = raw
-                .get(pos..pos.saturating_add(cs))
-                .ok_or_else(|| trunc(pos.saturating_add(cs), raw.len()))?;
-            let before = out.len();
-            flate2::read::ZlibDecoder::new(src)
-                .take(size.saturating_add(1))
-                .read_to_end(&mut out)
-                .map_err(|e| {
-                    self.err(
-                        at,
-                        format!("DataArray '{what}': block {i} is not valid zlib data: {e}"),
-                    )
-                })?;
-            if (out.len() - before) as u64 != size {
-                return Err(self.err(
-                    at,
-                    format!(
-                        "DataArray '{what}': block {i} decompresses to {} bytes, the header says {size}",
-                        out.len() - before
-                    ),
-                ));
-            }
-            pos += cs;
-        }
-        Ok(Cow::Owned(out))
+    /// The file ends inside an array's block: `need` bytes of it, `have` there.
+    fn truncated(&self, at: usize, what: &str, need: u64, have: usize) -> LoadError {
+        LoadError::new(
+            self.name,
+            Some(Location::Byte(at as u64)),
+            LoadErrorKind::Truncated {
+                section: format!("DataArray '{}'", shown_name(what)),
+                missing: need.saturating_sub(have as u64),
+            },
+        )
     }
 
-    /// Values of an array (all components, flattened), checked to be finite with `finite`.
-    fn values(
+    /// Header word `i` of a block.
+    fn word(&self, raw: &[u8], i: usize, at: usize, what: &str) -> Result<u64, LoadError> {
+        let h = self.header;
+        let b = raw
+            .get(i * h..(i + 1) * h)
+            .ok_or_else(|| self.truncated(at, what, ((i + 1) * h) as u64, raw.len()))?;
+        Ok(self.uint(b))
+    }
+
+    /// Reads a binary block (header, then data or compressed blocks) from `raw`. `check` sees
+    /// the decoded size the header declares before anything is inflated or copied.
+    fn block<'b>(
+        &self,
+        raw: &'b [u8],
+        at: usize,
+        what: &str,
+        check: &dyn Fn(u64) -> Result<(), LoadError>,
+    ) -> Result<Cow<'b, [u8]>, LoadError> {
+        if self.compressed {
+            return self.zlib_block(raw, at, what, check).map(Cow::Owned);
+        }
+        let n = self.word(raw, 0, at, what)?;
+        let end = (self.header as u64).saturating_add(n);
+        if end > raw.len() as u64 {
+            return Err(self.truncated(at, what, end, raw.len()));
+        }
+        check(n)?;
+        Ok(Cow::Borrowed(&raw[self.header..end as usize]))
+    }
+
+    /// A compressed block: VTK's header (number of blocks, block size, last block size, each
+    /// block's compressed size), then the zlib streams. Every size is checked (against the
+    /// bytes there, zlib's largest ratio, and `check`) before anything is inflated.
+    fn zlib_block(
+        &self,
+        raw: &[u8],
+        at: usize,
+        what: &str,
+        check: &dyn Fn(u64) -> Result<(), LoadError>,
+    ) -> Result<Vec<u8>, LoadError> {
+        let word = |i: usize| self.word(raw, i, at, what);
+        let nb = word(0)?;
+        let (bs, last) = (word(1)?, word(2)?);
+        let header_end = nb.saturating_add(3).saturating_mul(self.header as u64);
+        if header_end > raw.len() as u64 {
+            return Err(self.truncated(at, what, header_end, raw.len()));
+        }
+        let nb = nb as usize;
+        let compressed: Vec<u64> = (0..nb).map(|i| word(3 + i)).collect::<Result<_, _>>()?;
+        let in_total = compressed.iter().fold(0u64, |s, &c| s.saturating_add(c));
+        if header_end.saturating_add(in_total) > raw.len() as u64 {
+            let need = header_end.saturating_add(in_total);
+            return Err(self.truncated(at, what, need, raw.len()));
+        }
+        let sizes: Vec<u64> = (0..nb)
+            .map(|i| if i + 1 == nb && last != 0 { last } else { bs })
+            .collect();
+        let total = sizes.iter().fold(0u64, |s, &c| s.saturating_add(c));
+        if total > in_total.saturating_mul(ZLIB_MAX_RATIO).saturating_add(1024) {
+            return Err(self.err(
+                at,
+                format!(
+                    "DataArray '{}' declares {total} bytes from {in_total} compressed bytes, more than zlib can produce",
+                    shown_name(what)
+                ),
+            ));
+        }
+        check(total)?;
+        let mut out = Vec::with_capacity(total as usize);
+        let mut pos = header_end as usize;
+        for (i, (&cs, &size)) in compressed.iter().zip(&sizes).enumerate() {
+            let src = &raw[pos..pos + cs as usize];
+            self.inflate(src, size, &mut out).map_err(|m| {
+                self.err(
+                    at,
+                    format!("DataArray '{}': block {i} {m}", shown_name(what)),
+                )
+            })?;
+            pos += cs as usize;
+        }
+        Ok(out)
+    }
+
+    /// Inflates one zlib stream of declared `size` onto `out`: at most one byte more than
+    /// declared is inflated, enough to tell that it is wrong.
+    fn inflate(&self, src: &[u8], size: u64, out: &mut Vec<u8>) -> Result<(), String> {
+        let before = out.len();
+        flate2::read::ZlibDecoder::new(src)
+            .take(size.saturating_add(1))
+            .read_to_end(out)
+            .map_err(|e| format!("is not valid zlib data: {e}"))?;
+        let got = out.len() - before;
+        if got as u64 != size {
+            return Err(format!(
+                "decompresses to {got} bytes, the header says {size}"
+            ));
+        }
+        Ok(())
+    }
+
+    /// The binary bytes of an array in `binary` or `appended` format; `check` as for
+    /// [`File::block`].
+    fn bytes(
         &self,
         a: &Array,
-        finite: Option<&dyn Fn(usize, f64) -> String>,
-    ) -> Result<Vec<f64>, LoadError> {
+        check: &dyn Fn(u64) -> Result<(), LoadError>,
+    ) -> Result<Cow<'_, [u8]>, LoadError> {
         let what = a.name();
+        if a.attr("format") == Some("binary") {
+            let raw = b64_streams(&a.text).map_err(|m| {
+                self.err(a.text_at, format!("DataArray '{}': {m}", shown_name(what)))
+            })?;
+            return Ok(Cow::Owned(
+                self.block(&raw, a.text_at, what, check)?.into_owned(),
+            ));
+        }
+        let (start, base64) = self.appended.ok_or_else(|| {
+            self.err(
+                a.at,
+                format!(
+                    "DataArray '{}' is appended, but the file has no AppendedData",
+                    shown_name(what)
+                ),
+            )
+        })?;
+        let off = a.offset().ok_or_else(|| {
+            self.err(
+                a.at,
+                format!("DataArray '{}' has no valid offset", shown_name(what)),
+            )
+        })?;
+        let from = start.saturating_add(off);
+        if from > self.data.len() {
+            return Err(self.err(
+                a.at,
+                format!(
+                    "DataArray '{}': offset {off} is past the end of the file",
+                    shown_name(what)
+                ),
+            ));
+        }
+        if !base64 {
+            return self.block(&self.data[from..], from, what, check);
+        }
+        // A base64 array ends where the next one starts (offsets are sorted).
+        let next = self.appended_offsets.partition_point(|&o| o <= off);
+        let end = self
+            .appended_offsets
+            .get(next)
+            .map_or(self.data.len(), |&o| {
+                start.saturating_add(o).min(self.data.len())
+            });
+        let text = &self.data[from..end];
+        let text = find(text, b"<").map_or(text, |i| &text[..i]);
+        let raw = b64_streams(text)
+            .map_err(|m| self.err(from, format!("DataArray '{}': {m}", shown_name(what))))?;
+        Ok(Cow::Owned(
+            self.block(&raw, from, what, check)?.into_owned(),
+        ))
+    }
+
+    /// The element type of an array.
+    fn scalar(&self, a: &Array) -> Result<Scalar, LoadError> {
         let tname = a.attr("type").unwrap_or("");
-        let ty = scalar_type(tname).ok_or_else(|| {
+        scalar_type(tname).ok_or_else(|| {
             LoadError::unsupported(
                 self.name,
                 Location::Byte(a.at as u64),
                 format!(
-                    "DataArray '{what}' has type '{}'; tetvr reads numeric types",
+                    "DataArray '{}' has type '{}'; tetvr reads numeric types",
+                    shown_name(a.name()),
                     shown(tname.as_bytes())
                 ),
             )
-        })?;
-        let format = a.attr("format").unwrap_or("ascii");
-        let bytes: Cow<[u8]> = match format {
-            "ascii" => {
-                let mut v = Vec::with_capacity(a.text.len() / 2);
-                let mut i = 0;
-                let t = &a.text;
-                while i < t.len() {
-                    while i < t.len() && t[i].is_ascii_whitespace() {
-                        i += 1;
-                    }
-                    let s = i;
-                    while i < t.len() && !t[i].is_ascii_whitespace() {
-                        i += 1;
-                    }
-                    if s == i {
-                        break;
-                    }
-                    let tok = &t[s..i];
-                    let loc = Location::Line(line_of(self.data, a.text_at + s));
-                    let x = std::str::from_utf8(tok)
-                        .ok()
-                        .and_then(|s| s.parse::<f64>().ok())
-                        .ok_or_else(|| {
-                            LoadError::malformed(
-                                self.name,
-                                loc.clone(),
-                                format!(
-                                    "DataArray '{what}': expected a number, found '{}'",
-                                    shown(tok)
-                                ),
-                            )
-                        })?;
-                    if let Some(d) = finite
-                        && !x.is_finite()
-                    {
-                        return Err(LoadError::malformed(self.name, loc, d(v.len(), x)));
-                    }
-                    v.push(x);
-                }
-                return Ok(v);
-            }
-            "binary" => {
-                let raw = b64_streams(&a.text)
-                    .map_err(|m| self.err(a.text_at, format!("DataArray '{what}': {m}")))?;
-                Cow::Owned(self.block(&raw, a.text_at, what)?.into_owned())
-            }
-            "appended" => {
-                let (start, base64) = self.appended.ok_or_else(|| {
-                    self.err(
-                        a.at,
-                        format!("DataArray '{what}' is appended, but the file has no AppendedData"),
-                    )
-                })?;
-                let off = a
-                    .attr("offset")
-                    .and_then(|o| o.trim().parse::<usize>().ok())
-                    .ok_or_else(|| {
-                        self.err(a.at, format!("DataArray '{what}' has no valid offset"))
-                    })?;
-                let from = start.saturating_add(off);
-                if from > self.data.len() {
-                    return Err(self.err(
-                        a.at,
-                        format!("DataArray '{what}': offset {off} is past the end of the file"),
-                    ));
-                }
-                if base64 {
-                    let end = self
-                        .appended_offsets
-                        .iter()
-                        .find(|&&o| o > off)
-                        .map_or(self.data.len(), |&o| {
-                            start.saturating_add(o).min(self.data.len())
-                        });
-                    let text = &self.data[from..end];
-                    let text = find(text, b"<").map_or(text, |i| &text[..i]);
-                    let raw = b64_streams(text)
-                        .map_err(|m| self.err(from, format!("DataArray '{what}': {m}")))?;
-                    Cow::Owned(self.block(&raw, from, what)?.into_owned())
-                } else {
-                    self.block(&self.data[from..], from, what)?
-                }
-            }
-            _ => {
+        })
+    }
+
+    /// The binary bytes of an array, checked before decoding: a whole number of values, as
+    /// many as `want` says, and paid for (8 bytes per decoded value) in the budget.
+    fn checked_bytes(
+        &self,
+        a: &Array,
+        ty: Scalar,
+        want: Option<&Want>,
+    ) -> Result<Cow<'_, [u8]>, LoadError> {
+        let check = |bytes: u64| {
+            if !bytes.is_multiple_of(ty.size() as u64) {
                 return Err(self.err(
                     a.at,
                     format!(
-                        "DataArray '{what}' has unknown format '{}'",
-                        shown(format.as_bytes())
+                        "DataArray '{}' holds {bytes} bytes, not a whole number of {} values",
+                        shown_name(a.name()),
+                        a.attr("type").unwrap_or("")
                     ),
                 ));
             }
+            let found = bytes / ty.size() as u64;
+            if let Some(w) = want
+                && found != w.count as u64
+            {
+                return Err(self.err(a.at, (w.wrong)(found as usize)));
+            }
+            self.budget.charge(found.saturating_mul(8), || {
+                format!("{} ({found} values)", a.label())
+            })
         };
-        if !bytes.len().is_multiple_of(ty.size()) {
-            return Err(self.err(
-                a.at,
-                format!(
-                    "DataArray '{what}' holds {} bytes, not a whole number of {tname} values",
-                    bytes.len()
-                ),
-            ));
-        }
-        let v = ty.decode(&bytes, self.big_endian);
-        if let Some(d) = finite
-            && let Some(i) = super::first_non_finite(&v)
+        self.bytes(a, &check)
+    }
+
+    /// How many tokens of an ascii array to read, at most: `want.count + 1` (one more tells
+    /// that there are too many), or all the text can hold. Checks that the text can hold
+    /// `want.count` numbers, and charges the decoded values to the budget.
+    fn ascii_limit(&self, a: &Array, want: Option<&Want>) -> Result<usize, LoadError> {
+        let room = a.text.len().div_ceil(2);
+        if let Some(w) = want
+            && w.count > room
         {
-            return Err(self.err(a.at, d(i, v[i])));
+            return Err(self.err(a.at, (w.wrong)(tokens(&a.text).count())));
+        }
+        let limit = want.map_or(room, |w| (w.count + 1).min(room));
+        self.budget.charge_items(limit, 8, || a.label())?;
+        Ok(limit)
+    }
+
+    /// The line of an offset in an array's text: counted only for an error.
+    fn line(&self, a: &Array, s: usize) -> Location {
+        Location::Line(line_of(self.data, a.text_at + s))
+    }
+
+    /// Values of an array (all components, flattened), checked to be finite with `finite`
+    /// and counted against `want` before they are decoded.
+    fn values(
+        &self,
+        a: &Array,
+        want: Option<&Want>,
+        finite: Option<&dyn Fn(usize, f64) -> String>,
+    ) -> Result<Vec<f64>, LoadError> {
+        let ty = self.scalar(a)?;
+        let what = shown_name(a.name());
+        let v = if self.format(a)? == "ascii" {
+            let limit = self.ascii_limit(a, want)?;
+            let mut v = Vec::with_capacity(limit);
+            for (s, tok) in tokens(&a.text).take(limit) {
+                let x = std::str::from_utf8(tok)
+                    .ok()
+                    .and_then(|s| s.parse::<f64>().ok())
+                    .ok_or_else(|| {
+                        LoadError::malformed(
+                            self.name,
+                            self.line(a, s),
+                            format!(
+                                "DataArray '{what}': expected a number, found '{}'",
+                                shown(tok)
+                            ),
+                        )
+                    })?;
+                if let Some(d) = finite
+                    && !x.is_finite()
+                {
+                    return Err(LoadError::malformed(
+                        self.name,
+                        self.line(a, s),
+                        d(v.len(), x),
+                    ));
+                }
+                v.push(x);
+            }
+            v
+        } else {
+            let v = ty.decode(&self.checked_bytes(a, ty, want)?, self.big_endian);
+            if let Some(d) = finite
+                && let Some(i) = super::first_non_finite(&v)
+            {
+                return Err(self.err(a.at, d(i, v[i])));
+            }
+            v
+        };
+        match want {
+            Some(w) if v.len() != w.count => Err(self.err(a.at, (w.wrong)(v.len()))),
+            _ => Ok(v),
+        }
+    }
+
+    /// Integers of an array (cell lists, offsets, types), exactly: no trip through f64.
+    fn ints(&self, a: &Array, want: &Want) -> Result<Vec<i64>, LoadError> {
+        let ty = self.scalar(a)?;
+        let what = shown_name(a.name());
+        let v = if self.format(a)? == "ascii" {
+            let limit = self.ascii_limit(a, Some(want))?;
+            let mut v = Vec::with_capacity(limit);
+            for (s, tok) in tokens(&a.text).take(limit) {
+                v.push(parse_int(tok).ok_or_else(|| {
+                    LoadError::malformed(
+                        self.name,
+                        self.line(a, s),
+                        format!(
+                            "DataArray '{what}': expected an integer, found '{}'",
+                            shown(tok)
+                        ),
+                    )
+                })?);
+            }
+            v
+        } else {
+            ty.decode_ints(&self.checked_bytes(a, ty, Some(want))?, self.big_endian)
+                .map_err(|x| self.err(a.at, format!("DataArray '{what}': {x} is not an integer")))?
+        };
+        if v.len() != want.count {
+            return Err(self.err(a.at, (want.wrong)(v.len())));
         }
         Ok(v)
+    }
+
+    /// An array's `format` attribute: ascii (the default), binary or appended.
+    fn format<'f>(&self, a: &'f Array) -> Result<&'f str, LoadError> {
+        match a.attr("format").unwrap_or("ascii") {
+            f @ ("ascii" | "binary" | "appended") => Ok(f),
+            f => Err(self.err(
+                a.at,
+                format!(
+                    "DataArray '{}' has unknown format '{}'",
+                    shown_name(a.name()),
+                    shown(f.as_bytes())
+                ),
+            )),
+        }
     }
 }
 
@@ -367,10 +555,11 @@ fn xml_err(name: &str, at: u64, e: impl std::fmt::Display) -> LoadError {
     LoadError::malformed(name, Location::Byte(at), format!("invalid XML: {e}"))
 }
 
-pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
+pub(super) fn read(data: &[u8], name: &str, budget: &Budget) -> Result<Loaded, LoadError> {
     let mut file = File {
         data,
         name,
+        budget,
         big_endian: false,
         header: 4,
         compressed: false,
@@ -488,9 +677,16 @@ pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
                         .and_then(|v| v.trim().parse::<usize>().ok())
                         .ok_or_else(|| file.err(at, format!("Piece needs a non-negative {k}")))
                 };
+                let points = num("NumberOfPoints")?;
+                if points.checked_mul(3 * 8).is_none() {
+                    return Err(file.err(
+                        at,
+                        format!("Piece announces {points} points, more than any file holds"),
+                    ));
+                }
                 pieces.push(Piece {
                     at,
-                    points: num("NumberOfPoints")?,
+                    points,
                     cells: num("NumberOfCells")?,
                     ..Piece::default()
                 });
@@ -533,9 +729,7 @@ pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
                     }
                 }
                 if a.attr("format") == Some("appended")
-                    && let Some(o) = a
-                        .attr("offset")
-                        .and_then(|o| o.trim().parse::<usize>().ok())
+                    && let Some(o) = a.offset()
                 {
                     file.appended_offsets.push(o);
                 }
@@ -558,23 +752,96 @@ pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
         return Err(file.err(0, "the file has no Piece"));
     }
     file.appended_offsets.sort_unstable();
+    let index: Vec<PieceIndex> = pieces.iter().map(PieceIndex::new).collect();
+    let (names, skipped) = point_array_names(&pieces[0], &index);
+    check_own_offsets(&file, &index, &names)?;
 
-    // Per-vertex arrays present in every piece, the active one first.
-    let first = &pieces[0];
+    let total_points = pieces
+        .iter()
+        .try_fold(0usize, |s, p| s.checked_add(p.points))
+        .ok_or_else(|| {
+            file.err(
+                0,
+                "the pieces' NumberOfPoints add up to more than memory can hold",
+            )
+        })?;
+    let mut positions: Vec<f64> = Vec::new();
+    let mut arrays: Vec<(String, usize, Vec<f64>)> =
+        names.iter().map(|n| (n.clone(), 0, Vec::new())).collect();
+    let mut asm = Assembler::new(total_points, budget);
+    let (mut base, mut cell_base) = (0usize, 0usize);
+    for (p, ix) in pieces.iter().zip(&index) {
+        let v = read_points(&file, p, ix, base)?;
+        append(&mut positions, v);
+        read_point_data(&file, p, ix, base, &mut arrays)?;
+        read_cells(&file, p, ix, (base, cell_base), &mut asm)?;
+        base += p.points;
+        cell_base += p.cells;
+    }
+    let arrays = arrays
+        .into_iter()
+        .map(|(n, nc, v)| point_array(&n, v, nc))
+        .collect();
+    let positions = positions_from(&positions, budget)?;
+    asm.finish(name, Format::Vtu, positions, arrays, skipped)
+}
+
+/// `v` added to `all`, moved rather than copied when `all` is empty (one piece).
+fn append(all: &mut Vec<f64>, v: Vec<f64>) {
+    if all.is_empty() {
+        *all = v;
+    } else {
+        all.extend_from_slice(&v);
+    }
+}
+
+/// A piece's arrays by role and name (the first of a name wins): found in constant time, so
+/// that files with many arrays read in linear time.
+struct PieceIndex<'p> {
+    points: Option<&'p Array>,
+    cells: HashMap<&'p str, &'p Array>,
+    point_data: HashMap<&'p str, &'p Array>,
+}
+
+impl<'p> PieceIndex<'p> {
+    fn new(p: &'p Piece) -> Self {
+        let mut ix = PieceIndex {
+            points: None,
+            cells: HashMap::new(),
+            point_data: HashMap::new(),
+        };
+        for a in &p.arrays {
+            match a.part {
+                Part::Points => {
+                    ix.points.get_or_insert(a);
+                }
+                Part::Cells => {
+                    ix.cells.entry(a.name()).or_insert(a);
+                }
+                Part::PointData => {
+                    ix.point_data.entry(a.name()).or_insert(a);
+                }
+                Part::CellData | Part::Other => {}
+            }
+        }
+        ix
+    }
+}
+
+/// The per-vertex arrays present in every piece, the active one first; and the names of the
+/// arrays that are not read (cell data, string arrays, arrays missing from a piece, repeats).
+fn point_array_names(first: &Piece, index: &[PieceIndex]) -> (Vec<String>, Vec<String>) {
     let mut names: Vec<String> = Vec::new();
+    let mut seen: HashSet<&str> = HashSet::new();
     let mut skipped: Vec<String> = Vec::new();
     for a in first.arrays.iter().filter(|a| a.part == Part::PointData) {
-        let n = a.name().to_owned();
-        let everywhere = pieces.iter().all(|p| {
-            p.arrays
-                .iter()
-                .any(|b| b.part == Part::PointData && b.name() == n)
-        });
+        let n = a.name();
+        let everywhere = index.iter().all(|ix| ix.point_data.contains_key(n));
         let numeric = a.attr("type").and_then(scalar_type).is_some();
-        if everywhere && numeric && !names.contains(&n) {
-            names.push(n);
+        if everywhere && numeric && seen.insert(n) {
+            names.push(n.to_owned());
         } else {
-            skipped.push(n);
+            skipped.push(n.to_owned());
         }
     }
     skipped.extend(
@@ -590,175 +857,238 @@ pub(super) fn read(data: &[u8], name: &str) -> Result<Loaded, LoadError> {
         let n = names.remove(i);
         names.insert(0, n);
     }
+    (names, skipped)
+}
 
-    let total_points = pieces
-        .iter()
-        .try_fold(0usize, |s, p| s.checked_add(p.points))
-        .ok_or_else(|| {
+/// Every appended array that is read must have data of its own: two arrays at one offset
+/// would be decoded and kept twice (a file of hundreds of arrays at one offset would take
+/// hundreds of times its mesh's memory). VTK never writes such files.
+fn check_own_offsets(file: &File, index: &[PieceIndex], names: &[String]) -> Result<(), LoadError> {
+    let mut owner: HashMap<usize, &str> = HashMap::new();
+    for ix in index {
+        let read = ix
+            .points
+            .into_iter()
+            .chain(ix.cells.values().copied())
+            .chain(
+                names
+                    .iter()
+                    .filter_map(|n| ix.point_data.get(n.as_str()).copied()),
+            );
+        for a in read.filter(|a| a.attr("format") == Some("appended")) {
+            let Some(o) = a.offset() else { continue };
+            if let Some(first) = owner.insert(o, a.name()) {
+                return Err(file.err(
+                    a.at,
+                    format!(
+                        "DataArrays '{}' and '{}' both start at appended offset {o}; each array needs its own data",
+                        shown_name(first),
+                        shown_name(a.name())
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// A piece's point coordinates, flattened.
+fn read_points(
+    file: &File,
+    p: &Piece,
+    ix: &PieceIndex,
+    base: usize,
+) -> Result<Vec<f64>, LoadError> {
+    if p.points == 0 {
+        return Ok(Vec::new());
+    }
+    let a = ix
+        .points
+        .ok_or_else(|| file.err(p.at, "Piece has no Points DataArray"))?;
+    if a.attr("NumberOfComponents").unwrap_or("1").trim() != "3" {
+        return Err(file.err(a.at, "Points must have NumberOfComponents=\"3\""));
+    }
+    let wrong = |found: usize| {
+        format!(
+            "Points must hold 3 components for {} points, found {found} values",
+            p.points
+        )
+    };
+    let want = Want {
+        count: p.points * 3,
+        wrong: &wrong,
+    };
+    let describe =
+        |i: usize, x: f64| format!("point {} has the non-finite coordinate {x}", base + i / 3);
+    file.values(a, Some(&want), Some(&describe))
+}
+
+/// A piece's values of every array in `arrays` (name, components, values so far).
+fn read_point_data(
+    file: &File,
+    p: &Piece,
+    ix: &PieceIndex,
+    base: usize,
+    arrays: &mut [(String, usize, Vec<f64>)],
+) -> Result<(), LoadError> {
+    for (n, ncomp, values) in arrays.iter_mut() {
+        let shown_n = shown_name(n);
+        let a = ix.point_data[n.as_str()];
+        let nc = a
+            .attr("NumberOfComponents")
+            .unwrap_or("1")
+            .trim()
+            .parse::<usize>()
+            .ok()
+            .filter(|&c| c > 0)
+            .ok_or_else(|| {
+                file.err(
+                    a.at,
+                    format!("DataArray '{shown_n}' has an invalid NumberOfComponents"),
+                )
+            })?;
+        if *ncomp != 0 && *ncomp != nc {
+            return Err(file.err(
+                a.at,
+                format!("DataArray '{shown_n}' changes its number of components between pieces"),
+            ));
+        }
+        *ncomp = nc;
+        let count = p.points.checked_mul(nc).ok_or_else(|| {
             file.err(
-                0,
-                "the pieces' NumberOfPoints add up to more than memory can hold",
+                a.at,
+                format!("DataArray '{shown_n}' has too many components"),
             )
         })?;
-    let mut positions: Vec<f64> = Vec::new();
-    let mut arrays: Vec<(String, usize, Vec<f64>)> = Vec::new();
-    let mut asm = Assembler::new(total_points);
-    let mut base = 0usize;
-    let mut cell_base = 0usize;
-    let mut ids: Vec<i64> = Vec::with_capacity(16);
-    for p in &pieces {
-        let find_arr = |part: Part, n: Option<&str>| {
-            p.arrays
-                .iter()
-                .find(|a| a.part == part && n.is_none_or(|n| a.name() == n))
+        let wrong = |found: usize| {
+            format!(
+                "DataArray '{shown_n}' has {found} values, expected {} points x {nc} components",
+                p.points
+            )
         };
-        if p.points > 0 {
-            let a = find_arr(Part::Points, None)
-                .ok_or_else(|| file.err(p.at, "Piece has no Points DataArray"))?;
-            let describe = |i: usize, x: f64| {
-                format!("point {} has the non-finite coordinate {x}", base + i / 3)
-            };
-            let v = file.values(a, Some(&describe))?;
-            if a.attr("NumberOfComponents").unwrap_or("1").trim() != "3"
-                || Some(v.len()) != p.points.checked_mul(3)
-            {
-                return Err(file.err(
-                    a.at,
-                    format!(
-                        "Points must hold 3 components for {} points, found {} values",
-                        p.points,
-                        v.len()
-                    ),
-                ));
-            }
-            positions.extend_from_slice(&v);
-        }
-        for (k, n) in names.iter().enumerate() {
-            let a = find_arr(Part::PointData, Some(n))
-                .ok_or_else(|| file.err(p.at, format!("no array '{n}'")))?;
-            let nc = a
-                .attr("NumberOfComponents")
-                .unwrap_or("1")
-                .trim()
-                .parse::<usize>()
-                .ok()
-                .filter(|&c| c > 0)
-                .ok_or_else(|| {
-                    file.err(
-                        a.at,
-                        format!("DataArray '{n}' has an invalid NumberOfComponents"),
-                    )
-                })?;
-            let describe = |i: usize, x: f64| {
-                format!(
-                    "array '{n}' has the non-finite value {x} at point {}",
-                    base + i / nc
-                )
-            };
-            let v = file.values(a, Some(&describe))?;
-            if Some(v.len()) != p.points.checked_mul(nc) {
-                return Err(file.err(
-                    a.at,
-                    format!(
-                        "DataArray '{n}' has {} values, expected {} points x {nc} components",
-                        v.len(),
-                        p.points
-                    ),
-                ));
-            }
-            if arrays.len() <= k {
-                arrays.push((n.clone(), nc, Vec::new()));
-            }
-            if arrays[k].1 != nc {
-                return Err(file.err(
-                    a.at,
-                    format!("DataArray '{n}' changes its number of components between pieces"),
-                ));
-            }
-            arrays[k].2.extend_from_slice(&v);
-        }
-        if p.cells > 0 {
-            let get = |n: &str| {
-                find_arr(Part::Cells, Some(n))
-                    .ok_or_else(|| file.err(p.at, format!("Piece has no Cells DataArray '{n}'")))
-            };
-            let (ca, oa, ta) = (get("connectivity")?, get("offsets")?, get("types")?);
-            let conn = file.values(ca, None)?;
-            let offs = file.values(oa, None)?;
-            let types = file.values(ta, None)?;
-            if offs.len() != p.cells || types.len() != p.cells {
-                return Err(file.err(
-                    oa.at,
-                    format!(
-                        "Piece has {} cells, but {} offsets and {} types",
-                        p.cells,
-                        offs.len(),
-                        types.len()
-                    ),
-                ));
-            }
-            let mut prev = 0i64;
-            for i in 0..p.cells {
-                let loc = Location::Cell(cell_base + i);
-                let end = as_index(offs[i])
-                    .filter(|&e| e >= prev && e as usize <= conn.len())
-                    .ok_or_else(|| {
-                        LoadError::malformed(
-                            name,
-                            loc.clone(),
-                            format!(
-                                "offset {} is not within the {} connectivity entries after {prev}",
-                                offs[i],
-                                conn.len()
-                            ),
-                        )
-                    })?;
-                let list = &conn[prev as usize..end as usize];
-                prev = end;
-                match classify(as_index(types[i]).unwrap_or(-1)) {
-                    Class::Skip => asm.skip(),
-                    Class::Unsupported(what) => {
-                        return Err(LoadError::unsupported(
-                            name,
-                            loc,
-                            format!(
-                                "cell type {} ({what}) is not supported; tetvr reads tetrahedra, voxels, hexahedra, wedges, pyramids and quadratic tetrahedra",
-                                types[i]
-                            ),
-                        ));
-                    }
-                    Class::Solid(kind) => {
-                        ids.clear();
-                        for &x in list {
-                            let v = as_index(x).ok_or_else(|| {
-                                LoadError::malformed(
-                                    name,
-                                    loc.clone(),
-                                    format!("vertex index {x} is not an integer"),
-                                )
-                            })?;
-                            ids.push(v.saturating_add(base as i64));
-                        }
-                        asm.cell(kind, ids.iter().copied())
-                            .map_err(|m| LoadError::malformed(name, loc.clone(), m))?;
-                    }
-                }
-            }
-        }
-        base += p.points;
-        cell_base += p.cells;
+        let describe = |i: usize, x: f64| {
+            format!(
+                "array '{shown_n}' has the non-finite value {x} at point {}",
+                base + i / nc
+            )
+        };
+        let want = Want {
+            count,
+            wrong: &wrong,
+        };
+        append(values, file.values(a, Some(&want), Some(&describe))?);
     }
-    let arrays = arrays
-        .into_iter()
-        .map(|(n, nc, v)| point_array(&n, v, nc))
-        .collect();
-    asm.finish(
-        name,
-        Format::Vtu,
-        positions_from(&positions),
-        arrays,
-        skipped,
-    )
+    Ok(())
+}
+
+/// A piece's cells, each checked against the piece's own points, into `asm`. `bases` are the
+/// numbers of points and cells in the pieces before it.
+fn read_cells(
+    file: &File,
+    p: &Piece,
+    ix: &PieceIndex,
+    (base, cell_base): (usize, usize),
+    asm: &mut Assembler,
+) -> Result<(), LoadError> {
+    if p.cells == 0 {
+        return Ok(());
+    }
+    let get = |n: &str| {
+        ix.cells
+            .get(n)
+            .copied()
+            .ok_or_else(|| file.err(p.at, format!("Piece has no Cells DataArray '{n}'")))
+    };
+    let (ca, oa, ta) = (get("connectivity")?, get("offsets")?, get("types")?);
+    let per_cell = |what: &'static str| {
+        move |found: usize| format!("Piece has {} cells, but {found} {what}", p.cells)
+    };
+    let (wrong_types, wrong_offsets) = (per_cell("types"), per_cell("offsets"));
+    let types = file.ints(
+        ta,
+        &Want {
+            count: p.cells,
+            wrong: &wrong_types,
+        },
+    )?;
+    let offs = file.ints(
+        oa,
+        &Want {
+            count: p.cells,
+            wrong: &wrong_offsets,
+        },
+    )?;
+    let last = offs[p.cells - 1];
+    let conn_len = usize::try_from(last)
+        .map_err(|_| file.err(oa.at, format!("the last offset, {last}, is negative")))?;
+    let wrong_conn = |found: usize| {
+        format!("connectivity has {found} entries, but the offsets end at {conn_len}")
+    };
+    let conn = file.ints(
+        ca,
+        &Want {
+            count: conn_len,
+            wrong: &wrong_conn,
+        },
+    )?;
+    let name = file.name;
+    let mut ids: Vec<i64> = Vec::with_capacity(10);
+    let mut prev = 0usize;
+    for i in 0..p.cells {
+        let loc = Location::Cell(cell_base + i);
+        let end = usize::try_from(offs[i])
+            .ok()
+            .filter(|&e| e >= prev && e <= conn.len())
+            .ok_or_else(|| {
+                LoadError::malformed(
+                    name,
+                    loc.clone(),
+                    format!(
+                        "offset {} is not within the {} connectivity entries after {prev}",
+                        offs[i],
+                        conn.len()
+                    ),
+                )
+            })?;
+        let list = &conn[prev..end];
+        prev = end;
+        let locate = |m: String| LoadError::malformed(name, loc.clone(), m);
+        match classify(types[i]) {
+            Class::Skip => asm.skip(),
+            Class::Unsupported(what) => {
+                return Err(LoadError::unsupported(
+                    name,
+                    loc,
+                    format!(
+                        "cell type {} ({what}) is not supported; tetvr reads tetrahedra, voxels, hexahedra, wedges, pyramids and quadratic tetrahedra",
+                        types[i]
+                    ),
+                ));
+            }
+            Class::Solid(kind) if list.len() == kind.vertex_count() => {
+                in_piece(list, p.points, base, &mut ids).map_err(&locate)?;
+                asm.cell(kind, &ids, locate)?;
+            }
+            // The assembler names the wrong vertex count.
+            Class::Solid(kind) => asm.cell(kind, list, locate)?,
+        }
+    }
+    Ok(())
+}
+
+/// A cell's indices, checked to be among its piece's `points` and moved past the `base`
+/// points of the pieces before it.
+fn in_piece(list: &[i64], points: usize, base: usize, ids: &mut Vec<i64>) -> Result<(), String> {
+    ids.clear();
+    for &v in list {
+        if v < 0 || v as u64 >= points as u64 {
+            return Err(format!(
+                "vertex index {v} is out of range (its piece has {points} points)"
+            ));
+        }
+        ids.push(v + base as i64);
+    }
+    Ok(())
 }
 
 /// Writes `mesh` as a `.vtu`: appended raw binary, UInt64 headers, little endian; Float64
@@ -874,7 +1204,7 @@ mod tests {
         );
         let mut buf = Vec::new();
         write_to(&m, &mut buf).unwrap();
-        let l = read(&buf, "t.vtu").unwrap();
+        let l = super::super::load_bytes(&buf, Format::Vtu, "t.vtu").unwrap();
         assert_eq!(l.mesh.positions(), m.positions());
         assert_eq!(l.mesh.tets(), m.tets());
         assert_eq!(l.mesh.arrays(), m.arrays());

@@ -6,6 +6,7 @@
 //! (`(b - a) . ((c - a) x (d - a)) >= 0`, VTK's convention). [`TetMesh::new`] enforces this and
 //! reports what it had to repair in a [`BuildReport`].
 
+pub mod name;
 pub mod split;
 pub mod stats;
 pub mod topology;
@@ -84,7 +85,7 @@ pub enum MeshError {
         z: f64,
     },
     /// A scalar value is NaN or infinite.
-    #[error("scalar array '{array}' has the non-finite value {value} at vertex {vertex}")]
+    #[error("scalar array '{}' has the non-finite value {value} at vertex {vertex}", name::shown_name(.array))]
     NonFiniteScalar {
         /// The array's name.
         array: String,
@@ -94,7 +95,7 @@ pub enum MeshError {
         value: f64,
     },
     /// A scalar array has not one value per vertex.
-    #[error("scalar array '{array}' has {len} values, but the mesh has {count} vertices")]
+    #[error("scalar array '{}' has {len} values, but the mesh has {count} vertices", name::shown_name(.array))]
     ArrayLength {
         /// The array's name.
         array: String,
@@ -112,7 +113,7 @@ pub enum MeshError {
         max: u64,
     },
     /// The array asked for (`--array`) is not in the mesh.
-    #[error("no scalar array named '{name}'; the mesh has: {available}")]
+    #[error("no scalar array named '{}'; the mesh has: {available}", name::shown_name(.name))]
     NoSuchArray {
         /// The name asked for.
         name: String,
@@ -245,16 +246,13 @@ impl TetMesh {
         }
     }
 
-    /// The names of all arrays, comma separated (for messages).
+    /// The names of the arrays, comma separated and safe to print (for messages; see
+    /// [`name::shown_list`]).
     pub(crate) fn array_names(&self) -> String {
         if self.arrays.is_empty() {
             return "(none)".to_owned();
         }
-        self.arrays
-            .iter()
-            .map(|a| a.name.as_str())
-            .collect::<Vec<_>>()
-            .join(", ")
+        name::shown_list(self.arrays.iter().map(|a| a.name.as_str()))
     }
 
     /// Adds (or replaces, by name) a scalar array and makes it active.
@@ -325,9 +323,32 @@ impl TetMesh {
 }
 
 /// Six times the signed volume of tet `t` in `positions`.
+/// `(b - a) . ((c - a) x (d - a))`, taken on the corners scaled by a power of two
+/// ([`scaled`]): the same value where it is in f64's range, and infinite with the right sign,
+/// not NaN, beyond it (coordinates near 1e308), so such tets are still oriented.
 fn orient(positions: &[DVec3], t: &[u32; 4]) -> f64 {
-    let [a, b, c, d] = t.map(|v| positions[v as usize]);
-    (b - a).dot((c - a).cross(d - a))
+    let ([a, b, c, d], k) = scaled(t.map(|v| positions[v as usize]));
+    (b - a).dot((c - a).cross(d - a)) * pow2(3 * k)
+}
+
+/// `2^e` for any `e`, exact where it is representable (0 below, infinite above f64's range).
+pub(crate) fn pow2(e: i32) -> f64 {
+    // Two factors, each within f64's exponent range, so no intermediate overflows early.
+    let half = e / 2;
+    2f64.powi(half) * 2f64.powi(e - half)
+}
+
+/// The corners scaled by a power of two, `2^-k`, that brings the largest coordinate into
+/// [0.5, 1), and `k`. Scaling by a power of two is exact, so every measure taken on the scaled
+/// corners is the exact measure up to the factor, without overflow for any finite input.
+pub(crate) fn scaled(c: [DVec3; 4]) -> ([DVec3; 4], i32) {
+    let largest = c.iter().map(|p| p.abs().max_element()).fold(0.0, f64::max);
+    if largest == 0.0 {
+        return (c, 0);
+    }
+    let k = largest.log2().floor() as i32 + 1;
+    let s = pow2(-k);
+    (c.map(|p| p * s), k)
 }
 
 fn check_positions(positions: &[DVec3]) -> Result<(), MeshError> {

@@ -31,7 +31,8 @@ use std::fmt;
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::TetMesh;
+use super::name::shown_name;
+use super::{TetMesh, pow2, scaled};
 
 /// Quality below which a (nonzero-volume) tet counts as near-degenerate; see the module docs.
 pub const NEAR_DEGENERATE_QUALITY: f64 = 1e-6;
@@ -128,7 +129,8 @@ pub struct MeshStats {
     pub diagonal: f64,
     /// Each scalar array's range.
     pub arrays: Vec<ArrayStats>,
-    /// Sum of the tets' absolute volumes, and their min, mean and max.
+    /// Sum of the tets' absolute volumes, and their min, mean and max; infinite where the value
+    /// is beyond f64's range (shown as "out of range"), e.g. for coordinates near 1e308.
     pub total_volume: f64,
     /// Smallest absolute tet volume.
     pub min_volume: f64,
@@ -167,17 +169,28 @@ pub struct MeshStats {
     pub convex: bool,
 }
 
-/// Per-tet measures, gathered in one parallel pass.
+/// Per-tet measures, gathered in one parallel pass. The volume is kept as
+/// `scaled_volume · 2^exp3` so that it neither overflows nor underflows: a tet with corners
+/// near 1e308 has a volume near 1e924, which no f64 holds.
 #[derive(Clone, Copy)]
 struct TetMeasure {
-    volume: f64,
+    scaled_volume: f64,
+    exp3: i32,
     quality: f64,
     zero: bool,
 }
 
+impl TetMeasure {
+    /// The signed volume as an f64: infinite when it is out of f64's range.
+    fn volume(&self) -> f64 {
+        self.scaled_volume * pow2(self.exp3)
+    }
+}
+
 /// Volume, quality and zero-volume test of one tet, from the orientation determinant of the
-/// edges leaving its first vertex.
+/// edges leaving its first vertex, taken on its scaled corners ([`scaled`]).
 fn measure(c: [DVec3; 4]) -> TetMeasure {
+    let (c, k) = scaled(c);
     let [e1, e2, e3] = [c[1] - c[0], c[2] - c[0], c[3] - c[0]];
     let det = e1.x * (e2.y * e3.z - e2.z * e3.y)
         + e1.y * (e2.z * e3.x - e2.x * e3.z)
@@ -187,16 +200,19 @@ fn measure(c: [DVec3; 4]) -> TetMeasure {
         + e1.z.abs() * ((e2.x * e3.y).abs() + (e2.y * e3.x).abs());
     let zero = det.abs() <= ORIENT_ERROR_BOUND * permanent;
     TetMeasure {
-        volume: det / 6.0,
+        scaled_volume: det / 6.0,
+        exp3: 3 * k,
         quality: if zero { 0.0 } else { tet_quality(c) },
         zero,
     }
 }
 
 /// The normalized volume `6√2·|V| / l_rms³` of the tet with corners `c`: 1 for a regular tet,
-/// 0 for a flat one (or four coincident points). Computed on edges scaled by the longest one,
-/// so that it neither overflows nor underflows for any finite coordinates.
+/// 0 for a flat one (or four coincident points). Computed on corners scaled by a power of two
+/// and edges scaled by the longest one, so that it neither overflows nor underflows for any
+/// finite coordinates.
 pub fn tet_quality(c: [DVec3; 4]) -> f64 {
+    let (c, _) = scaled(c);
     let edges = [
         c[1] - c[0],
         c[2] - c[0],
@@ -221,7 +237,10 @@ pub fn tet_quality(c: [DVec3; 4]) -> f64 {
 /// Sums, extremes, counts and the quality histogram over all tets.
 #[derive(Clone)]
 struct Totals {
-    abs_volume: f64,
+    /// The largest `exp3` of all tets: the sum of |V| is kept in units of `2^top`, where it
+    /// cannot overflow.
+    top: i32,
+    scaled_abs_volume: f64,
     min_volume: f64,
     max_volume: f64,
     quality_sum: f64,
@@ -233,9 +252,10 @@ struct Totals {
 }
 
 impl Totals {
-    fn new() -> Self {
+    fn new(top: i32) -> Self {
         Self {
-            abs_volume: 0.0,
+            top,
+            scaled_abs_volume: 0.0,
             min_volume: f64::INFINITY,
             max_volume: 0.0,
             quality_sum: 0.0,
@@ -248,15 +268,15 @@ impl Totals {
     }
 
     fn add(mut self, m: &TetMeasure) -> Self {
-        let v = m.volume.abs();
-        self.abs_volume += v;
+        let v = m.volume().abs();
+        self.scaled_abs_volume += relative_to(m, self.top);
         self.min_volume = self.min_volume.min(v);
         self.max_volume = self.max_volume.max(v);
         self.quality_sum += m.quality;
         self.min_quality = self.min_quality.min(m.quality);
         self.zero += m.zero as usize;
         self.near_degenerate += (!m.zero && m.quality < NEAR_DEGENERATE_QUALITY) as usize;
-        self.inverted += (!m.zero && m.volume < 0.0) as usize;
+        self.inverted += (!m.zero && m.scaled_volume < 0.0) as usize;
         // A regular tet's q may round to just below 1: the last bin ends at 1 inclusive.
         self.quality.add(m.quality.log10().min(-f64::EPSILON));
         self
@@ -264,7 +284,8 @@ impl Totals {
 
     fn merge(self, o: Self) -> Self {
         Self {
-            abs_volume: self.abs_volume + o.abs_volume,
+            top: self.top,
+            scaled_abs_volume: self.scaled_abs_volume + o.scaled_abs_volume,
             min_volume: self.min_volume.min(o.min_volume),
             max_volume: self.max_volume.max(o.max_volume),
             quality_sum: self.quality_sum + o.quality_sum,
@@ -287,20 +308,22 @@ impl MeshStats {
             .into_par_iter()
             .map(|t| measure(mesh.tet_corners(t)))
             .collect();
+        let top = measures.par_iter().map(|m| m.exp3).max().unwrap_or(0);
         let totals = measures
             .par_iter()
-            .fold(Totals::new, Totals::add)
-            .reduce(Totals::new, Totals::merge);
+            .fold(|| Totals::new(top), Totals::add)
+            .reduce(|| Totals::new(top), Totals::merge);
         // A mesh always has a tet, so the mean is defined; it is zero only if all volumes are,
         // and then every relative volume is taken as 0 (below the histogram) rather than 0/0.
-        let mean_volume = totals.abs_volume / tets as f64;
+        // Relative volumes are taken in units of 2^top, where neither side overflows.
+        let scaled_mean = totals.scaled_abs_volume / tets as f64;
         let relative_volume = measures
             .par_iter()
             .fold(
                 || Histogram::new(-12.0, 2.0, 14),
                 |mut h, m| {
-                    let relative = if mean_volume > 0.0 {
-                        m.volume.abs() / mean_volume
+                    let relative = if scaled_mean > 0.0 {
+                        relative_to(m, top) / scaled_mean
                     } else {
                         0.0
                     };
@@ -315,11 +338,11 @@ impl MeshStats {
             vertices: mesh.vertex_count(),
             tets,
             bounds: (lo, hi),
-            diagonal: (hi - lo).length(),
+            diagonal: diagonal(lo, hi),
             arrays: array_stats(mesh),
-            total_volume: totals.abs_volume,
+            total_volume: totals.scaled_abs_volume * pow2(top),
             min_volume: totals.min_volume,
-            mean_volume,
+            mean_volume: scaled_mean * pow2(top),
             max_volume: totals.max_volume,
             relative_volume,
             min_quality: totals.min_quality,
@@ -336,6 +359,22 @@ impl MeshStats {
             convex: adjacency.is_convex(mesh.positions()),
         }
     }
+}
+
+/// |V| of a tet in units of `2^top` (`top` at least its `exp3`): no overflow.
+fn relative_to(m: &TetMeasure, top: i32) -> f64 {
+    m.scaled_volume.abs() * pow2(m.exp3 - top)
+}
+
+/// The length of the box diagonal `hi - lo`, taken on the corners scaled by a power of two so
+/// that it is infinite only when the length itself is beyond f64's range.
+fn diagonal(lo: DVec3, hi: DVec3) -> f64 {
+    let largest = lo.abs().max_element().max(hi.abs().max_element());
+    if largest == 0.0 {
+        return 0.0;
+    }
+    let k = largest.log2().floor() as i32 + 1;
+    (hi * pow2(-k) - lo * pow2(-k)).length() * pow2(k)
 }
 
 fn array_stats(mesh: &TetMesh) -> Vec<ArrayStats> {
@@ -384,8 +423,11 @@ pub(crate) fn thousands(n: usize) -> String {
 }
 
 /// `x` to `sig` significant digits without trailing zeros; scientific notation outside
-/// [0.01, 1e6).
+/// [0.01, 1e6); "out of range" for a value that overflowed f64.
 fn number(x: f64, sig: usize) -> String {
+    if !x.is_finite() {
+        return "out of range".to_owned();
+    }
     let a = x.abs();
     if a == 0.0 {
         return "0".to_owned();
@@ -480,15 +522,15 @@ impl fmt::Display for MeshStats {
             line(f, "scalar arrays", "none")?;
         } else {
             line(f, "scalar arrays", "(* = active)")?;
-            let width = self.arrays.iter().map(|a| a.name.chars().count()).max();
-            let width = width.unwrap_or(0);
-            for a in &self.arrays {
+            let names: Vec<String> = self.arrays.iter().map(|a| shown_name(&a.name)).collect();
+            let width = names.iter().map(|n| n.chars().count()).max().unwrap_or(0);
+            for (a, name) in self.arrays.iter().zip(&names) {
                 let range = match a.range {
                     Some((lo, hi)) => format!("{} .. {}", number(lo, 4), number(hi, 4)),
                     None => "(no values)".to_owned(),
                 };
                 let mark = if a.active { '*' } else { ' ' };
-                writeln!(f, "  {mark} {:<width$}  {range}", a.name)?;
+                writeln!(f, "  {mark} {name:<width$}  {range}")?;
             }
         }
         line(
@@ -792,6 +834,48 @@ mod tests {
             !text.contains("NaN") && text.contains("scalar arrays:        none"),
             "{text}"
         );
+    }
+
+    #[test]
+    fn coordinates_near_the_f64_limit_give_true_measures() {
+        // Edges of 2.8e308 and a volume near 1e924: every naive product overflows to inf or
+        // NaN, which made this sound tet "zero-volume" with quality 1 and volume NaN.
+        let huge = regular().map(|p| p * 1e308);
+        let m = measure(huge);
+        assert!(!m.zero && m.scaled_volume != 0.0);
+        assert!((tet_quality(huge) - 1.0).abs() < 1e-15);
+        let tiny = [DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z];
+        let mut p = huge.to_vec();
+        p.extend(tiny);
+        // `regular()` is negatively oriented: the huge copy is reoriented (its orientation
+        // determinant was NaN before, and the tet stayed inverted).
+        let (mesh, report) = TetMesh::new(p, vec![[0, 1, 2, 3], [4, 5, 6, 7]], vec![]).unwrap();
+        assert_eq!(report.reoriented, 1);
+        let s = MeshStats::compute(&mesh, None);
+        assert_eq!((s.zero_volume_tets, s.near_degenerate_tets), (0, 0));
+        assert_eq!(s.inverted_tets, 0);
+        assert!(s.total_volume.is_infinite() && s.min_volume == 1.0 / 6.0);
+        // The unit tet is ~1e-924 of the mean: below the histogram; the huge one is 2x the mean.
+        let h = &s.relative_volume;
+        assert_eq!((h.below, h.counts[12], h.above), (1, 1, 0));
+        assert!((s.min_quality - tet_quality(tiny)).abs() < 1e-15);
+        let text = s.to_string();
+        assert!(!text.contains("NaN") && !text.contains("inf"), "{text}");
+        assert!(
+            text.contains("diagonal:             out of range"),
+            "{text}"
+        );
+    }
+
+    #[test]
+    fn array_names_of_any_length_print_safely() {
+        let mut m = box_grid(DVec3::ZERO, DVec3::ONE, UVec3::ONE, "s", |p| p.x);
+        let long = format!("\u{1b}[31m{}", "n".repeat(70_000));
+        m.add_array(ScalarArray::new(long, vec![0.0; m.vertex_count()]))
+            .unwrap();
+        let text = MeshStats::compute(&m, None).to_string();
+        assert!(text.contains("\\u{1b}[31mnnn") && text.contains("… (70005 characters)"));
+        assert!(!text.contains('\u{1b}') && text.len() < 4000, "{text}");
     }
 
     fn point_strategy() -> impl Strategy<Value = DVec3> {
