@@ -467,7 +467,7 @@ fn nifti_vox_offset_skips_padding_before_the_voxels() {
         );
     }
     // Inside the header, or not a whole byte: refused.
-    for offset in [348.0f32, 0.0, 352.5, f32::NAN] {
+    for offset in [348.0f32, 0.0, 352.5, f32::NAN, 1e30] {
         bytes[VOX_OFFSET..VOX_OFFSET + 4].copy_from_slice(&offset.to_le_bytes());
         let e = convert_bytes("offset.nii", &bytes, &VolumeToTets::default()).unwrap_err();
         assert!(e.to_string().contains("vox_offset"), "{e}");

@@ -28,6 +28,9 @@ use super::{GenerateError, hex_grid_mesh};
 use crate::mesh::{MeshError, TetMesh};
 use header::{HEADER_LEN, MIN_VOX_OFFSET, NotNifti1, RawHeader, TypeProblem, VoxelType};
 
+/// The largest `vox_offset` accepted (2^53, far beyond any real file).
+const MAX_VOX_OFFSET: f32 = 9_007_199_254_740_992.0;
+
 /// The most mesh vertices (samples after downsampling) a volume may give: 2^24, a 256^3 grid
 /// of up to 100 M tets (about 2.5 GB as a mesh). A 1024^3 volume fits with `--downsample 4`.
 pub const MAX_VOLUME_VERTICES: u64 = 1 << 24;
@@ -350,12 +353,13 @@ fn check_header(raw: RawHeader, name: &str) -> Result<Layout, VolumeError> {
     let dims = check_dims(&raw.dim, name)?;
     let kind = check_type(raw.datatype, raw.bitpix, name)?;
     let vox_offset = raw.vox_offset;
-    if !(vox_offset.is_finite() && vox_offset.fract() == 0.0 && vox_offset >= MIN_VOX_OFFSET as f32)
-    {
+    // Below 2^53 the end of the data (vox_offset + at most 2^49 voxel bytes) fits in u64.
+    let valid = MIN_VOX_OFFSET as f32..MAX_VOX_OFFSET;
+    if !(vox_offset.fract() == 0.0 && valid.contains(&vox_offset)) {
         return Err(bad_header(
             name,
             format!(
-                "vox_offset is {vox_offset}; the voxels of a .nii start at a whole byte offset of {MIN_VOX_OFFSET} or more"
+                "vox_offset is {vox_offset}; the voxels of a .nii start at a whole byte offset from {MIN_VOX_OFFSET} to 2^53"
             ),
         ));
     }
