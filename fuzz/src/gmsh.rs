@@ -102,7 +102,7 @@ pub fn write(mesh: &Mesh, style: Style) -> Vec<u8> {
 
 fn nodes22(o: &mut Out, mesh: &Mesh, tag: impl Fn(usize) -> i64) {
     let coords = mesh.coords();
-    let n = mesh.lies.points.map_or(coords.len(), |n| n as usize);
+    let n = mesh.lies().points.map_or(coords.len(), |n| n as usize);
     o.line(&format!("$Nodes\n{n}"));
     for (i, p) in coords.iter().enumerate() {
         o.int(tag(i));
@@ -113,7 +113,7 @@ fn nodes22(o: &mut Out, mesh: &Mesh, tag: impl Fn(usize) -> i64) {
 }
 
 fn elements22(o: &mut Out, mesh: &Mesh, tag: impl Fn(usize) -> i64) {
-    let n = mesh.lies.cells.map_or(mesh.cells.len(), |n| n as usize);
+    let n = mesh.lies().cells.map_or(mesh.cells.len(), |n| n as usize);
     o.line(&format!("$Elements\n{n}"));
     for (i, cell) in mesh.cells.iter().enumerate() {
         if o.binary {
@@ -138,7 +138,7 @@ fn elements22(o: &mut Out, mesh: &Mesh, tag: impl Fn(usize) -> i64) {
 
 fn nodes41(o: &mut Out, mesh: &Mesh, tag: impl Fn(usize) -> i64) {
     let coords = mesh.coords();
-    let n = mesh.lies.points.map_or(coords.len(), |n| n as usize);
+    let n = mesh.lies().points.map_or(coords.len(), |n| n as usize);
     o.line(&format!(
         "$Nodes\n1 {n} {} {}",
         tag(0),
@@ -154,7 +154,7 @@ fn nodes41(o: &mut Out, mesh: &Mesh, tag: impl Fn(usize) -> i64) {
 }
 
 fn elements41(o: &mut Out, mesh: &Mesh, tag: impl Fn(usize) -> i64) {
-    let n = mesh.lies.cells.map_or(mesh.cells.len(), |n| n as usize);
+    let n = mesh.lies().cells.map_or(mesh.cells.len(), |n| n as usize);
     o.line(&format!("$Elements\n{} {n} 1 {n}", mesh.cells.len()));
     for (i, cell) in mesh.cells.iter().enumerate() {
         o.line(&format!("3 1 {} 1", gmsh_type(cell.kind)));
@@ -175,7 +175,7 @@ fn data(o: &mut Out, mesh: &Mesh, tag: impl Fn(usize) -> i64) {
             ("NodeData", mesh.coords().len())
         };
         let comps = Mesh::components(a);
-        let values = Mesh::array_values(a, count, comps);
+        let values = mesh.array_values(a, count, comps);
         let declared = values.len() / comps;
         o.line(&format!(
             "${section}\n1\n\"{}\"\n1\n0.0\n3\n0\n{comps}\n{declared}",

@@ -15,47 +15,36 @@ pub mod vtu;
 
 use std::path::PathBuf;
 
-use arbitrary::Arbitrary;
+use arbitrary::{Arbitrary, Unstructured};
 use tetvr::generate::volume::{VolumeToTets, nifti_bytes_to_tets};
 use tetvr::io::{Format, LoadError, Loaded, load_bytes, load_tetgen_bytes};
 use tetvr::mesh::stats::MeshStats;
 
-/// A number as a file may hold it: mostly ordinary, sometimes an edge case.
-#[derive(Arbitrary, Clone, Copy, Debug)]
-pub enum Num {
-    Small(u8),
-    Int(i32),
-    Float(f32),
-    Wide(f64),
-    Nan,
-    Inf,
-    NegInf,
-    Huge,
+/// A number as a file may hold it: mostly a small integer or an ordinary float, now and then
+/// an edge case (NaN, infinities, 1e308, any i32 or f64), so most meshes are valid and the
+/// readers' deeper paths (splitting, statistics) run.
+#[derive(Clone, Copy, Debug)]
+pub struct Num(pub f64);
+
+impl<'a> Arbitrary<'a> for Num {
+    fn arbitrary(u: &mut Unstructured<'a>) -> arbitrary::Result<Self> {
+        let tag = u8::arbitrary(u)?;
+        Ok(Num(match tag {
+            0..=159 => (tag % 8) as f64,
+            160..=223 => f32::arbitrary(u)? as f64,
+            224..=239 => i32::arbitrary(u)? as f64,
+            240..=243 => f64::NAN,
+            244..=247 => f64::INFINITY,
+            248..=251 => f64::NEG_INFINITY,
+            252..=253 => 1e308,
+            _ => f64::arbitrary(u)?,
+        }))
+    }
 }
 
 impl Num {
     pub fn value(self) -> f64 {
-        match self {
-            Num::Small(v) => (v % 8) as f64,
-            Num::Int(v) => v as f64,
-            Num::Float(v) => v as f64,
-            Num::Wide(v) => v,
-            Num::Nan => f64::NAN,
-            Num::Inf => f64::INFINITY,
-            Num::NegInf => f64::NEG_INFINITY,
-            Num::Huge => 1e308,
-        }
-    }
-
-    /// The number as text, the way writers print it.
-    pub fn text(self) -> String {
-        match self {
-            Num::Small(_) | Num::Int(_) => format!("{}", self.value() as i64),
-            Num::Nan => "nan".into(),
-            Num::Inf => "inf".into(),
-            Num::NegInf => "-inf".into(),
-            _ => format!("{:e}", self.value()),
-        }
+        self.0
     }
 }
 
@@ -126,13 +115,13 @@ impl Kind {
     }
 }
 
-/// One cell: its kind, vertex indices (taken modulo a little more than the point count, so most
-/// are valid), and a change to its vertex count.
+/// One cell: its kind, vertex indices (taken modulo the point count, or with
+/// [`Mesh::bad_cells`] a little more), and with `bad_cells` a change to its vertex count.
 #[derive(Arbitrary, Clone, Debug)]
 pub struct Cell {
     pub kind: Kind,
     pub verts: [u16; 10],
-    pub extra: Option<i8>,
+    pub extra: i8,
 }
 
 /// A per-point (or per-cell) array.
@@ -142,8 +131,9 @@ pub struct Array {
     pub components: u8,
     pub values: Vec<Num>,
     pub on_cells: bool,
-    /// Values to drop from (or, negative, add to) the count the header promises.
-    pub short_by: Option<i8>,
+    /// With [`Mesh::bad_arrays`]: values to drop from (or, negative, add to) the count the
+    /// header promises.
+    pub short_by: i8,
 }
 
 /// Count fields to write instead of the true ones.
@@ -161,7 +151,12 @@ pub struct Mesh {
     pub points: Vec<[Num; 3]>,
     pub cells: Vec<Cell>,
     pub arrays: Vec<Array>,
-    pub lies: Lies,
+    /// Count fields that disagree with the data (half the inputs have none).
+    pub lies: Option<Lies>,
+    /// Cells with wrong vertex counts and indices past the points.
+    pub bad_cells: bool,
+    /// Arrays with fewer or more values than declared.
+    pub bad_arrays: bool,
     /// Bytes appended after the last section.
     pub tail: Vec<u8>,
 }
@@ -175,20 +170,35 @@ impl Mesh {
         self.points.iter().map(|p| p.map(Num::value)).collect()
     }
 
-    /// A cell's vertex indices: its kind's count (changed by `extra`), each index modulo the
-    /// point count plus 2 (so now and then one past the end).
+    /// A cell's vertex indices: its kind's count, each index modulo the point count; with
+    /// `bad_cells`, the count changed by `extra` and indices up to 2 past the end.
     pub fn cell_verts(&self, cell: &Cell) -> Vec<i64> {
-        let n = (cell.kind.nodes() as i64 + cell.extra.map_or(0, |e| (e % 4) as i64)).max(0);
-        let modulus = self.coords().len() as i64 + 2;
-        (0..n as usize)
+        let (extra, slack) = if self.bad_cells {
+            ((cell.extra % 4) as i64, 2)
+        } else {
+            (0, 0)
+        };
+        let n = (cell.kind.nodes() as i64 + extra).max(0) as usize;
+        let modulus = self.coords().len() as i64 + slack;
+        (0..n)
             .map(|i| cell.verts[i % 10] as i64 % modulus)
             .collect()
     }
 
+    /// The count fields to write: the lies, if any.
+    pub fn lies(&self) -> Lies {
+        self.lies.unwrap_or_default()
+    }
+
     /// An array's values for `count` entities of `comps` components: the fuzzer's values
-    /// repeated to the right length, then shortened (or lengthened) by `short_by`.
-    pub fn array_values(array: &Array, count: usize, comps: usize) -> Vec<f64> {
-        let want = (count * comps) as i64 - array.short_by.map_or(0, |s| s as i64);
+    /// repeated to the right length, then with `bad_arrays` shortened (or lengthened).
+    pub fn array_values(&self, array: &Array, count: usize, comps: usize) -> Vec<f64> {
+        let short = if self.bad_arrays {
+            array.short_by as i64
+        } else {
+            0
+        };
+        let want = (count * comps) as i64 - short;
         let want = want.clamp(0, 1 << 16) as usize;
         if array.values.is_empty() {
             return (0..want).map(|i| i as f64).collect();

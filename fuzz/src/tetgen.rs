@@ -23,9 +23,9 @@ pub fn write(mesh: &Mesh, style: Style) -> (Vec<u8>, Vec<u8>) {
     let attrs: Vec<Vec<f64>> = mesh
         .arrays
         .iter()
-        .map(|a| Mesh::array_values(a, coords.len(), 1))
+        .map(|a| mesh.array_values(a, coords.len(), 1))
         .collect();
-    let np = mesh.lies.points.map_or(coords.len(), |n| n as usize);
+    let np = mesh.lies().points.map_or(coords.len(), |n| n as usize);
     let mut node = format!("{np} 3 {} {}\n", attrs.len(), style.markers as u8);
     if style.comments {
         node.push_str(&format!("# {}\n", mesh.title.text().replace('\n', " ")));
@@ -45,7 +45,7 @@ pub fn write(mesh: &Mesh, style: Style) -> (Vec<u8>, Vec<u8>) {
     }
     let nattr = style.element_attributes % 4;
     let per = if style.quadratic { 10 } else { 4 };
-    let nc = mesh.lies.cells.map_or(mesh.cells.len(), |n| n as usize);
+    let nc = mesh.lies().cells.map_or(mesh.cells.len(), |n| n as usize);
     let mut ele = format!("{nc} {per} {nattr}\n");
     for (i, cell) in mesh.cells.iter().enumerate() {
         ele.push_str(&format!("{}", i as i64 + base));

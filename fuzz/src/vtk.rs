@@ -88,7 +88,7 @@ pub fn write(mesh: &Mesh, style: Style) -> Vec<u8> {
     } else {
         ("float", 4)
     };
-    let np = mesh.lies.points.map_or(coords.len(), |n| n as usize);
+    let np = mesh.lies().points.map_or(coords.len(), |n| n as usize);
     o.line(&format!("POINTS {np} {ty}"));
     o.numbers(&coords.concat(), true, width);
     cells(&mut o, mesh, style);
@@ -100,9 +100,9 @@ pub fn write(mesh: &Mesh, style: Style) -> Vec<u8> {
 fn cells(o: &mut Out, mesh: &Mesh, style: Style) {
     let conn: Vec<Vec<i64>> = mesh.cells.iter().map(|c| mesh.cell_verts(c)).collect();
     let total: usize = conn.iter().map(Vec::len).sum();
-    let nc = mesh.lies.cells.map_or(conn.len(), |n| n as usize);
+    let nc = mesh.lies().cells.map_or(conn.len(), |n| n as usize);
     if style.v51 {
-        let size = mesh.lies.size.map_or(total, |n| n as usize);
+        let size = mesh.lies().size.map_or(total, |n| n as usize);
         o.line(&format!("CELLS {} {size}", nc + 1));
         let mut offsets = vec![0.0];
         for c in &conn {
@@ -114,7 +114,7 @@ fn cells(o: &mut Out, mesh: &Mesh, style: Style) {
         let flat: Vec<f64> = conn.concat().iter().map(|&v| v as f64).collect();
         o.numbers(&flat, false, 8);
     } else {
-        let size = mesh.lies.size.map_or(total + conn.len(), |n| n as usize);
+        let size = mesh.lies().size.map_or(total + conn.len(), |n| n as usize);
         o.line(&format!("CELLS {nc} {size}"));
         let mut flat = Vec::new();
         for c in &conn {
@@ -153,7 +153,7 @@ fn data(o: &mut Out, mesh: &Mesh, np: usize, style: Style) {
         };
         for a in arrays {
             let comps = Mesh::components(a);
-            let values = Mesh::array_values(a, count, comps);
+            let values = mesh.array_values(a, count, comps);
             let name = a.name.token();
             if style.field {
                 o.line(&format!("{name} {comps} {count} {ty}"));

@@ -120,8 +120,8 @@ impl Writer {
 
     fn piece(&mut self, mesh: &Mesh) {
         let coords = mesh.coords();
-        let np = mesh.lies.points.map_or(coords.len(), |n| n as usize);
-        let nc = mesh.lies.cells.map_or(mesh.cells.len(), |n| n as usize);
+        let np = mesh.lies().points.map_or(coords.len(), |n| n as usize);
+        let nc = mesh.lies().cells.map_or(mesh.cells.len(), |n| n as usize);
         self.xml.push_str(&format!(
             "<Piece NumberOfPoints=\"{np}\" NumberOfCells=\"{nc}\">\n<PointData>\n"
         ));
@@ -144,7 +144,7 @@ impl Writer {
                 self.array(DataArray {
                     name: Some(a.name.text()),
                     comps,
-                    values: Mesh::array_values(a, count, comps),
+                    values: mesh.array_values(a, count, comps),
                     ty: float,
                 });
             }
