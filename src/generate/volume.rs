@@ -228,21 +228,27 @@ impl<R: Read> Stream<R> {
         Self { inner, pos: 0 }
     }
 
-    /// Reads `n` bytes into `buf` (replacing its contents); fewer only at the end of the file,
-    /// which is then a [`VolumeError::Truncated`] against `expected`.
+    /// Reads `n` bytes into `buf` (resized to `n`: callers ask for at most one voxel row, 256
+    /// KiB); fewer only at the end of the file, which is then a [`VolumeError::Truncated`]
+    /// against `expected`.
     fn read(
         &mut self,
-        n: u64,
+        n: usize,
         buf: &mut Vec<u8>,
         expected: u64,
         name: &str,
     ) -> Result<(), VolumeError> {
-        buf.clear();
-        let got = (&mut self.inner)
-            .take(n)
-            .read_to_end(buf)
-            .map_err(|e| read_error(name, e))? as u64;
-        self.pos += got;
+        buf.resize(n, 0);
+        let mut got = 0;
+        while got < n {
+            match self.inner.read(&mut buf[got..]) {
+                Ok(0) => break,
+                Ok(k) => got += k,
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                Err(e) => return Err(read_error(name, e)),
+            }
+        }
+        self.pos += got as u64;
         if got < n {
             return Err(VolumeError::Truncated {
                 path: name.to_owned(),
@@ -301,7 +307,7 @@ fn read_volume<R: Read>(
     opts: &VolumeToTets,
 ) -> Result<Samples, VolumeError> {
     let mut buf = Vec::new();
-    stream.read(HEADER_LEN as u64, &mut buf, HEADER_LEN as u64, name)?;
+    stream.read(HEADER_LEN, &mut buf, HEADER_LEN as u64, name)?;
     let bytes = buf
         .as_slice()
         .try_into()
@@ -516,7 +522,7 @@ fn read_samples<R: Read>(
     let out = sample_dims(layout.dims, f);
     let (slope, inter) = layout.raw.scaling();
     let norm = 1.0 / (f * f * f) as f64;
-    let row_bytes = (nx * layout.kind.size()) as u64;
+    let row_bytes = nx * layout.kind.size();
     let (mut raw, mut row) = (Vec::new(), Vec::new());
     let mut layer = vec![0.0; out[0] * out[1]];
     let mut samples = Vec::with_capacity(out.iter().product());
