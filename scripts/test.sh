@@ -34,3 +34,18 @@ trap 'rm -rf "$XDG_RUNTIME_DIR"' EXIT
 
 # The dev/test profile is optimized (see Cargo.toml); --locked keeps CI on Cargo.lock.
 cargo test --locked "$@"
+
+# The whole suite (no arguments) ends with a bounded coverage-guided fuzzing run of every
+# reader: TETVR_FUZZ_SECONDS per target (11 targets, plus about 3 minutes to build them the
+# first time); 0 skips it. Without a C++ compiler for libFuzzer (exit 2) the fuzz corpus
+# replay above (tests/fuzz_replay.rs) is what remains.
+fuzz_seconds=${TETVR_FUZZ_SECONDS:-15}
+if [[ $# -eq 0 && $fuzz_seconds -gt 0 ]]; then
+    status=0
+    scripts/fuzz.sh --seconds "$fuzz_seconds" || status=$?
+    if [[ $status -eq 2 ]]; then
+        echo "fuzzing skipped: no libFuzzer toolchain; the corpus was replayed by cargo test" >&2
+    elif [[ $status -ne 0 ]]; then
+        exit "$status"
+    fi
+fi

@@ -365,3 +365,241 @@ fn large_grid_generation_time() {
         assert!((mesh.tet_count() as f64 / target as f64 - 1.0).abs() < 0.15);
     }
 }
+
+// Hostile NIfTI headers (issue 13): each is a valid file written by nifti::writer with one field
+// changed, read back by tetvr. On the old reader (the nifti crate) these panicked, misread the
+// voxels or allocated gigabytes; each must now be a clear error, or the right values.
+
+/// Byte offsets of NIfTI-1 header fields (little-endian, as nifti::writer writes them).
+const DIM: usize = 40;
+const DATATYPE: usize = 70;
+const BITPIX: usize = 72;
+const VOX_OFFSET: usize = 108;
+const EXTENDER: usize = 348;
+
+/// A valid 3 x 3 x 3 float32 volume (`value_at`) as bytes, uncompressed, voxels at byte 352.
+fn valid_nifti_bytes() -> Vec<u8> {
+    let path = scratch("hostile").join("valid.nii");
+    write_nifti(&path, [3, 3, 3], [1.0; 3], value_at);
+    let bytes = std::fs::read(&path).unwrap();
+    assert_eq!(
+        bytes.len(),
+        352 + 27 * 4,
+        "the writer puts the voxels at byte 352"
+    );
+    bytes
+}
+
+fn set_i16(bytes: &mut [u8], at: usize, v: i16) {
+    bytes[at..at + 2].copy_from_slice(&v.to_le_bytes());
+}
+
+/// Converts `bytes` (written to a file, the way users run it) with `opts`.
+fn convert_bytes(name: &str, bytes: &[u8], opts: &VolumeToTets) -> Result<TetMesh, VolumeError> {
+    let path = scratch("hostile").join(name);
+    std::fs::write(&path, bytes).unwrap();
+    nifti_to_tets(&path, opts)
+}
+
+#[test]
+fn nifti_bitpix_that_disagrees_with_datatype_is_an_error_naming_both() {
+    for bitpix in [8, 16, 64, 0, -32] {
+        let mut bytes = valid_nifti_bytes();
+        set_i16(&mut bytes, BITPIX, bitpix);
+        let e = convert_bytes("bitpix.nii", &bytes, &VolumeToTets::default()).unwrap_err();
+        assert!(
+            matches!(&e, VolumeError::BitpixMismatch { bitpix: b, expected: 32, .. } if *b == bitpix),
+            "{e}"
+        );
+        let msg = e.to_string();
+        assert!(
+            msg.contains("bitpix") && msg.contains("float32") && msg.contains("bitpix.nii"),
+            "{msg}"
+        );
+    }
+}
+
+#[test]
+fn nifti_non_scalar_voxel_types_are_refused_by_name() {
+    // (datatype, bitpix, name): RGB and complex types, with the bitpix that matches them and
+    // enough voxel bytes, so only the type itself is wrong.
+    let cases = [
+        (128, 24, "RGB24"),
+        (2304, 32, "RGBA32"),
+        (32, 64, "complex64"),
+        (1792, 128, "complex128"),
+        (1, 1, "binary"),
+        (1536, 128, "float128"),
+    ];
+    for (datatype, bitpix, name) in cases {
+        let mut bytes = valid_nifti_bytes();
+        set_i16(&mut bytes, DATATYPE, datatype);
+        set_i16(&mut bytes, BITPIX, bitpix);
+        bytes.resize(352 + 27 * 32, 0);
+        let e = convert_bytes("type.nii", &bytes, &VolumeToTets::default()).unwrap_err();
+        assert!(
+            matches!(&e, VolumeError::UnsupportedType { datatype: d, type_name, .. } if *d == datatype && type_name.contains(name)),
+            "{e}"
+        );
+        assert!(e.to_string().contains(name), "{e}");
+    }
+    let mut bytes = valid_nifti_bytes();
+    set_i16(&mut bytes, DATATYPE, 777);
+    let e = convert_bytes("type.nii", &bytes, &VolumeToTets::default()).unwrap_err();
+    assert!(e.to_string().contains("datatype 777"), "{e}");
+}
+
+#[test]
+fn nifti_vox_offset_skips_padding_before_the_voxels() {
+    // 48 bytes of padding (NaN as float32) between the header and the voxels, vox_offset 400:
+    // the voxels must be read from byte 400, never the padding.
+    let valid = valid_nifti_bytes();
+    let mut bytes = valid[..352].to_vec();
+    bytes.extend(std::iter::repeat_n([0x00, 0x00, 0xC0, 0x7F], 12).flatten());
+    bytes.extend(&valid[352..]);
+    bytes[VOX_OFFSET..VOX_OFFSET + 4].copy_from_slice(&400f32.to_le_bytes());
+    let mesh = convert_bytes("offset.nii", &bytes, &VolumeToTets::default()).unwrap();
+    for (p, &v) in mesh.positions().iter().zip(mesh.scalars().unwrap()) {
+        assert_eq!(
+            v,
+            value_at(p.x as usize, p.y as usize, p.z as usize) as f64,
+            "{p}"
+        );
+    }
+    // Inside the header, or not a whole byte: refused.
+    for offset in [348.0f32, 0.0, 352.5, f32::NAN, 1e30] {
+        bytes[VOX_OFFSET..VOX_OFFSET + 4].copy_from_slice(&offset.to_le_bytes());
+        let e = convert_bytes("offset.nii", &bytes, &VolumeToTets::default()).unwrap_err();
+        assert!(e.to_string().contains("vox_offset"), "{e}");
+    }
+}
+
+#[test]
+fn nifti_extension_records_of_size_zero_are_an_error_not_gigabytes() {
+    // The extender announces extensions; the records in 352..vox_offset all claim size 0. The
+    // old reader looped over them until the end of the file, keeping each one: 0.5 MB of such
+    // records made 2 GB. 32,768 records (256 KiB) here.
+    let valid = valid_nifti_bytes();
+    let mut bytes = valid[..352].to_vec();
+    bytes[EXTENDER] = 1;
+    bytes.resize(352 + (1 << 18), 0);
+    let offset = bytes.len() as f32;
+    bytes[VOX_OFFSET..VOX_OFFSET + 4].copy_from_slice(&offset.to_le_bytes());
+    bytes.extend(&valid[352..]);
+    let start = Instant::now();
+    let e = convert_bytes("ext0.nii", &bytes, &VolumeToTets::default()).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            VolumeError::BadExtension {
+                offset: 352,
+                size: 0,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    // Found at the first record: far under a second (measured: about a millisecond).
+    assert!(start.elapsed().as_secs_f64() < 1.0);
+    // A record that runs past vox_offset is refused too; a valid one is skipped.
+    for (size, ok) in [(1i32 << 20, false), (16, true)] {
+        bytes[352..356].copy_from_slice(&size.to_le_bytes());
+        bytes[VOX_OFFSET..VOX_OFFSET + 4].copy_from_slice(&368f32.to_le_bytes());
+        let mut file = bytes[..368].to_vec();
+        file.extend(&valid[352..]);
+        let result = convert_bytes("ext.nii", &file, &VolumeToTets::default());
+        assert_eq!(result.is_ok(), ok, "{:?}", result.err());
+    }
+}
+
+#[test]
+fn nifti_volume_over_the_vertex_budget_names_the_downsample_factor_that_fits() {
+    // A 1024^3 uint8 header (1 GiB of voxels; only the header is in the file): too many
+    // vertices at full resolution, refused before any voxel is read, with the factor that fits
+    // (1024^3 / 4^3 = 2^24 = the limit).
+    let mut bytes = valid_nifti_bytes()[..352].to_vec();
+    for k in 1..=3 {
+        set_i16(&mut bytes, DIM + 2 * k, 1024);
+    }
+    set_i16(&mut bytes, DATATYPE, 2);
+    set_i16(&mut bytes, BITPIX, 8);
+    let e = convert_bytes("big.nii", &bytes, &VolumeToTets::default()).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            VolumeError::TooLarge {
+                suggested: 4,
+                vertices: 1_073_741_824,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert!(e.to_string().contains("--downsample 4"), "{e}");
+    // With that factor the budget holds, and the missing voxels are what is wrong.
+    let opts = VolumeToTets {
+        downsample: 4,
+        threshold: None,
+    };
+    let e = convert_bytes("big.nii", &bytes, &opts).unwrap_err();
+    assert!(
+        matches!(e, VolumeError::Truncated { expected, found: 352, .. } if expected == 352 + (1 << 30)),
+        "{e}"
+    );
+}
+
+#[test]
+fn nifti_dim_errors_name_the_dimension_that_is_wrong() {
+    for k in 1..=3 {
+        let mut bytes = valid_nifti_bytes();
+        set_i16(&mut bytes, DIM + 2 * k, 0);
+        let e = convert_bytes("dim.nii", &bytes, &VolumeToTets::default()).unwrap_err();
+        let msg = e.to_string();
+        assert!(msg.contains(&format!("dim[{k}] is 0")), "{msg}");
+        assert!(
+            (1..=3)
+                .filter(|&j| j != k)
+                .all(|j| !msg.contains(&format!("dim[{j}]"))),
+            "{msg}"
+        );
+    }
+    let mut bytes = valid_nifti_bytes();
+    set_i16(&mut bytes, DIM, 9);
+    let e = convert_bytes("dim.nii", &bytes, &VolumeToTets::default()).unwrap_err();
+    assert!(e.to_string().contains("dim[0]"), "{e}");
+}
+
+#[test]
+fn nifti_truncated_voxels_and_non_nifti_files_are_errors() {
+    let valid = valid_nifti_bytes();
+    // Uncompressed: the file length is checked against the header before reading.
+    let e = convert_bytes("short.nii", &valid[..400], &VolumeToTets::default()).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            VolumeError::Truncated {
+                expected: 460,
+                found: 400,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    // Gzip: found while streaming, at the row that is cut.
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    std::io::Write::write_all(&mut gz, &valid[..400]).unwrap();
+    let e = convert_bytes(
+        "short.nii.gz",
+        &gz.finish().unwrap(),
+        &VolumeToTets::default(),
+    )
+    .unwrap_err();
+    assert!(
+        matches!(e, VolumeError::Truncated { expected: 460, .. }),
+        "{e}"
+    );
+    for (bytes, what) in [(&b"hello"[..], "short"), (&[0u8; 400][..], "sizeof_hdr")] {
+        let e = convert_bytes("junk.nii", bytes, &VolumeToTets::default()).unwrap_err();
+        assert!(e.to_string().contains("junk.nii"), "{what}: {e}");
+    }
+}

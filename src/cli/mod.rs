@@ -319,7 +319,8 @@ pub enum GenerateShape {
     Nifti {
         /// The volume file.
         input: PathBuf,
-        /// Keep every k-th voxel along each axis.
+        /// Average blocks of k x k x k voxels into one vertex (box downsampling); volumes of
+        /// more than 2^24 vertices need it, and the error names the factor that fits.
         #[arg(long, default_value_t = 1)]
         downsample: u32,
         /// Drop cells whose eight corner values are all below this.
