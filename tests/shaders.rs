@@ -17,10 +17,7 @@ fn validate(name: &str, src: &str) -> Vec<String> {
 
 #[test]
 fn shells_stages_validate() {
-    assert_eq!(
-        validate("shells_assemble", &shaders::shells_assemble()),
-        ["main"]
-    );
+    assert_eq!(validate("assemble", &shaders::assemble()), ["main"]);
     for targets in 1..=shaders::MAX_TARGETS {
         let src = shaders::shells_raster(targets);
         assert_eq!(

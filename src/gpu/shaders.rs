@@ -4,7 +4,7 @@
 
 /// Structs mirroring [`crate::gpu::gpu_data`], the frame uniform binding, the pixel ray.
 pub const SHARED: &str = include_str!("../../shaders/shared.wgsl");
-const SHELLS_ASSEMBLE: &str = include_str!("../../shaders/shells_assemble.wgsl");
+const ASSEMBLE: &str = include_str!("../../shaders/assemble.wgsl");
 const SHELLS_RASTER: &str = include_str!("../../shaders/shells_raster.wgsl");
 const SHELLS_COMPOSITE: &str = include_str!("../../shaders/shells_composite.wgsl");
 const SHELLS_MARK: &str = include_str!("../../shaders/shells_mark.wgsl");
@@ -12,9 +12,9 @@ const SHELLS_MARK: &str = include_str!("../../shaders/shells_mark.wgsl");
 /// The most colour targets a raster variant may write (WebGPU's cap on colour attachments).
 pub const MAX_TARGETS: u32 = 8;
 
-/// The shells assembly stage (compute entry point `main`).
-pub fn shells_assemble() -> String {
-    format!("{SHARED}\n{SHELLS_ASSEMBLE}")
+/// The assembly stage every mode shares (compute entry point `main`).
+pub fn assemble() -> String {
+    format!("{SHARED}\n{ASSEMBLE}")
 }
 
 /// The shells raster stage writing `targets` (1..=[`MAX_TARGETS`]) vec4 colour targets, i.e.

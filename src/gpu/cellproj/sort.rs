@@ -22,7 +22,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::camera::Camera;
-use crate::gpu::shells::DEGENERATE_TOL;
+use crate::gpu::assembly::DEGENERATE_TOL;
 use crate::image::Image;
 use crate::reference::ReferenceRenderer;
 

@@ -6,7 +6,7 @@
 //!    transfer-function culling, the frame's `n` chosen from the tets' slice ranges
 //!    ([`adaptive`]), every shell's active list in one counting sort ([`binning`]);
 //! 2. assembly (compute): once per tet, eye-space corners and the eye-to-barycentric
-//!    transform (`shaders/shells_assemble.wgsl`);
+//!    transform (`shaders/assemble.wgsl`);
 //! 3. raster (one render pass per non-empty shell): front faces of the shell's tets, each
 //!    fragment writing its `n` slice samples (encoded scalar or 0) into `n / 4` colour targets
 //!    under MAX blending (`shaders/shells_raster.wgsl`);
@@ -39,6 +39,7 @@ pub mod twin;
 
 use std::collections::HashMap;
 use std::ops::Range;
+use std::sync::Arc;
 use std::time::Instant;
 
 use bytemuck::Zeroable;
@@ -46,16 +47,18 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::camera::Camera;
-use crate::gpu::gpu_data::{
-    FrameUniforms, MAX_TF_POINTS, ShellUniforms, TetRecord, TfPoint, TfPoints,
-};
+use crate::gpu::assembly::{AssemblyGroups, AssemblyInputs, AssemblyStage, RECORD_BYTES};
+use crate::gpu::gpu_data::{FrameUniforms, ShellUniforms, TfPoints};
+use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
+use crate::gpu::tf::tf_points;
 use crate::gpu::util::{
-    bind_group_layout, bounding_sphere, buffer_entry, check_image_size, entry, map_read, ms_since,
-    pipeline_layout_for, readback_buffer, scalar_frame, settings_error, wgsl_module,
+    bind_group_layout, buffer_entry, check_image_size, entry, f16_to_f32, map_read, ms_since,
+    pipeline_layout_for, readback_buffer, settings_error, wgsl_module,
 };
+use crate::gpu::view::ViewFrame;
 use crate::gpu::{GpuContext, GpuError, shaders};
+use crate::mesh::TetMesh;
 use crate::mesh::topology::FACES;
-use crate::mesh::{MeshError, TetMesh, check_new_positions, check_values, tet_ranges};
 use crate::render::{Frame, RenderError, Renderer, Timings};
 use crate::tf::TransferFunction;
 
@@ -110,12 +113,6 @@ impl Default for ShellSettings {
     }
 }
 
-/// A tet is degenerate (skipped, counted) when the determinant of its edges, each divided by
-/// the longest, is at most this times the product of their lengths: its barycentric transform
-/// would amplify f32 rounding by more than ~1e6. Such a tet has at most 1e-6 of the volume of a
-/// regular tet with the same longest edge, so skipping it loses no visible sample.
-pub const DEGENERATE_TOL: f32 = 1e-6;
-
 /// Default fixed slices per shell on software (CPU) adapters. Measured on lavapipe (2 cores,
 /// bluntfin 512x512, 4 A/B pairs of 7-frame medians): 16 slices per shell took 0.82-0.93 times
 /// the frame time of 32 (fewer fragments blend 8 targets where tets span few slices; the
@@ -153,8 +150,13 @@ pub struct ShellsRenderer {
     timestamps: bool,
     shell_stride: u64,
     pipelines: Pipelines,
-    mesh: MeshState,
-    gpu: MeshBuffers,
+    mesh: Arc<GpuTetMesh>,
+    /// How the per-tet arrays are cut into binding-sized chunks.
+    chunking: Chunking,
+    /// One record per tet, written by the assembly.
+    records: TetArray,
+    assembly: AssemblyStage,
+    assembly_groups: AssemblyGroups,
     frame_buf: wgpu::Buffer,
     active_buf: wgpu::Buffer,
     /// Face corners of consecutive tets, 12 indices per tet: `4 k + FACES[f][c]`.
@@ -162,56 +164,14 @@ pub struct ShellsRenderer {
     shell_buf: wgpu::Buffer,
     tf_buf: wgpu::Buffer,
     targets: Option<Targets>,
-    /// The transfer function of the last frame and its transparent tets.
-    transparent: Option<(TransferFunction, Vec<bool>)>,
-}
-
-/// CPU copies the per-frame binning needs, and the frame of reference of the GPU copies.
-struct MeshState {
-    positions: Vec<DVec3>,
-    scalars: Vec<f64>,
-    tets: Vec<[u32; 4]>,
-    /// Bounding-box centre: GPU positions and the eye are relative to it.
-    origin: DVec3,
-    /// Bounding-sphere radius about `origin`.
-    radius: f64,
-    scalar_min: f64,
-    scalar_span: f64,
-    /// Each tet's (min, max) scalar, for transfer-function culling.
-    ranges: Vec<(f64, f64)>,
-}
-
-/// Long-lived GPU copies of the mesh and the per-tet records.
-struct MeshBuffers {
-    positions: wgpu::Buffer,
-    scalars: wgpu::Buffer,
-    records: wgpu::Buffer,
-    degenerate: wgpu::Buffer,
-    /// Tets per chunk (every chunk but the last is full): see [`chunk_tets`].
-    chunk_tets: u32,
-    /// Per chunk, the assembly bind group over its windows of the tet and record buffers.
-    chunks: Vec<wgpu::BindGroup>,
-}
-
-/// Tets per chunk when the per-tet records do not fit one storage binding: as many as one
-/// binding of `max_binding` bytes holds, rounded down to a multiple of `align` tets so that each
-/// chunk's windows into the tet (16-byte) and record buffers start at offsets the adapter
-/// accepts (`min_storage_buffer_offset_alignment`, a power of two of at most 256 bytes). `None`
-/// when one binding cannot hold even `align` records.
-pub fn chunk_tets(tets: u64, max_binding: u64, align: u64) -> Option<u64> {
-    let per_binding = max_binding / size_of::<TetRecord>() as u64;
-    if tets <= per_binding {
-        return Some(tets.max(1));
-    }
-    let chunk = per_binding / align * align;
-    (chunk > 0).then_some(chunk)
+    /// The transfer function of the last frame, the scalars' version, and its transparent
+    /// tets.
+    transparent: Option<(TransferFunction, u64, Vec<bool>)>,
 }
 
 /// Layouts and the pipelines that do not depend on the slices per shell, built once; raster
 /// and composite variants, built on first use and kept.
 struct Pipelines {
-    assemble_layout: wgpu::BindGroupLayout,
-    assemble: wgpu::ComputePipeline,
     raster_layout: wgpu::BindGroupLayout,
     raster_pipeline_layout: wgpu::PipelineLayout,
     /// Raster variants by colour target count and whether they test the early-termination
@@ -277,6 +237,15 @@ impl ShellsRenderer {
     pub fn new(
         ctx: &GpuContext,
         mesh: &TetMesh,
+        settings: ShellSettings,
+    ) -> Result<Self, RenderError> {
+        Self::with_mesh(ctx, GpuTetMesh::new(ctx, mesh)?, settings)
+    }
+
+    /// Builds pipelines over a mesh already on the GPU (shared with other renderers).
+    pub fn with_mesh(
+        ctx: &GpuContext,
+        mesh: Arc<GpuTetMesh>,
         settings: ShellSettings,
     ) -> Result<Self, RenderError> {
         let device = ctx.device.clone();
@@ -354,26 +323,10 @@ impl ShellsRenderer {
             None => (adaptive::candidates(4 * max_targets), max_targets),
         };
         // Records beyond one storage binding are assembled and drawn in chunks, each bound as
-        // a window of the one record buffer; the buffer itself must fit.
-        let record_bytes = mesh.tet_count() as u64 * size_of::<TetRecord>() as u64;
-        let align = limits.min_storage_buffer_offset_alignment as u64;
-        let chunk = chunk_tets(
-            mesh.tet_count() as u64,
-            limits.max_storage_buffer_binding_size,
-            align,
-        );
-        let Some(chunk) = chunk.filter(|_| record_bytes <= limits.max_buffer_size) else {
-            return Err(settings_error(format!(
-                "the mesh has {} tets; the shells mode keeps one {}-byte record per tet in one \
-                 buffer, and this adapter's buffers hold at most {} bytes (at most {} tets); \
-                 split the mesh or use another mode",
-                mesh.tet_count(),
-                size_of::<TetRecord>(),
-                limits.max_buffer_size,
-                limits.max_buffer_size / size_of::<TetRecord>() as u64
-            )));
-        };
-        let mesh_state = MeshState::new(mesh)?;
+        // a window of the record array (several buffers where one cannot hold them).
+        let chunking = mesh.chunking()?;
+        let tet_count = mesh.tet_count() as u64;
+        let records = mesh.tet_array("shells tet records", chunking, tet_count, RECORD_BYTES)?;
         let ert = settings.skips.early_termination.then_some(threshold);
         let pipelines = Pipelines::new(&device, format, ert);
         let storage = |label: &str, bytes: u64, extra: wgpu::BufferUsages| {
@@ -385,47 +338,20 @@ impl ShellsRenderer {
             })
         };
         let none = wgpu::BufferUsages::empty();
-        let positions = storage("shells positions", mesh.vertex_count() as u64 * 16, none);
-        let scalars = storage("shells scalars", mesh.vertex_count() as u64 * 4, none);
-        let tets = storage("shells tets", mesh.tet_count() as u64 * 16, none);
-        let records = storage(
-            "shells tet records",
-            record_bytes.max(size_of::<TetRecord>() as u64),
-            none,
-        );
-        let degenerate = storage("shells degenerate count", 4, wgpu::BufferUsages::COPY_SRC);
-        queue.write_buffer(&tets, 0, bytemuck::cast_slice(mesh.tets()));
         let frame_buf = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("shells frame"),
             size: size_of::<FrameUniforms>() as u64,
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let chunks = (0..mesh.tet_count().div_ceil(chunk as usize).max(1) as u64)
-            .map(|c| {
-                let count = chunk.min((mesh.tet_count() as u64).saturating_sub(c * chunk).max(1));
-                device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("shells assemble"),
-                    layout: &pipelines.assemble_layout,
-                    entries: &[
-                        entry(0, &frame_buf),
-                        entry(1, &positions),
-                        entry(2, &scalars),
-                        window(3, &tets, 16, c * chunk, count),
-                        window(4, &records, size_of::<TetRecord>() as u64, c * chunk, count),
-                        entry(5, &degenerate),
-                    ],
-                })
-            })
-            .collect();
-        let gpu = MeshBuffers {
-            positions,
-            scalars,
-            records,
-            degenerate,
-            chunk_tets: chunk as u32,
-            chunks,
+        let assembly = AssemblyStage::new(&device);
+        let inputs = AssemblyInputs {
+            frame: &frame_buf,
+            mesh: &mesh,
+            tets: mesh.tets()?,
+            records: &records,
         };
+        let assembly_groups = assembly.bind(&device, &inputs, &chunking.ranges(tet_count));
         let shell_stride = (size_of::<ShellUniforms>() as u64)
             .next_multiple_of(limits.min_uniform_buffer_offset_alignment as u64);
         let active_buf = storage("shells active tets", 16, none);
@@ -447,7 +373,7 @@ impl ShellsRenderer {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let renderer = Self {
+        Ok(Self {
             device,
             queue,
             limits,
@@ -466,8 +392,11 @@ impl ShellsRenderer {
             timestamps: ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY),
             shell_stride,
             pipelines,
-            mesh: mesh_state,
-            gpu,
+            mesh,
+            chunking,
+            records,
+            assembly,
+            assembly_groups,
             frame_buf,
             active_buf,
             face_indices,
@@ -475,10 +404,7 @@ impl ShellsRenderer {
             tf_buf,
             targets: None,
             transparent: None,
-        };
-        renderer.upload_positions();
-        renderer.upload_scalars();
-        Ok(renderer)
+        })
     }
 
     /// Slices per shell of the last frame (chosen per frame with
@@ -496,7 +422,7 @@ impl ShellsRenderer {
     pub fn dz(&self) -> f64 {
         self.settings
             .dz
-            .unwrap_or(2.0 * self.mesh.radius / self.settings.samples as f64)
+            .unwrap_or(2.0 * self.mesh.read().radius / self.settings.samples as f64)
             .max(f64::MIN_POSITIVE)
     }
 
@@ -505,35 +431,9 @@ impl ShellsRenderer {
     /// sphere (or beyond the eye, when the eye is inside the sphere).
     pub fn slice_positions(&self, camera: &Camera) -> (f64, f64) {
         let dz = self.dz();
-        let dist = (self.mesh.origin - camera.eye).length();
-        ((dist - self.mesh.radius).max(0.0) + 0.5 * dz, dz)
-    }
-
-    fn upload_positions(&self) {
-        let o = self.mesh.origin;
-        let data: Vec<[f32; 4]> = self
-            .mesh
-            .positions
-            .iter()
-            .map(|&p| {
-                let q = (p - o).as_vec3();
-                [q.x, q.y, q.z, 1.0]
-            })
-            .collect();
-        self.queue
-            .write_buffer(&self.gpu.positions, 0, bytemuck::cast_slice(&data));
-    }
-
-    fn upload_scalars(&self) {
-        let (lo, span) = (self.mesh.scalar_min, self.mesh.scalar_span);
-        let data: Vec<f32> = self
-            .mesh
-            .scalars
-            .iter()
-            .map(|&s| ((s - lo) / span) as f32)
-            .collect();
-        self.queue
-            .write_buffer(&self.gpu.scalars, 0, bytemuck::cast_slice(&data));
+        let m = self.mesh.read();
+        let dist = (m.origin - camera.eye).length();
+        ((dist - m.radius).max(0.0) + 0.5 * dz, dz)
     }
 
     fn ensure_targets(&mut self, width: u32, height: u32) -> Result<(), RenderError> {
@@ -655,125 +555,6 @@ impl ShellsRenderer {
     }
 }
 
-impl MeshState {
-    fn new(mesh: &TetMesh) -> Result<Self, MeshError> {
-        let mut m = Self {
-            positions: mesh.positions().to_vec(),
-            scalars: mesh.scalars()?.to_vec(),
-            tets: mesh.tets().to_vec(),
-            origin: DVec3::ZERO,
-            radius: 0.0,
-            scalar_min: 0.0,
-            scalar_span: 1.0,
-            ranges: Vec::new(),
-        };
-        m.frame_positions();
-        m.frame_scalars();
-        Ok(m)
-    }
-
-    fn frame_positions(&mut self) {
-        (self.origin, self.radius) = bounding_sphere(&self.positions);
-    }
-
-    fn frame_scalars(&mut self) {
-        (self.scalar_min, self.scalar_span) = scalar_frame(&self.scalars);
-        self.ranges = tet_ranges(&self.tets, &self.scalars);
-    }
-}
-
-/// `count` list entries in chunks of `chunk`: (first, count) of each.
-pub(crate) fn chunk_ranges(count: u64, chunk: u64) -> Vec<(u64, u64)> {
-    let chunk = chunk.max(1);
-    (0..count.div_ceil(chunk))
-        .map(|c| (c * chunk, chunk.min(count - c * chunk)))
-        .collect()
-}
-
-/// The buffers of one assembly: `tets` lists the tets to assemble (vertex indices, 16 bytes
-/// each), and record `k` of `records` is built from entry `k`.
-pub(crate) struct AssemblyBuffers<'a> {
-    pub frame: &'a wgpu::Buffer,
-    pub positions: &'a wgpu::Buffer,
-    pub scalars: &'a wgpu::Buffer,
-    pub tets: &'a wgpu::Buffer,
-    pub records: &'a wgpu::Buffer,
-    pub degenerate: &'a wgpu::Buffer,
-}
-
-/// Encodes the assembly of the listed tets in one compute pass, chunk by chunk (`chunks` from
-/// [`chunk_ranges`]: windows of the tet list and of the records, so records beyond one storage
-/// binding are fine), after zeroing the degenerate count.
-pub(crate) fn encode_assembly(
-    device: &wgpu::Device,
-    enc: &mut wgpu::CommandEncoder,
-    (layout, pipeline): (&wgpu::BindGroupLayout, &wgpu::ComputePipeline),
-    b: &AssemblyBuffers,
-    chunks: &[(u64, u64)],
-    max_groups: u32,
-) {
-    enc.clear_buffer(b.degenerate, 0, None);
-    if chunks.is_empty() {
-        return;
-    }
-    let record = size_of::<TetRecord>() as u64;
-    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-        label: Some("assembly"),
-        timestamp_writes: None,
-    });
-    pass.set_pipeline(pipeline);
-    for &(first, count) in chunks {
-        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("assemble"),
-            layout,
-            entries: &[
-                entry(0, b.frame),
-                entry(1, b.positions),
-                entry(2, b.scalars),
-                window(3, b.tets, 16, first, count),
-                window(4, b.records, record, first, count),
-                entry(5, b.degenerate),
-            ],
-        });
-        pass.set_bind_group(0, &group, &[]);
-        let groups = (count as u32).div_ceil(64);
-        let x = groups.min(max_groups).max(1);
-        pass.dispatch_workgroups(x, groups.div_ceil(x), 1);
-    }
-}
-
-/// The assembly stage (`shaders/shells_assemble.wgsl`): its bind group layout and compute
-/// pipeline, shared by every mode that draws from the per-tet records (shells, iso).
-pub(crate) fn assembly_pipeline(
-    device: &wgpu::Device,
-) -> (wgpu::BindGroupLayout, wgpu::ComputePipeline) {
-    use wgpu::ShaderStages as S;
-    let ro = wgpu::BufferBindingType::Storage { read_only: true };
-    let rw = wgpu::BufferBindingType::Storage { read_only: false };
-    let layout = bind_group_layout(
-        device,
-        "assemble",
-        &[
-            buffer_entry(0, S::COMPUTE, wgpu::BufferBindingType::Uniform),
-            buffer_entry(1, S::COMPUTE, ro),
-            buffer_entry(2, S::COMPUTE, ro),
-            buffer_entry(3, S::COMPUTE, ro),
-            buffer_entry(4, S::COMPUTE, rw),
-            buffer_entry(5, S::COMPUTE, rw),
-        ],
-    );
-    let module = wgsl_module(device, "shells_assemble", shaders::shells_assemble());
-    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some("assemble"),
-        layout: Some(&pipeline_layout_for(device, &layout)),
-        module: &module,
-        entry_point: Some("main"),
-        compilation_options: Default::default(),
-        cache: None,
-    });
-    (layout, pipeline)
-}
-
 /// The depth test of the passes that skip finished pixels: they draw at depth 0 and pass
 /// where the mask holds 1 (not finished).
 fn ert_depth_test(ert: bool) -> Option<wgpu::DepthStencilState> {
@@ -871,8 +652,6 @@ impl Pipelines {
         };
         let pipeline_layout = |bgl: &wgpu::BindGroupLayout| pipeline_layout_for(device, bgl);
 
-        let (assemble_layout, assemble) = assembly_pipeline(device);
-
         let raster_layout = layout(
             "shells raster",
             &[
@@ -912,8 +691,6 @@ impl Pipelines {
         );
         let composite_pipeline_layout = pipeline_layout(&composite_layout);
         Self {
-            assemble_layout,
-            assemble,
             raster_layout,
             raster_pipeline_layout,
             raster: HashMap::new(),
@@ -1192,34 +969,6 @@ fn read_tiles(
     })
 }
 
-/// `tf`'s control points for scalars normalized as `u = (s - lo) / span`.
-pub fn tf_points(tf: &TransferFunction, lo: f64, span: f64) -> Result<TfPoints, RenderError> {
-    let p = tf.points();
-    if p.len() > MAX_TF_POINTS {
-        return Err(settings_error(format!(
-            "the transfer function has {} control points; the shells mode evaluates at most \
-             {MAX_TF_POINTS}: resample it",
-            p.len()
-        )));
-    }
-    let mut out = TfPoints::zeroed();
-    for (k, (q, &tau)) in p.iter().zip(tf.taus()).enumerate() {
-        let u = (q.s - lo) / span;
-        let next = p.get(k + 1).map(|n| (n.s - lo) / span);
-        out.points[k] = TfPoint {
-            rgb: q.color.map(|c| c as f32),
-            tau: tau as f32,
-            s: u as f32,
-            inv_width: match next {
-                Some(v) if v > u => (1.0 / (v - u)) as f32,
-                _ => 0.0,
-            },
-            _pad: [0.0; 2],
-        };
-    }
-    Ok(out)
-}
-
 /// The pixel rectangle `[x, y, width, height]` holding the image-plane rectangle `r` (in units
 /// of `x / z`, `y / z`; `slope` is the image's half extent in those units), grown by a pixel,
 /// clamped to the image, at least one pixel.
@@ -1236,7 +985,7 @@ fn scissor(r: binning::ScreenRect, slope: [f64; 2], width: u32, height: u32) -> 
 }
 
 /// A bind group entry for elements `first..first + count` of `buffer`, each `stride` bytes.
-pub(crate) fn window(
+fn window(
     binding: u32,
     buffer: &wgpu::Buffer,
     stride: u64,
@@ -1269,9 +1018,8 @@ fn by_chunk(ids: &[u32], range: Range<u32>, chunk_tets: u32) -> Vec<(usize, Rang
 }
 
 /// The active list as the raster shaders index it: tet ids relative to their chunk's first.
-fn chunk_local<'a>(ids: &'a [u32], gpu: &MeshBuffers) -> std::borrow::Cow<'a, [u32]> {
-    let chunk_tets = gpu.chunk_tets;
-    if gpu.chunks.len() == 1 {
+fn chunk_local<'a>(ids: &'a [u32], chunk_tets: u32, tets: u32) -> std::borrow::Cow<'a, [u32]> {
+    if tets <= chunk_tets {
         ids.into()
     } else {
         ids.par_iter()
@@ -1281,37 +1029,28 @@ fn chunk_local<'a>(ids: &'a [u32], gpu: &MeshBuffers) -> std::borrow::Cow<'a, [u
     }
 }
 
-/// Writes `data` to `*buf`, first growing it (to a power of two) when it is too small.
+/// Writes `data` to `*buf`, first growing it (to a power of two, at most the adapter's largest
+/// buffer) when it is too small.
 fn write_grown(
-    device: &wgpu::Device,
-    queue: &wgpu::Queue,
+    (device, queue, limits): (&wgpu::Device, &wgpu::Queue, &wgpu::Limits),
     buf: &mut wgpu::Buffer,
     data: &[u8],
     usage: wgpu::BufferUsages,
 ) {
     if buf.size() < data.len() as u64 {
+        let bytes = data.len() as u64;
         *buf = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("shells per-frame data"),
-            size: (data.len() as u64).next_power_of_two(),
+            size: bytes
+                .next_power_of_two()
+                .min(limits.max_buffer_size)
+                .max(bytes),
             usage: usage | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
     }
     if !data.is_empty() {
         queue.write_buffer(buf, 0, data);
-    }
-}
-
-/// IEEE half to single precision.
-pub(crate) fn f16_to_f32(h: u16) -> f32 {
-    let sign = if h & 0x8000 != 0 { -1.0 } else { 1.0 };
-    let exp = ((h >> 10) & 0x1f) as i32;
-    let frac = (h & 0x3ff) as f32;
-    sign * match exp {
-        0 => frac * 2f32.powi(-24),
-        31 if frac == 0.0 => f32::INFINITY,
-        31 => f32::NAN,
-        e => (1.0 + frac / 1024.0) * 2f32.powi(e - 15),
     }
 }
 
@@ -1331,8 +1070,10 @@ impl Renderer for ShellsRenderer {
         let slope = [th * camera.aspect(), th];
         let (t_first, dz) = self.slice_positions(camera);
         let skips = self.settings.skips;
-        let dist = (self.mesh.origin - camera.eye).length();
-        let slices = ((dist + self.mesh.radius - t_first) / dz).floor() as u64 + 1;
+        let mesh = Arc::clone(&self.mesh);
+        let m = mesh.read();
+        let dist = (m.origin - camera.eye).length();
+        let slices = ((dist + m.radius - t_first) / dz).floor() as u64 + 1;
         // The counts of slices per shell this frame may use: at most MAX_SHELLS shells.
         let allowed: Vec<u32> = match self.fixed_slices {
             Some(n) => vec![n],
@@ -1367,17 +1108,19 @@ impl Renderer for ShellsRenderer {
             frustum: skips.frustum,
         };
         // Transparent tets, from the per-tet scalar ranges, once per transfer function.
-        if skips.tf_cull && self.transparent.as_ref().is_none_or(|(t, _)| t != tf) {
-            let mask = (self.mesh.ranges.par_iter())
+        let version = m.scalars_version;
+        let stale = |(t, v, _): &(TransferFunction, u64, Vec<bool>)| t != tf || *v != version;
+        if skips.tf_cull && self.transparent.as_ref().is_none_or(stale) {
+            let mask = (m.ranges.par_iter())
                 .map(|&(lo, hi)| tf.is_transparent_on(lo, hi))
                 .collect();
-            self.transparent = Some((tf.clone(), mask));
+            self.transparent = Some((tf.clone(), version, mask));
         }
         let transparent = match &self.transparent {
-            Some((_, mask)) if skips.tf_cull => mask.as_slice(),
+            Some((_, _, mask)) if skips.tf_cull => mask.as_slice(),
             _ => &[],
         };
-        let bins = binning::classify(&self.mesh.positions, &self.mesh.tets, &params, |t| {
+        let bins = binning::classify(&m.positions, &m.tets, &params, |t| {
             transparent.get(t).copied().unwrap_or(false)
         });
         // Slices per shell: fixed, or the least predicted work among the allowed counts (the
@@ -1402,33 +1145,22 @@ impl Renderer for ShellsRenderer {
 
         // Upload: frame constants, transfer function, shell constants, active lists.
         let t1 = Instant::now();
-        let o = self.mesh.origin;
-        let f32x3 = |v: DVec3| v.as_vec3().to_array();
+        let epsilon = self.settings.epsilon;
+        let tet_count = m.tets.len() as u32;
         let frame = FrameUniforms {
-            right: f32x3(right),
-            epsilon: self.settings.epsilon,
-            up: f32x3(up),
-            near_z: (0.5 * near_z) as f32,
-            forward: f32x3(forward),
             t_first: t_first as f32,
-            eye: f32x3(camera.eye - o),
             dz: dz as f32,
-            proj: [(1.0 / slope[0]) as f32, (1.0 / slope[1]) as f32],
-            half_extent: [slope[0] as f32, slope[1] as f32],
-            size: [camera.width as f32, camera.height as f32],
-            degenerate_tol: DEGENERATE_TOL,
-            tet_count: self.mesh.tets.len() as u32,
             slices_per_shell: n,
             tf_count: tf.points().len() as u32,
-            _pad: [0; 2],
+            ..ViewFrame::new(camera).uniforms(m.origin, epsilon, (0.5 * near_z) as f32, tet_count)
         };
         self.queue
             .write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&frame));
-        let (lo, span) = (self.mesh.scalar_min, self.mesh.scalar_span);
+        let (lo, span) = (m.scalar_min, m.scalar_span);
         let tf_points = tf_points(tf, lo, span)?;
         self.queue
             .write_buffer(&self.tf_buf, 0, bytemuck::bytes_of(&tf_points));
-        let (device, queue) = (&self.device, &self.queue);
+        let gpu = (&self.device, &self.queue, &self.limits);
         let storage = wgpu::BufferUsages::STORAGE;
         // Without empty-space skipping every shell is drawn, over the whole image.
         let drawn: Vec<(u32, ShellRange)> = bin
@@ -1462,7 +1194,7 @@ impl Renderer for ShellsRenderer {
                 .copy_from_slice(bytemuck::bytes_of(&u));
         }
         let uniform = wgpu::BufferUsages::UNIFORM;
-        write_grown(device, queue, &mut self.shell_buf, &shell_data, uniform);
+        write_grown(gpu, &mut self.shell_buf, &shell_data, uniform);
         // Each tet-shell instance is 12 indices of one draw (u32), in an index buffer grown to a
         // power of two of instances.
         let tets = bin.indices.len().next_power_of_two();
@@ -1482,23 +1214,20 @@ impl Renderer for ShellsRenderer {
                 .collect();
             let index = wgpu::BufferUsages::INDEX;
             write_grown(
-                device,
-                queue,
+                gpu,
                 &mut self.face_indices,
                 bytemuck::cast_slice(&pattern),
                 index,
             );
         }
-        let active = chunk_local(&bin.indices, &self.gpu);
+        let chunk_tets = self.chunking.chunk as u32;
+        let active = chunk_local(&bin.indices, chunk_tets, tet_count);
         write_grown(
-            device,
-            queue,
+            gpu,
             &mut self.active_buf,
             bytemuck::cast_slice(&active),
             storage,
         );
-        self.queue
-            .write_buffer(&self.gpu.degenerate, 0, bytemuck::bytes_of(&0u32));
         timings.stage("upload", ms_since(t1));
 
         self.ensure_targets(camera.width, camera.height)?;
@@ -1507,18 +1236,16 @@ impl Renderer for ShellsRenderer {
             .as_ref()
             .ok_or_else(|| settings_error("no targets"))?;
         // One raster bind group per chunk of records; a chunk's active ids are chunk-local.
-        let chunk = self.gpu.chunk_tets as u64;
-        let raster_groups: Vec<wgpu::BindGroup> = (0..self.gpu.chunks.len() as u64)
-            .map(|c| {
-                let count = chunk.min(self.mesh.tets.len() as u64 - c * chunk).max(1);
-                let record = size_of::<TetRecord>() as u64;
+        let chunks = self.chunking.ranges(tet_count as u64);
+        let raster_groups: Vec<wgpu::BindGroup> = (chunks.iter())
+            .map(|&(first, count)| {
                 self.device.create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some("shells raster"),
                     layout: &self.pipelines.raster_layout,
                     entries: &[
                         entry(0, &self.frame_buf),
                         window(1, &self.shell_buf, size_of::<ShellUniforms>() as u64, 0, 1),
-                        window(2, &self.gpu.records, record, c * chunk, count),
+                        self.records.window(2, first, count),
                         entry(3, &self.active_buf),
                     ],
                 })
@@ -1570,29 +1297,16 @@ impl Renderer for ShellsRenderer {
             });
         {
             let q = rec.pass_queries("assembly");
-            let writes = q.zip(rec.queries.clone()).map(|((b, e), set)| (set, b, e));
-            let enc = rec.encoder();
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("shells assembly"),
-                timestamp_writes: writes.as_ref().map(|(set, b, e)| {
-                    wgpu::ComputePassTimestampWrites {
+            let set = rec.queries.clone();
+            let writes =
+                q.zip(set.as_ref())
+                    .map(|((b, e), set)| wgpu::ComputePassTimestampWrites {
                         query_set: set,
-                        beginning_of_pass_write_index: Some(*b),
-                        end_of_pass_write_index: Some(*e),
-                    }
-                }),
-            });
-            pass.set_pipeline(&self.pipelines.assemble);
-            let chunk = self.gpu.chunk_tets as usize;
-            for (c, group) in self.gpu.chunks.iter().enumerate() {
-                pass.set_bind_group(0, group, &[]);
-                let tets = chunk.min(self.mesh.tets.len() - c * chunk) as u32;
-                let groups = tets.div_ceil(64);
-                let x = groups
-                    .min(self.limits.max_compute_workgroups_per_dimension)
-                    .max(1);
-                pass.dispatch_workgroups(x, groups.div_ceil(x), 1);
-            }
+                        beginning_of_pass_write_index: Some(b),
+                        end_of_pass_write_index: Some(e),
+                    });
+            let max_groups = self.limits.max_compute_workgroups_per_dimension;
+            (self.assembly).encode(rec.encoder(), &self.assembly_groups, max_groups, writes);
         }
         rec.end_stage("assembly")?;
         let clear = wgpu::Operations {
@@ -1724,8 +1438,7 @@ impl Renderer for ShellsRenderer {
                     pass.begin_occlusion_query(occlusion_index);
                     queries_used += 1;
                 }
-                let chunks =
-                    |r: &Range<u32>| by_chunk(&bin.indices, r.clone(), self.gpu.chunk_tets);
+                let chunks = |r: &Range<u32>| by_chunk(&bin.indices, r.clone(), chunk_tets);
                 if !range.faces.is_empty() {
                     pass.set_pipeline(&set.faces);
                     pass.set_index_buffer(self.face_indices.slice(..), wgpu::IndexFormat::Uint32);
@@ -1845,7 +1558,11 @@ impl Renderer for ShellsRenderer {
                     self.queue.write_buffer(
                         &self.active_buf,
                         4 * from as u64,
-                        bytemuck::cast_slice(&chunk_local(&bin.indices[from..to], &self.gpu)),
+                        bytemuck::cast_slice(&chunk_local(
+                            &bin.indices[from..to],
+                            chunk_tets,
+                            tet_count,
+                        )),
                     );
                 }
                 tiles = Some(m);
@@ -1896,7 +1613,7 @@ impl Renderer for ShellsRenderer {
                     depth_or_array_layers: 1,
                 },
             );
-            enc.copy_buffer_to_buffer(&self.gpu.degenerate, 0, &stats, 0, 4);
+            enc.copy_buffer_to_buffer(self.assembly.degenerate(), 0, &stats, 0, 4);
             if let Some(occ) = &occlusion
                 && queries_used > 0
             {
@@ -1996,8 +1713,8 @@ impl Renderer for ShellsRenderer {
         } else {
             "wall clock, GPU drained after each stage"
         };
-        timings.count("tets", self.mesh.tets.len() as u64);
-        timings.count("record chunks", self.gpu.chunks.len() as u64);
+        timings.count("tets", tet_count as u64);
+        timings.count("record chunks", chunks.len() as u64);
         timings.count("tets culled", bin.culled);
         timings.count("tets transparent", bin.transparent);
         timings.count("tets between slices", bin.no_sample);
@@ -2028,31 +1745,16 @@ impl Renderer for ShellsRenderer {
     }
 
     fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {
-        check_new_positions(positions, self.mesh.positions.len())?;
-        self.mesh.positions.copy_from_slice(positions);
-        self.mesh.frame_positions();
-        self.upload_positions();
-        Ok(())
+        self.mesh.update_positions(positions)
     }
 
     fn update_scalars(&mut self, scalars: &[f64]) -> Result<(), RenderError> {
-        check_values("scalars", scalars, self.mesh.scalars.len())?;
-        self.mesh.scalars.copy_from_slice(scalars);
-        self.mesh.frame_scalars();
-        self.transparent = None;
-        self.upload_scalars();
-        Ok(())
+        self.mesh.update_scalars(scalars)
     }
 
     fn gpu_memory(&self) -> u64 {
-        let g = &self.gpu;
-        // The tets buffer lives only in the assembly bind group: 16 bytes per tet.
-        let tets = (self.mesh.tets.len() as u64 * 16).max(16);
         let buffers = [
-            &g.positions,
-            &g.scalars,
-            &g.records,
-            &g.degenerate,
+            self.assembly.degenerate(),
             &self.frame_buf,
             &self.active_buf,
             &self.face_indices,
@@ -2068,28 +1770,13 @@ impl Renderer for ShellsRenderer {
             // The slice layers, the accumulation target and the readback buffer.
             layer * (self.slice_layers as u64 + 1) + t.readback.size()
         });
-        buffers + tets + targets
+        self.mesh.gpu_memory() + self.records.size() + buffers + targets
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn chunks_fill_a_binding_on_aligned_offsets() {
-        let record = size_of::<TetRecord>() as u64;
-        // Fits: one chunk of all tets (at least 1, so an empty mesh still binds something).
-        assert_eq!(chunk_tets(1000, 1000 * record, 256), Some(1000));
-        assert_eq!(chunk_tets(0, 1 << 20, 256), Some(1));
-        // lavapipe: 128 MiB bindings hold 932,067 records; chunks round down to 931,840.
-        let chunk = chunk_tets(2_000_000, 128 << 20, 256).unwrap();
-        assert_eq!(chunk, 931_840);
-        assert_eq!(chunk * record % 256, 0);
-        assert_eq!(chunk * 16 % 256, 0);
-        // A binding smaller than one aligned group of records cannot be chunked.
-        assert_eq!(chunk_tets(1000, 100 * record, 256), None);
-    }
 
     #[test]
     fn active_ranges_split_at_chunk_boundaries() {
