@@ -223,6 +223,11 @@ impl<'a> Recorder<'a> {
         Some(Timestamps { set, begin })
     }
 
+    /// The device the frame runs on.
+    pub fn device(&self) -> &'a wgpu::Device {
+        self.device
+    }
+
     /// The occlusion query set, when the frame asked for queries.
     pub fn occlusion(&self) -> Option<&'a wgpu::QuerySet> {
         self.occlusion
