@@ -413,3 +413,45 @@ impl ImageReadback {
         self.buffer.size()
     }
 }
+
+/// Operations that clear a target to `color` and store what the pass draws.
+pub fn cleared(color: wgpu::Color) -> wgpu::Operations<wgpu::Color> {
+    wgpu::Operations {
+        load: wgpu::LoadOp::Clear(color),
+        store: wgpu::StoreOp::Store,
+    }
+}
+
+/// A colour attachment of `view` with `ops`.
+pub fn attachment(
+    view: &wgpu::TextureView,
+    ops: wgpu::Operations<wgpu::Color>,
+) -> Option<wgpu::RenderPassColorAttachment<'_>> {
+    Some(wgpu::RenderPassColorAttachment {
+        view,
+        depth_slice: None,
+        resolve_target: None,
+        ops,
+    })
+}
+
+/// Draws each chunk's tets with `pipeline`, 12 vertices and one instance per tet (its front
+/// faces), all counted by occlusion query 0 when `counted`.
+pub fn draw_tet_chunks(
+    pass: &mut wgpu::RenderPass,
+    pipeline: &wgpu::RenderPipeline,
+    groups: &[(wgpu::BindGroup, u64)],
+    counted: bool,
+) {
+    if counted {
+        pass.begin_occlusion_query(0);
+    }
+    pass.set_pipeline(pipeline);
+    for (group, count) in groups {
+        pass.set_bind_group(0, group, &[]);
+        pass.draw(0..12, 0..*count as u32);
+    }
+    if counted {
+        pass.end_occlusion_query();
+    }
+}

@@ -161,3 +161,13 @@ pub(crate) fn f16_to_f32(h: u16) -> f32 {
         e => (1.0 + frac / 1024.0) * 2f32.powi(e - 15),
     }
 }
+
+/// A uniform buffer of `bytes` that is written from the CPU.
+pub(crate) fn uniform_buffer(device: &wgpu::Device, label: &str, bytes: usize) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: bytes as u64,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}

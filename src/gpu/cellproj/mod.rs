@@ -49,13 +49,15 @@ use rayon::prelude::*;
 
 use crate::camera::Camera;
 use crate::gpu::assembly::{AssemblyInputs, AssemblyStage, RECORD_BYTES};
-use crate::gpu::frame::{FrameResources, FrameStats, ImageReadback, Timestamps};
+use crate::gpu::frame::{
+    FrameResources, FrameStats, ImageReadback, Timestamps, attachment, cleared, draw_tet_chunks,
+};
 use crate::gpu::gpu_data::{FrameUniforms, TfPoints};
 use crate::gpu::mesh::{Chunking, GpuTetMesh, MeshData, TetArray};
 use crate::gpu::tf::tf_points;
 use crate::gpu::util::{
     bind_group_layout, buffer_entry, check_image_size, entry, ms_since, pipeline_layout_for,
-    settings_error, wgsl_module,
+    settings_error, uniform_buffer, wgsl_module,
 };
 use crate::gpu::view::ViewFrame;
 use crate::gpu::{GpuContext, shaders};
@@ -195,16 +197,6 @@ fn near_z(radius: f64) -> f32 {
 }
 
 impl CellProjRenderer {
-    /// Builds the pipelines and uploads the mesh (positions relative to its bounding-box
-    /// centre, normalized active scalars).
-    pub fn new(
-        ctx: &GpuContext,
-        mesh: &TetMesh,
-        settings: CellProjSettings,
-    ) -> Result<Self, RenderError> {
-        Self::with_mesh(ctx, GpuTetMesh::new(ctx, mesh)?, settings)
-    }
-
     /// Builds the pipelines over a mesh already on the GPU (shared with other renderers).
     pub fn with_mesh(
         ctx: &GpuContext,
@@ -225,14 +217,7 @@ impl CellProjRenderer {
             wgpu::TextureFormat::Rgba16Float
         };
         let device = ctx.device.clone();
-        let uniform = |label: &str, bytes: usize| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: bytes as u64,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            })
-        };
+        let uniform = |label: &str, bytes: usize| uniform_buffer(&device, label, bytes);
         Ok(Self {
             pipelines: Pipelines::new(&device, format),
             assembly: AssemblyStage::new(&device),
@@ -260,6 +245,12 @@ impl CellProjRenderer {
     /// The settings in use.
     pub fn settings(&self) -> CellProjSettings {
         self.settings
+    }
+
+    /// Builds the pipelines and uploads the mesh (positions relative to its bounding-box
+    /// centre, normalized active scalars).
+    pub fn new(ctx: &GpuContext, mesh: &TetMesh, s: CellProjSettings) -> Result<Self, RenderError> {
+        Self::with_mesh(ctx, GpuTetMesh::new(ctx, mesh)?, s)
     }
 
     /// Switches the integrator (the table is built on the next frame that needs it).
@@ -511,31 +502,12 @@ fn encode_raster(
     let color_view = targets.color.create_view(&Default::default());
     let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
         label: Some("cellproj raster"),
-        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-            view: &color_view,
-            depth_slice: None,
-            resolve_target: None,
-            ops: wgpu::Operations {
-                load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                store: wgpu::StoreOp::Store,
-            },
-        })],
-        depth_stencil_attachment: None,
+        color_attachments: &[attachment(&color_view, cleared(wgpu::Color::TRANSPARENT))],
         timestamp_writes: timestamps.as_ref().map(Timestamps::render),
         occlusion_query_set: occlusion,
         ..Default::default()
     });
-    if occlusion.is_some() {
-        pass.begin_occlusion_query(0);
-    }
-    pass.set_pipeline(pipeline);
-    for (group, count) in groups {
-        pass.set_bind_group(0, group, &[]);
-        pass.draw(0..12, 0..*count as u32);
-    }
-    if occlusion.is_some() {
-        pass.end_occlusion_query();
-    }
+    draw_tet_chunks(&mut pass, pipeline, groups, occlusion.is_some());
 }
 
 /// An `Rgba32Float` 3D texture of extent `(n, n, m)` for the table.
@@ -683,6 +655,9 @@ impl Renderer for CellProjRenderer {
         };
         timings.count("tets", m.tets.len() as u64);
         timings.count("tets drawn", drawn as u64);
+        let chunks = self.chunking.ranges(drawn as u64).len();
+        timings.count("record chunks", chunks as u64);
+        timings.count("record buffers", self.records.buffer_count() as u64);
         timings.count("flat tets skipped", flat);
         timings.count("degenerate tets", stats.degenerate as u64);
         timings.count("table rebuilt", rebuilt as u64);

@@ -42,12 +42,14 @@ use rayon::prelude::*;
 
 use crate::camera::Camera;
 use crate::gpu::assembly::{AssemblyInputs, AssemblyStage, RECORD_BYTES};
-use crate::gpu::frame::{FrameResources, FrameStats, ImageReadback, Timestamps};
+use crate::gpu::frame::{
+    FrameResources, FrameStats, ImageReadback, Timestamps, attachment, cleared, draw_tet_chunks,
+};
 use crate::gpu::gpu_data::FrameUniforms;
 use crate::gpu::mesh::{Chunking, GpuTetMesh, MeshData, TetArray};
 use crate::gpu::util::{
     bind_group_layout, buffer_entry, check_image_size, entry, map_read, ms_since,
-    pipeline_layout_for, settings_error, wgsl_module,
+    pipeline_layout_for, settings_error, uniform_buffer, wgsl_module,
 };
 use crate::gpu::view::ViewFrame;
 use crate::gpu::{GpuContext, shaders};
@@ -197,17 +199,6 @@ fn check_isovalues(isovalues: &[(f64, [f32; 3])]) -> Result<(), RenderError> {
 }
 
 impl IsoRenderer {
-    /// Builds the pipelines and uploads the mesh (positions relative to its bounding-box
-    /// centre, normalized active scalars). Empty `settings.isovalues`: one at the middle of the
-    /// active scalar range.
-    pub fn new(
-        ctx: &GpuContext,
-        mesh: &TetMesh,
-        settings: IsoSettings,
-    ) -> Result<Self, RenderError> {
-        Self::with_mesh(ctx, GpuTetMesh::new(ctx, mesh)?, settings)
-    }
-
     /// Builds the pipelines over a mesh already on the GPU (shared with other renderers).
     pub fn with_mesh(
         ctx: &GpuContext,
@@ -245,14 +236,7 @@ impl IsoRenderer {
         let device = ctx.device.clone();
         let queue = ctx.queue.clone();
         let nv = m.positions.len() as u64;
-        let uniform = |label: &str, bytes: usize| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: bytes as u64,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            })
-        };
+        let uniform = |label: &str, bytes: usize| uniform_buffer(&device, label, bytes);
         let gradient_stage = smooth
             .then(|| gradients::GradientStage::new(&device, &queue, &m.tets, m.positions.len()));
         let scalars_version = m.scalars_version;
@@ -331,6 +315,13 @@ impl IsoRenderer {
     /// The scalars as the GPU stages read them: `(s - s_min) / (s_max - s_min)`, f32.
     pub fn gpu_scalars(&self) -> Vec<f32> {
         self.mesh.read().gpu_scalars()
+    }
+
+    /// Builds the pipelines and uploads the mesh (positions relative to its bounding-box
+    /// centre, normalized active scalars). Empty `settings.isovalues`: one at the middle of the
+    /// active scalar range.
+    pub fn new(ctx: &GpuContext, mesh: &TetMesh, s: IsoSettings) -> Result<Self, RenderError> {
+        Self::with_mesh(ctx, GpuTetMesh::new(ctx, mesh)?, s)
     }
 
     /// The per-vertex gradients the last frame's gradient stage wrote (normalized-scalar
@@ -574,6 +565,11 @@ impl IsoRenderer {
         timings.count("tets", m.tets.len() as u64);
         timings.count("tets selected", all_selected as u64);
         timings.count("tets culled (frustum)", (all_selected - drawn) as u64);
+        if let Some(lists) = &self.lists {
+            let chunks = lists.chunking.ranges(drawn as u64).len();
+            timings.count("record chunks", chunks as u64);
+            timings.count("record buffers", lists.records.buffer_count() as u64);
+        }
         timings.count("triangles", 4 * drawn as u64);
         timings.count("degenerate tets", stats.degenerate as u64);
         timings.count("fragments (occlusion query)", stats.fragments.unwrap_or(0));
@@ -667,10 +663,6 @@ fn encode_raster(
     occlusion: Option<&wgpu::QuerySet>,
     timestamps: Option<Timestamps>,
 ) {
-    let clear = |c: wgpu::Color| wgpu::Operations {
-        load: wgpu::LoadOp::Clear(c),
-        store: wgpu::StoreOp::Store,
-    };
     let miss = wgpu::Color {
         r: 0.0,
         g: 0.0,
@@ -679,19 +671,11 @@ fn encode_raster(
     };
     let color_view = targets.color.create_view(&Default::default());
     let geometry_view = targets.geometry.create_view(&Default::default());
-    let attachment = |view, ops| {
-        Some(wgpu::RenderPassColorAttachment {
-            view,
-            depth_slice: None,
-            resolve_target: None,
-            ops,
-        })
-    };
     let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
         label: Some("iso raster"),
         color_attachments: &[
-            attachment(&color_view, clear(wgpu::Color::TRANSPARENT)),
-            attachment(&geometry_view, clear(miss)),
+            attachment(&color_view, cleared(wgpu::Color::TRANSPARENT)),
+            attachment(&geometry_view, cleared(miss)),
         ],
         depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
             view: &targets.depth_view,
@@ -705,17 +689,7 @@ fn encode_raster(
         occlusion_query_set: occlusion,
         ..Default::default()
     });
-    if occlusion.is_some() {
-        pass.begin_occlusion_query(0);
-    }
-    pass.set_pipeline(pipeline);
-    for (group, count) in groups {
-        pass.set_bind_group(0, group, &[]);
-        pass.draw(0..12, 0..*count as u32);
-    }
-    if occlusion.is_some() {
-        pass.end_occlusion_query();
-    }
+    draw_tet_chunks(&mut pass, pipeline, groups, occlusion.is_some());
 }
 
 impl Pipelines {

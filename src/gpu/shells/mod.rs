@@ -35,6 +35,7 @@
 pub mod adaptive;
 pub mod binning;
 mod composite;
+mod config;
 mod pipelines;
 mod plan;
 mod raster;
@@ -51,12 +52,12 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::camera::Camera;
+use crate::gpu::GpuContext;
 use crate::gpu::assembly::{AssemblyGroups, AssemblyInputs, AssemblyStage, RECORD_BYTES};
 use crate::gpu::frame::{FrameResources, FrameStats, Recorder};
 use crate::gpu::gpu_data::{FrameUniforms, ShellUniforms, TfPoints};
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
-use crate::gpu::util::{check_image_size, entry, ms_since, settings_error};
-use crate::gpu::{GpuContext, GpuError, shaders};
+use crate::gpu::util::{check_image_size, entry, ms_since, settings_error, uniform_buffer};
 use crate::image::Image;
 use crate::mesh::TetMesh;
 use crate::render::{Frame, RenderError, Renderer, Timings};
@@ -176,118 +177,23 @@ pub struct ShellsRenderer {
 }
 
 impl ShellsRenderer {
-    /// Builds pipelines and uploads the mesh (positions relative to its bounding-box centre,
-    /// normalized active scalars, tets). The device and queue are shared with `ctx`.
-    pub fn new(
-        ctx: &GpuContext,
-        mesh: &TetMesh,
-        settings: ShellSettings,
-    ) -> Result<Self, RenderError> {
-        Self::with_mesh(ctx, GpuTetMesh::new(ctx, mesh)?, settings)
-    }
-
     /// Builds pipelines over a mesh already on the GPU (shared with other renderers).
     pub fn with_mesh(
         ctx: &GpuContext,
         mesh: Arc<GpuTetMesh>,
         settings: ShellSettings,
     ) -> Result<Self, RenderError> {
-        let device = ctx.device.clone();
-        let queue = ctx.queue.clone();
-        let limits = ctx.limits.clone();
-        let blendable32 = ctx.features.contains(wgpu::Features::FLOAT32_BLENDABLE);
-        let (format, bytes) = match (settings.format, blendable32) {
-            (SliceFormat::Auto, true) | (SliceFormat::Float32, true) => {
-                (wgpu::TextureFormat::Rgba32Float, 16)
-            }
-            (SliceFormat::Float32, false) => {
-                return Err(RenderError::Gpu(GpuError::Missing {
-                    adapter: ctx.info.name.clone(),
-                    what: "blendable 32-bit float targets (FLOAT32_BLENDABLE)".into(),
-                    needed_by: "the shells mode with 32-bit slices (use the 16-bit or auto format)",
-                }));
-            }
-            (SliceFormat::Auto, false) | (SliceFormat::Float16, _) => {
-                (wgpu::TextureFormat::Rgba16Float, 8)
-            }
-        };
-        let max_targets = shaders::MAX_TARGETS
-            .min(limits.max_color_attachments)
-            .min(limits.max_color_attachment_bytes_per_sample / bytes);
-        if max_targets == 0 {
-            return Err(RenderError::Gpu(GpuError::Missing {
-                adapter: ctx.info.name.clone(),
-                what: format!("one {format:?} colour target"),
-                needed_by: "the shells mode",
-            }));
-        }
-        let software = ctx.info.device_type == wgpu::DeviceType::Cpu;
-        let default_slices = if software {
-            (4 * max_targets).min(SOFTWARE_SLICES_PER_SHELL)
-        } else {
-            4 * max_targets
-        };
-        let fixed_slices = match settings.slices_per_shell {
-            None if settings.skips.adaptive_slices => None,
-            n => Some(n.unwrap_or(default_slices)),
-        };
-        let slices_per_shell = fixed_slices.unwrap_or(default_slices);
-        if !(1..=4 * max_targets).contains(&slices_per_shell) {
-            return Err(settings_error(format!(
-                "slices per shell must be between 1 and {} on this adapter ({} {format:?} \
-                 targets of 4 slices), not {slices_per_shell}",
-                4 * max_targets,
-                max_targets
-            )));
-        }
-        if settings.samples == 0 {
-            return Err(settings_error("samples per ray must be at least 1"));
-        }
-        if let Some(dz) = settings.dz
-            && !(dz.is_finite() && dz > 0.0)
-        {
-            return Err(settings_error(format!(
-                "slice spacing dz must be positive and finite, not {dz}"
-            )));
-        }
-        let threshold = settings.skips.ert_threshold;
-        if !(threshold > 0.0 && threshold <= 1.0) {
-            return Err(settings_error(format!(
-                "the early ray termination threshold must be in (0, 1], not {threshold}"
-            )));
-        }
-        if !(settings.epsilon.is_finite() && settings.epsilon >= 0.0) {
-            return Err(settings_error(format!(
-                "the barycentric tolerance epsilon must be >= 0 and finite, not {}",
-                settings.epsilon
-            )));
-        }
-        let (candidates, slice_layers) = match fixed_slices {
-            Some(n) => (Vec::new(), n.div_ceil(4)),
-            None => (adaptive::candidates(4 * max_targets), max_targets),
-        };
+        let config = config::slices(ctx, &settings)?;
+        config::check(&settings)?;
+        let (device, queue, limits) = (ctx.device.clone(), ctx.queue.clone(), ctx.limits.clone());
         // Records beyond one storage binding are assembled and drawn in chunks, each bound as
         // a window of the record array (several buffers where one cannot hold them).
         let chunking = mesh.chunking()?;
         let tet_count = mesh.tet_count() as u64;
         let records = mesh.tet_array("shells tet records", chunking, tet_count, RECORD_BYTES)?;
-        let ert = settings.skips.early_termination.then_some(threshold);
-        let pipelines = Pipelines::new(&device, format, ert);
-        let storage = |label: &str, bytes: u64, extra: wgpu::BufferUsages| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: bytes.max(16),
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | extra,
-                mapped_at_creation: false,
-            })
-        };
-        let none = wgpu::BufferUsages::empty();
-        let frame_buf = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("shells frame"),
-            size: size_of::<FrameUniforms>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let ert = (settings.skips.early_termination).then_some(settings.skips.ert_threshold);
+        let pipelines = Pipelines::new(&device, config.format, ert);
+        let frame_buf = uniform_buffer(&device, "shells frame", size_of::<FrameUniforms>());
         let assembly = AssemblyStage::new(&device);
         let inputs = AssemblyInputs {
             frame: &frame_buf,
@@ -298,41 +204,32 @@ impl ShellsRenderer {
         let assembly_groups = assembly.bind(&device, &inputs, &chunking.ranges(tet_count));
         let shell_stride = (size_of::<ShellUniforms>() as u64)
             .next_multiple_of(limits.min_uniform_buffer_offset_alignment as u64);
-        let active_buf = storage("shells active tets", 16, none);
+        let active_buf = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("shells active tets"),
+            size: 16,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
         let face_indices = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("shells face indices"),
             size: 0,
             usage: wgpu::BufferUsages::INDEX | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let shell_buf = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("shells shell uniforms"),
-            size: shell_stride,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let tf_buf = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("shells transfer function"),
-            size: size_of::<TfPoints>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let shell_buf = uniform_buffer(&device, "shells shell uniforms", shell_stride as usize);
+        let tf_buf = uniform_buffer(&device, "shells transfer function", size_of::<TfPoints>());
         Ok(Self {
             device,
             queue,
             limits,
             settings,
-            format,
-            fixed_slices,
-            default_slices,
-            candidates,
-            model: if software {
-                adaptive::CostModel::SOFTWARE
-            } else {
-                adaptive::CostModel::GPU
-            },
-            slice_layers,
-            slices_per_shell,
+            format: config.format,
+            fixed_slices: config.fixed,
+            default_slices: config.default,
+            slices_per_shell: config.fixed.unwrap_or(config.default),
+            candidates: config.candidates,
+            model: config.model,
+            slice_layers: config.layers,
             frame: FrameResources::new(ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY)),
             shell_stride,
             pipelines,
@@ -360,6 +257,12 @@ impl ShellsRenderer {
     /// The slice and accumulation target format in use.
     pub fn format(&self) -> wgpu::TextureFormat {
         self.format
+    }
+
+    /// Builds pipelines and uploads the mesh (positions relative to its bounding-box centre,
+    /// normalized active scalars, tets). The device and queue are shared with `ctx`.
+    pub fn new(ctx: &GpuContext, mesh: &TetMesh, s: ShellSettings) -> Result<Self, RenderError> {
+        Self::with_mesh(ctx, GpuTetMesh::new(ctx, mesh)?, s)
     }
 
     /// Slice spacing in world units.
