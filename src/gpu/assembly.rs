@@ -1,9 +1,9 @@
 //! The assembly stage, shared by every mode (`shaders/assemble.wgsl`, CPU twin
 //! [`crate::gpu::shells::twin::assemble`]): once per listed tet and frame, a compute pass
 //! fetches its corners, transforms them to eye space and builds its eye-to-barycentric record
-//! ([`TetRecord`]). The list and the records are [`TetArray`]s of one [`Chunking`]; each
-//! chunk is assembled through its own bind group over the chunk's windows, so records beyond
-//! one storage binding or one buffer are fine.
+//! ([`TetRecord`]). The list and the records are [`TetArray`]s of one
+//! [`crate::gpu::mesh::Chunking`]; each chunk is assembled through its own bind group over the
+//! chunk's windows, so records beyond one storage binding or one buffer are fine.
 
 use crate::gpu::gpu_data::TetRecord;
 use crate::gpu::mesh::{GpuTetMesh, TetArray};

@@ -8,18 +8,18 @@
 //!    and a parallel sort back to front ([`sort`]);
 //! 2. preint table (`--integrate table` only, when the TF, the scalar range or the longest tet
 //!    edge grew since the last build): the 3D pre-integration table on the CPU
-//!    ([`preint::PreintTable`], Weiler et al.'s incremental build) into an `Rgba32Float` 3D
+//!    ([`preint`]: [`preint::PreintTable`], Weiler et al.'s incremental build) into an `Rgba32Float` 3D
 //!    texture;
-//! 3. upload: frame constants, the TF, the sorted tets' vertex indices;
-//! 4. assembly: the shared per-tet eye-to-barycentric stage (`shaders/assemble.wgsl`)
+//! 3. upload (`upload.rs`): frame constants, the TF, the sorted tets' vertex indices;
+//! 4. assembly: the shared per-tet eye-to-barycentric stage ([`crate::gpu::assembly`])
 //!    over the sorted list, record `k` for the `k`-th tet of the order;
-//! 5. raster: one instanced draw in that order (the API blends primitives in submission order)
+//! 5. raster (`raster.rs`): one instanced draw in that order (the API blends primitives in submission order)
 //!    of each tet's front faces, or of its screen quad when it has a corner at or behind
 //!    `near_z` (the eye inside the mesh); each fragment clips its ray against the four face
 //!    planes in barycentric space (a face the ray runs along does not clip; CPU twin
 //!    [`twin::segment`]), integrates the segment and is blended "over" the frame
 //!    (`shaders/cellproj_raster.wgsl`);
-//! 6. readback.
+//! 6. readback ([`crate::gpu::frame`]), with the GPU timestamps of stages 4-5.
 //!
 //! **Why back to front with "over".** Both directions need the same order; back to front
 //! blends with `src + (1 - src.a) dst`, which never reads the accumulated alpha, so the result
@@ -37,36 +37,28 @@
 //! leave and re-enter just cross more tets, and the order is what it is.
 
 pub mod preint;
+mod raster;
 pub mod sort;
 pub mod twin;
+mod upload;
 
 use std::sync::Arc;
 use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
-use rayon::prelude::*;
 
 use crate::camera::Camera;
 use crate::gpu::assembly::{AssemblyInputs, AssemblyStage, RECORD_BYTES};
-use crate::gpu::frame::{
-    FrameResources, FrameStats, ImageReadback, Timestamps, attachment, cleared, draw_tet_chunks,
-};
+use crate::gpu::frame::{FrameResources, FrameStats, ImageReadback, Timestamps};
 use crate::gpu::gpu_data::{FrameUniforms, TfPoints};
-use crate::gpu::mesh::{Chunking, GpuTetMesh, MeshData, TetArray};
-use crate::gpu::tf::tf_points;
-use crate::gpu::util::{
-    bind_group_layout, buffer_entry, check_image_size, entry, ms_since, pipeline_layout_for,
-    settings_error, uniform_buffer, wgsl_module,
-};
-use crate::gpu::view::ViewFrame;
+use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
+use crate::gpu::util::{entry, ms_since, settings_error, uniform_buffer};
 use crate::gpu::{GpuContext, shaders};
 use crate::image::Image;
 use crate::mesh::TetMesh;
 use crate::render::{Frame, RenderError, Renderer, Timings};
 use crate::tf::TransferFunction;
-
-use preint::{NormalizedTf, PreintTable};
 
 const CELLPROJ_RASTER: &str = include_str!("../../../shaders/cellproj_raster.wgsl");
 
@@ -175,21 +167,6 @@ struct Targets {
     readback: ImageReadback,
 }
 
-fn longest_edge(positions: &[DVec3], tets: &[[u32; 4]]) -> f64 {
-    tets.par_iter()
-        .map(|t| {
-            let p = t.map(|i| positions[i as usize]);
-            let mut l: f64 = 0.0;
-            for a in 0..4 {
-                for b in a + 1..4 {
-                    l = l.max(p[a].distance(p[b]));
-                }
-            }
-            l
-        })
-        .reduce(|| 0.0, f64::max)
-}
-
 /// The eye-space z at or below which a tet is drawn as its near-plane quad (as in the iso
 /// mode): 1e-5 of the bounding radius, above f32 rounding of eye-space coordinates.
 fn near_z(radius: f64) -> f32 {
@@ -203,7 +180,7 @@ impl CellProjRenderer {
         mesh: Arc<GpuTetMesh>,
         settings: CellProjSettings,
     ) -> Result<Self, RenderError> {
-        check_table(&ctx.limits, &settings)?;
+        preint::check_table(&ctx.limits, &settings)?;
         // Records beyond one storage binding are assembled and drawn in chunks of the sorted
         // order (each bound as a window of the record array, drawn one after the other, so the
         // order holds).
@@ -222,7 +199,7 @@ impl CellProjRenderer {
             pipelines: Pipelines::new(&device, format),
             assembly: AssemblyStage::new(&device),
             frame: FrameResources::new(ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY)),
-            no_table: table_texture(&device, 2, 2),
+            no_table: preint::table_texture(&device, 2, 2),
             frame_buf: uniform("cellproj frame", size_of::<FrameUniforms>()),
             tf_buf: uniform("cellproj tf", size_of::<TfPoints>()),
             cellproj_buf: uniform("cellproj table constants", size_of::<CellProjUniforms>()),
@@ -256,156 +233,6 @@ impl CellProjRenderer {
     /// Switches the integrator (the table is built on the next frame that needs it).
     pub fn set_integrate(&mut self, integrate: Integrate) {
         self.settings.integrate = integrate;
-    }
-
-    /// The longest tet edge of the current positions (computed once per positions' version).
-    fn max_edge(&mut self, m: &MeshData) -> f64 {
-        match self.max_edge {
-            Some((v, l)) if v == m.positions_version => l,
-            _ => {
-                let l = longest_edge(&m.positions, &m.tets);
-                self.max_edge = Some((m.positions_version, l));
-                l
-            }
-        }
-    }
-
-    /// Builds the table when the TF, the scalar range or the longest edge (grown) changed;
-    /// returns whether it did.
-    fn ensure_table(&mut self, m: &MeshData, tf: &TransferFunction) -> bool {
-        let frame = (m.scalar_min, m.scalar_span);
-        let max_edge = self.max_edge(m);
-        if let Some(t) = &self.table
-            && t.tf == *tf
-            && t.scalar_frame == frame
-            && t.max_length >= max_edge
-        {
-            return false;
-        }
-        // A little headroom so small deformations that stretch the longest edge keep the table.
-        let max_length = (max_edge * 1.05).max(f64::MIN_POSITIVE);
-        let (n, m) = (self.settings.table_size, self.settings.table_lengths);
-        let table = PreintTable::build(&NormalizedTf::new(tf, frame.0, frame.1), n, m, max_length);
-        let texture = match self.table.take() {
-            Some(t) => t.texture,
-            None => table_texture(&self.device, n, m),
-        };
-        self.queue.write_texture(
-            texture.as_image_copy(),
-            bytemuck::cast_slice(&table.data),
-            wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(n * 16),
-                rows_per_image: Some(n),
-            },
-            texture.size(),
-        );
-        self.table = Some(TableState {
-            tf: tf.clone(),
-            scalar_frame: frame,
-            max_length,
-            texture,
-        });
-        true
-    }
-
-    fn ensure_targets(&mut self, width: u32, height: u32) -> Result<(), RenderError> {
-        if let Some(t) = &self.targets
-            && (t.width, t.height) == (width, height)
-        {
-            return Ok(());
-        }
-        check_image_size(&self.limits, width, height)?;
-        let color = self.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("cellproj colour"),
-            size: wgpu::Extent3d {
-                width,
-                height,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: self.format,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        });
-        let readback = ImageReadback::new(
-            &self.device,
-            "cellproj readback",
-            width,
-            height,
-            self.format,
-        );
-        self.targets = Some(Targets {
-            width,
-            height,
-            color,
-            readback,
-        });
-        Ok(())
-    }
-
-    /// The back-to-front order for `camera` and the TF (see [`sort::back_to_front`]), and the
-    /// number of flat tets left out.
-    fn order(&mut self, m: &MeshData, camera: &Camera, tf: &TransferFunction) -> (Vec<u32>, u64) {
-        let version = m.positions_version;
-        if self.spheres.as_ref().is_none_or(|(v, _)| *v != version) {
-            self.spheres = Some((version, sort::spheres(&m.positions, &m.tets)));
-        }
-        let Some((_, spheres)) = &self.spheres else {
-            return (Vec::new(), 0);
-        };
-        let keys = sort::SortKeys::new(camera.eye, m.origin, m.radius);
-        let view = ViewFrame::new(camera);
-        let codes = self
-            .settings
-            .frustum
-            .then(|| view.to_eye_space(&m.positions));
-        let order = sort::back_to_front(&m.positions, spheres, &keys, |t| {
-            let (lo, hi) = m.ranges[t];
-            let outside = (codes.as_ref()).is_some_and(|c| ViewFrame::outside(c, &m.tets[t]));
-            !outside && !tf.is_transparent_on(lo, hi)
-        });
-        let flat = spheres.par_iter().filter(|s| s.is_none()).count() as u64;
-        (order, flat)
-    }
-
-    /// Writes the frame constants, the TF, the table constants and the sorted tets.
-    fn upload(
-        &mut self,
-        m: &MeshData,
-        camera: &Camera,
-        tf: &TransferFunction,
-        order: &[u32],
-    ) -> Result<(), RenderError> {
-        let view = ViewFrame::new(camera);
-        let drawn = order.len() as u32;
-        let frame = FrameUniforms {
-            tf_count: tf.points().len() as u32,
-            ..view.uniforms(m.origin, twin::INSIDE_TOL, near_z(m.radius), drawn)
-        };
-        self.queue
-            .write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&frame));
-        let points = tf_points(tf, m.scalar_min, m.scalar_span)?;
-        self.queue
-            .write_buffer(&self.tf_buf, 0, bytemuck::bytes_of(&points));
-        let constants = CellProjUniforms {
-            table_size: self.settings.table_size,
-            table_lengths: self.settings.table_lengths,
-            inv_length_step: self.table.as_ref().map_or(0.0, |t| {
-                ((self.settings.table_lengths - 1) as f64 / t.max_length) as f32
-            }),
-            _pad: 0,
-        };
-        self.queue
-            .write_buffer(&self.cellproj_buf, 0, bytemuck::bytes_of(&constants));
-        let indices: Vec<[u32; 4]> = order.par_iter().map(|&t| m.tets[t as usize]).collect();
-        if !indices.is_empty() {
-            self.order_buf
-                .write(&self.queue, bytemuck::cast_slice(&indices));
-        }
-        Ok(())
     }
 
     /// Records the assembly and the raster of the first `drawn` tets of the order, runs them
@@ -457,7 +284,7 @@ impl CellProjRenderer {
         rec.end_stage("assembly")?;
         let ts = rec.timestamps("raster");
         let occlusion = rec.occlusion();
-        encode_raster(
+        raster::encode_raster(
             rec.encoder(),
             targets,
             (pipeline, &raster_groups),
@@ -467,140 +294,6 @@ impl CellProjRenderer {
         rec.end_stage("raster")?;
         let images = [(&targets.color, &targets.readback)];
         rec.finish(&images, self.assembly.degenerate(), 1)
-    }
-}
-
-/// An error unless the table settings are usable on an adapter with `limits`.
-fn check_table(limits: &wgpu::Limits, settings: &CellProjSettings) -> Result<(), RenderError> {
-    if settings.table_size < 2 || settings.table_lengths < 2 {
-        return Err(settings_error(format!(
-            "the pre-integration table needs at least 2 samples per axis, not {} scalars x \
-             {} lengths",
-            settings.table_size, settings.table_lengths
-        )));
-    }
-    let max3d = limits.max_texture_dimension_3d;
-    if settings.table_size > max3d || settings.table_lengths > max3d {
-        return Err(settings_error(format!(
-            "the pre-integration table of {} scalars x {} lengths exceeds this adapter's \
-             largest 3D texture ({max3d} per axis); choose a smaller --table-size",
-            settings.table_size, settings.table_lengths
-        )));
-    }
-    Ok(())
-}
-
-/// Encodes the raster pass: every chunk's tets in the sorted order, one after the other
-/// (blending follows it), the fragments counted by occlusion query 0.
-fn encode_raster(
-    enc: &mut wgpu::CommandEncoder,
-    targets: &Targets,
-    (pipeline, groups): (&wgpu::RenderPipeline, &[(wgpu::BindGroup, u64)]),
-    occlusion: Option<&wgpu::QuerySet>,
-    timestamps: Option<Timestamps>,
-) {
-    let color_view = targets.color.create_view(&Default::default());
-    let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-        label: Some("cellproj raster"),
-        color_attachments: &[attachment(&color_view, cleared(wgpu::Color::TRANSPARENT))],
-        timestamp_writes: timestamps.as_ref().map(Timestamps::render),
-        occlusion_query_set: occlusion,
-        ..Default::default()
-    });
-    draw_tet_chunks(&mut pass, pipeline, groups, occlusion.is_some());
-}
-
-/// An `Rgba32Float` 3D texture of extent `(n, n, m)` for the table.
-fn table_texture(device: &wgpu::Device, n: u32, m: u32) -> wgpu::Texture {
-    device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("cellproj pre-integration table"),
-        size: wgpu::Extent3d {
-            width: n,
-            height: n,
-            depth_or_array_layers: m,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D3,
-        format: wgpu::TextureFormat::Rgba32Float,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        view_formats: &[],
-    })
-}
-
-impl Pipelines {
-    fn new(device: &wgpu::Device, format: wgpu::TextureFormat) -> Self {
-        use wgpu::ShaderStages as S;
-        let uniform = wgpu::BufferBindingType::Uniform;
-        let ro = wgpu::BufferBindingType::Storage { read_only: true };
-        let raster_layout = bind_group_layout(
-            device,
-            "cellproj raster",
-            &[
-                buffer_entry(0, S::VERTEX_FRAGMENT, uniform),
-                buffer_entry(1, S::VERTEX, ro),
-                buffer_entry(2, S::FRAGMENT, uniform),
-                buffer_entry(3, S::FRAGMENT, uniform),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 4,
-                    visibility: S::FRAGMENT,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                        view_dimension: wgpu::TextureViewDimension::D3,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
-            ],
-        );
-        let module = wgsl_module(device, "cellproj_raster", raster_source());
-        let layout = pipeline_layout_for(device, &raster_layout);
-        let over = wgpu::BlendComponent {
-            src_factor: wgpu::BlendFactor::One,
-            dst_factor: wgpu::BlendFactor::OneMinusSrcAlpha,
-            operation: wgpu::BlendOperation::Add,
-        };
-        let pipeline = |fs: &str| {
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some(fs),
-                layout: Some(&layout),
-                vertex: wgpu::VertexState {
-                    module: &module,
-                    entry_point: Some("vs_faces"),
-                    compilation_options: Default::default(),
-                    buffers: &[],
-                },
-                primitive: wgpu::PrimitiveState {
-                    topology: wgpu::PrimitiveTopology::TriangleList,
-                    // Outward faces are counter-clockwise seen from outside; NDC has y up.
-                    front_face: wgpu::FrontFace::Ccw,
-                    cull_mode: Some(wgpu::Face::Back),
-                    ..Default::default()
-                },
-                depth_stencil: None,
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &module,
-                    entry_point: Some(fs),
-                    compilation_options: Default::default(),
-                    targets: &[Some(wgpu::ColorTargetState {
-                        format,
-                        blend: Some(wgpu::BlendState {
-                            color: over,
-                            alpha: over,
-                        }),
-                        write_mask: wgpu::ColorWrites::ALL,
-                    })],
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
-        };
-        Self {
-            raster_table: pipeline("fs_table"),
-            raster_exact: pipeline("fs_exact"),
-            raster_layout,
-        }
     }
 }
 

@@ -1,28 +1,29 @@
 //! `--mode iso`: per-pixel isosurfaces (Georgii & Westermann 2006, section 4).
 //!
 //! Per frame:
-//! 1. select (CPU, cached): the tets whose scalar range holds an isovalue, in one list;
+//! 1. select (CPU, cached, `select.rs`): the tets whose scalar range holds an isovalue, in one list;
 //!    constant tets are left out (see [`crate::reference::iso`], "Constant scalar"). A
 //!    span-space index ([`select::IntervalIndex`], rebuilt with rayon only when the scalars
 //!    change, stage "select index") answers a new isovalue without scanning every tet; the
 //!    list is recomputed only when the scalars or the isovalues change;
 //!    Frustum culling ([`IsoSettings::frustum`]) then drops, every frame, the selected tets
 //!    entirely outside one plane of the view frustum (stage "frustum");
-//! 2. upload: frame constants and the tets to draw;
+//! 2. upload (`upload.rs`): frame constants and the tets to draw;
 //! 3. gradients (smooth shading only): a compute pass recomputes the gradient of every vertex
 //!    of a selected tet from the current positions, the volume-weighted mean over its tets
 //!    ([`gradients`]);
 //! 4. assembly: the shared assembly stage ([`crate::gpu::assembly`]) over the selected
 //!    tets only, building each one's eye-to-barycentric record;
-//! 5. raster: one instanced pass over the selected tets' front faces with a depth buffer
+//! 5. raster (`raster.rs`): one instanced pass over the selected tets' front faces with a depth buffer
 //!    (`shaders/iso_raster.wgsl`); a tet with a corner at eye-space z <= `near_z` (the
 //!    tet holding the eye, any tet crossing or behind the eye's plane) draws instead a
 //!    screen-space quad over its screen bounds clipped to that plane, as the shells mode's
 //!    near-plane tets, so the eye may be inside the mesh; each fragment solves the
-//!    ray/isoplane intersection in the tet's barycentric space, keeps it only inside the tet (smallest barycentric >=
-//!    `-epsilon`, so neighbours overlap rather than leave cracks), writes the hit distance as
+//!    ray/isoplane intersection in the tet's barycentric space, keeps it only inside the
+//!    tet (smallest barycentric >= `-epsilon`, so neighbours overlap rather than leave cracks), writes the hit distance as
 //!    its depth and shades it (headlight Blinn-Phong, [`crate::reference::iso::shade`]);
-//! 6. readback of the colour and of the per-pixel normal and distance.
+//! 6. readback ([`crate::gpu::frame`]) of the colour and of the per-pixel normal and distance,
+//!    with the GPU timestamps of stages 3-5.
 //!
 //! The transfer function passed to [`Renderer::render`] is ignored: the surfaces take the
 //! colours given with their isovalues in [`IsoSettings`].
@@ -31,26 +32,22 @@
 //! outside its clipped bounds and may be lost; `near_z` is 1e-5 of the mesh's bounding radius.
 
 pub mod gradients;
+mod raster;
 pub mod select;
+mod upload;
 
 use std::sync::Arc;
 use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
-use rayon::prelude::*;
 
 use crate::camera::Camera;
-use crate::gpu::assembly::{AssemblyInputs, AssemblyStage, RECORD_BYTES};
-use crate::gpu::frame::{
-    FrameResources, FrameStats, ImageReadback, Timestamps, attachment, cleared, draw_tet_chunks,
-};
+use crate::gpu::assembly::{AssemblyInputs, AssemblyStage};
+use crate::gpu::frame::{FrameResources, FrameStats, ImageReadback, Timestamps};
 use crate::gpu::gpu_data::FrameUniforms;
-use crate::gpu::mesh::{Chunking, GpuTetMesh, MeshData, TetArray};
-use crate::gpu::util::{
-    bind_group_layout, buffer_entry, check_image_size, entry, map_read, ms_since,
-    pipeline_layout_for, settings_error, uniform_buffer, wgsl_module,
-};
+use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
+use crate::gpu::util::{map_read, ms_since, settings_error, uniform_buffer};
 use crate::gpu::view::ViewFrame;
 use crate::gpu::{GpuContext, shaders};
 use crate::image::Image;
@@ -294,18 +291,6 @@ impl IsoRenderer {
         Ok(())
     }
 
-    /// The tets whose range holds an isovalue, from the span-space index (built first if the
-    /// scalars changed); constant tets are never selected.
-    fn select(&mut self, tets: &[[u32; 4]], scalars: &[f64]) -> Vec<[u32; 4]> {
-        let index = (self.index).get_or_insert_with(|| select::IntervalIndex::build(tets, scalars));
-        let isos: Vec<f64> = self.settings.isovalues.iter().map(|&(v, _)| v).collect();
-        index
-            .select(&isos)
-            .par_iter()
-            .map(|&i| tets[i as usize])
-            .collect()
-    }
-
     /// The vertex positions as the GPU stages read them: relative to the mesh's bounding-box
     /// centre, f32, `w = 1`.
     pub fn gpu_positions(&self) -> Vec<[f32; 4]> {
@@ -351,159 +336,6 @@ impl IsoRenderer {
         drop(data);
         readback.unmap();
         Ok(Some(out))
-    }
-
-    fn ensure_targets(&mut self, width: u32, height: u32) -> Result<(), RenderError> {
-        if let Some(t) = &self.targets
-            && (t.width, t.height) == (width, height)
-        {
-            return Ok(());
-        }
-        check_image_size(&self.limits, width, height)?;
-        let texture = |label, format, usage| {
-            self.device.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size: wgpu::Extent3d {
-                    width,
-                    height,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
-                view_formats: &[],
-            })
-        };
-        let rw = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
-        let color = texture("iso colour", TARGET_FORMAT, rw);
-        let geometry = texture("iso normal and distance", TARGET_FORMAT, rw);
-        let depth = texture(
-            "iso depth",
-            DEPTH_FORMAT,
-            wgpu::TextureUsages::RENDER_ATTACHMENT,
-        );
-        let readback =
-            |label| ImageReadback::new(&self.device, label, width, height, TARGET_FORMAT);
-        self.targets = Some(Targets {
-            width,
-            height,
-            depth_view: depth.create_view(&Default::default()),
-            color_readback: readback("iso colour readback"),
-            geometry_readback: readback("iso geometry readback"),
-            color,
-            geometry,
-        });
-        Ok(())
-    }
-
-    /// The selected tets, made anew when the scalars or the isovalues changed, and the ones
-    /// inside the view frustum (`None` without frustum culling); stages "select index",
-    /// "select", "frustum".
-    fn select_visible(
-        &mut self,
-        m: &MeshData,
-        view: &ViewFrame,
-        timings: &mut Timings,
-    ) -> Option<Vec<[u32; 4]>> {
-        if m.scalars_version != self.scalars_version {
-            (self.index, self.selection) = (None, None);
-            self.scalars_version = m.scalars_version;
-        }
-        let t0 = Instant::now();
-        if self.index.is_none() {
-            self.index = Some(select::IntervalIndex::build(&m.tets, &m.scalars));
-        }
-        timings.stage("select index", ms_since(t0));
-        let t0 = Instant::now();
-        if self.selection.is_none() {
-            self.selection = Some(self.select(&m.tets, &m.scalars));
-            self.selection_uploaded = false;
-        }
-        timings.stage("select", ms_since(t0));
-        let t0 = Instant::now();
-        let visible = self.settings.frustum.then(|| {
-            let codes = view.to_eye_space(&m.positions);
-            let sel = self.selection.as_deref().unwrap_or(&[]);
-            sel.par_iter()
-                .filter(|t| !ViewFrame::outside(&codes, t))
-                .copied()
-                .collect()
-        });
-        timings.stage("frustum", ms_since(t0));
-        visible
-    }
-
-    /// Writes the frame and isovalue constants, and the tets to draw: the whole selection's
-    /// lists when it changed (and the gradient stage's vertices), the visible tets every frame.
-    fn upload(
-        &mut self,
-        m: &MeshData,
-        view: &ViewFrame,
-        visible: Option<&[[u32; 4]]>,
-        drawn: usize,
-    ) -> Result<(), RenderError> {
-        let frame = view.uniforms(
-            m.origin,
-            self.settings.epsilon,
-            near_z(m.radius),
-            drawn as u32,
-        );
-        self.queue
-            .write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&frame));
-        let mut iso = IsoUniforms::zeroed();
-        for (k, &(v, c)) in self.settings.isovalues.iter().enumerate() {
-            iso.values[k / 4][k % 4] = ((v - m.scalar_min) / m.scalar_span) as f32;
-            iso.colors[k] = [c[0], c[1], c[2], 1.0];
-        }
-        iso.count = self.settings.isovalues.len() as u32;
-        iso.smooth_shading = (self.settings.shading == Shading::Smooth) as u32;
-        let far = ((view.eye - m.origin).length() + m.radius) * 1.001;
-        iso.inv_depth_range = (1.0 / far.max(f64::MIN_POSITIVE)) as f32;
-        self.queue
-            .write_buffer(&self.iso_buf, 0, bytemuck::bytes_of(&iso));
-        if !self.selection_uploaded {
-            self.upload_selection(visible.is_none())?;
-        }
-        if let (Some(v), Some(lists)) = (visible.filter(|v| !v.is_empty()), &self.lists) {
-            lists.tets.write(&self.queue, bytemuck::cast_slice(v));
-        }
-        Ok(())
-    }
-
-    /// New lists for a new selection (chunked when its records exceed a storage binding),
-    /// written whole when `write` (no frustum culling), and the gradient stage's vertices.
-    fn upload_selection(&mut self, write: bool) -> Result<(), RenderError> {
-        let sel = self.selection.as_deref().unwrap_or(&[]);
-        let n = sel.len() as u64;
-        let chunking = Chunking::new(n, self.mesh.limits())?;
-        let tets = self.mesh.tet_array("iso selected tets", chunking, n, 16)?;
-        let records = (self.mesh).tet_array("iso tet records", chunking, n, RECORD_BYTES)?;
-        if write && !sel.is_empty() {
-            tets.write(&self.queue, bytemuck::cast_slice(sel));
-        }
-        if self.gradient_stage.is_some() {
-            let vertices = gradients::vertices_of(sel);
-            self.gradient_vertices = (!vertices.is_empty()).then(|| {
-                let buf = self.device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("iso gradient vertices"),
-                    size: vertices.len() as u64 * 4,
-                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-                    mapped_at_creation: false,
-                });
-                self.queue
-                    .write_buffer(&buf, 0, bytemuck::cast_slice(&vertices));
-                (vertices, buf)
-            });
-        }
-        self.lists = Some(SelectionLists {
-            chunking,
-            tets,
-            records,
-        });
-        self.selection_uploaded = true;
-        Ok(())
     }
 
     /// Renders `camera`'s view: shaded colour plus each pixel's hit distance and normal (the
@@ -618,145 +450,13 @@ impl IsoRenderer {
         let ts = rec.timestamps("raster");
         let occlusion = rec.occlusion();
         let raster = (&self.pipelines.raster, raster_groups.as_slice());
-        encode_raster(rec.encoder(), targets, raster, occlusion, ts);
+        raster::encode_raster(rec.encoder(), targets, raster, occlusion, ts);
         rec.end_stage("raster")?;
         let images = [
             (&targets.color, &targets.color_readback),
             (&targets.geometry, &targets.geometry_readback),
         ];
         rec.finish(&images, self.assembly.degenerate(), 1)
-    }
-
-    /// The raster bind group of each chunk, with its tet count.
-    fn raster_groups(
-        &self,
-        lists: &SelectionLists,
-        chunks: &[(u64, u64)],
-    ) -> Vec<(wgpu::BindGroup, u64)> {
-        chunks
-            .iter()
-            .map(|&(first, count)| {
-                let group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("iso raster"),
-                    layout: &self.pipelines.raster_layout,
-                    entries: &[
-                        entry(0, &self.frame_buf),
-                        lists.records.window(1, first, count),
-                        lists.tets.window(2, first, count),
-                        entry(3, self.mesh.scalars()),
-                        entry(4, &self.gradients_buf),
-                        entry(5, &self.iso_buf),
-                    ],
-                });
-                (group, count)
-            })
-            .collect()
-    }
-}
-
-/// Encodes the raster pass: each chunk's tets' front faces, one instance per tet, the depth
-/// test keeping the nearest hit; the fragments counted by occlusion query 0.
-fn encode_raster(
-    enc: &mut wgpu::CommandEncoder,
-    targets: &Targets,
-    (pipeline, groups): (&wgpu::RenderPipeline, &[(wgpu::BindGroup, u64)]),
-    occlusion: Option<&wgpu::QuerySet>,
-    timestamps: Option<Timestamps>,
-) {
-    let miss = wgpu::Color {
-        r: 0.0,
-        g: 0.0,
-        b: 0.0,
-        a: -1.0,
-    };
-    let color_view = targets.color.create_view(&Default::default());
-    let geometry_view = targets.geometry.create_view(&Default::default());
-    let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-        label: Some("iso raster"),
-        color_attachments: &[
-            attachment(&color_view, cleared(wgpu::Color::TRANSPARENT)),
-            attachment(&geometry_view, cleared(miss)),
-        ],
-        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-            view: &targets.depth_view,
-            depth_ops: Some(wgpu::Operations {
-                load: wgpu::LoadOp::Clear(1.0),
-                store: wgpu::StoreOp::Store,
-            }),
-            stencil_ops: None,
-        }),
-        timestamp_writes: timestamps.as_ref().map(Timestamps::render),
-        occlusion_query_set: occlusion,
-        ..Default::default()
-    });
-    draw_tet_chunks(&mut pass, pipeline, groups, occlusion.is_some());
-}
-
-impl Pipelines {
-    fn new(device: &wgpu::Device) -> Self {
-        use wgpu::ShaderStages as S;
-        let buffer = buffer_entry;
-        let uniform = wgpu::BufferBindingType::Uniform;
-        let ro = wgpu::BufferBindingType::Storage { read_only: true };
-        let layout = |label, entries: &[wgpu::BindGroupLayoutEntry]| {
-            bind_group_layout(device, label, entries)
-        };
-        let pipeline_layout = |bgl: &wgpu::BindGroupLayout| pipeline_layout_for(device, bgl);
-        let module = |label, src| wgsl_module(device, label, src);
-        let raster_layout = layout(
-            "iso raster",
-            &[
-                buffer(0, S::VERTEX_FRAGMENT, uniform),
-                buffer(1, S::VERTEX, ro),
-                buffer(2, S::VERTEX, ro),
-                buffer(3, S::VERTEX, ro),
-                buffer(4, S::VERTEX, ro),
-                buffer(5, S::FRAGMENT, uniform),
-            ],
-        );
-        let raster_module = module("iso_raster", raster_source());
-        let target = Some(wgpu::ColorTargetState {
-            format: TARGET_FORMAT,
-            blend: None,
-            write_mask: wgpu::ColorWrites::ALL,
-        });
-        let raster = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("iso raster"),
-            layout: Some(&pipeline_layout(&raster_layout)),
-            vertex: wgpu::VertexState {
-                module: &raster_module,
-                entry_point: Some("vs_faces"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleList,
-                // Outward faces are counter-clockwise seen from outside; NDC has y up.
-                front_face: wgpu::FrontFace::Ccw,
-                cull_mode: Some(wgpu::Face::Back),
-                ..Default::default()
-            },
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Less),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &raster_module,
-                entry_point: Some("fs_iso"),
-                compilation_options: Default::default(),
-                targets: &[target.clone(), target],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
-        Self {
-            raster_layout,
-            raster,
-        }
     }
 }
 

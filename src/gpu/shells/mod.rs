@@ -1,29 +1,39 @@
 //! `--mode shells`: barycentric shell sampling (Georgii & Westermann 2006), the heart of tetvr.
 //!
 //! Eye space is cut into spherical shells around the eye, each holding `n` slices at spacing
-//! `dz` (slice `k` at distance `t_first + k dz`). Per frame:
-//! 1. binning (CPU, rayon): each tet's conservative distance range, frustum and
-//!    transfer-function culling, the frame's `n` chosen from the tets' slice ranges
-//!    ([`adaptive`]), every shell's active list in one counting sort ([`binning`]);
-//! 2. assembly (compute): once per tet, eye-space corners and the eye-to-barycentric
-//!    transform (`shaders/assemble.wgsl`);
-//! 3. raster (one render pass per non-empty shell): front faces of the shell's tets, each
-//!    fragment writing its `n` slice samples (encoded scalar or 0) into `n / 4` colour targets
-//!    under MAX blending (`shaders/shells_raster.wgsl`);
-//! 4. composite (one full-screen pass per shell): transfer function, front to back, blended
-//!    under the accumulation target (`shaders/shells_composite.wgsl`); with early ray
-//!    termination, a mark pass after it excludes the finished pixels from every later pass,
-//!    and a few times per frame a tile mask of unfinished pixels is read back
-//!    (`shaders/shells_mark.wgsl`);
-//! 5. readback of the accumulation target.
+//! `dz` (slice `k` at distance `t_first + k dz`). Per frame, in `render`'s order, one file a
+//! stage:
+//! 1. plan and binning (CPU, rayon; `plan.rs`, [`binning`]): where the slices lie, each tet's
+//!    conservative distance range, frustum and transfer-function culling, the frame's `n`
+//!    chosen from the tets' slice ranges ([`adaptive`]), every shell's active list in one
+//!    counting sort;
+//! 2. upload (`upload.rs`): frame constants, transfer function, per-shell constants, active
+//!    lists (chunk-local tet ids), the face index pattern;
+//! 3. assembly (compute, [`crate::gpu::assembly`], shared by every mode): once per tet,
+//!    eye-space corners and the eye-to-barycentric transform (`shaders/assemble.wgsl`);
+//! 4. per drawn shell:
+//!    - raster (`raster.rs`, one render pass): front faces of the shell's tets, each fragment
+//!      writing its `n` slice samples (encoded scalar or 0) into `n / 4` colour targets under
+//!      MAX blending (`shaders/shells_raster.wgsl`);
+//!    - composite (`composite.rs`, one full-screen pass): transfer function, front to back,
+//!      blended under the accumulation target (`shaders/shells_composite.wgsl`);
+//!    - early ray termination (`termination.rs`): a mark pass excludes the finished pixels
+//!      from every later pass, and a few times per frame a tile mask of unfinished pixels is
+//!      read back (`shaders/shells_mark.wgsl`);
+//! 5. readback ([`crate::gpu::frame`]): the accumulation target, the degenerate count, the
+//!    occlusion queries and the GPU timestamps of every pass.
+//!
+//! Pipelines (`pipelines.rs`), targets (`targets.rs`) and the slice configuration
+//! (`config.rs`) have files of their own.
 //!
 //! What a scene does not need is skipped: transparent tets, empty shells, finished pixels,
 //! tets outside the frustum ([`skips`], each skip switched by [`ShellSettings::skips`]).
 //!
 //! Meshes whose per-tet records exceed one storage binding (about 932k tets on lavapipe's
-//! 128 MiB) are assembled and drawn in chunks: the records live in one buffer, each chunk binds
-//! its window of it, and a shell's active list (tet ids ascending, as binning leaves them) is
-//! drawn chunk by chunk with chunk-local ids.
+//! 128 MiB) are assembled and drawn in chunks: the records live in a
+//! [`crate::gpu::mesh::TetArray`] (as many buffers as the adapter's largest buffer needs),
+//! each chunk binds its window of it, and a shell's active list (tet ids ascending, as binning
+//! leaves them) is drawn chunk by chunk with chunk-local ids.
 //!
 //! Precision: positions are uploaded relative to the mesh's bounding-box centre (subtracted in
 //! f64), and so is the eye, so a mesh far from the origin renders as it does at the origin.
