@@ -45,28 +45,20 @@ mod upload;
 use std::sync::Arc;
 use std::time::Instant;
 
-use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 
 use crate::camera::Camera;
+use crate::gpu::GpuContext;
 use crate::gpu::assembly::{AssemblyInputs, AssemblyStage, RECORD_BYTES};
 use crate::gpu::frame::{FrameResources, FrameStats, ImageReadback, Timestamps};
+pub use crate::gpu::gpu_data::CellProjUniforms;
 use crate::gpu::gpu_data::{FrameUniforms, TfPoints};
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
 use crate::gpu::util::{entry, ms_since, settings_error, uniform_buffer};
-use crate::gpu::{GpuContext, shaders};
 use crate::image::Image;
 use crate::mesh::TetMesh;
 use crate::render::{Frame, RenderError, Renderer, Timings};
 use crate::tf::TransferFunction;
-
-const CELLPROJ_RASTER: &str = include_str!("../../../shaders/cellproj_raster.wgsl");
-
-/// The raster stage's WGSL: `shared.wgsl` followed by `shaders/cellproj_raster.wgsl` (entry
-/// points `vs_faces`, `fs_table`, `fs_exact`).
-pub fn raster_source() -> String {
-    format!("{}\n{CELLPROJ_RASTER}", shaders::SHARED)
-}
 
 /// How each fragment integrates its segment.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -102,20 +94,6 @@ impl Default for CellProjSettings {
         }
     }
 }
-
-/// The raster's table constants (WGSL `CellProj` in `shaders/cellproj_raster.wgsl`, 16 bytes).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct CellProjUniforms {
-    /// Scalar samples per table axis.
-    pub table_size: u32,
-    /// Length levels.
-    pub table_lengths: u32,
-    /// `(table_lengths - 1) / max_length`: length to level.
-    pub inv_length_step: f32,
-    pub _pad: u32,
-}
-const _: () = assert!(size_of::<CellProjUniforms>() == 16);
 
 /// What a built table was built for.
 struct TableState {

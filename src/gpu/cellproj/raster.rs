@@ -3,12 +3,13 @@
 //! the target's readback.
 
 use crate::gpu::frame::{ImageReadback, Timestamps, attachment, cleared, draw_tet_chunks};
+use crate::gpu::shaders;
 use crate::gpu::util::{
     bind_group_layout, buffer_entry, check_image_size, pipeline_layout_for, wgsl_module,
 };
 use crate::render::RenderError;
 
-use super::{CellProjRenderer, Pipelines, Targets, raster_source};
+use super::{CellProjRenderer, Pipelines, Targets};
 
 impl CellProjRenderer {
     pub(super) fn ensure_targets(&mut self, width: u32, height: u32) -> Result<(), RenderError> {
@@ -94,7 +95,7 @@ impl Pipelines {
                 },
             ],
         );
-        let module = wgsl_module(device, "cellproj_raster", raster_source());
+        let module = wgsl_module(device, "cellproj_raster", shaders::cellproj_raster());
         let layout = pipeline_layout_for(device, &raster_layout);
         let over = wgpu::BlendComponent {
             src_factor: wgpu::BlendFactor::One,

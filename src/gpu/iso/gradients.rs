@@ -13,14 +13,8 @@
 use rayon::prelude::*;
 
 use crate::gpu::mesh::GpuTetMesh;
+use crate::gpu::shaders;
 use crate::gpu::util::{bind_group_layout, buffer_entry, entry, pipeline_layout_for, wgsl_module};
-
-const ISO_GRADIENTS: &str = include_str!("../../../shaders/iso_gradients.wgsl");
-
-/// The gradient stage's WGSL (`shaders/iso_gradients.wgsl`, standalone; entry point `main`).
-pub fn gradients_source() -> &'static str {
-    ISO_GRADIENTS
-}
 
 /// Vertex-to-tets adjacency in CSR form: vertex `v`'s tets are
 /// `tets[offsets[v] as usize..offsets[v + 1] as usize]`, in increasing tet order.
@@ -135,7 +129,7 @@ impl GradientStage {
                 buffer_entry(6, S::COMPUTE, ro),
             ],
         );
-        let module = wgsl_module(device, "iso_gradients", ISO_GRADIENTS.to_string());
+        let module = wgsl_module(device, "iso_gradients", shaders::iso_gradients());
         let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some("iso gradients"),
             layout: Some(&pipeline_layout_for(device, &layout)),

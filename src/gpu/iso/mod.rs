@@ -39,53 +39,25 @@ mod upload;
 use std::sync::Arc;
 use std::time::Instant;
 
-use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 
 use crate::camera::Camera;
+use crate::gpu::GpuContext;
 use crate::gpu::assembly::{AssemblyInputs, AssemblyStage};
 use crate::gpu::frame::{FrameResources, FrameStats, ImageReadback, Timestamps};
 use crate::gpu::gpu_data::FrameUniforms;
+pub use crate::gpu::gpu_data::{IsoUniforms, MAX_ISOVALUES};
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
 use crate::gpu::util::{map_read, ms_since, settings_error, uniform_buffer};
 use crate::gpu::view::ViewFrame;
-use crate::gpu::{GpuContext, shaders};
 use crate::image::Image;
 use crate::mesh::TetMesh;
 pub use crate::reference::iso::{IsoImage, Shading};
 use crate::render::{Frame, RenderError, Renderer, Timings};
 use crate::tf::TransferFunction;
 
-const ISO_RASTER: &str = include_str!("../../../shaders/iso_raster.wgsl");
-
-/// The raster stage's WGSL: `shared.wgsl` followed by `shaders/iso_raster.wgsl` (entry points
-/// `vs_faces`, `fs_iso`).
-pub fn raster_source() -> String {
-    format!("{}\n{ISO_RASTER}", shaders::SHARED)
-}
-
 /// `(vertex, gradient)` pairs read back from the gradient stage (`xyz`, `w = 0`).
 pub type VertexGradients = Vec<(u32, [f32; 4])>;
-
-/// The most isovalues one pass draws.
-pub const MAX_ISOVALUES: usize = 16;
-
-/// Per-frame isosurface constants (WGSL `Iso` in `shaders/iso_raster.wgsl`, 336 bytes).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
-pub struct IsoUniforms {
-    /// Surface colour of each isovalue (rgb; a unused).
-    pub colors: [[f32; 4]; MAX_ISOVALUES],
-    /// Normalized isovalues `(v - s_min) / (s_max - s_min)`, four to a vector.
-    pub values: [[f32; 4]; MAX_ISOVALUES / 4],
-    pub count: u32,
-    /// 1 for smooth shading.
-    pub smooth_shading: u32,
-    /// `1 / d`, `d` beyond the farthest mesh point from the eye: depth = distance / d.
-    pub inv_depth_range: f32,
-    pub _pad: u32,
-}
-const _: () = assert!(size_of::<IsoUniforms>() == 336);
 
 /// Settings of the isosurface renderer.
 #[derive(Clone, Debug, PartialEq)]

@@ -3,14 +3,13 @@
 //! its pipeline and targets, and their readback.
 
 use crate::gpu::frame::{ImageReadback, Timestamps, attachment, cleared, draw_tet_chunks};
+use crate::gpu::shaders;
 use crate::gpu::util::{
     bind_group_layout, buffer_entry, check_image_size, entry, pipeline_layout_for, wgsl_module,
 };
 use crate::render::RenderError;
 
-use super::{
-    DEPTH_FORMAT, IsoRenderer, Pipelines, SelectionLists, TARGET_FORMAT, Targets, raster_source,
-};
+use super::{DEPTH_FORMAT, IsoRenderer, Pipelines, SelectionLists, TARGET_FORMAT, Targets};
 
 impl IsoRenderer {
     pub(super) fn ensure_targets(&mut self, width: u32, height: u32) -> Result<(), RenderError> {
@@ -145,7 +144,7 @@ impl Pipelines {
                 buffer(5, S::FRAGMENT, uniform),
             ],
         );
-        let raster_module = module("iso_raster", raster_source());
+        let raster_module = module("iso_raster", shaders::iso_raster());
         let target = Some(wgpu::ColorTargetState {
             format: TARGET_FORMAT,
             blend: None,
