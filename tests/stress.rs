@@ -757,8 +757,14 @@ type BuildOn = fn(&GpuContext, &TetMesh) -> Built;
 
 /// The f32 bits of every pixel, and the frame's "record buffers" counter.
 fn bits_and_buffers(mode: &str, build: BuildOn, c: &GpuContext, g: &TetMesh) -> (Vec<u32>, u64) {
+    // 32x32 pixels: the readback (16 KiB) fits the lowered buffer size.
+    let camera = Camera {
+        width: 32,
+        height: 32,
+        ..outside()
+    };
     let frame = build(c, g)
-        .and_then(|mut r| r.render(&outside(), &tf(0.3)))
+        .and_then(|mut r| r.render(&camera, &tf(0.3)))
         .unwrap_or_else(|e| panic!("{mode}: {e}"));
     let bits = frame
         .image

@@ -8,7 +8,7 @@
 use crate::gpu::gpu_data::TetRecord;
 use crate::gpu::mesh::{GpuTetMesh, TetArray};
 use crate::gpu::shaders;
-use crate::gpu::util::{bind_group_layout, buffer_entry, entry, pipeline_layout_for, wgsl_module};
+use crate::gpu::util::{bind_group_layout, buffer_entry, compute_main, entry};
 
 /// A tet is degenerate (skipped, counted) when the determinant of its edges, each divided by
 /// the longest, is at most this times the product of their lengths: its barycentric transform
@@ -60,15 +60,7 @@ impl AssemblyStage {
                 buffer_entry(5, S::COMPUTE, rw),
             ],
         );
-        let module = wgsl_module(device, "assemble", shaders::assemble());
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("assemble"),
-            layout: Some(&pipeline_layout_for(device, &layout)),
-            module: &module,
-            entry_point: Some("main"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        let pipeline = compute_main(device, "assemble", &layout, shaders::assemble());
         let degenerate = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("degenerate tet count"),
             size: 16,

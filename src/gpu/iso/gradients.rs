@@ -14,7 +14,7 @@ use rayon::prelude::*;
 
 use crate::gpu::mesh::GpuTetMesh;
 use crate::gpu::shaders;
-use crate::gpu::util::{bind_group_layout, buffer_entry, entry, pipeline_layout_for, wgsl_module};
+use crate::gpu::util::{bind_group_layout, buffer_entry, compute_main, entry};
 
 /// Vertex-to-tets adjacency in CSR form: vertex `v`'s tets are
 /// `tets[offsets[v] as usize..offsets[v + 1] as usize]`, in increasing tet order.
@@ -129,15 +129,7 @@ impl GradientStage {
                 buffer_entry(6, S::COMPUTE, ro),
             ],
         );
-        let module = wgsl_module(device, "iso_gradients", shaders::iso_gradients());
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("iso gradients"),
-            layout: Some(&pipeline_layout_for(device, &layout)),
-            module: &module,
-            entry_point: Some("main"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        let pipeline = compute_main(device, "iso gradients", &layout, shaders::iso_gradients());
         let adjacency = VertexTets::build(tets, vertex_count);
         let upload = |label: &str, bytes: &[u8]| {
             let buf = device.create_buffer(&wgpu::BufferDescriptor {

@@ -79,7 +79,7 @@ use plan::FramePlan;
 use skips::Skips;
 use targets::Targets;
 use termination::{Cut, Termination};
-use upload::{DrawnShell, chunk_local};
+use upload::{DrawnShell, InstanceLayout, chunk_local};
 
 /// The float format of the slice and accumulation targets.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -174,6 +174,8 @@ pub struct ShellsRenderer {
     assembly_groups: AssemblyGroups,
     /// Query sets and statistics buffers kept across frames.
     frame: FrameResources,
+    /// How the last uploaded active list is drawn.
+    instances: InstanceLayout,
     frame_buf: wgpu::Buffer,
     active_buf: wgpu::Buffer,
     /// Face corners of consecutive tets, 12 indices per tet: `4 k + FACES[f][c]`.
@@ -241,6 +243,11 @@ impl ShellsRenderer {
             model: config.model,
             slice_layers: config.layers,
             frame: FrameResources::new(ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY)),
+            instances: InstanceLayout {
+                window: 1,
+                windows: 1,
+                batch: 1,
+            },
             shell_stride,
             pipelines,
             mesh,
@@ -329,8 +336,12 @@ struct Passes<'a> {
     raster: (RasterSet, Option<RasterSet>),
     /// Composite pipelines without and with the termination mask test.
     composite: (wgpu::RenderPipeline, Option<wgpu::RenderPipeline>),
-    /// One raster bind group per chunk of records.
+    /// One raster bind group per window of the active list and chunk of records, window by
+    /// window.
     raster_groups: Vec<wgpu::BindGroup>,
+    /// Chunks of records (raster groups per window).
+    chunks: usize,
+    instances: InstanceLayout,
     composite_group: wgpu::BindGroup,
     face_indices: &'a wgpu::Buffer,
     shell_stride: u64,
@@ -396,6 +407,8 @@ impl ShellsRenderer {
             ert: self.pipelines.ert.as_ref(),
             raster,
             composite,
+            chunks: self.chunking.ranges(self.mesh.tet_count() as u64).len(),
+            instances: self.instances,
             raster_groups,
             composite_group: self.composite_group(targets),
             face_indices: &self.face_indices,
@@ -430,11 +443,28 @@ impl ShellsRenderer {
         Ok((stats, draws, term))
     }
 
-    /// One raster bind group per chunk of records; a chunk's active ids are chunk-local.
+    /// One raster bind group per window of the active list and chunk of records, window by
+    /// window; a chunk's active ids are chunk-local.
     fn raster_groups(&self) -> Vec<wgpu::BindGroup> {
         let chunks = self.chunking.ranges(self.mesh.tet_count() as u64);
-        (chunks.iter())
-            .map(|&(first, count)| {
+        let layout = self.instances;
+        let windows = (0..layout.windows as u64).flat_map(|w| chunks.iter().map(move |&c| (w, c)));
+        windows
+            .map(|(w, (first, count))| {
+                let window = layout.window as u64 * 4;
+                let active = if layout.windows == 1 {
+                    entry(3, &self.active_buf)
+                } else {
+                    let size = window.min(self.active_buf.size() - w * window);
+                    wgpu::BindGroupEntry {
+                        binding: 3,
+                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                            buffer: &self.active_buf,
+                            offset: w * window,
+                            size: wgpu::BufferSize::new(size),
+                        }),
+                    }
+                };
                 self.device.create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some("shells raster"),
                     layout: &self.pipelines.raster_layout,
@@ -449,7 +479,7 @@ impl ShellsRenderer {
                             }),
                         },
                         self.records.window(2, first, count),
-                        entry(3, &self.active_buf),
+                        active,
                     ],
                 })
             })

@@ -64,19 +64,25 @@ pub(super) fn encode(
     if let Some(q) = query {
         pass.begin_occlusion_query(q);
     }
+    let group = |w: usize, c: usize| &p.raster_groups[w * p.chunks + c];
     if !range.faces.is_empty() {
         pass.set_pipeline(&set.faces);
         pass.set_index_buffer(p.face_indices.slice(..), wgpu::IndexFormat::Uint32);
         for (c, part) in by_chunk(ids, range.faces.clone(), p.chunk_tets) {
-            pass.set_bind_group(0, &p.raster_groups[c], &[offset]);
-            pass.draw_indexed(12 * part.start..12 * part.end, 0, 0..1);
+            for (w, local, base) in p.instances.pieces(part) {
+                pass.set_bind_group(0, group(w, c), &[offset]);
+                let indices = 12 * (local.start - base)..12 * (local.end - base);
+                pass.draw_indexed(indices, 4 * base as i32, 0..1);
+            }
         }
     }
     if !range.near.is_empty() {
         pass.set_pipeline(&set.near);
         for (c, part) in by_chunk(ids, range.near.clone(), p.chunk_tets) {
-            pass.set_bind_group(0, &p.raster_groups[c], &[offset]);
-            pass.draw(6 * part.start..6 * part.end, 0..1);
+            for (w, local, _) in p.instances.pieces(part) {
+                pass.set_bind_group(0, group(w, c), &[offset]);
+                pass.draw(6 * local.start..6 * local.end, 0..1);
+            }
         }
     }
     if query.is_some() {

@@ -1,6 +1,8 @@
 //! Stage 2 of a shells frame: the upload of the frame constants, the transfer function, the
 //! per-shell constants and the active lists (chunk-local tet ids), and the face index pattern.
 
+use std::ops::Range;
+
 use bytemuck::Zeroable;
 use rayon::prelude::*;
 
@@ -82,21 +84,18 @@ impl ShellsRenderer {
         write_grown(gpu, &mut self.shell_buf, &shell_data, uniform);
     }
 
-    /// The active list and, grown when needed, the face index pattern: each tet-shell instance
-    /// is 12 indices of one draw (u32), in an index buffer grown to a power of two of
-    /// instances.
+    /// The active list (in windows of one storage binding) and, grown when needed, the face
+    /// index pattern: each tet-shell instance is 12 indices of one draw (u32), in an index
+    /// buffer grown to a power of two of the instances of a window, at most one buffer.
     fn upload_instances(&mut self, bin: &Binning, tet_count: u32) -> Result<(), RenderError> {
-        let tets = bin.indices.len().next_power_of_two();
-        if bin.indices.len() as u64 * 4 > self.limits.max_storage_buffer_binding_size
-            || tets as u64 * 12 > u32::MAX as u64
-            || tets as u64 * 48 > self.limits.max_buffer_size
-        {
-            return Err(settings_error(format!(
-                "this view draws {} tet-shell instances, more than one storage binding holds on \
-                 this adapter; use more slices per shell or a larger dz",
-                bin.indices.len()
-            )));
-        }
+        let n = bin.indices.len() as u64;
+        self.instances = InstanceLayout::new(n, &self.limits).ok_or_else(|| {
+            settings_error(format!(
+                "this view draws {n} tet-shell instances, more than one buffer holds on this \
+                 adapter; use more slices per shell or a larger dz"
+            ))
+        })?;
+        let tets = self.instances.batch as usize;
         let gpu = (&self.device, &self.queue, &self.limits);
         if self.face_indices.size() < 48 * tets as u64 {
             let pattern: Vec<u32> = (0..tets as u32)
@@ -153,5 +152,115 @@ fn write_grown(
     }
     if !data.is_empty() {
         queue.write_buffer(buf, 0, data);
+    }
+}
+
+/// How a frame's tet-shell instances are drawn: the active list bound in windows of `window`
+/// entries (each within one storage binding, at an aligned offset), and each draw of faces
+/// within a batch of `batch` instances, which the face index pattern covers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct InstanceLayout {
+    /// Active-list entries per window (all of them when they fit one binding).
+    pub(super) window: u32,
+    /// Number of windows.
+    pub(super) windows: u32,
+    /// Instances the face index pattern covers.
+    pub(super) batch: u32,
+}
+
+impl InstanceLayout {
+    /// The layout of `n` instances on an adapter with `limits`; `None` when the active list
+    /// does not fit one buffer.
+    pub(super) fn new(n: u64, limits: &wgpu::Limits) -> Option<Self> {
+        let max_buffer = limits.max_buffer_size;
+        let max_binding = limits.max_storage_buffer_binding_size.min(max_buffer);
+        if n * 4 > max_buffer {
+            return None;
+        }
+        let align = (limits.min_storage_buffer_offset_alignment as u64 / 4).max(1);
+        // Vertex indices (4 per instance, with the draw's base vertex) stay below 2^31.
+        let window = if n * 4 <= max_binding {
+            n.max(1)
+        } else {
+            (max_binding / 4 / align * align).min(1 << 28)
+        };
+        let batch = (window.min(n).max(1).next_power_of_two())
+            .min(max_buffer / 48)
+            .min(u32::MAX as u64 / 12);
+        (window > 0 && batch > 0).then(|| Self {
+            window: window as u32,
+            windows: n.div_ceil(window).max(1) as u32,
+            batch: batch as u32,
+        })
+    }
+
+    /// The pieces of the active-list range `range` to draw: per window `w`, the range relative
+    /// to the window's start, split at batches, with its batch's first instance.
+    pub(super) fn pieces(&self, range: Range<u32>) -> Vec<(usize, Range<u32>, u32)> {
+        let (window, batch) = (self.window, self.batch);
+        let mut out = Vec::new();
+        let mut s = range.start;
+        while s < range.end {
+            let w = s / window;
+            let base = w * window;
+            let local = s - base;
+            let first = local / batch * batch;
+            let end = range.end.min(base + window).min(base + first + batch);
+            out.push((w as usize, local..end - base, first));
+            s = end;
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pieces_stay_within_a_window_and_a_batch() {
+        let layout = InstanceLayout {
+            window: 100,
+            windows: 3,
+            batch: 32,
+        };
+        assert_eq!(
+            layout.pieces(90..140),
+            vec![
+                (0, 90..96, 64),
+                (0, 96..100, 96),
+                (1, 0..32, 0),
+                (1, 32..40, 32)
+            ]
+        );
+        let whole = InstanceLayout {
+            window: 1000,
+            windows: 1,
+            batch: 1024,
+        };
+        assert_eq!(whole.pieces(5..700), vec![(0, 5..700, 0)]);
+        assert_eq!(whole.pieces(7..7), vec![]);
+    }
+
+    #[test]
+    fn instances_beyond_one_binding_get_aligned_windows() {
+        let limits = wgpu::Limits {
+            max_storage_buffer_binding_size: 1 << 16,
+            max_buffer_size: 1 << 20,
+            min_storage_buffer_offset_alignment: 256,
+            ..wgpu::Limits::default()
+        };
+        // Fits one binding: one window of all, the pattern a power of two of them.
+        let small = InstanceLayout::new(1000, &limits).unwrap();
+        assert_eq!((small.window, small.windows, small.batch), (1000, 1, 1024));
+        // 20,000 entries (80 KB) in windows of 16,384 (64 KiB, offsets aligned to 256 bytes);
+        // the pattern covers 21,845 instances at most (1 MiB / 48 bytes).
+        let large = InstanceLayout::new(20_000, &limits).unwrap();
+        assert_eq!(
+            (large.window, large.windows, large.batch),
+            (16_384, 2, 16_384)
+        );
+        // More than one buffer holds.
+        assert_eq!(InstanceLayout::new(1 << 19, &limits), None);
     }
 }
