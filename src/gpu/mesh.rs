@@ -97,6 +97,8 @@ pub struct GpuTetMesh {
     queue: wgpu::Queue,
     limits: wgpu::Limits,
     adapter: String,
+    /// Number of tets (the topology never changes).
+    tet_count: usize,
     data: RwLock<MeshData>,
     positions: wgpu::Buffer,
     scalars: wgpu::Buffer,
@@ -127,6 +129,7 @@ impl GpuTetMesh {
             queue: ctx.queue.clone(),
             limits: ctx.limits.clone(),
             adapter: ctx.info.name.clone(),
+            tet_count: data.tets.len(),
             data: RwLock::new(data),
             positions,
             scalars,
@@ -140,7 +143,8 @@ impl GpuTetMesh {
         Ok(Arc::new(gpu))
     }
 
-    /// The CPU side (a read lock; updates wait for it).
+    /// The CPU side (a read lock; updates wait for it). The other methods take no lock, so a
+    /// renderer may call them while it holds this one.
     pub fn read(&self) -> RwLockReadGuard<'_, MeshData> {
         self.data.read().unwrap_or_else(PoisonError::into_inner)
     }
@@ -162,7 +166,7 @@ impl GpuTetMesh {
 
     /// Number of tets.
     pub fn tet_count(&self) -> usize {
-        self.read().tets.len()
+        self.tet_count
     }
 
     /// Positions relative to the origin (`vec4<f32>`, `w = 1`), one per vertex.
