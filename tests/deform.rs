@@ -131,8 +131,8 @@ fn a_hundred_position_updates_do_not_grow_memory() {
 fn renderers_sharing_one_gpu_mesh_follow_its_updates() {
     // Shells, iso and cellproj over one GpuTetMesh: positions and scalars updated through one
     // renderer reach the others, whose frames then equal (bound: 0 differing bits) those of
-    // renderers built afresh on the updated mesh; what they derived from the old data (circumspheres,
-    // span-space index, transparency masks) is rebuilt.
+    // renderers built afresh on the updated mesh; what they derived from the old data
+    // (circumspheres, span-space index, transparency masks) is rebuilt.
     let (mut mesh, tf, camera) = scene("lox_post_subset_tet.vtk", 48);
     let ctx = GpuContext::new(AdapterChoice::from_env()).expect("a GPU adapter");
     let shared = tetvr::gpu::GpuTetMesh::new(&ctx, &mesh).unwrap();
