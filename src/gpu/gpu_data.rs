@@ -133,7 +133,8 @@ pub struct IsoUniforms {
 }
 const _: () = assert!(size_of::<IsoUniforms>() == 336);
 
-/// The cellproj raster's table constants (WGSL `CellProj` in `shaders/cellproj_raster.wgsl`, 16 bytes).
+/// The cellproj raster's table constants (WGSL `CellProj` in `shaders/cellproj_raster.wgsl`,
+/// 16 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct CellProjUniforms {

@@ -2,20 +2,19 @@
 //! Westermann 2006, section 5), with pre-integrated or exact segment integration.
 //!
 //! Per frame:
-//! 1. sort (CPU, rayon): the power of the eye with respect to each tet's circumsphere (the
-//!    spheres are cached until the positions change), tets whose scalar range the TF maps to
-//!    zero extinction left out, flat tets (no circumsphere, no volume) left out and counted,
-//!    and a parallel sort back to front ([`sort`]);
-//! 2. preint table (`--integrate table` only, when the TF, the scalar range or the longest tet
-//!    edge grew since the last build): the 3D pre-integration table on the CPU
-//!    ([`preint`]: [`preint::PreintTable`], Weiler et al.'s incremental build) into an `Rgba32Float` 3D
-//!    texture;
+//! 1. sort (CPU, rayon): the power of the eye with respect to each tet's circumsphere (the spheres
+//!    are cached until the positions change), tets whose scalar range the TF maps to zero
+//!    extinction left out, flat tets (no circumsphere, no volume) left out and counted, and a
+//!    parallel sort back to front ([`sort`]);
+//! 2. preint table (`--integrate table` only, when the TF, the scalar range or the longest tet edge
+//!    grew since the last build): the 3D pre-integration table on the CPU ([`preint`]:
+//!    [`preint::PreintTable`], Weiler et al.'s incremental build) into an `Rgba32Float` 3D texture;
 //! 3. upload (`upload.rs`): frame constants, the TF, the sorted tets' vertex indices;
 //! 4. assembly: the shared per-tet eye-to-barycentric stage ([`crate::gpu::assembly`])
 //!    over the sorted list, record `k` for the `k`-th tet of the order;
-//! 5. raster (`raster.rs`): one instanced draw in that order (the API blends primitives in submission order)
-//!    of each tet's front faces, or of its screen quad when it has a corner at or behind
-//!    `near_z` (the eye inside the mesh); each fragment clips its ray against the four face
+//! 5. raster (`raster.rs`): one instanced draw in that order (the API blends primitives in
+//!    submission order) of each tet's front faces, or of its screen quad when it has a corner at or
+//!    behind `near_z` (the eye inside the mesh); each fragment clips its ray against the four face
 //!    planes in barycentric space (a face the ray runs along does not clip; CPU twin
 //!    [`twin::segment`]), integrates the segment and is blended "over" the frame
 //!    (`shaders/cellproj_raster.wgsl`);

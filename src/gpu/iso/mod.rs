@@ -1,27 +1,27 @@
 //! `--mode iso`: per-pixel isosurfaces (Georgii & Westermann 2006, section 4).
 //!
 //! Per frame:
-//! 1. select (CPU, cached, `select.rs`): the tets whose scalar range holds an isovalue, in one list;
-//!    constant tets are left out (see [`crate::reference::iso`], "Constant scalar"). A
-//!    span-space index ([`select::IntervalIndex`], rebuilt with rayon only when the scalars
-//!    change, stage "select index") answers a new isovalue without scanning every tet; the
-//!    list is recomputed only when the scalars or the isovalues change;
-//!    Frustum culling ([`IsoSettings::frustum`]) then drops, every frame, the selected tets
-//!    entirely outside one plane of the view frustum (stage "frustum");
+//! 1. select (CPU, cached, `select.rs`): the tets whose scalar range holds an isovalue, in one
+//!    list; constant tets are left out (see [`crate::reference::iso`], "Constant scalar"). A
+//!    span-space index ([`select::IntervalIndex`], rebuilt with rayon only when the scalars change,
+//!    stage "select index") answers a new isovalue without scanning every tet; the list is
+//!    recomputed only when the scalars or the isovalues change; Frustum culling
+//!    ([`IsoSettings::frustum`]) then drops, every frame, the selected tets entirely outside one
+//!    plane of the view frustum (stage "frustum");
 //! 2. upload (`upload.rs`): frame constants and the tets to draw;
-//! 3. gradients (smooth shading only): a compute pass recomputes the gradient of every vertex
-//!    of a selected tet from the current positions, the volume-weighted mean over its tets
+//! 3. gradients (smooth shading only): a compute pass recomputes the gradient of every vertex of a
+//!    selected tet from the current positions, the volume-weighted mean over its tets
 //!    ([`gradients`]);
-//! 4. assembly: the shared assembly stage ([`crate::gpu::assembly`]) over the selected
-//!    tets only, building each one's eye-to-barycentric record;
-//! 5. raster (`raster.rs`): one instanced pass over the selected tets' front faces with a depth buffer
-//!    (`shaders/iso_raster.wgsl`); a tet with a corner at eye-space z <= `near_z` (the
-//!    tet holding the eye, any tet crossing or behind the eye's plane) draws instead a
-//!    screen-space quad over its screen bounds clipped to that plane, as the shells mode's
-//!    near-plane tets, so the eye may be inside the mesh; each fragment solves the
-//!    ray/isoplane intersection in the tet's barycentric space, keeps it only inside the
-//!    tet (smallest barycentric >= `-epsilon`, so neighbours overlap rather than leave cracks), writes the hit distance as
-//!    its depth and shades it (headlight Blinn-Phong, [`crate::reference::iso::shade`]);
+//! 4. assembly: the shared assembly stage ([`crate::gpu::assembly`]) over the selected tets only,
+//!    building each one's eye-to-barycentric record;
+//! 5. raster (`raster.rs`): one instanced pass over the selected tets' front faces with a depth
+//!    buffer (`shaders/iso_raster.wgsl`); a tet with a corner at eye-space z <= `near_z` (the tet
+//!    holding the eye, any tet crossing or behind the eye's plane) draws instead a screen-space
+//!    quad over its screen bounds clipped to that plane, as the shells mode's near-plane tets, so
+//!    the eye may be inside the mesh; each fragment solves the ray/isoplane intersection in the
+//!    tet's barycentric space, keeps it only inside the tet (smallest barycentric >= `-epsilon`, so
+//!    neighbours overlap rather than leave cracks), writes the hit distance as its depth and shades
+//!    it (headlight Blinn-Phong, [`crate::reference::iso::shade`]);
 //! 6. readback ([`crate::gpu::frame`]) of the colour and of the per-pixel normal and distance,
 //!    with the GPU timestamps of stages 3-5.
 //!

@@ -1,8 +1,9 @@
 //! Stage 5 of a shells frame, early ray termination ([`super::skips`]): after a shell's
 //! composite, a mark pass writes 0 into the termination mask where a pixel's accumulated alpha
-//! reached the threshold, so later raster and composite passes skip it (`shaders/shells_mark.wgsl`);
-//! a few times per frame the tiles with an unfinished pixel are flagged and read back, and the
-//! later shells drop the tets whose pixels all lie in finished tiles.
+//! reached the threshold, so later raster and composite passes skip it
+//! (`shaders/shells_mark.wgsl`); a few times per frame the tiles with an unfinished pixel are
+//! flagged and read back, and the later shells drop the tets whose pixels all lie in finished
+//! tiles.
 
 use crate::gpu::frame::Recorder;
 use crate::gpu::util::{map_read, settings_error};
