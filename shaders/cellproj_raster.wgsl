@@ -10,10 +10,10 @@
 // either from the 3D pre-integration table (fs_table) or exactly for the piecewise-linear TF
 // (fs_exact). The output, premultiplied RGBA, is blended "over" what is behind:
 // dst = src + (1 - src.a) dst.
-// Appended to shared.wgsl. CPU twins: gpu::cellproj::twin (segment), gpu::cellproj::preint
-// (integration).
+// Appended to shared.wgsl and raster.wgsl. CPU twins: gpu::cellproj::twin (segment),
+// gpu::cellproj::preint (integration).
 
-// See gpu::cellproj::CellProjUniforms.
+// See gpu::gpu_data::CellProjUniforms.
 struct CellProj {
     table_size: u32,
     table_lengths: u32,
@@ -28,17 +28,6 @@ struct CellProj {
 // interpolated here (Rgba32Float is not filterable everywhere).
 @group(0) @binding(4) var table: texture_3d<f32>;
 
-struct Varyings {
-    @builtin(position) position: vec4<f32>,
-    @location(0) @interpolate(flat) grad_x: vec4<f32>,
-    @location(1) @interpolate(flat) grad_y: vec4<f32>,
-    @location(2) @interpolate(flat) grad_z: vec4<f32>,
-    @location(3) @interpolate(flat) lambda_eye: vec4<f32>,
-    @location(4) @interpolate(flat) scalar: vec4<f32>,
-}
-
-// Local vertices of face f (opposite vertex f), outward for a positive tet: mesh::topology::FACES.
-const FACE_VERTICES = array<u32, 12>(1u, 2u, 3u, 0u, 3u, 2u, 0u, 1u, 3u, 0u, 2u, 1u);
 
 // Instance k draws the k-th tet of the order with 12 vertices: its four faces (the back faces
 // are culled) or, for a near-plane tet, its quad (6) and 6 NOWHERE vertices.
@@ -56,7 +45,7 @@ fn vs_faces(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instanc
     if any(zs <= vec4<f32>(frame.near_z)) {
         position = near_quad(rec, vertex);
     }
-    return Varyings(position, rec.grad_x, rec.grad_y, rec.grad_z, rec.lambda_eye, rec.scalar);
+    return varyings(position, rec);
 }
 
 // A face the ray runs along: |d . grad lambda_i| at most this times |grad lambda_i| (the sine

@@ -9,7 +9,7 @@
 // tets) and shades it with a headlight.
 // Appended to shared.wgsl. The CPU ground truth is reference::iso.
 
-// Per-frame isosurface constants; see gpu::iso::IsoUniforms.
+// Per-frame isosurface constants; see gpu::gpu_data::IsoUniforms.
 struct Iso {
     colors: array<vec4<f32>, 16>,
     values: array<vec4<f32>, 4>,
@@ -56,8 +56,6 @@ struct IsoOut {
     @builtin(frag_depth) depth: f32,
 }
 
-// Local vertices of face f (opposite vertex f), outward for a positive tet: mesh::topology::FACES.
-const FACE_VERTICES = array<u32, 12>(1u, 2u, 3u, 0u, 3u, 2u, 0u, 1u, 3u, 0u, 2u, 1u);
 // A world-space vector's components along the eye axes.
 fn to_eye_vector(g: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(dot(frame.right, g), dot(frame.up, g), dot(frame.forward, g));

@@ -115,3 +115,6 @@ fn near_quad(rec: TetRecord, vertex: u32) -> vec4<f32> {
     let empty = vertex >= 6u || rec.pos[0].w == 0.0 || !all(lo_ndc < hi_ndc);
     return select(vec4<f32>(xy, 0.0, 1.0), NOWHERE, empty);
 }
+
+// Local vertices of face f (opposite vertex f), outward for a positive tet: mesh::topology::FACES.
+const FACE_VERTICES = array<u32, 12>(1u, 2u, 3u, 0u, 3u, 2u, 0u, 1u, 3u, 0u, 2u, 1u);

@@ -10,22 +10,6 @@
 @group(0) @binding(2) var<storage, read> records: array<TetRecord>;
 @group(0) @binding(3) var<storage, read> active_tets: array<u32>;
 
-// The tet's record travels to the fragments as flat varyings (constant per triangle), which a
-// rasterizer sets up once per triangle, instead of a per-fragment storage read.
-struct Varyings {
-    @builtin(position) position: vec4<f32>,
-    @location(0) @interpolate(flat) grad_x: vec4<f32>,
-    @location(1) @interpolate(flat) grad_y: vec4<f32>,
-    @location(2) @interpolate(flat) grad_z: vec4<f32>,
-    @location(3) @interpolate(flat) lambda_eye: vec4<f32>,
-    @location(4) @interpolate(flat) scalar: vec4<f32>,
-}
-
-// Varyings of `rec` at clip position `position`.
-fn varyings(position: vec4<f32>, rec: TetRecord) -> Varyings {
-    return Varyings(position, rec.grad_x, rec.grad_y, rec.grad_z, rec.lambda_eye, rec.scalar);
-}
-
 @vertex
 fn vs_faces(@builtin(vertex_index) index: u32) -> Varyings {
     // Vertex index 4 k + i is corner i of the shell's k-th tet; the index buffer draws its

@@ -126,3 +126,67 @@ fn a_hundred_position_updates_do_not_grow_memory() {
     );
     assert!(grown < 16 << 20, "grew by {grown} bytes");
 }
+
+#[test]
+fn renderers_sharing_one_gpu_mesh_follow_its_updates() {
+    // Shells, iso and cellproj over one GpuTetMesh: positions and scalars updated through one
+    // renderer reach the others, whose frames then equal (bound: 0 differing bits) those of
+    // renderers built afresh on the updated mesh; what they derived from the old data
+    // (circumspheres, span-space index, transparency masks) is rebuilt.
+    let (mut mesh, tf, camera) = scene("lox_post_subset_tet.vtk", 48);
+    let ctx = GpuContext::new(AdapterChoice::from_env()).expect("a GPU adapter");
+    let shared = tetvr::gpu::GpuTetMesh::new(&ctx, &mesh).unwrap();
+    // An isovalue within the scalar range before and after the update (the default is the
+    // middle of the range at construction, in data units, and stays where it was).
+    let (s_lo, s_hi) = mesh.active_array().and_then(|a| a.range()).unwrap();
+    let isovalue = (0.25 * s_lo + 0.75 * s_hi).powi(2).clamp(s_lo, s_hi);
+    let iso_settings = || tetvr::gpu::IsoSettings {
+        isovalues: vec![(isovalue, [0.8, 0.8, 0.8])],
+        ..Default::default()
+    };
+    let cellproj_settings = tetvr::gpu::CellProjSettings::default;
+    let mut renderers: Vec<Box<dyn Renderer>> = vec![
+        Box::new(
+            ShellsRenderer::with_mesh(&ctx, shared.clone(), ShellSettings::default()).unwrap(),
+        ),
+        Box::new(tetvr::gpu::IsoRenderer::with_mesh(&ctx, shared.clone(), iso_settings()).unwrap()),
+        Box::new(
+            tetvr::gpu::CellProjRenderer::with_mesh(&ctx, shared, cellproj_settings()).unwrap(),
+        ),
+    ];
+    for r in &mut renderers {
+        r.render(&camera, &tf).unwrap();
+    }
+    let (lo, hi) = mesh.bounds();
+    let moved = Deformation::Twist.apply(mesh.positions(), lo, hi, 0.3, 0.25);
+    let scalars: Vec<f64> = mesh.scalars().unwrap().iter().map(|s| s * s).collect();
+    renderers[0].update_positions(&moved).unwrap();
+    renderers[0].update_scalars(&scalars).unwrap();
+    mesh.set_positions(moved).unwrap();
+    mesh.set_scalars(scalars).unwrap();
+    let mut fresh: Vec<Box<dyn Renderer>> = vec![
+        Box::new(ShellsRenderer::new(&ctx, &mesh, ShellSettings::default()).unwrap()),
+        Box::new(tetvr::gpu::IsoRenderer::new(&ctx, &mesh, iso_settings()).unwrap()),
+        Box::new(tetvr::gpu::CellProjRenderer::new(&ctx, &mesh, cellproj_settings()).unwrap()),
+    ];
+    for (shared, fresh) in renderers.iter_mut().zip(&mut fresh) {
+        let a = shared.render(&camera, &tf).unwrap().image;
+        let b = fresh.render(&camera, &tf).unwrap().image;
+        let bits = |i: &tetvr::Image| -> Vec<u32> {
+            i.pixels.iter().flatten().map(|v| v.to_bits()).collect()
+        };
+        let covered = a.pixels.iter().filter(|p| p[3] > 0.0).count();
+        assert!(covered > 0, "{}: an empty picture", shared.name());
+        let differing = bits(&a)
+            .iter()
+            .zip(&bits(&b))
+            .filter(|(x, y)| x != y)
+            .count();
+        assert_eq!(
+            differing,
+            0,
+            "{}: differs from a fresh renderer",
+            shared.name()
+        );
+    }
+}

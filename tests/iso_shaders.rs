@@ -3,27 +3,27 @@
 
 mod common;
 
-use tetvr::gpu::iso::{IsoUniforms, raster_source};
+use tetvr::gpu::iso::IsoUniforms;
+use tetvr::gpu::shaders;
 
 use common::{entry_points, validated_wgsl, wgsl_struct_size};
 
 #[test]
 fn iso_raster_validates() {
-    let module = validated_wgsl("iso_raster", &raster_source());
+    let module = validated_wgsl("iso_raster", &shaders::iso_raster());
     assert_eq!(entry_points(&module), ["vs_faces", "fs_iso"]);
 }
 
 /// WGSL `Iso` has the size `IsoUniforms` asserts at compile time.
 #[test]
 fn iso_uniform_layout_matches() {
-    let module = validated_wgsl("iso_raster", &raster_source());
+    let module = validated_wgsl("iso_raster", &shaders::iso_raster());
     assert_eq!(wgsl_struct_size(&module, "Iso"), size_of::<IsoUniforms>());
 }
 
 /// The smooth-shading gradient stage (standalone WGSL) parses and validates.
 #[test]
 fn iso_gradients_validates() {
-    let src = tetvr::gpu::iso::gradients::gradients_source();
-    let module = validated_wgsl("iso_gradients", src);
+    let module = validated_wgsl("iso_gradients", &shaders::iso_gradients());
     assert_eq!(entry_points(&module), ["main"]);
 }

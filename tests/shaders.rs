@@ -15,31 +15,17 @@ fn validate(name: &str, src: &str) -> Vec<String> {
         .collect()
 }
 
+/// Every module and variant of the shader registry (what the renderers load) parses, validates
+/// and has the entry points its pipelines name.
 #[test]
-fn shells_stages_validate() {
-    assert_eq!(
-        validate("shells_assemble", &shaders::shells_assemble()),
-        ["main"]
-    );
-    for targets in 1..=shaders::MAX_TARGETS {
-        let src = shaders::shells_raster(targets);
-        assert_eq!(
-            validate(&format!("shells_raster ({targets} targets)"), &src),
-            ["vs_faces", "vs_near", "fs_slices", "vs_clear", "fs_clear"]
-        );
+fn every_registered_shader_validates() {
+    let registry = shaders::registry();
+    // assemble, shells_mark, iso_raster, iso_gradients, cellproj_raster, and per target count
+    // one shells raster variant and 33 composite variants.
+    assert_eq!(registry.len(), 5 + shaders::MAX_TARGETS as usize * 34);
+    for (name, src, entries) in registry {
+        assert_eq!(validate(&name, &src), entries, "{name}");
     }
-    for targets in 1..=shaders::MAX_TARGETS {
-        for tf_points in [1, 2, 9, shaders::UNROLLED_TF_POINTS, 200] {
-            let src = shaders::shells_composite(targets, tf_points);
-            let name = format!("shells_composite ({targets} layers, {tf_points} TF points)");
-            assert_eq!(validate(&name, &src), ["vs_fullscreen", "fs_composite"]);
-        }
-    }
-    let src = shaders::shells_mark();
-    assert_eq!(
-        validate("shells_mark", &src),
-        ["vs_mark", "fs_mark", "tiles"]
-    );
 }
 
 /// The WGSL structs have the sizes the Rust `gpu_data` twins assert at compile time.

@@ -792,6 +792,127 @@ fn mesh_larger_than_one_storage_binding() {
     write_readme_row(name, &cells, 0);
 }
 
+/// A GPU mode built on a context.
+type BuildOn = fn(&GpuContext, &TetMesh) -> Built;
+
+/// The f32 bits of every pixel, and the frame's "record buffers" counter.
+fn bits_and_buffers(mode: &str, build: BuildOn, c: &GpuContext, g: &TetMesh) -> (Vec<u32>, u64) {
+    // 32x32 pixels: the readback (16 KiB) fits the lowered buffer size.
+    let camera = Camera {
+        width: 32,
+        height: 32,
+        ..outside()
+    };
+    let frame = build(c, g)
+        .and_then(|mut r| r.render(&camera, &tf(0.3)))
+        .unwrap_or_else(|e| panic!("{mode}: {e}"));
+    let bits = frame
+        .image
+        .pixels
+        .iter()
+        .flatten()
+        .map(|v| v.to_bits())
+        .collect();
+    let buffers = (frame.timings.counters.iter())
+        .find(|(n, _)| *n == "record buffers")
+        .map(|&(_, n)| n)
+        .unwrap_or_else(|| panic!("{mode}: no 'record buffers' counter"));
+    (bits, buffers)
+}
+
+#[test]
+fn mesh_larger_than_one_buffer_is_bit_identical() {
+    // The same device, declared to bind at most 64 KiB (shells, two chunks of records per
+    // buffer) or 32 KiB (iso, cellproj: one chunk per buffer) per storage buffer: the records
+    // then span several buffers instead of one. The chunks and every GPU computation stay the
+    // same, so the pictures must be the same to the bit (bound: 0 differing bits), every mode.
+    let c = ctx();
+    let g = grid();
+    let align = c.limits.min_storage_buffer_offset_alignment as u64;
+    // Per mode: the binding size, and the buffer size in chunks of records.
+    let modes: [(&str, BuildOn, u64, u64); 5] = [
+        (
+            "shells",
+            |c, g| {
+                // 64 samples across the mesh keep the tet-shell instances' index pattern within
+                // the lowered buffer size.
+                let s = ShellSettings {
+                    samples: 64,
+                    ..ShellSettings::default()
+                };
+                Ok(Box::new(ShellsRenderer::new(c, g, s)?))
+            },
+            1 << 16,
+            2,
+        ),
+        (
+            "iso flat",
+            |c, g| {
+                let s = IsoSettings {
+                    isovalues: vec![(ISOVALUE, ISO_COLOR)],
+                    ..IsoSettings::default()
+                };
+                Ok(Box::new(IsoRenderer::new(c, g, s)?))
+            },
+            32 << 10,
+            1,
+        ),
+        (
+            "iso smooth",
+            |c, g| {
+                let s = IsoSettings {
+                    isovalues: vec![(ISOVALUE, ISO_COLOR)],
+                    shading: Shading::Smooth,
+                    ..IsoSettings::default()
+                };
+                Ok(Box::new(IsoRenderer::new(c, g, s)?))
+            },
+            32 << 10,
+            1,
+        ),
+        (
+            "cellproj table",
+            |c, g| {
+                Ok(Box::new(CellProjRenderer::new(
+                    c,
+                    g,
+                    CellProjSettings::default(),
+                )?))
+            },
+            32 << 10,
+            1,
+        ),
+        (
+            "cellproj exact",
+            |c, g| {
+                let s = CellProjSettings {
+                    integrate: Integrate::Exact,
+                    ..CellProjSettings::default()
+                };
+                Ok(Box::new(CellProjRenderer::new(c, g, s)?))
+            },
+            32 << 10,
+            1,
+        ),
+    ];
+    for (mode, build, binding, chunks) in modes {
+        // Chunks of a list longer than one binding holds (the iso mode's selection is too).
+        let chunk = tetvr::gpu::mesh::chunk_tets(g.tet_count() as u64, binding, align).unwrap();
+        let one = common::with_buffer_limits(c, binding, c.limits.max_buffer_size);
+        let split = common::with_buffer_limits(c, binding, chunks * chunk * 144);
+        let (whole, one_buffer) = bits_and_buffers(mode, build, &one, &g);
+        let (parts, buffers) = bits_and_buffers(mode, build, &split, &g);
+        assert!(whole.iter().any(|&b| b != 0), "{mode}: an empty picture");
+        assert_eq!(one_buffer, 1, "{mode}: the records fit one buffer");
+        assert!(buffers >= 2, "{mode}: {buffers} record buffer(s)");
+        let differing = whole.iter().zip(&parts).filter(|(a, b)| a != b).count();
+        assert_eq!(
+            differing, 0,
+            "{mode}: values differ between one and {buffers} buffers"
+        );
+    }
+}
+
 #[test]
 fn non_finite_input_is_a_clear_error_in_every_mode() {
     // NaN or infinite coordinates and scalars: at construction and through the per-frame

@@ -40,6 +40,11 @@ pub enum GpuError {
         what: String,
         needed_by: &'static str,
     },
+    #[error(
+        "the adapter '{adapter}' ran out of memory for {bytes} bytes of mesh data; render a \
+         smaller mesh (or split it), or use an adapter with more memory"
+    )]
+    OutOfMemory { adapter: String, bytes: u64 },
     #[error("GPU work failed: {0}")]
     Poll(#[from] wgpu::PollError),
     #[error("reading back a GPU buffer failed: {0}")]

@@ -1,6 +1,8 @@
-//! GPU-visible data: the `#[repr(C)]` twins of the structs in `shaders/shared.wgsl`, with
-//! compile-time size assertions that mirror the WGSL layout (vec3 aligned to 16 bytes, so each
-//! `vec3<f32>` is followed by one scalar that fills its last 4 bytes).
+//! GPU-visible data: the `#[repr(C)]` twins of the WGSL structs (`shaders/shared.wgsl`, and
+//! each stage's own uniforms), with compile-time size assertions that mirror the WGSL layout
+//! (vec3 aligned to 16 bytes, so each `vec3<f32>` is followed by one scalar that fills its last
+//! 4 bytes); `tests/shaders.rs`, `tests/iso_shaders.rs` and `tests/cellproj_shaders.rs` check
+//! each size against naga's layout of the WGSL.
 
 use bytemuck::{Pod, Zeroable};
 
@@ -110,3 +112,38 @@ pub struct TfPoints {
     pub points: [TfPoint; MAX_TF_POINTS],
 }
 const _: () = assert!(size_of::<TfPoints>() == 32 * MAX_TF_POINTS);
+
+/// The most isovalues one pass draws.
+pub const MAX_ISOVALUES: usize = 16;
+
+/// Per-frame isosurface constants (WGSL `Iso` in `shaders/iso_raster.wgsl`, 336 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct IsoUniforms {
+    /// Surface colour of each isovalue (rgb; a unused).
+    pub colors: [[f32; 4]; MAX_ISOVALUES],
+    /// Normalized isovalues `(v - s_min) / (s_max - s_min)`, four to a vector.
+    pub values: [[f32; 4]; MAX_ISOVALUES / 4],
+    pub count: u32,
+    /// 1 for smooth shading.
+    pub smooth_shading: u32,
+    /// `1 / d`, `d` beyond the farthest mesh point from the eye: depth = distance / d.
+    pub inv_depth_range: f32,
+    pub _pad: u32,
+}
+const _: () = assert!(size_of::<IsoUniforms>() == 336);
+
+/// The cellproj raster's table constants (WGSL `CellProj` in `shaders/cellproj_raster.wgsl`,
+/// 16 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct CellProjUniforms {
+    /// Scalar samples per table axis.
+    pub table_size: u32,
+    /// Length levels.
+    pub table_lengths: u32,
+    /// `(table_lengths - 1) / max_length`: length to level.
+    pub inv_length_step: f32,
+    pub _pad: u32,
+}
+const _: () = assert!(size_of::<CellProjUniforms>() == 16);

@@ -1,20 +1,27 @@
-//! WGSL sources, one file per stage in `shaders/`, composed at load time: `shared.wgsl` (structs
-//! and helpers) in front of each stage, plus a small generated prelude where a stage depends on
-//! a pipeline variant. `tests/shaders.rs` parses and validates exactly these strings with naga.
+//! The shader registry: WGSL sources, one file per stage in `shaders/`, composed at load time:
+//! `shared.wgsl` (structs and helpers) in front of each stage, `raster.wgsl` (the volume raster
+//! stages' varyings) in front of the shells and cellproj raster stages, plus a small generated
+//! prelude where a stage depends on a pipeline variant. [`registry`] lists every module and
+//! variant the renderers load; `tests/shaders.rs` parses and validates each with naga.
 
 /// Structs mirroring [`crate::gpu::gpu_data`], the frame uniform binding, the pixel ray.
 pub const SHARED: &str = include_str!("../../shaders/shared.wgsl");
-const SHELLS_ASSEMBLE: &str = include_str!("../../shaders/shells_assemble.wgsl");
+const ASSEMBLE: &str = include_str!("../../shaders/assemble.wgsl");
 const SHELLS_RASTER: &str = include_str!("../../shaders/shells_raster.wgsl");
 const SHELLS_COMPOSITE: &str = include_str!("../../shaders/shells_composite.wgsl");
 const SHELLS_MARK: &str = include_str!("../../shaders/shells_mark.wgsl");
+/// Declarations the volume raster stages share (shells, cellproj).
+pub const RASTER: &str = include_str!("../../shaders/raster.wgsl");
+const ISO_RASTER: &str = include_str!("../../shaders/iso_raster.wgsl");
+const ISO_GRADIENTS: &str = include_str!("../../shaders/iso_gradients.wgsl");
+const CELLPROJ_RASTER: &str = include_str!("../../shaders/cellproj_raster.wgsl");
 
 /// The most colour targets a raster variant may write (WebGPU's cap on colour attachments).
 pub const MAX_TARGETS: u32 = 8;
 
-/// The shells assembly stage (compute entry point `main`).
-pub fn shells_assemble() -> String {
-    format!("{SHARED}\n{SHELLS_ASSEMBLE}")
+/// The assembly stage every mode shares (compute entry point `main`).
+pub fn assemble() -> String {
+    format!("{SHARED}\n{ASSEMBLE}")
 }
 
 /// The shells raster stage writing `targets` (1..=[`MAX_TARGETS`]) vec4 colour targets, i.e.
@@ -27,7 +34,7 @@ pub fn shells_raster(targets: u32) -> String {
         .collect();
     let values: Vec<String> = (0..targets).map(|i| format!("v[{i}]")).collect();
     format!(
-        "{SHARED}\n// Generated: the raster variant with {targets} colour targets.\n\
+        "{SHARED}\n{RASTER}\n// Generated: the raster variant with {targets} colour targets.\n\
          const TARGETS: u32 = {targets}u;\n\
          struct SliceOut {{\n{fields}}}\n\
          fn slice_out(v: array<vec4<f32>, TARGETS>) -> SliceOut {{\n    return SliceOut({});\n}}\n\
@@ -84,4 +91,51 @@ pub fn shells_mark() -> String {
         "// Generated: the tile side in pixels.\nconst TILE: u32 = {}u;\n{SHELLS_MARK}",
         crate::gpu::shells::skips::TILE
     )
+}
+
+/// The iso raster stage (entry points `vs_faces`, `fs_iso`).
+pub fn iso_raster() -> String {
+    format!("{SHARED}\n{ISO_RASTER}")
+}
+
+/// The iso smooth-shading gradient stage (standalone; compute entry point `main`).
+pub fn iso_gradients() -> String {
+    ISO_GRADIENTS.to_owned()
+}
+
+/// The cellproj raster stage (entry points `vs_faces`, `fs_table`, `fs_exact`).
+pub fn cellproj_raster() -> String {
+    format!("{SHARED}\n{RASTER}\n{CELLPROJ_RASTER}")
+}
+
+/// Every WGSL module the renderers load, each variant once, with its name and its entry points
+/// in source order.
+pub fn registry() -> Vec<(String, String, &'static [&'static str])> {
+    let mut out: Vec<(String, String, &'static [&'static str])> = vec![
+        ("assemble".into(), assemble(), &["main"]),
+        (
+            "shells_mark".into(),
+            shells_mark(),
+            &["vs_mark", "fs_mark", "tiles"],
+        ),
+        ("iso_raster".into(), iso_raster(), &["vs_faces", "fs_iso"]),
+        ("iso_gradients".into(), iso_gradients(), &["main"]),
+        (
+            "cellproj_raster".into(),
+            cellproj_raster(),
+            &["vs_faces", "fs_table", "fs_exact"],
+        ),
+    ];
+    for targets in 1..=MAX_TARGETS {
+        let raster = ["vs_faces", "vs_near", "fs_slices", "vs_clear", "fs_clear"].as_slice();
+        let name = format!("shells_raster ({targets} targets)");
+        out.push((name, shells_raster(targets), raster));
+        // Every unrolled TF variant, and the looping one (0).
+        for tf_points in 0..=UNROLLED_TF_POINTS {
+            let name = format!("shells_composite ({targets} layers, {tf_points} TF points)");
+            let entries = ["vs_fullscreen", "fs_composite"].as_slice();
+            out.push((name, shells_composite(targets, tf_points), entries));
+        }
+    }
+    out
 }

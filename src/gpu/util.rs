@@ -30,7 +30,8 @@ pub(crate) fn scalar_frame(scalars: &[f64]) -> (f64, f64) {
     (lo, if hi > lo { hi - lo } else { 1.0 })
 }
 
-/// An error unless a `width` x `height` image fits this adapter's 2D textures.
+/// An error unless a `width` x `height` image fits this adapter's 2D textures and its
+/// readback fits one buffer.
 pub(crate) fn check_image_size(
     limits: &wgpu::Limits,
     width: u32,
@@ -40,6 +41,16 @@ pub(crate) fn check_image_size(
     if width > max || height > max {
         return Err(settings_error(format!(
             "image size {width}x{height} exceeds this adapter's largest texture ({max}x{max})"
+        )));
+    }
+    // The readback buffer of a 16-byte-per-pixel target, rows padded to the copy alignment.
+    let row = (width as u64 * 16).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT as u64);
+    if row * height as u64 > limits.max_buffer_size {
+        return Err(settings_error(format!(
+            "image size {width}x{height} needs a {}-byte readback buffer, more than this \
+             adapter's largest buffer ({} bytes); render a smaller image",
+            row * height as u64,
+            limits.max_buffer_size
         )));
     }
     Ok(())
@@ -146,5 +157,46 @@ pub(crate) fn wgsl_module(
     device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some(label),
         source: wgpu::ShaderSource::Wgsl(source.into()),
+    })
+}
+
+/// IEEE half to single precision.
+pub(crate) fn f16_to_f32(h: u16) -> f32 {
+    let sign = if h & 0x8000 != 0 { -1.0 } else { 1.0 };
+    let exp = ((h >> 10) & 0x1f) as i32;
+    let frac = (h & 0x3ff) as f32;
+    sign * match exp {
+        0 => frac * 2f32.powi(-24),
+        31 if frac == 0.0 => f32::INFINITY,
+        31 => f32::NAN,
+        e => (1.0 + frac / 1024.0) * 2f32.powi(e - 15),
+    }
+}
+
+/// A uniform buffer of `bytes` that is written from the CPU.
+pub(crate) fn uniform_buffer(device: &wgpu::Device, label: &str, bytes: usize) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: bytes as u64,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+/// A compute pipeline running `source`'s entry point `main` with one bind group of `layout`.
+pub(crate) fn compute_main(
+    device: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::BindGroupLayout,
+    source: String,
+) -> wgpu::ComputePipeline {
+    let module = wgsl_module(device, label, source);
+    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(label),
+        layout: Some(&pipeline_layout_for(device, layout)),
+        module: &module,
+        entry_point: Some("main"),
+        compilation_options: Default::default(),
+        cache: None,
     })
 }

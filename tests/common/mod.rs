@@ -77,6 +77,19 @@ pub fn with_storage_binding_limit(
     }
 }
 
+/// The same adapter and device as `ctx`, declared to bind at most `binding` bytes per storage
+/// buffer and to hold at most `buffer` bytes per buffer: per-tet arrays then span several
+/// buffers on an adapter whose own limits would hold them in one.
+pub fn with_buffer_limits(
+    ctx: &tetvr::gpu::GpuContext,
+    binding: u64,
+    buffer: u64,
+) -> tetvr::gpu::GpuContext {
+    let mut c = with_storage_binding_limit(ctx, binding);
+    c.limits.max_buffer_size = buffer;
+    c
+}
+
 /// Parses and validates WGSL with naga, panicking with the error's source span; `name` says
 /// which stage (and variant) it is.
 pub fn validated_wgsl(name: &str, src: &str) -> naga::Module {

@@ -26,7 +26,14 @@
 
 use rayon::prelude::*;
 
+use glam::DVec3;
+
+use crate::gpu::mesh::MeshData;
+use crate::gpu::util::settings_error;
+use crate::render::RenderError;
 use crate::tf::TransferFunction;
+
+use super::{CellProjRenderer, CellProjSettings, TableState};
 
 /// Largest optical depth of one Gauss-Legendre sub-interval of the mean transmittance.
 pub const SUB_DEPTH: f64 = 0.5;
@@ -268,6 +275,115 @@ impl PreintTable {
         }
         out
     }
+}
+
+impl CellProjRenderer {
+    /// The longest tet edge of the current positions (computed once per positions' version).
+    pub(super) fn max_edge(&mut self, m: &MeshData) -> f64 {
+        match self.max_edge {
+            Some((v, l)) if v == m.positions_version => l,
+            _ => {
+                let l = longest_edge(&m.positions, &m.tets);
+                self.max_edge = Some((m.positions_version, l));
+                l
+            }
+        }
+    }
+
+    /// Builds the table when the TF, the scalar range or the longest edge (grown) changed;
+    /// returns whether it did.
+    pub(super) fn ensure_table(&mut self, m: &MeshData, tf: &TransferFunction) -> bool {
+        let frame = (m.scalar_min, m.scalar_span);
+        let max_edge = self.max_edge(m);
+        if let Some(t) = &self.table
+            && t.tf == *tf
+            && t.scalar_frame == frame
+            && t.max_length >= max_edge
+        {
+            return false;
+        }
+        // A little headroom so small deformations that stretch the longest edge keep the table.
+        let max_length = (max_edge * 1.05).max(f64::MIN_POSITIVE);
+        let (n, m) = (self.settings.table_size, self.settings.table_lengths);
+        let table = PreintTable::build(&NormalizedTf::new(tf, frame.0, frame.1), n, m, max_length);
+        let texture = match self.table.take() {
+            Some(t) => t.texture,
+            None => table_texture(&self.device, n, m),
+        };
+        self.queue.write_texture(
+            texture.as_image_copy(),
+            bytemuck::cast_slice(&table.data),
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(n * 16),
+                rows_per_image: Some(n),
+            },
+            texture.size(),
+        );
+        self.table = Some(TableState {
+            tf: tf.clone(),
+            scalar_frame: frame,
+            max_length,
+            texture,
+        });
+        true
+    }
+}
+
+pub(super) fn longest_edge(positions: &[DVec3], tets: &[[u32; 4]]) -> f64 {
+    tets.par_iter()
+        .map(|t| {
+            let p = t.map(|i| positions[i as usize]);
+            let mut l: f64 = 0.0;
+            for a in 0..4 {
+                for b in a + 1..4 {
+                    l = l.max(p[a].distance(p[b]));
+                }
+            }
+            l
+        })
+        .reduce(|| 0.0, f64::max)
+}
+
+/// An `Rgba32Float` 3D texture of extent `(n, n, m)` for the table.
+pub(super) fn table_texture(device: &wgpu::Device, n: u32, m: u32) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("cellproj pre-integration table"),
+        size: wgpu::Extent3d {
+            width: n,
+            height: n,
+            depth_or_array_layers: m,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D3,
+        format: wgpu::TextureFormat::Rgba32Float,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    })
+}
+
+/// An error unless the table settings are usable on an adapter with `limits`.
+pub(super) fn check_table(
+    limits: &wgpu::Limits,
+    settings: &CellProjSettings,
+) -> Result<(), RenderError> {
+    if settings.table_size < 2 || settings.table_lengths < 2 {
+        return Err(settings_error(format!(
+            "the pre-integration table needs at least 2 samples per axis, not {} scalars x \
+             {} lengths",
+            settings.table_size, settings.table_lengths
+        )));
+    }
+    let max3d = limits.max_texture_dimension_3d;
+    if settings.table_size > max3d || settings.table_lengths > max3d {
+        return Err(settings_error(format!(
+            "the pre-integration table of {} scalars x {} lengths exceeds this adapter's \
+             largest 3D texture ({max3d} per axis); choose a smaller --table-size",
+            settings.table_size, settings.table_lengths
+        )));
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -22,9 +22,14 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::camera::Camera;
-use crate::gpu::shells::DEGENERATE_TOL;
+use crate::gpu::assembly::DEGENERATE_TOL;
+use crate::gpu::mesh::MeshData;
+use crate::gpu::view::ViewFrame;
 use crate::image::Image;
 use crate::reference::ReferenceRenderer;
+use crate::tf::TransferFunction;
+
+use super::CellProjRenderer;
 
 /// A tet's circumsphere as the sort uses it: corner `p0`, circumcentre offset `w = c - p0`,
 /// and the tet's centroid (the tie-break).
@@ -272,6 +277,38 @@ pub fn sort_check(reference: &ReferenceRenderer, camera: &Camera, stride: u32) -
     }
     check.mask = mask;
     check
+}
+
+impl CellProjRenderer {
+    /// The back-to-front order for `camera` and the TF (see [`back_to_front`]), and the
+    /// number of flat tets left out.
+    pub(super) fn order(
+        &mut self,
+        m: &MeshData,
+        camera: &Camera,
+        tf: &TransferFunction,
+    ) -> (Vec<u32>, u64) {
+        let version = m.positions_version;
+        if self.spheres.as_ref().is_none_or(|(v, _)| *v != version) {
+            self.spheres = Some((version, spheres(&m.positions, &m.tets)));
+        }
+        let Some((_, spheres)) = &self.spheres else {
+            return (Vec::new(), 0);
+        };
+        let keys = SortKeys::new(camera.eye, m.origin, m.radius);
+        let view = ViewFrame::new(camera);
+        let codes = self
+            .settings
+            .frustum
+            .then(|| view.to_eye_space(&m.positions));
+        let order = back_to_front(&m.positions, spheres, &keys, |t| {
+            let (lo, hi) = m.ranges[t];
+            let outside = (codes.as_ref()).is_some_and(|c| ViewFrame::outside(c, &m.tets[t]));
+            !outside && !tf.is_transparent_on(lo, hi)
+        });
+        let flat = spheres.par_iter().filter(|s| s.is_none()).count() as u64;
+        (order, flat)
+    }
 }
 
 #[cfg(test)]

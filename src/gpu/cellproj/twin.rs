@@ -65,7 +65,7 @@ pub fn segment(f: &FrameUniforms, rec: &TetRecord, d: Vec3) -> Option<Vec3> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gpu::shells::DEGENERATE_TOL;
+    use crate::gpu::assembly::DEGENERATE_TOL;
     use crate::gpu::shells::twin::{assemble, pixel_ray};
     use glam::DVec2;
 

@@ -12,14 +12,9 @@
 
 use rayon::prelude::*;
 
-use crate::gpu::util::{bind_group_layout, buffer_entry, entry, pipeline_layout_for, wgsl_module};
-
-const ISO_GRADIENTS: &str = include_str!("../../../shaders/iso_gradients.wgsl");
-
-/// The gradient stage's WGSL (`shaders/iso_gradients.wgsl`, standalone; entry point `main`).
-pub fn gradients_source() -> &'static str {
-    ISO_GRADIENTS
-}
+use crate::gpu::mesh::GpuTetMesh;
+use crate::gpu::shaders;
+use crate::gpu::util::{bind_group_layout, buffer_entry, compute_main, entry};
 
 /// Vertex-to-tets adjacency in CSR form: vertex `v`'s tets are
 /// `tets[offsets[v] as usize..offsets[v + 1] as usize]`, in increasing tet order.
@@ -134,15 +129,7 @@ impl GradientStage {
                 buffer_entry(6, S::COMPUTE, ro),
             ],
         );
-        let module = wgsl_module(device, "iso_gradients", ISO_GRADIENTS.to_string());
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("iso gradients"),
-            layout: Some(&pipeline_layout_for(device, &layout)),
-            module: &module,
-            entry_point: Some("main"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        let pipeline = compute_main(device, "iso gradients", &layout, shaders::iso_gradients());
         let adjacency = VertexTets::build(tets, vertex_count);
         let upload = |label: &str, bytes: &[u8]| {
             let buf = device.create_buffer(&wgpu::BufferDescriptor {
@@ -166,26 +153,23 @@ impl GradientStage {
         }
     }
 
-    /// Records the pass writing the gradient of each vertex listed in `vertices` (a buffer of
-    /// exactly `count` u32s: the shader takes the count from its length) into `gradients`.
-    #[allow(clippy::too_many_arguments)]
+    /// Records the pass (timed by `timestamps`) writing the gradient of each vertex listed in
+    /// `vertices` (a buffer of exactly `count` u32s: the shader takes the count from its
+    /// length) into `gradients`, from the mesh's current positions and scalars.
     pub(super) fn encode(
         &self,
-        device: &wgpu::Device,
         enc: &mut wgpu::CommandEncoder,
-        positions: &wgpu::Buffer,
-        scalars: &wgpu::Buffer,
+        mesh: &GpuTetMesh,
         gradients: &wgpu::Buffer,
-        vertices: &wgpu::Buffer,
-        count: u32,
-        max_groups_per_dimension: u32,
+        (vertices, count): (&wgpu::Buffer, u32),
+        timestamps: Option<wgpu::ComputePassTimestampWrites>,
     ) {
-        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        let group = mesh.device().create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("iso gradients"),
             layout: &self.layout,
             entries: &[
-                entry(0, positions),
-                entry(1, scalars),
+                entry(0, mesh.positions()),
+                entry(1, mesh.scalars()),
                 entry(2, &self.tets_buf),
                 entry(3, &self.offsets_buf),
                 entry(4, &self.vertex_tets_buf),
@@ -195,12 +179,14 @@ impl GradientStage {
         });
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("iso gradients"),
-            timestamp_writes: None,
+            timestamp_writes: timestamps,
         });
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &group, &[]);
         let groups = count.div_ceil(64).max(1);
-        let x = groups.min(max_groups_per_dimension).max(1);
+        let x = groups
+            .min(mesh.limits().max_compute_workgroups_per_dimension)
+            .max(1);
         pass.dispatch_workgroups(x, groups.div_ceil(x), 1);
     }
 }

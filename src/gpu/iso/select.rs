@@ -16,7 +16,16 @@
 //! (merged and deduplicated). Either way it depends only on the scalars and isovalues, so
 //! frames are deterministic.
 
+use std::time::Instant;
+
 use rayon::prelude::*;
+
+use crate::gpu::mesh::MeshData;
+use crate::gpu::util::ms_since;
+use crate::gpu::view::ViewFrame;
+use crate::render::Timings;
+
+use super::IsoRenderer;
 
 use crate::mesh::tet_ranges;
 
@@ -137,6 +146,57 @@ impl IntervalIndex {
             out.dedup();
         }
         out
+    }
+}
+
+impl IsoRenderer {
+    /// The tets whose range holds an isovalue, from the span-space index (built first if the
+    /// scalars changed); constant tets are never selected.
+    pub(super) fn select(&mut self, tets: &[[u32; 4]], scalars: &[f64]) -> Vec<[u32; 4]> {
+        let index = (self.index).get_or_insert_with(|| IntervalIndex::build(tets, scalars));
+        let isos: Vec<f64> = self.settings.isovalues.iter().map(|&(v, _)| v).collect();
+        index
+            .select(&isos)
+            .par_iter()
+            .map(|&i| tets[i as usize])
+            .collect()
+    }
+
+    /// The selected tets, made anew when the scalars or the isovalues changed, and the ones
+    /// inside the view frustum (`None` without frustum culling); stages "select index",
+    /// "select", "frustum".
+    pub(super) fn select_visible(
+        &mut self,
+        m: &MeshData,
+        view: &ViewFrame,
+        timings: &mut Timings,
+    ) -> Option<Vec<[u32; 4]>> {
+        if m.scalars_version != self.scalars_version {
+            (self.index, self.selection) = (None, None);
+            self.scalars_version = m.scalars_version;
+        }
+        let t0 = Instant::now();
+        if self.index.is_none() {
+            self.index = Some(IntervalIndex::build(&m.tets, &m.scalars));
+        }
+        timings.stage("select index", ms_since(t0));
+        let t0 = Instant::now();
+        if self.selection.is_none() {
+            self.selection = Some(self.select(&m.tets, &m.scalars));
+            self.selection_uploaded = false;
+        }
+        timings.stage("select", ms_since(t0));
+        let t0 = Instant::now();
+        let visible = self.settings.frustum.then(|| {
+            let codes = view.to_eye_space(&m.positions);
+            let sel = self.selection.as_deref().unwrap_or(&[]);
+            sel.par_iter()
+                .filter(|t| !ViewFrame::outside(&codes, t))
+                .copied()
+                .collect()
+        });
+        timings.stage("frustum", ms_since(t0));
+        visible
     }
 }
 

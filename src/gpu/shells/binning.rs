@@ -8,6 +8,8 @@ use std::ops::Range;
 use glam::DVec3;
 use rayon::prelude::*;
 
+use crate::gpu::view::to_eye_space;
+
 /// Slices are numbered globally: slice `k` lies at distance `t_first + k dz` from the eye (and
 /// with `n` slices per shell, shell `s` holds slices `s n .. (s + 1) n`).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -128,34 +130,6 @@ pub fn slice_range(
         .floor()
         .min(total as f64 - 1.0);
     (lo <= hi).then_some((lo as u64, hi as u64))
-}
-
-/// Frustum outcode of an eye-space point: one bit per plane it is outside of. A tet whose
-/// corners' outcodes share a bit lies entirely outside that plane.
-pub fn outcode(q: DVec3, slope: [f64; 2]) -> u8 {
-    (q.x > slope[0] * q.z) as u8
-        | ((q.x < -slope[0] * q.z) as u8) << 1
-        | ((q.y > slope[1] * q.z) as u8) << 2
-        | ((q.y < -slope[1] * q.z) as u8) << 3
-        | ((q.z <= 0.0) as u8) << 4
-}
-
-/// Every position in eye space (`basis` = right, up, forward from `eye`) with its frustum
-/// [`outcode`].
-pub fn to_eye_space(
-    positions: &[DVec3],
-    eye: DVec3,
-    [r, u, f]: [DVec3; 3],
-    slope: [f64; 2],
-) -> Vec<(DVec3, u8)> {
-    positions
-        .par_iter()
-        .map(|&p| {
-            let d = p - eye;
-            let q = DVec3::new(r.dot(d), u.dot(d), f.dot(d));
-            (q, outcode(q, slope))
-        })
-        .collect()
 }
 
 /// Decides each tet's shells. `transparent(t)` says whether tet `t` contributes nothing.

@@ -1,6 +1,6 @@
 //! CPU twins of the shells stages' tricky arithmetic, in f32 with the same operations in the
 //! same order as the WGSL, for testing and debugging: the assembly's per-tet record
-//! (`shaders/shells_assemble.wgsl`) and the raster fragment's slice sampling and inside test
+//! (`shaders/assemble.wgsl`) and the raster fragment's slice sampling and inside test
 //! (`shaders/shells_raster.wgsl`), and the composite's transfer-function evaluation
 //! (`shaders/shells_composite.wgsl`). They share no code with the reference renderer.
 
@@ -276,7 +276,7 @@ mod tests {
     /// with points outside the data range, close together, a single point, and a step.
     #[test]
     fn tf_eval_matches_the_transfer_function() {
-        use crate::gpu::shells::tf_points;
+        use crate::gpu::tf::tf_points;
         use crate::tf::{ControlPoint, TransferFunction};
         let cp = |s: f64, r: f64, a: f64| ControlPoint {
             s,

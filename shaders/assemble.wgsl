@@ -1,7 +1,7 @@
 // Assembly (a compute pass standing in for a geometry shader): once per tet and frame, fetch
 // the four vertices from the shared vertex buffer, transform them to eye space, and build the
 // eye-to-barycentric transform and the eye's barycentric coordinates. The CPU twin is
-// gpu::shells::twin::assemble.
+// gpu::shells::twin::assemble (shared by every mode, gpu::assembly).
 
 @group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> scalars: array<f32>;

@@ -1,0 +1,135 @@
+//! The assembly stage, shared by every mode (`shaders/assemble.wgsl`, CPU twin
+//! [`crate::gpu::shells::twin::assemble`]): once per listed tet and frame, a compute pass
+//! fetches its corners, transforms them to eye space and builds its eye-to-barycentric record
+//! ([`TetRecord`]). The list and the records are [`TetArray`]s of one
+//! [`crate::gpu::mesh::Chunking`]; each chunk is assembled through its own bind group over the
+//! chunk's windows, so records beyond one storage binding or one buffer are fine.
+
+use crate::gpu::gpu_data::TetRecord;
+use crate::gpu::mesh::{GpuTetMesh, TetArray};
+use crate::gpu::shaders;
+use crate::gpu::util::{bind_group_layout, buffer_entry, compute_main, entry};
+
+/// A tet is degenerate (skipped, counted) when the determinant of its edges, each divided by
+/// the longest, is at most this times the product of their lengths: its barycentric transform
+/// would amplify f32 rounding by more than ~1e6. Such a tet has at most 1e-6 of the volume of a
+/// regular tet with the same longest edge, so skipping it loses no visible sample.
+pub const DEGENERATE_TOL: f32 = 1e-6;
+
+/// Bytes of one record.
+pub const RECORD_BYTES: u64 = size_of::<TetRecord>() as u64;
+
+/// The assembly pipeline and the count of degenerate tets it skipped.
+pub struct AssemblyStage {
+    layout: wgpu::BindGroupLayout,
+    pipeline: wgpu::ComputePipeline,
+    /// One u32: the degenerate tets of the last assembly.
+    degenerate: wgpu::Buffer,
+}
+
+/// The bind groups of one assembly: per chunk, the group and its tet count.
+pub struct AssemblyGroups(Vec<(wgpu::BindGroup, u64)>);
+
+/// What one assembly reads and writes: record `k` is built from list entry `k`.
+pub struct AssemblyInputs<'a> {
+    /// The frame uniforms (`tet_count` bounds the list).
+    pub frame: &'a wgpu::Buffer,
+    /// The mesh's vertex buffers.
+    pub mesh: &'a GpuTetMesh,
+    /// The tets to assemble (vertex indices).
+    pub tets: &'a TetArray,
+    /// The records to write.
+    pub records: &'a TetArray,
+}
+
+impl AssemblyStage {
+    /// Builds the pipeline.
+    pub fn new(device: &wgpu::Device) -> Self {
+        use wgpu::ShaderStages as S;
+        let ro = wgpu::BufferBindingType::Storage { read_only: true };
+        let rw = wgpu::BufferBindingType::Storage { read_only: false };
+        let layout = bind_group_layout(
+            device,
+            "assemble",
+            &[
+                buffer_entry(0, S::COMPUTE, wgpu::BufferBindingType::Uniform),
+                buffer_entry(1, S::COMPUTE, ro),
+                buffer_entry(2, S::COMPUTE, ro),
+                buffer_entry(3, S::COMPUTE, ro),
+                buffer_entry(4, S::COMPUTE, rw),
+                buffer_entry(5, S::COMPUTE, rw),
+            ],
+        );
+        let pipeline = compute_main(device, "assemble", &layout, shaders::assemble());
+        let degenerate = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("degenerate tet count"),
+            size: 16,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_DST
+                | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        Self {
+            layout,
+            pipeline,
+            degenerate,
+        }
+    }
+
+    /// The bind groups assembling the `chunks` (from [`crate::gpu::mesh::Chunking::ranges`])
+    /// of `inputs`' list.
+    pub fn bind(
+        &self,
+        device: &wgpu::Device,
+        inputs: &AssemblyInputs,
+        chunks: &[(u64, u64)],
+    ) -> AssemblyGroups {
+        let groups = chunks
+            .iter()
+            .map(|&(first, count)| {
+                let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("assemble"),
+                    layout: &self.layout,
+                    entries: &[
+                        entry(0, inputs.frame),
+                        entry(1, inputs.mesh.positions()),
+                        entry(2, inputs.mesh.scalars()),
+                        inputs.tets.window(3, first, count),
+                        inputs.records.window(4, first, count),
+                        entry(5, &self.degenerate),
+                    ],
+                });
+                (group, count)
+            })
+            .collect();
+        AssemblyGroups(groups)
+    }
+
+    /// Encodes the assembly in one compute pass (timed by `timestamps`), after zeroing the
+    /// degenerate count. `max_groups`: the adapter's workgroups per dimension.
+    pub fn encode(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        groups: &AssemblyGroups,
+        max_groups: u32,
+        timestamps: Option<wgpu::ComputePassTimestampWrites>,
+    ) {
+        enc.clear_buffer(&self.degenerate, 0, None);
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("assembly"),
+            timestamp_writes: timestamps,
+        });
+        pass.set_pipeline(&self.pipeline);
+        for (group, count) in &groups.0 {
+            pass.set_bind_group(0, group, &[]);
+            let workgroups = (*count as u32).div_ceil(64);
+            let x = workgroups.min(max_groups).max(1);
+            pass.dispatch_workgroups(x, workgroups.div_ceil(x), 1);
+        }
+    }
+
+    /// The degenerate count of the last assembly (one u32), for the frame's stats readback.
+    pub fn degenerate(&self) -> &wgpu::Buffer {
+        &self.degenerate
+    }
+}

@@ -1,0 +1,53 @@
+//! Stage 3 of a cellproj frame: the frame constants, the transfer function, the table
+//! constants and the sorted tets' vertex indices.
+
+use rayon::prelude::*;
+
+use crate::camera::Camera;
+use crate::gpu::gpu_data::FrameUniforms;
+use crate::gpu::mesh::MeshData;
+use crate::gpu::tf::tf_points;
+use crate::gpu::view::ViewFrame;
+use crate::render::RenderError;
+use crate::tf::TransferFunction;
+
+use super::{CellProjRenderer, CellProjUniforms, near_z, twin};
+
+impl CellProjRenderer {
+    /// Writes the frame constants, the TF, the table constants and the sorted tets.
+    pub(super) fn upload(
+        &mut self,
+        m: &MeshData,
+        camera: &Camera,
+        tf: &TransferFunction,
+        order: &[u32],
+    ) -> Result<(), RenderError> {
+        let view = ViewFrame::new(camera);
+        let drawn = order.len() as u32;
+        let frame = FrameUniforms {
+            tf_count: tf.points().len() as u32,
+            ..view.uniforms(m.origin, twin::INSIDE_TOL, near_z(m.radius), drawn)
+        };
+        self.queue
+            .write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&frame));
+        let points = tf_points(tf, m.scalar_min, m.scalar_span)?;
+        self.queue
+            .write_buffer(&self.tf_buf, 0, bytemuck::bytes_of(&points));
+        let constants = CellProjUniforms {
+            table_size: self.settings.table_size,
+            table_lengths: self.settings.table_lengths,
+            inv_length_step: self.table.as_ref().map_or(0.0, |t| {
+                ((self.settings.table_lengths - 1) as f64 / t.max_length) as f32
+            }),
+            _pad: 0,
+        };
+        self.queue
+            .write_buffer(&self.cellproj_buf, 0, bytemuck::bytes_of(&constants));
+        let indices: Vec<[u32; 4]> = order.par_iter().map(|&t| m.tets[t as usize]).collect();
+        if !indices.is_empty() {
+            self.order_buf
+                .write(&self.queue, bytemuck::cast_slice(&indices));
+        }
+        Ok(())
+    }
+}

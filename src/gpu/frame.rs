@@ -1,0 +1,457 @@
+//! One frame's recording and readback, the same for every mode: a [`Recorder`] encodes the
+//! frame's passes, each timed with a pair of GPU timestamps where the adapter has them (else by
+//! draining the GPU after each stage, wall clock); [`Recorder::finish`] copies the images out,
+//! resolves the queries, submits, waits once and reads the frame's statistics back. The query
+//! sets and the statistics buffers live in [`FrameResources`], kept from frame to frame and
+//! grown only when a frame needs more; [`ImageReadback`] holds a target's readback buffer.
+
+use std::time::Instant;
+
+use crate::gpu::GpuError;
+use crate::gpu::util::{f16_to_f32, map_read, readback_buffer, settings_error};
+use crate::render::RenderError;
+
+/// Where the occlusion results start in the statistics buffer (the degenerate count is at 0;
+/// query resolves land on 256-byte boundaries).
+const OCCLUSION_AT: u64 = 256;
+
+/// Query sets and statistics buffers kept across frames.
+pub struct FrameResources {
+    gpu_clock: bool,
+    timestamps: Option<wgpu::QuerySet>,
+    occlusion: Option<wgpu::QuerySet>,
+    /// Mappable copy of the degenerate count, occlusion results and timestamps.
+    stats: Option<wgpu::Buffer>,
+    /// Where the queries resolve to.
+    resolve: Option<wgpu::Buffer>,
+}
+
+impl FrameResources {
+    /// Nothing allocated yet; `gpu_clock`: the adapter has timestamp queries.
+    pub fn new(gpu_clock: bool) -> Self {
+        Self {
+            gpu_clock,
+            timestamps: None,
+            occlusion: None,
+            stats: None,
+            resolve: None,
+        }
+    }
+
+    /// A recorder for a frame of at most `passes` timed passes and `occlusion` occlusion
+    /// queries (0: none), growing the query sets and buffers when they are too small.
+    pub fn recorder<'a>(
+        &'a mut self,
+        device: &'a wgpu::Device,
+        queue: &'a wgpu::Queue,
+        passes: u32,
+        occlusion: u32,
+    ) -> Recorder<'a> {
+        let Self {
+            gpu_clock,
+            timestamps,
+            occlusion: occlusion_set,
+            stats,
+            resolve,
+        } = self;
+        let timed = *gpu_clock && 2 * passes <= wgpu::QUERY_SET_MAX_QUERIES;
+        let occlusion = occlusion.min(wgpu::QUERY_SET_MAX_QUERIES);
+        let ts_at = timestamps_at(occlusion);
+        let bytes = ts_at + 16 * passes as u64;
+        let usage = wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST;
+        let stats = grown_buffer(device, stats, "frame stats readback", bytes, usage);
+        let usage = wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC;
+        let resolve = grown_buffer(device, resolve, "frame query resolve", bytes, usage);
+        let timestamps = timed
+            .then(|| grown_set(device, timestamps, wgpu::QueryType::Timestamp, 2 * passes) as &_);
+        let occlusion_set = (occlusion > 0)
+            .then(|| grown_set(device, occlusion_set, wgpu::QueryType::Occlusion, occlusion) as &_);
+        Recorder {
+            device,
+            queue,
+            encoder: None,
+            timestamps,
+            occlusion: occlusion_set,
+            occlusion_at: (OCCLUSION_AT, occlusion),
+            ts_at,
+            stats,
+            resolve,
+            pairs: Vec::new(),
+            wall: Vec::new(),
+            mark: Instant::now(),
+        }
+    }
+
+    /// Bytes of the statistics buffers.
+    pub fn size(&self) -> u64 {
+        [&self.stats, &self.resolve]
+            .into_iter()
+            .flatten()
+            .map(wgpu::Buffer::size)
+            .sum()
+    }
+}
+
+/// Where the timestamps start in the statistics buffer, after `occlusion` results.
+fn timestamps_at(occlusion: u32) -> u64 {
+    (OCCLUSION_AT + 8 * occlusion as u64).next_multiple_of(256)
+}
+
+/// `slot`'s query set, replaced by a larger one when it holds fewer than `n` queries.
+fn grown_set<'a>(
+    device: &wgpu::Device,
+    slot: &'a mut Option<wgpu::QuerySet>,
+    ty: wgpu::QueryType,
+    n: u32,
+) -> &'a wgpu::QuerySet {
+    if slot.as_ref().is_some_and(|s| s.count() < n) {
+        *slot = None;
+    }
+    slot.get_or_insert_with(|| {
+        device.create_query_set(&wgpu::QuerySetDescriptor {
+            label: Some("frame queries"),
+            ty,
+            count: n.next_power_of_two().min(wgpu::QUERY_SET_MAX_QUERIES),
+        })
+    })
+}
+
+/// `slot`'s buffer, replaced by a larger one (a power of two) when it is under `bytes`.
+fn grown_buffer<'a>(
+    device: &wgpu::Device,
+    slot: &'a mut Option<wgpu::Buffer>,
+    label: &str,
+    bytes: u64,
+    usage: wgpu::BufferUsages,
+) -> &'a wgpu::Buffer {
+    if slot.as_ref().is_some_and(|b| b.size() < bytes) {
+        *slot = None;
+    }
+    slot.get_or_insert_with(|| {
+        device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: bytes.next_power_of_two(),
+            usage,
+            mapped_at_creation: false,
+        })
+    })
+}
+
+/// The timestamp pair of one pass.
+pub struct Timestamps<'a> {
+    set: &'a wgpu::QuerySet,
+    begin: u32,
+}
+
+impl<'a> Timestamps<'a> {
+    /// The pair for a compute pass.
+    pub fn compute(&self) -> wgpu::ComputePassTimestampWrites<'a> {
+        wgpu::ComputePassTimestampWrites {
+            query_set: self.set,
+            beginning_of_pass_write_index: Some(self.begin),
+            end_of_pass_write_index: Some(self.begin + 1),
+        }
+    }
+
+    /// The pair for a render pass.
+    pub fn render(&self) -> wgpu::RenderPassTimestampWrites<'a> {
+        wgpu::RenderPassTimestampWrites {
+            query_set: self.set,
+            beginning_of_pass_write_index: Some(self.begin),
+            end_of_pass_write_index: Some(self.begin + 1),
+        }
+    }
+}
+
+/// Records a frame's passes and times them; see the module docs.
+pub struct Recorder<'a> {
+    device: &'a wgpu::Device,
+    queue: &'a wgpu::Queue,
+    encoder: Option<wgpu::CommandEncoder>,
+    timestamps: Option<&'a wgpu::QuerySet>,
+    occlusion: Option<&'a wgpu::QuerySet>,
+    /// Offset of the occlusion results and how many queries the frame may use.
+    occlusion_at: (u64, u32),
+    ts_at: u64,
+    stats: &'a wgpu::Buffer,
+    resolve: &'a wgpu::Buffer,
+    /// The stage of each timestamp pair, in query order.
+    pairs: Vec<&'static str>,
+    /// Wall-clock stage times (when there are no timestamps).
+    wall: Vec<(&'static str, f64)>,
+    mark: Instant,
+}
+
+/// What [`Recorder::finish`] read back.
+pub struct FrameStats {
+    /// Degenerate tets the assembly skipped.
+    pub degenerate: u32,
+    /// Sum of the occlusion queries used (`None` when the frame had none).
+    pub fragments: Option<u64>,
+    /// Milliseconds per stage: GPU time where timed with timestamps, else wall clock.
+    pub stages: Vec<(&'static str, f64)>,
+    /// Whether `stages` come from GPU timestamps.
+    pub gpu_clock: bool,
+}
+
+impl FrameStats {
+    /// The milliseconds charged to `stage` (0 when it did not run).
+    pub fn stage(&self, stage: &str) -> f64 {
+        self.stages
+            .iter()
+            .find(|(s, _)| *s == stage)
+            .map_or(0.0, |&(_, t)| t)
+    }
+}
+
+impl<'a> Recorder<'a> {
+    /// The open command encoder (a new one after a submit).
+    pub fn encoder(&mut self) -> &mut wgpu::CommandEncoder {
+        self.encoder.get_or_insert_with(|| {
+            self.device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("frame"),
+                })
+        })
+    }
+
+    /// The timestamp pair of the next pass, charged to `stage` (`None` without timestamps).
+    pub fn timestamps(&mut self, stage: &'static str) -> Option<Timestamps<'a>> {
+        let set = self.timestamps?;
+        let begin = 2 * self.pairs.len() as u32;
+        self.pairs.push(stage);
+        Some(Timestamps { set, begin })
+    }
+
+    /// The device the frame runs on.
+    pub fn device(&self) -> &'a wgpu::Device {
+        self.device
+    }
+
+    /// The occlusion query set, when the frame asked for queries.
+    pub fn occlusion(&self) -> Option<&'a wgpu::QuerySet> {
+        self.occlusion
+    }
+
+    /// Whether the passes are timed with GPU timestamps.
+    pub fn gpu_clock(&self) -> bool {
+        self.timestamps.is_some()
+    }
+
+    /// Submits what was recorded (the encoder starts anew on the next pass).
+    pub fn submit(&mut self) {
+        if let Some(enc) = self.encoder.take() {
+            self.queue.submit([enc.finish()]);
+        }
+    }
+
+    /// Without timestamps: runs what was recorded and charges its wall time to `stage`.
+    pub fn end_stage(&mut self, stage: &'static str) -> Result<(), GpuError> {
+        if self.timestamps.is_some() {
+            return Ok(());
+        }
+        self.submit();
+        self.device.poll(wgpu::PollType::wait_indefinitely())?;
+        let now = Instant::now();
+        add(&mut self.wall, stage, (now - self.mark).as_secs_f64() * 1e3);
+        self.mark = now;
+        Ok(())
+    }
+
+    /// Copies `images` (texture, readback) out, resolves the queries (`occlusion_used` of
+    /// them), copies the `degenerate` count, submits, waits for the GPU and reads the
+    /// statistics back.
+    pub fn finish(
+        mut self,
+        images: &[(&wgpu::Texture, &ImageReadback)],
+        degenerate: &wgpu::Buffer,
+        occlusion_used: u32,
+    ) -> Result<FrameStats, RenderError> {
+        let (stats, resolve, ts_at) = (self.stats, self.resolve, self.ts_at);
+        let n_ts = 2 * self.pairs.len() as u32;
+        let (occ_at, occ_max) = self.occlusion_at;
+        let occlusion = self.occlusion.filter(|_| occlusion_used > 0);
+        let timestamps = self.timestamps.filter(|_| n_ts > 0);
+        let enc = self.encoder();
+        for (texture, readback) in images {
+            readback.copy(enc, texture);
+        }
+        enc.copy_buffer_to_buffer(degenerate, 0, stats, 0, 4);
+        if let Some(set) = occlusion {
+            let used = occlusion_used.min(occ_max);
+            enc.resolve_query_set(set, 0..used, resolve, occ_at);
+            enc.copy_buffer_to_buffer(resolve, occ_at, stats, occ_at, 8 * used as u64);
+        }
+        if let Some(set) = timestamps {
+            enc.resolve_query_set(set, 0..n_ts, resolve, ts_at);
+            enc.copy_buffer_to_buffer(resolve, ts_at, stats, ts_at, 8 * n_ts as u64);
+        }
+        self.submit();
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(GpuError::from)?;
+        map_read(self.device, stats)?;
+        let out = {
+            let data = stats
+                .get_mapped_range(..)
+                .map_err(|e| settings_error(format!("mapping the stats buffer failed: {e}")))?;
+            let degenerate = u32::from_le_bytes([data[0], data[1], data[2], data[3]]);
+            let words = |at: u64, n: u32| -> &[u64] {
+                bytemuck::cast_slice(&data[at as usize..(at + 8 * n as u64) as usize])
+            };
+            let fragments =
+                occlusion.map(|_| words(occ_at, occlusion_used.min(occ_max)).iter().sum());
+            let stages = match timestamps {
+                Some(_) => self.gpu_stages(words(ts_at, n_ts)),
+                None if self.timestamps.is_some() => Vec::new(),
+                None => self.wall.clone(),
+            };
+            FrameStats {
+                degenerate,
+                fragments,
+                stages,
+                gpu_clock: self.timestamps.is_some(),
+            }
+        };
+        stats.unmap();
+        Ok(out)
+    }
+
+    /// Milliseconds per stage from the resolved timestamp pairs.
+    fn gpu_stages(&self, ts: &[u64]) -> Vec<(&'static str, f64)> {
+        let period = self.queue.get_timestamp_period() as f64;
+        let mut sums = Vec::new();
+        for (k, &stage) in self.pairs.iter().enumerate() {
+            let ms = ts[2 * k + 1].saturating_sub(ts[2 * k]) as f64 * period * 1e-6;
+            add(&mut sums, stage, ms);
+        }
+        sums
+    }
+}
+
+/// Adds `ms` to `stage`'s entry of `sums` (appended on its first time).
+fn add(sums: &mut Vec<(&'static str, f64)>, stage: &'static str, ms: f64) {
+    match sums.iter_mut().find(|(s, _)| *s == stage) {
+        Some((_, t)) => *t += ms,
+        None => sums.push((stage, ms)),
+    }
+}
+
+/// A render target's readback: a mappable buffer with rows padded to the copy alignment, and
+/// the conversion of its texels (`Rgba32Float` or `Rgba16Float`) to f32 RGBA.
+pub struct ImageReadback {
+    buffer: wgpu::Buffer,
+    padded_row: u32,
+    width: u32,
+    height: u32,
+    format: wgpu::TextureFormat,
+}
+
+impl ImageReadback {
+    /// A readback for `width` x `height` texels of `format`.
+    pub fn new(
+        device: &wgpu::Device,
+        label: &str,
+        width: u32,
+        height: u32,
+        format: wgpu::TextureFormat,
+    ) -> Self {
+        let texel = format.block_copy_size(None).unwrap_or(16);
+        let (buffer, padded_row) = readback_buffer(device, label, width, height, texel);
+        Self {
+            buffer,
+            padded_row,
+            width,
+            height,
+            format,
+        }
+    }
+
+    /// Encodes the copy of `texture` (layer 0) into the buffer.
+    pub fn copy(&self, enc: &mut wgpu::CommandEncoder, texture: &wgpu::Texture) {
+        enc.copy_texture_to_buffer(
+            texture.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &self.buffer,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(self.padded_row),
+                    rows_per_image: Some(self.height),
+                },
+            },
+            wgpu::Extent3d {
+                width: self.width,
+                height: self.height,
+                depth_or_array_layers: 1,
+            },
+        );
+    }
+
+    /// Maps the buffer (after the copy ran) and returns its texels row by row as f32 RGBA.
+    pub fn read(&self, device: &wgpu::Device) -> Result<Vec<[f32; 4]>, RenderError> {
+        map_read(device, &self.buffer)?;
+        let data = (self.buffer.get_mapped_range(..))
+            .map_err(|e| settings_error(format!("mapping the readback buffer failed: {e}")))?;
+        let w = self.width as usize;
+        let mut out = Vec::with_capacity(w * self.height as usize);
+        for y in 0..self.height as usize {
+            let row = &data[y * self.padded_row as usize..];
+            if self.format == wgpu::TextureFormat::Rgba16Float {
+                let src: &[[u16; 4]] = bytemuck::cast_slice(&row[..w * 8]);
+                out.extend(src.iter().map(|s| s.map(f16_to_f32)));
+            } else {
+                out.extend_from_slice(bytemuck::cast_slice::<u8, [f32; 4]>(&row[..w * 16]));
+            }
+        }
+        drop(data);
+        self.buffer.unmap();
+        Ok(out)
+    }
+
+    /// Bytes of the buffer.
+    pub fn size(&self) -> u64 {
+        self.buffer.size()
+    }
+}
+
+/// Operations that clear a target to `color` and store what the pass draws.
+pub fn cleared(color: wgpu::Color) -> wgpu::Operations<wgpu::Color> {
+    wgpu::Operations {
+        load: wgpu::LoadOp::Clear(color),
+        store: wgpu::StoreOp::Store,
+    }
+}
+
+/// A colour attachment of `view` with `ops`.
+pub fn attachment(
+    view: &wgpu::TextureView,
+    ops: wgpu::Operations<wgpu::Color>,
+) -> Option<wgpu::RenderPassColorAttachment<'_>> {
+    Some(wgpu::RenderPassColorAttachment {
+        view,
+        depth_slice: None,
+        resolve_target: None,
+        ops,
+    })
+}
+
+/// Draws each chunk's tets with `pipeline`, 12 vertices and one instance per tet (its front
+/// faces), all counted by occlusion query 0 when `counted`.
+pub fn draw_tet_chunks(
+    pass: &mut wgpu::RenderPass,
+    pipeline: &wgpu::RenderPipeline,
+    groups: &[(wgpu::BindGroup, u64)],
+    counted: bool,
+) {
+    if counted {
+        pass.begin_occlusion_query(0);
+    }
+    pass.set_pipeline(pipeline);
+    for (group, count) in groups {
+        pass.set_bind_group(0, group, &[]);
+        pass.draw(0..12, 0..*count as u32);
+    }
+    if counted {
+        pass.end_occlusion_query();
+    }
+}

@@ -1,0 +1,481 @@
+//! The mesh's GPU side, built once per mesh and shared by every mode ([`GpuTetMesh`]): the f64
+//! frame of reference (bounding-box centre, bounding-sphere radius, scalar frame), the CPU
+//! copies the per-frame CPU stages read, the vertex buffers (positions, scalars), and per-tet
+//! arrays ([`TetArray`]) cut into chunks that each fit one storage binding and spread over as
+//! many buffers as the adapter's largest buffer needs, so no single buffer's limit caps the
+//! mesh.
+//!
+//! A renderer holds an `Arc<GpuTetMesh>`; several renderers may share one. Positions and
+//! scalars change through [`GpuTetMesh::update_positions`] and
+//! [`GpuTetMesh::update_scalars`] (one upload each); each change bumps a version
+//! ([`MeshData::positions_version`], [`MeshData::scalars_version`]) so a renderer knows when
+//! what it derived from them is stale.
+
+use std::sync::{Arc, OnceLock, PoisonError, RwLock, RwLockReadGuard};
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use crate::gpu::gpu_data::TetRecord;
+use crate::gpu::util::{bounding_sphere, scalar_frame, settings_error};
+use crate::gpu::{GpuContext, GpuError};
+use crate::mesh::topology::Adjacency;
+use crate::mesh::{TetMesh, check_new_positions, check_values, tet_ranges};
+use crate::render::RenderError;
+
+/// The CPU side of a [`GpuTetMesh`]: the mesh as the per-frame CPU stages read it, and the
+/// frame of reference of the GPU copies.
+pub struct MeshData {
+    /// Vertex positions (world, f64).
+    pub positions: Vec<DVec3>,
+    /// The active scalar per vertex (data units).
+    pub scalars: Vec<f64>,
+    /// Vertex indices per tet.
+    pub tets: Vec<[u32; 4]>,
+    /// Bounding-box centre: GPU positions and the eye are relative to it.
+    pub origin: DVec3,
+    /// Bounding-sphere radius about `origin`.
+    pub radius: f64,
+    /// Smallest scalar: GPU scalars are `(s - scalar_min) / scalar_span`.
+    pub scalar_min: f64,
+    /// Scalar range (1 for a constant field).
+    pub scalar_span: f64,
+    /// Each tet's (min, max) scalar, for transfer-function culling.
+    pub ranges: Vec<(f64, f64)>,
+    /// Counts the position updates: what was derived from older positions is stale.
+    pub positions_version: u64,
+    /// Counts the scalar updates.
+    pub scalars_version: u64,
+}
+
+impl MeshData {
+    fn new(mesh: &TetMesh) -> Result<Self, RenderError> {
+        let positions = mesh.positions().to_vec();
+        let scalars = mesh.scalars()?.to_vec();
+        let tets = mesh.tets().to_vec();
+        let (origin, radius) = bounding_sphere(&positions);
+        let (scalar_min, scalar_span) = scalar_frame(&scalars);
+        Ok(Self {
+            ranges: tet_ranges(&tets, &scalars),
+            positions,
+            scalars,
+            tets,
+            origin,
+            radius,
+            scalar_min,
+            scalar_span,
+            positions_version: 0,
+            scalars_version: 0,
+        })
+    }
+
+    /// The vertex positions as the GPU stages read them: relative to `origin`, f32, `w = 1`.
+    pub fn gpu_positions(&self) -> Vec<[f32; 4]> {
+        let o = self.origin;
+        self.positions
+            .par_iter()
+            .map(|&p| {
+                let q = (p - o).as_vec3();
+                [q.x, q.y, q.z, 1.0]
+            })
+            .collect()
+    }
+
+    /// The scalars as the GPU stages read them: `(s - scalar_min) / scalar_span`, f32.
+    pub fn gpu_scalars(&self) -> Vec<f32> {
+        let (lo, span) = (self.scalar_min, self.scalar_span);
+        self.scalars
+            .par_iter()
+            .map(|&s| ((s - lo) / span) as f32)
+            .collect()
+    }
+}
+
+/// The mesh on the GPU, shared by every mode; see the module docs.
+pub struct GpuTetMesh {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    limits: wgpu::Limits,
+    adapter: String,
+    /// Number of tets (the topology never changes).
+    tet_count: usize,
+    data: RwLock<MeshData>,
+    positions: wgpu::Buffer,
+    scalars: wgpu::Buffer,
+    /// The tets' vertex indices (16 bytes each), uploaded when a mode first asks.
+    tets: OnceLock<TetArray>,
+    /// Each tet's four face neighbours ([`crate::mesh::topology::NO_NEIGHBOR`] on the
+    /// boundary), computed and uploaded when a mode first asks.
+    adjacency: OnceLock<TetArray>,
+}
+
+impl GpuTetMesh {
+    /// Copies `mesh` (its active scalars) and uploads its vertices to `ctx`'s device; the
+    /// per-tet arrays follow when a mode asks for them.
+    pub fn new(ctx: &GpuContext, mesh: &TetMesh) -> Result<Arc<Self>, RenderError> {
+        let data = MeshData::new(mesh)?;
+        let nv = data.positions.len() as u64;
+        let vertex_bytes = nv * 16 + nv * 4;
+        check_buffer(&ctx.limits, "the vertex positions", nv * 16)?;
+        let (positions, scalars) = allocate(&ctx.device, &ctx.info.name, vertex_bytes, || {
+            let vertex = |label, bytes: u64| storage_buffer(&ctx.device, label, bytes);
+            (
+                vertex("mesh positions", nv * 16),
+                vertex("mesh scalars", nv * 4),
+            )
+        })?;
+        let gpu = Self {
+            device: ctx.device.clone(),
+            queue: ctx.queue.clone(),
+            limits: ctx.limits.clone(),
+            adapter: ctx.info.name.clone(),
+            tet_count: data.tets.len(),
+            data: RwLock::new(data),
+            positions,
+            scalars,
+            tets: OnceLock::new(),
+            adjacency: OnceLock::new(),
+        };
+        let data = gpu.read();
+        gpu.upload_positions(&data);
+        gpu.upload_scalars(&data);
+        drop(data);
+        Ok(Arc::new(gpu))
+    }
+
+    /// The CPU side (a read lock; updates wait for it). The other methods take no lock, so a
+    /// renderer may call them while it holds this one.
+    pub fn read(&self) -> RwLockReadGuard<'_, MeshData> {
+        self.data.read().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// The device the buffers live on.
+    pub fn device(&self) -> &wgpu::Device {
+        &self.device
+    }
+
+    /// The device's queue.
+    pub fn queue(&self) -> &wgpu::Queue {
+        &self.queue
+    }
+
+    /// The limits the buffers were cut for.
+    pub fn limits(&self) -> &wgpu::Limits {
+        &self.limits
+    }
+
+    /// Number of tets.
+    pub fn tet_count(&self) -> usize {
+        self.tet_count
+    }
+
+    /// Positions relative to the origin (`vec4<f32>`, `w = 1`), one per vertex.
+    pub fn positions(&self) -> &wgpu::Buffer {
+        &self.positions
+    }
+
+    /// Normalized scalars (`f32`), one per vertex.
+    pub fn scalars(&self) -> &wgpu::Buffer {
+        &self.scalars
+    }
+
+    /// The tets' vertex indices (`vec4<u32>` per tet), in chunks of [`Self::chunking`].
+    pub fn tets(&self) -> Result<&TetArray, RenderError> {
+        self.lazy(&self.tets, "mesh tets", |d| d.tets.clone())
+    }
+
+    /// Each tet's face neighbours (`vec4<u32>` per tet, neighbour `i` across the face opposite
+    /// vertex `i`), in chunks of [`Self::chunking`].
+    pub fn adjacency(&self) -> Result<&TetArray, RenderError> {
+        self.lazy(&self.adjacency, "mesh face adjacency", |d| {
+            Adjacency::build(&d.tets).neighbors
+        })
+    }
+
+    /// How arrays of one entry per tet of this mesh are cut into binding-sized chunks.
+    pub fn chunking(&self) -> Result<Chunking, RenderError> {
+        Chunking::new(self.tet_count() as u64, &self.limits)
+    }
+
+    fn lazy<'a>(
+        &'a self,
+        cell: &'a OnceLock<TetArray>,
+        label: &str,
+        values: impl FnOnce(&MeshData) -> Vec<[u32; 4]>,
+    ) -> Result<&'a TetArray, RenderError> {
+        if let Some(array) = cell.get() {
+            return Ok(array);
+        }
+        let data = values(&self.read());
+        let array = self.tet_array(label, self.chunking()?, data.len() as u64, 16)?;
+        array.write(&self.queue, bytemuck::cast_slice(&data));
+        Ok(cell.get_or_init(|| array))
+    }
+
+    /// A new per-tet array of `count` entries of `stride` bytes, cut by `chunking` (see
+    /// [`TetArray`]); an error naming the bytes needed when the adapter cannot hold it.
+    pub fn tet_array(
+        &self,
+        label: &str,
+        chunking: Chunking,
+        count: u64,
+        stride: u64,
+    ) -> Result<TetArray, RenderError> {
+        let bytes = count * stride;
+        allocate(&self.device, &self.adapter, bytes, || {
+            TetArray::new(&self.device, &self.limits, label, chunking, count, stride)
+        })
+    }
+
+    /// New vertex positions (same count, finite): recomputes the frame of reference and
+    /// uploads them (one buffer write).
+    pub fn update_positions(&self, positions: &[DVec3]) -> Result<(), RenderError> {
+        let mut data = self.data.write().unwrap_or_else(PoisonError::into_inner);
+        check_new_positions(positions, data.positions.len())?;
+        data.positions.copy_from_slice(positions);
+        (data.origin, data.radius) = bounding_sphere(&data.positions);
+        data.positions_version += 1;
+        self.upload_positions(&data);
+        Ok(())
+    }
+
+    /// New values of the active scalar array (same count, finite): recomputes the scalar frame
+    /// and the per-tet ranges and uploads them (one buffer write).
+    pub fn update_scalars(&self, scalars: &[f64]) -> Result<(), RenderError> {
+        let mut data = self.data.write().unwrap_or_else(PoisonError::into_inner);
+        check_values("scalars", scalars, data.scalars.len())?;
+        data.scalars.copy_from_slice(scalars);
+        (data.scalar_min, data.scalar_span) = scalar_frame(&data.scalars);
+        data.ranges = tet_ranges(&data.tets, &data.scalars);
+        data.scalars_version += 1;
+        self.upload_scalars(&data);
+        Ok(())
+    }
+
+    fn upload_positions(&self, data: &MeshData) {
+        let gpu = data.gpu_positions();
+        self.queue
+            .write_buffer(&self.positions, 0, bytemuck::cast_slice(&gpu));
+    }
+
+    fn upload_scalars(&self, data: &MeshData) {
+        let gpu = data.gpu_scalars();
+        self.queue
+            .write_buffer(&self.scalars, 0, bytemuck::cast_slice(&gpu));
+    }
+
+    /// Bytes of the mesh's GPU buffers (vertices, and the per-tet arrays uploaded so far).
+    pub fn gpu_memory(&self) -> u64 {
+        let arrays = [self.tets.get(), self.adjacency.get()]
+            .into_iter()
+            .flatten()
+            .map(TetArray::size)
+            .sum::<u64>();
+        self.positions.size() + self.scalars.size() + arrays
+    }
+}
+
+/// Tets per chunk when the per-tet records do not fit one storage binding: as many as one
+/// binding of `max_binding` bytes holds, rounded down to a multiple of `align` tets so that each
+/// chunk's windows into the tet (16-byte) and record buffers start at offsets the adapter
+/// accepts (`min_storage_buffer_offset_alignment`, a power of two of at most 256 bytes). `None`
+/// when one binding cannot hold even `align` records.
+pub fn chunk_tets(tets: u64, max_binding: u64, align: u64) -> Option<u64> {
+    let per_binding = max_binding / size_of::<TetRecord>() as u64;
+    if tets <= per_binding {
+        return Some(tets.max(1));
+    }
+    let chunk = per_binding / align * align;
+    (chunk > 0).then_some(chunk)
+}
+
+/// `count` list entries in chunks of `chunk`: (first, count) of each.
+pub fn chunk_ranges(count: u64, chunk: u64) -> Vec<(u64, u64)> {
+    let chunk = chunk.max(1);
+    (0..count.div_ceil(chunk))
+        .map(|c| (c * chunk, chunk.min(count - c * chunk)))
+        .collect()
+}
+
+/// How per-tet arrays of one list are cut: chunks of `chunk` entries, each of which fits one
+/// storage binding and one buffer even as a per-tet record ([`TetRecord`], the largest entry),
+/// starting at an aligned offset ([`chunk_tets`]). Every per-tet array of a list uses the same
+/// chunking, so chunk `c` of each covers the same tets.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Chunking {
+    /// Entries per chunk (every chunk but the last is full).
+    pub chunk: u64,
+}
+
+impl Chunking {
+    /// The chunking of a list of `count` entries on an adapter with `limits`; an error when one
+    /// binding cannot hold an aligned group of records.
+    pub fn new(count: u64, limits: &wgpu::Limits) -> Result<Self, RenderError> {
+        let max = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size);
+        let align = limits.min_storage_buffer_offset_alignment as u64;
+        match chunk_tets(count, max, align) {
+            Some(chunk) => Ok(Self { chunk }),
+            None => Err(settings_error(format!(
+                "this adapter binds at most {max} bytes per storage buffer, less than {align} \
+                 per-tet records of {} bytes; tetvr cannot draw meshes on it",
+                size_of::<TetRecord>()
+            ))),
+        }
+    }
+
+    /// The chunks of a list of `count` entries: (first, count) of each.
+    pub fn ranges(&self, count: u64) -> Vec<(u64, u64)> {
+        chunk_ranges(count, self.chunk)
+    }
+}
+
+/// A per-tet array: entries of `stride` bytes in chunks of [`Chunking::chunk`], as many whole
+/// chunks per buffer as the adapter's largest buffer holds. Chunk `c` is bound as one window
+/// ([`TetArray::window`]).
+pub struct TetArray {
+    stride: u64,
+    chunk: u64,
+    /// Entries per buffer (a whole number of chunks).
+    per_buffer: u64,
+    buffers: Vec<wgpu::Buffer>,
+}
+
+impl TetArray {
+    /// Room for `count` entries of `stride` bytes (at least one), storage and copy
+    /// destination.
+    pub fn new(
+        device: &wgpu::Device,
+        limits: &wgpu::Limits,
+        label: &str,
+        chunking: Chunking,
+        count: u64,
+        stride: u64,
+    ) -> Self {
+        let chunk = chunking.chunk.max(1);
+        let chunk_bytes = chunk * stride;
+        let per_buffer = (limits.max_buffer_size / chunk_bytes).max(1) * chunk;
+        let count = count.max(1);
+        let buffers = (0..count.div_ceil(per_buffer))
+            .map(|b| {
+                let entries = per_buffer.min(count - b * per_buffer);
+                storage_buffer(device, label, entries * stride)
+            })
+            .collect();
+        Self {
+            stride,
+            chunk,
+            per_buffer,
+            buffers,
+        }
+    }
+
+    /// Writes `data` (whole entries) from entry 0 on, buffer by buffer.
+    pub fn write(&self, queue: &wgpu::Queue, data: &[u8]) {
+        let per_buffer = (self.per_buffer * self.stride) as usize;
+        for (buffer, part) in self.buffers.iter().zip(data.chunks(per_buffer)) {
+            queue.write_buffer(buffer, 0, part);
+        }
+    }
+
+    /// A bind group entry for entries `first..first + count` of one chunk (`first` a chunk
+    /// start, as [`Chunking::ranges`] gives them).
+    pub fn window(&self, binding: u32, first: u64, count: u64) -> wgpu::BindGroupEntry<'_> {
+        debug_assert_eq!(first % self.chunk, 0, "windows start at a chunk");
+        let b = (first / self.per_buffer) as usize;
+        let local = first - b as u64 * self.per_buffer;
+        wgpu::BindGroupEntry {
+            binding,
+            resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                buffer: &self.buffers[b.min(self.buffers.len() - 1)],
+                offset: local * self.stride,
+                size: wgpu::BufferSize::new(count.max(1) * self.stride),
+            }),
+        }
+    }
+
+    /// Number of buffers the array spans.
+    pub fn buffer_count(&self) -> usize {
+        self.buffers.len()
+    }
+
+    /// Bytes of all its buffers.
+    pub fn size(&self) -> u64 {
+        self.buffers.iter().map(wgpu::Buffer::size).sum()
+    }
+}
+
+/// A storage buffer of `bytes` (at least 16) that is also a copy destination and source.
+fn storage_buffer(device: &wgpu::Device, label: &str, bytes: u64) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: bytes.max(16),
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_DST
+            | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    })
+}
+
+/// An error unless a buffer of `bytes` fits the adapter's largest buffer.
+pub(crate) fn check_buffer(
+    limits: &wgpu::Limits,
+    what: &str,
+    bytes: u64,
+) -> Result<(), RenderError> {
+    if bytes > limits.max_buffer_size {
+        return Err(settings_error(format!(
+            "{what} need {bytes} bytes in one buffer, and this adapter's buffers hold at most {} \
+             bytes; split the mesh",
+            limits.max_buffer_size
+        )));
+    }
+    Ok(())
+}
+
+/// Runs `create` (GPU allocations of `bytes` in all) and turns the adapter running out of
+/// memory into an error that says how many bytes were asked for.
+pub(crate) fn allocate<T>(
+    device: &wgpu::Device,
+    adapter: &str,
+    bytes: u64,
+    create: impl FnOnce() -> T,
+) -> Result<T, RenderError> {
+    let scope = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+    let out = create();
+    match pollster::block_on(scope.pop()) {
+        None => Ok(out),
+        Some(_) => Err(RenderError::Gpu(GpuError::OutOfMemory {
+            adapter: adapter.to_owned(),
+            bytes,
+        })),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn chunks_fill_a_binding_on_aligned_offsets() {
+        let record = size_of::<TetRecord>() as u64;
+        // Fits: one chunk of all tets (at least 1, so an empty mesh still binds something).
+        assert_eq!(chunk_tets(1000, 1000 * record, 256), Some(1000));
+        assert_eq!(chunk_tets(0, 1 << 20, 256), Some(1));
+        // lavapipe: 128 MiB bindings hold 932,067 records; chunks round down to 931,840.
+        let chunk = chunk_tets(2_000_000, 128 << 20, 256).unwrap();
+        assert_eq!(chunk, 931_840);
+        assert_eq!(chunk * record % 256, 0);
+        assert_eq!(chunk * 16 % 256, 0);
+        // A binding smaller than one aligned group of records cannot be chunked.
+        assert_eq!(chunk_tets(1000, 100 * record, 256), None);
+    }
+
+    #[test]
+    fn chunk_ranges_cover_the_list_once() {
+        assert_eq!(chunk_ranges(10, 4), vec![(0, 4), (4, 4), (8, 2)]);
+        assert_eq!(chunk_ranges(8, 4), vec![(0, 4), (4, 4)]);
+        assert_eq!(chunk_ranges(0, 4), vec![]);
+    }
+}

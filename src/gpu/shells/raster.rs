@@ -1,0 +1,138 @@
+//! Stage 3 of a shells frame, once per drawn shell: one render pass that zeroes the shell's
+//! slices within its scissor rectangle, then draws the front faces of its tets (and the
+//! screen quads of its near-plane tets), each fragment writing its slice samples under MAX
+//! blending (`shaders/shells_raster.wgsl`). Records beyond one storage binding are drawn
+//! chunk by chunk, with chunk-local ids.
+
+use std::ops::Range;
+
+use crate::gpu::frame::Recorder;
+
+use super::binning::{ScreenRect, ShellRange};
+use super::{Passes, ShellPass};
+
+/// Encodes the raster pass of shell `s` (its index among the drawn shells, its ranges of the
+/// active list `ids`); counts its fragments with occlusion query `query` when given.
+pub(super) fn encode(
+    rec: &mut Recorder,
+    p: &Passes,
+    (s, range): (&ShellPass, &ShellRange),
+    ids: &[u32],
+    query: Option<u32>,
+) {
+    let ts = rec.timestamps("raster");
+    let occlusion = rec.occlusion();
+    let load = wgpu::Operations {
+        load: wgpu::LoadOp::Load,
+        store: wgpu::StoreOp::Store,
+    };
+    let attachments: Vec<Option<wgpu::RenderPassColorAttachment>> = (p.targets.layer_views)
+        .iter()
+        .take(p.layers as usize)
+        .map(|view| {
+            Some(wgpu::RenderPassColorAttachment {
+                view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: load,
+            })
+        })
+        .collect();
+    let mut pass = rec
+        .encoder()
+        .begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("shells raster"),
+            color_attachments: &attachments,
+            depth_stencil_attachment: p.mask(s.tested, false),
+            timestamp_writes: ts.as_ref().map(|t| t.render()),
+            occlusion_query_set: occlusion,
+            ..Default::default()
+        });
+    let [sx, sy, sw, sh] = s.rect;
+    pass.set_scissor_rect(sx, sy, sw, sh);
+    let offset = (s.index as u64 * p.shell_stride) as u32;
+    pass.set_bind_group(0, &p.raster_groups[0], &[offset]);
+    // Zero the slices within the scissor only (the composite reads nothing else): a clear
+    // load op zeroes whole targets for every shell (A/B on bluntfin 512x512, lavapipe: median
+    // frame ~6% faster).
+    let set = match &p.raster.1 {
+        Some(r) if s.tested => r,
+        _ => &p.raster.0,
+    };
+    pass.set_pipeline(&set.clear);
+    pass.draw(0..3, 0..1);
+    if let Some(q) = query {
+        pass.begin_occlusion_query(q);
+    }
+    let group = |w: usize, c: usize| &p.raster_groups[w * p.chunks + c];
+    if !range.faces.is_empty() {
+        pass.set_pipeline(&set.faces);
+        pass.set_index_buffer(p.face_indices.slice(..), wgpu::IndexFormat::Uint32);
+        for (c, part) in by_chunk(ids, range.faces.clone(), p.chunk_tets) {
+            for (w, local, base) in p.instances.pieces(part) {
+                pass.set_bind_group(0, group(w, c), &[offset]);
+                let indices = 12 * (local.start - base)..12 * (local.end - base);
+                pass.draw_indexed(indices, 4 * base as i32, 0..1);
+            }
+        }
+    }
+    if !range.near.is_empty() {
+        pass.set_pipeline(&set.near);
+        for (c, part) in by_chunk(ids, range.near.clone(), p.chunk_tets) {
+            for (w, local, _) in p.instances.pieces(part) {
+                pass.set_bind_group(0, group(w, c), &[offset]);
+                pass.draw(6 * local.start..6 * local.end, 0..1);
+            }
+        }
+    }
+    if query.is_some() {
+        pass.end_occlusion_query();
+    }
+}
+
+/// The pixel rectangle `[x, y, width, height]` holding the image-plane rectangle `r` (in units
+/// of `x / z`, `y / z`; `slope` is the image's half extent in those units), grown by a pixel,
+/// clamped to the image, at least one pixel.
+pub(super) fn scissor(r: ScreenRect, slope: [f64; 2], width: u32, height: u32) -> [u32; 4] {
+    let (w, h) = (width as f64, height as f64);
+    let px = |x: f32| ((x as f64 / slope[0] + 1.0) * 0.5 * w).clamp(0.0, w);
+    let py = |y: f32| ((1.0 - y as f64 / slope[1]) * 0.5 * h).clamp(0.0, h);
+    let x0 = (px(r[0]) - 1.0).max(0.0).floor() as u32;
+    let x1 = (px(r[2]) + 1.0).min(w).ceil() as u32;
+    let y0 = (py(r[3]) - 1.0).max(0.0).floor() as u32;
+    let y1 = (py(r[1]) + 1.0).min(h).ceil() as u32;
+    let (x0, y0) = (x0.min(width - 1), y0.min(height - 1));
+    [x0, y0, x1.max(x0 + 1) - x0, y1.max(y0 + 1) - y0]
+}
+
+/// The parts of `range` (positions in `ids`, whose tet ids ascend within it, as binning leaves
+/// them) that fall in each chunk of `chunk_tets` tets, as (chunk, part).
+fn by_chunk(ids: &[u32], range: Range<u32>, chunk_tets: u32) -> Vec<(usize, Range<u32>)> {
+    let mut parts = Vec::new();
+    let mut start = range.start;
+    while start < range.end {
+        let c = ids[start as usize] / chunk_tets;
+        let rest = &ids[start as usize..range.end as usize];
+        let end = start + rest.partition_point(|&t| t / chunk_tets == c) as u32;
+        parts.push((c as usize, start..end));
+        start = end;
+    }
+    parts
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn active_ranges_split_at_chunk_boundaries() {
+        let ids = [1, 2, 5, 9, 10, 11, 20, 3, 4];
+        assert_eq!(
+            by_chunk(&ids, 0..7, 10),
+            vec![(0, 0..4), (1, 4..6), (2, 6..7)]
+        );
+        assert_eq!(by_chunk(&ids, 7..9, 10), vec![(0, 7..9)]);
+        assert_eq!(by_chunk(&ids, 3..3, 10), vec![]);
+        assert_eq!(by_chunk(&ids, 4..6, 1000), vec![(0, 4..6)]);
+    }
+}

@@ -1,0 +1,173 @@
+//! The shells targets of one image size: the slice layers the raster writes, the accumulation
+//! target the composite blends under, its readback, and (with early ray termination) the
+//! termination mask and the tile flags.
+
+use crate::gpu::frame::ImageReadback;
+use crate::gpu::util::entry;
+
+use super::ERT_DEPTH;
+use super::pipelines::ErtPipelines;
+use super::skips::TileMask;
+
+/// Image-size-dependent targets, rebuilt when the size changes.
+pub(super) struct Targets {
+    pub(super) width: u32,
+    pub(super) height: u32,
+    /// One view per slice layer (a colour target of 4 slices).
+    pub(super) layer_views: Vec<wgpu::TextureView>,
+    /// All layers, as the composite reads them.
+    pub(super) slices_view: wgpu::TextureView,
+    pub(super) accum: wgpu::Texture,
+    pub(super) accum_view: wgpu::TextureView,
+    pub(super) readback: ImageReadback,
+    pub(super) ert: Option<ErtTargets>,
+}
+
+/// The early-ray-termination mask and tile flags of one image size.
+pub(super) struct ErtTargets {
+    pub(super) depth_view: wgpu::TextureView,
+    pub(super) mark_group: wgpu::BindGroup,
+    pub(super) tiles_group: wgpu::BindGroup,
+    /// One u32 per tile: nonzero where a pixel is unfinished.
+    pub(super) flags: wgpu::Buffer,
+    pub(super) flags_readback: wgpu::Buffer,
+    pub(super) tiles: (u32, u32),
+}
+
+/// A `width` x `height` texture of `layers` layers.
+fn texture(
+    device: &wgpu::Device,
+    label: &str,
+    (width, height, layers): (u32, u32, u32),
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: layers,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage,
+        view_formats: &[],
+    })
+}
+
+impl Targets {
+    /// The targets of a `width` x `height` image with `layers` slice layers of `format`.
+    pub(super) fn new(
+        device: &wgpu::Device,
+        (width, height): (u32, u32),
+        (format, layers): (wgpu::TextureFormat, u32),
+        ert: Option<&ErtPipelines>,
+    ) -> Self {
+        use wgpu::TextureUsages as U;
+        let slices = texture(
+            device,
+            "shells slices",
+            (width, height, layers),
+            format,
+            U::RENDER_ATTACHMENT | U::TEXTURE_BINDING,
+        );
+        let layer_views = (0..layers)
+            .map(|i| {
+                slices.create_view(&wgpu::TextureViewDescriptor {
+                    label: Some("shells slice layer"),
+                    dimension: Some(wgpu::TextureViewDimension::D2),
+                    base_array_layer: i,
+                    array_layer_count: Some(1),
+                    ..Default::default()
+                })
+            })
+            .collect();
+        let slices_view = slices.create_view(&wgpu::TextureViewDescriptor {
+            label: Some("shells slices"),
+            dimension: Some(wgpu::TextureViewDimension::D2Array),
+            ..Default::default()
+        });
+        let accum_usage = U::RENDER_ATTACHMENT | U::COPY_SRC | U::TEXTURE_BINDING;
+        let accum = texture(
+            device,
+            "shells accumulation",
+            (width, height, 1),
+            format,
+            accum_usage,
+        );
+        let accum_view = accum.create_view(&Default::default());
+        let ert = ert.map(|p| ErtTargets::new(device, (width, height), p, &accum_view));
+        Self {
+            width,
+            height,
+            layer_views,
+            slices_view,
+            accum,
+            accum_view,
+            readback: ImageReadback::new(device, "shells readback", width, height, format),
+            ert,
+        }
+    }
+
+    /// Bytes of the targets: `layers` slice layers of `texel` bytes, the accumulation target
+    /// and the readback buffer.
+    pub(super) fn size(&self, layers: u32, texel: u64) -> u64 {
+        let layer = self.width as u64 * self.height as u64 * texel;
+        layer * (layers as u64 + 1) + self.readback.size()
+    }
+}
+
+impl ErtTargets {
+    fn new(
+        device: &wgpu::Device,
+        (width, height): (u32, u32),
+        p: &ErtPipelines,
+        accum_view: &wgpu::TextureView,
+    ) -> Self {
+        let depth = texture(
+            device,
+            "shells termination mask",
+            (width, height, 1),
+            ERT_DEPTH,
+            wgpu::TextureUsages::RENDER_ATTACHMENT,
+        );
+        let tiles = TileMask::dims(width, height);
+        let bytes = 4 * tiles.0 as u64 * tiles.1 as u64;
+        let buffer = |label, usage| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        use wgpu::BufferUsages as B;
+        let flags = buffer("shells tile flags", B::STORAGE | B::COPY_SRC | B::COPY_DST);
+        let flags_readback = buffer("shells tile flags readback", B::MAP_READ | B::COPY_DST);
+        let accum_entry = wgpu::BindGroupEntry {
+            binding: 0,
+            resource: wgpu::BindingResource::TextureView(accum_view),
+        };
+        let mark_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("shells mark"),
+            layout: &p.mark_layout,
+            entries: std::slice::from_ref(&accum_entry),
+        });
+        let tiles_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("shells tiles"),
+            layout: &p.tiles_layout,
+            entries: &[accum_entry.clone(), entry(1, &flags)],
+        });
+        Self {
+            depth_view: depth.create_view(&Default::default()),
+            mark_group,
+            tiles_group,
+            flags,
+            flags_readback,
+            tiles,
+        }
+    }
+}

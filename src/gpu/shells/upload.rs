@@ -1,0 +1,266 @@
+//! Stage 2 of a shells frame: the upload of the frame constants, the transfer function, the
+//! per-shell constants and the active lists (chunk-local tet ids), and the face index pattern.
+
+use std::ops::Range;
+
+use bytemuck::Zeroable;
+use rayon::prelude::*;
+
+use crate::gpu::gpu_data::{FrameUniforms, ShellUniforms};
+use crate::gpu::mesh::MeshData;
+use crate::gpu::tf::tf_points;
+use crate::gpu::util::settings_error;
+use crate::mesh::topology::FACES;
+use crate::render::RenderError;
+use crate::tf::TransferFunction;
+
+use super::ShellsRenderer;
+use super::binning::{Binning, EVERYWHERE, ShellRange};
+use super::plan::FramePlan;
+
+/// A shell to draw: its index and its ranges of the active list.
+pub(super) type DrawnShell = (u32, ShellRange);
+
+impl ShellsRenderer {
+    /// Uploads what the GPU stages of a frame with `n` slices per shell read, and returns the
+    /// shells to draw: the non-empty ones, or every shell over the whole image without
+    /// empty-space skipping.
+    pub(super) fn upload(
+        &mut self,
+        m: &MeshData,
+        plan: &FramePlan,
+        tf: &TransferFunction,
+        (n, bin): (u32, &Binning),
+    ) -> Result<Vec<DrawnShell>, RenderError> {
+        let view = plan.view;
+        let near = (0.5 * plan.near_z) as f32;
+        let frame = FrameUniforms {
+            t_first: plan.t_first as f32,
+            dz: plan.dz as f32,
+            slices_per_shell: n,
+            tf_count: tf.points().len() as u32,
+            ..view.uniforms(m.origin, self.settings.epsilon, near, m.tets.len() as u32)
+        };
+        self.queue
+            .write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&frame));
+        let points = tf_points(tf, m.scalar_min, m.scalar_span)?;
+        self.queue
+            .write_buffer(&self.tf_buf, 0, bytemuck::bytes_of(&points));
+        let drawn = self.drawn_shells(bin);
+        self.upload_shells(&drawn, n);
+        self.upload_instances(bin, m.tets.len() as u32)?;
+        Ok(drawn)
+    }
+
+    fn drawn_shells(&self, bin: &Binning) -> Vec<DrawnShell> {
+        let empty_space = self.settings.skips.empty_space;
+        (bin.shells.iter().enumerate())
+            .filter(|(_, r)| !empty_space || !r.faces.is_empty() || !r.near.is_empty())
+            .map(|(s, r)| {
+                let screen = if empty_space { r.screen } else { EVERYWHERE };
+                let range = ShellRange {
+                    screen,
+                    ..r.clone()
+                };
+                (s as u32, range)
+            })
+            .collect()
+    }
+
+    /// Each drawn shell's first slice, at the dynamic-offset stride.
+    fn upload_shells(&mut self, drawn: &[DrawnShell], n: u32) {
+        let stride = self.shell_stride as usize;
+        let mut shell_data = vec![0u8; stride * drawn.len().max(1)];
+        for (i, (s, _)) in drawn.iter().enumerate() {
+            let u = ShellUniforms {
+                first_slice: s * n,
+                ..Zeroable::zeroed()
+            };
+            shell_data[i * stride..i * stride + size_of::<ShellUniforms>()]
+                .copy_from_slice(bytemuck::bytes_of(&u));
+        }
+        let gpu = (&self.device, &self.queue, &self.limits);
+        let uniform = wgpu::BufferUsages::UNIFORM;
+        write_grown(gpu, &mut self.shell_buf, &shell_data, uniform);
+    }
+
+    /// The active list (in windows of one storage binding) and, grown when needed, the face
+    /// index pattern: each tet-shell instance is 12 indices of one draw (u32), in an index
+    /// buffer grown to a power of two of the instances of a window, at most one buffer.
+    fn upload_instances(&mut self, bin: &Binning, tet_count: u32) -> Result<(), RenderError> {
+        let n = bin.indices.len() as u64;
+        self.instances = InstanceLayout::new(n, &self.limits).ok_or_else(|| {
+            settings_error(format!(
+                "this view draws {n} tet-shell instances, more than one buffer holds on this \
+                 adapter; use more slices per shell or a larger dz"
+            ))
+        })?;
+        let tets = self.instances.batch as usize;
+        let gpu = (&self.device, &self.queue, &self.limits);
+        if self.face_indices.size() < 48 * tets as u64 {
+            let pattern: Vec<u32> = (0..tets as u32)
+                .flat_map(|k| FACES.iter().flatten().map(move |&c| 4 * k + c as u32))
+                .collect();
+            let index = wgpu::BufferUsages::INDEX;
+            write_grown(
+                gpu,
+                &mut self.face_indices,
+                bytemuck::cast_slice(&pattern),
+                index,
+            );
+        }
+        let chunk_tets = self.chunking.chunk as u32;
+        let active = chunk_local(&bin.indices, chunk_tets, tet_count);
+        let storage = wgpu::BufferUsages::STORAGE;
+        let data = bytemuck::cast_slice(&active);
+        write_grown(gpu, &mut self.active_buf, data, storage);
+        Ok(())
+    }
+}
+
+/// The active list as the raster shaders index it: tet ids relative to their chunk's first.
+pub(super) fn chunk_local(ids: &[u32], chunk_tets: u32, tets: u32) -> std::borrow::Cow<'_, [u32]> {
+    if tets <= chunk_tets {
+        ids.into()
+    } else {
+        ids.par_iter()
+            .map(|&t| t % chunk_tets)
+            .collect::<Vec<_>>()
+            .into()
+    }
+}
+
+/// Writes `data` to `*buf`, first growing it (to a power of two, at most the adapter's largest
+/// buffer) when it is too small.
+fn write_grown(
+    (device, queue, limits): (&wgpu::Device, &wgpu::Queue, &wgpu::Limits),
+    buf: &mut wgpu::Buffer,
+    data: &[u8],
+    usage: wgpu::BufferUsages,
+) {
+    if buf.size() < data.len() as u64 {
+        let bytes = data.len() as u64;
+        *buf = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("shells per-frame data"),
+            size: bytes
+                .next_power_of_two()
+                .min(limits.max_buffer_size)
+                .max(bytes),
+            usage: usage | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+    }
+    if !data.is_empty() {
+        queue.write_buffer(buf, 0, data);
+    }
+}
+
+/// How a frame's tet-shell instances are drawn: the active list bound in windows of `window`
+/// entries (each within one storage binding, at an aligned offset), and each draw of faces
+/// within a batch of `batch` instances, which the face index pattern covers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct InstanceLayout {
+    /// Active-list entries per window (all of them when they fit one binding).
+    pub(super) window: u32,
+    /// Number of windows.
+    pub(super) windows: u32,
+    /// Instances the face index pattern covers.
+    pub(super) batch: u32,
+}
+
+impl InstanceLayout {
+    /// The layout of `n` instances on an adapter with `limits`; `None` when the active list
+    /// does not fit one buffer.
+    pub(super) fn new(n: u64, limits: &wgpu::Limits) -> Option<Self> {
+        let max_buffer = limits.max_buffer_size;
+        let max_binding = limits.max_storage_buffer_binding_size.min(max_buffer);
+        if n * 4 > max_buffer {
+            return None;
+        }
+        let align = (limits.min_storage_buffer_offset_alignment as u64 / 4).max(1);
+        // Vertex indices (4 per instance, with the draw's base vertex) stay below 2^31.
+        let window = if n * 4 <= max_binding {
+            n.max(1)
+        } else {
+            (max_binding / 4 / align * align).min(1 << 28)
+        };
+        let batch = (window.min(n).max(1).next_power_of_two())
+            .min(max_buffer / 48)
+            .min(u32::MAX as u64 / 12);
+        (window > 0 && batch > 0).then(|| Self {
+            window: window as u32,
+            windows: n.div_ceil(window).max(1) as u32,
+            batch: batch as u32,
+        })
+    }
+
+    /// The pieces of the active-list range `range` to draw: per window `w`, the range relative
+    /// to the window's start, split at batches, with its batch's first instance.
+    pub(super) fn pieces(&self, range: Range<u32>) -> Vec<(usize, Range<u32>, u32)> {
+        let (window, batch) = (self.window, self.batch);
+        let mut out = Vec::new();
+        let mut s = range.start;
+        while s < range.end {
+            let w = s / window;
+            let base = w * window;
+            let local = s - base;
+            let first = local / batch * batch;
+            let end = range.end.min(base + window).min(base + first + batch);
+            out.push((w as usize, local..end - base, first));
+            s = end;
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pieces_stay_within_a_window_and_a_batch() {
+        let layout = InstanceLayout {
+            window: 100,
+            windows: 3,
+            batch: 32,
+        };
+        assert_eq!(
+            layout.pieces(90..140),
+            vec![
+                (0, 90..96, 64),
+                (0, 96..100, 96),
+                (1, 0..32, 0),
+                (1, 32..40, 32)
+            ]
+        );
+        let whole = InstanceLayout {
+            window: 1000,
+            windows: 1,
+            batch: 1024,
+        };
+        assert_eq!(whole.pieces(5..700), vec![(0, 5..700, 0)]);
+        assert_eq!(whole.pieces(7..7), vec![]);
+    }
+
+    #[test]
+    fn instances_beyond_one_binding_get_aligned_windows() {
+        let limits = wgpu::Limits {
+            max_storage_buffer_binding_size: 1 << 16,
+            max_buffer_size: 1 << 20,
+            min_storage_buffer_offset_alignment: 256,
+            ..wgpu::Limits::default()
+        };
+        // Fits one binding: one window of all, the pattern a power of two of them.
+        let small = InstanceLayout::new(1000, &limits).unwrap();
+        assert_eq!((small.window, small.windows, small.batch), (1000, 1, 1024));
+        // 20,000 entries (80 KB) in windows of 16,384 (64 KiB, offsets aligned to 256 bytes);
+        // the pattern covers 21,845 instances at most (1 MiB / 48 bytes).
+        let large = InstanceLayout::new(20_000, &limits).unwrap();
+        assert_eq!(
+            (large.window, large.windows, large.batch),
+            (16_384, 2, 16_384)
+        );
+        // More than one buffer holds.
+        assert_eq!(InstanceLayout::new(1 << 19, &limits), None);
+    }
+}
