@@ -10,8 +10,9 @@
 # Each target's corpus grows in fuzz/corpus/TARGET (not in git), starting from fuzz/seeds/TARGET.
 # libFuzzer runs in fork mode so a finding does not end the run: every crash, timeout (over 1 s)
 # and out-of-memory case (over 2 GB resident, or one allocation over 1 GB) is kept in
-# fuzz/artifacts/TARGET/ (emptied at the start of each run of that target). The script fails if a target found anything, unless the target is
-# listed in fuzz/known-open-targets (findings in readers another change is fixing).
+# fuzz/artifacts/TARGET/ (emptied at the start of each run of that target). The script fails if
+# a target found anything, unless the target is listed in fuzz/known-open-targets (findings
+# whose fix is pending).
 #
 # Exit status: 0 clean, 1 findings or a build failure, 2 no C++ compiler and none could be
 # installed (the caller then relies on the corpus replay in `cargo test --test fuzz_replay`).
