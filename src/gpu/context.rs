@@ -120,7 +120,7 @@ impl GpuContext {
     }
 
     /// Whether this is a software rasterizer (lavapipe and the like).
-    pub fn is_software(&self) -> bool {
+    pub(crate) fn is_software(&self) -> bool {
         self.info.device_type == wgpu::DeviceType::Cpu
     }
 

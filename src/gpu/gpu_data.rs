@@ -103,7 +103,7 @@ pub struct TfPoint {
 const _: () = assert!(size_of::<TfPoint>() == 32);
 
 /// The most control points the shells composite evaluates (a uniform array of 8 KiB).
-pub const MAX_TF_POINTS: usize = 256;
+pub(crate) const MAX_TF_POINTS: usize = 256;
 
 /// The transfer function as a uniform block (WGSL `TfPoints`).
 #[repr(C)]

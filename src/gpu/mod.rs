@@ -1,17 +1,17 @@
 //! GPU access: a headless wgpu device, and (as modes land) the GPU renderers.
 
-pub mod assembly;
+pub(crate) mod assembly;
 pub mod cellproj;
 mod context;
-pub mod frame;
+pub(crate) mod frame;
 pub mod gpu_data;
 pub mod iso;
 pub mod mesh;
 pub mod shaders;
 pub mod shells;
-pub mod tf;
+pub(crate) mod tf;
 mod util;
-pub mod view;
+pub(crate) mod view;
 
 pub use cellproj::{CellProjRenderer, CellProjSettings, Integrate};
 pub use context::{AdapterChoice, GpuContext, GpuError};

@@ -35,7 +35,7 @@
 //! counts the pairs drawn in the wrong order. Non-convex meshes add nothing new: rays that
 //! leave and re-enter just cross more tets, and the order is what it is.
 
-pub mod preint;
+pub(crate) mod preint;
 mod raster;
 pub mod sort;
 pub mod twin;

@@ -50,7 +50,7 @@ impl VertexTets {
 }
 
 /// The distinct vertices of `tets`, ascending.
-pub fn vertices_of(tets: &[[u32; 4]]) -> Vec<u32> {
+pub(crate) fn vertices_of(tets: &[[u32; 4]]) -> Vec<u32> {
     let mut v: Vec<u32> = tets.par_iter().flat_map_iter(|t| *t).collect();
     v.par_sort_unstable();
     v.dedup();

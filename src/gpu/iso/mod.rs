@@ -33,7 +33,7 @@
 
 pub mod gradients;
 mod raster;
-pub mod select;
+pub(crate) mod select;
 mod upload;
 
 use std::sync::Arc;

@@ -42,14 +42,14 @@
 //! or adapters without blendable 32-bit float targets) `1 + u` keeps 10 mantissa bits: `u` is
 //! quantized to 1/1024 of the scalar range, and the accumulation keeps about 3 decimal digits.
 
-pub mod adaptive;
-pub mod binning;
+pub(crate) mod adaptive;
+pub(crate) mod binning;
 mod composite;
 mod config;
 mod pipelines;
 mod plan;
 mod raster;
-pub mod skips;
+pub(crate) mod skips;
 mod targets;
 mod termination;
 pub mod twin;

@@ -93,7 +93,7 @@ impl FromStr for Skip {
 /// region, a few samples: on bluntfin's opaque scene (examples/skips_bench.rs) 0.99999
 /// finishes 69,049 pixels where 0.998 finishes 71,171, and drops 87.7% of the raster fragments
 /// where 0.998 drops 91.7%.
-pub const DEFAULT_ERT_THRESHOLD: f32 = 0.99999;
+pub(crate) const DEFAULT_ERT_THRESHOLD: f32 = 0.99999;
 
 /// Which skips the shells renderer uses; all on by default (see the module docs).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -166,11 +166,11 @@ impl Skips {
 
 /// Side of the square screen tiles of the early-termination mask, in pixels (the tile
 /// compute pass in `shaders/shells_mark.wgsl` uses the same number).
-pub const TILE: u32 = 16;
+pub(crate) const TILE: u32 = 16;
 
 /// Which screen tiles still have an unfinished pixel, as read back from the GPU.
 #[derive(Clone, Debug, PartialEq)]
-pub struct TileMask {
+pub(crate) struct TileMask {
     pub tiles_x: u32,
     pub tiles_y: u32,
     /// Row-major, `true` where a pixel of the tile is unfinished.
@@ -179,13 +179,13 @@ pub struct TileMask {
 
 impl TileMask {
     /// The tile grid of a `width` x `height` image.
-    pub fn dims(width: u32, height: u32) -> (u32, u32) {
+    pub(crate) fn dims(width: u32, height: u32) -> (u32, u32) {
         (width.div_ceil(TILE), height.div_ceil(TILE))
     }
 
     /// The part of pixel rectangle `[x, y, w, h]` covered by its unfinished tiles (the
     /// rectangle cut to their bounding box), or `None` when all its tiles are finished.
-    pub fn cut(&self, [x, y, w, h]: [u32; 4]) -> Option<[u32; 4]> {
+    pub(crate) fn cut(&self, [x, y, w, h]: [u32; 4]) -> Option<[u32; 4]> {
         if w == 0 || h == 0 {
             return None;
         }
