@@ -20,7 +20,9 @@ use crate::gpu::util::{bind_group_layout, buffer_entry, compute_main, entry};
 /// `tets[offsets[v] as usize..offsets[v + 1] as usize]`, in increasing tet order.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct VertexTets {
+    /// `vertex_count + 1` running totals: vertex `v`'s tets start at `offsets[v]`.
     pub offsets: Vec<u32>,
+    /// Tet indices, each tet once under each of its four vertices.
     pub tets: Vec<u32>,
 }
 

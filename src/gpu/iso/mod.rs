@@ -65,6 +65,8 @@ pub struct IsoSettings {
     /// (isovalue in data units, linear RGB colour), at most [`MAX_ISOVALUES`]. Empty: one
     /// isovalue at the middle of the active scalar range, light grey.
     pub isovalues: Vec<(f64, [f32; 3])>,
+    /// Flat (each tet's constant gradient; the default) or smooth (per-vertex gradients from
+    /// an extra compute stage, recomputed when the positions or scalars change).
     pub shading: Shading,
     /// Inside tolerance on the smallest barycentric coordinate (see the shells mode's).
     pub epsilon: f32,
@@ -93,7 +95,7 @@ fn near_z(radius: f64) -> f32 {
 }
 
 /// Default surface colour.
-pub const DEFAULT_COLOR: [f32; 3] = [0.8, 0.8, 0.8];
+pub(crate) const DEFAULT_COLOR: [f32; 3] = [0.8, 0.8, 0.8];
 
 /// The isosurface renderer; see the module docs.
 pub struct IsoRenderer {

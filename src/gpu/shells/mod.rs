@@ -49,7 +49,7 @@ mod config;
 mod pipelines;
 mod plan;
 mod raster;
-pub(crate) mod skips;
+pub mod skips;
 mod targets;
 mod termination;
 pub mod twin;
@@ -109,6 +109,10 @@ pub struct ShellSettings {
     /// at least `-epsilon`. Overlapping claims at shared faces are harmless under MAX (the
     /// scalar is continuous there); gaps would be holes.
     pub epsilon: f32,
+    /// The float format of the slice targets (default [`SliceFormat::Auto`]): 32-bit slices
+    /// keep the normalized scalar to f32, 16-bit ones quantize it to 1/1024 of the scalar
+    /// range and take half the target memory. `Float32` is an error on adapters without
+    /// `FLOAT32_BLENDABLE`.
     pub format: SliceFormat,
     /// Work the renderer skips where a scene does not need it (all on by default).
     pub skips: Skips,

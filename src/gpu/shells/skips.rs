@@ -20,7 +20,7 @@
 //!   empty and cost nothing. Off: every tet is binned and left to the rasterizer's clipping.
 //! - **Adaptive slices** ([`Skip::AdaptiveSlices`]): each frame's slices per shell are chosen
 //!   from the tets' depth extents in slices so that the predicted work is least (see
-//!   [`super::adaptive`]): thin tets get few slices per shell (fewer empty slices written per
+//!   the shells module's adaptive stage): thin tets get few slices per shell (fewer empty slices written per
 //!   fragment), deep ones many (fewer instances and passes). Slice positions do not depend on
 //!   it. Off, or with an explicit [`super::ShellSettings::slices_per_shell`] (which overrides
 //!   it), every frame uses that fixed count or the adapter's default.
@@ -31,10 +31,17 @@ use std::str::FromStr;
 /// One of the skips, as named on the command line (`--no-skip tf-cull,frustum`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Skip {
+    /// `tf-cull`: tets the transfer function makes fully transparent are not binned.
     TfCull,
+    /// `empty-space`: shells with no tet are not drawn, the others only over their tets'
+    /// screen rectangle.
     EmptySpace,
+    /// `early-termination`: pixels whose alpha reached [`Skips::ert_threshold`] get no more
+    /// work, and the frame stops when none is left.
     EarlyTermination,
+    /// `frustum`: tets outside the view frustum are not binned.
     Frustum,
+    /// `adaptive-slices`: the slices per shell are chosen per frame from the tets' depths.
     AdaptiveSlices,
 }
 
@@ -98,11 +105,17 @@ pub(crate) const DEFAULT_ERT_THRESHOLD: f32 = 0.99999;
 /// Which skips the shells renderer uses; all on by default (see the module docs).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Skips {
+    /// [`Skip::TfCull`].
     pub tf_cull: bool,
+    /// [`Skip::EmptySpace`].
     pub empty_space: bool,
+    /// [`Skip::EarlyTermination`].
     pub early_termination: bool,
-    /// Accumulated alpha at which a pixel is finished, in `(0, 1]`.
+    /// Accumulated alpha at which a pixel is finished, in `(0, 1]`; default 0.99999, so a
+    /// finished pixel drops at most 1e-5 per channel. Lower it to trade that error for speed
+    /// in opaque scenes.
     pub ert_threshold: f32,
+    /// [`Skip::Frustum`].
     pub frustum: bool,
     /// Slices per shell chosen per frame (unless fixed by the settings).
     pub adaptive_slices: bool,
