@@ -1,7 +1,7 @@
 //! The mesh's GPU side, built once per mesh and shared by every mode ([`GpuTetMesh`]): the f64
 //! frame of reference (bounding-box centre, bounding-sphere radius, scalar frame), the CPU
 //! copies the per-frame CPU stages read, the vertex buffers (positions, scalars), and per-tet
-//! arrays ([`TetArray`]) cut into chunks that each fit one storage binding and spread over as
+//! arrays cut into chunks that each fit one storage binding and spread over as
 //! many buffers as the adapter's largest buffer needs, so no single buffer's limit caps the
 //! mesh.
 //!

@@ -16,7 +16,7 @@
 //! no volume, so it is left out of the order and counted.
 //!
 //! Ties (equal powers up to rounding, as for the cospherical tets of a grid cube) are broken
-//! by the distance from the eye to the centroid; see [`SortKeys`].
+//! by the distance from the eye to the centroid.
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -158,7 +158,8 @@ pub struct SortCheck {
     /// Pairs of tets crossed by the same ray (each pair overlaps on screen along that ray, so
     /// its drawing order matters).
     pub pairs: u64,
-    /// Pairs whose powers differ (beyond [`TIE_TOLERANCE`]) and are drawn the wrong way round:
+    /// Pairs whose powers differ (by more than 1e-9 of `scale^2`, `scale` the eye's distance
+    /// to the mesh centre plus its bounding radius) and are drawn the wrong way round:
     /// the power order itself is wrong there (not Delaunay).
     pub wrong_pairs: u64,
     /// Pairs with equal powers (a tie, e.g. cospherical tets of a grid cube) that the

@@ -1,6 +1,6 @@
 //! The smooth-shading stage: per-vertex gradients recomputed on the GPU every frame
 //! (`shaders/iso_gradients.wgsl`), since vertices may move between frames; only for the
-//! vertices of the selected tets ([`vertices_of`]), the only ones the raster reads.
+//! vertices of the selected tets, the only ones the raster reads.
 //!
 //! Definition (the same as the reference's f64 [`crate::reference::iso::vertex_gradients`],
 //! computed independently): at each vertex, the volume-weighted mean of the gradients of the
