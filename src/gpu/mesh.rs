@@ -143,8 +143,9 @@ impl GpuTetMesh {
         Ok(Arc::new(gpu))
     }
 
-    /// The CPU side (a read lock; updates wait for it). The other methods take no lock, so a
-    /// renderer may call them while it holds this one.
+    /// The CPU side (a read lock; updates wait for it): what the CPU stages and the CPU twins
+    /// read, public for tests and diagnostics. The other methods take no lock, so a renderer
+    /// may call them while it holds this one.
     pub fn read(&self) -> RwLockReadGuard<'_, MeshData> {
         self.data.read().unwrap_or_else(PoisonError::into_inner)
     }

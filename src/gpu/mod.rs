@@ -1,4 +1,16 @@
-//! GPU access: a headless wgpu device, and (as modes land) the GPU renderers.
+//! The GPU modes on a headless wgpu device.
+//!
+//! Open a [`GpuContext`] (a real GPU if there is one, else Mesa's lavapipe), then build a
+//! renderer from its settings: [`ShellsRenderer`] ([`ShellSettings`], the volume renderer),
+//! [`IsoRenderer`] ([`IsoSettings`], isosurfaces) or [`CellProjRenderer`]
+//! ([`CellProjSettings`], cell projection); each implements [`crate::Renderer`]. Renderers of
+//! one mesh may share its GPU side, a [`GpuTetMesh`], through their `with_mesh` constructors.
+//! [`crate::ModeSettings`] builds any of them (and the CPU reference) from one value.
+//!
+//! Also public, for testing and diagnostics: the WGSL sources ([`shaders`]) and the Rust
+//! layouts of their structs ([`gpu_data`]), and the CPU twins of the tricky shader arithmetic
+//! ([`shells::twin`], [`cellproj::twin`], [`iso::gradients`]), which the tests compare with
+//! the shaders. Every other stage is internal.
 
 pub(crate) mod assembly;
 pub mod cellproj;

@@ -70,7 +70,7 @@ impl ViewFrame {
     }
 
     /// Every position in eye space with its frustum [`outcode`].
-    pub(crate) fn to_eye_space(&self, positions: &[DVec3]) -> Vec<(DVec3, u8)> {
+    pub(crate) fn to_eye_space(self, positions: &[DVec3]) -> Vec<(DVec3, u8)> {
         to_eye_space(positions, self.eye, self.basis, self.slope)
     }
 
