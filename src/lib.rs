@@ -15,9 +15,6 @@ pub mod camera;
 pub mod deform;
 pub mod export;
 pub mod generate;
-// The GPU modes are being restructured (issue 14, items 1-5), which documents them; until then
-// their missing docs are allowed here so the rest of the crate's stay visible.
-#[allow(missing_docs)]
 pub mod gpu;
 pub mod image;
 pub mod io;

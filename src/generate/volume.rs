@@ -8,7 +8,7 @@
 //! `scl_slope`/`scl_inter` applied, in one scalar array named `intensity`.
 //!
 //! tetvr reads the header itself and checks every field it uses before reading a voxel
-//! ([`header`]): `bitpix` must match `datatype`, only real scalar types are read (RGB, complex
+//! (`volume/header.rs`): `bitpix` must match `datatype`, only real scalar types are read (RGB, complex
 //! and the rest are refused by name), the voxels start at `vox_offset`, extension records must
 //! have a valid size, and the mesh may have at most [`MAX_VOLUME_VERTICES`] vertices (a larger
 //! volume is refused with the `--downsample` factor that fits). Voxels are read one row at a

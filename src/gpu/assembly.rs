@@ -14,13 +14,13 @@ use crate::gpu::util::{bind_group_layout, buffer_entry, compute_main, entry};
 /// the longest, is at most this times the product of their lengths: its barycentric transform
 /// would amplify f32 rounding by more than ~1e6. Such a tet has at most 1e-6 of the volume of a
 /// regular tet with the same longest edge, so skipping it loses no visible sample.
-pub const DEGENERATE_TOL: f32 = 1e-6;
+pub(crate) const DEGENERATE_TOL: f32 = 1e-6;
 
 /// Bytes of one record.
-pub const RECORD_BYTES: u64 = size_of::<TetRecord>() as u64;
+pub(crate) const RECORD_BYTES: u64 = size_of::<TetRecord>() as u64;
 
 /// The assembly pipeline and the count of degenerate tets it skipped.
-pub struct AssemblyStage {
+pub(crate) struct AssemblyStage {
     layout: wgpu::BindGroupLayout,
     pipeline: wgpu::ComputePipeline,
     /// One u32: the degenerate tets of the last assembly.
@@ -28,10 +28,10 @@ pub struct AssemblyStage {
 }
 
 /// The bind groups of one assembly: per chunk, the group and its tet count.
-pub struct AssemblyGroups(Vec<(wgpu::BindGroup, u64)>);
+pub(crate) struct AssemblyGroups(Vec<(wgpu::BindGroup, u64)>);
 
 /// What one assembly reads and writes: record `k` is built from list entry `k`.
-pub struct AssemblyInputs<'a> {
+pub(crate) struct AssemblyInputs<'a> {
     /// The frame uniforms (`tet_count` bounds the list).
     pub frame: &'a wgpu::Buffer,
     /// The mesh's vertex buffers.
@@ -44,7 +44,7 @@ pub struct AssemblyInputs<'a> {
 
 impl AssemblyStage {
     /// Builds the pipeline.
-    pub fn new(device: &wgpu::Device) -> Self {
+    pub(crate) fn new(device: &wgpu::Device) -> Self {
         use wgpu::ShaderStages as S;
         let ro = wgpu::BufferBindingType::Storage { read_only: true };
         let rw = wgpu::BufferBindingType::Storage { read_only: false };
@@ -78,7 +78,7 @@ impl AssemblyStage {
 
     /// The bind groups assembling the `chunks` (from [`crate::gpu::mesh::Chunking::ranges`])
     /// of `inputs`' list.
-    pub fn bind(
+    pub(crate) fn bind(
         &self,
         device: &wgpu::Device,
         inputs: &AssemblyInputs,
@@ -107,7 +107,7 @@ impl AssemblyStage {
 
     /// Encodes the assembly in one compute pass (timed by `timestamps`), after zeroing the
     /// degenerate count. `max_groups`: the adapter's workgroups per dimension.
-    pub fn encode(
+    pub(crate) fn encode(
         &self,
         enc: &mut wgpu::CommandEncoder,
         groups: &AssemblyGroups,
@@ -129,7 +129,7 @@ impl AssemblyStage {
     }
 
     /// The degenerate count of the last assembly (one u32), for the frame's stats readback.
-    pub fn degenerate(&self) -> &wgpu::Buffer {
+    pub(crate) fn degenerate(&self) -> &wgpu::Buffer {
         &self.degenerate
     }
 }

@@ -21,43 +21,82 @@ impl AdapterChoice {
     }
 }
 
+/// Why the GPU could not be opened or could not do what a renderer asked of it.
 #[derive(Debug, thiserror::Error)]
 pub enum GpuError {
+    /// No adapter (or no software adapter, when one was asked for) was found: no Vulkan, Metal
+    /// or DX12 driver is installed.
     #[error(
         "no GPU adapter found{detail}. tetvr needs Vulkan (or Metal/DX12). Without a GPU, install \
          Mesa's software Vulkan driver: `apt-get install mesa-vulkan-drivers libvulkan1` \
          (Debian/Ubuntu), or render with --mode reference on the CPU"
     )]
-    NoAdapter { detail: String },
+    NoAdapter {
+        /// Empty, or why the search was narrowed (`TETVR_ADAPTER=software`).
+        detail: String,
+    },
+    /// The adapter was found but refused a device with its own limits and the optional
+    /// features tetvr asks for (a driver problem: update or change the driver).
     #[error("the adapter '{adapter}' refused a device: {source}")]
     Device {
+        /// The adapter's name.
         adapter: String,
+        /// wgpu's reason.
         source: wgpu::RequestDeviceError,
     },
+    /// A setting needs a feature or limit the adapter lacks (32-bit float slices without
+    /// `FLOAT32_BLENDABLE`, or not one colour target of the slice format): change that setting
+    /// or the adapter.
     #[error("the adapter '{adapter}' lacks {what}, which {needed_by} needs")]
     Missing {
+        /// The adapter's name.
         adapter: String,
+        /// The missing feature or limit, with the adapter's value.
         what: String,
+        /// The setting that needs it.
         needed_by: &'static str,
     },
+    /// The adapter ran out of memory allocating a mesh's GPU buffers: the mesh is too large
+    /// for this adapter's memory (its per-buffer limits are not the cause; arrays over them
+    /// are split into several buffers).
     #[error(
         "the adapter '{adapter}' ran out of memory for {bytes} bytes of mesh data; render a \
          smaller mesh (or split it), or use an adapter with more memory"
     )]
-    OutOfMemory { adapter: String, bytes: u64 },
+    OutOfMemory {
+        /// The adapter's name.
+        adapter: String,
+        /// The bytes of mesh data that did not fit.
+        bytes: u64,
+    },
+    /// Waiting for submitted GPU work failed (device lost or a timeout).
     #[error("GPU work failed: {0}")]
     Poll(#[from] wgpu::PollError),
+    /// Mapping a result buffer for reading failed (device lost).
     #[error("reading back a GPU buffer failed: {0}")]
     Map(#[from] wgpu::BufferAsyncError),
 }
 
 /// A device and queue with the adapter's full limits, plus what tetvr needs to know of it.
+///
+/// The fields are public so that a caller can share its own device with tetvr, or declare
+/// lower limits than the adapter's (the tests lower `limits.max_storage_buffer_binding_size`
+/// and `limits.max_buffer_size` to exercise chunked buffers on small meshes): the renderers
+/// size everything from `limits` and `features`, never from the adapter directly.
 pub struct GpuContext {
+    /// The adapter the device was opened on.
     pub adapter: wgpu::Adapter,
+    /// The device every renderer records on.
     pub device: wgpu::Device,
+    /// The device's queue.
     pub queue: wgpu::Queue,
+    /// The adapter's name, type, backend and driver (see [`GpuContext::summary`]).
     pub info: wgpu::AdapterInfo,
+    /// The limits renderers plan for: binding and buffer sizes, colour targets. Must not exceed
+    /// what the device was opened with.
     pub limits: wgpu::Limits,
+    /// The optional features the device has: `FLOAT32_BLENDABLE` (32-bit float slices in the
+    /// shells mode) and `TIMESTAMP_QUERY` (GPU stage timings); others are unused.
     pub features: wgpu::Features,
 }
 
@@ -120,7 +159,7 @@ impl GpuContext {
     }
 
     /// Whether this is a software rasterizer (lavapipe and the like).
-    pub fn is_software(&self) -> bool {
+    pub(crate) fn is_software(&self) -> bool {
         self.info.device_type == wgpu::DeviceType::Cpu
     }
 

@@ -16,7 +16,7 @@ use crate::render::RenderError;
 const OCCLUSION_AT: u64 = 256;
 
 /// Query sets and statistics buffers kept across frames.
-pub struct FrameResources {
+pub(crate) struct FrameResources {
     gpu_clock: bool,
     timestamps: Option<wgpu::QuerySet>,
     occlusion: Option<wgpu::QuerySet>,
@@ -28,7 +28,7 @@ pub struct FrameResources {
 
 impl FrameResources {
     /// Nothing allocated yet; `gpu_clock`: the adapter has timestamp queries.
-    pub fn new(gpu_clock: bool) -> Self {
+    pub(crate) fn new(gpu_clock: bool) -> Self {
         Self {
             gpu_clock,
             timestamps: None,
@@ -40,7 +40,7 @@ impl FrameResources {
 
     /// A recorder for a frame of at most `passes` timed passes and `occlusion` occlusion
     /// queries (0: none), growing the query sets and buffers when they are too small.
-    pub fn recorder<'a>(
+    pub(crate) fn recorder<'a>(
         &'a mut self,
         device: &'a wgpu::Device,
         queue: &'a wgpu::Queue,
@@ -83,7 +83,7 @@ impl FrameResources {
     }
 
     /// Bytes of the statistics buffers.
-    pub fn size(&self) -> u64 {
+    pub(crate) fn size(&self) -> u64 {
         [&self.stats, &self.resolve]
             .into_iter()
             .flatten()
@@ -138,14 +138,14 @@ fn grown_buffer<'a>(
 }
 
 /// The timestamp pair of one pass.
-pub struct Timestamps<'a> {
+pub(crate) struct Timestamps<'a> {
     set: &'a wgpu::QuerySet,
     begin: u32,
 }
 
 impl<'a> Timestamps<'a> {
     /// The pair for a compute pass.
-    pub fn compute(&self) -> wgpu::ComputePassTimestampWrites<'a> {
+    pub(crate) fn compute(&self) -> wgpu::ComputePassTimestampWrites<'a> {
         wgpu::ComputePassTimestampWrites {
             query_set: self.set,
             beginning_of_pass_write_index: Some(self.begin),
@@ -154,7 +154,7 @@ impl<'a> Timestamps<'a> {
     }
 
     /// The pair for a render pass.
-    pub fn render(&self) -> wgpu::RenderPassTimestampWrites<'a> {
+    pub(crate) fn render(&self) -> wgpu::RenderPassTimestampWrites<'a> {
         wgpu::RenderPassTimestampWrites {
             query_set: self.set,
             beginning_of_pass_write_index: Some(self.begin),
@@ -164,7 +164,7 @@ impl<'a> Timestamps<'a> {
 }
 
 /// Records a frame's passes and times them; see the module docs.
-pub struct Recorder<'a> {
+pub(crate) struct Recorder<'a> {
     device: &'a wgpu::Device,
     queue: &'a wgpu::Queue,
     encoder: Option<wgpu::CommandEncoder>,
@@ -183,7 +183,7 @@ pub struct Recorder<'a> {
 }
 
 /// What [`Recorder::finish`] read back.
-pub struct FrameStats {
+pub(crate) struct FrameStats {
     /// Degenerate tets the assembly skipped.
     pub degenerate: u32,
     /// Sum of the occlusion queries used (`None` when the frame had none).
@@ -196,7 +196,7 @@ pub struct FrameStats {
 
 impl FrameStats {
     /// The milliseconds charged to `stage` (0 when it did not run).
-    pub fn stage(&self, stage: &str) -> f64 {
+    pub(crate) fn stage(&self, stage: &str) -> f64 {
         self.stages
             .iter()
             .find(|(s, _)| *s == stage)
@@ -206,7 +206,7 @@ impl FrameStats {
 
 impl<'a> Recorder<'a> {
     /// The open command encoder (a new one after a submit).
-    pub fn encoder(&mut self) -> &mut wgpu::CommandEncoder {
+    pub(crate) fn encoder(&mut self) -> &mut wgpu::CommandEncoder {
         self.encoder.get_or_insert_with(|| {
             self.device
                 .create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -216,7 +216,7 @@ impl<'a> Recorder<'a> {
     }
 
     /// The timestamp pair of the next pass, charged to `stage` (`None` without timestamps).
-    pub fn timestamps(&mut self, stage: &'static str) -> Option<Timestamps<'a>> {
+    pub(crate) fn timestamps(&mut self, stage: &'static str) -> Option<Timestamps<'a>> {
         let set = self.timestamps?;
         let begin = 2 * self.pairs.len() as u32;
         self.pairs.push(stage);
@@ -224,29 +224,24 @@ impl<'a> Recorder<'a> {
     }
 
     /// The device the frame runs on.
-    pub fn device(&self) -> &'a wgpu::Device {
+    pub(crate) fn device(&self) -> &'a wgpu::Device {
         self.device
     }
 
     /// The occlusion query set, when the frame asked for queries.
-    pub fn occlusion(&self) -> Option<&'a wgpu::QuerySet> {
+    pub(crate) fn occlusion(&self) -> Option<&'a wgpu::QuerySet> {
         self.occlusion
     }
 
-    /// Whether the passes are timed with GPU timestamps.
-    pub fn gpu_clock(&self) -> bool {
-        self.timestamps.is_some()
-    }
-
     /// Submits what was recorded (the encoder starts anew on the next pass).
-    pub fn submit(&mut self) {
+    pub(crate) fn submit(&mut self) {
         if let Some(enc) = self.encoder.take() {
             self.queue.submit([enc.finish()]);
         }
     }
 
     /// Without timestamps: runs what was recorded and charges its wall time to `stage`.
-    pub fn end_stage(&mut self, stage: &'static str) -> Result<(), GpuError> {
+    pub(crate) fn end_stage(&mut self, stage: &'static str) -> Result<(), GpuError> {
         if self.timestamps.is_some() {
             return Ok(());
         }
@@ -261,7 +256,7 @@ impl<'a> Recorder<'a> {
     /// Copies `images` (texture, readback) out, resolves the queries (`occlusion_used` of
     /// them), copies the `degenerate` count, submits, waits for the GPU and reads the
     /// statistics back.
-    pub fn finish(
+    pub(crate) fn finish(
         mut self,
         images: &[(&wgpu::Texture, &ImageReadback)],
         degenerate: &wgpu::Buffer,
@@ -339,7 +334,7 @@ fn add(sums: &mut Vec<(&'static str, f64)>, stage: &'static str, ms: f64) {
 
 /// A render target's readback: a mappable buffer with rows padded to the copy alignment, and
 /// the conversion of its texels (`Rgba32Float` or `Rgba16Float`) to f32 RGBA.
-pub struct ImageReadback {
+pub(crate) struct ImageReadback {
     buffer: wgpu::Buffer,
     padded_row: u32,
     width: u32,
@@ -349,7 +344,7 @@ pub struct ImageReadback {
 
 impl ImageReadback {
     /// A readback for `width` x `height` texels of `format`.
-    pub fn new(
+    pub(crate) fn new(
         device: &wgpu::Device,
         label: &str,
         width: u32,
@@ -368,7 +363,7 @@ impl ImageReadback {
     }
 
     /// Encodes the copy of `texture` (layer 0) into the buffer.
-    pub fn copy(&self, enc: &mut wgpu::CommandEncoder, texture: &wgpu::Texture) {
+    pub(crate) fn copy(&self, enc: &mut wgpu::CommandEncoder, texture: &wgpu::Texture) {
         enc.copy_texture_to_buffer(
             texture.as_image_copy(),
             wgpu::TexelCopyBufferInfo {
@@ -388,7 +383,7 @@ impl ImageReadback {
     }
 
     /// Maps the buffer (after the copy ran) and returns its texels row by row as f32 RGBA.
-    pub fn read(&self, device: &wgpu::Device) -> Result<Vec<[f32; 4]>, RenderError> {
+    pub(crate) fn read(&self, device: &wgpu::Device) -> Result<Vec<[f32; 4]>, RenderError> {
         map_read(device, &self.buffer)?;
         let data = (self.buffer.get_mapped_range(..))
             .map_err(|e| settings_error(format!("mapping the readback buffer failed: {e}")))?;
@@ -409,13 +404,13 @@ impl ImageReadback {
     }
 
     /// Bytes of the buffer.
-    pub fn size(&self) -> u64 {
+    pub(crate) fn size(&self) -> u64 {
         self.buffer.size()
     }
 }
 
 /// Operations that clear a target to `color` and store what the pass draws.
-pub fn cleared(color: wgpu::Color) -> wgpu::Operations<wgpu::Color> {
+pub(crate) fn cleared(color: wgpu::Color) -> wgpu::Operations<wgpu::Color> {
     wgpu::Operations {
         load: wgpu::LoadOp::Clear(color),
         store: wgpu::StoreOp::Store,
@@ -423,7 +418,7 @@ pub fn cleared(color: wgpu::Color) -> wgpu::Operations<wgpu::Color> {
 }
 
 /// A colour attachment of `view` with `ops`.
-pub fn attachment(
+pub(crate) fn attachment(
     view: &wgpu::TextureView,
     ops: wgpu::Operations<wgpu::Color>,
 ) -> Option<wgpu::RenderPassColorAttachment<'_>> {
@@ -437,7 +432,7 @@ pub fn attachment(
 
 /// Draws each chunk's tets with `pipeline`, 12 vertices and one instance per tet (its front
 /// faces), all counted by occlusion query 0 when `counted`.
-pub fn draw_tet_chunks(
+pub(crate) fn draw_tet_chunks(
     pass: &mut wgpu::RenderPass,
     pipeline: &wgpu::RenderPipeline,
     groups: &[(wgpu::BindGroup, u64)],

@@ -6,7 +6,9 @@
 
 use bytemuck::{Pod, Zeroable};
 
-/// Per-frame constants of the shells pipeline (WGSL `Frame`, uniform, 112 bytes).
+/// Per-frame constants every mode's assembly and raster stages read (WGSL `Frame`, uniform,
+/// 112 bytes). The slice fields (`t_first`, `dz`, `slices_per_shell`) are the shells mode's
+/// and zero in the others; `tf_count` is zero in the iso mode.
 ///
 /// Eye space has its origin at the eye and axes (right, up, forward): x to the image's right,
 /// y to its top, z into the scene. Positions on the GPU are relative to the mesh origin (the
@@ -47,6 +49,7 @@ pub struct FrameUniforms {
     pub slices_per_shell: u32,
     /// Number of transfer-function control points.
     pub tf_count: u32,
+    /// Zero: pads the struct to WGSL's 16-byte alignment.
     pub _pad: [u32; 2],
 }
 const _: () = assert!(size_of::<FrameUniforms>() == 112);
@@ -57,6 +60,7 @@ const _: () = assert!(size_of::<FrameUniforms>() == 112);
 pub struct ShellUniforms {
     /// Global index of the shell's first slice.
     pub first_slice: u32,
+    /// Zero: pads the struct to the 16 bytes of a uniform binding.
     pub _pad: [u32; 3],
 }
 const _: () = assert!(size_of::<ShellUniforms>() == 16);
@@ -91,6 +95,8 @@ const _: () = assert!(size_of::<TetRecord>() == 144);
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct TfPoint {
+    /// Emitted colour (linear rgb, each in `[0, 1]`): the colour of a thick slab, not
+    /// premultiplied by opacity.
     pub rgb: [f32; 3],
     /// Extinction per world unit.
     pub tau: f32,
@@ -98,22 +104,26 @@ pub struct TfPoint {
     pub s: f32,
     /// `1 / (next.s - s)`, 0 when the next point is at the same `s` (a step) or there is none.
     pub inv_width: f32,
+    /// Zero: pads the point to 32 bytes, WGSL's array stride for it.
     pub _pad: [f32; 2],
 }
 const _: () = assert!(size_of::<TfPoint>() == 32);
 
 /// The most control points the shells composite evaluates (a uniform array of 8 KiB).
-pub const MAX_TF_POINTS: usize = 256;
+pub(crate) const MAX_TF_POINTS: usize = 256;
 
 /// The transfer function as a uniform block (WGSL `TfPoints`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct TfPoints {
+    /// The first `FrameUniforms::tf_count` entries are the control points in increasing `s`;
+    /// the rest are zero.
     pub points: [TfPoint; MAX_TF_POINTS],
 }
 const _: () = assert!(size_of::<TfPoints>() == 32 * MAX_TF_POINTS);
 
-/// The most isovalues one pass draws.
+/// The most isovalues one iso renderer draws (`IsoSettings::isovalues` longer than this is
+/// refused).
 pub const MAX_ISOVALUES: usize = 16;
 
 /// Per-frame isosurface constants (WGSL `Iso` in `shaders/iso_raster.wgsl`, 336 bytes).
@@ -124,11 +134,13 @@ pub struct IsoUniforms {
     pub colors: [[f32; 4]; MAX_ISOVALUES],
     /// Normalized isovalues `(v - s_min) / (s_max - s_min)`, four to a vector.
     pub values: [[f32; 4]; MAX_ISOVALUES / 4],
+    /// How many of `colors` and `values` are used (at most [`MAX_ISOVALUES`]).
     pub count: u32,
     /// 1 for smooth shading.
     pub smooth_shading: u32,
     /// `1 / d`, `d` beyond the farthest mesh point from the eye: depth = distance / d.
     pub inv_depth_range: f32,
+    /// Zero: pads the struct to WGSL's 16-byte alignment.
     pub _pad: u32,
 }
 const _: () = assert!(size_of::<IsoUniforms>() == 336);
@@ -144,6 +156,7 @@ pub struct CellProjUniforms {
     pub table_lengths: u32,
     /// `(table_lengths - 1) / max_length`: length to level.
     pub inv_length_step: f32,
+    /// Zero: pads the struct to the 16 bytes of a uniform binding.
     pub _pad: u32,
 }
 const _: () = assert!(size_of::<CellProjUniforms>() == 16);

@@ -1,7 +1,7 @@
 //! The mesh's GPU side, built once per mesh and shared by every mode ([`GpuTetMesh`]): the f64
 //! frame of reference (bounding-box centre, bounding-sphere radius, scalar frame), the CPU
 //! copies the per-frame CPU stages read, the vertex buffers (positions, scalars), and per-tet
-//! arrays ([`TetArray`]) cut into chunks that each fit one storage binding and spread over as
+//! arrays cut into chunks that each fit one storage binding and spread over as
 //! many buffers as the adapter's largest buffer needs, so no single buffer's limit caps the
 //! mesh.
 //!
@@ -70,7 +70,7 @@ impl MeshData {
     }
 
     /// The vertex positions as the GPU stages read them: relative to `origin`, f32, `w = 1`.
-    pub fn gpu_positions(&self) -> Vec<[f32; 4]> {
+    pub(crate) fn gpu_positions(&self) -> Vec<[f32; 4]> {
         let o = self.origin;
         self.positions
             .par_iter()
@@ -82,7 +82,7 @@ impl MeshData {
     }
 
     /// The scalars as the GPU stages read them: `(s - scalar_min) / scalar_span`, f32.
-    pub fn gpu_scalars(&self) -> Vec<f32> {
+    pub(crate) fn gpu_scalars(&self) -> Vec<f32> {
         let (lo, span) = (self.scalar_min, self.scalar_span);
         self.scalars
             .par_iter()
@@ -143,24 +143,20 @@ impl GpuTetMesh {
         Ok(Arc::new(gpu))
     }
 
-    /// The CPU side (a read lock; updates wait for it). The other methods take no lock, so a
-    /// renderer may call them while it holds this one.
+    /// The CPU side (a read lock; updates wait for it): what the CPU stages and the CPU twins
+    /// read, public for tests and diagnostics. The other methods take no lock, so a renderer
+    /// may call them while it holds this one.
     pub fn read(&self) -> RwLockReadGuard<'_, MeshData> {
         self.data.read().unwrap_or_else(PoisonError::into_inner)
     }
 
     /// The device the buffers live on.
-    pub fn device(&self) -> &wgpu::Device {
+    pub(crate) fn device(&self) -> &wgpu::Device {
         &self.device
     }
 
-    /// The device's queue.
-    pub fn queue(&self) -> &wgpu::Queue {
-        &self.queue
-    }
-
     /// The limits the buffers were cut for.
-    pub fn limits(&self) -> &wgpu::Limits {
+    pub(crate) fn limits(&self) -> &wgpu::Limits {
         &self.limits
     }
 
@@ -170,30 +166,34 @@ impl GpuTetMesh {
     }
 
     /// Positions relative to the origin (`vec4<f32>`, `w = 1`), one per vertex.
-    pub fn positions(&self) -> &wgpu::Buffer {
+    pub(crate) fn positions(&self) -> &wgpu::Buffer {
         &self.positions
     }
 
     /// Normalized scalars (`f32`), one per vertex.
-    pub fn scalars(&self) -> &wgpu::Buffer {
+    pub(crate) fn scalars(&self) -> &wgpu::Buffer {
         &self.scalars
     }
 
     /// The tets' vertex indices (`vec4<u32>` per tet), in chunks of [`Self::chunking`].
-    pub fn tets(&self) -> Result<&TetArray, RenderError> {
+    pub(crate) fn tets(&self) -> Result<&TetArray, RenderError> {
         self.lazy(&self.tets, "mesh tets", |d| d.tets.clone())
     }
 
     /// Each tet's face neighbours (`vec4<u32>` per tet, neighbour `i` across the face opposite
     /// vertex `i`), in chunks of [`Self::chunking`].
-    pub fn adjacency(&self) -> Result<&TetArray, RenderError> {
+    #[expect(
+        dead_code,
+        reason = "for the ray casters (issue 14 item 1); no mode reads it yet"
+    )]
+    pub(crate) fn adjacency(&self) -> Result<&TetArray, RenderError> {
         self.lazy(&self.adjacency, "mesh face adjacency", |d| {
             Adjacency::build(&d.tets).neighbors
         })
     }
 
     /// How arrays of one entry per tet of this mesh are cut into binding-sized chunks.
-    pub fn chunking(&self) -> Result<Chunking, RenderError> {
+    pub(crate) fn chunking(&self) -> Result<Chunking, RenderError> {
         Chunking::new(self.tet_count() as u64, &self.limits)
     }
 
@@ -214,7 +214,7 @@ impl GpuTetMesh {
 
     /// A new per-tet array of `count` entries of `stride` bytes, cut by `chunking` (see
     /// [`TetArray`]); an error naming the bytes needed when the adapter cannot hold it.
-    pub fn tet_array(
+    pub(crate) fn tet_array(
         &self,
         label: &str,
         chunking: Chunking,
@@ -290,7 +290,7 @@ pub fn chunk_tets(tets: u64, max_binding: u64, align: u64) -> Option<u64> {
 }
 
 /// `count` list entries in chunks of `chunk`: (first, count) of each.
-pub fn chunk_ranges(count: u64, chunk: u64) -> Vec<(u64, u64)> {
+pub(crate) fn chunk_ranges(count: u64, chunk: u64) -> Vec<(u64, u64)> {
     let chunk = chunk.max(1);
     (0..count.div_ceil(chunk))
         .map(|c| (c * chunk, chunk.min(count - c * chunk)))
@@ -302,7 +302,7 @@ pub fn chunk_ranges(count: u64, chunk: u64) -> Vec<(u64, u64)> {
 /// starting at an aligned offset ([`chunk_tets`]). Every per-tet array of a list uses the same
 /// chunking, so chunk `c` of each covers the same tets.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Chunking {
+pub(crate) struct Chunking {
     /// Entries per chunk (every chunk but the last is full).
     pub chunk: u64,
 }
@@ -310,7 +310,7 @@ pub struct Chunking {
 impl Chunking {
     /// The chunking of a list of `count` entries on an adapter with `limits`; an error when one
     /// binding cannot hold an aligned group of records.
-    pub fn new(count: u64, limits: &wgpu::Limits) -> Result<Self, RenderError> {
+    pub(crate) fn new(count: u64, limits: &wgpu::Limits) -> Result<Self, RenderError> {
         let max = limits
             .max_storage_buffer_binding_size
             .min(limits.max_buffer_size);
@@ -326,7 +326,7 @@ impl Chunking {
     }
 
     /// The chunks of a list of `count` entries: (first, count) of each.
-    pub fn ranges(&self, count: u64) -> Vec<(u64, u64)> {
+    pub(crate) fn ranges(&self, count: u64) -> Vec<(u64, u64)> {
         chunk_ranges(count, self.chunk)
     }
 }
@@ -334,7 +334,7 @@ impl Chunking {
 /// A per-tet array: entries of `stride` bytes in chunks of [`Chunking::chunk`], as many whole
 /// chunks per buffer as the adapter's largest buffer holds. Chunk `c` is bound as one window
 /// ([`TetArray::window`]).
-pub struct TetArray {
+pub(crate) struct TetArray {
     stride: u64,
     chunk: u64,
     /// Entries per buffer (a whole number of chunks).
@@ -345,7 +345,7 @@ pub struct TetArray {
 impl TetArray {
     /// Room for `count` entries of `stride` bytes (at least one), storage and copy
     /// destination.
-    pub fn new(
+    pub(crate) fn new(
         device: &wgpu::Device,
         limits: &wgpu::Limits,
         label: &str,
@@ -372,7 +372,7 @@ impl TetArray {
     }
 
     /// Writes `data` (whole entries) from entry 0 on, buffer by buffer.
-    pub fn write(&self, queue: &wgpu::Queue, data: &[u8]) {
+    pub(crate) fn write(&self, queue: &wgpu::Queue, data: &[u8]) {
         let per_buffer = (self.per_buffer * self.stride) as usize;
         for (buffer, part) in self.buffers.iter().zip(data.chunks(per_buffer)) {
             queue.write_buffer(buffer, 0, part);
@@ -381,7 +381,7 @@ impl TetArray {
 
     /// A bind group entry for entries `first..first + count` of one chunk (`first` a chunk
     /// start, as [`Chunking::ranges`] gives them).
-    pub fn window(&self, binding: u32, first: u64, count: u64) -> wgpu::BindGroupEntry<'_> {
+    pub(crate) fn window(&self, binding: u32, first: u64, count: u64) -> wgpu::BindGroupEntry<'_> {
         debug_assert_eq!(first % self.chunk, 0, "windows start at a chunk");
         let b = (first / self.per_buffer) as usize;
         let local = first - b as u64 * self.per_buffer;
@@ -396,12 +396,12 @@ impl TetArray {
     }
 
     /// Number of buffers the array spans.
-    pub fn buffer_count(&self) -> usize {
+    pub(crate) fn buffer_count(&self) -> usize {
         self.buffers.len()
     }
 
     /// Bytes of all its buffers.
-    pub fn size(&self) -> u64 {
+    pub(crate) fn size(&self) -> u64 {
         self.buffers.iter().map(wgpu::Buffer::size).sum()
     }
 }

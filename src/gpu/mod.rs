@@ -1,17 +1,29 @@
-//! GPU access: a headless wgpu device, and (as modes land) the GPU renderers.
+//! The GPU modes on a headless wgpu device.
+//!
+//! Open a [`GpuContext`] (a real GPU if there is one, else Mesa's lavapipe), then build a
+//! renderer from its settings: [`ShellsRenderer`] ([`ShellSettings`], the volume renderer),
+//! [`IsoRenderer`] ([`IsoSettings`], isosurfaces) or [`CellProjRenderer`]
+//! ([`CellProjSettings`], cell projection); each implements [`crate::Renderer`]. Renderers of
+//! one mesh may share its GPU side, a [`GpuTetMesh`], through their `with_mesh` constructors.
+//! [`crate::ModeSettings`] builds any of them (and the CPU reference) from one value.
+//!
+//! Also public, for testing and diagnostics: the WGSL sources ([`shaders`]) and the Rust
+//! layouts of their structs ([`gpu_data`]), and the CPU twins of the tricky shader arithmetic
+//! ([`shells::twin`], [`cellproj::twin`], [`iso::gradients`]), which the tests compare with
+//! the shaders. Every other stage is internal.
 
-pub mod assembly;
+pub(crate) mod assembly;
 pub mod cellproj;
 mod context;
-pub mod frame;
+pub(crate) mod frame;
 pub mod gpu_data;
 pub mod iso;
 pub mod mesh;
 pub mod shaders;
 pub mod shells;
-pub mod tf;
+pub(crate) mod tf;
 mod util;
-pub mod view;
+pub(crate) mod view;
 
 pub use cellproj::{CellProjRenderer, CellProjSettings, Integrate};
 pub use context::{AdapterChoice, GpuContext, GpuError};

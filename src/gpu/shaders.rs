@@ -11,7 +11,7 @@ const SHELLS_RASTER: &str = include_str!("../../shaders/shells_raster.wgsl");
 const SHELLS_COMPOSITE: &str = include_str!("../../shaders/shells_composite.wgsl");
 const SHELLS_MARK: &str = include_str!("../../shaders/shells_mark.wgsl");
 /// Declarations the volume raster stages share (shells, cellproj).
-pub const RASTER: &str = include_str!("../../shaders/raster.wgsl");
+pub(crate) const RASTER: &str = include_str!("../../shaders/raster.wgsl");
 const ISO_RASTER: &str = include_str!("../../shaders/iso_raster.wgsl");
 const ISO_GRADIENTS: &str = include_str!("../../shaders/iso_gradients.wgsl");
 const CELLPROJ_RASTER: &str = include_str!("../../shaders/cellproj_raster.wgsl");
@@ -20,14 +20,14 @@ const CELLPROJ_RASTER: &str = include_str!("../../shaders/cellproj_raster.wgsl")
 pub const MAX_TARGETS: u32 = 8;
 
 /// The assembly stage every mode shares (compute entry point `main`).
-pub fn assemble() -> String {
+pub(crate) fn assemble() -> String {
     format!("{SHARED}\n{ASSEMBLE}")
 }
 
 /// The shells raster stage writing `targets` (1..=[`MAX_TARGETS`]) vec4 colour targets, i.e.
 /// `4 * targets` slices (entry points `vs_faces`, `vs_near`, `fs_slices`, and `vs_clear`,
 /// `fs_clear`, which zero the slices within the shell's scissor rectangle).
-pub fn shells_raster(targets: u32) -> String {
+pub(crate) fn shells_raster(targets: u32) -> String {
     let targets = targets.clamp(1, MAX_TARGETS);
     let fields: String = (0..targets)
         .map(|i| format!("    @location({i}) t{i}: vec4<f32>,\n"))
@@ -53,7 +53,7 @@ pub const UNROLLED_TF_POINTS: u32 = 32;
 /// over a dynamic layer index is an order of magnitude slower on lavapipe), and `tf_eval` walks
 /// the TF's segments with constant indices when `tf_points <= UNROLLED_TF_POINTS` (dynamic
 /// indices make every lane gather the control points); `tf_points` only selects the variant.
-pub fn shells_composite(targets: u32, tf_points: u32) -> String {
+pub(crate) fn shells_composite(targets: u32, tf_points: u32) -> String {
     let targets = targets.clamp(1, MAX_TARGETS);
     let loads: Vec<String> = (0..targets)
         .map(|i| format!("textureLoad(slices, xy, {i}, 0)"))
@@ -86,7 +86,7 @@ pub fn shells_composite(targets: u32, tf_points: u32) -> String {
 /// The shells early-ray-termination stage (entry points `vs_mark`, `fs_mark`, and the compute
 /// entry point `tiles`), with the tile size of [`crate::gpu::shells::skips::TILE`]. The
 /// threshold is the pipeline-overridable constant `threshold`.
-pub fn shells_mark() -> String {
+pub(crate) fn shells_mark() -> String {
     format!(
         "// Generated: the tile side in pixels.\nconst TILE: u32 = {}u;\n{SHELLS_MARK}",
         crate::gpu::shells::skips::TILE

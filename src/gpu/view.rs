@@ -12,7 +12,7 @@ use crate::gpu::gpu_data::FrameUniforms;
 /// A camera's eye space: origin at the eye, axes (right, up, forward), and the frustum's
 /// half-slopes.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ViewFrame {
+pub(crate) struct ViewFrame {
     /// The eye (world).
     pub eye: DVec3,
     /// Right, up, forward (world, orthonormal).
@@ -25,7 +25,7 @@ pub struct ViewFrame {
 
 impl ViewFrame {
     /// The eye space of `camera`.
-    pub fn new(camera: &Camera) -> Self {
+    pub(crate) fn new(camera: &Camera) -> Self {
         let (right, up, forward) = camera.basis();
         let th = camera.tan_half_fov();
         Self {
@@ -39,7 +39,13 @@ impl ViewFrame {
     /// The frame uniforms of this view for a mesh centred at `origin`: `tet_count` tets to
     /// assemble, barycentric tolerance `epsilon`, near-plane tets below eye-space `near_z`.
     /// The shells fields (`t_first`, `dz`, `slices_per_shell`) are zero, `tf_count` too.
-    pub fn uniforms(&self, origin: DVec3, epsilon: f32, near_z: f32, tets: u32) -> FrameUniforms {
+    pub(crate) fn uniforms(
+        &self,
+        origin: DVec3,
+        epsilon: f32,
+        near_z: f32,
+        tets: u32,
+    ) -> FrameUniforms {
         let f32x3 = |v: DVec3| v.as_vec3().to_array();
         let [right, up, forward] = self.basis;
         let slope = self.slope;
@@ -64,20 +70,20 @@ impl ViewFrame {
     }
 
     /// Every position in eye space with its frustum [`outcode`].
-    pub fn to_eye_space(&self, positions: &[DVec3]) -> Vec<(DVec3, u8)> {
+    pub(crate) fn to_eye_space(self, positions: &[DVec3]) -> Vec<(DVec3, u8)> {
         to_eye_space(positions, self.eye, self.basis, self.slope)
     }
 
     /// Whether each tet of `tets` lies entirely outside one plane of the frustum (`codes`
     /// from [`ViewFrame::to_eye_space`]).
-    pub fn outside(codes: &[(DVec3, u8)], tet: &[u32; 4]) -> bool {
+    pub(crate) fn outside(codes: &[(DVec3, u8)], tet: &[u32; 4]) -> bool {
         tet.iter().fold(0xff, |a, &v| a & codes[v as usize].1) != 0
     }
 }
 
 /// Frustum outcode of an eye-space point: one bit per plane it is outside of. A tet whose
 /// corners' outcodes share a bit lies entirely outside that plane.
-pub fn outcode(q: DVec3, slope: [f64; 2]) -> u8 {
+pub(crate) fn outcode(q: DVec3, slope: [f64; 2]) -> u8 {
     (q.x > slope[0] * q.z) as u8
         | ((q.x < -slope[0] * q.z) as u8) << 1
         | ((q.y > slope[1] * q.z) as u8) << 2
@@ -87,7 +93,7 @@ pub fn outcode(q: DVec3, slope: [f64; 2]) -> u8 {
 
 /// Every position in eye space (`basis` = right, up, forward from `eye`) with its frustum
 /// [`outcode`].
-pub fn to_eye_space(
+pub(crate) fn to_eye_space(
     positions: &[DVec3],
     eye: DVec3,
     [r, u, f]: [DVec3; 3],

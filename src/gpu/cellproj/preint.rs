@@ -36,10 +36,10 @@ use crate::tf::TransferFunction;
 use super::{CellProjRenderer, CellProjSettings, TableState};
 
 /// Largest optical depth of one Gauss-Legendre sub-interval of the mean transmittance.
-pub const SUB_DEPTH: f64 = 0.5;
+pub(crate) const SUB_DEPTH: f64 = 0.5;
 
 /// Optical depth after which the rest of a piece's mean transmittance is dropped.
-pub const STOP_DEPTH: f64 = 16.0;
+pub(crate) const STOP_DEPTH: f64 = 16.0;
 
 /// Gauss-Legendre nodes on `[0, 1]` (4 points) and their weights.
 const GL_X: [f64; 4] = [
@@ -58,14 +58,14 @@ const GL_W: [f64; 4] = [
 /// A transfer function with scalars normalized to the mesh's range, `u = (s - lo) / span`,
 /// as the shader sees it: `(u, tau, rgb)` per control point.
 #[derive(Clone, Debug, PartialEq)]
-pub struct NormalizedTf {
+pub(crate) struct NormalizedTf {
     pub u: Vec<f64>,
     pub tau: Vec<f64>,
     pub rgb: Vec<[f64; 3]>,
 }
 
 impl NormalizedTf {
-    pub fn new(tf: &TransferFunction, lo: f64, span: f64) -> Self {
+    pub(crate) fn new(tf: &TransferFunction, lo: f64, span: f64) -> Self {
         let p = tf.points();
         Self {
             u: p.iter().map(|q| (q.s - lo) / span).collect(),
@@ -93,7 +93,7 @@ impl NormalizedTf {
 }
 
 /// `int_0^1 exp(-(a v + (b - a) v^2 / 2)) dv` for `a, b >= 0`; see the module docs.
-pub fn mean_transmittance(a: f64, b: f64) -> f64 {
+pub(crate) fn mean_transmittance(a: f64, b: f64) -> f64 {
     let depth = 0.5 * (a + b);
     // Depth reached by the quadrature, and the fraction of the piece where it is reached:
     // Lambda(v) = a v + k v^2 = stop solved in its cancellation-free form.
@@ -117,7 +117,7 @@ pub fn mean_transmittance(a: f64, b: f64) -> f64 {
 }
 
 /// Premultiplied colour and transmittance of one piece with linear extinction and colour.
-pub fn integrate_piece(tau: [f64; 2], color: [[f64; 3]; 2], length: f64) -> ([f64; 3], f64) {
+pub(crate) fn integrate_piece(tau: [f64; 2], color: [[f64; 3]; 2], length: f64) -> ([f64; 3], f64) {
     let (a, b) = (tau[0] * length, tau[1] * length);
     let t = (-0.5 * (a + b)).exp();
     let m = mean_transmittance(a, b);
@@ -130,7 +130,7 @@ pub fn integrate_piece(tau: [f64; 2], color: [[f64; 3]; 2], length: f64) -> ([f6
 /// piecewise-linear TF. The walk visits the TF intervals in the order the segment meets them:
 /// `j` is the first control point ahead (binary search once), each crossing moves it by one,
 /// and a step (two points at one `u`) gives an empty piece between its sides.
-pub fn integrate(tf: &NormalizedTf, u_front: f64, u_back: f64, length: f64) -> [f64; 4] {
+pub(crate) fn integrate(tf: &NormalizedTf, u_front: f64, u_back: f64, length: f64) -> [f64; 4] {
     if !(length > 0.0 && length.is_finite()) {
         return [0.0; 4];
     }
@@ -184,7 +184,7 @@ fn over(front: [f64; 4], back: [f64; 4]) -> [f64; 4] {
 
 /// The 3D pre-integration table; see the module docs.
 #[derive(Clone, Debug, PartialEq)]
-pub struct PreintTable {
+pub(crate) struct PreintTable {
     /// Scalar samples per axis (`n`).
     pub scalars: u32,
     /// Length levels (`m`), level 0 of length 0.
@@ -199,7 +199,7 @@ pub struct PreintTable {
 impl PreintTable {
     /// Builds the table for `tf` (already normalized), `scalars >= 2`, `lengths >= 2`,
     /// `max_length > 0`.
-    pub fn build(tf: &NormalizedTf, scalars: u32, lengths: u32, max_length: f64) -> Self {
+    pub(crate) fn build(tf: &NormalizedTf, scalars: u32, lengths: u32, max_length: f64) -> Self {
         let (n, m) = (scalars.max(2) as usize, lengths.max(2) as usize);
         let step = max_length / (m - 1) as f64;
         let u = |i: usize| i as f64 / (n - 1) as f64;
@@ -251,8 +251,9 @@ impl PreintTable {
     }
 
     /// Trilinear lookup, as `fs_table` does: `u` clamped to `[0, 1]`, `length` to
-    /// `[0, max_length]`.
-    pub fn lookup(&self, u_front: f64, u_back: f64, length: f64) -> [f64; 4] {
+    /// `[0, max_length]`. The tests' CPU twin of the shader's lookup.
+    #[cfg(test)]
+    pub(crate) fn lookup(&self, u_front: f64, u_back: f64, length: f64) -> [f64; 4] {
         let (n, m) = (self.scalars as usize, self.lengths as usize);
         let coord = |x: f64, size: usize| {
             let p = x.clamp(0.0, (size - 1) as f64);

@@ -16,7 +16,7 @@
 //! no volume, so it is left out of the order and counted.
 //!
 //! Ties (equal powers up to rounding, as for the cospherical tets of a grid cube) are broken
-//! by the distance from the eye to the centroid; see [`SortKeys`].
+//! by the distance from the eye to the centroid.
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -34,18 +34,18 @@ use super::CellProjRenderer;
 /// A tet's circumsphere as the sort uses it: corner `p0`, circumcentre offset `w = c - p0`,
 /// and the tet's centroid (the tie-break).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Sphere {
+pub(crate) struct Sphere {
     pub p0: u32,
     pub w: DVec3,
     pub centroid: DVec3,
 }
 
 /// Per tet its [`Sphere`], `None` when flat.
-pub type Spheres = Vec<Option<Sphere>>;
+pub(crate) type Spheres = Vec<Option<Sphere>>;
 
 /// The circumcentre offset of the tet `p` from its corner 0, `None` for a flat tet (see the
 /// module docs) or non-finite input.
-pub fn circumcentre_offset(p: [DVec3; 4]) -> Option<DVec3> {
+pub(crate) fn circumcentre_offset(p: [DVec3; 4]) -> Option<DVec3> {
     let (e1, e2, e3) = (p[1] - p[0], p[2] - p[0], p[3] - p[0]);
     let (l1, l2, l3) = (e1.length(), e2.length(), e3.length());
     let l = l1.max(l2).max(l3);
@@ -69,7 +69,7 @@ pub fn circumcentre_offset(p: [DVec3; 4]) -> Option<DVec3> {
 }
 
 /// Each tet's circumsphere (rayon).
-pub fn spheres(positions: &[DVec3], tets: &[[u32; 4]]) -> Spheres {
+pub(crate) fn spheres(positions: &[DVec3], tets: &[[u32; 4]]) -> Spheres {
     tets.par_iter()
         .map(|t| {
             let p = t.map(|i| positions[i as usize]);
@@ -83,13 +83,13 @@ pub fn spheres(positions: &[DVec3], tets: &[[u32; 4]]) -> Spheres {
 }
 
 /// The power of `eye` with respect to the circumsphere through `p0` with centre `p0 + w`.
-pub fn power(p0: DVec3, w: DVec3, eye: DVec3) -> f64 {
+pub(crate) fn power(p0: DVec3, w: DVec3, eye: DVec3) -> f64 {
     let q = eye - p0;
     q.length_squared() - 2.0 * q.dot(w)
 }
 
 /// Powers closer than this fraction of `scale^2` are a tie ([`SortKeys`]).
-pub const TIE_TOLERANCE: f64 = 1e-9;
+pub(crate) const TIE_TOLERANCE: f64 = 1e-9;
 
 /// The sort keys of one view: the power quantized to [`TIE_TOLERANCE`] of `scale^2` (`scale`
 /// the eye's distance to the mesh centre plus its bounding radius, so every point's `|q|^2`
@@ -99,14 +99,14 @@ pub const TIE_TOLERANCE: f64 = 1e-9;
 /// their powers differ only by rounding, and an order among them by rounding (or index) is
 /// arbitrary; by centroid distance it is the nearer-centre-in-front heuristic, right for most.
 #[derive(Clone, Copy, Debug)]
-pub struct SortKeys {
+pub(crate) struct SortKeys {
     pub eye: DVec3,
     /// Power quantum.
     pub quantum: f64,
 }
 
 impl SortKeys {
-    pub fn new(eye: DVec3, centre: DVec3, radius: f64) -> Self {
+    pub(crate) fn new(eye: DVec3, centre: DVec3, radius: f64) -> Self {
         let scale = eye.distance(centre) + radius;
         Self {
             eye,
@@ -115,13 +115,13 @@ impl SortKeys {
     }
 
     /// The quantized power (front-to-back order: smaller is nearer).
-    pub fn power_step(&self, positions: &[DVec3], s: &Sphere) -> i64 {
+    pub(crate) fn power_step(&self, positions: &[DVec3], s: &Sphere) -> i64 {
         // `as` saturates: powers beyond i64 (spheres of near-flat tets) stay ordered.
         (power(positions[s.p0 as usize], s.w, self.eye) / self.quantum).round() as i64
     }
 
     /// The full key, increasing front to back.
-    pub fn key(&self, positions: &[DVec3], s: &Sphere) -> (i64, u64) {
+    pub(crate) fn key(&self, positions: &[DVec3], s: &Sphere) -> (i64, u64) {
         (
             self.power_step(positions, s),
             s.centroid.distance_squared(self.eye).to_bits(),
@@ -132,7 +132,7 @@ impl SortKeys {
 /// The tets (indices) with a circumsphere and `keep(tet)`, back to front: decreasing
 /// [`SortKeys::key`], then decreasing index (so the order is deterministic). Parallel key
 /// computation and sort (the centroid distance is non-negative, so its bits order as it does).
-pub fn back_to_front(
+pub(crate) fn back_to_front(
     positions: &[DVec3],
     spheres: &Spheres,
     keys: &SortKeys,
@@ -158,7 +158,8 @@ pub struct SortCheck {
     /// Pairs of tets crossed by the same ray (each pair overlaps on screen along that ray, so
     /// its drawing order matters).
     pub pairs: u64,
-    /// Pairs whose powers differ (beyond [`TIE_TOLERANCE`]) and are drawn the wrong way round:
+    /// Pairs whose powers differ (by more than 1e-9 of `scale^2`, `scale` the eye's distance
+    /// to the mesh centre plus its bounding radius) and are drawn the wrong way round:
     /// the power order itself is wrong there (not Delaunay).
     pub wrong_pairs: u64,
     /// Pairs with equal powers (a tie, e.g. cospherical tets of a grid cube) that the

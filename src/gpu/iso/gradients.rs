@@ -1,6 +1,6 @@
 //! The smooth-shading stage: per-vertex gradients recomputed on the GPU every frame
 //! (`shaders/iso_gradients.wgsl`), since vertices may move between frames; only for the
-//! vertices of the selected tets ([`vertices_of`]), the only ones the raster reads.
+//! vertices of the selected tets, the only ones the raster reads.
 //!
 //! Definition (the same as the reference's f64 [`crate::reference::iso::vertex_gradients`],
 //! computed independently): at each vertex, the volume-weighted mean of the gradients of the
@@ -20,7 +20,9 @@ use crate::gpu::util::{bind_group_layout, buffer_entry, compute_main, entry};
 /// `tets[offsets[v] as usize..offsets[v + 1] as usize]`, in increasing tet order.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct VertexTets {
+    /// `vertex_count + 1` running totals: vertex `v`'s tets start at `offsets[v]`.
     pub offsets: Vec<u32>,
+    /// Tet indices, each tet once under each of its four vertices.
     pub tets: Vec<u32>,
 }
 
@@ -50,7 +52,7 @@ impl VertexTets {
 }
 
 /// The distinct vertices of `tets`, ascending.
-pub fn vertices_of(tets: &[[u32; 4]]) -> Vec<u32> {
+pub(crate) fn vertices_of(tets: &[[u32; 4]]) -> Vec<u32> {
     let mut v: Vec<u32> = tets.par_iter().flat_map_iter(|t| *t).collect();
     v.par_sort_unstable();
     v.dedup();

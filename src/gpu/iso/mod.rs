@@ -3,7 +3,7 @@
 //! Per frame:
 //! 1. select (CPU, cached, `select.rs`): the tets whose scalar range holds an isovalue, in one
 //!    list; constant tets are left out (see [`crate::reference::iso`], "Constant scalar"). A
-//!    span-space index ([`select::IntervalIndex`], rebuilt with rayon only when the scalars change,
+//!    span-space index (`select.rs`, rebuilt with rayon only when the scalars change,
 //!    stage "select index") answers a new isovalue without scanning every tet; the list is
 //!    recomputed only when the scalars or the isovalues change; Frustum culling
 //!    ([`IsoSettings::frustum`]) then drops, every frame, the selected tets entirely outside one
@@ -12,7 +12,7 @@
 //! 3. gradients (smooth shading only): a compute pass recomputes the gradient of every vertex of a
 //!    selected tet from the current positions, the volume-weighted mean over its tets
 //!    ([`gradients`]);
-//! 4. assembly: the shared assembly stage ([`crate::gpu::assembly`]) over the selected tets only,
+//! 4. assembly: the shared assembly stage (`gpu/assembly.rs`) over the selected tets only,
 //!    building each one's eye-to-barycentric record;
 //! 5. raster (`raster.rs`): one instanced pass over the selected tets' front faces with a depth
 //!    buffer (`shaders/iso_raster.wgsl`); a tet with a corner at eye-space z <= `near_z` (the tet
@@ -22,7 +22,7 @@
 //!    tet's barycentric space, keeps it only inside the tet (smallest barycentric >= `-epsilon`, so
 //!    neighbours overlap rather than leave cracks), writes the hit distance as its depth and shades
 //!    it (headlight Blinn-Phong, [`crate::reference::iso::shade`]);
-//! 6. readback ([`crate::gpu::frame`]) of the colour and of the per-pixel normal and distance,
+//! 6. readback (`gpu/frame.rs`) of the colour and of the per-pixel normal and distance,
 //!    with the GPU timestamps of stages 3-5.
 //!
 //! The transfer function passed to [`Renderer::render`] is ignored: the surfaces take the
@@ -33,7 +33,7 @@
 
 pub mod gradients;
 mod raster;
-pub mod select;
+pub(crate) mod select;
 mod upload;
 
 use std::sync::Arc;
@@ -65,6 +65,8 @@ pub struct IsoSettings {
     /// (isovalue in data units, linear RGB colour), at most [`MAX_ISOVALUES`]. Empty: one
     /// isovalue at the middle of the active scalar range, light grey.
     pub isovalues: Vec<(f64, [f32; 3])>,
+    /// Flat (each tet's constant gradient; the default) or smooth (per-vertex gradients from
+    /// an extra compute stage, recomputed when the positions or scalars change).
     pub shading: Shading,
     /// Inside tolerance on the smallest barycentric coordinate (see the shells mode's).
     pub epsilon: f32,
@@ -93,7 +95,7 @@ fn near_z(radius: f64) -> f32 {
 }
 
 /// Default surface colour.
-pub const DEFAULT_COLOR: [f32; 3] = [0.8, 0.8, 0.8];
+pub(crate) const DEFAULT_COLOR: [f32; 3] = [0.8, 0.8, 0.8];
 
 /// The isosurface renderer; see the module docs.
 pub struct IsoRenderer {

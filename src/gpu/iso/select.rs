@@ -30,11 +30,11 @@ use super::IsoRenderer;
 use crate::mesh::tet_ranges;
 
 /// Entries per leaf block of the max-tree.
-pub const BLOCK: usize = 32;
+pub(crate) const BLOCK: usize = 32;
 
 /// The span-space index of one scalar field over a mesh's tets; see the module docs.
 #[derive(Clone, Debug, Default)]
-pub struct IntervalIndex {
+pub(crate) struct IntervalIndex {
     /// Non-constant tets' ids, sorted by `lo`, then by `hi` descending within each block.
     ids: Vec<u32>,
     /// `lo` of each entry.
@@ -51,7 +51,7 @@ pub struct IntervalIndex {
 
 impl IntervalIndex {
     /// The index of the tets' scalar ranges for per-vertex `scalars`.
-    pub fn build(tets: &[[u32; 4]], scalars: &[f64]) -> Self {
+    pub(crate) fn build(tets: &[[u32; 4]], scalars: &[f64]) -> Self {
         let mut entries: Vec<(f64, f64, u32)> = tet_ranges(tets, scalars)
             .into_par_iter()
             .enumerate()
@@ -82,16 +82,6 @@ impl IntervalIndex {
             tree,
             leaves,
         }
-    }
-
-    /// Number of non-constant tets indexed.
-    pub fn len(&self) -> usize {
-        self.ids.len()
-    }
-
-    /// Whether no tet is indexed (all constant, or no tets).
-    pub fn is_empty(&self) -> bool {
-        self.ids.is_empty()
     }
 
     /// Appends to `out` the ids of the tets whose range holds `v` (ends included), in the
@@ -136,7 +126,7 @@ impl IntervalIndex {
 
     /// The ids of the tets whose range holds at least one of `isovalues` (ends included;
     /// constant tets never), each once, in the order the module docs give.
-    pub fn select(&self, isovalues: &[f64]) -> Vec<u32> {
+    pub(crate) fn select(&self, isovalues: &[f64]) -> Vec<u32> {
         let mut out = Vec::new();
         for &v in isovalues {
             self.query_into(v, &mut out);
@@ -250,7 +240,7 @@ mod tests {
     fn empty_and_all_constant_meshes_select_nothing() {
         assert!(IntervalIndex::build(&[], &[]).select(&[0.0]).is_empty());
         let index = IntervalIndex::build(&[[0, 1, 2, 3]], &[1.0; 4]);
-        assert!(index.is_empty());
+        assert!(index.ids.is_empty());
         assert!(index.select(&[1.0]).is_empty());
     }
 }

@@ -17,7 +17,7 @@ use super::binning::{NOWHERE, ScreenRect, TetBin, union};
 
 /// The frame's work at one slices-per-shell count (see the module docs).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Work {
+pub(crate) struct Work {
     pub slices_per_shell: u32,
     /// Tet-shell instances: each tet once per shell its slice range touches.
     pub instances: u64,
@@ -36,7 +36,7 @@ pub struct Work {
 /// `instance × instances + (fragment + fragment_target × T) × fragments
 ///  + (pixel + pixel_target × T) × shell_pixels + shell × shells`.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CostModel {
+pub(crate) struct CostModel {
     pub instance: f64,
     pub fragment: f64,
     pub fragment_target: f64,
@@ -58,7 +58,7 @@ impl CostModel {
     /// 12 to 24 slices on most scenes, slower at 4 and 8 (tet-shell instances) and at 32 (the
     /// composite's per-layer work); the model picks the measured best on the slab (8) and a
     /// count in the flat region elsewhere.
-    pub const SOFTWARE: CostModel = CostModel {
+    pub(crate) const SOFTWARE: CostModel = CostModel {
         instance: 589.0,
         fragment: 8.0,
         fragment_target: 2.7,
@@ -71,7 +71,7 @@ impl CostModel {
     /// and blends fragments, and composites pixels, orders of magnitude faster than lavapipe,
     /// while each render pass keeps a fixed cost of some microseconds, so passes weigh more
     /// and the choice leans to many slices per shell (the fixed default on GPUs is the most).
-    pub const GPU: CostModel = CostModel {
+    pub(crate) const GPU: CostModel = CostModel {
         instance: 0.05,
         fragment: 0.02,
         fragment_target: 0.03,
@@ -81,7 +81,7 @@ impl CostModel {
     };
 
     /// The predicted frame time of `w`, in nanoseconds.
-    pub fn cost(&self, w: &Work) -> f64 {
+    pub(crate) fn cost(&self, w: &Work) -> f64 {
         let t = w.slices_per_shell.div_ceil(4) as f64;
         self.instance * w.instances as f64
             + (self.fragment + self.fragment_target * t) * w.fragments
@@ -92,19 +92,19 @@ impl CostModel {
 
 /// The candidate slices-per-shell counts with at most `max_slices` slices: 4, 8, ... (whole
 /// colour targets: a partly used target costs what a full one does).
-pub fn candidates(max_slices: u32) -> Vec<u32> {
+pub(crate) fn candidates(max_slices: u32) -> Vec<u32> {
     (1..=max_slices / 4).map(|t| 4 * t).collect()
 }
 
 /// The most 4-slice groups [`profile`] keeps a screen rectangle for (per worker): with more
 /// slices than 4 times this (a slice spacing thousands of times finer than the default) the
 /// profile is not taken and the frame uses the largest candidate.
-pub const MAX_GROUPS: u64 = 1 << 14;
+pub(crate) const MAX_GROUPS: u64 = 1 << 14;
 
 /// Each candidate's [`Work`] (`candidates`: multiples of 4) for `bins` over `slices` slices;
 /// `pixels(r)` is the pixel area of screen rectangle `r`. `None` when `slices` exceeds
 /// `4 * MAX_GROUPS`.
-pub fn profile(
+pub(crate) fn profile(
     bins: &[TetBin],
     candidates: &[u32],
     slices: u64,
@@ -173,7 +173,7 @@ pub fn profile(
 /// The slices-per-shell count of the least predicted cost (the smaller on a tie), or `None`
 /// when `work` is empty. `default` (when among the candidates) is kept unless the best count
 /// is predicted to save more than `margin` (a fraction) of its cost: see [`MARGIN`].
-pub fn choose(work: &[Work], model: &CostModel, default: u32, margin: f64) -> Option<u32> {
+pub(crate) fn choose(work: &[Work], model: &CostModel, default: u32, margin: f64) -> Option<u32> {
     let (best_cost, best) = work
         .iter()
         .map(|w| (model.cost(w), w.slices_per_shell))
@@ -189,7 +189,7 @@ pub fn choose(work: &[Work], model: &CostModel, default: u32, margin: f64) -> Op
 /// least-squares fit over 7 scenes at 512x512, and the full bench (256x256, 9 frames) measured
 /// counts chosen on small predicted gains 5 to 15% slower than the default on the blunt fin:
 /// the fit's error is of that order, so only larger predicted gains are taken.
-pub const MARGIN: f64 = 0.15;
+pub(crate) const MARGIN: f64 = 0.15;
 
 #[cfg(test)]
 mod tests {

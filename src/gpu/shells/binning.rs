@@ -13,7 +13,7 @@ use crate::gpu::view::to_eye_space;
 /// Slices are numbered globally: slice `k` lies at distance `t_first + k dz` from the eye (and
 /// with `n` slices per shell, shell `s` holds slices `s n .. (s + 1) n`).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct BinParams {
+pub(crate) struct BinParams {
     pub eye: DVec3,
     /// Camera basis (right, up, forward), orthonormal.
     pub basis: [DVec3; 3],
@@ -32,7 +32,7 @@ pub struct BinParams {
 
 /// What binning decided for one tet.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum TetBin {
+pub(crate) enum TetBin {
     /// Entirely outside one plane of the view frustum.
     Culled,
     /// Its scalar range maps to zero extinction: it adds nothing.
@@ -52,10 +52,10 @@ pub enum TetBin {
 /// A rectangle on the image plane at distance 1, `[x_min, y_min, x_max, y_max]` in eye-space
 /// `x / z` and `y / z`: the projection of a tet (of all its corners in front of the eye), or
 /// everything for a near-plane tet.
-pub type ScreenRect = [f32; 4];
+pub(crate) type ScreenRect = [f32; 4];
 
 /// The rectangle that holds every other.
-pub const EVERYWHERE: ScreenRect = [
+pub(crate) const EVERYWHERE: ScreenRect = [
     f32::NEG_INFINITY,
     f32::NEG_INFINITY,
     f32::INFINITY,
@@ -63,7 +63,7 @@ pub const EVERYWHERE: ScreenRect = [
 ];
 
 /// The rectangle that holds nothing (the identity of [`union`]).
-pub const NOWHERE: ScreenRect = [
+pub(crate) const NOWHERE: ScreenRect = [
     f32::INFINITY,
     f32::INFINITY,
     f32::NEG_INFINITY,
@@ -71,7 +71,7 @@ pub const NOWHERE: ScreenRect = [
 ];
 
 /// The smallest rectangle holding `a` and `b`.
-pub fn union(a: ScreenRect, b: ScreenRect) -> ScreenRect {
+pub(crate) fn union(a: ScreenRect, b: ScreenRect) -> ScreenRect {
     [
         a[0].min(b[0]),
         a[1].min(b[1]),
@@ -83,7 +83,7 @@ pub fn union(a: ScreenRect, b: ScreenRect) -> ScreenRect {
 /// One shell's slices of [`Binning::indices`] (tets drawn by their faces, then near-plane
 /// tets) and the screen rectangle holding all of them.
 #[derive(Clone, Debug, PartialEq)]
-pub struct ShellRange {
+pub(crate) struct ShellRange {
     pub faces: Range<u32>,
     pub near: Range<u32>,
     pub screen: ScreenRect,
@@ -91,7 +91,7 @@ pub struct ShellRange {
 
 /// All shells' active lists in one array.
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct Binning {
+pub(crate) struct Binning {
     /// Tet indices, shell by shell.
     pub indices: Vec<u32>,
     /// Per shell, its ranges in `indices`.
@@ -107,7 +107,7 @@ pub struct Binning {
 /// with eye-space corners `p`: `t_max` is the farthest corner (distance is convex, so its
 /// maximum over the tet is at a corner); `t_min` is the distance to the corners' bounding box,
 /// which holds the tet, so it never exceeds the distance of the tet's nearest point.
-pub fn distance_range(p: &[DVec3; 4]) -> (f64, f64) {
+pub(crate) fn distance_range(p: &[DVec3; 4]) -> (f64, f64) {
     let lo = p[0].min(p[1]).min(p[2].min(p[3]));
     let hi = p[0].max(p[1]).max(p[2].max(p[3]));
     let nearest = DVec3::ZERO.clamp(lo, hi);
@@ -117,7 +117,7 @@ pub fn distance_range(p: &[DVec3; 4]) -> (f64, f64) {
 
 /// The global slice range `k_lo..=k_hi` with `t_first + k dz` in `[t_min, t_max]`, widened by a
 /// thousandth of a slice against rounding, clipped to `0..total`; `None` when empty.
-pub fn slice_range(
+pub(crate) fn slice_range(
     t_min: f64,
     t_max: f64,
     t_first: f64,
@@ -133,7 +133,7 @@ pub fn slice_range(
 }
 
 /// Decides each tet's shells. `transparent(t)` says whether tet `t` contributes nothing.
-pub fn classify(
+pub(crate) fn classify(
     positions: &[DVec3],
     tets: &[[u32; 4]],
     params: &BinParams,
@@ -180,7 +180,7 @@ pub fn classify(
 
 /// Builds every shell's active list with one parallel counting sort over `bins`, for `n`
 /// slices per shell and `shells` shells (slices beyond `shells * n` are dropped).
-pub fn sort_into_shells(bins: &[TetBin], n: u32, shells: u32) -> Binning {
+pub(crate) fn sort_into_shells(bins: &[TetBin], n: u32, shells: u32) -> Binning {
     let n = n.max(1);
     // A tet's shells, clipped to the frame's.
     let span = |lo: u32, hi: u32| lo / n..=(hi / n).min(shells.saturating_sub(1));

@@ -3,13 +3,13 @@
 //! Eye space is cut into spherical shells around the eye, each holding `n` slices at spacing
 //! `dz` (slice `k` at distance `t_first + k dz`). Per frame, in `render`'s order, one file a
 //! stage:
-//! 1. plan and binning (CPU, rayon; `plan.rs`, [`binning`]): where the slices lie, each tet's
+//! 1. plan and binning (CPU, rayon; `plan.rs`, `binning.rs`): where the slices lie, each tet's
 //!    conservative distance range, frustum and transfer-function culling, the frame's `n`
-//!    chosen from the tets' slice ranges ([`adaptive`]), every shell's active list in one
+//!    chosen from the tets' slice ranges (`adaptive.rs`), every shell's active list in one
 //!    counting sort;
 //! 2. upload (`upload.rs`): frame constants, transfer function, per-shell constants, active
 //!    lists (chunk-local tet ids), the face index pattern;
-//! 3. assembly (compute, [`crate::gpu::assembly`], shared by every mode): once per tet,
+//! 3. assembly (compute, `gpu/assembly.rs`, shared by every mode): once per tet,
 //!    eye-space corners and the eye-to-barycentric transform (`shaders/assemble.wgsl`);
 //! 4. per drawn shell:
 //!    - raster (`raster.rs`, one render pass): front faces of the shell's tets, each fragment
@@ -20,7 +20,7 @@
 //!    - early ray termination (`termination.rs`): a mark pass excludes the finished pixels
 //!      from every later pass, and a few times per frame a tile mask of unfinished pixels is
 //!      read back (`shaders/shells_mark.wgsl`);
-//! 5. readback ([`crate::gpu::frame`]): the accumulation target, the degenerate count, the
+//! 5. readback (`gpu/frame.rs`): the accumulation target, the degenerate count, the
 //!    occlusion queries and the GPU timestamps of every pass.
 //!
 //! Pipelines (`pipelines.rs`), targets (`targets.rs`) and the slice configuration
@@ -30,8 +30,8 @@
 //! tets outside the frustum ([`skips`], each skip switched by [`ShellSettings::skips`]).
 //!
 //! Meshes whose per-tet records exceed one storage binding (about 932k tets on lavapipe's
-//! 128 MiB) are assembled and drawn in chunks: the records live in a
-//! [`crate::gpu::mesh::TetArray`] (as many buffers as the adapter's largest buffer needs),
+//! 128 MiB) are assembled and drawn in chunks: the records live in a tet array
+//! (`gpu/mesh.rs`, as many buffers as the adapter's largest buffer needs),
 //! each chunk binds its window of it, and a shell's active list (tet ids ascending, as binning
 //! leaves them) is drawn chunk by chunk with chunk-local ids.
 //!
@@ -42,8 +42,8 @@
 //! or adapters without blendable 32-bit float targets) `1 + u` keeps 10 mantissa bits: `u` is
 //! quantized to 1/1024 of the scalar range, and the accumulation keeps about 3 decimal digits.
 
-pub mod adaptive;
-pub mod binning;
+pub(crate) mod adaptive;
+pub(crate) mod binning;
 mod composite;
 mod config;
 mod pipelines;
@@ -101,7 +101,7 @@ pub struct ShellSettings {
     /// Slice spacing in world units; overrides `samples` when given.
     pub dz: Option<f64>,
     /// Slices per shell (4 per colour target), fixed for every frame; it overrides
-    /// [`Skips::adaptive_slices`]. `None`: chosen per frame ([`adaptive`]) when that skip is
+    /// [`Skips::adaptive_slices`]. `None`: chosen per frame (`adaptive.rs`) when that skip is
     /// on, else the most the adapter offers (32 with 8 `Rgba32Float` targets), or
     /// [`SOFTWARE_SLICES_PER_SHELL`] on software adapters.
     pub slices_per_shell: Option<u32>,
@@ -109,6 +109,10 @@ pub struct ShellSettings {
     /// at least `-epsilon`. Overlapping claims at shared faces are harmless under MAX (the
     /// scalar is continuous there); gaps would be holes.
     pub epsilon: f32,
+    /// The float format of the slice targets (default [`SliceFormat::Auto`]): 32-bit slices
+    /// keep the normalized scalar to f32, 16-bit ones quantize it to 1/1024 of the scalar
+    /// range and take half the target memory. `Float32` is an error on adapters without
+    /// `FLOAT32_BLENDABLE`.
     pub format: SliceFormat,
     /// Work the renderer skips where a scene does not need it (all on by default).
     pub skips: Skips,

@@ -20,7 +20,7 @@
 //!   empty and cost nothing. Off: every tet is binned and left to the rasterizer's clipping.
 //! - **Adaptive slices** ([`Skip::AdaptiveSlices`]): each frame's slices per shell are chosen
 //!   from the tets' depth extents in slices so that the predicted work is least (see
-//!   [`super::adaptive`]): thin tets get few slices per shell (fewer empty slices written per
+//!   the shells module's adaptive stage): thin tets get few slices per shell (fewer empty slices written per
 //!   fragment), deep ones many (fewer instances and passes). Slice positions do not depend on
 //!   it. Off, or with an explicit [`super::ShellSettings::slices_per_shell`] (which overrides
 //!   it), every frame uses that fixed count or the adapter's default.
@@ -31,10 +31,17 @@ use std::str::FromStr;
 /// One of the skips, as named on the command line (`--no-skip tf-cull,frustum`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Skip {
+    /// `tf-cull`: tets the transfer function makes fully transparent are not binned.
     TfCull,
+    /// `empty-space`: shells with no tet are not drawn, the others only over their tets'
+    /// screen rectangle.
     EmptySpace,
+    /// `early-termination`: pixels whose alpha reached [`Skips::ert_threshold`] get no more
+    /// work, and the frame stops when none is left.
     EarlyTermination,
+    /// `frustum`: tets outside the view frustum are not binned.
     Frustum,
+    /// `adaptive-slices`: the slices per shell are chosen per frame from the tets' depths.
     AdaptiveSlices,
 }
 
@@ -93,16 +100,22 @@ impl FromStr for Skip {
 /// region, a few samples: on bluntfin's opaque scene (examples/skips_bench.rs) 0.99999
 /// finishes 69,049 pixels where 0.998 finishes 71,171, and drops 87.7% of the raster fragments
 /// where 0.998 drops 91.7%.
-pub const DEFAULT_ERT_THRESHOLD: f32 = 0.99999;
+pub(crate) const DEFAULT_ERT_THRESHOLD: f32 = 0.99999;
 
 /// Which skips the shells renderer uses; all on by default (see the module docs).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Skips {
+    /// [`Skip::TfCull`].
     pub tf_cull: bool,
+    /// [`Skip::EmptySpace`].
     pub empty_space: bool,
+    /// [`Skip::EarlyTermination`].
     pub early_termination: bool,
-    /// Accumulated alpha at which a pixel is finished, in `(0, 1]`.
+    /// Accumulated alpha at which a pixel is finished, in `(0, 1]`; default 0.99999, so a
+    /// finished pixel drops at most 1e-5 per channel. Lower it to trade that error for speed
+    /// in opaque scenes.
     pub ert_threshold: f32,
+    /// [`Skip::Frustum`].
     pub frustum: bool,
     /// Slices per shell chosen per frame (unless fixed by the settings).
     pub adaptive_slices: bool,
@@ -166,11 +179,11 @@ impl Skips {
 
 /// Side of the square screen tiles of the early-termination mask, in pixels (the tile
 /// compute pass in `shaders/shells_mark.wgsl` uses the same number).
-pub const TILE: u32 = 16;
+pub(crate) const TILE: u32 = 16;
 
 /// Which screen tiles still have an unfinished pixel, as read back from the GPU.
 #[derive(Clone, Debug, PartialEq)]
-pub struct TileMask {
+pub(crate) struct TileMask {
     pub tiles_x: u32,
     pub tiles_y: u32,
     /// Row-major, `true` where a pixel of the tile is unfinished.
@@ -179,13 +192,13 @@ pub struct TileMask {
 
 impl TileMask {
     /// The tile grid of a `width` x `height` image.
-    pub fn dims(width: u32, height: u32) -> (u32, u32) {
+    pub(crate) fn dims(width: u32, height: u32) -> (u32, u32) {
         (width.div_ceil(TILE), height.div_ceil(TILE))
     }
 
     /// The part of pixel rectangle `[x, y, w, h]` covered by its unfinished tiles (the
     /// rectangle cut to their bounding box), or `None` when all its tiles are finished.
-    pub fn cut(&self, [x, y, w, h]: [u32; 4]) -> Option<[u32; 4]> {
+    pub(crate) fn cut(&self, [x, y, w, h]: [u32; 4]) -> Option<[u32; 4]> {
         if w == 0 || h == 0 {
             return None;
         }
