@@ -54,6 +54,18 @@ fn slice_span(rec: Varyings, d: vec3<f32>) -> vec4<f32> {
     return vec4<f32>(lo, hi, rec.scalar.w + t0 * sd, frame.dz * sd);
 }
 
+// The shell's slices from slice_span's (lo, hi, s0, s1): slice j (4 per target) holds
+// s0 + j s1 where lo <= j <= hi, 0 elsewhere. The CPU twin is gpu::shells::twin::sample_slices.
+fn slice_values(span: vec4<f32>) -> array<vec4<f32>, TARGETS> {
+    var v: array<vec4<f32>, TARGETS>;
+    for (var i = 0u; i < TARGETS; i++) {
+        let j = vec4<f32>(f32(4u * i)) + vec4<f32>(0.0, 1.0, 2.0, 3.0);
+        let inside = j >= vec4<f32>(span.x) & j <= vec4<f32>(span.y);
+        v[i] = select(vec4<f32>(0.0), span.z + j * span.w, inside);
+    }
+    return v;
+}
+
 @fragment
 fn fs_slices(in: Varyings) -> SliceOut {
     let span = slice_span(in, pixel_ray(in.position.xy));
@@ -61,13 +73,7 @@ fn fs_slices(in: Varyings) -> SliceOut {
     if span.x > span.y {
         discard;
     }
-    var v: array<vec4<f32>, TARGETS>;
-    for (var i = 0u; i < TARGETS; i++) {
-        let j = vec4<f32>(f32(4u * i)) + vec4<f32>(0.0, 1.0, 2.0, 3.0);
-        let inside = j >= vec4<f32>(span.x) & j <= vec4<f32>(span.y);
-        v[i] = select(vec4<f32>(0.0), span.z + j * span.w, inside);
-    }
-    return slice_out(v);
+    return slice_out(slice_values(span));
 }
 
 // Clearing the shell's slices within its scissor rectangle only (a full-screen triangle, cut
