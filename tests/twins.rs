@@ -23,7 +23,7 @@ use tetvr::gpu::cellproj::twin as cellproj_twin;
 use tetvr::gpu::gpu_data::{FrameUniforms, ShellUniforms, TetRecord, TfPoint};
 use tetvr::gpu::shaders;
 use tetvr::gpu::shells::twin;
-use tetvr::gpu::tf::tf_points;
+use tetvr::gpu::tf_points;
 use tetvr::gpu::{AdapterChoice, GpuContext};
 use tetvr::tf::{ControlPoint, TransferFunction};
 use wgpu::util::DeviceExt;
@@ -340,7 +340,7 @@ fn frame(eye: Vec3, target: Vec3, size: [f32; 2], slicing: (f32, f32, u32)) -> F
         eye: eye.to_array(),
         epsilon: 1e-4,
         near_z: 0.5 * t_first,
-        degenerate_tol: tetvr::gpu::assembly::DEGENERATE_TOL,
+        degenerate_tol: tetvr::gpu::DEGENERATE_TOL,
         size,
         half_extent: [slope * size[0] / size[1], slope],
         proj: [1.0 / (slope * size[0] / size[1]), 1.0 / slope],

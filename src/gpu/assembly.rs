@@ -14,7 +14,7 @@ use crate::gpu::util::{bind_group_layout, buffer_entry, compute_main, entry};
 /// the longest, is at most this times the product of their lengths: its barycentric transform
 /// would amplify f32 rounding by more than ~1e6. Such a tet has at most 1e-6 of the volume of a
 /// regular tet with the same longest edge, so skipping it loses no visible sample.
-pub(crate) const DEGENERATE_TOL: f32 = 1e-6;
+pub const DEGENERATE_TOL: f32 = 1e-6;
 
 /// Bytes of one record.
 pub(crate) const RECORD_BYTES: u64 = size_of::<TetRecord>() as u64;

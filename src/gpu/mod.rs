@@ -25,9 +25,13 @@ pub(crate) mod tf;
 mod util;
 pub(crate) mod view;
 
+// For the twin tests (tests/twins.rs): the assembly's degenerate threshold and the transfer
+// function as the shaders read it.
+pub use assembly::DEGENERATE_TOL;
 pub use cellproj::{CellProjRenderer, CellProjSettings, Integrate};
 pub use context::{AdapterChoice, GpuContext, GpuError};
 pub use iso::{IsoRenderer, IsoSettings};
 pub use mesh::GpuTetMesh;
 pub use shells::skips::{Skip, Skips};
 pub use shells::{ShellSettings, ShellsRenderer, SliceFormat};
+pub use tf::tf_points;

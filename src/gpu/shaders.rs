@@ -20,14 +20,14 @@ const CELLPROJ_RASTER: &str = include_str!("../../shaders/cellproj_raster.wgsl")
 pub const MAX_TARGETS: u32 = 8;
 
 /// The assembly stage every mode shares (compute entry point `main`).
-pub(crate) fn assemble() -> String {
+pub fn assemble() -> String {
     format!("{SHARED}\n{ASSEMBLE}")
 }
 
 /// The shells raster stage writing `targets` (1..=[`MAX_TARGETS`]) vec4 colour targets, i.e.
 /// `4 * targets` slices (entry points `vs_faces`, `vs_near`, `fs_slices`, and `vs_clear`,
 /// `fs_clear`, which zero the slices within the shell's scissor rectangle).
-pub(crate) fn shells_raster(targets: u32) -> String {
+pub fn shells_raster(targets: u32) -> String {
     let targets = targets.clamp(1, MAX_TARGETS);
     let fields: String = (0..targets)
         .map(|i| format!("    @location({i}) t{i}: vec4<f32>,\n"))
@@ -53,7 +53,7 @@ pub const UNROLLED_TF_POINTS: u32 = 32;
 /// over a dynamic layer index is an order of magnitude slower on lavapipe), and `tf_eval` walks
 /// the TF's segments with constant indices when `tf_points <= UNROLLED_TF_POINTS` (dynamic
 /// indices make every lane gather the control points); `tf_points` only selects the variant.
-pub(crate) fn shells_composite(targets: u32, tf_points: u32) -> String {
+pub fn shells_composite(targets: u32, tf_points: u32) -> String {
     let targets = targets.clamp(1, MAX_TARGETS);
     let loads: Vec<String> = (0..targets)
         .map(|i| format!("textureLoad(slices, xy, {i}, 0)"))

@@ -9,11 +9,7 @@ use crate::render::RenderError;
 use crate::tf::TransferFunction;
 
 /// `tf`'s control points for scalars normalized as `u = (s - lo) / span`.
-pub(crate) fn tf_points(
-    tf: &TransferFunction,
-    lo: f64,
-    span: f64,
-) -> Result<TfPoints, RenderError> {
+pub fn tf_points(tf: &TransferFunction, lo: f64, span: f64) -> Result<TfPoints, RenderError> {
     let p = tf.points();
     if p.len() > MAX_TF_POINTS {
         return Err(settings_error(format!(
