@@ -4,6 +4,10 @@
 
 /// Structs mirroring [`crate::gpu::gpu_data`], the frame uniform binding, the pixel ray.
 pub const SHARED: &str = include_str!("../../shaders/shared.wgsl");
+/// The exact segment integrator for the piecewise-linear TF (`fn integrate_exact`), shared by
+/// the cellproj raster and the raycast traversal; a stage appends it after [`SHARED`] and
+/// declares `tf: TfPoints`.
+pub const INTEGRATE_EXACT: &str = include_str!("../../shaders/integrate_exact.wgsl");
 const ASSEMBLE: &str = include_str!("../../shaders/assemble.wgsl");
 const SHELLS_RASTER: &str = include_str!("../../shaders/shells_raster.wgsl");
 const SHELLS_COMPOSITE: &str = include_str!("../../shaders/shells_composite.wgsl");

@@ -62,10 +62,15 @@ use crate::tf::TransferFunction;
 
 const CELLPROJ_RASTER: &str = include_str!("../../../shaders/cellproj_raster.wgsl");
 
-/// The raster stage's WGSL: `shared.wgsl` followed by `shaders/cellproj_raster.wgsl` (entry
-/// points `vs_faces`, `fs_table`, `fs_exact`).
+/// The raster stage's WGSL: `shared.wgsl`, the exact integrator (`integrate_exact.wgsl`,
+/// shared with `--mode raycast`) and `shaders/cellproj_raster.wgsl` (entry points `vs_faces`,
+/// `fs_table`, `fs_exact`).
 pub fn raster_source() -> String {
-    format!("{}\n{CELLPROJ_RASTER}", shaders::SHARED)
+    format!(
+        "{}\n{}\n{CELLPROJ_RASTER}",
+        shaders::SHARED,
+        shaders::INTEGRATE_EXACT
+    )
 }
 
 /// How each fragment integrates its segment.

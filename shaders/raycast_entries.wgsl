@@ -1,0 +1,127 @@
+// Ray caster stage 2, entries (one thread per boundary face): every pixel whose ray enters the
+// mesh through the face gets the hit (t, 4 * tet + face) in its list; rays leave and re-enter a
+// non-convex mesh through as many faces as they cross. A list that is full counts the hit as an
+// overflow and the CPU renders the frame again with longer lists; nothing is dropped silently.
+// CPU twin: gpu::raycast::twin::face_hit.
+//
+// Watertight: whether the ray passes a face comes from the signs of its three edges' Pluecker
+// products dot(cross(a, b), d), each computed with the edge's vertices in global index order,
+// so two faces sharing an edge compute the same number, and a ray on the edge (zero) counts
+// for both; no ray slips between two faces. Faces the ray runs along (PARALLEL) are not
+// entries, and a ray only enters where it moves against the outward normal.
+
+@group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> links: array<TetLinks>;
+@group(0) @binding(3) var<storage, read> planes: array<TetPlanes>;
+@group(0) @binding(4) var<storage, read> boundary: array<u32>;
+@group(0) @binding(5) var<storage, read_write> counts: array<atomic<u32>>;
+@group(0) @binding(6) var<storage, read_write> entries: array<vec2<u32>>;
+@group(0) @binding(7) var<storage, read_write> counters: array<atomic<u32>, 4>;
+@group(0) @binding(8) var<uniform> params: Raycast;
+
+fn eye_space(p: vec3<f32>) -> vec3<f32> {
+    let q = p - frame.eye;
+    return vec3<f32>(dot(frame.right, q), dot(frame.up, q), dot(frame.forward, q));
+}
+
+// A face's corners in eye space, in global index order, and its edges' Pluecker normals.
+struct Face {
+    corner: array<vec3<f32>, 3>,
+    // cross(c0, c1), cross(c1, c2), cross(c0, c2).
+    edge: array<vec3<f32>, 3>,
+}
+
+fn face_of(tet: u32, f: u32) -> Face {
+    let ids = links[tet].tet;
+    var fv = FACE_VERTICES;
+    var v = vec3<u32>(ids[fv[3u * f]], ids[fv[3u * f + 1u]], ids[fv[3u * f + 2u]]);
+    if v.x > v.y {
+        v = v.yxz;
+    }
+    if v.y > v.z {
+        v = v.xzy;
+    }
+    if v.x > v.y {
+        v = v.yxz;
+    }
+    var out: Face;
+    for (var i = 0u; i < 3u; i++) {
+        out.corner[i] = eye_space(positions[v[i]].xyz);
+    }
+    out.edge[0] = cross(out.corner[0], out.corner[1]);
+    out.edge[1] = cross(out.corner[1], out.corner[2]);
+    out.edge[2] = cross(out.corner[0], out.corner[2]);
+    return out;
+}
+
+// Whether ray d passes through the face (edges included): the three edge products of the
+// cycle c0 -> c1 -> c2 -> c0 share a sign.
+fn passes(face: Face, d: vec3<f32>) -> bool {
+    let e = vec3<f32>(dot(face.edge[0], d), dot(face.edge[1], d), -dot(face.edge[2], d));
+    return (all(e >= vec3<f32>(0.0)) || all(e <= vec3<f32>(0.0))) && any(e != vec3<f32>(0.0));
+}
+
+// The pixel rectangle [lo, hi) the face covers, grown by one pixel; the whole image when a
+// corner lies at or behind the eye plane; empty when the face lies behind it.
+fn pixel_bounds(face: Face) -> vec4<i32> {
+    let size = vec2<i32>(frame.size);
+    var lo = vec2<f32>(1e30);
+    var hi = vec2<f32>(-1e30);
+    var behind = 0u;
+    for (var i = 0u; i < 3u; i++) {
+        let c = face.corner[i];
+        if c.z <= frame.near_z {
+            behind++;
+            continue;
+        }
+        let uv = c.xy / c.z / frame.half_extent;
+        let xy = vec2<f32>(0.5 * (uv.x + 1.0), 0.5 * (1.0 - uv.y)) * frame.size;
+        lo = min(lo, xy);
+        hi = max(hi, xy);
+    }
+    if behind == 3u {
+        return vec4<i32>(0);
+    }
+    if behind > 0u {
+        return vec4<i32>(0, 0, size);
+    }
+    let a = clamp(vec2<i32>(floor(lo)) - 1, vec2<i32>(0), size);
+    let b = clamp(vec2<i32>(ceil(hi)) + 1, vec2<i32>(0), size);
+    return vec4<i32>(a, b);
+}
+
+fn record(pixel: u32, t: f32, code: u32) {
+    let slot = atomicAdd(&counts[pixel], 1u);
+    if slot < params.capacity {
+        entries[pixel * params.capacity + slot] = vec2<u32>(bitcast<u32>(t), code);
+    } else {
+        atomicAdd(&counters[2], 1u);
+    }
+}
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let k = gid.y * groups.x * 64u + gid.x;
+    if k >= params.boundary_count {
+        return;
+    }
+    let code = boundary[k];
+    let tet = code >> 2u;
+    let f = code & 3u;
+    let p = planes[tet].face[f];
+    let face = face_of(tet, f);
+    let r = pixel_bounds(face);
+    for (var y = r.y; y < r.w; y++) {
+        for (var x = r.x; x < r.z; x++) {
+            let d = ray_of(vec2<u32>(u32(x), u32(y)));
+            let den = dot(p.xyz, d);
+            if !(den < 0.0) || runs_along(p, den) || !passes(face, d) {
+                continue;
+            }
+            let t = crossing(p, den);
+            if t > 0.0 {
+                record(u32(y) * u32(frame.size.x) + u32(x), t, code);
+            }
+        }
+    }
+}

@@ -1,0 +1,289 @@
+//! `--mode raycast`: GPU ray casting on compute shaders through face adjacency (Weiler et al.
+//! 2003), one thread per ray in 8 x 8 pixel tiles, with exact segment integration.
+//!
+//! Per frame:
+//! 1. upload (`frame.rs`): frame constants, the TF, the ray caster's constants;
+//! 2. planes (`shaders/raycast_planes.wgsl`): once per tet, its face planes and linear scalar
+//!    in eye space from the current positions (a deforming mesh needs no preprocessing), and
+//!    the eye's tet when the eye is inside the mesh;
+//! 3. entries (`shaders/raycast_entries.wgsl`): once per boundary face, its hit (t, face) into
+//!    the list of every pixel whose ray enters the mesh through it (watertight edge tests); a
+//!    full list counts an overflow and the frame is rendered again with longer lists;
+//! 4. traversal (`shaders/raycast_traverse.wgsl`): once per pixel, from the eye's tet or the
+//!    nearest entry, tet to tet through the face the ray leaves by ([`links`]: neighbour and
+//!    face across, built once), each segment integrated exactly (`integrate_exact.wgsl`,
+//!    shared with cellproj), re-entering at the next entry of its list after it leaves a
+//!    non-convex mesh; early ray termination, and a step limit whose hits are counted;
+//! 5. readback ([`crate::gpu::frame`]) with the GPU timestamps of stages 2-4.
+//!
+//! **Robustness in f32.** The two tets sharing a face compute its plane from the same three
+//! vertices in the same (global index) order, so the ray leaves one at exactly the t where it
+//! enters the other; t never decreases along a ray; faces the ray runs along are never exits;
+//! and the walk is topological, so a ray cannot fall through a shared face whatever rounding
+//! does at edges and vertices. CPU twin of the arithmetic: [`twin`].
+
+mod frame;
+pub mod links;
+mod pipelines;
+pub mod twin;
+
+use std::sync::Arc;
+
+use bytemuck::{Pod, Zeroable};
+use glam::DVec3;
+
+use crate::camera::Camera;
+use crate::gpu::frame::{FrameResources, ImageReadback};
+use crate::gpu::gpu_data::{FrameUniforms, TfPoints};
+use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
+use crate::gpu::util::{settings_error, uniform_buffer};
+use crate::gpu::{GpuContext, shaders};
+use crate::mesh::TetMesh;
+use crate::render::{Frame, RenderError, Renderer};
+use crate::tf::TransferFunction;
+
+use pipelines::Pipelines;
+
+const RAYCAST_SHARED: &str = include_str!("../../../shaders/raycast_shared.wgsl");
+const RAYCAST_PLANES: &str = include_str!("../../../shaders/raycast_planes.wgsl");
+const RAYCAST_ENTRIES: &str = include_str!("../../../shaders/raycast_entries.wgsl");
+const RAYCAST_TRAVERSE: &str = include_str!("../../../shaders/raycast_traverse.wgsl");
+
+/// The WGSL of each stage as the renderer loads it (entry point `main` in each): planes,
+/// entries, traversal.
+pub fn stage_sources() -> [(&'static str, String); 3] {
+    let common = format!("{}\n{RAYCAST_SHARED}", shaders::SHARED);
+    [
+        ("raycast_planes", format!("{common}\n{RAYCAST_PLANES}")),
+        ("raycast_entries", format!("{common}\n{RAYCAST_ENTRIES}")),
+        (
+            "raycast_traverse",
+            format!("{common}\n{}\n{RAYCAST_TRAVERSE}", shaders::INTEGRATE_EXACT),
+        ),
+    ]
+}
+
+/// The ray caster's constants (WGSL `Raycast` in `shaders/raycast_shared.wgsl`, 16 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct RaycastUniforms {
+    /// Boundary-face hits each pixel's entry list holds.
+    pub capacity: u32,
+    /// Tets one ray may step through.
+    pub max_steps: u32,
+    /// Boundary faces.
+    pub boundary_count: u32,
+    /// The eye is in a tet when it lies at most this far outside each face plane.
+    pub eye_tol: f32,
+}
+const _: () = assert!(size_of::<RaycastUniforms>() == 16);
+
+/// Per tet and frame (WGSL `TetPlanes`, 80 bytes): the outward face planes `(n, w)` in eye
+/// space and the linear scalar `(gradient, value at the eye)`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct TetPlanes {
+    pub face: [[f32; 4]; 4],
+    pub scalar: [f32; 4],
+}
+const _: () = assert!(size_of::<TetPlanes>() == 80);
+
+/// Per tet, built once (WGSL `TetLinks`, 32 bytes): vertex indices, and across each face
+/// `4 * neighbour + face` ([`crate::mesh::topology::NO_NEIGHBOR`] on the boundary).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct TetLinks {
+    pub tet: [u32; 4],
+    pub next: [u32; 4],
+}
+const _: () = assert!(size_of::<TetLinks>() == 32);
+
+/// The counters the stages write (u32 each): flat tets, the eye's tet (`u32::MAX`: none),
+/// list overflows, rays stopped by the step limit.
+pub const COUNTERS: usize = 4;
+
+/// Settings of the ray caster.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RaycastSettings {
+    /// Boundary-face hits each pixel's entry list starts with (doubled and the frame rendered
+    /// again while a list overflows; kept for later frames).
+    pub list_capacity: u32,
+    /// Tets one ray may step through; `None`: [`default_max_steps`] of the mesh.
+    pub max_steps: Option<u32>,
+}
+
+impl Default for RaycastSettings {
+    fn default() -> Self {
+        Self {
+            list_capacity: 4,
+            max_steps: None,
+        }
+    }
+}
+
+/// The default step limit for a mesh of `tets` tets: 64 times the tets along the edge of a cube
+/// of that many (a ray across a regular grid crosses a few per cell), at least 4096.
+pub fn default_max_steps(tets: usize) -> u32 {
+    let side = (tets as f64).cbrt().ceil() as u32;
+    side.saturating_mul(64).max(4096)
+}
+
+/// The eye-space z of the near plane of entry bounds, and the eye-in-tet tolerance: 1e-5 of
+/// the bounding radius, above f32 rounding of eye-space coordinates.
+fn near_tol(radius: f64) -> f32 {
+    (1e-5 * radius) as f32
+}
+
+/// The ray caster; see the module docs.
+pub struct RaycastRenderer {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    limits: wgpu::Limits,
+    settings: RaycastSettings,
+    mesh: Arc<GpuTetMesh>,
+    pipelines: Pipelines,
+    frame: FrameResources,
+    frame_buf: wgpu::Buffer,
+    tf_buf: wgpu::Buffer,
+    params_buf: wgpu::Buffer,
+    /// [`COUNTERS`] u32s, and their mappable copy.
+    counters: wgpu::Buffer,
+    counters_read: wgpu::Buffer,
+    links: TetArray,
+    planes: TetArray,
+    boundary: wgpu::Buffer,
+    boundary_count: u32,
+    /// Hits each pixel's list holds now.
+    capacity: u32,
+    /// The eye-in-tet tolerance of the current frame ([`near_tol`]).
+    eye_tol: f32,
+    targets: Option<Targets>,
+}
+
+/// Per image size: the output, its readback, the per-pixel entry lists.
+struct Targets {
+    width: u32,
+    height: u32,
+    image: wgpu::Texture,
+    readback: ImageReadback,
+    counts: wgpu::Buffer,
+    /// `capacity` hits per pixel.
+    entries: wgpu::Buffer,
+    capacity: u32,
+}
+
+impl RaycastRenderer {
+    /// Builds the pipelines, the links and the boundary over a mesh already on the GPU.
+    pub fn with_mesh(
+        ctx: &GpuContext,
+        mesh: Arc<GpuTetMesh>,
+        settings: RaycastSettings,
+    ) -> Result<Self, RenderError> {
+        let nt = mesh.tet_count() as u64;
+        check_fits(&ctx.limits, nt)?;
+        let (links_cpu, boundary_cpu) = links::build(&mesh.read().tets);
+        let whole = Chunking { chunk: nt.max(1) };
+        let links = mesh.tet_array("raycast links", whole, nt, 32)?;
+        links.write(&ctx.queue, bytemuck::cast_slice(&links_cpu));
+        let planes = mesh.tet_array("raycast planes", whole, nt, 80)?;
+        let boundary = frame::storage(&ctx.device, "raycast boundary", 4 * boundary_cpu.len());
+        ctx.queue
+            .write_buffer(&boundary, 0, bytemuck::cast_slice(&boundary_cpu));
+        let device = ctx.device.clone();
+        let uniform = |label: &str, bytes: usize| uniform_buffer(&device, label, bytes);
+        Ok(Self {
+            pipelines: Pipelines::new(&device),
+            frame: FrameResources::new(ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY)),
+            frame_buf: uniform("raycast frame", size_of::<FrameUniforms>()),
+            tf_buf: uniform("raycast tf", size_of::<TfPoints>()),
+            params_buf: uniform("raycast constants", size_of::<RaycastUniforms>()),
+            counters: frame::storage(&device, "raycast counters", 4 * COUNTERS),
+            counters_read: frame::mappable(&device, "raycast counters readback", 4 * COUNTERS),
+            links,
+            planes,
+            boundary,
+            boundary_count: boundary_cpu.len() as u32,
+            capacity: settings.list_capacity.max(1),
+            eye_tol: 0.0,
+            queue: ctx.queue.clone(),
+            limits: ctx.limits.clone(),
+            device,
+            settings,
+            mesh,
+            targets: None,
+        })
+    }
+
+    /// Builds the pipelines and uploads the mesh.
+    pub fn new(ctx: &GpuContext, mesh: &TetMesh, s: RaycastSettings) -> Result<Self, RenderError> {
+        Self::with_mesh(ctx, GpuTetMesh::new(ctx, mesh)?, s)
+    }
+
+    /// The settings in use.
+    pub fn settings(&self) -> RaycastSettings {
+        self.settings
+    }
+
+    /// Bytes per tet of what scales with the mesh: planes, links, the boundary and the
+    /// vertex buffers.
+    pub fn bytes_per_tet(&self) -> f64 {
+        let mesh = self.mesh.positions().size() + self.mesh.scalars().size();
+        let own = self.planes.size() + self.links.size() + self.boundary.size();
+        (mesh + own) as f64 / self.mesh.tet_count().max(1) as f64
+    }
+}
+
+/// An error unless the per-tet planes fit one storage binding and face codes fit a u32.
+fn check_fits(limits: &wgpu::Limits, tets: u64) -> Result<(), RenderError> {
+    let max = (limits.max_storage_buffer_binding_size).min(limits.max_buffer_size);
+    if tets * 80 > max || tets >= 1 << 30 {
+        return Err(settings_error(format!(
+            "--mode raycast keeps its {tets} tets' planes (80 bytes each) in one storage \
+             binding, and this adapter binds at most {max} bytes; use --mode cellproj for \
+             this mesh"
+        )));
+    }
+    Ok(())
+}
+
+impl Renderer for RaycastRenderer {
+    fn name(&self) -> &'static str {
+        "raycast"
+    }
+
+    fn render(&mut self, camera: &Camera, tf: &TransferFunction) -> Result<Frame, RenderError> {
+        camera.validate()?;
+        self.frame(camera, tf)
+    }
+
+    fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {
+        self.mesh.update_positions(positions)
+    }
+
+    fn update_scalars(&mut self, scalars: &[f64]) -> Result<(), RenderError> {
+        self.mesh.update_scalars(scalars)
+    }
+
+    fn gpu_memory(&self) -> u64 {
+        let buffers: u64 = [
+            &self.frame_buf,
+            &self.tf_buf,
+            &self.params_buf,
+            &self.counters,
+            &self.counters_read,
+            &self.boundary,
+        ]
+        .iter()
+        .map(|b| b.size())
+        .sum();
+        let targets = self.targets.as_ref().map_or(0, |t| {
+            t.counts.size() + t.entries.size() + t.readback.size() + 16 * t.width as u64 * t.height as u64
+        });
+        self.mesh.gpu_memory()
+            + buffers
+            + self.links.size()
+            + self.planes.size()
+            + self.frame.size()
+            + targets
+    }
+}
