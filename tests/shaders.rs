@@ -51,3 +51,16 @@ fn shared_struct_layouts_match_gpu_data() {
     assert_eq!(size("TfPoint"), size_of::<TfPoint>());
     assert_eq!(size("TfPoints"), size_of::<TfPoints>());
 }
+
+/// The ray caster's stages validate, and its structs have the sizes of their Rust twins.
+#[test]
+fn raycast_stages_validate() {
+    use tetvr::gpu::raycast::{RaycastUniforms, TetLinks, TetPlanes, stage_sources};
+    for (name, src) in stage_sources() {
+        let module = validated_wgsl(name, &src);
+        assert_eq!(common::entry_points(&module), ["main"]);
+        assert_eq!(wgsl_struct_size(&module, "Raycast"), size_of::<RaycastUniforms>());
+        assert_eq!(wgsl_struct_size(&module, "TetPlanes"), size_of::<TetPlanes>());
+        assert_eq!(wgsl_struct_size(&module, "TetLinks"), size_of::<TetLinks>());
+    }
+}
