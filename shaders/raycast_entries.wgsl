@@ -4,10 +4,8 @@
 // overflow and the CPU renders the frame again with longer lists; nothing is dropped silently.
 // CPU twin: gpu::raycast::twin::face_hit.
 //
-// Watertight: whether the ray passes a face comes from the signs of its three edges' Pluecker
-// products dot(cross(a, b), d), each computed with the edge's vertices in global index order,
-// so two faces sharing an edge compute the same number, and a ray on the edge (zero) counts
-// for both; no ray slips between two faces. Faces the ray runs along (PARALLEL) are not
+// Watertight: whether the ray passes a face comes from its edges' Pluecker products
+// (raycast_shared.wgsl, `passes`); no ray slips between two faces. Faces the ray runs along (PARALLEL) are not
 // entries, and a ray only enters where it moves against the outward normal.
 
 @group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
@@ -18,48 +16,6 @@
 @group(0) @binding(6) var<storage, read_write> entries: array<vec2<u32>>;
 @group(0) @binding(7) var<storage, read_write> counters: array<atomic<u32>, 4>;
 @group(0) @binding(8) var<uniform> params: Raycast;
-
-fn eye_space(p: vec3<f32>) -> vec3<f32> {
-    let q = p - frame.eye;
-    return vec3<f32>(dot(frame.right, q), dot(frame.up, q), dot(frame.forward, q));
-}
-
-// A face's corners in eye space, in global index order, and its edges' Pluecker normals.
-struct Face {
-    corner: array<vec3<f32>, 3>,
-    // cross(c0, c1), cross(c1, c2), cross(c0, c2).
-    edge: array<vec3<f32>, 3>,
-}
-
-fn face_of(tet: u32, f: u32) -> Face {
-    let ids = links[tet].tet;
-    var fv = FACE_VERTICES;
-    var v = vec3<u32>(ids[fv[3u * f]], ids[fv[3u * f + 1u]], ids[fv[3u * f + 2u]]);
-    if v.x > v.y {
-        v = v.yxz;
-    }
-    if v.y > v.z {
-        v = v.xzy;
-    }
-    if v.x > v.y {
-        v = v.yxz;
-    }
-    var out: Face;
-    for (var i = 0u; i < 3u; i++) {
-        out.corner[i] = eye_space(positions[v[i]].xyz);
-    }
-    out.edge[0] = cross(out.corner[0], out.corner[1]);
-    out.edge[1] = cross(out.corner[1], out.corner[2]);
-    out.edge[2] = cross(out.corner[0], out.corner[2]);
-    return out;
-}
-
-// Whether ray d passes through the face (edges included): the three edge products of the
-// cycle c0 -> c1 -> c2 -> c0 share a sign.
-fn passes(face: Face, d: vec3<f32>) -> bool {
-    let e = vec3<f32>(dot(face.edge[0], d), dot(face.edge[1], d), -dot(face.edge[2], d));
-    return (all(e >= vec3<f32>(0.0)) || all(e <= vec3<f32>(0.0))) && any(e != vec3<f32>(0.0));
-}
 
 // The pixel rectangle [lo, hi) the face covers, grown by one pixel; the whole image when a
 // corner lies at or behind the eye plane; empty when the face lies behind it.
@@ -115,7 +71,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
         for (var x = r.x; x < r.z; x++) {
             let d = ray_of(vec2<u32>(u32(x), u32(y)));
             let den = dot(p.xyz, d);
-            if !(den < 0.0) || runs_along(p, den) || !passes(face, d) {
+            if !(den < 0.0) || runs_along(p, den) || !passes(edge_products(face, d)) {
                 continue;
             }
             let t = crossing(p, den);

@@ -52,6 +52,58 @@ const PARALLEL: f32 = 1e-5;
 // Local vertices of face f (opposite vertex f): mesh::topology::FACES.
 const FACE_VERTICES = array<u32, 12>(1u, 2u, 3u, 0u, 3u, 2u, 0u, 1u, 3u, 0u, 2u, 1u);
 
+// The helpers below read `positions` (vec4 per vertex) and `links`, which each stage binds.
+
+// World (mesh-origin relative) point to eye space, the same operations for every tet and
+// stage, so a shared vertex has the same bits everywhere.
+fn eye_space(p: vec3<f32>) -> vec3<f32> {
+    let q = p - frame.eye;
+    return vec3<f32>(dot(frame.right, q), dot(frame.up, q), dot(frame.forward, q));
+}
+
+// A face's corners in eye space, in global index order, and its edges' Pluecker normals.
+struct Face {
+    corner: array<vec3<f32>, 3>,
+    // cross(c0, c1), cross(c1, c2), cross(c0, c2).
+    edge: array<vec3<f32>, 3>,
+}
+
+fn face_of(tet: u32, f: u32) -> Face {
+    let ids = links[tet].tet;
+    var fv = FACE_VERTICES;
+    var v = vec3<u32>(ids[fv[3u * f]], ids[fv[3u * f + 1u]], ids[fv[3u * f + 2u]]);
+    if v.x > v.y {
+        v = v.yxz;
+    }
+    if v.y > v.z {
+        v = v.xzy;
+    }
+    if v.x > v.y {
+        v = v.yxz;
+    }
+    var out: Face;
+    for (var i = 0u; i < 3u; i++) {
+        out.corner[i] = eye_space(positions[v[i]].xyz);
+    }
+    out.edge[0] = cross(out.corner[0], out.corner[1]);
+    out.edge[1] = cross(out.corner[1], out.corner[2]);
+    out.edge[2] = cross(out.corner[0], out.corner[2]);
+    return out;
+}
+
+// The Pluecker products dot(cross(a, b), d) of ray d with the face's edges, cycle c0 -> c1 ->
+// c2 -> c0. Each edge's product is computed from its vertices in global index order, so the
+// faces sharing an edge compute the same number (up to sign).
+fn edge_products(face: Face, d: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(dot(face.edge[0], d), dot(face.edge[1], d), -dot(face.edge[2], d));
+}
+
+// Whether the ray line passes through the face (edges included, so a ray on an edge passes
+// both faces that share it): its edge products share a sign, not all zero.
+fn passes(e: vec3<f32>) -> bool {
+    return (all(e >= vec3<f32>(0.0)) || all(e <= vec3<f32>(0.0))) && any(e != vec3<f32>(0.0));
+}
+
 // The unit eye-space ray through the centre of pixel (x, y): pixel_ray at that centre. Every
 // stage computes a pixel's ray with exactly these operations, so entry and traversal agree.
 fn ray_of(px: vec2<u32>) -> vec3<f32> {

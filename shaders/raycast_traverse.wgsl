@@ -15,6 +15,7 @@
 @group(0) @binding(6) var<uniform> params: Raycast;
 @group(0) @binding(7) var<storage, read_write> counters: array<atomic<u32>, 4>;
 @group(0) @binding(8) var image: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(9) var<storage, read> positions: array<vec4<f32>>;
 
 // Early ray termination: what lies behind a transmittance below this adds at most this much to
 // any channel (twin::TERMINATE).
@@ -50,6 +51,34 @@ fn exit(pl: TetPlanes, entry: u32, d: vec3<f32>, t_in: f32) -> vec2<f32> {
         return vec2<f32>(f32(steep), t_in);
     }
     return vec2<f32>(f32(best), max(t_in, best_t));
+}
+
+// The exit of a thin tet (its scalar gradient exactly 0, raycast_planes.wgsl), whose planes'
+// outward directions are rounding: the face other than `entry` that the ray line passes
+// through, from the edges' Pluecker products (Platis & Theoharis 2003), which are computed
+// the same way in every tet sharing an edge; a face passed strictly inside before one passed
+// on an edge. It leaves at the face's plane crossing (at least t_in; t_in where the ray runs
+// along it). NO_FACE when no face passes (then the planes decide).
+fn exit_by_edges(tet: u32, entry: u32, d: vec3<f32>, t_in: f32) -> vec2<f32> {
+    var best = NO_FACE;
+    var strict = false;
+    var plane = vec4<f32>(0.0);
+    for (var f = 0u; f < 4u; f++) {
+        let face = face_of(tet, f);
+        let e = edge_products(face, d);
+        if f == entry || !passes(e) || strict {
+            continue;
+        }
+        best = f;
+        strict = all(e != vec3<f32>(0.0));
+        let n = cross(face.corner[1] - face.corner[0], face.corner[2] - face.corner[0]);
+        plane = vec4<f32>(n, -dot(n, face.corner[0]));
+    }
+    let den = dot(plane.xyz, d);
+    if best == NO_FACE || runs_along(plane, den) {
+        return vec2<f32>(f32(best), t_in);
+    }
+    return vec2<f32>(f32(best), max(t_in, crossing(plane, den)));
 }
 
 // The normalized scalar at t along d, clamped to [0, 1].
@@ -120,7 +149,13 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         steps++;
         let pl = planes[tet];
-        let out = exit(pl, entry, d, t);
+        var out = vec2<f32>(f32(NO_FACE), t);
+        if all(pl.scalar.xyz == vec3<f32>(0.0)) {
+            out = exit_by_edges(tet, entry, d, t);
+        }
+        if u32(out.x) == NO_FACE {
+            out = exit(pl, entry, d, t);
+        }
         let f = u32(out.x);
         let seg = integrate_exact(scalar_at(pl, d, t), scalar_at(pl, d, out.y), out.y - t);
         acc = Acc(acc.color + acc.trans * seg.color, acc.trans * seg.trans);

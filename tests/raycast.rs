@@ -224,3 +224,17 @@ fn list_overflow_reruns_and_step_limit_is_counted() {
     assert!(counter(&stopped, "rays at step limit") > 0);
     assert_eq!(counter(&long, "rays at step limit"), 0);
 }
+
+/// This milestone keeps the per-tet planes in one storage binding: a mesh beyond it is refused
+/// with a message that names the sizes and the mode that draws it (no panic, no wrong
+/// picture). lox's 8,750 tets need 700,000 bytes of planes.
+#[test]
+fn mesh_beyond_one_binding_is_refused_clearly() {
+    let small = common::with_storage_binding_limit(ctx(), 64 << 10);
+    let err = RaycastRenderer::new(&small, &lox(), RaycastSettings::default())
+        .err()
+        .expect("refused");
+    let msg = err.to_string();
+    assert!(msg.contains("8750 tets") && msg.contains("65536"), "{msg}");
+    assert!(msg.contains("--mode cellproj"), "{msg}");
+}

@@ -59,8 +59,14 @@ fn raycast_stages_validate() {
     for (name, src) in stage_sources() {
         let module = validated_wgsl(name, &src);
         assert_eq!(common::entry_points(&module), ["main"]);
-        assert_eq!(wgsl_struct_size(&module, "Raycast"), size_of::<RaycastUniforms>());
-        assert_eq!(wgsl_struct_size(&module, "TetPlanes"), size_of::<TetPlanes>());
+        assert_eq!(
+            wgsl_struct_size(&module, "Raycast"),
+            size_of::<RaycastUniforms>()
+        );
+        assert_eq!(
+            wgsl_struct_size(&module, "TetPlanes"),
+            size_of::<TetPlanes>()
+        );
         assert_eq!(wgsl_struct_size(&module, "TetLinks"), size_of::<TetLinks>());
     }
 }

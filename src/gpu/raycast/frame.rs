@@ -72,7 +72,11 @@ impl RaycastRenderer {
         let t = Instant::now();
         let image = self.read_image()?;
         for stage in ["planes", "entries", "traverse"] {
-            let ms = run.stages.iter().find(|(s, _)| *s == stage).map_or(0.0, |s| s.1);
+            let ms = run
+                .stages
+                .iter()
+                .find(|(s, _)| *s == stage)
+                .map_or(0.0, |s| s.1);
             timings.stage(stage, ms);
         }
         timings.stage("readback", ms_since(t));
@@ -90,7 +94,7 @@ impl RaycastRenderer {
     fn count(&self, timings: &mut Timings, run: &Run, reruns: u64) {
         timings.count("tets", self.mesh.tet_count() as u64);
         timings.count("boundary faces", self.boundary_count as u64);
-        timings.count("flat tets", run.counters[0] as u64);
+        timings.count("thin tets", run.counters[0] as u64);
         timings.count("eye in a tet", (run.counters[1] != u32::MAX) as u64);
         timings.count("entry list length", self.capacity as u64);
         timings.count("list overflow reruns", reruns);
@@ -133,9 +137,10 @@ impl RaycastRenderer {
     /// The output image and entry lists for `width` x `height` at the current capacity, kept
     /// while both match; an error naming the sizes when the lists exceed one binding.
     fn ensure_targets(&mut self, width: u32, height: u32) -> Result<(), RenderError> {
-        let keep = self.targets.as_ref().is_some_and(|t| {
-            (t.width, t.height, t.capacity) == (width, height, self.capacity)
-        });
+        let keep = self
+            .targets
+            .as_ref()
+            .is_some_and(|t| (t.width, t.height, t.capacity) == (width, height, self.capacity));
         if keep {
             return Ok(());
         }
@@ -192,40 +197,50 @@ impl RaycastRenderer {
         let nt = self.mesh.tet_count() as u64;
         let p = &self.pipelines;
         let view = t.image.create_view(&Default::default());
-        let planes = self.group(&p.planes, &[
-            entry(0, &self.frame_buf),
-            entry(1, self.mesh.positions()),
-            entry(2, self.mesh.scalars()),
-            self.links.window(3, 0, nt),
-            self.planes.window(4, 0, nt),
-            entry(5, &self.counters),
-            entry(6, &self.params_buf),
-        ]);
-        let entries = self.group(&p.entries, &[
-            entry(0, &self.frame_buf),
-            entry(1, self.mesh.positions()),
-            self.links.window(2, 0, nt),
-            self.planes.window(3, 0, nt),
-            entry(4, &self.boundary),
-            entry(5, &t.counts),
-            entry(6, &t.entries),
-            entry(7, &self.counters),
-            entry(8, &self.params_buf),
-        ]);
-        let traverse = self.group(&p.traverse, &[
-            entry(0, &self.frame_buf),
-            self.links.window(1, 0, nt),
-            self.planes.window(2, 0, nt),
-            entry(3, &t.counts),
-            entry(4, &t.entries),
-            entry(5, &self.tf_buf),
-            entry(6, &self.params_buf),
-            entry(7, &self.counters),
-            wgpu::BindGroupEntry {
-                binding: 8,
-                resource: wgpu::BindingResource::TextureView(&view),
-            },
-        ]);
+        let planes = self.group(
+            &p.planes,
+            &[
+                entry(0, &self.frame_buf),
+                entry(1, self.mesh.positions()),
+                entry(2, self.mesh.scalars()),
+                self.links.window(3, 0, nt),
+                self.planes.window(4, 0, nt),
+                entry(5, &self.counters),
+                entry(6, &self.params_buf),
+            ],
+        );
+        let entries = self.group(
+            &p.entries,
+            &[
+                entry(0, &self.frame_buf),
+                entry(1, self.mesh.positions()),
+                self.links.window(2, 0, nt),
+                self.planes.window(3, 0, nt),
+                entry(4, &self.boundary),
+                entry(5, &t.counts),
+                entry(6, &t.entries),
+                entry(7, &self.counters),
+                entry(8, &self.params_buf),
+            ],
+        );
+        let traverse = self.group(
+            &p.traverse,
+            &[
+                entry(0, &self.frame_buf),
+                self.links.window(1, 0, nt),
+                self.planes.window(2, 0, nt),
+                entry(3, &t.counts),
+                entry(4, &t.entries),
+                entry(5, &self.tf_buf),
+                entry(6, &self.params_buf),
+                entry(7, &self.counters),
+                wgpu::BindGroupEntry {
+                    binding: 8,
+                    resource: wgpu::BindingResource::TextureView(&view),
+                },
+                entry(9, self.mesh.positions()),
+            ],
+        );
         [planes, entries, traverse]
     }
 
@@ -241,7 +256,12 @@ impl RaycastRenderer {
         let nt = self.mesh.tet_count() as u64;
         let tiles = (t.width.div_ceil(8), t.height.div_ceil(8));
         let passes = [
-            ("planes", &self.pipelines.planes, &planes, linear_groups(nt, max)),
+            (
+                "planes",
+                &self.pipelines.planes,
+                &planes,
+                linear_groups(nt, max),
+            ),
             ("entries", &self.pipelines.entries, &entries, {
                 linear_groups(self.boundary_count as u64, max)
             }),

@@ -56,7 +56,10 @@ mod tests {
         // Tets 0 and 1 share vertices 1, 2, 3: face 0 of tet 0, face 3 of tet 1 (opposite 4).
         let tets = [[0, 1, 2, 3], [1, 2, 3, 4]];
         let (links, boundary) = build(&tets);
-        assert_eq!(links[0].next, [face_code(1, 3), NO_NEIGHBOR, NO_NEIGHBOR, NO_NEIGHBOR]);
+        assert_eq!(
+            links[0].next,
+            [face_code(1, 3), NO_NEIGHBOR, NO_NEIGHBOR, NO_NEIGHBOR]
+        );
         assert_eq!(links[1].next[3], face_code(0, 0));
         assert_eq!(boundary.len(), 6);
         assert!(!boundary.contains(&face_code(0, 0)));

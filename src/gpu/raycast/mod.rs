@@ -20,7 +20,9 @@
 //! vertices in the same (global index) order, so the ray leaves one at exactly the t where it
 //! enters the other; t never decreases along a ray; faces the ray runs along are never exits;
 //! and the walk is topological, so a ray cannot fall through a shared face whatever rounding
-//! does at edges and vertices. CPU twin of the arithmetic: [`twin`].
+//! does at edges and vertices. A thin tet (slivers, caps, needles, flat tets: its planes'
+//! outward directions are rounding) is left by the face its edges' Pluecker products say the
+//! ray passes (Platis & Theoharis 2003), computed alike in every tet sharing an edge. CPU twin of the arithmetic: [`twin`].
 
 mod frame;
 pub mod links;
@@ -98,7 +100,7 @@ pub struct TetLinks {
 }
 const _: () = assert!(size_of::<TetLinks>() == 32);
 
-/// The counters the stages write (u32 each): flat tets, the eye's tet (`u32::MAX`: none),
+/// The counters the stages write (u32 each): thin tets (see [`twin::THIN`]), the eye's tet (`u32::MAX`: none),
 /// list overflows, rays stopped by the step limit.
 pub const COUNTERS: usize = 4;
 
@@ -277,7 +279,10 @@ impl Renderer for RaycastRenderer {
         .map(|b| b.size())
         .sum();
         let targets = self.targets.as_ref().map_or(0, |t| {
-            t.counts.size() + t.entries.size() + t.readback.size() + 16 * t.width as u64 * t.height as u64
+            t.counts.size()
+                + t.entries.size()
+                + t.readback.size()
+                + 16 * t.width as u64 * t.height as u64
         });
         self.mesh.gpu_memory()
             + buffers

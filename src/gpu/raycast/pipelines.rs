@@ -52,6 +52,7 @@ impl Pipelines {
             traverse: stage(device, traverse, &{
                 let mut e = buffers(&traverse_layout);
                 e.push(image_entry(8));
+                e.push(buffer_entry(9, S::COMPUTE, RO));
                 e
             }),
         }

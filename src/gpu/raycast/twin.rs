@@ -32,6 +32,12 @@ pub const TERMINATE: f32 = 1e-5;
 /// that differs by the rounding of two different planes).
 pub const REENTRY: f32 = 1e-5;
 
+/// WGSL `THIN`: a tet is thin when its volume `|det|` is at most this times `|n|^1.5` of its
+/// largest face normal: the side of each opposite vertex, so each plane's outward direction,
+/// is f32 rounding. A thin tet gets a constant scalar (gradient exactly 0) and is left by its
+/// edges ([`exit_by_edges`]).
+pub const THIN: f32 = 1e-5;
+
 /// World (mesh-origin relative) point to eye space (WGSL `eye_space`).
 pub fn eye_space(f: &FrameUniforms, p: Vec3) -> Vec3 {
     let q = p - Vec3::from(f.eye);
@@ -58,11 +64,12 @@ fn sorted_face(ids: [u32; 4], f: usize) -> [usize; 3] {
 }
 
 /// The outward face planes `(n, w)` and linear scalar of a tet with eye-space corners `p`,
-/// global indices `ids` and scalars `s`; `true` when the tet is flat (its scalar then the
-/// mean, constant). WGSL `raycast_planes.wgsl`.
+/// global indices `ids` and scalars `s`; `true` when the tet is thin ([`THIN`]; its scalar
+/// then the mean, constant). WGSL `raycast_planes.wgsl`.
 pub fn planes(p: [Vec3; 4], ids: [u32; 4], s: [f32; 4]) -> (TetPlanes, bool) {
     let mut out = TetPlanes::default();
     let mut height = [0.0f32; 4];
+    let mut largest = 0.0f32;
     for f in 0..4 {
         let [a, b, c] = sorted_face(ids, f).map(|i| p[i]);
         let n = (b - a).cross(c - a);
@@ -70,8 +77,10 @@ pub fn planes(p: [Vec3; 4], ids: [u32; 4], s: [f32; 4]) -> (TetPlanes, bool) {
         let side = q.truncate().dot(p[f]) + q.w;
         out.face[f] = if side > 0.0 { -q } else { q }.to_array();
         height[f] = -side.abs();
+        largest = largest.max(n.length());
     }
-    if height.iter().any(|&h| !(h < 0.0)) {
+    let limit = -THIN * largest * largest.sqrt();
+    if !height.iter().all(|&h| h < limit) {
         out.scalar = [0.0, 0.0, 0.0, 0.25 * (s[0] + s[1] + s[2] + s[3])];
         return (out, true);
     }
@@ -112,30 +121,68 @@ pub fn exit(pl: &TetPlanes, entry: usize, d: Vec3, t_in: f32) -> (usize, f32) {
     }
 }
 
-/// The t where ray `d` enters through a boundary face with corners `c` (eye space, in global
-/// index order) and outward plane `p`, edges included; `None` when it misses, runs along it,
-/// leaves through it or meets it behind the eye. WGSL `passes` and the entry test of `main`.
-pub fn face_hit(c: [Vec3; 3], p: Vec4, d: Vec3) -> Option<f32> {
-    let den = p.truncate().dot(d);
-    if !(den < 0.0) || runs_along(p, den) {
-        return None;
-    }
-    let e = [
+/// The Pluecker products of ray `d` with the edges of the face with corners `c` (eye space, in
+/// global index order), cycle c0 -> c1 -> c2 -> c0 (WGSL `edge_products`).
+pub fn edge_products(c: [Vec3; 3], d: Vec3) -> [f32; 3] {
+    [
         c[0].cross(c[1]).dot(d),
         c[1].cross(c[2]).dot(d),
         -c[0].cross(c[2]).dot(d),
-    ];
+    ]
+}
+
+/// Whether the ray line passes through the face, edges included (WGSL `passes`).
+pub fn passes(e: [f32; 3]) -> bool {
     let same = e.iter().all(|&x| x >= 0.0) || e.iter().all(|&x| x <= 0.0);
-    if !same || e.iter().all(|&x| x == 0.0) {
+    same && e.iter().any(|&x| x != 0.0)
+}
+
+/// The t where ray `d` enters through a boundary face with corners `c` (eye space, in global
+/// index order) and outward plane `p`, edges included; `None` when it misses, runs along it,
+/// leaves through it or meets it behind the eye. The entry test of WGSL `raycast_entries`.
+pub fn face_hit(c: [Vec3; 3], p: Vec4, d: Vec3) -> Option<f32> {
+    let den = p.truncate().dot(d);
+    if den >= 0.0 || den.is_nan() || runs_along(p, den) || !passes(edge_products(c, d)) {
         return None;
     }
     let t = -p.w / den;
     (t > 0.0).then_some(t)
 }
 
+/// The exit of a thin tet whose faces have eye-space corners `faces[f]` (global index order):
+/// the face other than `entry` the ray line passes, one passed strictly inside before one
+/// passed on an edge, at its plane crossing (at least `t_in`); `None` when none passes. WGSL
+/// `exit_by_edges`.
+pub fn exit_by_edges(
+    faces: [[Vec3; 3]; 4],
+    entry: usize,
+    d: Vec3,
+    t_in: f32,
+) -> Option<(usize, f32)> {
+    let mut best: Option<(usize, bool)> = None;
+    for (f, c) in faces.iter().enumerate() {
+        let e = edge_products(*c, d);
+        if f == entry || !passes(e) || best.is_some_and(|b| b.1) {
+            continue;
+        }
+        best = Some((f, e.iter().all(|&x| x != 0.0)));
+    }
+    let (f, _) = best?;
+    let c = faces[f];
+    let n = (c[1] - c[0]).cross(c[2] - c[0]);
+    let plane = n.extend(-n.dot(c[0]));
+    let den = n.dot(d);
+    if runs_along(plane, den) {
+        return Some((f, t_in));
+    }
+    Some((f, t_in.max(-plane.w / den)))
+}
+
 /// The mesh as the twin traces it: per-tet planes, links, eye-space positions.
 struct Scene {
     planes: Vec<TetPlanes>,
+    /// Each tet's faces' eye-space corners in global index order.
+    faces: Vec<[[Vec3; 3]; 4]>,
     links: Vec<super::TetLinks>,
     /// Boundary faces: code, corners in global order.
     boundary: Vec<(u32, [Vec3; 3])>,
@@ -153,7 +200,11 @@ fn scene(m: &MeshData, f: &FrameUniforms, eye_tol: f32) -> Scene {
         .map(|t| planes(t.map(|v| pos[v as usize]), *t, t.map(|v| s[v as usize])))
         .collect();
     let eye_tet = planes.iter().position(|(pl, flat)| {
-        !flat && pl.face.iter().all(|q| q[3] <= eye_tol * Vec3::from_slice(q).length())
+        !flat
+            && pl
+                .face
+                .iter()
+                .all(|q| q[3] <= eye_tol * Vec3::from_slice(q).length())
     });
     let boundary = (boundary.iter())
         .map(|&code| {
@@ -162,8 +213,13 @@ fn scene(m: &MeshData, f: &FrameUniforms, eye_tol: f32) -> Scene {
             (code, v.map(|i| pos[ids[i] as usize]))
         })
         .collect();
+
+    let faces = (m.tets.par_iter())
+        .map(|&ids| std::array::from_fn(|f| sorted_face(ids, f).map(|i| pos[ids[i] as usize])))
+        .collect();
     Scene {
         planes: planes.into_iter().map(|(p, _)| p).collect(),
+        faces,
         links,
         boundary,
         eye_tet: eye_tet.map_or(NO_NEIGHBOR, |t| t as u32),
@@ -197,7 +253,10 @@ fn trace(sc: &Scene, tf: &NormalizedTf, d: Vec3, max_steps: u32) -> [f32; 4] {
         }
         steps += 1;
         let pl = &sc.planes[tet as usize];
-        let (f, t_out) = exit(pl, entry, d, t);
+        let by_edges = (pl.scalar[..3] == [0.0; 3])
+            .then(|| exit_by_edges(sc.faces[tet as usize], entry, d, t))
+            .flatten();
+        let (f, t_out) = by_edges.unwrap_or_else(|| exit(pl, entry, d, t));
         let g = Vec4::from(pl.scalar);
         let u = |t: f32| (g.w + t * g.truncate().dot(d)).clamp(0.0, 1.0) as f64;
         let seg = integrate(tf, u(t), u(t_out), (t_out - t) as f64);
@@ -210,9 +269,18 @@ fn trace(sc: &Scene, tf: &NormalizedTf, d: Vec3, max_steps: u32) -> [f32; 4] {
         }
         t = t_out;
         let next = sc.links[tet as usize].next[f];
-        (tet, entry) = if next == NO_NEIGHBOR { (NO_NEIGHBOR, 4) } else { (next / 4, (next % 4) as usize) };
+        (tet, entry) = if next == NO_NEIGHBOR {
+            (NO_NEIGHBOR, 4)
+        } else {
+            (next / 4, (next % 4) as usize)
+        };
     }
-    [color[0] as f32, color[1] as f32, color[2] as f32, (1.0 - trans) as f32]
+    [
+        color[0] as f32,
+        color[1] as f32,
+        color[2] as f32,
+        (1.0 - trans) as f32,
+    ]
 }
 
 /// The frame the ray caster renders, traced on the CPU (one ray per pixel, every boundary face
@@ -240,7 +308,12 @@ mod tests {
 
     /// The unit tet, eye space, ids in order.
     fn unit() -> [Vec3; 4] {
-        [Vec3::new(0.0, 0.0, 2.0), Vec3::new(1.0, 0.0, 2.0), Vec3::new(0.0, 1.0, 2.0), Vec3::new(0.0, 0.0, 3.0)]
+        [
+            Vec3::new(0.0, 0.0, 2.0),
+            Vec3::new(1.0, 0.0, 2.0),
+            Vec3::new(0.0, 1.0, 2.0),
+            Vec3::new(0.0, 0.0, 3.0),
+        ]
     }
 
     #[test]
@@ -250,7 +323,10 @@ mod tests {
         assert!(!flat);
         let inside = (p[0] + p[1] + p[2] + p[3]) / 4.0;
         for q in pl.face {
-            assert!(Vec3::from_slice(&q).dot(inside) + q[3] < 0.0, "inside is negative");
+            assert!(
+                Vec3::from_slice(&q).dot(inside) + q[3] < 0.0,
+                "inside is negative"
+            );
         }
         // The scalar at each corner (exact to f32 rounding of unit-sized sums: 1e-6).
         let g = Vec4::from(pl.scalar);
@@ -278,16 +354,35 @@ mod tests {
         let d = Vec3::new(0.1, 0.1, 1.0).normalize();
         let (f, t) = exit(&pl, 3, d, 2.0);
         assert_eq!(f, 0);
-        // Leaves at z = 2.8 (x + y + z - 2 = 1 with x = y = 0.1 z / 1... ): check on the plane.
+        // It leaves on face 0's plane x + y + z = 3 (at z = 2.5), to f32 rounding.
         let x = d * t;
         let q = Vec4::from(pl.face[0]);
         assert!((q.truncate().dot(x) + q.w).abs() < 1e-5 * q.truncate().length());
-        // A flat tet's exit still names a face, at t_in.
-        let flat = [unit()[0], unit()[1], unit()[2], Vec3::new(0.2, 0.2, 2.0)];
-        let (pl, is_flat) = planes(flat, [0, 1, 2, 3], [0.0; 4]);
-        assert!(is_flat);
-        let (f, t) = exit(&pl, 4, d, 2.0);
-        assert!(f < 4 && t == 2.0);
+    }
+
+    #[test]
+    fn a_flat_tet_is_left_by_the_face_its_edges_say() {
+        // Vertex 3 inside the triangle of the others, all at z = 2: the ray crosses the plane
+        // at (0.6, 0.2), inside face 3 (the big triangle) and in exactly one small face.
+        let p = [
+            Vec3::new(0.0, 0.0, 2.0),
+            Vec3::new(1.0, 0.0, 2.0),
+            Vec3::new(0.0, 1.0, 2.0),
+            Vec3::new(0.2, 0.2, 2.0),
+        ];
+        let ids = [0, 1, 2, 3];
+        let (pl, thin) = planes(p, ids, [0.0, 1.0, 2.0, 3.0]);
+        assert!(thin && pl.scalar[..3] == [0.0; 3]);
+        let faces = std::array::from_fn(|f| sorted_face(ids, f).map(|i| p[i]));
+        let d = Vec3::new(0.3, 0.1, 1.0).normalize();
+        let passed: Vec<usize> = (0..3)
+            .filter(|&f| passes(edge_products(faces[f], d)))
+            .collect();
+        assert_eq!(passed.len(), 1);
+        let (f, t) = exit_by_edges(faces, 3, d, 1.0).expect("a face passes");
+        assert_eq!(f, passed[0]);
+        // The plane z = 2 is crossed at t = 2 |d| / d.z.
+        assert!((t - 2.0 / d.z).abs() < 1e-6);
     }
 
     #[test]
@@ -302,8 +397,14 @@ mod tests {
         for k in -3..=3 {
             let off = k as f32 * 1e-7;
             let d = Vec3::new(0.25 + off, 0.25 - off, 1.0).normalize();
-            let hits = [face_hit([a, c1, b], plane, d), face_hit([a, c2, b], plane, d)];
-            assert!(hits.iter().any(Option::is_some), "offset {off}: no face entered");
+            let hits = [
+                face_hit([a, c1, b], plane, d),
+                face_hit([a, c2, b], plane, d),
+            ];
+            assert!(
+                hits.iter().any(Option::is_some),
+                "offset {off}: no face entered"
+            );
         }
         // Leaving through a face is no entry.
         assert!(face_hit([a, c1, b], -plane, Vec3::new(0.6, 0.3, 1.0).normalize()).is_none());
