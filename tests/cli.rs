@@ -94,6 +94,14 @@ fn reference_render_writes_a_picture_of_the_mesh() {
 }
 
 #[test]
+fn raycast_render_prints_its_stages_and_counters() {
+    let stdout = render_lox("raycast");
+    for line in ["planes", "entries", "traverse", "rays at step limit", "bytes per tet"] {
+        assert!(stdout.contains(line), "no {line} in {stdout}");
+    }
+}
+
+#[test]
 fn shells_render_runs_on_the_software_adapter_and_prints_stages() {
     let stdout = render_lox("shells");
     for stage in ["binning", "assembly", "raster", "composite"] {

@@ -32,7 +32,7 @@ use crate::deform::Deformation;
 use crate::generate::{self, Field};
 use crate::gpu::{
     CellProjRenderer, CellProjSettings, GpuContext, Integrate, IsoRenderer, IsoSettings,
-    ShellSettings, ShellsRenderer, Skip, Skips,
+    RaycastRenderer, RaycastSettings, ShellSettings, ShellsRenderer, Skip, Skips,
 };
 use crate::image::{ErrorMetrics, Image};
 use crate::io;
@@ -558,8 +558,27 @@ fn cellproj(integrate: Integrate, table_size: u32) -> Config {
     }
 }
 
+fn raycast() -> Config {
+    Config {
+        mode: "raycast",
+        setting: "exact".into(),
+        truth: Truth::Volume,
+        gpu: true,
+        single_run: false,
+        scenes: &[],
+        build: Box::new(|ctx, scene| {
+            let settings = RaycastSettings::default();
+            Ok(Box::new(RaycastRenderer::new(
+                gpu_ctx(ctx)?,
+                &scene.mesh,
+                settings,
+            )?))
+        }),
+    }
+}
+
 /// The configurations of the bench: `quick` keeps two shells settings, flat iso, the default
-/// cell projection and the reference. Modes and settings join here.
+/// cell projection, the ray caster and the reference. Modes and settings join here.
 pub fn configurations(quick: bool) -> Vec<Config> {
     let mut c = if quick {
         vec![
@@ -567,6 +586,7 @@ pub fn configurations(quick: bool) -> Vec<Config> {
             shells(512, None),
             iso(Shading::Flat),
             cellproj(Integrate::Table, 128),
+            raycast(),
         ]
     } else {
         let mut c = vec![
@@ -583,6 +603,7 @@ pub fn configurations(quick: bool) -> Vec<Config> {
             cellproj(Integrate::Table, 64),
             cellproj(Integrate::Table, 128),
             cellproj(Integrate::Exact, 128),
+            raycast(),
         ]);
         c
     };

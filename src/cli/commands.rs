@@ -8,7 +8,7 @@ use tetvr::camera::{Camera, CameraError, View};
 use tetvr::gpu::cellproj::sort::sort_check;
 use tetvr::gpu::{
     AdapterChoice, CellProjRenderer, CellProjSettings, GpuContext, GpuError, Integrate,
-    IsoRenderer, IsoSettings, ShellSettings, ShellsRenderer,
+    IsoRenderer, IsoSettings, RaycastRenderer, RaycastSettings, ShellSettings, ShellsRenderer,
 };
 use tetvr::image::{Image, ImageError};
 use tetvr::io::{self, LoadError, Loaded};
@@ -208,9 +208,9 @@ enum Chosen {
 fn choose(mode: Mode) -> Result<Chosen, CliError> {
     match mode {
         Mode::Reference => Ok(Chosen::Cpu),
-        Mode::Shells | Mode::Iso | Mode::Cellproj => Ok(Chosen::Gpu(Box::new(GpuContext::new(
-            AdapterChoice::from_env(),
-        )?))),
+        Mode::Shells | Mode::Iso | Mode::Cellproj | Mode::Raycast => Ok(Chosen::Gpu(Box::new(
+            GpuContext::new(AdapterChoice::from_env())?,
+        ))),
         Mode::Auto => match GpuContext::new(AdapterChoice::from_env()) {
             Ok(ctx) => Ok(Chosen::Gpu(Box::new(ctx))),
             Err(GpuError::NoAdapter { .. }) => {
@@ -252,6 +252,13 @@ fn gpu_renderer(
         return Ok((
             Box::new(renderer),
             format!("mode cellproj ({how}) on {}", ctx.summary()),
+        ));
+    }
+    if args.mode == Mode::Raycast {
+        let renderer = RaycastRenderer::new(ctx, mesh, RaycastSettings::default())?;
+        return Ok((
+            Box::new(renderer),
+            format!("mode raycast (exact segments) on {}", ctx.summary()),
         ));
     }
     if args.mode != Mode::Iso {

@@ -16,6 +16,7 @@ Examples:
   tetvr render mesh.vtu --mode reference --size 256x256 --view -y --tf shock -o ref.png
   tetvr render ../shared/data/bluntfin_tet.vtk --mode iso --iso 0.5,0.7 --shading smooth -o iso.png
   tetvr render ../shared/data/bluntfin_tet.vtk --mode cellproj --integrate exact --timings --sort-check -o cp.png
+  tetvr render ../shared/data/bluntfin_tet.vtk --mode raycast --timings -o fin.png
   tetvr iso-export ../shared/data/bluntfin_tet.vtk --iso 0.5,0.7 --tf viridis -o fin.glb
   tetvr render mesh.vtk --array Pressure --tf my_tf.json --unit-distance 0.05 -o p.png
   tetvr render mesh.msh --eye 10,0,2 --target 0,0,0 --up 0,0,1 --fov 40 -o close.png
@@ -71,6 +72,9 @@ pub enum Mode {
     Iso,
     /// Cell projection on the GPU in a power-sort order (--integrate, --table-size, --sort-check).
     Cellproj,
+    /// Ray casting on compute shaders through face adjacency (Weiler et al. 2003), exact
+    /// segments; rays re-enter non-convex meshes, the eye may be inside.
+    Raycast,
 }
 
 /// How cell projection integrates each tet's segment.
