@@ -135,7 +135,7 @@ fn fs_table(in: Varyings) -> @location(0) vec4<f32> {
     return table_lookup(seg);
 }
 
-// --- exact (shaders/integrate_exact.wgsl) ---
+// --- exact (shaders/integrate_segment.wgsl) ---
 
 @fragment
 fn fs_exact(in: Varyings) -> @location(0) vec4<f32> {
@@ -143,6 +143,6 @@ fn fs_exact(in: Varyings) -> @location(0) vec4<f32> {
     if !(seg.z > 0.0) {
         discard;
     }
-    let acc = integrate_exact(seg.x, seg.y, seg.z);
+    let acc = integrate_segment(seg.x, seg.y, seg.z);
     return vec4<f32>(acc.color, 1.0 - acc.trans);
 }

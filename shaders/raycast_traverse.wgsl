@@ -2,7 +2,7 @@
 // per workgroup): the ray starts in the eye's tet (when the eye is inside the mesh) or at the
 // nearest entry of its list, steps from tet to tet through the face it leaves by (the nearest
 // face plane it crosses moving outward; the face it came in by never), integrates each segment
-// exactly (integrate_exact.wgsl) front to back, and at the boundary resumes at the next entry
+// exactly (integrate_segment.wgsl) front to back, and at the boundary resumes at the next entry
 // of its list beyond where it left (non-convex meshes). It stops when its transmittance falls
 // below TERMINATE (early ray termination) or after params.max_steps tets (counted).
 // CPU twin: gpu::raycast::twin::exit and twin::trace.
@@ -157,7 +157,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             out = exit(pl, entry, d, t);
         }
         let f = u32(out.x);
-        let seg = integrate_exact(scalar_at(pl, d, t), scalar_at(pl, d, out.y), out.y - t);
+        let seg = integrate_segment(scalar_at(pl, d, t), scalar_at(pl, d, out.y), out.y - t);
         acc = Acc(acc.color + acc.trans * seg.color, acc.trans * seg.trans);
         if acc.trans < TERMINATE {
             break;

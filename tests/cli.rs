@@ -96,7 +96,13 @@ fn reference_render_writes_a_picture_of_the_mesh() {
 #[test]
 fn raycast_render_prints_its_stages_and_counters() {
     let stdout = render_lox("raycast");
-    for line in ["planes", "entries", "traverse", "rays at step limit", "bytes per tet"] {
+    for line in [
+        "planes",
+        "entries",
+        "traverse",
+        "rays at step limit",
+        "bytes per tet",
+    ] {
         assert!(stdout.contains(line), "no {line} in {stdout}");
     }
 }

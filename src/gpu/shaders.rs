@@ -4,10 +4,14 @@
 
 /// Structs mirroring [`crate::gpu::gpu_data`], the frame uniform binding, the pixel ray.
 pub const SHARED: &str = include_str!("../../shaders/shared.wgsl");
-/// The exact segment integrator for the piecewise-linear TF (`fn integrate_exact`), shared by
-/// the cellproj raster and the raycast traversal; a stage appends it after [`SHARED`] and
-/// declares `tf: TfPoints`.
-pub const INTEGRATE_EXACT: &str = include_str!("../../shaders/integrate_exact.wgsl");
+/// The segment integrator for the piecewise-linear TF (`fn integrate_segment`), shared by the
+/// cellproj raster and the raycast traversal; a stage appends it after [`SHARED`], declares
+/// `tf: TfPoints` and a `psi`, e.g. [`PSI_EXACT`].
+pub const INTEGRATE_SEGMENT: &str = include_str!("../../shaders/integrate_segment.wgsl");
+
+/// The exact mean transmittance as the segment integrator's `psi`.
+pub const PSI_EXACT: &str =
+    "fn psi(a: f32, b: f32) -> f32 {\n    return mean_transmittance(a, b);\n}\n";
 const ASSEMBLE: &str = include_str!("../../shaders/assemble.wgsl");
 const SHELLS_RASTER: &str = include_str!("../../shaders/shells_raster.wgsl");
 const SHELLS_COMPOSITE: &str = include_str!("../../shaders/shells_composite.wgsl");

@@ -62,14 +62,15 @@ use crate::tf::TransferFunction;
 
 const CELLPROJ_RASTER: &str = include_str!("../../../shaders/cellproj_raster.wgsl");
 
-/// The raster stage's WGSL: `shared.wgsl`, the exact integrator (`integrate_exact.wgsl`,
-/// shared with `--mode raycast`) and `shaders/cellproj_raster.wgsl` (entry points `vs_faces`,
-/// `fs_table`, `fs_exact`).
+/// The raster stage's WGSL: `shared.wgsl`, the segment integrator (`integrate_segment.wgsl`,
+/// shared with `--mode raycast`) with the exact mean transmittance, and
+/// `shaders/cellproj_raster.wgsl` (entry points `vs_faces`, `fs_table`, `fs_exact`).
 pub fn raster_source() -> String {
     format!(
-        "{}\n{}\n{CELLPROJ_RASTER}",
+        "{}\n{}\n{}\n{CELLPROJ_RASTER}",
         shaders::SHARED,
-        shaders::INTEGRATE_EXACT
+        shaders::INTEGRATE_SEGMENT,
+        shaders::PSI_EXACT
     )
 }
 

@@ -13,8 +13,10 @@ use crate::image::Image;
 use crate::render::{Frame, RenderError, Timings};
 use crate::tf::TransferFunction;
 
-use super::pipelines::{Stage, encode, linear_groups};
-use super::{COUNTERS, RaycastRenderer, RaycastUniforms, Targets, default_max_steps, near_tol};
+use super::pipelines::{Pipelines, Stage, encode, linear_groups};
+use super::{
+    COUNTERS, RaycastRenderer, RaycastUniforms, Segments, Targets, default_max_steps, near_tol, psi,
+};
 
 /// A storage buffer of `bytes` (at least 16) that is also a copy source and destination.
 pub fn storage(device: &wgpu::Device, label: &str, bytes: usize) -> wgpu::Buffer {
@@ -44,6 +46,14 @@ struct Run {
     gpu_clock: bool,
     /// See [`COUNTERS`].
     counters: [u32; COUNTERS],
+}
+
+/// The traversal stage of `segments`.
+fn traversal(p: &Pipelines, segments: Segments) -> &Stage {
+    match segments {
+        Segments::Exact => &p.exact,
+        Segments::Partial => &p.partial,
+    }
 }
 
 impl RaycastRenderer {
@@ -118,6 +128,11 @@ impl RaycastRenderer {
             .write_buffer(&self.tf_buf, 0, bytemuck::bytes_of(&points));
         self.eye_tol = near_tol(m.radius);
         drop(m);
+        if self.settings.segments == Segments::Partial && self.psi.size() == 16 {
+            let table = psi::table();
+            self.psi = storage(&self.device, "raycast psi table", 4 * table.len());
+            (self.queue).write_buffer(&self.psi, 0, bytemuck::cast_slice(table));
+        }
         self.write_params();
         Ok(())
     }
@@ -224,7 +239,7 @@ impl RaycastRenderer {
             ],
         );
         let traverse = self.group(
-            &p.traverse,
+            traversal(p, self.settings.segments),
             &[
                 entry(0, &self.frame_buf),
                 self.links.window(1, 0, nt),
@@ -239,6 +254,7 @@ impl RaycastRenderer {
                     resource: wgpu::BindingResource::TextureView(&view),
                 },
                 entry(9, self.mesh.positions()),
+                entry(10, &self.psi),
             ],
         );
         [planes, entries, traverse]
@@ -265,7 +281,12 @@ impl RaycastRenderer {
             ("entries", &self.pipelines.entries, &entries, {
                 linear_groups(self.boundary_count as u64, max)
             }),
-            ("traverse", &self.pipelines.traverse, &traverse, tiles),
+            (
+                "traverse",
+                traversal(&self.pipelines, self.settings.segments),
+                &traverse,
+                tiles,
+            ),
         ];
         let mut rec = (self.frame).recorder(&self.device, &self.queue, 3, 0);
         rec.encoder().clear_buffer(&t.counts, 0, None);

@@ -1,8 +1,10 @@
 //! `--mode raycast`: GPU ray casting on compute shaders through face adjacency (Weiler et al.
-//! 2003), one thread per ray in 8 x 8 pixel tiles, with exact segment integration.
+//! 2003), one thread per ray in 8 x 8 pixel tiles, with partial pre-integration (Espinha &
+//! Celes 2005) or exact segment integration.
 //!
 //! Per frame:
-//! 1. upload (`frame.rs`): frame constants, the TF, the ray caster's constants;
+//! 1. upload (`frame.rs`): frame constants, the TF, the ray caster's constants (and, on the
+//!    first `partial` frame, the psi table, [`psi`]);
 //! 2. planes (`shaders/raycast_planes.wgsl`): once per tet, its face planes and linear scalar
 //!    in eye space from the current positions (a deforming mesh needs no preprocessing), and
 //!    the eye's tet when the eye is inside the mesh;
@@ -11,8 +13,9 @@
 //!    full list counts an overflow and the frame is rendered again with longer lists;
 //! 4. traversal (`shaders/raycast_traverse.wgsl`): once per pixel, from the eye's tet or the
 //!    nearest entry, tet to tet through the face the ray leaves by ([`links`]: neighbour and
-//!    face across, built once), each segment integrated exactly (`integrate_exact.wgsl`,
-//!    shared with cellproj), re-entering at the next entry of its list after it leaves a
+//!    face across, built once), each segment integrated for the piecewise-linear TF
+//!    (`integrate_segment.wgsl`, shared with cellproj; [`Segments`]: exact or partial
+//!    pre-integration), re-entering at the next entry of its list after it leaves a
 //!    non-convex mesh; early ray termination, and a step limit whose hits are counted;
 //! 5. readback ([`crate::gpu::frame`]) with the GPU timestamps of stages 2-4.
 //!
@@ -27,6 +30,7 @@
 mod frame;
 pub mod links;
 mod pipelines;
+pub mod psi;
 pub mod twin;
 
 use std::sync::Arc;
@@ -50,19 +54,39 @@ const RAYCAST_SHARED: &str = include_str!("../../../shaders/raycast_shared.wgsl"
 const RAYCAST_PLANES: &str = include_str!("../../../shaders/raycast_planes.wgsl");
 const RAYCAST_ENTRIES: &str = include_str!("../../../shaders/raycast_entries.wgsl");
 const RAYCAST_TRAVERSE: &str = include_str!("../../../shaders/raycast_traverse.wgsl");
+const RAYCAST_PSI: &str = include_str!("../../../shaders/raycast_psi.wgsl");
 
 /// The WGSL of each stage as the renderer loads it (entry point `main` in each): planes,
-/// entries, traversal.
-pub fn stage_sources() -> [(&'static str, String); 3] {
+/// entries, and the traversal with each integrator ([`Segments`]: exact, partial).
+pub fn stage_sources() -> [(&'static str, String); 4] {
     let common = format!("{}\n{RAYCAST_SHARED}", shaders::SHARED);
+    let traverse = |name, psi: &str| {
+        let integrate = shaders::INTEGRATE_SEGMENT;
+        (
+            name,
+            format!("{common}\n{integrate}\n{psi}\n{RAYCAST_TRAVERSE}"),
+        )
+    };
+    let table = format!(
+        "// Generated: samples per psi table axis.\nconst PSI_SIZE: u32 = {}u;\n{RAYCAST_PSI}",
+        psi::PSI_SIZE
+    );
     [
         ("raycast_planes", format!("{common}\n{RAYCAST_PLANES}")),
         ("raycast_entries", format!("{common}\n{RAYCAST_ENTRIES}")),
-        (
-            "raycast_traverse",
-            format!("{common}\n{}\n{RAYCAST_TRAVERSE}", shaders::INTEGRATE_EXACT),
-        ),
+        traverse("raycast_traverse (exact)", shaders::PSI_EXACT),
+        traverse("raycast_traverse (partial)", &table),
     ]
+}
+
+/// How the traversal integrates each segment (both split it at the TF's control points).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Segments {
+    /// Partial pre-integration: each piece's mean transmittance from the psi table ([`psi`]).
+    #[default]
+    Partial,
+    /// Each piece's mean transmittance by Gauss-Legendre quadrature converged to f32.
+    Exact,
 }
 
 /// The ray caster's constants (WGSL `Raycast` in `shaders/raycast_shared.wgsl`, 16 bytes).
@@ -107,6 +131,8 @@ pub const COUNTERS: usize = 4;
 /// Settings of the ray caster.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct RaycastSettings {
+    /// Segment integration.
+    pub segments: Segments,
     /// Boundary-face hits each pixel's entry list starts with (doubled and the frame rendered
     /// again while a list overflows; kept for later frames).
     pub list_capacity: u32,
@@ -117,6 +143,7 @@ pub struct RaycastSettings {
 impl Default for RaycastSettings {
     fn default() -> Self {
         Self {
+            segments: Segments::Partial,
             list_capacity: 4,
             max_steps: None,
         }
@@ -155,6 +182,8 @@ pub struct RaycastRenderer {
     planes: TetArray,
     boundary: wgpu::Buffer,
     boundary_count: u32,
+    /// The psi table ([`psi::table`]), uploaded on the first partial frame; 16 bytes before.
+    psi: wgpu::Buffer,
     /// Hits each pixel's list holds now.
     capacity: u32,
     /// The eye-in-tet tolerance of the current frame ([`near_tol`]).
@@ -205,6 +234,7 @@ impl RaycastRenderer {
             planes,
             boundary,
             boundary_count: boundary_cpu.len() as u32,
+            psi: frame::storage(&device, "raycast psi table (none yet)", 16),
             capacity: settings.list_capacity.max(1),
             eye_tol: 0.0,
             queue: ctx.queue.clone(),
@@ -224,6 +254,12 @@ impl RaycastRenderer {
     /// The settings in use.
     pub fn settings(&self) -> RaycastSettings {
         self.settings
+    }
+
+    /// Switches the segment integrator (the psi table is uploaded on the next frame that
+    /// needs it).
+    pub fn set_segments(&mut self, segments: Segments) {
+        self.settings.segments = segments;
     }
 
     /// Bytes per tet of what scales with the mesh: planes, links, the boundary and the
@@ -274,6 +310,7 @@ impl Renderer for RaycastRenderer {
             &self.counters,
             &self.counters_read,
             &self.boundary,
+            &self.psi,
         ]
         .iter()
         .map(|b| b.size())

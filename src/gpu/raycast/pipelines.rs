@@ -14,11 +14,13 @@ pub struct Stage {
     pub pipeline: wgpu::ComputePipeline,
 }
 
-/// The three stages.
+/// The stages: planes, entries, and the traversal with the exact and the partial integrator
+/// (one layout).
 pub struct Pipelines {
     pub planes: Stage,
     pub entries: Stage,
-    pub traverse: Stage,
+    pub exact: Stage,
+    pub partial: Stage,
 }
 
 const RO: B = B::Storage { read_only: true };
@@ -41,20 +43,21 @@ fn image_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
 impl Pipelines {
     /// Compiles the stages.
     pub fn new(device: &wgpu::Device) -> Self {
-        let [planes, entries, traverse] = stage_sources();
+        let [planes, entries, exact, partial] = stage_sources();
         // Binding 0 of each is the frame uniform; the rest follow the stage files.
         let planes_layout = [B::Uniform, RO, RO, RO, RW, RW, B::Uniform];
         let entries_layout = [B::Uniform, RO, RO, RO, RO, RW, RW, RW, B::Uniform];
         let traverse_layout = [B::Uniform, RO, RO, RO, RO, B::Uniform, B::Uniform, RW];
+        // Binding 8 the image, 9 the positions, 10 the psi table (not read by `exact`).
+        let mut traverse_entries = buffers(&traverse_layout);
+        traverse_entries.push(image_entry(8));
+        traverse_entries.push(buffer_entry(9, S::COMPUTE, RO));
+        traverse_entries.push(buffer_entry(10, S::COMPUTE, RO));
         Self {
             planes: stage(device, planes, &buffers(&planes_layout)),
             entries: stage(device, entries, &buffers(&entries_layout)),
-            traverse: stage(device, traverse, &{
-                let mut e = buffers(&traverse_layout);
-                e.push(image_entry(8));
-                e.push(buffer_entry(9, S::COMPUTE, RO));
-                e
-            }),
+            exact: stage(device, exact, &traverse_entries),
+            partial: stage(device, partial, &traverse_entries),
         }
     }
 }

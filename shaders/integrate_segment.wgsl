@@ -1,8 +1,11 @@
-// Exact integration of one segment for the piecewise-linear TF (the `exact` integrator of
-// `--mode cellproj` and `--mode raycast`): the segment is split at the TF's control points,
-// each piece has a closed-form transmittance and a Gauss-Legendre mean transmittance converged
-// to f32. Appended after shared.wgsl by each stage that uses it; the stage declares
-// `tf: TfPoints` (frame.tf_count points used). CPU twin: gpu::cellproj::preint::integrate.
+// Integration of one segment for the piecewise-linear TF (cellproj's `exact`, raycast's
+// `exact` and `partial`): the segment is split at the TF's control points, each piece has a
+// closed-form transmittance and a colour from its mean transmittance psi(A, B) (Moreland &
+// Angel; Espinha & Celes' partial pre-integration). Appended after shared.wgsl by each stage
+// that uses it; the stage declares `tf: TfPoints` (frame.tf_count points used) and
+// `fn psi(a: f32, b: f32) -> f32`: `mean_transmittance` below (exact, Gauss-Legendre
+// converged to f32) or a lookup in the psi table (raycast_psi.wgsl). CPU twin:
+// gpu::cellproj::preint::integrate.
 
 // Gauss-Legendre, 4 points on [0, 1] (preint::GL_X, GL_W).
 const GL_X = vec4<f32>(0.069431844, 0.33000948, 0.66999052, 0.93056816);
@@ -75,7 +78,7 @@ fn piece(acc: Acc, j: u32, u0: f32, u1: f32, l: f32) -> Acc {
     let a = fa.w * l;
     let b = fb.w * l;
     let t = exp(-0.5 * (a + b));
-    let m = mean_transmittance(a, b);
+    let m = psi(a, b);
     let c = fa.rgb * (1.0 - m) + fb.rgb * (m - t);
     return Acc(acc.color + acc.trans * c, acc.trans * t);
 }
@@ -83,7 +86,7 @@ fn piece(acc: Acc, j: u32, u0: f32, u1: f32, l: f32) -> Acc {
 // The walk of preint::integrate over a segment from normalized scalar u_front to u_back of
 // length len: j is the first control point ahead, each crossing moves it. Returns the
 // segment's premultiplied colour and transmittance.
-fn integrate_exact(u_front: f32, u_back: f32, len: f32) -> Acc {
+fn integrate_segment(u_front: f32, u_back: f32, len: f32) -> Acc {
     let du = u_back - u_front;
     let up = du >= 0.0;
     let n = frame.tf_count;
