@@ -22,7 +22,11 @@ type Error = Box<dyn std::error::Error>;
 
 fn load(what: &str) -> Result<TetMesh, Error> {
     match what.strip_prefix("grid:") {
-        Some(n) => Ok(generate::fields::grid(Field::Gaussians, UVec3::splat(n.parse()?), "g")?),
+        Some(n) => Ok(generate::fields::grid(
+            Field::Gaussians,
+            UVec3::splat(n.parse()?),
+            "g",
+        )?),
         None => Ok(io::load(std::path::Path::new(what))?.mesh),
     }
 }
@@ -48,17 +52,26 @@ fn median_ms(
 
 fn main() -> Result<(), Error> {
     let args: Vec<String> = std::env::args().collect();
-    let what = args.get(1).map_or("assets/lox_post_subset_tet.vtk", String::as_str);
+    let what = args
+        .get(1)
+        .map_or("assets/lox_post_subset_tet.vtk", String::as_str);
     let size: u32 = args.get(2).map_or(Ok(512), |s| s.parse())?;
     let frames: usize = args.get(3).map_or(Ok(5), |s| s.parse())?;
     let mesh = load(what)?;
     let (lo, hi) = mesh.bounds();
-    let (s_lo, s_hi) = mesh.active_array().and_then(|a| a.range()).ok_or("no scalars")?;
+    let (s_lo, s_hi) = mesh
+        .active_array()
+        .and_then(|a| a.range())
+        .ok_or("no scalars")?;
     let tf = TransferFunction::default_for_range(s_lo, s_hi, mesh.diagonal() / 100.0)?;
     let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, size, size);
     let ctx = GpuContext::new(AdapterChoice::Auto)?;
     let truth = ReferenceRenderer::new(&mesh)?.render_image(&camera, &tf, None)?;
-    println!("{what}: {} tets, {size}x{size}, {}", mesh.tet_count(), ctx.summary());
+    println!(
+        "{what}: {} tets, {size}x{size}, {}",
+        mesh.tet_count(),
+        ctx.summary()
+    );
     let mut raycast = RaycastRenderer::new(&ctx, &mesh, RaycastSettings::default())?;
     let exact = CellProjSettings {
         integrate: Integrate::Exact,
