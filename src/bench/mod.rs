@@ -30,6 +30,7 @@ use glam::DVec3;
 use crate::camera::{Camera, View};
 use crate::deform::Deformation;
 use crate::generate::{self, Field};
+use crate::gpu::raycast::Segments;
 use crate::gpu::{
     CellProjRenderer, CellProjSettings, GpuContext, Integrate, IsoRenderer, IsoSettings,
     RaycastRenderer, RaycastSettings, ShellSettings, ShellsRenderer, Skip, Skips,
@@ -558,16 +559,22 @@ fn cellproj(integrate: Integrate, table_size: u32) -> Config {
     }
 }
 
-fn raycast() -> Config {
+fn raycast(segments: Segments) -> Config {
     Config {
         mode: "raycast",
-        setting: "exact".into(),
+        setting: match segments {
+            Segments::Partial => "partial".into(),
+            Segments::Exact => "exact".into(),
+        },
         truth: Truth::Volume,
         gpu: true,
         single_run: false,
         scenes: &[],
-        build: Box::new(|ctx, scene| {
-            let settings = RaycastSettings::default();
+        build: Box::new(move |ctx, scene| {
+            let settings = RaycastSettings {
+                segments,
+                ..RaycastSettings::default()
+            };
             Ok(Box::new(RaycastRenderer::new(
                 gpu_ctx(ctx)?,
                 &scene.mesh,
@@ -586,7 +593,7 @@ pub fn configurations(quick: bool) -> Vec<Config> {
             shells(512, None),
             iso(Shading::Flat),
             cellproj(Integrate::Table, 128),
-            raycast(),
+            raycast(Segments::Partial),
         ]
     } else {
         let mut c = vec![
@@ -603,7 +610,8 @@ pub fn configurations(quick: bool) -> Vec<Config> {
             cellproj(Integrate::Table, 64),
             cellproj(Integrate::Table, 128),
             cellproj(Integrate::Exact, 128),
-            raycast(),
+            raycast(Segments::Partial),
+            raycast(Segments::Exact),
         ]);
         c
     };

@@ -6,6 +6,7 @@ use std::time::Instant;
 use indicatif::{ProgressBar, ProgressStyle};
 use tetvr::camera::{Camera, CameraError, View};
 use tetvr::gpu::cellproj::sort::sort_check;
+use tetvr::gpu::raycast::Segments;
 use tetvr::gpu::{
     AdapterChoice, CellProjRenderer, CellProjSettings, GpuContext, GpuError, Integrate,
     IsoRenderer, IsoSettings, RaycastRenderer, RaycastSettings, ShellSettings, ShellsRenderer,
@@ -234,8 +235,15 @@ fn gpu_renderer(
     if args.mode == Mode::Cellproj {
         let settings = CellProjSettings {
             integrate: match args.cellproj.integrate {
-                IntegrateArg::Table => Integrate::Table,
-                IntegrateArg::Exact => Integrate::Exact,
+                None | Some(IntegrateArg::Table) => Integrate::Table,
+                Some(IntegrateArg::Exact) => Integrate::Exact,
+                Some(IntegrateArg::Partial) => {
+                    return Err(CliError::Usage(
+                        "--integrate partial belongs to --mode raycast; cellproj integrates \
+                         with table or exact"
+                            .into(),
+                    ));
+                }
             },
             table_size: args.cellproj.table_size,
             table_lengths: (args.cellproj.table_size / 2).max(2),
@@ -255,11 +263,7 @@ fn gpu_renderer(
         ));
     }
     if args.mode == Mode::Raycast {
-        let renderer = RaycastRenderer::new(ctx, mesh, RaycastSettings::default())?;
-        return Ok((
-            Box::new(renderer),
-            format!("mode raycast (exact segments) on {}", ctx.summary()),
-        ));
+        return raycast_renderer(ctx, mesh, args);
     }
     if args.mode != Mode::Iso {
         let renderer = ShellsRenderer::new(ctx, mesh, shell_settings(args))?;
@@ -301,6 +305,34 @@ fn gpu_renderer(
     Ok((
         Box::new(renderer),
         format!("mode iso at {described} on {}", ctx.summary()),
+    ))
+}
+
+/// The ray caster with the integrator `--integrate` asks for, and a description.
+fn raycast_renderer(
+    ctx: &GpuContext,
+    mesh: &TetMesh,
+    args: &RenderArgs,
+) -> Result<(Box<dyn Renderer>, String), CliError> {
+    let (segments, how) = match args.cellproj.integrate {
+        None | Some(IntegrateArg::Partial) => (Segments::Partial, "partial pre-integration"),
+        Some(IntegrateArg::Exact) => (Segments::Exact, "exact segments"),
+        Some(IntegrateArg::Table) => {
+            return Err(CliError::Usage(
+                "--mode raycast integrates with partial (the default) or exact; the 3D table \
+                 belongs to --mode cellproj"
+                    .into(),
+            ));
+        }
+    };
+    let settings = RaycastSettings {
+        segments,
+        ..RaycastSettings::default()
+    };
+    let renderer = RaycastRenderer::new(ctx, mesh, settings)?;
+    Ok((
+        Box::new(renderer),
+        format!("mode raycast ({how}) on {}", ctx.summary()),
     ))
 }
 

@@ -80,10 +80,13 @@ pub enum Mode {
 /// How cell projection integrates each tet's segment.
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum IntegrateArg {
-    /// Trilinear lookup in a 3D pre-integration table (front scalar, back scalar, length).
+    /// cellproj: trilinear lookup in a 3D pre-integration table (front scalar, back scalar,
+    /// length).
     Table,
-    /// Exactly for the piecewise-linear TF, per fragment.
+    /// Exactly for the piecewise-linear TF, per fragment or per ray segment.
     Exact,
+    /// raycast: partial pre-integration (Espinha & Celes 2005), a TF-independent psi table.
+    Partial,
 }
 
 /// Isosurface shading.
@@ -218,9 +221,10 @@ pub struct IsoExportArgs {
 
 #[derive(clap::Args, Debug)]
 pub struct CellProjArgs {
-    /// cellproj: segment integration.
-    #[arg(long, value_enum, default_value_t = IntegrateArg::Table)]
-    pub integrate: IntegrateArg,
+    /// cellproj and raycast: segment integration (default: table for cellproj, partial for
+    /// raycast).
+    #[arg(long, value_enum)]
+    pub integrate: Option<IntegrateArg>,
     /// cellproj: pre-integration table samples per scalar axis (and half as many lengths).
     #[arg(long, default_value_t = 128)]
     pub table_size: u32,
