@@ -82,8 +82,9 @@ struct ModeDef {
 /// - cellproj (exact segments): f32 integration of each tet's segment (~1e-6) plus wrongly
 ///   ordered overlapping tets, which the power sort avoids on Delaunay-like grids; 1e-3 as the
 ///   other GPU modes.
-/// - raycast (exact segments): f32 planes and scalars only (no order to get wrong); measured
-///   rmse 1.3e-7 to 2.7e-7 on every case without its own bound, the bound about 10x that.
+/// - raycast (partial pre-integration, its default): f32 planes and scalars and the psi
+///   table (no order to get wrong); measured rmse 1.7e-7 to 3.8e-7 on every case without its
+///   own bound (exact segments: 1.3e-7 to 2.7e-7), the bound about 10x that.
 static MODES: &[ModeDef] = &[
     ModeDef {
         name: "reference",
