@@ -1,4 +1,5 @@
-//! Measures `--mode raycast` beside `--mode cellproj --integrate exact` on one scene: median
+//! Measures `--mode raycast` (partial and exact) beside `--mode cellproj --integrate exact` on
+//! one scene: median
 //! frame time (wall clock, GPU drained) over a few frames after one warm-up, the error against
 //! the exact reference, GPU memory and the ray caster's bytes per tet. Needs a GPU adapter
 //! (lavapipe will do).
@@ -11,6 +12,7 @@
 
 use glam::UVec3;
 use tetvr::generate::{self, fields::Field};
+use tetvr::gpu::raycast::Segments;
 use tetvr::gpu::{
     AdapterChoice, CellProjRenderer, CellProjSettings, GpuContext, Integrate, RaycastRenderer,
     RaycastSettings,
@@ -72,15 +74,23 @@ fn main() -> Result<(), Error> {
         mesh.tet_count(),
         ctx.summary()
     );
-    let mut raycast = RaycastRenderer::new(&ctx, &mesh, RaycastSettings::default())?;
+    let with = |segments| RaycastSettings {
+        segments,
+        ..RaycastSettings::default()
+    };
+    let mut partial = RaycastRenderer::new(&ctx, &mesh, with(Segments::Partial))?;
+    let mut exact_rc = RaycastRenderer::new(&ctx, &mesh, with(Segments::Exact))?;
     let exact = CellProjSettings {
         integrate: Integrate::Exact,
         ..CellProjSettings::default()
     };
     let mut cellproj = CellProjRenderer::new(&ctx, &mesh, exact)?;
-    println!("raycast bytes per tet: {:.1}", raycast.bytes_per_tet());
-    let modes: [(&str, &mut dyn Renderer); 2] =
-        [("raycast", &mut raycast), ("cellproj exact", &mut cellproj)];
+    println!("raycast bytes per tet: {:.1}", partial.bytes_per_tet());
+    let modes: [(&str, &mut dyn Renderer); 3] = [
+        ("raycast partial", &mut partial),
+        ("raycast exact", &mut exact_rc),
+        ("cellproj exact", &mut cellproj),
+    ];
     for (name, r) in modes {
         let (image, ms) = median_ms(r, &camera, &tf, frames)?;
         let m = image.compare(&truth)?;
