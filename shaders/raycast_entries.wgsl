@@ -17,33 +17,42 @@
 @group(0) @binding(7) var<storage, read_write> counters: array<atomic<u32>, 4>;
 @group(0) @binding(8) var<uniform> params: Raycast;
 
-// The pixel rectangle [lo, hi) the face covers, grown by one pixel; the whole image when a
-// corner lies at or behind the eye plane; empty when the face lies behind it.
+// Eye-space point (z > 0) to pixel coordinates (x right, y down).
+fn to_pixel(c: vec3<f32>) -> vec2<f32> {
+    let uv = c.xy / c.z / frame.half_extent;
+    return vec2<f32>(0.5 * (uv.x + 1.0), 0.5 * (1.0 - uv.y)) * frame.size;
+}
+
+// The pixel rectangle [lo, hi) of the face's part in front of the plane z = frame.near_z (its
+// corners there and its edges' crossings of the plane), grown by one pixel, clamped to the
+// image; empty when the face lies behind the plane. A ray meets the part behind it within
+// near_z of the eye, where the eye's own tet (eye_tol = near_z) stands in.
 fn pixel_bounds(face: Face) -> vec4<i32> {
-    let size = vec2<i32>(frame.size);
+    let zc = frame.near_z;
     var lo = vec2<f32>(1e30);
     var hi = vec2<f32>(-1e30);
-    var behind = 0u;
     for (var i = 0u; i < 3u; i++) {
         let c = face.corner[i];
-        if c.z <= frame.near_z {
-            behind++;
-            continue;
+        let e = face.corner[(i + 1u) % 3u];
+        if c.z >= zc {
+            lo = min(lo, to_pixel(c));
+            hi = max(hi, to_pixel(c));
         }
-        let uv = c.xy / c.z / frame.half_extent;
-        let xy = vec2<f32>(0.5 * (uv.x + 1.0), 0.5 * (1.0 - uv.y)) * frame.size;
-        lo = min(lo, xy);
-        hi = max(hi, xy);
+        if (c.z - zc) * (e.z - zc) < 0.0 {
+            let q = to_pixel(vec3<f32>(mix(c.xy, e.xy, (zc - c.z) / (e.z - c.z)), zc));
+            lo = min(lo, q);
+            hi = max(hi, q);
+        }
     }
-    if behind == 3u {
+    let size = vec2<i32>(frame.size);
+    if !all(lo <= hi) {
         return vec4<i32>(0);
     }
-    if behind > 0u {
-        return vec4<i32>(0, 0, size);
-    }
-    let a = clamp(vec2<i32>(floor(lo)) - 1, vec2<i32>(0), size);
-    let b = clamp(vec2<i32>(ceil(hi)) + 1, vec2<i32>(0), size);
-    return vec4<i32>(a, b);
+    // Clamped in f32 first: a corner just in front of the plane projects far outside.
+    let big = vec2<f32>(frame.size) + 2.0;
+    let a = vec2<i32>(floor(clamp(lo, vec2<f32>(-2.0), big))) - 1;
+    let b = vec2<i32>(ceil(clamp(hi, vec2<f32>(-2.0), big))) + 1;
+    return vec4<i32>(clamp(a, vec2<i32>(0), size), clamp(b, vec2<i32>(0), size));
 }
 
 fn record(pixel: u32, t: f32, code: u32) {
