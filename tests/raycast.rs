@@ -112,20 +112,54 @@ fn lox_subset_matches_reference() {
     check("lox", &mesh, &camera, &tf, BOUNDS);
 }
 
-/// The CPU twin (f32 Rust, the same operations) against the shipped shaders on the adapter.
+/// The shipped shaders against the CPU twin (f32 Rust, the same operations) on `mesh`.
+fn twin_check(name: &str, mesh: &TetMesh, camera: &Camera, tf: &TransferFunction) {
+    let got = frame(mesh, camera, tf, Segments::Exact).image;
+    let gpu = GpuTetMesh::new(ctx(), mesh).unwrap();
+    let cpu = twin::render(&gpu.read(), camera, tf);
+    eprintln!("{name}: shaders vs twin: {}", got.compare(&cpu).unwrap());
+    // The same f32 operations; lavapipe may fuse multiply-adds where Rust does not, and the
+    // twin integrates in f64: measured rmse 1.3e-7 to 1.4e-7, max 6.6e-7 to 2.0e-6; bounds
+    // about 10x. A ray the two walk through different tets differs by far more.
+    assert_images_close(
+        &format!("raycast-twin-{name}"),
+        &got,
+        &cpu,
+        bounds(1e-6, 2e-5),
+    );
+}
+
+/// The twin against the shaders: a real mesh (lox), rays leaving and re-entering (the box with
+/// a hole), and a grid with flat tets (thin, left by their edges) seen from inside it.
 #[test]
 fn twin_matches_the_shaders() {
     let mesh = lox();
     let (tf, camera) = default_view(&mesh, 64);
-    let got = frame(&mesh, &camera, &tf, Segments::Exact).image;
-    let gpu = GpuTetMesh::new(ctx(), &mesh).unwrap();
-    let cpu = twin::render(&gpu.read(), &camera, &tf);
-    let expected = reference(&mesh, &camera, &tf);
-    eprintln!("twin vs reference: {}", cpu.compare(&expected).unwrap());
-    eprintln!("shaders vs twin: {}", got.compare(&cpu).unwrap());
-    // The same f32 operations; lavapipe may fuse multiply-adds where Rust does not, and the
-    // twin integrates in f64: measured rmse 1.3e-7, max 2.0e-6; bounds about 10x.
-    assert_images_close("raycast-twin", &got, &cpu, bounds(1e-6, 2e-5));
+    twin_check("lox", &mesh, &camera, &tf);
+    let mesh = generate::shapes::box_with_hole(5_000, Field::Gaussians).unwrap();
+    let (tf, camera) = default_view(&mesh, 64);
+    twin_check("hole", &mesh, &camera, &tf);
+    let grid = gaussians(6);
+    let mut tets = grid.tets().to_vec();
+    // Vertices of the grid are numbered x fastest over 7 x 7 x 7: two cube faces' corners.
+    let v = |x: u32, y: u32, z: u32| x + 7 * (y + 7 * z);
+    tets.push([v(0, 0, 0), v(1, 0, 0), v(0, 1, 0), v(1, 1, 0)]);
+    tets.push([v(2, 2, 3), v(3, 2, 3), v(2, 3, 3), v(3, 3, 3)]);
+    let (mesh, _) = TetMesh::new(grid.positions().to_vec(), tets, grid.arrays().to_vec()).unwrap();
+    let (tf, _) = default_view(&mesh, 64);
+    let (lo, hi) = mesh.bounds();
+    let camera = Camera {
+        eye: lo + (hi - lo) * DVec3::new(0.63, 0.43, 0.55),
+        target: lo + (hi - lo) * DVec3::new(0.1, 0.2, 0.5),
+        up: DVec3::Z,
+        fov_y_deg: 60.0,
+        width: 64,
+        height: 64,
+    };
+    let got = frame(&mesh, &camera, &tf, Segments::Exact);
+    assert_eq!(counter(&got, "thin tets"), 2);
+    assert_eq!(counter(&got, "eye in a tet"), 1);
+    twin_check("flat-inside", &mesh, &camera, &tf);
 }
 
 fn gaussians(cells: u32) -> TetMesh {
