@@ -276,11 +276,11 @@ fn list_overflow_reruns_and_step_limit_is_counted() {
     assert_eq!(counter(&long, "rays at step limit"), 0);
 }
 
-/// This milestone keeps the per-tet planes in one storage binding: a mesh beyond it is refused
-/// with a message that names the sizes and the mode that draws it (no panic, no wrong
-/// picture). lox's 8,750 tets need 700,000 bytes of planes.
+/// This milestone keeps the per-tet planes and the entry lists in one storage binding each: a
+/// mesh or an image beyond it is refused with a message that names the sizes and what to do
+/// (no panic, no wrong picture). lox's 8,750 tets need 700,000 bytes of planes.
 #[test]
-fn mesh_beyond_one_binding_is_refused_clearly() {
+fn mesh_or_image_beyond_one_binding_is_refused_clearly() {
     let small = common::with_storage_binding_limit(ctx(), 64 << 10);
     let err = RaycastRenderer::new(&small, &lox(), RaycastSettings::default())
         .err()
@@ -288,6 +288,13 @@ fn mesh_beyond_one_binding_is_refused_clearly() {
     let msg = err.to_string();
     assert!(msg.contains("8750 tets") && msg.contains("65536"), "{msg}");
     assert!(msg.contains("--mode cellproj"), "{msg}");
+    // A small mesh fits, but 128 x 128 pixels' entry lists (4 hits of 8 bytes: 524,288
+    // bytes) do not: the frame is refused naming the image size.
+    let mesh = gaussians(2);
+    let (tf, camera) = default_view(&mesh, 128);
+    let mut r = RaycastRenderer::new(&small, &mesh, RaycastSettings::default()).unwrap();
+    let msg = r.render(&camera, &tf).err().expect("refused").to_string();
+    assert!(msg.contains("128x128") && msg.contains("524288"), "{msg}");
 }
 
 /// A TF with a step and opacity up to 0.8 per unit distance, where the psi table's pieces are

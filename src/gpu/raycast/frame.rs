@@ -165,10 +165,10 @@ impl RaycastRenderer {
         let max = (self.limits.max_storage_buffer_binding_size).min(self.limits.max_buffer_size);
         if bytes > max {
             return Err(settings_error(format!(
-                "--mode raycast: rays at {width}x{height} cross up to {} boundary faces, and \
-                 their entry lists need {bytes} bytes, more than one storage binding of this \
+                "--mode raycast: entry lists of {} boundary-face hits per pixel at \
+                 {width}x{height} need {bytes} bytes, more than one storage binding of this \
                  adapter holds ({max}); render a smaller image",
-                self.capacity / 2
+                self.capacity
             )));
         }
         let format = wgpu::TextureFormat::Rgba32Float;
