@@ -293,7 +293,7 @@ fn mesh_or_image_beyond_one_binding_is_refused_clearly() {
     let mesh = gaussians(2);
     let (tf, camera) = default_view(&mesh, 128);
     let mut r = RaycastRenderer::new(&small, &mesh, RaycastSettings::default()).unwrap();
-    let msg = r.render(&camera, &tf).err().expect("refused").to_string();
+    let msg = r.render(&camera, &tf).expect_err("refused").to_string();
     assert!(msg.contains("128x128") && msg.contains("524288"), "{msg}");
 }
 
