@@ -23,9 +23,10 @@
 //! # }
 //! ```
 
+use crate::gpu::raycast::Segments;
 use crate::gpu::{
     AdapterChoice, CellProjRenderer, CellProjSettings, GpuContext, GpuError, Integrate,
-    IsoRenderer, IsoSettings, ShellSettings, ShellsRenderer,
+    IsoRenderer, IsoSettings, RaycastRenderer, RaycastSettings, ShellSettings, ShellsRenderer,
 };
 use crate::mesh::TetMesh;
 use crate::reference::ReferenceRenderer;
@@ -58,6 +59,8 @@ pub enum ModeSettings {
     Iso(IsoSettings),
     /// Cell projection on the GPU.
     CellProj(CellProjSettings),
+    /// Ray casting through face adjacency on GPU compute shaders.
+    Raycast(RaycastSettings),
 }
 
 impl ModeSettings {
@@ -69,6 +72,7 @@ impl ModeSettings {
             Self::Shells(_) => "shells",
             Self::Iso(_) => "iso",
             Self::CellProj(_) => "cellproj",
+            Self::Raycast(_) => "raycast",
         }
     }
 
@@ -84,7 +88,9 @@ impl ModeSettings {
                 Err(GpuError::NoAdapter { .. }) => Ok(None),
                 Err(e) => Err(e),
             },
-            Self::Shells(_) | Self::Iso(_) | Self::CellProj(_) => GpuContext::new(choice).map(Some),
+            Self::Shells(_) | Self::Iso(_) | Self::CellProj(_) | Self::Raycast(_) => {
+                GpuContext::new(choice).map(Some)
+            }
         }
     }
 
@@ -125,6 +131,7 @@ impl ModeSettings {
             Self::Shells(s) => Box::new(ShellsRenderer::new(needs_gpu()?, mesh, *s)?),
             Self::Iso(s) => Box::new(IsoRenderer::new(needs_gpu()?, mesh, s.clone())?),
             Self::CellProj(s) => Box::new(CellProjRenderer::new(needs_gpu()?, mesh, *s)?),
+            Self::Raycast(s) => Box::new(RaycastRenderer::new(needs_gpu()?, mesh, *s)?),
         })
     }
 
@@ -148,6 +155,13 @@ impl ModeSettings {
                     Integrate::Exact => "exact segments".into(),
                 };
                 format!("mode cellproj ({how}) on {on}")
+            }
+            Self::Raycast(s) => {
+                let how = match s.segments {
+                    Segments::Partial => "partial pre-integration",
+                    Segments::Exact => "exact segments",
+                };
+                format!("mode raycast ({how}) on {on}")
             }
         }
     }

@@ -43,6 +43,7 @@ const QUICK_CONFIGS: &[(&str, &str)] = &[
     ("shells", "samples 512"),
     ("iso", "flat"),
     ("cellproj", "table 128"),
+    ("raycast", "partial"),
     ("reference", "exact f64"),
 ];
 

@@ -94,6 +94,52 @@ fn reference_render_writes_a_picture_of_the_mesh() {
 }
 
 #[test]
+fn raycast_render_prints_its_stages_and_counters() {
+    let stdout = render_lox("raycast");
+    for line in [
+        "planes",
+        "entries",
+        "traverse",
+        "rays at step limit",
+        "bytes per tet",
+    ] {
+        assert!(stdout.contains(line), "no {line} in {stdout}");
+    }
+}
+
+#[test]
+fn raycast_takes_partial_or_exact_and_refuses_the_table() {
+    let png = out_dir("raycast-exact").join("lox.png");
+    let png_arg = png.to_str().unwrap();
+    let args = [
+        "render",
+        LOX,
+        "--mode",
+        "raycast",
+        "--integrate",
+        "exact",
+        "--size",
+        "32x32",
+    ];
+    let o = tetvr(&[&args[..], &["-o", png_arg]].concat());
+    assert!(o.status.success(), "{}", text(&o).1);
+    assert!(text(&o).0.contains("exact segments"), "{}", text(&o).0);
+    let table = [
+        "render",
+        LOX,
+        "--mode",
+        "raycast",
+        "--integrate",
+        "table",
+        "-o",
+        png_arg,
+    ];
+    let o = tetvr(&table);
+    assert!(!o.status.success());
+    assert!(text(&o).1.contains("--mode cellproj"), "{}", text(&o).1);
+}
+
+#[test]
 fn shells_render_runs_on_the_software_adapter_and_prints_stages() {
     let stdout = render_lox("shells");
     for stage in ["binning", "assembly", "raster", "composite"] {

@@ -31,8 +31,10 @@ use glam::DVec3;
 use tetvr::camera::{Camera, View};
 use tetvr::deform::Deformation;
 use tetvr::generate::{self, Field};
+use tetvr::gpu::raycast::Segments;
 use tetvr::gpu::{
-    CellProjSettings, GpuContext, Integrate, IsoSettings, ShellSettings, Skip, Skips,
+    CellProjSettings, GpuContext, Integrate, IsoSettings, RaycastSettings, ShellSettings, Skip,
+    Skips,
 };
 use tetvr::image::{ErrorMetrics, Image};
 use tetvr::io;
@@ -538,8 +540,28 @@ fn cellproj(integrate: Integrate, table_size: u32) -> Config {
     }
 }
 
+fn raycast(segments: Segments) -> Config {
+    Config {
+        mode: "raycast",
+        setting: match segments {
+            Segments::Partial => "partial".into(),
+            Segments::Exact => "exact".into(),
+        },
+        truth: Truth::Volume,
+        gpu: true,
+        single_run: false,
+        scenes: &[],
+        settings: Box::new(move |_| {
+            ModeSettings::Raycast(RaycastSettings {
+                segments,
+                ..RaycastSettings::default()
+            })
+        }),
+    }
+}
+
 /// The configurations of the bench: `quick` keeps two shells settings, flat iso, the default
-/// cell projection and the reference. Modes and settings join here.
+/// cell projection, the ray caster and the reference. Modes and settings join here.
 pub fn configurations(quick: bool) -> Vec<Config> {
     let mut c = if quick {
         vec![
@@ -547,6 +569,7 @@ pub fn configurations(quick: bool) -> Vec<Config> {
             shells(512, None),
             iso(Shading::Flat),
             cellproj(Integrate::Table, 128),
+            raycast(Segments::Partial),
         ]
     } else {
         let mut c = vec![
@@ -563,6 +586,8 @@ pub fn configurations(quick: bool) -> Vec<Config> {
             cellproj(Integrate::Table, 64),
             cellproj(Integrate::Table, 128),
             cellproj(Integrate::Exact, 128),
+            raycast(Segments::Partial),
+            raycast(Segments::Exact),
         ]);
         c
     };

@@ -6,9 +6,10 @@ use std::time::Instant;
 use indicatif::{ProgressBar, ProgressStyle};
 use tetvr::camera::{Camera, CameraError, View};
 use tetvr::gpu::cellproj::sort::sort_check;
+use tetvr::gpu::raycast::Segments;
 use tetvr::gpu::{
-    AdapterChoice, CellProjSettings, GpuContext, GpuError, Integrate, IsoSettings, ShellSettings,
-    Skip,
+    AdapterChoice, CellProjSettings, GpuContext, GpuError, Integrate, IsoSettings, RaycastSettings,
+    ShellSettings, Skip,
 };
 use tetvr::image::{Image, ImageError};
 use tetvr::io::{self, LoadError, Loaded};
@@ -218,12 +219,33 @@ fn mode_settings(
         Mode::Shells => ModeSettings::Shells(shell_settings(args)),
         Mode::Cellproj => ModeSettings::CellProj(CellProjSettings {
             integrate: match args.cellproj.integrate {
-                IntegrateArg::Table => Integrate::Table,
-                IntegrateArg::Exact => Integrate::Exact,
+                None | Some(IntegrateArg::Table) => Integrate::Table,
+                Some(IntegrateArg::Exact) => Integrate::Exact,
+                Some(IntegrateArg::Partial) => {
+                    return Err(CliError::Usage(
+                        "--integrate partial belongs to --mode raycast; cellproj integrates \
+                         with table or exact"
+                            .into(),
+                    ));
+                }
             },
             table_size: args.cellproj.table_size,
             table_lengths: (args.cellproj.table_size / 2).max(2),
             frustum,
+        }),
+        Mode::Raycast => ModeSettings::Raycast(RaycastSettings {
+            segments: match args.cellproj.integrate {
+                None | Some(IntegrateArg::Partial) => Segments::Partial,
+                Some(IntegrateArg::Exact) => Segments::Exact,
+                Some(IntegrateArg::Table) => {
+                    return Err(CliError::Usage(
+                        "--mode raycast integrates with partial (the default) or exact; the 3D \
+                         table belongs to --mode cellproj"
+                            .into(),
+                    ));
+                }
+            },
+            ..RaycastSettings::default()
         }),
         Mode::Iso => {
             let isovalues = if args.iso.is_empty() {

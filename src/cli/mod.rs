@@ -16,6 +16,7 @@ Examples:
   tetvr render mesh.vtu --mode reference --size 256x256 --view -y --tf shock -o ref.png
   tetvr render ../shared/data/bluntfin_tet.vtk --mode iso --iso 0.5,0.7 --shading smooth -o iso.png
   tetvr render ../shared/data/bluntfin_tet.vtk --mode cellproj --integrate exact --timings --sort-check -o cp.png
+  tetvr render ../shared/data/bluntfin_tet.vtk --mode raycast --timings -o fin.png
   tetvr iso-export ../shared/data/bluntfin_tet.vtk --iso 0.5,0.7 --tf viridis -o fin.glb
   tetvr render mesh.vtk --array Pressure --tf my_tf.json --unit-distance 0.05 -o p.png
   tetvr render mesh.msh --eye 10,0,2 --target 0,0,0 --up 0,0,1 --fov 40 -o close.png
@@ -71,15 +72,21 @@ pub enum Mode {
     Iso,
     /// Cell projection on the GPU in a power-sort order (--integrate, --table-size, --sort-check).
     Cellproj,
+    /// Ray casting on compute shaders through face adjacency (Weiler et al. 2003), exact
+    /// segments; rays re-enter non-convex meshes, the eye may be inside.
+    Raycast,
 }
 
 /// How cell projection integrates each tet's segment.
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum IntegrateArg {
-    /// Trilinear lookup in a 3D pre-integration table (front scalar, back scalar, length).
+    /// cellproj: trilinear lookup in a 3D pre-integration table (front scalar, back scalar,
+    /// length).
     Table,
-    /// Exactly for the piecewise-linear TF, per fragment.
+    /// Exactly for the piecewise-linear TF, per fragment or per ray segment.
     Exact,
+    /// raycast: partial pre-integration (Espinha & Celes 2005), a TF-independent psi table.
+    Partial,
 }
 
 /// Isosurface shading.
@@ -218,9 +225,10 @@ pub struct IsoExportArgs {
 
 #[derive(clap::Args, Debug)]
 pub struct CellProjArgs {
-    /// cellproj: segment integration.
-    #[arg(long, value_enum, default_value_t = IntegrateArg::Table)]
-    pub integrate: IntegrateArg,
+    /// cellproj and raycast: segment integration (default: table for cellproj, partial for
+    /// raycast).
+    #[arg(long, value_enum)]
+    pub integrate: Option<IntegrateArg>,
     /// cellproj: pre-integration table samples per scalar axis (and half as many lengths).
     #[arg(long, default_value_t = 128)]
     pub table_size: u32,

@@ -160,3 +160,44 @@ pub struct CellProjUniforms {
     pub _pad: u32,
 }
 const _: () = assert!(size_of::<CellProjUniforms>() == 16);
+
+/// The ray caster's constants (WGSL `Raycast` in `shaders/raycast_shared.wgsl`, 16 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct RaycastUniforms {
+    /// Boundary-face hits each pixel's entry list holds.
+    pub capacity: u32,
+    /// Tets one ray may step through.
+    pub max_steps: u32,
+    /// Boundary faces.
+    pub boundary_count: u32,
+    /// The eye is in a tet when it lies at most this far outside each face plane.
+    pub eye_tol: f32,
+}
+const _: () = assert!(size_of::<RaycastUniforms>() == 16);
+
+/// Per tet and frame (WGSL `TetPlanes`, 80 bytes): the outward face planes `(n, w)` in eye
+/// space and the linear scalar `(gradient, value at the eye)`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct TetPlanes {
+    /// Face `i`'s outward plane `(n, w)`: a point `p` is inside it where `n . p + w <= 0`;
+    /// face `i` is the face opposite corner `i`.
+    pub face: [[f32; 4]; 4],
+    /// The scalar as a linear function of eye-space position: `(gradient, value at the eye)`.
+    pub scalar: [f32; 4],
+}
+const _: () = assert!(size_of::<TetPlanes>() == 80);
+
+/// Per tet, built once (WGSL `TetLinks`, 32 bytes): vertex indices, and across each face
+/// `4 * neighbour + face` (`crate::mesh::topology::NO_NEIGHBOR` on the boundary).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct TetLinks {
+    /// The tet's vertex indices.
+    pub tet: [u32; 4],
+    /// Across face `i` (opposite corner `i`): `4 * neighbour + face index in the neighbour`,
+    /// or `NO_NEIGHBOR` on the boundary.
+    pub next: [u32; 4],
+}
+const _: () = assert!(size_of::<TetLinks>() == 32);

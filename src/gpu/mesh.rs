@@ -19,7 +19,6 @@ use rayon::prelude::*;
 use crate::gpu::gpu_data::TetRecord;
 use crate::gpu::util::{bounding_sphere, scalar_frame, settings_error};
 use crate::gpu::{GpuContext, GpuError};
-use crate::mesh::topology::Adjacency;
 use crate::mesh::{TetMesh, check_new_positions, check_values, tet_ranges};
 use crate::render::RenderError;
 
@@ -104,9 +103,6 @@ pub struct GpuTetMesh {
     scalars: wgpu::Buffer,
     /// The tets' vertex indices (16 bytes each), uploaded when a mode first asks.
     tets: OnceLock<TetArray>,
-    /// Each tet's four face neighbours ([`crate::mesh::topology::NO_NEIGHBOR`] on the
-    /// boundary), computed and uploaded when a mode first asks.
-    adjacency: OnceLock<TetArray>,
 }
 
 impl GpuTetMesh {
@@ -134,7 +130,6 @@ impl GpuTetMesh {
             positions,
             scalars,
             tets: OnceLock::new(),
-            adjacency: OnceLock::new(),
         };
         let data = gpu.read();
         gpu.upload_positions(&data);
@@ -178,18 +173,6 @@ impl GpuTetMesh {
     /// The tets' vertex indices (`vec4<u32>` per tet), in chunks of [`Self::chunking`].
     pub(crate) fn tets(&self) -> Result<&TetArray, RenderError> {
         self.lazy(&self.tets, "mesh tets", |d| d.tets.clone())
-    }
-
-    /// Each tet's face neighbours (`vec4<u32>` per tet, neighbour `i` across the face opposite
-    /// vertex `i`), in chunks of [`Self::chunking`].
-    #[expect(
-        dead_code,
-        reason = "for the ray casters (issue 14 item 1); no mode reads it yet"
-    )]
-    pub(crate) fn adjacency(&self) -> Result<&TetArray, RenderError> {
-        self.lazy(&self.adjacency, "mesh face adjacency", |d| {
-            Adjacency::build(&d.tets).neighbors
-        })
     }
 
     /// How arrays of one entry per tet of this mesh are cut into binding-sized chunks.
@@ -266,12 +249,8 @@ impl GpuTetMesh {
 
     /// Bytes of the mesh's GPU buffers (vertices, and the per-tet arrays uploaded so far).
     pub fn gpu_memory(&self) -> u64 {
-        let arrays = [self.tets.get(), self.adjacency.get()]
-            .into_iter()
-            .flatten()
-            .map(TetArray::size)
-            .sum::<u64>();
-        self.positions.size() + self.scalars.size() + arrays
+        let tets = self.tets.get().map_or(0, TetArray::size);
+        self.positions.size() + self.scalars.size() + tets
     }
 }
 

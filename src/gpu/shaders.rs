@@ -6,6 +6,14 @@
 
 /// Structs mirroring [`crate::gpu::gpu_data`], the frame uniform binding, the pixel ray.
 pub const SHARED: &str = include_str!("../../shaders/shared.wgsl");
+/// The segment integrator for the piecewise-linear TF (`fn integrate_segment`), shared by the
+/// cellproj raster and the raycast traversal; a stage appends it after [`SHARED`], declares
+/// `tf: TfPoints` and a `psi`, e.g. [`PSI_EXACT`].
+pub const INTEGRATE_SEGMENT: &str = include_str!("../../shaders/integrate_segment.wgsl");
+
+/// The exact mean transmittance as the segment integrator's `psi`.
+pub const PSI_EXACT: &str =
+    "fn psi(a: f32, b: f32) -> f32 {\n    return mean_transmittance(a, b);\n}\n";
 const ASSEMBLE: &str = include_str!("../../shaders/assemble.wgsl");
 const SHELLS_RASTER: &str = include_str!("../../shaders/shells_raster.wgsl");
 const SHELLS_COMPOSITE: &str = include_str!("../../shaders/shells_composite.wgsl");
@@ -15,6 +23,35 @@ pub(crate) const RASTER: &str = include_str!("../../shaders/raster.wgsl");
 const ISO_RASTER: &str = include_str!("../../shaders/iso_raster.wgsl");
 const ISO_GRADIENTS: &str = include_str!("../../shaders/iso_gradients.wgsl");
 const CELLPROJ_RASTER: &str = include_str!("../../shaders/cellproj_raster.wgsl");
+
+const RAYCAST_SHARED: &str = include_str!("../../shaders/raycast_shared.wgsl");
+const RAYCAST_PLANES: &str = include_str!("../../shaders/raycast_planes.wgsl");
+const RAYCAST_ENTRIES: &str = include_str!("../../shaders/raycast_entries.wgsl");
+const RAYCAST_TRAVERSE: &str = include_str!("../../shaders/raycast_traverse.wgsl");
+const RAYCAST_PSI: &str = include_str!("../../shaders/raycast_psi.wgsl");
+
+/// The ray caster's stages as it loads them (entry point `main` in each): planes, entries, and
+/// the traversal with each integrator (`Segments`: exact, partial).
+pub fn raycast_stages() -> [(&'static str, String); 4] {
+    let common = format!("{}\n{RAYCAST_SHARED}", SHARED);
+    let traverse = |name, psi: &str| {
+        let integrate = INTEGRATE_SEGMENT;
+        (
+            name,
+            format!("{common}\n{integrate}\n{psi}\n{RAYCAST_TRAVERSE}"),
+        )
+    };
+    let table = format!(
+        "// Generated: samples per psi table axis.\nconst PSI_SIZE: u32 = {}u;\n{RAYCAST_PSI}",
+        crate::gpu::raycast::psi::PSI_SIZE
+    );
+    [
+        ("raycast_planes", format!("{common}\n{RAYCAST_PLANES}")),
+        ("raycast_entries", format!("{common}\n{RAYCAST_ENTRIES}")),
+        traverse("raycast_traverse (exact)", PSI_EXACT),
+        traverse("raycast_traverse (partial)", &table),
+    ]
+}
 
 /// The most colour targets a raster variant may write (WebGPU's cap on colour attachments).
 pub const MAX_TARGETS: u32 = 8;
@@ -105,7 +142,7 @@ pub fn iso_gradients() -> String {
 
 /// The cellproj raster stage (entry points `vs_faces`, `fs_table`, `fs_exact`).
 pub fn cellproj_raster() -> String {
-    format!("{SHARED}\n{RASTER}\n{CELLPROJ_RASTER}")
+    format!("{SHARED}\n{RASTER}\n{INTEGRATE_SEGMENT}\n{PSI_EXACT}\n{CELLPROJ_RASTER}")
 }
 
 /// Every WGSL module the renderers load, each variant once, with its name and its entry points
@@ -126,6 +163,9 @@ pub fn registry() -> Vec<(String, String, &'static [&'static str])> {
             &["vs_faces", "fs_table", "fs_exact"],
         ),
     ];
+    for (name, source) in raycast_stages() {
+        out.push((name.into(), source, &["main"]));
+    }
     for targets in 1..=MAX_TARGETS {
         let raster = ["vs_faces", "vs_near", "fs_slices", "vs_clear", "fs_clear"].as_slice();
         let name = format!("shells_raster ({targets} targets)");

@@ -1,0 +1,354 @@
+//! `--mode raycast` against the exact f64 reference: the oxygen post subset, a box with a hole
+//! seen through the hole, the eye inside a grid, a head-on grid (holes 0), a mesh after
+//! `update_positions`; and the CPU twin against the shipped shaders run on the adapter.
+//!
+//! GPU tests fail (never skip) when there is no adapter. Bounds were measured on lavapipe
+//! (Mesa llvmpipe, 2 cores); each is commented with what it allows for.
+
+mod common;
+
+use std::sync::OnceLock;
+
+use glam::{DVec3, UVec3};
+use tetvr::deform::Deformation;
+use tetvr::generate::{self, fields::Field};
+use tetvr::gpu::raycast::{Segments, twin};
+use tetvr::gpu::{AdapterChoice, GpuContext, GpuTetMesh, RaycastRenderer, RaycastSettings};
+use tetvr::reference::ReferenceRenderer;
+use tetvr::tf::ControlPoint;
+use tetvr::{Camera, Frame, Image, Renderer, TetMesh, TransferFunction, View};
+
+use common::{Bounds, assert_images_close};
+
+fn ctx() -> &'static GpuContext {
+    static CTX: OnceLock<GpuContext> = OnceLock::new();
+    CTX.get_or_init(|| {
+        GpuContext::new(AdapterChoice::Auto).unwrap_or_else(|e| {
+            panic!("the raycast tests need a GPU adapter (Mesa's lavapipe will do): {e}")
+        })
+    })
+}
+
+/// The default TF (viridis, opacity ramp to 0.1) and an ISO view of `size` x `size`.
+fn default_view(mesh: &TetMesh, size: u32) -> (TransferFunction, Camera) {
+    let (lo, hi) = mesh.bounds();
+    let (s_lo, s_hi) = mesh.active_array().and_then(|a| a.range()).unwrap();
+    let tf = TransferFunction::default_for_range(s_lo, s_hi, mesh.diagonal() / 100.0).unwrap();
+    (
+        tf,
+        Camera::framing(lo, hi, View::ISO, 1.0, 30.0, size, size),
+    )
+}
+
+fn lox() -> TetMesh {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/lox_post_subset_tet.vtk");
+    tetvr::io::load(&path).expect("the asset loads").mesh
+}
+
+fn with(segments: Segments) -> RaycastSettings {
+    RaycastSettings {
+        segments,
+        ..Default::default()
+    }
+}
+
+fn frame(mesh: &TetMesh, camera: &Camera, tf: &TransferFunction, s: Segments) -> Frame {
+    let mut r = RaycastRenderer::new(ctx(), mesh, with(s)).expect("renderer");
+    let frame = r.render(camera, tf).expect("frame");
+    eprintln!("{}", frame.timings);
+    frame
+}
+
+fn counter(frame: &Frame, name: &str) -> u64 {
+    let c = frame.timings.counters.iter().find(|c| c.0 == name);
+    c.unwrap_or_else(|| panic!("no counter {name}")).1
+}
+
+fn reference(mesh: &TetMesh, camera: &Camera, tf: &TransferFunction) -> Image {
+    ReferenceRenderer::new(mesh)
+        .expect("reference")
+        .render_image(camera, tf, None)
+        .expect("reference frame")
+}
+
+/// Every scene's bound: max_abs 1e-3 is the target for exact segments; rmse 3e-6 is
+/// about 10x the measured figures (lavapipe: rmse 1.8e-7 to 3.2e-7, max_abs 1e-6 to 1.2e-5 on
+/// lox, the hole, the eye inside, head-on, the bent lox and the blunt fin; 1.4e-6 with the
+/// sharp TF), f32 planes and scalars.
+const BOUNDS: Bounds = bounds(3e-6, 1e-3);
+
+const fn bounds(max_rmse: f64, max_abs: f64) -> Bounds {
+    Bounds {
+        max_rmse,
+        max_abs,
+        max_holes: 0,
+        max_spill: 0,
+    }
+}
+
+/// Renders `mesh` and checks it against the reference, and that no ray hit the step limit.
+/// Renders `mesh` with both integrators and checks each against the reference within `b`, and
+/// that no ray hit the step limit; returns the exact frame. Partial pre-integration adds the
+/// psi table's bilinear interpolation (at most 8.9e-6 per piece's colour, `psi` unit test),
+/// which measured within 5% of exact on every scene here, so both share the bound.
+fn check(name: &str, mesh: &TetMesh, camera: &Camera, tf: &TransferFunction, b: Bounds) -> Frame {
+    let expected = reference(mesh, camera, tf);
+    let mut frames = [Segments::Exact, Segments::Partial].map(|s| {
+        let got = frame(mesh, camera, tf, s);
+        let name = format!("raycast-{name}-{s:?}");
+        eprintln!("{name}: {}", got.image.compare(&expected).unwrap());
+        assert_images_close(&name, &got.image, &expected, b);
+        assert_eq!(counter(&got, "rays at step limit"), 0);
+        Some(got)
+    });
+    frames[0].take().unwrap()
+}
+
+#[test]
+fn lox_subset_matches_reference() {
+    let mesh = lox();
+    let (tf, camera) = default_view(&mesh, 128);
+    check("lox", &mesh, &camera, &tf, BOUNDS);
+}
+
+/// The shipped shaders against the CPU twin (f32 Rust, the same operations) on `mesh`.
+fn twin_check(name: &str, mesh: &TetMesh, camera: &Camera, tf: &TransferFunction) {
+    let got = frame(mesh, camera, tf, Segments::Exact).image;
+    let gpu = GpuTetMesh::new(ctx(), mesh).unwrap();
+    let cpu = twin::render(&gpu.read(), camera, tf);
+    eprintln!("{name}: shaders vs twin: {}", got.compare(&cpu).unwrap());
+    // The same f32 operations; lavapipe may fuse multiply-adds where Rust does not, and the
+    // twin integrates in f64: measured rmse 1.3e-7 to 1.4e-7, max 6.6e-7 to 2.0e-6; bounds
+    // about 10x. A ray the two walk through different tets differs by far more.
+    assert_images_close(
+        &format!("raycast-twin-{name}"),
+        &got,
+        &cpu,
+        bounds(1e-6, 2e-5),
+    );
+}
+
+/// The twin against the shaders: a real mesh (lox), rays leaving and re-entering (the box with
+/// a hole), and a grid with flat tets (thin, left by their edges) seen from inside it.
+#[test]
+fn twin_matches_the_shaders() {
+    let mesh = lox();
+    let (tf, camera) = default_view(&mesh, 64);
+    twin_check("lox", &mesh, &camera, &tf);
+    let mesh = generate::shapes::box_with_hole(5_000, Field::Gaussians).unwrap();
+    let (tf, camera) = default_view(&mesh, 64);
+    twin_check("hole", &mesh, &camera, &tf);
+    let grid = gaussians(6);
+    let mut tets = grid.tets().to_vec();
+    // Vertices of the grid are numbered x fastest over 7 x 7 x 7: two cube faces' corners.
+    let v = |x: u32, y: u32, z: u32| x + 7 * (y + 7 * z);
+    tets.push([v(0, 0, 0), v(1, 0, 0), v(0, 1, 0), v(1, 1, 0)]);
+    tets.push([v(2, 2, 3), v(3, 2, 3), v(2, 3, 3), v(3, 3, 3)]);
+    let (mesh, _) = TetMesh::new(grid.positions().to_vec(), tets, grid.arrays().to_vec()).unwrap();
+    let (tf, _) = default_view(&mesh, 64);
+    let (lo, hi) = mesh.bounds();
+    let camera = Camera {
+        eye: lo + (hi - lo) * DVec3::new(0.63, 0.43, 0.55),
+        target: lo + (hi - lo) * DVec3::new(0.1, 0.2, 0.5),
+        up: DVec3::Z,
+        fov_y_deg: 60.0,
+        width: 64,
+        height: 64,
+    };
+    let got = frame(&mesh, &camera, &tf, Segments::Exact);
+    assert_eq!(counter(&got, "thin tets"), 2);
+    assert_eq!(counter(&got, "eye in a tet"), 1);
+    twin_check("flat-inside", &mesh, &camera, &tf);
+}
+
+fn gaussians(cells: u32) -> TetMesh {
+    generate::fields::grid(Field::Gaussians, UVec3::splat(cells), "gaussians").expect("grid")
+}
+
+/// The box with a square hole along z, seen through the hole from a little off its axis: rays
+/// cross a wall, leave into the hole, re-enter through the opposite wall; others pass the hole
+/// untouched.
+#[test]
+fn box_with_hole_seen_through_the_hole() {
+    let mesh = generate::shapes::box_with_hole(20_000, Field::Gaussians).unwrap();
+    let (tf, _) = default_view(&mesh, 96);
+    let camera = Camera {
+        eye: DVec3::new(0.15, 0.25, 4.0),
+        target: DVec3::ZERO,
+        up: DVec3::Y,
+        fov_y_deg: 40.0,
+        width: 96,
+        height: 96,
+    };
+    check("hole", &mesh, &camera, &tf, BOUNDS);
+}
+
+/// The eye inside a grid: rays start in the eye's tet.
+#[test]
+fn eye_inside_a_grid() {
+    let mesh = gaussians(12);
+    let (tf, _) = default_view(&mesh, 96);
+    let (lo, hi) = mesh.bounds();
+    let centre = (lo + hi) * 0.5;
+    let camera = Camera {
+        eye: centre + DVec3::new(0.13, -0.07, 0.05) * (hi - lo),
+        target: centre + DVec3::new(1.0, 0.4, 0.2),
+        up: DVec3::Z,
+        fov_y_deg: 60.0,
+        width: 96,
+        height: 96,
+    };
+    let got = check("eye-inside", &mesh, &camera, &tf, BOUNDS);
+    assert_eq!(counter(&got, "eye in a tet"), 1);
+}
+
+/// An axis-aligned grid seen head-on with an odd image: the centre column and row of rays lie
+/// in grid planes and the centre ray runs down a grid edge; no ray is lost (holes 0).
+#[test]
+fn head_on_grid_has_no_holes() {
+    let field = |p: DVec3| 0.5 + 0.2 * p.x + 0.1 * p.y + 0.04 * p.z;
+    let mesh = generate::box_grid(DVec3::splat(-1.0), DVec3::ONE, UVec3::splat(6), "f", field);
+    let (tf, _) = default_view(&mesh, 65);
+    let camera = Camera {
+        eye: DVec3::new(0.0, 0.0, 5.0),
+        target: DVec3::ZERO,
+        up: DVec3::Y,
+        fov_y_deg: 40.0,
+        width: 65,
+        height: 65,
+    };
+    check("head-on", &mesh, &camera, &tf, BOUNDS);
+}
+
+/// After `update_positions` (planes recomputed from the new positions, nothing else) the
+/// renderer draws what a renderer built for the deformed mesh draws, and that is the deformed
+/// mesh's picture. The bend inverts no tet; a deformation that folds the mesh over itself
+/// (the twist of the cellproj test inverts 71 tets) makes space covered twice, which the
+/// reference integrates twice and a walk through the adjacency once.
+#[test]
+fn deformed_mesh_matches_reference() {
+    let mut mesh = lox();
+    let (tf, camera) = default_view(&mesh, 96);
+    let (lo, hi) = mesh.bounds();
+    let mut r = RaycastRenderer::new(ctx(), &mesh, RaycastSettings::default()).unwrap();
+    let rest = r.render(&camera, &tf).unwrap().image;
+    let moved = Deformation::Bend.apply(mesh.positions(), lo, hi, 0.4, 0.3);
+    r.update_positions(&moved).unwrap();
+    let got = r.render(&camera, &tf).unwrap().image;
+    // The bend moves the picture far more than any bound here (measured rmse 3e-2).
+    assert!(got.compare(&rest).unwrap().rmse > 1e-3);
+    mesh.set_positions(moved).unwrap();
+    // Same positions, origin and arithmetic: the same bits.
+    let fresh = frame(&mesh, &camera, &tf, Segments::Partial).image;
+    assert_eq!(got.compare(&fresh).unwrap().max_abs, 0.0);
+    check("bent", &mesh, &camera, &tf, BOUNDS);
+}
+
+/// Entry lists one hit long overflow on the box with a hole (rays cross up to 3 entering
+/// faces): the frame is rendered again with longer lists, and the picture is the one lists
+/// long enough from the start give, bit for bit. A step limit of 5 stops rays, and they are
+/// counted.
+#[test]
+fn list_overflow_reruns_and_step_limit_is_counted() {
+    let mesh = generate::shapes::box_with_hole(20_000, Field::Gaussians).unwrap();
+    let (tf, camera) = default_view(&mesh, 64);
+    let render = |settings: RaycastSettings| {
+        let mut r = RaycastRenderer::new(ctx(), &mesh, settings).unwrap();
+        r.render(&camera, &tf).unwrap()
+    };
+    let long = render(RaycastSettings {
+        list_capacity: 16,
+        ..Default::default()
+    });
+    let short = render(RaycastSettings {
+        list_capacity: 1,
+        ..Default::default()
+    });
+    assert_eq!(counter(&long, "list overflow reruns"), 0);
+    assert!(counter(&short, "list overflow reruns") >= 1);
+    assert_eq!(short.image.compare(&long.image).unwrap().max_abs, 0.0);
+    let stopped = render(RaycastSettings {
+        max_steps: Some(5),
+        ..Default::default()
+    });
+    assert!(counter(&stopped, "rays at step limit") > 0);
+    assert_eq!(counter(&long, "rays at step limit"), 0);
+}
+
+/// This milestone keeps the per-tet planes and the entry lists in one storage binding each: a
+/// mesh or an image beyond it is refused with a message that names the sizes and what to do
+/// (no panic, no wrong picture). lox's 8,750 tets need 700,000 bytes of planes.
+#[test]
+fn mesh_or_image_beyond_one_binding_is_refused_clearly() {
+    let small = common::with_storage_binding_limit(ctx(), 64 << 10);
+    let err = RaycastRenderer::new(&small, &lox(), RaycastSettings::default())
+        .err()
+        .expect("refused");
+    let msg = err.to_string();
+    assert!(msg.contains("8750 tets") && msg.contains("65536"), "{msg}");
+    assert!(msg.contains("--mode cellproj"), "{msg}");
+    // A small mesh fits, but 128 x 128 pixels' entry lists (4 hits of 8 bytes: 524,288
+    // bytes) do not: the frame is refused naming the image size.
+    let mesh = gaussians(2);
+    let (tf, camera) = default_view(&mesh, 128);
+    let mut r = RaycastRenderer::new(&small, &mesh, RaycastSettings::default()).unwrap();
+    let msg = r.render(&camera, &tf).expect_err("refused").to_string();
+    assert!(msg.contains("128x128") && msg.contains("524288"), "{msg}");
+}
+
+/// A TF with a step and opacity up to 0.8 per unit distance, where the psi table's pieces are
+/// optically deep: both integrators against the reference on a grid.
+#[test]
+fn sharp_tf_on_a_grid() {
+    let mesh = gaussians(16);
+    let (_, camera) = default_view(&mesh, 96);
+    let (lo, hi) = mesh.active_array().and_then(|a| a.range()).unwrap();
+    let cp = |u: f64, color, opacity| ControlPoint {
+        s: lo + (hi - lo) * u,
+        color,
+        opacity,
+    };
+    let points = vec![
+        cp(0.0, [0.1, 0.2, 0.9], 0.0),
+        cp(0.45, [0.2, 0.9, 0.3], 0.5),
+        cp(0.45, [0.9, 0.2, 0.1], 0.05),
+        cp(1.0, [1.0, 0.9, 0.1], 0.8),
+    ];
+    let tf = TransferFunction::new(points, mesh.diagonal() / 100.0).unwrap();
+    check("sharp", &mesh, &camera, &tf, BOUNDS);
+}
+
+/// The blunt fin (187,395 tets, 77 with coincident corners: thin, left by their edges), seen
+/// from outside with the default and the `shock` TF, and with the eye inside the mesh.
+#[test]
+fn bluntfin_outside_and_eye_inside() {
+    let mesh = tetvr::io::load(&common::shared_data("bluntfin_tet.vtk"))
+        .expect("the data set loads")
+        .mesh;
+    let (tf, outside) = default_view(&mesh, 96);
+    let got = check("bluntfin", &mesh, &outside, &tf, BOUNDS);
+    assert_eq!(counter(&got, "thin tets"), 77);
+    let range = mesh.active_array().and_then(|a| a.range()).unwrap();
+    let shock = tetvr::tf::file::load_tf("shock", range, mesh.diagonal() / 100.0).unwrap();
+    // The shock TF's narrow opaque bands turn f32 scalar rounding into colour: measured rmse
+    // 8.4e-6, max 4.3e-4; rmse bound about 4x, max_abs the target.
+    check(
+        "bluntfin-shock",
+        &mesh,
+        &outside,
+        &shock,
+        bounds(3e-5, 1e-3),
+    );
+    let (lo, hi) = mesh.bounds();
+    let inside = Camera {
+        eye: lo + (hi - lo) * DVec3::new(0.6, 0.5, 0.5),
+        target: lo + (hi - lo) * DVec3::new(0.1, 0.4, 0.3),
+        up: DVec3::Z,
+        fov_y_deg: 60.0,
+        width: 96,
+        height: 96,
+    };
+    let got = check("bluntfin-inside", &mesh, &inside, &tf, BOUNDS);
+    assert_eq!(counter(&got, "eye in a tet"), 1);
+}
