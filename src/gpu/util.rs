@@ -200,3 +200,28 @@ pub(crate) fn compute_main(
         cache: None,
     })
 }
+
+/// A vertex stage without vertex buffers (the raster stages fetch their corners from storage
+/// buffers).
+pub(crate) fn vertex_state<'a>(
+    module: &'a wgpu::ShaderModule,
+    entry: &'a str,
+) -> wgpu::VertexState<'a> {
+    wgpu::VertexState {
+        module,
+        entry_point: Some(entry),
+        compilation_options: Default::default(),
+        buffers: &[],
+    }
+}
+
+/// Triangle lists of tet faces, culled with `cull`: outward faces are counter-clockwise seen
+/// from outside, with NDC's y up.
+pub(crate) fn tet_faces(cull: Option<wgpu::Face>) -> wgpu::PrimitiveState {
+    wgpu::PrimitiveState {
+        topology: wgpu::PrimitiveTopology::TriangleList,
+        front_face: wgpu::FrontFace::Ccw,
+        cull_mode: cull,
+        ..Default::default()
+    }
+}

@@ -5,7 +5,8 @@
 use crate::gpu::frame::{ImageReadback, Timestamps, attachment, cleared, draw_tet_chunks};
 use crate::gpu::shaders;
 use crate::gpu::util::{
-    bind_group_layout, buffer_entry, check_image_size, entry, pipeline_layout_for, wgsl_module,
+    bind_group_layout, buffer_entry, check_image_size, entry, pipeline_layout_for, tet_faces,
+    vertex_state, wgsl_module,
 };
 use crate::render::RenderError;
 
@@ -153,19 +154,8 @@ impl Pipelines {
         let raster = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("iso raster"),
             layout: Some(&pipeline_layout(&raster_layout)),
-            vertex: wgpu::VertexState {
-                module: &raster_module,
-                entry_point: Some("vs_faces"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleList,
-                // Outward faces are counter-clockwise seen from outside; NDC has y up.
-                front_face: wgpu::FrontFace::Ccw,
-                cull_mode: Some(wgpu::Face::Back),
-                ..Default::default()
-            },
+            vertex: vertex_state(&raster_module, "vs_faces"),
+            primitive: tet_faces(Some(wgpu::Face::Back)),
             depth_stencil: Some(wgpu::DepthStencilState {
                 format: DEPTH_FORMAT,
                 depth_write_enabled: Some(true),

@@ -6,7 +6,9 @@ use std::collections::HashMap;
 
 use crate::gpu::gpu_data::ShellUniforms;
 use crate::gpu::shaders;
-use crate::gpu::util::{bind_group_layout, buffer_entry, pipeline_layout_for, wgsl_module};
+use crate::gpu::util::{
+    bind_group_layout, buffer_entry, pipeline_layout_for, tet_faces, vertex_state, wgsl_module,
+};
 
 use super::ERT_DEPTH;
 
@@ -242,19 +244,8 @@ impl Pipelines {
                     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                         label: Some(label),
                         layout: Some(raster_pipeline_layout),
-                        vertex: wgpu::VertexState {
-                            module: &raster_module,
-                            entry_point: Some(entry),
-                            compilation_options: Default::default(),
-                            buffers: &[],
-                        },
-                        primitive: wgpu::PrimitiveState {
-                            topology: wgpu::PrimitiveTopology::TriangleList,
-                            // Outward faces are counter-clockwise seen from outside; NDC has y up.
-                            front_face: wgpu::FrontFace::Ccw,
-                            cull_mode,
-                            ..Default::default()
-                        },
+                        vertex: vertex_state(&raster_module, entry),
+                        primitive: tet_faces(cull_mode),
                         depth_stencil: ert_depth_test(depth),
                         multisample: Default::default(),
                         fragment: Some(wgpu::FragmentState {
@@ -320,12 +311,7 @@ impl Pipelines {
                 device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                     label: Some("shells composite"),
                     layout: Some(layout),
-                    vertex: wgpu::VertexState {
-                        module: &module,
-                        entry_point: Some("vs_fullscreen"),
-                        compilation_options: Default::default(),
-                        buffers: &[],
-                    },
+                    vertex: vertex_state(&module, "vs_fullscreen"),
                     primitive: Default::default(),
                     depth_stencil,
                     multisample: Default::default(),
