@@ -5,7 +5,7 @@
 use crate::gpu::frame::{ImageReadback, Timestamps, attachment, cleared, draw_tet_chunks};
 use crate::gpu::shaders;
 use crate::gpu::util::{
-    bind_group_layout, buffer_entry, check_image_size, pipeline_layout_for, tet_faces,
+    bind_group_layout, buffer_entry, check_image_size, pipeline_layout_for, tet_faces, texture_2d,
     vertex_state, wgsl_module,
 };
 use crate::render::RenderError;
@@ -20,20 +20,13 @@ impl CellProjRenderer {
             return Ok(());
         }
         check_image_size(&self.limits, width, height)?;
-        let color = self.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("cellproj colour"),
-            size: wgpu::Extent3d {
-                width,
-                height,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: self.format,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        });
+        let color = texture_2d(
+            &self.device,
+            "cellproj colour",
+            (width, height, 1),
+            self.format,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        );
         let readback = ImageReadback::new(
             &self.device,
             "cellproj readback",

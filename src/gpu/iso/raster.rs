@@ -6,7 +6,7 @@ use crate::gpu::frame::{ImageReadback, Timestamps, attachment, cleared, draw_tet
 use crate::gpu::shaders;
 use crate::gpu::util::{
     bind_group_layout, buffer_entry, check_image_size, entry, pipeline_layout_for, tet_faces,
-    vertex_state, wgsl_module,
+    texture_2d, vertex_state, wgsl_module,
 };
 use crate::render::RenderError;
 
@@ -21,20 +21,7 @@ impl IsoRenderer {
         }
         check_image_size(&self.limits, width, height)?;
         let texture = |label, format, usage| {
-            self.device.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size: wgpu::Extent3d {
-                    width,
-                    height,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
-                view_formats: &[],
-            })
+            texture_2d(&self.device, label, (width, height, 1), format, usage)
         };
         let rw = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
         let color = texture("iso colour", TARGET_FORMAT, rw);

@@ -7,7 +7,7 @@ use crate::camera::Camera;
 use crate::gpu::frame::{ImageReadback, Timestamps};
 use crate::gpu::gpu_data::FrameUniforms;
 use crate::gpu::tf::tf_points;
-use crate::gpu::util::{check_image_size, entry, map_read, ms_since, settings_error};
+use crate::gpu::util::{check_image_size, entry, map_read, ms_since, settings_error, texture_2d};
 use crate::gpu::view::ViewFrame;
 use crate::image::Image;
 use crate::render::{Frame, RenderError, Timings};
@@ -172,20 +172,13 @@ impl RaycastRenderer {
             )));
         }
         let format = wgpu::TextureFormat::Rgba32Float;
-        let image = self.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("raycast image"),
-            size: wgpu::Extent3d {
-                width,
-                height,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
+        let image = texture_2d(
+            &self.device,
+            "raycast image",
+            (width, height, 1),
             format,
-            usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        });
+            wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
+        );
         let device = &self.device;
         self.targets = Some(Targets {
             width,

@@ -3,7 +3,7 @@
 //! termination mask and the tile flags.
 
 use crate::gpu::frame::ImageReadback;
-use crate::gpu::util::entry;
+use crate::gpu::util::{entry, texture_2d};
 
 use super::ERT_DEPTH;
 use super::pipelines::ErtPipelines;
@@ -34,30 +34,6 @@ pub(super) struct ErtTargets {
     pub(super) tiles: (u32, u32),
 }
 
-/// A `width` x `height` texture of `layers` layers.
-fn texture(
-    device: &wgpu::Device,
-    label: &str,
-    (width, height, layers): (u32, u32, u32),
-    format: wgpu::TextureFormat,
-    usage: wgpu::TextureUsages,
-) -> wgpu::Texture {
-    device.create_texture(&wgpu::TextureDescriptor {
-        label: Some(label),
-        size: wgpu::Extent3d {
-            width,
-            height,
-            depth_or_array_layers: layers,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format,
-        usage,
-        view_formats: &[],
-    })
-}
-
 impl Targets {
     /// The targets of a `width` x `height` image with `layers` slice layers of `format`.
     pub(super) fn new(
@@ -67,7 +43,7 @@ impl Targets {
         ert: Option<&ErtPipelines>,
     ) -> Self {
         use wgpu::TextureUsages as U;
-        let slices = texture(
+        let slices = texture_2d(
             device,
             "shells slices",
             (width, height, layers),
@@ -91,7 +67,7 @@ impl Targets {
             ..Default::default()
         });
         let accum_usage = U::RENDER_ATTACHMENT | U::COPY_SRC | U::TEXTURE_BINDING;
-        let accum = texture(
+        let accum = texture_2d(
             device,
             "shells accumulation",
             (width, height, 1),
@@ -127,7 +103,7 @@ impl ErtTargets {
         p: &ErtPipelines,
         accum_view: &wgpu::TextureView,
     ) -> Self {
-        let depth = texture(
+        let depth = texture_2d(
             device,
             "shells termination mask",
             (width, height, 1),
