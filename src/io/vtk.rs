@@ -362,7 +362,7 @@ impl<'a> Reader<'a> {
         Ok(Section::Point(n))
     }
 
-    /// The number of values per component of an attribute in the current section.
+    /// The number of tuples (points or cells) an attribute of the current section holds.
     fn attr_count(&self, section: Section, at: usize, what: &str) -> Result<usize, LoadError> {
         match section {
             Section::Point(n) | Section::Cell(n) => Ok(n),
