@@ -42,7 +42,7 @@ fn default_view(mesh: &TetMesh, size: u32) -> (TransferFunction, Camera) {
 }
 
 fn load(name: &str) -> TetMesh {
-    tetvr::io::load(&common::shared_data(name))
+    tetvr::io::load(&common::asset(name))
         .expect("the data set loads")
         .mesh
 }
@@ -155,7 +155,7 @@ fn lox_subset_matches_reference() {
 /// 2.0e-3; table rmse 3.4e-5, max 2.1e-3. Flat tets are skipped (counted), nothing is NaN.
 #[test]
 fn bluntfin_matches_reference() {
-    let mesh = load("bluntfin_tet.vtk");
+    let mesh = load("bluntfin_tet.vtu");
     let (tf, camera) = default_view(&mesh, 128);
     check_both(
         "bluntfin",
@@ -325,7 +325,7 @@ fn sort_check_grid_and_bluntfin() {
     assert_eq!(check.wrong_pairs, 0);
     assert!(check.wrong_ties <= check.pairs / 1000);
 
-    let fin = load("bluntfin_tet.vtk");
+    let fin = load("bluntfin_tet.vtu");
     let (_, camera) = default_view(&fin, 64);
     let check = sort_check(&ReferenceRenderer::new(&fin).unwrap(), &camera, 2);
     eprintln!("bluntfin: {check}");

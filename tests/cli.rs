@@ -260,10 +260,7 @@ fn without_vulkan_auto_falls_back_in_one_line_and_shells_names_the_package() {
 
 #[test]
 fn info_reports_counts_degenerate_and_reoriented_tets() {
-    let o = tetvr(&[
-        "info",
-        common::shared_data("bluntfin_tet.vtk").to_str().unwrap(),
-    ]);
+    let o = tetvr(&["info", common::asset("bluntfin_tet.vtu").to_str().unwrap()]);
     let (stdout, stderr) = text(&o);
     assert!(o.status.success(), "{stderr}");
     for needle in ["40,960", "187,395", "zero-volume", "77", "duplicate"] {
@@ -271,7 +268,7 @@ fn info_reports_counts_degenerate_and_reoriented_tets() {
     }
     let o = tetvr(&[
         "info",
-        common::shared_data("combustor_tet.vtk").to_str().unwrap(),
+        common::asset("combustor_subset_tet.vtu").to_str().unwrap(),
     ]);
     let (stdout, _) = text(&o);
     assert!(stdout.contains("2 (reoriented on load)"), "{stdout}");

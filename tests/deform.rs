@@ -20,9 +20,9 @@ const LOX_BOUNDS: Bounds = Bounds {
     max_spill: 0,
 };
 
-/// A shared data set, the default TF over its scalars, and the default view at `size` squared.
+/// A shipped mesh (assets/), the default TF over its scalars, and the default view at `size` squared.
 fn scene(file: &str, size: u32) -> (TetMesh, TransferFunction, Camera) {
-    let mesh = tetvr::io::load(&common::shared_data(file))
+    let mesh = tetvr::io::load(&common::asset(file))
         .expect("the data set loads")
         .mesh;
     let (lo, hi) = mesh.bounds();
@@ -92,7 +92,7 @@ fn resident_bytes() -> u64 {
 #[cfg(target_os = "linux")]
 #[test]
 fn a_hundred_position_updates_do_not_grow_memory() {
-    let (mesh, tf, camera) = scene("bluntfin_tet.vtk", 64);
+    let (mesh, tf, camera) = scene("bluntfin_tet.vtu", 64);
     let (lo, hi) = mesh.bounds();
     let ctx =
         GpuContext::new(AdapterChoice::Auto).expect("a GPU adapter (Mesa's lavapipe will do)");

@@ -11,10 +11,14 @@ use tetvr::generate::shapes::{box_with_hole, ring, ring_cells, ring_volume};
 use tetvr::generate::volume::{VolumeError, VolumeToTets, nifti_to_tets};
 use tetvr::generate::{Field, GenerateError, box_grid, fields};
 
-const BRAIN: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../shared/data/mni_icbm152_t1_tal_nlin_sym_09a_converted.nii.gz"
-);
+mod common;
+
+/// The MNI brain template of `../shared/data` (too large to ship); `None`, said on stderr by
+/// `test`, in a clone without `shared/` beside it.
+fn brain(test: &str) -> Option<PathBuf> {
+    common::shared_data_dir(test)
+        .map(|dir| dir.join("mni_icbm152_t1_tal_nlin_sym_09a_converted.nii.gz"))
+}
 
 fn volume(m: &TetMesh) -> f64 {
     (0..m.tet_count()).map(|t| m.signed_volume(t)).sum()
@@ -283,11 +287,14 @@ const BRAIN_THRESHOLD: f64 = 10.0;
 
 #[test]
 fn brain_volume_at_half_resolution_is_a_conforming_mesh() {
+    let Some(brain) = brain("brain_volume_at_half_resolution_is_a_conforming_mesh") else {
+        return;
+    };
     let opts = VolumeToTets {
         downsample: 2,
         threshold: Some(BRAIN_THRESHOLD),
     };
-    let mesh = nifti_to_tets(BRAIN, &opts).unwrap();
+    let mesh = nifti_to_tets(&brain, &opts).unwrap();
     // 98 x 116 x 94 samples, 97 x 115 x 93 = 1,037,415 cells; the head is 22 % of the volume and
     // a shell of partly covered cells adds a few %: 20-35 % of 6 tets per cell.
     let cells = 97.0 * 115.0 * 93.0 * 6.0;
@@ -309,12 +316,15 @@ fn brain_volume_at_half_resolution_is_a_conforming_mesh() {
 #[test]
 #[ignore = "measurement: about 12 M tets"]
 fn brain_volume_at_full_resolution() {
+    let Some(brain) = brain("brain_volume_at_full_resolution") else {
+        return;
+    };
     let opts = VolumeToTets {
         downsample: 1,
         threshold: Some(BRAIN_THRESHOLD),
     };
     let start = Instant::now();
-    let mesh = nifti_to_tets(BRAIN, &opts).unwrap();
+    let mesh = nifti_to_tets(&brain, &opts).unwrap();
     println!(
         "brain downsample 1 threshold {BRAIN_THRESHOLD}: {} tets, {} vertices in {:.2} s",
         mesh.tet_count(),

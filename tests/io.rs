@@ -6,13 +6,15 @@ use std::time::Instant;
 
 use tetvr::io::{Format, load, load_bytes};
 
-fn shared(name: &str) -> PathBuf {
-    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data")).join(name)
-}
+mod common;
 
 /// Every shared data set loads with the vertex/tet counts and arrays that SOURCES.md lists.
 #[test]
 fn shared_data_sets_load_with_their_documented_counts() {
+    let Some(dir) = common::shared_data_dir("shared_data_sets_load_with_their_documented_counts")
+    else {
+        return;
+    };
     // (file, vertices, tets, arrays in order with the active first, reoriented tets)
     let cases: [(&str, usize, usize, &[&str], usize); 7] = [
         ("lox_post_subset_tet.vtk", 2_288, 8_750, &["Pressure"], 0),
@@ -67,7 +69,7 @@ fn shared_data_sets_load_with_their_documented_counts() {
     ];
     for (file, nv, nt, arrays, reoriented) in cases {
         let t0 = Instant::now();
-        let l = load(&shared(file)).unwrap_or_else(|e| panic!("{e}"));
+        let l = load(&dir.join(file)).unwrap_or_else(|e| panic!("{e}"));
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         println!("{file}: {nv} vertices, {nt} tets loaded in {ms:.1} ms");
         assert_eq!(
@@ -79,6 +81,76 @@ fn shared_data_sets_load_with_their_documented_counts() {
         assert_eq!(names, arrays, "{file}");
         assert_eq!(l.report.reoriented, reoriented, "{file}");
         assert_eq!(l.report.format, Format::VtkLegacy);
+    }
+}
+
+/// The meshes shipped in assets/ load with the counts, arrays and reoriented tets that
+/// assets/SOURCES.md lists.
+#[test]
+fn shipped_meshes_load_with_their_documented_counts() {
+    // (file, vertices, tets, arrays in order with the active first, reoriented tets)
+    let cases: [(&str, usize, usize, &[&str], usize); 3] = [
+        ("lox_post_subset_tet.vtk", 2_288, 8_750, &["Pressure"], 0),
+        (
+            "bluntfin_tet.vtu",
+            40_960,
+            187_395,
+            &[
+                "Density",
+                "Pressure",
+                "Temperature",
+                "VelocityMagnitude",
+                "StagnationEnergy",
+            ],
+            0,
+        ),
+        (
+            "combustor_subset_tet.vtu",
+            1_400,
+            4_506,
+            &["Density", "VelocityMagnitude"],
+            2,
+        ),
+    ];
+    for (file, nv, nt, arrays, reoriented) in cases {
+        let l = load(&common::asset(file)).unwrap_or_else(|e| panic!("{e}"));
+        let counts = (l.mesh.vertex_count(), l.mesh.tet_count());
+        assert_eq!(counts, (nv, nt), "{file}");
+        let names: Vec<&str> = l.mesh.arrays().iter().map(|a| a.name.as_str()).collect();
+        assert_eq!(names, arrays, "{file}");
+        assert_eq!(l.report.reoriented, reoriented, "{file}");
+    }
+}
+
+/// The shipped meshes converted from the shared data sets (scripts/vtk_to_vtu.py) are the same
+/// mesh bit for bit: the same positions, tets and arrays in the same order. The image tests'
+/// bounds were measured on the shared files and hold unchanged only because of this.
+#[test]
+fn shipped_meshes_are_the_shared_ones_bit_for_bit() {
+    let Some(dir) = common::shared_data_dir("shipped_meshes_are_the_shared_ones_bit_for_bit")
+    else {
+        return;
+    };
+    for (shipped, shared) in [
+        ("lox_post_subset_tet.vtk", "lox_post_subset_tet.vtk"),
+        ("bluntfin_tet.vtu", "bluntfin_tet.vtk"),
+    ] {
+        let a = load(&common::asset(shipped)).unwrap_or_else(|e| panic!("{e}"));
+        let b = load(&dir.join(shared)).unwrap_or_else(|e| panic!("{e}"));
+        let (a, b) = (&a.mesh, &b.mesh);
+        assert!(
+            a.positions() == b.positions(),
+            "{shipped}: positions differ"
+        );
+        assert!(a.tets() == b.tets(), "{shipped}: tets differ");
+        assert_eq!(a.arrays().len(), b.arrays().len(), "{shipped}");
+        for (x, y) in a.arrays().iter().zip(b.arrays()) {
+            assert!(
+                x.name == y.name && x.values == y.values,
+                "{shipped}: {}",
+                x.name
+            );
+        }
     }
 }
 

@@ -164,7 +164,7 @@ fn gaussians_flat_and_smooth_match_reference() {
 
 #[test]
 fn bluntfin_flat_and_smooth_match_reference() {
-    let mesh = tetvr::io::load(&common::shared_data("bluntfin_tet.vtk"))
+    let mesh = tetvr::io::load(&common::asset("bluntfin_tet.vtu"))
         .expect("bluntfin loads")
         .mesh;
     let (lo, hi) = mesh.bounds();

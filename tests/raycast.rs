@@ -323,7 +323,7 @@ fn sharp_tf_on_a_grid() {
 /// from outside with the default and the `shock` TF, and with the eye inside the mesh.
 #[test]
 fn bluntfin_outside_and_eye_inside() {
-    let mesh = tetvr::io::load(&common::shared_data("bluntfin_tet.vtk"))
+    let mesh = tetvr::io::load(&common::asset("bluntfin_tet.vtu"))
         .expect("the data set loads")
         .mesh;
     let (tf, outside) = default_view(&mesh, 96);

@@ -557,7 +557,7 @@ fn bench(
 #[test]
 #[ignore = "benchmark: run with --ignored --nocapture"]
 fn bench_bluntfin_512() {
-    let mesh = tetvr::io::load(&common::shared_data("bluntfin_tet.vtk"))
+    let mesh = tetvr::io::load(&common::asset("bluntfin_tet.vtu"))
         .expect("bluntfin loads")
         .mesh;
     let (lo, hi) = mesh.bounds();
@@ -619,7 +619,7 @@ fn shells_with(mesh: &TetMesh, samples: u32, camera: &Camera, tf: &TransferFunct
 }
 
 fn lox() -> TetMesh {
-    tetvr::io::load(&common::shared_data("lox_post_subset_tet.vtk"))
+    tetvr::io::load(&common::asset("lox_post_subset_tet.vtk"))
         .expect("the lox subset loads")
         .mesh
 }

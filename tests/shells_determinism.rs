@@ -22,7 +22,7 @@ fn bluntfin_same_view_same_picture_whatever_came_before() {
     let ctx = GpuContext::new(AdapterChoice::Auto).unwrap_or_else(|e| {
         panic!("the shells tests need a GPU adapter (Mesa's lavapipe will do): {e}")
     });
-    let mesh = tetvr::io::load(&common::shared_data("bluntfin_tet.vtk"))
+    let mesh = tetvr::io::load(&common::asset("bluntfin_tet.vtu"))
         .expect("bluntfin loads")
         .mesh;
     let range = mesh

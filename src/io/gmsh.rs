@@ -217,8 +217,41 @@ impl NodeArray {
     }
 }
 
+/// What the sections read so far hold.
+#[derive(Default)]
+struct Sections<'b> {
+    /// Positions, node tags in file order, and tags to indices.
+    nodes: Option<(Vec<DVec3>, Vec<u64>, NodeMap)>,
+    asm: Option<Assembler<'b>>,
+    arrays: NodeArrays,
+    skipped: Vec<String>,
+}
+
 pub(super) fn read(data: &[u8], name: &str, budget: &Budget) -> Result<Loaded, LoadError> {
-    let mut c = Cursor::new(data, name, None, budget);
+    let mut r = mesh_format(Cursor::new(data, name, None, budget))?;
+    r.expect_end("$EndMeshFormat")?;
+    let mut s = Sections::default();
+    while let Some((at, t)) = r.c.token() {
+        r.section(&mut s, at, t)?;
+    }
+    let end = data.len();
+    let (positions, tags, _) = s
+        .nodes
+        .ok_or_else(|| r.c.err(end, "the file has no $Nodes section"))?;
+    let asm = s
+        .asm
+        .ok_or_else(|| r.c.err(end, "the file has no $Elements section"))?;
+    let mut out = Vec::with_capacity(s.arrays.list.len());
+    for a in s.arrays.list {
+        let (aname, nc) = (a.name.clone(), a.nc);
+        out.push(point_array(&aname, a.dense(&tags, budget, name)?, nc));
+    }
+    asm.finish(name, Format::Gmsh, positions, out, s.skipped)
+}
+
+/// `$MeshFormat`'s line: the version, ASCII or binary (with binary's endianness marker) and
+/// the data size; the reader set up for the rest of the file.
+fn mesh_format<'a>(mut c: Cursor<'a>) -> Result<Reader<'a>, LoadError> {
     let (at, t) = c.expect("$MeshFormat")?;
     if t != b"$MeshFormat" {
         return Err(c.err_line(
@@ -236,7 +269,7 @@ pub(super) fn read(data: &[u8], name: &str, budget: &Budget) -> Result<Loaded, L
         b"4.1" => Version::V41,
         _ => {
             return Err(LoadError::unsupported(
-                name,
+                c.name,
                 Location::Line(c.line_of(vat)),
                 format!(
                     "MSH version '{}' is not supported; tetvr reads 2.2, 4.0 (ASCII) and 4.1",
@@ -250,25 +283,7 @@ pub(super) fn read(data: &[u8], name: &str, budget: &Budget) -> Result<Loaded, L
     c.finish_line();
     let binary = match file_type {
         0 => None,
-        1 => {
-            if version == Version::V40 {
-                return Err(LoadError::unsupported(
-                    name,
-                    Location::Line(c.line_of(vat)),
-                    "binary MSH 4.0 is not supported; re-save as MSH 4.1 (gmsh -format msh41)",
-                ));
-            }
-            let at = c.pos;
-            let b = c.take(4, "$MeshFormat")?;
-            let a = [b[0], b[1], b[2], b[3]];
-            if u32::from_le_bytes(a) == 1 {
-                Some(false)
-            } else if u32::from_be_bytes(a) == 1 {
-                Some(true)
-            } else {
-                return Err(c.err_byte(at, "the binary endianness marker is not the integer 1"));
-            }
-        }
+        1 => Some(endianness(&mut c, version, vat)?),
         _ => {
             return Err(c.err_line(
                 vat,
@@ -280,109 +295,134 @@ pub(super) fn read(data: &[u8], name: &str, budget: &Budget) -> Result<Loaded, L
         return Err(c.err_line(vat, format!("data size {size_t} is not 4 or 8")));
     }
     c.by_byte = binary.is_some();
-    let mut r = Reader {
+    Ok(Reader {
         c,
         version,
         binary,
         size_t,
-    };
-    r.expect_end("$EndMeshFormat")?;
+    })
+}
 
-    let mut positions: Option<(Vec<DVec3>, Vec<u64>, NodeMap)> = None;
-    let mut asm: Option<Assembler> = None;
-    let mut arrays = NodeArrays::default();
-    let mut skipped: Vec<String> = Vec::new();
-    while let Some((at, t)) = r.c.token() {
+/// A binary file's endianness marker, the integer 1: true for big endian. `vat` is where the
+/// version is, for the error on binary MSH 4.0.
+fn endianness(c: &mut Cursor, version: Version, vat: usize) -> Result<bool, LoadError> {
+    if version == Version::V40 {
+        return Err(LoadError::unsupported(
+            c.name,
+            Location::Line(c.line_of(vat)),
+            "binary MSH 4.0 is not supported; re-save as MSH 4.1 (gmsh -format msh41)",
+        ));
+    }
+    let at = c.pos;
+    let b = c.take(4, "$MeshFormat")?;
+    let a = [b[0], b[1], b[2], b[3]];
+    if u32::from_le_bytes(a) == 1 {
+        Ok(false)
+    } else if u32::from_be_bytes(a) == 1 {
+        Ok(true)
+    } else {
+        Err(c.err_byte(at, "the binary endianness marker is not the integer 1"))
+    }
+}
+
+impl<'a> Reader<'a> {
+    /// One section, its keyword `t` at `at` read.
+    fn section(&mut self, s: &mut Sections<'a>, at: usize, t: &[u8]) -> Result<(), LoadError> {
         match t {
             b"$Nodes" => {
-                if positions.is_some() {
-                    return Err(r.c.err(at, "a second $Nodes section"));
+                if s.nodes.is_some() {
+                    return Err(self.c.err(at, "a second $Nodes section"));
                 }
-                positions = Some(read_nodes(&mut r)?);
-                r.expect_end("$EndNodes")?;
+                s.nodes = Some(read_nodes(self)?);
+                self.expect_end("$EndNodes")
             }
             b"$Elements" => {
-                let (p, _, map) = positions
+                let (p, _, map) = s
+                    .nodes
                     .as_ref()
-                    .ok_or_else(|| r.c.err(at, "$Elements before $Nodes"))?;
-                if asm.is_some() {
-                    return Err(r.c.err(at, "a second $Elements section"));
+                    .ok_or_else(|| self.c.err(at, "$Elements before $Nodes"))?;
+                if s.asm.is_some() {
+                    return Err(self.c.err(at, "a second $Elements section"));
                 }
-                let mut a = Assembler::new(p.len(), budget);
-                read_elements(&mut r, map, &mut a)?;
-                asm = Some(a);
-                r.expect_end("$EndElements")?;
+                let mut a = Assembler::new(p.len(), self.c.budget);
+                read_elements(self, map, &mut a)?;
+                s.asm = Some(a);
+                self.expect_end("$EndElements")
             }
             b"$NodeData" => {
-                let (_, _, map) = positions
+                let (_, _, map) = s
+                    .nodes
                     .as_ref()
-                    .ok_or_else(|| r.c.err(at, "$NodeData before $Nodes"))?;
-                read_node_data(&mut r, map, &mut arrays)?;
-                r.expect_end("$EndNodeData")?;
+                    .ok_or_else(|| self.c.err(at, "$NodeData before $Nodes"))?;
+                read_node_data(self, map, &mut s.arrays)?;
+                self.expect_end("$EndNodeData")
             }
             _ if t.starts_with(b"$") && !t.starts_with(b"$End") => {
-                let section = &t[1..];
-                if section == b"ElementData" || section == b"ElementNodeData" {
-                    // Name the skipped array by its first string tag.
-                    let save = r.c.pos;
-                    if r.c.parse::<usize>("").is_ok_and(|n| n > 0) {
-                        r.c.skip_ws();
-                        let s = r.c.rest_of_line().trim_ascii();
-                        skipped.push(String::from_utf8_lossy(s).trim_matches('"').to_owned());
-                    }
-                    r.c.pos = save;
-                }
-                let mut needle = b"$End".to_vec();
-                needle.extend_from_slice(section);
-                let rest = &r.c.data[r.c.pos..];
-                let i = rest
-                    .windows(needle.len())
-                    .position(|w| w == needle.as_slice())
-                    .ok_or_else(|| {
-                        r.c.err(
-                            at,
-                            format!("section {} has no {}", shown(t), shown(&needle)),
-                        )
-                    })?;
-                r.c.pos += i + needle.len();
+                self.skip_section(at, t, &mut s.skipped)
             }
-            _ => {
-                return Err(r.c.err(
-                    at,
-                    format!("expected a section such as $Nodes, found '{}'", shown(t)),
-                ));
-            }
+            _ => Err(self.c.err(
+                at,
+                format!("expected a section such as $Nodes, found '{}'", shown(t)),
+            )),
         }
     }
-    let end = data.len();
-    let (positions, tags, _) =
-        positions.ok_or_else(|| r.c.err(end, "the file has no $Nodes section"))?;
-    let asm = asm.ok_or_else(|| r.c.err(end, "the file has no $Elements section"))?;
-    let mut out = Vec::with_capacity(arrays.list.len());
-    for a in arrays.list {
-        let (aname, nc) = (a.name.clone(), a.nc);
-        out.push(point_array(&aname, a.dense(&tags, budget, name)?, nc));
+
+    /// Skips section `t` up to its `$End` line; element data are named in `skipped` by their
+    /// first string tag.
+    fn skip_section(
+        &mut self,
+        at: usize,
+        t: &[u8],
+        skipped: &mut Vec<String>,
+    ) -> Result<(), LoadError> {
+        let section = &t[1..];
+        if section == b"ElementData" || section == b"ElementNodeData" {
+            let save = self.c.pos;
+            if self.c.parse::<usize>("").is_ok_and(|n| n > 0) {
+                self.c.skip_ws();
+                let s = self.c.rest_of_line().trim_ascii();
+                skipped.push(String::from_utf8_lossy(s).trim_matches('"').to_owned());
+            }
+            self.c.pos = save;
+        }
+        let mut needle = b"$End".to_vec();
+        needle.extend_from_slice(section);
+        let rest = &self.c.data[self.c.pos..];
+        let i = rest
+            .windows(needle.len())
+            .position(|w| w == needle.as_slice())
+            .ok_or_else(|| {
+                self.c.err(
+                    at,
+                    format!("section {} has no {}", shown(t), shown(&needle)),
+                )
+            })?;
+        self.c.pos += i + needle.len();
+        Ok(())
     }
-    asm.finish(name, Format::Gmsh, positions, out, skipped)
+
+    /// A 4.x `$Nodes` or `$Elements` header: the numbers of blocks and of `items` ("node" or
+    /// "element"), and 4.1's tag range (read and dropped).
+    fn block_counts(&mut self, items: &str, section: &str) -> Result<(usize, usize), LoadError> {
+        let wide = self.version == Version::V41;
+        if self.binary.is_some() {
+            self.c.finish_line(); // binary data starts on the line after the keyword
+        }
+        let b = self.count(wide, &format!("the number of {items} blocks"), section)?;
+        let n = self.count(wide, &format!("the number of {items}s"), section)?;
+        if self.version == Version::V41 {
+            self.int(wide, &format!("the minimum {items} tag"), section)?;
+            self.int(wide, &format!("the maximum {items} tag"), section)?;
+        }
+        Ok((b, n))
+    }
 }
 
 fn read_nodes(r: &mut Reader) -> Result<(Vec<DVec3>, Vec<u64>, NodeMap), LoadError> {
-    let wide = r.version == Version::V41;
     let (blocks, total) = match r.version {
         // 2.2 binary files still give the count as text.
         Version::V2 => (1, r.c.count("the number of nodes")?),
-        Version::V40 | Version::V41 => {
-            if r.binary.is_some() {
-                r.c.finish_line(); // binary data starts on the line after $Nodes
-            }
-            let b = r.count(wide, "the number of node blocks", "$Nodes")?;
-            let n = r.count(wide, "the number of nodes", "$Nodes")?;
-            if r.version == Version::V41 {
-                r.int(wide, "the minimum node tag", "$Nodes")?;
-                r.int(wide, "the maximum node tag", "$Nodes")?;
-            }
-            (b, n)
-        }
+        Version::V40 | Version::V41 => r.block_counts("node", "$Nodes")?,
     };
     if r.binary.is_some() && r.version == Version::V2 {
         r.c.finish_line();
@@ -398,24 +438,7 @@ fn read_nodes(r: &mut Reader) -> Result<(Vec<DVec3>, Vec<u64>, NodeMap), LoadErr
         let at = r.c.pos;
         let (n, extra) = match r.version {
             Version::V2 => (total, 0),
-            Version::V40 | Version::V41 => {
-                let (dim, param) = if r.version == Version::V41 {
-                    let dim = r.int(false, "the entity dimension", "$Nodes")?;
-                    r.int(false, "the entity tag", "$Nodes")?;
-                    (dim, r.int(false, "the parametric flag", "$Nodes")?)
-                } else {
-                    r.int(false, "the entity tag", "$Nodes")?;
-                    let dim = r.int(false, "the entity dimension", "$Nodes")?;
-                    (dim, r.int(false, "the parametric flag", "$Nodes")?)
-                };
-                let n = r.count(wide, "the number of nodes in the block", "$Nodes")?;
-                let extra = if param != 0 {
-                    dim.clamp(0, 3) as usize
-                } else {
-                    0
-                };
-                (n, extra)
-            }
+            Version::V40 | Version::V41 => node_block_header(r)?,
         };
         if n > total - tags.len() {
             return Err(r.c.err(
@@ -423,24 +446,7 @@ fn read_nodes(r: &mut Reader) -> Result<(Vec<DVec3>, Vec<u64>, NodeMap), LoadErr
                 format!("node block of {n} nodes exceeds the node count {total}"),
             ));
         }
-        if r.version == Version::V41 {
-            let first = tags.len();
-            for _ in 0..n {
-                let t = r.count(wide, "a node tag", "$Nodes")?;
-                tags.push(t as u64);
-            }
-            for i in 0..n {
-                let p = r.coords(extra, first + i)?;
-                positions.push(p);
-            }
-        } else {
-            for _ in 0..n {
-                let t = r.count(false, "a node tag", "$Nodes")? as u64;
-                let p = r.coords(extra, tags.len())?;
-                tags.push(t);
-                positions.push(p);
-            }
-        }
+        node_block(r, n, extra, &mut tags, &mut positions)?;
     }
     if tags.len() != total {
         return Err(r.c.err(
@@ -451,12 +457,71 @@ fn read_nodes(r: &mut Reader) -> Result<(Vec<DVec3>, Vec<u64>, NodeMap), LoadErr
             ),
         ));
     }
+    let map = node_map(r, &tags)?;
+    Ok((positions, tags, map))
+}
+
+/// A 4.x node block's header: its number of nodes, and how many parametric coordinates
+/// follow each node's x, y, z.
+fn node_block_header(r: &mut Reader) -> Result<(usize, usize), LoadError> {
+    let wide = r.version == Version::V41;
+    let (dim, param) = if r.version == Version::V41 {
+        let dim = r.int(false, "the entity dimension", "$Nodes")?;
+        r.int(false, "the entity tag", "$Nodes")?;
+        (dim, r.int(false, "the parametric flag", "$Nodes")?)
+    } else {
+        r.int(false, "the entity tag", "$Nodes")?;
+        let dim = r.int(false, "the entity dimension", "$Nodes")?;
+        (dim, r.int(false, "the parametric flag", "$Nodes")?)
+    };
+    let n = r.count(wide, "the number of nodes in the block", "$Nodes")?;
+    let extra = if param != 0 {
+        dim.clamp(0, 3) as usize
+    } else {
+        0
+    };
+    Ok((n, extra))
+}
+
+/// A block's `n` nodes: 4.1 lists the tags, then the coordinates; earlier versions give
+/// each node's tag and coordinates together.
+fn node_block(
+    r: &mut Reader,
+    n: usize,
+    extra: usize,
+    tags: &mut Vec<u64>,
+    positions: &mut Vec<DVec3>,
+) -> Result<(), LoadError> {
+    if r.version == Version::V41 {
+        let first = tags.len();
+        for _ in 0..n {
+            let t = r.count(true, "a node tag", "$Nodes")?;
+            tags.push(t as u64);
+        }
+        for i in 0..n {
+            let p = r.coords(extra, first + i)?;
+            positions.push(p);
+        }
+    } else {
+        for _ in 0..n {
+            let t = r.count(false, "a node tag", "$Nodes")? as u64;
+            let p = r.coords(extra, tags.len())?;
+            tags.push(t);
+            positions.push(p);
+        }
+    }
+    Ok(())
+}
+
+/// Node tags to indices: a table where the tags are dense enough, a hash map otherwise. A tag
+/// given twice is an error.
+fn node_map(r: &Reader, tags: &[u64]) -> Result<NodeMap, LoadError> {
     let max = tags.iter().copied().max().unwrap_or(0);
     let dup = |t: u64| r.c.err(r.c.pos, format!("node tag {t} is defined twice"));
     r.c.budget.charge_items(tags.len(), 16, || {
         format!("the index of {} node tags", tags.len())
     })?;
-    let map = if max <= 2 * tags.len() as u64 + 1024 {
+    if max <= 2 * tags.len() as u64 + 1024 {
         let mut v = vec![u32::MAX; max as usize + 1];
         for (i, &t) in tags.iter().enumerate() {
             if v[t as usize] != u32::MAX {
@@ -464,7 +529,7 @@ fn read_nodes(r: &mut Reader) -> Result<(Vec<DVec3>, Vec<u64>, NodeMap), LoadErr
             }
             v[t as usize] = i as u32;
         }
-        NodeMap::Dense(v)
+        Ok(NodeMap::Dense(v))
     } else {
         let mut m = HashMap::with_capacity(tags.len());
         for (i, &t) in tags.iter().enumerate() {
@@ -472,27 +537,14 @@ fn read_nodes(r: &mut Reader) -> Result<(Vec<DVec3>, Vec<u64>, NodeMap), LoadErr
                 return Err(dup(t));
             }
         }
-        NodeMap::Sparse(m)
-    };
-    Ok((positions, tags, map))
+        Ok(NodeMap::Sparse(m))
+    }
 }
 
 fn read_elements(r: &mut Reader, map: &NodeMap, asm: &mut Assembler) -> Result<(), LoadError> {
-    let wide = r.version == Version::V41;
     let (blocks, total) = match r.version {
         Version::V2 => (usize::MAX, r.c.count("the number of elements")?),
-        Version::V40 | Version::V41 => {
-            if r.binary.is_some() {
-                r.c.finish_line(); // binary data starts on the line after $Elements
-            }
-            let b = r.count(wide, "the number of element blocks", "$Elements")?;
-            let n = r.count(wide, "the number of elements", "$Elements")?;
-            if r.version == Version::V41 {
-                r.int(wide, "the minimum element tag", "$Elements")?;
-                r.int(wide, "the maximum element tag", "$Elements")?;
-            }
-            (b, n)
-        }
+        Version::V40 | Version::V41 => r.block_counts("element", "$Elements")?,
     };
     if r.binary.is_some() && r.version == Version::V2 {
         r.c.finish_line();
@@ -503,37 +555,7 @@ fn read_elements(r: &mut Reader, map: &NodeMap, asm: &mut Assembler) -> Result<(
     while block < blocks && !(r.version == Version::V2 && index == total) {
         block += 1;
         let at = r.c.pos;
-        // Per block: element type, count, and (2.2) number of tags; 2.2 ASCII has one element
-        // per "block" with its type on its own line.
-        let (ty, n, ntags) = match (r.version, r.binary) {
-            (Version::V2, None) => (0, 1, 0),
-            (Version::V2, Some(_)) => {
-                let ty = r.i32("$Elements")?;
-                let n = r.count(false, "the number of elements in the block", "$Elements")?;
-                let nt = r.count(false, "the number of tags", "$Elements")?;
-                (ty, n, nt)
-            }
-            (Version::V41, _) => {
-                r.int(false, "the entity dimension", "$Elements")?;
-                r.int(false, "the entity tag", "$Elements")?;
-                let ty = r.int(false, "the element type", "$Elements")?;
-                (
-                    ty,
-                    r.count(wide, "the number of elements in the block", "$Elements")?,
-                    0,
-                )
-            }
-            (Version::V40, _) => {
-                r.int(false, "the entity tag", "$Elements")?;
-                r.int(false, "the entity dimension", "$Elements")?;
-                let ty = r.int(false, "the element type", "$Elements")?;
-                (
-                    ty,
-                    r.count(false, "the number of elements in the block", "$Elements")?,
-                    0,
-                )
-            }
-        };
+        let (ty, n, ntags) = element_block_header(r)?;
         if n > total - index {
             return Err(r.c.err(
                 at,
@@ -541,55 +563,7 @@ fn read_elements(r: &mut Reader, map: &NodeMap, asm: &mut Assembler) -> Result<(
             ));
         }
         for _ in 0..n {
-            let tag = r.count(wide, "an element tag", "$Elements")? as u64;
-            let (ty, ntags) = if r.version == Version::V2 && r.binary.is_none() {
-                let ty = r.int(false, "the element type", "$Elements")?;
-                (ty, r.count(false, "the number of tags", "$Elements")?)
-            } else {
-                (ty, ntags)
-            };
-            for _ in 0..ntags {
-                r.int(false, "an element tag", "$Elements")?;
-            }
-            let loc = Location::Element { index, tag };
-            let Some((nn, dim)) = element_info(ty) else {
-                return Err(LoadError::unsupported(
-                    r.c.name,
-                    loc,
-                    format!("unknown element type {ty}"),
-                ));
-            };
-            nodes.clear();
-            for _ in 0..nn {
-                let t = r.count(wide, "a node tag", "$Elements")? as u64;
-                nodes.push(t);
-            }
-            if dim < 3 {
-                asm.skip();
-            } else if let Some(kind) = solid_kind(ty) {
-                let mut ids = [0i64; 10];
-                for (k, &t) in nodes.iter().enumerate() {
-                    ids[k] = map.get(t).ok_or_else(|| {
-                        LoadError::malformed(
-                            r.c.name,
-                            loc.clone(),
-                            format!("node {t} is not defined"),
-                        )
-                    })? as i64;
-                }
-                asm.cell(kind, &ids[..nn], |m| {
-                    LoadError::malformed(r.c.name, loc.clone(), m)
-                })?;
-            } else {
-                return Err(LoadError::unsupported(
-                    r.c.name,
-                    loc,
-                    format!(
-                        "element type {ty} (a {nn}-node 3D element) is not supported; tetvr reads \
-                         tets (4, 11), hexahedra (5), prisms (6) and pyramids (7)"
-                    ),
-                ));
-            }
+            element(r, map, asm, (index, ty, ntags), &mut nodes)?;
             index += 1;
         }
     }
@@ -602,8 +576,178 @@ fn read_elements(r: &mut Reader, map: &NodeMap, asm: &mut Assembler) -> Result<(
     Ok(())
 }
 
+/// Per block: element type, count, and (2.2) number of tags; 2.2 ASCII has one element per
+/// "block" with its type on its own line.
+fn element_block_header(r: &mut Reader) -> Result<(i64, usize, usize), LoadError> {
+    Ok(match (r.version, r.binary) {
+        (Version::V2, None) => (0, 1, 0),
+        (Version::V2, Some(_)) => {
+            let ty = r.i32("$Elements")?;
+            let n = r.count(false, "the number of elements in the block", "$Elements")?;
+            let nt = r.count(false, "the number of tags", "$Elements")?;
+            (ty, n, nt)
+        }
+        (Version::V41, _) => {
+            r.int(false, "the entity dimension", "$Elements")?;
+            r.int(false, "the entity tag", "$Elements")?;
+            let ty = r.int(false, "the element type", "$Elements")?;
+            (
+                ty,
+                r.count(true, "the number of elements in the block", "$Elements")?,
+                0,
+            )
+        }
+        (Version::V40, _) => {
+            r.int(false, "the entity tag", "$Elements")?;
+            r.int(false, "the entity dimension", "$Elements")?;
+            let ty = r.int(false, "the element type", "$Elements")?;
+            (
+                ty,
+                r.count(false, "the number of elements in the block", "$Elements")?,
+                0,
+            )
+        }
+    })
+}
+
+/// One element, the `index`th of the file, of the block's type `ty` with `ntags` tags (2.2
+/// ASCII gives both per element): a 3D one goes to `asm`, a lower one is counted. `nodes` is
+/// scratch space.
+fn element(
+    r: &mut Reader,
+    map: &NodeMap,
+    asm: &mut Assembler,
+    (index, ty, ntags): (usize, i64, usize),
+    nodes: &mut Vec<u64>,
+) -> Result<(), LoadError> {
+    let wide = r.version == Version::V41;
+    let tag = r.count(wide, "an element tag", "$Elements")? as u64;
+    let (ty, ntags) = if r.version == Version::V2 && r.binary.is_none() {
+        let ty = r.int(false, "the element type", "$Elements")?;
+        (ty, r.count(false, "the number of tags", "$Elements")?)
+    } else {
+        (ty, ntags)
+    };
+    for _ in 0..ntags {
+        r.int(false, "an element tag", "$Elements")?;
+    }
+    let loc = Location::Element { index, tag };
+    let Some((nn, dim)) = element_info(ty) else {
+        return Err(LoadError::unsupported(
+            r.c.name,
+            loc,
+            format!("unknown element type {ty}"),
+        ));
+    };
+    nodes.clear();
+    for _ in 0..nn {
+        let t = r.count(wide, "a node tag", "$Elements")? as u64;
+        nodes.push(t);
+    }
+    if dim < 3 {
+        asm.skip();
+        return Ok(());
+    }
+    let Some(kind) = solid_kind(ty) else {
+        return Err(LoadError::unsupported(
+            r.c.name,
+            loc,
+            format!(
+                "element type {ty} (a {nn}-node 3D element) is not supported; tetvr reads \
+                 tets (4, 11), hexahedra (5), prisms (6) and pyramids (7)"
+            ),
+        ));
+    };
+    let mut ids = [0i64; 10];
+    for (k, &t) in nodes.iter().enumerate() {
+        ids[k] = map.get(t).ok_or_else(|| {
+            LoadError::malformed(r.c.name, loc.clone(), format!("node {t} is not defined"))
+        })? as i64;
+    }
+    asm.cell(kind, &ids[..nn], |m| {
+        LoadError::malformed(r.c.name, loc.clone(), m)
+    })
+}
+
+impl NodeArrays {
+    /// The index of array `name` with `nc` components, a new one if the name is new; `None`
+    /// if an array of that name has another number of components.
+    fn slot(&mut self, name: &str, nc: usize) -> Option<usize> {
+        match self.slots.get(name) {
+            Some(&i) if self.list[i].nc == nc => Some(i),
+            Some(_) => None,
+            None => {
+                self.slots.insert(name.to_owned(), self.list.len());
+                self.list.push(NodeArray {
+                    name: name.to_owned(),
+                    nc,
+                    nodes: Vec::new(),
+                    values: Vec::new(),
+                });
+                Some(self.list.len() - 1)
+            }
+        }
+    }
+}
+
 fn read_node_data(r: &mut Reader, map: &NodeMap, arrays: &mut NodeArrays) -> Result<(), LoadError> {
     let at = r.c.pos;
+    let (aname, nc, n) = node_data_header(r, at)?;
+    let shown_n = shown_name(&aname);
+    if r.binary.is_some() {
+        r.c.finish_line();
+    }
+    // An entry takes a 4-byte tag and nc 8-byte values in binary, and at least two bytes per
+    // number in text: check the count against the file before reserving for it.
+    let entry = if r.binary.is_some() {
+        4 + 8 * nc
+    } else {
+        2 * (1 + nc)
+    };
+    if n > r.c.remaining() / entry {
+        return Err(r.c.err(
+            at,
+            format!(
+                "$NodeData '{shown_n}' announces {n} nodes, more than the {} bytes left can hold",
+                r.c.remaining()
+            ),
+        ));
+    }
+    let slot = arrays.slot(&aname, nc).ok_or_else(|| {
+        r.c.err(
+            at,
+            format!("$NodeData '{shown_n}' changes its number of components"),
+        )
+    })?;
+    r.c.budget.charge_items(n, 4 + 8 * nc, || {
+        format!("$NodeData '{shown_n}' ({n} nodes)")
+    })?;
+    let a = &mut arrays.list[slot];
+    a.nodes.reserve(n);
+    a.values.reserve(n * nc);
+    for _ in 0..n {
+        let tat = r.c.pos;
+        let tag = r.count(false, "a node tag", "$NodeData")? as u64;
+        let i = map.get(tag).ok_or_else(|| {
+            r.c.err(
+                tat,
+                format!("$NodeData '{shown_n}': node {tag} is not defined"),
+            )
+        })?;
+        let describe = |_: usize, x: f64| {
+            format!("$NodeData '{shown_n}' has the non-finite value {x} at node {tag}")
+        };
+        let v =
+            r.c.values(nc, Scalar::F64, r.binary, "$NodeData", Some(&describe))?;
+        a.nodes.push(i);
+        a.values.extend_from_slice(&v);
+    }
+    Ok(())
+}
+
+/// A `$NodeData` block's tags, the block starting at `at`: the array's name (the first string
+/// tag), its number of components (1 to 9) and of nodes (integer tags 2 and 3).
+fn node_data_header(r: &mut Reader, at: usize) -> Result<(String, usize, usize), LoadError> {
     let nstr = r.c.count("the number of string tags")?;
     let mut aname = None;
     for _ in 0..nstr {
@@ -649,66 +793,5 @@ fn read_node_data(r: &mut Reader, map: &NodeMap, arrays: &mut NodeArrays) -> Res
             format!("$NodeData '{shown_n}' has a negative node count"),
         )
     })?;
-    if r.binary.is_some() {
-        r.c.finish_line();
-    }
-    // An entry takes a 4-byte tag and nc 8-byte values in binary, and at least two bytes per
-    // number in text: check the count against the file before reserving for it.
-    let entry = if r.binary.is_some() {
-        4 + 8 * nc
-    } else {
-        2 * (1 + nc)
-    };
-    if n > r.c.remaining() / entry {
-        return Err(r.c.err(
-            at,
-            format!(
-                "$NodeData '{shown_n}' announces {n} nodes, more than the {} bytes left can hold",
-                r.c.remaining()
-            ),
-        ));
-    }
-    let slot = match arrays.slots.get(&aname) {
-        Some(&i) if arrays.list[i].nc == nc => i,
-        Some(_) => {
-            return Err(r.c.err(
-                at,
-                format!("$NodeData '{shown_n}' changes its number of components"),
-            ));
-        }
-        None => {
-            arrays.slots.insert(aname.clone(), arrays.list.len());
-            arrays.list.push(NodeArray {
-                name: aname.clone(),
-                nc,
-                nodes: Vec::new(),
-                values: Vec::new(),
-            });
-            arrays.list.len() - 1
-        }
-    };
-    r.c.budget.charge_items(n, 4 + 8 * nc, || {
-        format!("$NodeData '{shown_n}' ({n} nodes)")
-    })?;
-    let a = &mut arrays.list[slot];
-    a.nodes.reserve(n);
-    a.values.reserve(n * nc);
-    for _ in 0..n {
-        let tat = r.c.pos;
-        let tag = r.count(false, "a node tag", "$NodeData")? as u64;
-        let i = map.get(tag).ok_or_else(|| {
-            r.c.err(
-                tat,
-                format!("$NodeData '{shown_n}': node {tag} is not defined"),
-            )
-        })?;
-        let describe = |_: usize, x: f64| {
-            format!("$NodeData '{shown_n}' has the non-finite value {x} at node {tag}")
-        };
-        let v =
-            r.c.values(nc, Scalar::F64, r.binary, "$NodeData", Some(&describe))?;
-        a.nodes.push(i);
-        a.values.extend_from_slice(&v);
-    }
-    Ok(())
+    Ok((aname, nc, n))
 }

@@ -17,6 +17,46 @@ pub(super) fn read(
     budget: &Budget,
 ) -> Result<Loaded, LoadError> {
     let mut c = Cursor::new(node, node_name, Some(b'#'), budget);
+    let header = node_header(&mut c)?;
+    let points = read_points(&mut c, header)?;
+    let mut e = Cursor::new(ele, ele_name, Some(b'#'), budget);
+    let mut asm = Assembler::new(points.positions.len(), budget);
+    let eattr = read_tets(&mut e, points.base, &mut asm)?;
+    let nattr = header.attributes;
+    let arrays = (0..nattr)
+        .map(|k| {
+            let v = points
+                .attrs
+                .iter()
+                .skip(k)
+                .step_by(nattr)
+                .copied()
+                .collect();
+            ScalarArray::new(format!("attribute{k}"), v)
+        })
+        .collect();
+    let skipped = match eattr {
+        0 => vec![],
+        1 => vec!["tetrahedron attribute0".to_owned()],
+        _ => vec![format!(
+            "{eattr} tetrahedron attributes (attribute0 .. attribute{})",
+            eattr - 1
+        )],
+    };
+    asm.finish(ele_name, Format::TetGen, points.positions, arrays, skipped)
+}
+
+/// The `.node` file's first line.
+#[derive(Clone, Copy)]
+struct NodeHeader {
+    points: usize,
+    attributes: usize,
+    boundary_markers: usize,
+}
+
+/// The `.node` header line: point count, dimension 3, attributes and boundary markers, each
+/// checked against the file's size before anything is reserved.
+fn node_header(c: &mut Cursor) -> Result<NodeHeader, LoadError> {
     let n = c.count("the number of points")?;
     let (dat, dim) = c.expect("the dimension")?;
     if dim != b"3" {
@@ -47,40 +87,45 @@ pub(super) fn read(
             format!("{n} points of {nattr} attributes cannot fit in the file"),
         ));
     }
-    budget.charge_items(n, size_of::<DVec3>() + 8 * nattr, || {
-        format!("{n} points with {nattr} attributes")
-    })?;
-    let mut positions = Vec::with_capacity(n);
-    // Point attributes row by row (point after point), split into arrays at the end.
-    let mut attrs: Vec<f64> = Vec::with_capacity(n * nattr);
-    let mut base = 0;
+    Ok(NodeHeader {
+        points: n,
+        attributes: nattr,
+        boundary_markers: nbm,
+    })
+}
+
+/// The `.node` file's points.
+struct Points {
+    positions: Vec<DVec3>,
+    /// Point attributes row by row (point after point), split into arrays at the end.
+    attrs: Vec<f64>,
+    /// The first point's index, 0 or 1: the file's numbering.
+    base: usize,
+}
+
+/// The point lines after the header, numbered consecutively from 0 or 1, and nothing after.
+fn read_points(c: &mut Cursor, h: NodeHeader) -> Result<Points, LoadError> {
+    let (n, nattr) = (h.points, h.attributes);
+    c.budget
+        .charge_items(n, size_of::<DVec3>() + 8 * nattr, || {
+            format!("{n} points with {nattr} attributes")
+        })?;
+    let mut p = Points {
+        positions: Vec::with_capacity(n),
+        attrs: Vec::with_capacity(n * nattr),
+        base: 0,
+    };
     for i in 0..n {
-        let (iat, _) = c.expect("a point index")?;
-        c.pos = iat;
-        let idx: usize = c.count("a point index")?;
-        if i == 0 {
-            if idx > 1 {
-                return Err(c.err(
-                    iat,
-                    format!("the first point has index {idx}; TetGen numbering starts at 0 or 1"),
-                ));
-            }
-            base = idx;
-        } else if idx != base + i {
-            return Err(c.err(
-                iat,
-                format!("point index {idx} out of sequence (expected {})", base + i),
-            ));
-        }
+        let idx = point_index(c, i, &mut p.base)?;
         let describe = |_: usize, x: f64| format!("point {idx} has the non-finite coordinate {x}");
-        let p = c.values(
+        let xyz = c.values(
             3,
             Scalar::F64,
             None,
             "the point coordinates",
             Some(&describe),
         )?;
-        positions.push(DVec3::new(p[0], p[1], p[2]));
+        p.positions.push(DVec3::new(xyz[0], xyz[1], xyz[2]));
         let describe =
             |k: usize, x: f64| format!("attribute {k} of point {idx} is not finite ({x})");
         let a = c.values(
@@ -90,16 +135,43 @@ pub(super) fn read(
             "the point attributes",
             Some(&describe),
         )?;
-        attrs.extend_from_slice(&a);
-        for _ in 0..nbm {
+        p.attrs.extend_from_slice(&a);
+        for _ in 0..h.boundary_markers {
             c.parse::<i64>("a boundary marker")?;
         }
     }
     if !c.at_end() {
         return Err(c.err(c.pos, format!("unexpected data after the {n} points")));
     }
+    Ok(p)
+}
 
-    let mut e = Cursor::new(ele, ele_name, Some(b'#'), budget);
+/// The index of the `i`th point line: the first sets the numbering `base` (0 or 1), the
+/// others must follow in sequence.
+fn point_index(c: &mut Cursor, i: usize, base: &mut usize) -> Result<usize, LoadError> {
+    let (iat, _) = c.expect("a point index")?;
+    c.pos = iat;
+    let idx: usize = c.count("a point index")?;
+    if i == 0 {
+        if idx > 1 {
+            return Err(c.err(
+                iat,
+                format!("the first point has index {idx}; TetGen numbering starts at 0 or 1"),
+            ));
+        }
+        *base = idx;
+    } else if idx != *base + i {
+        return Err(c.err(
+            iat,
+            format!("point index {idx} out of sequence (expected {})", *base + i),
+        ));
+    }
+    Ok(idx)
+}
+
+/// The `.ele` file: its header, then each tet (its point indices numbered from `base`) into
+/// `asm`, and nothing after. Returns the number of tet attributes, which are skipped.
+fn read_tets(e: &mut Cursor, base: usize, asm: &mut Assembler) -> Result<usize, LoadError> {
     let m = e.count("the number of tetrahedra")?;
     let (kat, k) = e.expect("the number of nodes per tetrahedron")?;
     let kind = match k {
@@ -108,7 +180,7 @@ pub(super) fn read(
         _ => return Err(e.err(kat, "nodes per tetrahedron must be 4 or 10")),
     };
     let eattr = e.count("the number of tetrahedron attributes")?;
-    let mut asm = Assembler::new(positions.len(), budget);
+    let name = e.name;
     let mut ids = [0i64; 10];
     for i in 0..m {
         let (tat, _) = e.expect("a tetrahedron index")?;
@@ -122,7 +194,7 @@ pub(super) fn read(
         }
         asm.cell(kind, &ids[..kind.vertex_count()], |msg| {
             LoadError::malformed(
-                ele_name,
+                name,
                 Location::Element { index: i, tag },
                 format!("{msg} (0-based; the file numbers from {base})"),
             )
@@ -131,19 +203,5 @@ pub(super) fn read(
     if !e.at_end() {
         return Err(e.err(e.pos, format!("unexpected data after the {m} tetrahedra")));
     }
-    let arrays = (0..nattr)
-        .map(|k| {
-            let v = attrs.iter().skip(k).step_by(nattr).copied().collect();
-            ScalarArray::new(format!("attribute{k}"), v)
-        })
-        .collect();
-    let skipped = match eattr {
-        0 => vec![],
-        1 => vec!["tetrahedron attribute0".to_owned()],
-        _ => vec![format!(
-            "{eattr} tetrahedron attributes (attribute0 .. attribute{})",
-            eattr - 1
-        )],
-    };
-    asm.finish(ele_name, Format::TetGen, positions, arrays, skipped)
+    Ok(eattr)
 }

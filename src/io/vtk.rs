@@ -44,6 +44,18 @@ pub(super) fn classify(id: i64) -> Class {
     }
 }
 
+/// The error for a cell of VTK type `ty`, which tetvr does not read (`what` names it).
+pub(super) fn unsupported_cell(name: &str, at: Location, ty: i64, what: &str) -> LoadError {
+    LoadError::unsupported(
+        name,
+        at,
+        format!(
+            "cell type {ty} ({what}) is not supported; tetvr reads tetrahedra, voxels, \
+             hexahedra, wedges, pyramids and quadratic tetrahedra"
+        ),
+    )
+}
+
 /// The element type named in a header line.
 fn scalar_type(name: &[u8]) -> Option<Scalar> {
     Some(match name.to_ascii_lowercase().as_slice() {
@@ -87,8 +99,9 @@ enum RawCells {
     Offsets { offsets: Vec<i64>, conn: Vec<i64> },
 }
 
-#[derive(Clone, Copy, PartialEq)]
+#[derive(Clone, Copy, PartialEq, Default)]
 enum Section {
+    #[default]
     Dataset,
     Point(usize),
     Cell(usize),
@@ -163,139 +176,94 @@ impl<'a> Reader<'a> {
     }
 }
 
+/// A keyword line: where the keyword is, where its arguments start, and the arguments.
+struct Line<'a> {
+    at: usize,
+    args_at: usize,
+    args: Vec<&'a [u8]>,
+}
+
+/// What the sections read so far hold.
+#[derive(Default)]
+struct Sections {
+    dataset: bool,
+    positions: Option<Vec<f64>>,
+    /// The cells and the offset of their keyword.
+    cells: Option<(usize, RawCells)>,
+    /// The cell types and the offset of their keyword.
+    types: Option<(usize, Vec<i64>)>,
+    arrays: Vec<ScalarArray>,
+    /// The first SCALARS read as a point array: the file's active scalars.
+    active: Option<usize>,
+    skipped: Vec<String>,
+    /// The attribute section the next arrays belong to.
+    section: Section,
+}
+
 pub(super) fn read(data: &[u8], name: &str, budget: &Budget) -> Result<Loaded, LoadError> {
     let mut r = Reader {
         c: Cursor::new(data, name, None, budget),
         binary: None,
     };
-    let first = r.c.rest_of_line();
-    if !first
-        .trim_ascii()
-        .to_ascii_lowercase()
-        .starts_with(b"# vtk datafile version")
-    {
-        return Err(r.c.err_line(
-            0,
-            format!(
-                "not a legacy VTK file: the first line must be '# vtk DataFile Version x.y', found '{}'",
-                shown(first)
-            ),
-        ));
-    }
-    r.c.rest_of_line(); // title
-    let (at, mode) = r.c.expect("ASCII or BINARY")?;
-    r.binary = match mode.to_ascii_uppercase().as_slice() {
-        b"ASCII" => None,
-        b"BINARY" => Some(true),
-        _ => {
-            return Err(r.c.err_line(
-                at,
-                format!("expected ASCII or BINARY, found '{}'", shown(mode)),
-            ));
-        }
-    };
-    r.c.by_byte = r.binary.is_some();
-    r.c.finish_line();
-
-    let mut positions: Option<Vec<f64>> = None;
-    let mut cells: Option<(usize, RawCells)> = None;
-    let mut types: Option<(usize, Vec<i64>)> = None;
-    let mut arrays: Vec<ScalarArray> = Vec::new();
-    let mut active: Option<usize> = None;
-    let mut skipped: Vec<String> = Vec::new();
-    let mut section = Section::Dataset;
-    let mut dataset = false;
-
+    r.header()?;
+    let mut s = Sections::default();
     while let Some((at, kw)) = r.c.token() {
         let kw = kw.to_ascii_uppercase();
         let (args_at, args) = r.args();
-        let attr_count = |r: &Reader, what: &str| match section {
-            Section::Point(n) | Section::Cell(n) => Ok(n),
-            Section::Dataset => Err(r.err(at, format!("{what} before POINT_DATA or CELL_DATA"))),
+        r.keyword(&mut s, &kw, &Line { at, args_at, args })?;
+    }
+    r.finish(s)
+}
+
+impl<'a> Reader<'a> {
+    /// The first three lines: the version line, the title, and ASCII or BINARY.
+    fn header(&mut self) -> Result<(), LoadError> {
+        let first = self.c.rest_of_line();
+        if !first
+            .trim_ascii()
+            .to_ascii_lowercase()
+            .starts_with(b"# vtk datafile version")
+        {
+            return Err(self.c.err_line(
+                0,
+                format!(
+                    "not a legacy VTK file: the first line must be '# vtk DataFile Version x.y', found '{}'",
+                    shown(first)
+                ),
+            ));
+        }
+        self.c.rest_of_line(); // title
+        let (at, mode) = self.c.expect("ASCII or BINARY")?;
+        self.binary = match mode.to_ascii_uppercase().as_slice() {
+            b"ASCII" => None,
+            b"BINARY" => Some(true),
+            _ => {
+                return Err(self.c.err_line(
+                    at,
+                    format!("expected ASCII or BINARY, found '{}'", shown(mode)),
+                ));
+            }
         };
-        match kw.as_slice() {
-            b"DATASET" => {
-                let t = args.first().copied().unwrap_or(b"");
-                if !t.eq_ignore_ascii_case(b"UNSTRUCTURED_GRID") {
-                    return Err(LoadError::unsupported(
-                        name,
-                        if r.c.by_byte {
-                            Location::Byte(at as u64)
-                        } else {
-                            Location::Line(r.c.line_of(at))
-                        },
-                        format!(
-                            "dataset type '{}' is not supported; tetvr reads UNSTRUCTURED_GRID",
-                            shown(t)
-                        ),
-                    ));
-                }
-                dataset = true;
-            }
-            b"POINTS" => {
-                let n = r.count(args_at, args.first(), "the number of points")?;
-                let ty = r.ty(args_at, args.get(1))?;
-                let count = n
-                    .checked_mul(3)
-                    .filter(|c| c.checked_mul(ty.size()).is_some())
-                    .ok_or_else(|| {
-                        r.err(
-                            at,
-                            format!("POINTS announces {n} points, more than any file holds"),
-                        )
-                    })?;
-                let describe =
-                    |i: usize, x: f64| format!("point {} has the non-finite coordinate {x}", i / 3);
-                positions = Some(r.values(count, ty, "POINTS", Some(&describe))?);
-            }
-            b"CELLS" => {
-                let n = r.count(args_at, args.first(), "the number of cells")?;
-                let size = r.count(args_at, args.get(1), "the size of the cell list")?;
-                let save = r.c.pos;
-                r.c.skip_ws();
-                if r.c.data[r.c.pos..].starts_with(b"OFFSETS") {
-                    r.c.token();
-                    let (a, t) = r.args();
-                    let ty = r.ty(a, t.first())?;
-                    let offsets = r.ints(n, ty, "OFFSETS")?;
-                    let (a, kw) = r.c.expect("CONNECTIVITY")?;
-                    if !kw.eq_ignore_ascii_case(b"CONNECTIVITY") {
-                        return Err(
-                            r.err(a, format!("expected CONNECTIVITY, found '{}'", shown(kw)))
-                        );
-                    }
-                    let (a, t) = r.args();
-                    let ty = r.ty(a, t.first())?;
-                    let conn = r.ints(size, ty, "CONNECTIVITY")?;
-                    cells = Some((at, RawCells::Offsets { offsets, conn }));
-                } else {
-                    r.c.pos = save;
-                    let stream = r.ints(size, Scalar::I32, "CELLS")?;
-                    cells = Some((at, RawCells::Counted { n, stream }));
-                }
-            }
+        self.c.by_byte = self.binary.is_some();
+        self.c.finish_line();
+        Ok(())
+    }
+
+    /// One keyword line and the data that follow it.
+    fn keyword(&mut self, s: &mut Sections, kw: &[u8], l: &Line<'a>) -> Result<(), LoadError> {
+        let first = l.args.first();
+        match kw {
+            b"DATASET" => s.dataset = self.dataset(l)?,
+            b"POINTS" => s.positions = Some(self.points(l)?),
+            b"CELLS" => s.cells = Some((l.at, self.cells(l)?)),
             b"CELL_TYPES" => {
-                let n = r.count(args_at, args.first(), "the number of cell types")?;
-                types = Some((at, r.ints(n, Scalar::I32, "CELL_TYPES")?));
+                let n = self.count(l.args_at, first, "the number of cell types")?;
+                s.types = Some((l.at, self.ints(n, Scalar::I32, "CELL_TYPES")?));
             }
-            b"POINT_DATA" => {
-                let n = r.count(args_at, args.first(), "the number of point values")?;
-                if let Some(p) = &positions
-                    && p.len() / 3 != n
-                {
-                    return Err(r.err(
-                        at,
-                        format!(
-                            "POINT_DATA has {n} values, but POINTS has {} points",
-                            p.len() / 3
-                        ),
-                    ));
-                }
-                section = Section::Point(n);
-            }
+            b"POINT_DATA" => s.section = self.point_data(l, s.positions.as_deref())?,
             b"CELL_DATA" => {
-                section =
-                    Section::Cell(r.count(args_at, args.first(), "the number of cell values")?);
+                s.section =
+                    Section::Cell(self.count(l.args_at, first, "the number of cell values")?);
             }
             b"SCALARS"
             | b"VECTORS"
@@ -304,264 +272,430 @@ pub(super) fn read(data: &[u8], name: &str, budget: &Budget) -> Result<Loaded, L
             | b"TENSORS6"
             | b"TEXTURE_COORDINATES"
             | b"GLOBAL_IDS"
-            | b"PEDIGREE_IDS" => {
-                let what = String::from_utf8_lossy(&kw).into_owned();
-                let n = attr_count(&r, &what)?;
-                let arr_name = decode_name(args.first().copied().unwrap_or(b""));
-                let (ty_tok, ncomp) = match kw.as_slice() {
-                    b"SCALARS" => {
-                        let nc = match args.get(2) {
-                            Some(_) => r.count(args_at, args.get(2), "the number of components")?,
-                            None => 1,
-                        };
-                        (args.get(1), nc)
-                    }
-                    b"VECTORS" | b"NORMALS" => (args.get(1), 3),
-                    b"TENSORS" => (args.get(1), 9),
-                    b"TENSORS6" => (args.get(1), 6),
-                    b"TEXTURE_COORDINATES" => (
-                        args.get(2),
-                        r.count(args_at, args.get(1), "the texture dimension")?,
-                    ),
-                    _ => (args.get(1), 1),
-                };
-                let ty = r.ty(args_at, ty_tok)?;
-                if kw.as_slice() == b"SCALARS" {
-                    // The LOOKUP_TABLE line is optional in ASCII files.
-                    let save = r.c.pos;
-                    match r.c.token() {
-                        Some((_, t)) if t.eq_ignore_ascii_case(b"LOOKUP_TABLE") => {
-                            r.c.finish_line();
-                        }
-                        _ => r.c.pos = save,
-                    }
-                }
-                let count = n.checked_mul(ncomp).ok_or_else(|| {
-                    r.err(
-                        at,
-                        format!(
-                            "{what} '{}' announces {n} x {ncomp} values, more than any file holds",
-                            shown_name(&arr_name)
-                        ),
-                    )
-                })?;
-                let usable = matches!(section, Section::Point(_))
-                    && matches!(kw.as_slice(), b"SCALARS" | b"VECTORS" | b"NORMALS");
-                if usable && ncomp > 0 {
-                    let describe = |i: usize, x: f64| {
-                        format!(
-                            "array '{}' has the non-finite value {x} at point {}",
-                            shown_name(&arr_name),
-                            i / ncomp
-                        )
-                    };
-                    let v = r.values(count, ty, &what, Some(&describe))?;
-                    arrays.push(point_array(&arr_name, v, ncomp));
-                    if kw.as_slice() == b"SCALARS" && active.is_none() {
-                        active = Some(arrays.len() - 1);
-                    }
-                } else {
-                    r.skip(count, ty, &what)?;
-                    skipped.push(arr_name);
-                }
-            }
-            b"COLOR_SCALARS" => {
-                let n = attr_count(&r, "COLOR_SCALARS")?;
-                let nc = r.count(args_at, args.get(1), "the number of color components")?;
-                let count = n
-                    .checked_mul(nc)
-                    .ok_or_else(|| r.err(at, "COLOR_SCALARS too large"))?;
-                let ty = if r.binary.is_some() {
-                    Scalar::U8
-                } else {
-                    Scalar::F32
-                };
-                r.skip(count, ty, "COLOR_SCALARS")?;
-                skipped.push(decode_name(args.first().copied().unwrap_or(b"")));
-            }
-            b"LOOKUP_TABLE" => {
-                let size = r.count(args_at, args.get(1), "the lookup table size")?;
-                let count = size
-                    .checked_mul(4)
-                    .ok_or_else(|| r.err(at, "LOOKUP_TABLE too large"))?;
-                let ty = if r.binary.is_some() {
-                    Scalar::U8
-                } else {
-                    Scalar::F32
-                };
-                r.skip(count, ty, "LOOKUP_TABLE")?;
-            }
-            b"FIELD" => {
-                let narrays = r.count(args_at, args.get(1), "the number of field arrays")?;
-                for _ in 0..narrays {
-                    let (a_at, aname) = r.c.expect("a field array header")?;
-                    if aname.eq_ignore_ascii_case(b"NULL_ARRAY") {
-                        r.c.finish_line();
-                        continue;
-                    }
-                    let aname = decode_name(aname);
-                    let (h_at, h) = r.args();
-                    let nc = r.count(h_at, h.first(), "the number of components")?;
-                    let nt = r.count(h_at, h.get(1), "the number of tuples")?;
-                    let ty = r.ty(h_at, h.get(2))?;
-                    let count = nc.checked_mul(nt).ok_or_else(|| {
-                        r.err(
-                            a_at,
-                            format!(
-                                "field array '{}' announces {nc} x {nt} values, more than any file holds",
-                                shown_name(&aname)
-                            ),
-                        )
-                    })?;
-                    match section {
-                        Section::Point(n) if nt == n && nc > 0 => {
-                            let describe = |i: usize, x: f64| {
-                                format!(
-                                    "array '{}' has the non-finite value {x} at point {}",
-                                    shown_name(&aname),
-                                    i / nc
-                                )
-                            };
-                            let section = format!("field array '{}'", shown_name(&aname));
-                            let v = r.values(count, ty, &section, Some(&describe))?;
-                            arrays.push(point_array(&aname, v, nc));
-                        }
-                        _ => {
-                            r.skip(count, ty, &format!("field array '{}'", shown_name(&aname)))?;
-                            skipped.push(aname);
-                        }
-                    }
-                    skip_metadata(&mut r.c);
-                }
-            }
-            b"METADATA" => skip_metadata_body(&mut r.c),
-            _ => {
-                return Err(r.err(at, format!("unknown keyword '{}'", shown(&kw))));
-            }
+            | b"PEDIGREE_IDS" => self.attribute(s, kw, l)?,
+            b"COLOR_SCALARS" => self.color_scalars(s, l)?,
+            b"LOOKUP_TABLE" => self.lookup_table(l)?,
+            b"FIELD" => self.field(s, l)?,
+            b"METADATA" => skip_metadata_body(&mut self.c),
+            _ => return Err(self.err(l.at, format!("unknown keyword '{}'", shown(kw)))),
+        }
+        Ok(())
+    }
+
+    /// `DATASET UNSTRUCTURED_GRID`, the only dataset type read: true, or an error.
+    fn dataset(&self, l: &Line) -> Result<bool, LoadError> {
+        let t = l.args.first().copied().unwrap_or(b"");
+        if t.eq_ignore_ascii_case(b"UNSTRUCTURED_GRID") {
+            return Ok(true);
+        }
+        Err(LoadError::unsupported(
+            self.c.name,
+            if self.c.by_byte {
+                Location::Byte(l.at as u64)
+            } else {
+                Location::Line(self.c.line_of(l.at))
+            },
+            format!(
+                "dataset type '{}' is not supported; tetvr reads UNSTRUCTURED_GRID",
+                shown(t)
+            ),
+        ))
+    }
+
+    /// `POINTS n type` and the 3n coordinates.
+    fn points(&mut self, l: &Line) -> Result<Vec<f64>, LoadError> {
+        let n = self.count(l.args_at, l.args.first(), "the number of points")?;
+        let ty = self.ty(l.args_at, l.args.get(1))?;
+        let count = n
+            .checked_mul(3)
+            .filter(|c| c.checked_mul(ty.size()).is_some())
+            .ok_or_else(|| {
+                self.err(
+                    l.at,
+                    format!("POINTS announces {n} points, more than any file holds"),
+                )
+            })?;
+        let describe =
+            |i: usize, x: f64| format!("point {} has the non-finite coordinate {x}", i / 3);
+        self.values(count, ty, "POINTS", Some(&describe))
+    }
+
+    /// `CELLS n size`, then either the 4.2 list or the 5.1 `OFFSETS` and `CONNECTIVITY`.
+    fn cells(&mut self, l: &Line) -> Result<RawCells, LoadError> {
+        let n = self.count(l.args_at, l.args.first(), "the number of cells")?;
+        let size = self.count(l.args_at, l.args.get(1), "the size of the cell list")?;
+        let save = self.c.pos;
+        self.c.skip_ws();
+        if !self.c.data[self.c.pos..].starts_with(b"OFFSETS") {
+            self.c.pos = save;
+            let stream = self.ints(size, Scalar::I32, "CELLS")?;
+            return Ok(RawCells::Counted { n, stream });
+        }
+        self.c.token();
+        let (a, t) = self.args();
+        let ty = self.ty(a, t.first())?;
+        let offsets = self.ints(n, ty, "OFFSETS")?;
+        let (a, kw) = self.c.expect("CONNECTIVITY")?;
+        if !kw.eq_ignore_ascii_case(b"CONNECTIVITY") {
+            return Err(self.err(a, format!("expected CONNECTIVITY, found '{}'", shown(kw))));
+        }
+        let (a, t) = self.args();
+        let ty = self.ty(a, t.first())?;
+        let conn = self.ints(size, ty, "CONNECTIVITY")?;
+        Ok(RawCells::Offsets { offsets, conn })
+    }
+
+    /// `POINT_DATA n`, which must match the points read so far.
+    fn point_data(&self, l: &Line, positions: Option<&[f64]>) -> Result<Section, LoadError> {
+        let n = self.count(l.args_at, l.args.first(), "the number of point values")?;
+        if let Some(p) = positions
+            && p.len() / 3 != n
+        {
+            return Err(self.err(
+                l.at,
+                format!(
+                    "POINT_DATA has {n} values, but POINTS has {} points",
+                    p.len() / 3
+                ),
+            ));
+        }
+        Ok(Section::Point(n))
+    }
+
+    /// The number of tuples (points or cells) an attribute of the current section holds.
+    fn attr_count(&self, section: Section, at: usize, what: &str) -> Result<usize, LoadError> {
+        match section {
+            Section::Point(n) | Section::Cell(n) => Ok(n),
+            Section::Dataset => Err(self.err(at, format!("{what} before POINT_DATA or CELL_DATA"))),
         }
     }
 
-    let end = data.len();
-    if !dataset {
-        return Err(r.err(end, "no DATASET line: the file has no UNSTRUCTURED_GRID"));
+    /// The type token and the number of components of attribute `kw`'s header line.
+    fn attribute_shape<'l>(
+        &self,
+        kw: &[u8],
+        l: &'l Line<'a>,
+    ) -> Result<(Option<&'l &'a [u8]>, usize), LoadError> {
+        let args = &l.args;
+        Ok(match kw {
+            b"SCALARS" => {
+                let nc = match args.get(2) {
+                    Some(_) => self.count(l.args_at, args.get(2), "the number of components")?,
+                    None => 1,
+                };
+                (args.get(1), nc)
+            }
+            b"VECTORS" | b"NORMALS" => (args.get(1), 3),
+            b"TENSORS" => (args.get(1), 9),
+            b"TENSORS6" => (args.get(1), 6),
+            b"TEXTURE_COORDINATES" => (
+                args.get(2),
+                self.count(l.args_at, args.get(1), "the texture dimension")?,
+            ),
+            _ => (args.get(1), 1),
+        })
     }
-    let positions = positions.ok_or_else(|| r.err(end, "the file has no POINTS section"))?;
-    let n_points = positions.len() / 3;
-    let (cells_at, cells) = cells.ok_or_else(|| r.err(end, "the file has no CELLS section"))?;
-    let (types_at, types) =
-        types.ok_or_else(|| r.err(end, "the file has no CELL_TYPES section"))?;
-    if let Section::Point(n) = section
-        && n != n_points
-    {
-        return Err(r.err(
-            end,
-            format!("POINT_DATA has {n} values, but POINTS has {n_points} points"),
-        ));
+
+    /// An attribute (SCALARS, VECTORS, ...): point scalars and vectors become arrays, the
+    /// rest is skipped and named.
+    fn attribute(&mut self, s: &mut Sections, kw: &[u8], l: &Line<'a>) -> Result<(), LoadError> {
+        let what = String::from_utf8_lossy(kw).into_owned();
+        let n = self.attr_count(s.section, l.at, &what)?;
+        let arr_name = decode_name(l.args.first().copied().unwrap_or(b""));
+        let (ty_tok, ncomp) = self.attribute_shape(kw, l)?;
+        let ty = self.ty(l.args_at, ty_tok)?;
+        if kw == b"SCALARS" {
+            // The LOOKUP_TABLE line is optional in ASCII files.
+            let save = self.c.pos;
+            match self.c.token() {
+                Some((_, t)) if t.eq_ignore_ascii_case(b"LOOKUP_TABLE") => self.c.finish_line(),
+                _ => self.c.pos = save,
+            }
+        }
+        let count = n.checked_mul(ncomp).ok_or_else(|| {
+            self.err(
+                l.at,
+                format!(
+                    "{what} '{}' announces {n} x {ncomp} values, more than any file holds",
+                    shown_name(&arr_name)
+                ),
+            )
+        })?;
+        let usable = matches!(s.section, Section::Point(_))
+            && matches!(kw, b"SCALARS" | b"VECTORS" | b"NORMALS");
+        if !usable || ncomp == 0 {
+            self.skip(count, ty, &what)?;
+            s.skipped.push(arr_name);
+            return Ok(());
+        }
+        let v = self.point_values(&arr_name, count, ncomp, ty, &what)?;
+        s.arrays.push(point_array(&arr_name, v, ncomp));
+        if kw == b"SCALARS" && s.active.is_none() {
+            s.active = Some(s.arrays.len() - 1);
+        }
+        Ok(())
     }
-    let mut asm = Assembler::new(n_points, budget);
-    let mut add = |i: usize, list: &[i64]| -> Result<(), LoadError> {
-        match classify(types[i]) {
-            Class::Skip => {
-                asm.skip();
+
+    /// `count` values of point array `name` (`ncomp` per point), all finite.
+    fn point_values(
+        &mut self,
+        name: &str,
+        count: usize,
+        ncomp: usize,
+        ty: Scalar,
+        section: &str,
+    ) -> Result<Vec<f64>, LoadError> {
+        let describe = |i: usize, x: f64| {
+            format!(
+                "array '{}' has the non-finite value {x} at point {}",
+                shown_name(name),
+                i / ncomp
+            )
+        };
+        self.values(count, ty, section, Some(&describe))
+    }
+
+    /// `COLOR_SCALARS name n`: skipped (bytes in BINARY files, floats in ASCII) and named.
+    fn color_scalars(&mut self, s: &mut Sections, l: &Line) -> Result<(), LoadError> {
+        let n = self.attr_count(s.section, l.at, "COLOR_SCALARS")?;
+        let nc = self.count(l.args_at, l.args.get(1), "the number of color components")?;
+        let count = n
+            .checked_mul(nc)
+            .ok_or_else(|| self.err(l.at, "COLOR_SCALARS too large"))?;
+        self.skip(count, self.color_type(), "COLOR_SCALARS")?;
+        s.skipped
+            .push(decode_name(l.args.first().copied().unwrap_or(b"")));
+        Ok(())
+    }
+
+    /// `LOOKUP_TABLE name size`: a table of RGBA colours, skipped.
+    fn lookup_table(&mut self, l: &Line) -> Result<(), LoadError> {
+        let size = self.count(l.args_at, l.args.get(1), "the lookup table size")?;
+        let count = size
+            .checked_mul(4)
+            .ok_or_else(|| self.err(l.at, "LOOKUP_TABLE too large"))?;
+        self.skip(count, self.color_type(), "LOOKUP_TABLE")
+    }
+
+    /// How colours are stored: bytes in BINARY files, floats in ASCII ones.
+    fn color_type(&self) -> Scalar {
+        if self.binary.is_some() {
+            Scalar::U8
+        } else {
+            Scalar::F32
+        }
+    }
+
+    /// `FIELD name n` and its n arrays: those with one tuple per point become point arrays.
+    fn field(&mut self, s: &mut Sections, l: &Line) -> Result<(), LoadError> {
+        let narrays = self.count(l.args_at, l.args.get(1), "the number of field arrays")?;
+        for _ in 0..narrays {
+            let (a_at, aname) = self.c.expect("a field array header")?;
+            if aname.eq_ignore_ascii_case(b"NULL_ARRAY") {
+                self.c.finish_line();
+                continue;
+            }
+            self.field_array(s, a_at, decode_name(aname))?;
+            skip_metadata(&mut self.c);
+        }
+        Ok(())
+    }
+
+    /// One field array after its name: `components tuples type`, then the values.
+    fn field_array(
+        &mut self,
+        s: &mut Sections,
+        a_at: usize,
+        aname: String,
+    ) -> Result<(), LoadError> {
+        let (h_at, h) = self.args();
+        let nc = self.count(h_at, h.first(), "the number of components")?;
+        let nt = self.count(h_at, h.get(1), "the number of tuples")?;
+        let ty = self.ty(h_at, h.get(2))?;
+        let count = nc.checked_mul(nt).ok_or_else(|| {
+            self.err(
+                a_at,
+                format!(
+                    "field array '{}' announces {nc} x {nt} values, more than any file holds",
+                    shown_name(&aname)
+                ),
+            )
+        })?;
+        let section = format!("field array '{}'", shown_name(&aname));
+        match s.section {
+            Section::Point(n) if nt == n && nc > 0 => {
+                let v = self.point_values(&aname, count, nc, ty, &section)?;
+                s.arrays.push(point_array(&aname, v, nc));
+            }
+            _ => {
+                self.skip(count, ty, &section)?;
+                s.skipped.push(aname);
+            }
+        }
+        Ok(())
+    }
+
+    /// After the last section: checks that the mesh's sections are all there and agree, then
+    /// assembles the cells into tets.
+    fn finish(&self, s: Sections) -> Result<Loaded, LoadError> {
+        let end = self.c.data.len();
+        if !s.dataset {
+            return Err(self.err(end, "no DATASET line: the file has no UNSTRUCTURED_GRID"));
+        }
+        let positions = s
+            .positions
+            .ok_or_else(|| self.err(end, "the file has no POINTS section"))?;
+        let n_points = positions.len() / 3;
+        let cells = s
+            .cells
+            .ok_or_else(|| self.err(end, "the file has no CELLS section"))?;
+        let types = s
+            .types
+            .ok_or_else(|| self.err(end, "the file has no CELL_TYPES section"))?;
+        if let Section::Point(n) = s.section
+            && n != n_points
+        {
+            return Err(self.err(
+                end,
+                format!("POINT_DATA has {n} values, but POINTS has {n_points} points"),
+            ));
+        }
+        let mut asm = Assembler::new(n_points, self.c.budget);
+        self.assemble(&mut asm, cells, types)?;
+        let mut arrays = s.arrays;
+        if let Some(a) = s.active {
+            let active = arrays.remove(a);
+            arrays.insert(0, active);
+        }
+        let positions = positions_from(&positions, self.c.budget)?;
+        asm.finish(self.c.name, Format::VtkLegacy, positions, arrays, s.skipped)
+    }
+
+    /// Adds every cell, in either layout, with its type; `cells` and `types` come with the
+    /// offsets of their keywords.
+    fn assemble(
+        &self,
+        asm: &mut Assembler,
+        (cells_at, cells): (usize, RawCells),
+        (types_at, types): (usize, Vec<i64>),
+    ) -> Result<(), LoadError> {
+        let n = match &cells {
+            RawCells::Counted { n, .. } => *n,
+            RawCells::Offsets { offsets, .. } => offsets.len().saturating_sub(1),
+        };
+        if types.len() != n {
+            return Err(self.err(
+                types_at,
+                format!(
+                    "CELL_TYPES has {} entries, but CELLS has {n} cells",
+                    types.len()
+                ),
+            ));
+        }
+        let mut add = |i: usize, list: &[i64]| add_cell(asm, self.c.name, i, types[i], list);
+        match cells {
+            RawCells::Counted { n, stream } => {
+                let used = counted_cells(self.c.name, n, &stream, &mut add)?;
+                if used != stream.len() {
+                    return Err(self.err(
+                        cells_at,
+                        format!(
+                            "CELLS says the list has {} numbers, but its {n} cells use {used}",
+                            stream.len()
+                        ),
+                    ));
+                }
                 Ok(())
             }
-            Class::Unsupported(what) => Err(LoadError::unsupported(
-                name,
-                Location::Cell(i),
-                format!(
-                    "cell type {} ({what}) is not supported; tetvr reads tetrahedra, voxels, \
-                     hexahedra, wedges, pyramids and quadratic tetrahedra",
-                    types[i]
-                ),
-            )),
-            Class::Solid(kind) => asm.cell(kind, list, |m| {
-                LoadError::malformed(name, Location::Cell(i), m)
-            }),
-        }
-    };
-    match cells {
-        RawCells::Counted { n, stream } => {
-            if types.len() != n {
-                return Err(r.err(
-                    types_at,
-                    format!(
-                        "CELL_TYPES has {} entries, but CELLS has {n} cells",
-                        types.len()
-                    ),
-                ));
-            }
-            let mut k = 0;
-            for i in 0..n {
-                let cnt = stream
-                    .get(k)
-                    .and_then(|&c| usize::try_from(c).ok())
-                    .ok_or_else(|| {
-                        LoadError::malformed(
-                            name,
-                            Location::Cell(i),
-                            "the CELLS list ends or has an invalid vertex count here",
-                        )
-                    })?;
-                let list = stream
-                    .get(k + 1..)
-                    .and_then(|rest| rest.get(..cnt))
-                    .ok_or_else(|| {
-                        LoadError::malformed(
-                            name,
-                            Location::Cell(i),
-                            format!("the cell's {cnt} vertices run past the end of the CELLS list"),
-                        )
-                    })?;
-                add(i, list)?;
-                k += 1 + cnt;
-            }
-            if k != stream.len() {
-                return Err(r.err(
-                    cells_at,
-                    format!(
-                        "CELLS says the list has {} numbers, but its {n} cells use {k}",
-                        stream.len()
-                    ),
-                ));
-            }
-        }
-        RawCells::Offsets { offsets, conn } => {
-            let n = offsets.len().saturating_sub(1);
-            if types.len() != n {
-                return Err(r.err(
-                    types_at,
-                    format!(
-                        "CELL_TYPES has {} entries, but CELLS has {n} cells",
-                        types.len()
-                    ),
-                ));
-            }
-            for i in 0..n {
-                let (a, b) = (offsets[i], offsets[i + 1]);
-                let list = usize::try_from(a)
-                    .ok()
-                    .zip(usize::try_from(b).ok())
-                    .and_then(|(a, b)| conn.get(a..b))
-                    .ok_or_else(|| {
-                        LoadError::malformed(
-                            name,
-                            Location::Cell(i),
-                            format!(
-                                "OFFSETS {a} .. {b} is not a range in CONNECTIVITY (length {})",
-                                conn.len()
-                            ),
-                        )
-                    })?;
-                add(i, list)?;
+            RawCells::Offsets { offsets, conn } => {
+                offset_cells(self.c.name, &offsets, &conn, &mut add)
             }
         }
     }
-    if let Some(a) = active {
-        let s = arrays.remove(a);
-        arrays.insert(0, s);
+}
+
+/// Adds cell `i` of VTK type `ty` with vertex indices `list`.
+fn add_cell(
+    asm: &mut Assembler,
+    name: &str,
+    i: usize,
+    ty: i64,
+    list: &[i64],
+) -> Result<(), LoadError> {
+    match classify(ty) {
+        Class::Skip => {
+            asm.skip();
+            Ok(())
+        }
+        Class::Unsupported(what) => Err(unsupported_cell(name, Location::Cell(i), ty, what)),
+        Class::Solid(kind) => asm.cell(kind, list, |m| {
+            LoadError::malformed(name, Location::Cell(i), m)
+        }),
     }
-    let positions = positions_from(&positions, budget)?;
-    asm.finish(name, Format::VtkLegacy, positions, arrays, skipped)
+}
+
+/// The `n` cells of a 4.2 list (each cell's count, then its indices) given to `add`; returns
+/// how many numbers of `stream` they use.
+fn counted_cells(
+    name: &str,
+    n: usize,
+    stream: &[i64],
+    add: &mut impl FnMut(usize, &[i64]) -> Result<(), LoadError>,
+) -> Result<usize, LoadError> {
+    let mut k = 0;
+    for i in 0..n {
+        let cnt = stream
+            .get(k)
+            .and_then(|&c| usize::try_from(c).ok())
+            .ok_or_else(|| {
+                LoadError::malformed(
+                    name,
+                    Location::Cell(i),
+                    "the CELLS list ends or has an invalid vertex count here",
+                )
+            })?;
+        let list = stream
+            .get(k + 1..)
+            .and_then(|rest| rest.get(..cnt))
+            .ok_or_else(|| {
+                LoadError::malformed(
+                    name,
+                    Location::Cell(i),
+                    format!("the cell's {cnt} vertices run past the end of the CELLS list"),
+                )
+            })?;
+        add(i, list)?;
+        k += 1 + cnt;
+    }
+    Ok(k)
+}
+
+/// The cells of a 5.1 `OFFSETS` and `CONNECTIVITY` pair given to `add`.
+fn offset_cells(
+    name: &str,
+    offsets: &[i64],
+    conn: &[i64],
+    add: &mut impl FnMut(usize, &[i64]) -> Result<(), LoadError>,
+) -> Result<(), LoadError> {
+    for (i, w) in offsets.windows(2).enumerate() {
+        let (a, b) = (w[0], w[1]);
+        let list = usize::try_from(a)
+            .ok()
+            .zip(usize::try_from(b).ok())
+            .and_then(|(a, b)| conn.get(a..b))
+            .ok_or_else(|| {
+                LoadError::malformed(
+                    name,
+                    Location::Cell(i),
+                    format!(
+                        "OFFSETS {a} .. {b} is not a range in CONNECTIVITY (length {})",
+                        conn.len()
+                    ),
+                )
+            })?;
+        add(i, list)?;
+    }
+    Ok(())
 }
 
 /// Skips a `METADATA` block (text lines up to an empty line), if one starts here.

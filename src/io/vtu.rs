@@ -19,7 +19,7 @@ use std::path::Path;
 use base64::Engine;
 use quick_xml::events::{BytesStart, Event};
 
-use super::vtk::{Class, classify};
+use super::vtk::{Class, classify, unsupported_cell};
 use super::{
     Assembler, Budget, Format, LoadError, LoadErrorKind, Loaded, Location, Scalar, WriteError,
     parse_int, point_array, positions_from, shown,
@@ -65,10 +65,7 @@ struct Array {
 
 impl Array {
     fn attr(&self, key: &str) -> Option<&str> {
-        self.attrs
-            .iter()
-            .find(|(k, _)| k == key)
-            .map(|(_, v)| v.as_str())
+        attr(&self.attrs, key)
     }
 
     fn name(&self) -> &str {
@@ -566,15 +563,47 @@ pub(super) fn read(data: &[u8], name: &str, budget: &Budget) -> Result<Loaded, L
         appended: None,
         appended_offsets: Vec::new(),
     };
-    let xml_end = find(data, b"<AppendedData").unwrap_or(data.len());
-    if xml_end < data.len() {
+    let xml_end = file.appended_data()?;
+    let pieces = file.pieces(xml_end)?;
+    file.appended_offsets.sort_unstable();
+    file.assemble(&pieces)
+}
+
+/// The value of attribute `key` in `attrs`.
+fn attr<'s>(attrs: &'s [(String, String)], key: &str) -> Option<&'s str> {
+    attrs
+        .iter()
+        .find(|(k, _)| k == key)
+        .map(|(_, v)| v.as_str())
+}
+
+/// What part of a piece a `DataArray` inside element `parent` belongs to.
+fn part_of(parent: Option<&Vec<u8>>) -> Part {
+    match parent.map(Vec::as_slice) {
+        Some(b"Points") => Part::Points,
+        Some(b"Cells") => Part::Cells,
+        Some(b"PointData") => Part::PointData,
+        Some(b"CellData") => Part::CellData,
+        _ => Part::Other,
+    }
+}
+
+impl File<'_> {
+    /// Finds the `AppendedData` element, if any, and notes where its payload starts and how
+    /// it is encoded. Returns where the XML ends: at `AppendedData`, or at the end of the file.
+    fn appended_data(&mut self) -> Result<usize, LoadError> {
+        let data = self.data;
+        let xml_end = find(data, b"<AppendedData").unwrap_or(data.len());
+        if xml_end == data.len() {
+            return Ok(xml_end);
+        }
         let gt = find(&data[xml_end..], b">")
             .map(|i| xml_end + i)
-            .ok_or_else(|| file.err(xml_end, "the AppendedData tag is not closed"))?;
+            .ok_or_else(|| self.err(xml_end, "the AppendedData tag is not closed"))?;
         let mut r = quick_xml::Reader::from_reader(&data[xml_end..=gt]);
         let encoding = match r.read_event() {
             Ok(Event::Start(e)) | Ok(Event::Empty(e)) => attrs_of(&e)
-                .map_err(|m| file.err(xml_end, m))?
+                .map_err(|m| self.err(xml_end, m))?
                 .into_iter()
                 .find(|(k, _)| k == "encoding")
                 .map(|(_, v)| v),
@@ -584,7 +613,7 @@ pub(super) fn read(data: &[u8], name: &str, budget: &Budget) -> Result<Loaded, L
             Some("raw") => false,
             Some("base64") => true,
             other => {
-                return Err(file.err(
+                return Err(self.err(
                     xml_end,
                     format!(
                         "AppendedData encoding '{}' is not raw or base64",
@@ -598,192 +627,213 @@ pub(super) fn read(data: &[u8], name: &str, budget: &Budget) -> Result<Loaded, L
             p += 1;
         }
         if data.get(p) != Some(&b'_') {
-            return Err(file.err(p, "AppendedData must start with '_'"));
+            return Err(self.err(p, "AppendedData must start with '_'"));
         }
-        file.appended = Some((p + 1, base64));
+        self.appended = Some((p + 1, base64));
+        Ok(xml_end)
     }
 
-    let mut r = quick_xml::Reader::from_reader(&data[..xml_end]);
-    let mut stack: Vec<Vec<u8>> = Vec::new();
-    let mut pieces: Vec<Piece> = Vec::new();
-    let mut seen_root = false;
-    loop {
-        let at = r.buffer_position() as usize;
-        let ev = match r.read_event() {
-            Ok(ev) => ev,
-            // Unclosed elements at the cut before AppendedData are expected.
-            Err(_) if xml_end < data.len() && r.buffer_position() as usize >= xml_end => break,
-            Err(e) => return Err(xml_err(name, r.error_position(), e)),
-        };
-        let (e, empty) = match ev {
-            Event::Eof => break,
-            Event::Start(e) => (e, false),
-            Event::Empty(e) => (e, true),
-            Event::End(_) => {
-                stack.pop();
-                continue;
-            }
-            _ => continue,
-        };
-        let tag = e.local_name().as_ref().to_vec();
-        let attrs = attrs_of(&e).map_err(|m| file.err(at, m))?;
-        let get = |k: &str| attrs.iter().find(|(a, _)| a == k).map(|(_, v)| v.as_str());
-        match tag.as_slice() {
-            b"VTKFile" => {
-                seen_root = true;
-                let ty = get("type").unwrap_or("");
-                if ty != "UnstructuredGrid" {
-                    return Err(LoadError::unsupported(
-                        name,
-                        Location::Byte(at as u64),
-                        format!(
-                            "VTK XML type '{}' is not supported; tetvr reads UnstructuredGrid (.vtu)",
-                            shown(ty.as_bytes())
-                        ),
-                    ));
+    /// The XML up to `xml_end`: the root's settings, and each `Piece` with its arrays.
+    fn pieces(&mut self, xml_end: usize) -> Result<Vec<Piece>, LoadError> {
+        let data = self.data;
+        let mut r = quick_xml::Reader::from_reader(&data[..xml_end]);
+        let mut stack: Vec<Vec<u8>> = Vec::new();
+        let mut pieces: Vec<Piece> = Vec::new();
+        let mut seen_root = false;
+        loop {
+            let at = r.buffer_position() as usize;
+            let ev = match r.read_event() {
+                Ok(ev) => ev,
+                // Unclosed elements at the cut before AppendedData are expected.
+                Err(_) if xml_end < data.len() && r.buffer_position() as usize >= xml_end => {
+                    break;
                 }
-                file.big_endian = get("byte_order") == Some("BigEndian");
-                file.header = match get("header_type") {
-                    None | Some("UInt32") => 4,
-                    Some("UInt64") => 8,
-                    Some(o) => {
-                        return Err(file.err(
-                            at,
-                            format!(
-                                "header_type '{}' is not UInt32 or UInt64",
-                                shown(o.as_bytes())
-                            ),
-                        ));
+                Err(e) => return Err(xml_err(self.name, r.error_position(), e)),
+            };
+            let (e, empty) = match ev {
+                Event::Eof => break,
+                Event::Start(e) => (e, false),
+                Event::Empty(e) => (e, true),
+                Event::End(_) => {
+                    stack.pop();
+                    continue;
+                }
+                _ => continue,
+            };
+            let tag = e.local_name().as_ref().to_vec();
+            let attrs = attrs_of(&e).map_err(|m| self.err(at, m))?;
+            match tag.as_slice() {
+                b"VTKFile" => {
+                    seen_root = true;
+                    self.root(at, &attrs)?;
+                }
+                b"Piece" => pieces.push(self.piece(at, &attrs)?),
+                b"PointData" => {
+                    if let Some(p) = pieces.last_mut() {
+                        p.scalars = attr(&attrs, "Scalars").map(str::to_owned);
                     }
-                };
-                file.compressed = match get("compressor") {
-                    None | Some("") => false,
-                    Some("vtkZLibDataCompressor") => true,
-                    Some(o) => {
-                        return Err(LoadError::unsupported(
-                            name,
-                            Location::Byte(at as u64),
-                            format!(
-                                "compressor '{}' is not supported; tetvr reads vtkZLibDataCompressor",
-                                shown(o.as_bytes())
-                            ),
-                        ));
-                    }
-                };
-            }
-            b"Piece" => {
-                let num = |k: &str| -> Result<usize, LoadError> {
-                    get(k)
-                        .and_then(|v| v.trim().parse::<usize>().ok())
-                        .ok_or_else(|| file.err(at, format!("Piece needs a non-negative {k}")))
-                };
-                let points = num("NumberOfPoints")?;
-                if points.checked_mul(3 * 8).is_none() {
-                    return Err(file.err(
+                }
+                b"DataArray" => {
+                    let a = Array {
+                        part: part_of(stack.last()),
                         at,
-                        format!("Piece announces {points} points, more than any file holds"),
-                    ));
+                        attrs,
+                        text: Vec::new(),
+                        text_at: r.buffer_position() as usize,
+                    };
+                    self.data_array(&mut r, a, empty, pieces.last_mut())?;
+                    continue;
                 }
-                pieces.push(Piece {
+                _ => {}
+            }
+            if !empty {
+                stack.push(tag);
+            }
+        }
+        if !seen_root {
+            return Err(self.err(0, "not a VTK XML file: no VTKFile element"));
+        }
+        if pieces.is_empty() {
+            return Err(self.err(0, "the file has no Piece"));
+        }
+        Ok(pieces)
+    }
+
+    /// The `VTKFile` element: the dataset type, byte order, header width and compressor.
+    fn root(&mut self, at: usize, attrs: &[(String, String)]) -> Result<(), LoadError> {
+        let get = |k: &str| attr(attrs, k);
+        let ty = get("type").unwrap_or("");
+        if ty != "UnstructuredGrid" {
+            return Err(LoadError::unsupported(
+                self.name,
+                Location::Byte(at as u64),
+                format!(
+                    "VTK XML type '{}' is not supported; tetvr reads UnstructuredGrid (.vtu)",
+                    shown(ty.as_bytes())
+                ),
+            ));
+        }
+        self.big_endian = get("byte_order") == Some("BigEndian");
+        self.header = match get("header_type") {
+            None | Some("UInt32") => 4,
+            Some("UInt64") => 8,
+            Some(o) => {
+                return Err(self.err(
                     at,
-                    points,
-                    cells: num("NumberOfCells")?,
-                    ..Piece::default()
-                });
+                    format!(
+                        "header_type '{}' is not UInt32 or UInt64",
+                        shown(o.as_bytes())
+                    ),
+                ));
             }
-            b"PointData" => {
-                if let Some(p) = pieces.last_mut() {
-                    p.scalars = get("Scalars").map(str::to_owned);
+        };
+        self.compressed = match get("compressor") {
+            None | Some("") => false,
+            Some("vtkZLibDataCompressor") => true,
+            Some(o) => {
+                return Err(LoadError::unsupported(
+                    self.name,
+                    Location::Byte(at as u64),
+                    format!(
+                        "compressor '{}' is not supported; tetvr reads vtkZLibDataCompressor",
+                        shown(o.as_bytes())
+                    ),
+                ));
+            }
+        };
+        Ok(())
+    }
+
+    /// A `Piece` element: its point and cell counts.
+    fn piece(&self, at: usize, attrs: &[(String, String)]) -> Result<Piece, LoadError> {
+        let num = |k: &str| -> Result<usize, LoadError> {
+            attr(attrs, k)
+                .and_then(|v| v.trim().parse::<usize>().ok())
+                .ok_or_else(|| self.err(at, format!("Piece needs a non-negative {k}")))
+        };
+        let points = num("NumberOfPoints")?;
+        if points.checked_mul(3 * 8).is_none() {
+            return Err(self.err(
+                at,
+                format!("Piece announces {points} points, more than any file holds"),
+            ));
+        }
+        Ok(Piece {
+            at,
+            points,
+            cells: num("NumberOfCells")?,
+            ..Piece::default()
+        })
+    }
+
+    /// A `DataArray`'s inline content (unless the element is `empty`); the array joins
+    /// `piece` when it is part of one, and its appended offset is noted.
+    fn data_array(
+        &mut self,
+        r: &mut quick_xml::Reader<&[u8]>,
+        mut a: Array,
+        empty: bool,
+        piece: Option<&mut Piece>,
+    ) -> Result<(), LoadError> {
+        if !empty {
+            loop {
+                match r.read_event() {
+                    Ok(Event::Text(t)) => a.text.extend_from_slice(&t),
+                    Ok(Event::CData(t)) => a.text.extend_from_slice(&t),
+                    Ok(Event::End(_)) => break,
+                    Ok(Event::Comment(_)) => {}
+                    Ok(Event::Eof) => return Err(self.err(a.at, "file ends inside a DataArray")),
+                    Ok(_) => return Err(self.err(a.at, "unexpected markup inside a DataArray")),
+                    Err(e) => return Err(xml_err(self.name, r.error_position(), e)),
                 }
             }
-            b"DataArray" => {
-                let part = match stack.last().map(Vec::as_slice) {
-                    Some(b"Points") => Part::Points,
-                    Some(b"Cells") => Part::Cells,
-                    Some(b"PointData") => Part::PointData,
-                    Some(b"CellData") => Part::CellData,
-                    _ => Part::Other,
-                };
-                let mut a = Array {
-                    part,
-                    at,
-                    attrs,
-                    text: Vec::new(),
-                    text_at: r.buffer_position() as usize,
-                };
-                if !empty {
-                    loop {
-                        match r.read_event() {
-                            Ok(Event::Text(t)) => a.text.extend_from_slice(&t),
-                            Ok(Event::CData(t)) => a.text.extend_from_slice(&t),
-                            Ok(Event::End(_)) => break,
-                            Ok(Event::Comment(_)) => {}
-                            Ok(Event::Eof) => {
-                                return Err(file.err(a.at, "file ends inside a DataArray"));
-                            }
-                            Ok(_) => {
-                                return Err(file.err(a.at, "unexpected markup inside a DataArray"));
-                            }
-                            Err(e) => return Err(xml_err(name, r.error_position(), e)),
-                        }
-                    }
-                }
-                if a.attr("format") == Some("appended")
-                    && let Some(o) = a.offset()
-                {
-                    file.appended_offsets.push(o);
-                }
-                match pieces.last_mut() {
-                    Some(p) if part != Part::Other => p.arrays.push(a),
-                    _ => {}
-                }
-                continue;
-            }
+        }
+        if a.attr("format") == Some("appended")
+            && let Some(o) = a.offset()
+        {
+            self.appended_offsets.push(o);
+        }
+        match piece {
+            Some(p) if a.part != Part::Other => p.arrays.push(a),
             _ => {}
         }
-        if !empty {
-            stack.push(tag);
-        }
+        Ok(())
     }
-    if !seen_root {
-        return Err(file.err(0, "not a VTK XML file: no VTKFile element"));
-    }
-    if pieces.is_empty() {
-        return Err(file.err(0, "the file has no Piece"));
-    }
-    file.appended_offsets.sort_unstable();
-    let index: Vec<PieceIndex> = pieces.iter().map(PieceIndex::new).collect();
-    let (names, skipped) = point_array_names(&pieces[0], &index);
-    check_own_offsets(&file, &index, &names)?;
 
-    let total_points = pieces
-        .iter()
-        .try_fold(0usize, |s, p| s.checked_add(p.points))
-        .ok_or_else(|| {
-            file.err(
-                0,
-                "the pieces' NumberOfPoints add up to more than memory can hold",
-            )
-        })?;
-    let mut positions: Vec<f64> = Vec::new();
-    let mut arrays: Vec<(String, usize, Vec<f64>)> =
-        names.iter().map(|n| (n.clone(), 0, Vec::new())).collect();
-    let mut asm = Assembler::new(total_points, budget);
-    let (mut base, mut cell_base) = (0usize, 0usize);
-    for (p, ix) in pieces.iter().zip(&index) {
-        let v = read_points(&file, p, ix, base)?;
-        append(&mut positions, v);
-        read_point_data(&file, p, ix, base, &mut arrays)?;
-        read_cells(&file, p, ix, (base, cell_base), &mut asm)?;
-        base += p.points;
-        cell_base += p.cells;
+    /// Reads every piece's points, point arrays and cells into one mesh.
+    fn assemble(&self, pieces: &[Piece]) -> Result<Loaded, LoadError> {
+        let index: Vec<PieceIndex> = pieces.iter().map(PieceIndex::new).collect();
+        let (names, skipped) = point_array_names(&pieces[0], &index);
+        check_own_offsets(self, &index, &names)?;
+        let total_points = pieces
+            .iter()
+            .try_fold(0usize, |s, p| s.checked_add(p.points))
+            .ok_or_else(|| {
+                self.err(
+                    0,
+                    "the pieces' NumberOfPoints add up to more than memory can hold",
+                )
+            })?;
+        let mut positions: Vec<f64> = Vec::new();
+        let mut arrays: Vec<(String, usize, Vec<f64>)> =
+            names.iter().map(|n| (n.clone(), 0, Vec::new())).collect();
+        let mut asm = Assembler::new(total_points, self.budget);
+        let (mut base, mut cell_base) = (0usize, 0usize);
+        for (p, ix) in pieces.iter().zip(&index) {
+            let v = read_points(self, p, ix, base)?;
+            append(&mut positions, v);
+            read_point_data(self, p, ix, base, &mut arrays)?;
+            read_cells(self, p, ix, (base, cell_base), &mut asm)?;
+            base += p.points;
+            cell_base += p.cells;
+        }
+        let arrays = arrays
+            .into_iter()
+            .map(|(n, nc, v)| point_array(&n, v, nc))
+            .collect();
+        let positions = positions_from(&positions, self.budget)?;
+        asm.finish(self.name, Format::Vtu, positions, arrays, skipped)
     }
-    let arrays = arrays
-        .into_iter()
-        .map(|(n, nc, v)| point_array(&n, v, nc))
-        .collect();
-    let positions = positions_from(&positions, budget)?;
-    asm.finish(name, Format::Vtu, positions, arrays, skipped)
 }
 
 /// `v` added to `all`, moved rather than copied when `all` is empty (one piece).
@@ -993,6 +1043,50 @@ fn read_cells(
     if p.cells == 0 {
         return Ok(());
     }
+    let (types, offs, conn) = cell_arrays(file, p, ix)?;
+    let name = file.name;
+    let mut ids: Vec<i64> = Vec::with_capacity(10);
+    let mut prev = 0usize;
+    for i in 0..p.cells {
+        let loc = Location::Cell(cell_base + i);
+        let end = usize::try_from(offs[i])
+            .ok()
+            .filter(|&e| e >= prev && e <= conn.len())
+            .ok_or_else(|| {
+                LoadError::malformed(
+                    name,
+                    loc.clone(),
+                    format!(
+                        "offset {} is not within the {} connectivity entries after {prev}",
+                        offs[i],
+                        conn.len()
+                    ),
+                )
+            })?;
+        let list = &conn[prev..end];
+        prev = end;
+        let locate = |m: String| LoadError::malformed(name, loc.clone(), m);
+        match classify(types[i]) {
+            Class::Skip => asm.skip(),
+            Class::Unsupported(what) => {
+                return Err(unsupported_cell(name, loc, types[i], what));
+            }
+            Class::Solid(kind) if list.len() == kind.vertex_count() => {
+                in_piece(list, p.points, base, &mut ids).map_err(&locate)?;
+                asm.cell(kind, &ids, locate)?;
+            }
+            // The assembler names the wrong vertex count.
+            Class::Solid(kind) => asm.cell(kind, list, locate)?,
+        }
+    }
+    Ok(())
+}
+
+/// A piece's `types`, `offsets` (one per cell) and `connectivity` (up to the last offset).
+type CellArrays = (Vec<i64>, Vec<i64>, Vec<i64>);
+
+/// A piece's cell arrays, in that order, each of the length the piece calls for.
+fn cell_arrays(file: &File, p: &Piece, ix: &PieceIndex) -> Result<CellArrays, LoadError> {
     let get = |n: &str| {
         ix.cells
             .get(n)
@@ -1031,49 +1125,7 @@ fn read_cells(
             wrong: &wrong_conn,
         },
     )?;
-    let name = file.name;
-    let mut ids: Vec<i64> = Vec::with_capacity(10);
-    let mut prev = 0usize;
-    for i in 0..p.cells {
-        let loc = Location::Cell(cell_base + i);
-        let end = usize::try_from(offs[i])
-            .ok()
-            .filter(|&e| e >= prev && e <= conn.len())
-            .ok_or_else(|| {
-                LoadError::malformed(
-                    name,
-                    loc.clone(),
-                    format!(
-                        "offset {} is not within the {} connectivity entries after {prev}",
-                        offs[i],
-                        conn.len()
-                    ),
-                )
-            })?;
-        let list = &conn[prev..end];
-        prev = end;
-        let locate = |m: String| LoadError::malformed(name, loc.clone(), m);
-        match classify(types[i]) {
-            Class::Skip => asm.skip(),
-            Class::Unsupported(what) => {
-                return Err(LoadError::unsupported(
-                    name,
-                    loc,
-                    format!(
-                        "cell type {} ({what}) is not supported; tetvr reads tetrahedra, voxels, hexahedra, wedges, pyramids and quadratic tetrahedra",
-                        types[i]
-                    ),
-                ));
-            }
-            Class::Solid(kind) if list.len() == kind.vertex_count() => {
-                in_piece(list, p.points, base, &mut ids).map_err(&locate)?;
-                asm.cell(kind, &ids, locate)?;
-            }
-            // The assembler names the wrong vertex count.
-            Class::Solid(kind) => asm.cell(kind, list, locate)?,
-        }
-    }
-    Ok(())
+    Ok((types, offs, conn))
 }
 
 /// A cell's indices, checked to be among its piece's `points` and moved past the `base`
