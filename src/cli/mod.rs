@@ -14,14 +14,14 @@ const EXAMPLES: &str = "\
 Examples:
   tetvr render assets/lox_post_subset_tet.vtk -o lox.png
   tetvr render mesh.vtu --mode reference --size 256x256 --view -y --tf shock -o ref.png
-  tetvr render ../shared/data/bluntfin_tet.vtk --mode iso --iso 0.5,0.7 --shading smooth -o iso.png
-  tetvr render ../shared/data/bluntfin_tet.vtk --mode cellproj --integrate exact --timings --sort-check -o cp.png
-  tetvr render ../shared/data/bluntfin_tet.vtk --mode raycast --timings -o fin.png
-  tetvr iso-export ../shared/data/bluntfin_tet.vtk --iso 0.5,0.7 --tf viridis -o fin.glb
+  tetvr render assets/bluntfin_tet.vtu --mode iso --iso 0.5,0.7 --shading smooth -o iso.png
+  tetvr render assets/bluntfin_tet.vtu --mode cellproj --integrate exact --timings --sort-check -o cp.png
+  tetvr render assets/bluntfin_tet.vtu --mode raycast --timings -o fin.png
+  tetvr iso-export assets/bluntfin_tet.vtu --iso 0.5,0.7 --tf viridis -o fin.glb
   tetvr render mesh.vtk --array Pressure --tf my_tf.json --unit-distance 0.05 -o p.png
   tetvr render mesh.msh --eye 10,0,2 --target 0,0,0 --up 0,0,1 --fov 40 -o close.png
   tetvr animate ../shared/data/kiefer_bracket_tet.vtk --deform twist --frames 24 -o bracket.gif
-  tetvr info ../shared/data/bluntfin_tet.vtk
+  tetvr info assets/bluntfin_tet.vtu
   tetvr compare a.png b.png -o diff.png
   tetvr generate grid --tets 100000 --field marschner-lobb -o ml.vtu
   tetvr bench --quick --out bench-out
