@@ -42,7 +42,8 @@ fn first_state() -> RayState {
 // The depth-peeling layer (gpu::gpu_data::LayerUniforms); 0 for entry lists.
 struct Layer {
     index: u32,
-    pad0: u32,
+    // 1: list every tile (skipping empty tiles off), 0: only those with work.
+    all_tiles: u32,
     pad1: u32,
     pad2: u32,
 }

@@ -1,6 +1,6 @@
 // Ray caster stage, tiles (Bernardon et al. 2004; one thread per TILE x TILE screen tile):
-// lists the tiles where some ray has an entry this layer, or every tile in the first layer when
-// rays start in the eye's tet, for the traversal's indirect dispatch; a tile left out costs the
+// lists the tiles where some ray has an entry this layer (every tile in the first layer when
+// rays start in the eye's tet, and every tile when skipping empty ones is off), for the traversal's indirect dispatch; a tile left out costs the
 // traversal nothing. In the frame's first layer it writes transparent black to the pixels of
 // the tiles it leaves out (later layers keep what earlier ones wrote there).
 //
@@ -41,7 +41,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     let lo = vec2<u32>(tile % cols, tile / cols) * TILE;
     let hi = min(lo + TILE, size);
     let first = layer.index == 0u;
-    if (first && counters[1] != NO_NEIGHBOR) || entered(lo, hi, size.x) {
+    let every = layer.all_tiles != 0u || (first && counters[1] != NO_NEIGHBOR);
+    if every || entered(lo, hi, size.x) {
         let k = atomicAdd(&tiles[3], 1u);
         atomicStore(&tiles[TILES_AT + k], tile);
         atomicMax(&tiles[0], min(k + 1u, MAX_GROUPS));

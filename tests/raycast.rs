@@ -391,6 +391,14 @@ fn tiles_run_where_rays_enter_and_layers_follow_reentry() {
         let zoomed = framed(&mesh, &far, &tf, s);
         let run = counter(&zoomed, "tiles run");
         assert!(run > 0 && run < 16 * 16 / 4, "{entry:?}: {run} tiles run");
+        // Without the skip every tile runs, and the picture is the same, bit for bit.
+        let every = RaycastSettings {
+            skip_empty_tiles: false,
+            ..s
+        };
+        let all = framed(&mesh, &far, &tf, every);
+        assert!(counter(&all, "tiles run") >= 16 * 16, "{entry:?}");
+        assert_eq!(all.image.compare(&zoomed.image).unwrap().max_abs, 0.0);
     }
     let grid = gaussians(6);
     let (tf, outside) = default_view(&grid, 64);

@@ -183,8 +183,11 @@ const _: () = assert!(size_of::<RaycastUniforms>() == 16);
 pub struct LayerUniforms {
     /// The layer: 0 first.
     pub index: u32,
+    /// 1: the tile list holds every tile ([`crate::gpu::raycast::RaycastSettings`]'s
+    /// `skip_empty_tiles` off), 0: only those with work.
+    pub all_tiles: u32,
     /// Zero: pads the struct to the 16 bytes of a uniform binding.
-    pub _pad: [u32; 3],
+    pub _pad: [u32; 2],
 }
 const _: () = assert!(size_of::<LayerUniforms>() == 16);
 

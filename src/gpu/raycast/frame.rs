@@ -348,15 +348,17 @@ impl RaycastRenderer {
         let reset: [u32; COUNTERS] = [0, u32::MAX, 0, 0];
         self.queue
             .write_buffer(&self.counters, 0, bytemuck::cast_slice(&reset));
+        let groups = self.bind(self.targets()?);
         let mut run = Run::default();
         loop {
             let layer = LayerUniforms {
                 index: run.layers as u32,
+                all_tiles: !self.settings.skip_empty_tiles as u32,
                 ..Default::default()
             };
             self.queue
                 .write_buffer(&self.layer_buf, 0, bytemuck::bytes_of(&layer));
-            let progress = self.record_layer(&mut run)?;
+            let progress = self.record_layer(&mut run, &groups)?;
             run.layers += 1;
             run.tiles_run += progress.tiles as u64;
             let eye_inside = run.counters[1] != u32::MAX;
@@ -369,10 +371,13 @@ impl RaycastRenderer {
     }
 
     /// Records, runs and reads back one layer (the whole frame with entry lists).
-    fn record_layer(&mut self, run: &mut Run) -> Result<Progress, RenderError> {
+    fn record_layer(
+        &mut self,
+        run: &mut Run,
+        groups: &BindGroups,
+    ) -> Result<Progress, RenderError> {
         let t = (self.targets.as_ref())
             .ok_or_else(|| settings_error("internal: render target missing"))?;
-        let groups = self.bind(t);
         let p = &self.pipelines;
         let max = self.limits.max_compute_workgroups_per_dimension;
         let first = run.layers == 0;
@@ -412,8 +417,8 @@ impl RaycastRenderer {
         let bytes = 4 * COUNTERS as u64;
         let enc = rec.encoder();
         enc.copy_buffer_to_buffer(&self.counters, 0, &self.counters_read, 0, bytes);
-        enc.copy_buffer_to_buffer(&t.tiles, 12, &self.progress_read, 0, 4);
-        enc.copy_buffer_to_buffer(&self.progress, 0, &self.progress_read, 4, 8);
+        enc.copy_buffer_to_buffer(&t.tiles, 12, &self.counters_read, bytes, 4);
+        enc.copy_buffer_to_buffer(&self.progress, 0, &self.counters_read, bytes + 4, 8);
         let stats = rec.finish(&[], &self.counters, 0)?;
         for (stage, ms) in stats.stages {
             match run.stages.iter_mut().find(|(s, _)| *s == stage) {
@@ -422,8 +427,9 @@ impl RaycastRenderer {
             }
         }
         run.gpu_clock = stats.gpu_clock;
-        run.counters = read_words(&self.device, &self.counters_read)?;
-        let [tiles, waiting, more] = read_words(&self.device, &self.progress_read)?;
+        let words: [u32; COUNTERS + 3] = read_words(&self.device, &self.counters_read)?;
+        run.counters = std::array::from_fn(|i| words[i]);
+        let [tiles, waiting, more] = std::array::from_fn(|i| words[COUNTERS + i]);
         Ok(Progress {
             tiles,
             waiting,
@@ -431,10 +437,13 @@ impl RaycastRenderer {
         })
     }
 
+    fn targets(&self) -> Result<&Targets, RenderError> {
+        (self.targets.as_ref()).ok_or_else(|| settings_error("internal: render target missing"))
+    }
+
     /// Copies the image out and reads it back.
     fn read_image(&self) -> Result<Image, RenderError> {
-        let t = (self.targets.as_ref())
-            .ok_or_else(|| settings_error("internal: render target missing"))?;
+        let t = self.targets()?;
         let mut enc = (self.device).create_command_encoder(&Default::default());
         t.readback.copy(&mut enc, &t.image);
         self.queue.submit([enc.finish()]);
