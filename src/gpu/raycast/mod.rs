@@ -104,8 +104,8 @@ pub struct RaycastSettings {
     pub segments: Segments,
     /// How rays find their entries.
     pub entry: Entry,
-    /// Boundary-face hits each pixel's entry list starts with (doubled and the frame rendered
-    /// again while a list overflows; kept for later frames).
+    /// With [`Entry::Lists`]: boundary-face hits each pixel's entry list starts with (doubled
+    /// and the frame rendered again while a list overflows; kept for later frames).
     pub list_capacity: u32,
     /// Whether the traversal skips the tiles where no ray has an entry (on by default; off
     /// only to measure what the skip saves: the picture is the same).
