@@ -1,6 +1,8 @@
 //! `--mode raycast` against the exact f64 reference: the oxygen post subset, a box with a hole
 //! seen through the hole, the eye inside a grid, a head-on grid (holes 0), a mesh after
-//! `update_positions`; and the CPU twin against the shipped shaders run on the adapter.
+//! `update_positions`, each with both entry methods (lists, depth peeling: the same picture bit
+//! for bit); the tiles run and the peeling layers; and the CPU twin against the shipped
+//! shaders run on the adapter.
 //!
 //! GPU tests fail (never skip) when there is no adapter. Bounds were measured on lavapipe
 //! (Mesa llvmpipe, 2 cores); each is commented with what it allows for.
