@@ -1,21 +1,22 @@
-// Ray caster stage 3, traversal (Weiler et al. 2003; one thread per pixel, 8 x 8 pixel tiles
-// per workgroup): the ray starts in the eye's tet (when the eye is inside the mesh) or at the
-// nearest entry of its list, steps from tet to tet through the face it leaves by (the nearest
-// face plane it crosses moving outward; the face it came in by never), integrates each segment
-// exactly (integrate_segment.wgsl) front to back, and at the boundary resumes at the next entry
-// of its list beyond where it left (non-convex meshes). It stops when its transmittance falls
-// below TERMINATE (early ray termination) or after params.max_steps tets (counted).
+// Ray caster stage 3, traversal (Weiler et al. 2003; one thread per pixel, one workgroup per
+// listed 8 x 8 pixel tile, raycast_tiles.wgsl): the ray starts in the eye's tet (when the eye
+// is inside the mesh) or at its first entry, steps from tet to tet through the face it leaves by
+// (the nearest face plane it crosses moving outward; the face it came in by never), integrates
+// each segment exactly (integrate_segment.wgsl) front to back, and at the boundary resumes at
+// its next entry beyond where it left (non-convex meshes). It stops when its transmittance
+// falls below TERMINATE (early ray termination) or after params.max_steps tets (counted).
+// Where entries come from (ray_start, start_tet, next_entry, ray_end): raycast_lists.wgsl or,
+// one depth-peeling layer per dispatch, raycast_layers.wgsl.
 // CPU twin: gpu::raycast::twin::exit and twin::trace.
 
 @group(0) @binding(1) var<storage, read> links: array<TetLinks>;
 @group(0) @binding(2) var<storage, read> planes: array<TetPlanes>;
-@group(0) @binding(3) var<storage, read> counts: array<u32>;
-@group(0) @binding(4) var<storage, read> entries: array<vec2<u32>>;
 @group(0) @binding(5) var<uniform> tf: TfPoints;
 @group(0) @binding(6) var<uniform> params: Raycast;
 @group(0) @binding(7) var<storage, read_write> counters: array<atomic<u32>, 4>;
 @group(0) @binding(8) var image: texture_storage_2d<rgba32float, write>;
 @group(0) @binding(9) var<storage, read> positions: array<vec4<f32>>;
+@group(0) @binding(11) var<storage, read> tiles: array<u32>;
 
 // Early ray termination: what lies behind a transmittance below this adds at most this much to
 // any channel (twin::TERMINATE).
@@ -86,56 +87,42 @@ fn scalar_at(pl: TetPlanes, d: vec3<f32>, t: f32) -> f32 {
     return clamp(pl.scalar.w + t * dot(pl.scalar.xyz, d), 0.0, 1.0);
 }
 
-// Entry hits in list order: by t, then by face code.
-fn before(t0: f32, code0: u32, t1: f32, code1: u32) -> bool {
-    return t0 < t1 || (t0 == t1 && code0 < code1);
-}
-
-// Re-entry slack, relative to t: a boundary face that coincides with the one the ray left by
-// (parts of a mesh that touch without sharing vertices) is crossed at a t that differs by the
-// rounding of two different planes (twin::REENTRY).
-const REENTRY: f32 = 1e-5;
-
-// The next entry of the pixel's list (code, t bits): the first in list order after `last`
-// (the entry taken before) at or beyond t, where the ray left the mesh, less the re-entry
-// slack (REENTRY, and params.eye_tol); NO_NEIGHBOR when there is none. Each entry is taken at
-// most once, so the slack cannot make a ray loop; it may re-integrate at most the slack.
-fn next_entry(pixel: u32, t: f32, last: vec2<u32>) -> vec2<u32> {
-    let n = min(counts[pixel], params.capacity);
-    let t_min = t - REENTRY * t - params.eye_tol;
-    var best = vec2<u32>(NO_NEIGHBOR, 0u);
-    var best_t = 3.0e38;
-    for (var k = 0u; k < n; k++) {
-        let e = entries[pixel * params.capacity + k];
-        let te = bitcast<f32>(e.x);
-        let after = before(bitcast<f32>(last.y), last.x, te, e.y);
-        if te >= t_min && after && before(te, e.y, best_t, best.x) {
-            best = vec2<u32>(e.y, e.x);
-            best_t = te;
-        }
+// The pixel of thread `local` in workgroup `group` of the dispatch over the tile list; out of
+// the image past the list's end.
+fn tile_pixel(group: vec3<u32>, local: vec2<u32>) -> vec2<u32> {
+    let k = group.y * MAX_GROUPS + group.x;
+    if k >= tiles[3] {
+        return vec2<u32>(NO_NEIGHBOR);
     }
-    return best;
+    let tile = tiles[TILES_AT + k];
+    let cols = (u32(frame.size.x) + TILE - 1u) / TILE;
+    return vec2<u32>(tile % cols, tile / cols) * TILE + local;
 }
 
 @compute @workgroup_size(8, 8)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>) {
+    let px = tile_pixel(group, local.xy);
     let size = vec2<u32>(frame.size);
-    if gid.x >= size.x || gid.y >= size.y {
+    if px.x >= size.x || px.y >= size.y {
         return;
     }
-    let pixel = gid.y * size.x + gid.x;
-    let d = ray_of(gid.xy);
-    var acc = Acc(vec3<f32>(0.0), 1.0);
-    var t = 0.0;
-    var tet = atomicLoad(&counters[1]);
+    let pixel = px.y * size.x + px.x;
+    let d = ray_of(px);
+    let start = ray_start(pixel);
+    var acc = Acc(start.color, start.trans);
+    var t = start.t;
+    var tet = start_tet();
     var entry = NO_FACE;
-    var steps = 0u;
-    // The entry taken last (code, t bits); none yet.
-    var last = vec2<u32>(0u, bitcast<u32>(-1.0));
+    var steps = start.steps;
+    // The entry taken last (code, t bits).
+    var last = start.last;
+    // Whether the ray left the mesh and found no entry (this layer).
+    var waits = false;
     loop {
         if tet == NO_NEIGHBOR {
             let e = next_entry(pixel, t, last);
             if e.x == NO_NEIGHBOR {
+                waits = true;
                 break;
             }
             last = e;
@@ -167,5 +154,5 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         tet = select(next >> 2u, NO_NEIGHBOR, next == NO_NEIGHBOR);
         entry = next & 3u;
     }
-    textureStore(image, vec2<i32>(gid.xy), vec4<f32>(acc.color, 1.0 - acc.trans));
+    ray_end(px, pixel, RayState(acc.color, acc.trans, t, steps, last), waits);
 }

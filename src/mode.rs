@@ -23,7 +23,7 @@
 //! # }
 //! ```
 
-use crate::gpu::raycast::Segments;
+use crate::gpu::raycast::{Entry, Segments};
 use crate::gpu::{
     AdapterChoice, CellProjRenderer, CellProjSettings, GpuContext, GpuError, Integrate,
     IsoRenderer, IsoSettings, RaycastRenderer, RaycastSettings, ShellSettings, ShellsRenderer,
@@ -161,7 +161,11 @@ impl ModeSettings {
                     Segments::Partial => "partial pre-integration",
                     Segments::Exact => "exact segments",
                 };
-                format!("mode raycast ({how}) on {on}")
+                let entry = match s.entry {
+                    Entry::Lists => "entry lists",
+                    Entry::Peel => "depth peeling",
+                };
+                format!("mode raycast ({how}, {entry}) on {on}")
             }
         }
     }

@@ -43,7 +43,7 @@ const QUICK_CONFIGS: &[(&str, &str)] = &[
     ("shells", "samples 512"),
     ("iso", "flat"),
     ("cellproj", "table 128"),
-    ("raycast", "partial"),
+    ("raycast", "partial lists"),
     ("reference", "exact f64"),
 ];
 

@@ -99,12 +99,32 @@ fn raycast_render_prints_its_stages_and_counters() {
     for line in [
         "planes",
         "entries",
+        "tiles",
         "traverse",
         "rays at step limit",
+        "tiles run",
+        "image tiles",
         "bytes per tet",
     ] {
         assert!(stdout.contains(line), "no {line} in {stdout}");
     }
+}
+
+#[test]
+fn raycast_takes_depth_peeling_and_other_modes_refuse_it() {
+    let png = out_dir("raycast-peel").join("lox.png");
+    let png_arg = png.to_str().unwrap();
+    let args = ["render", LOX, "--size", "32x32", "--timings", "-o", png_arg];
+    let peel = ["--mode", "raycast", "--entry", "peel"];
+    let o = tetvr(&[&args[..], &peel].concat());
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stderr}");
+    for line in ["depth peeling", "peel layers", "tiles run"] {
+        assert!(stdout.contains(line), "no {line} in {stdout}");
+    }
+    let o = tetvr(&[&args[..], &["--mode", "cellproj", "--entry", "peel"]].concat());
+    assert!(!o.status.success());
+    assert!(text(&o).1.contains("--mode raycast"), "{}", text(&o).1);
 }
 
 #[test]

@@ -1,6 +1,8 @@
 //! `--mode raycast` against the exact f64 reference: the oxygen post subset, a box with a hole
 //! seen through the hole, the eye inside a grid, a head-on grid (holes 0), a mesh after
-//! `update_positions`; and the CPU twin against the shipped shaders run on the adapter.
+//! `update_positions`, each with both entry methods (lists, depth peeling: the same picture bit
+//! for bit); the tiles run and the peeling layers; and the CPU twin against the shipped
+//! shaders run on the adapter.
 //!
 //! GPU tests fail (never skip) when there is no adapter. Bounds were measured on lavapipe
 //! (Mesa llvmpipe, 2 cores); each is commented with what it allows for.
@@ -12,7 +14,7 @@ use std::sync::OnceLock;
 use glam::{DVec3, UVec3};
 use tetvr::deform::Deformation;
 use tetvr::generate::{self, fields::Field};
-use tetvr::gpu::raycast::{Segments, twin};
+use tetvr::gpu::raycast::{Entry, Segments, twin};
 use tetvr::gpu::{AdapterChoice, GpuContext, GpuTetMesh, RaycastRenderer, RaycastSettings};
 use tetvr::reference::ReferenceRenderer;
 use tetvr::tf::ControlPoint;
@@ -46,15 +48,20 @@ fn lox() -> TetMesh {
     tetvr::io::load(&path).expect("the asset loads").mesh
 }
 
-fn with(segments: Segments) -> RaycastSettings {
+fn with(segments: Segments, entry: Entry) -> RaycastSettings {
     RaycastSettings {
         segments,
+        entry,
         ..Default::default()
     }
 }
 
 fn frame(mesh: &TetMesh, camera: &Camera, tf: &TransferFunction, s: Segments) -> Frame {
-    let mut r = RaycastRenderer::new(ctx(), mesh, with(s)).expect("renderer");
+    framed(mesh, camera, tf, with(s, Entry::default()))
+}
+
+fn framed(mesh: &TetMesh, camera: &Camera, tf: &TransferFunction, s: RaycastSettings) -> Frame {
+    let mut r = RaycastRenderer::new(ctx(), mesh, s).expect("renderer");
     let frame = r.render(camera, tf).expect("frame");
     eprintln!("{}", frame.timings);
     frame
@@ -87,20 +94,25 @@ const fn bounds(max_rmse: f64, max_abs: f64) -> Bounds {
     }
 }
 
-/// Renders `mesh` and checks it against the reference, and that no ray hit the step limit.
-/// Renders `mesh` with both integrators and checks each against the reference within `b`, and
-/// that no ray hit the step limit; returns the exact frame. Partial pre-integration adds the
-/// psi table's bilinear interpolation (at most 8.9e-6 per piece's colour, `psi` unit test),
-/// which measured within 5% of exact on every scene here, so both share the bound.
+/// Renders `mesh` with both integrators and both entry methods, checks each against the
+/// reference within `b`, that no ray hit the step limit, and that depth peeling gives entry
+/// lists' picture bit for bit (the same entries in the same order, the same arithmetic);
+/// returns the exact frame with entry lists. Partial pre-integration adds the psi table's
+/// bilinear interpolation (at most 8.9e-6 per piece's colour, `psi` unit test), which
+/// measured within 5% of exact on every scene here, so both share the bound.
 fn check(name: &str, mesh: &TetMesh, camera: &Camera, tf: &TransferFunction, b: Bounds) -> Frame {
     let expected = reference(mesh, camera, tf);
     let mut frames = [Segments::Exact, Segments::Partial].map(|s| {
-        let got = frame(mesh, camera, tf, s);
-        let name = format!("raycast-{name}-{s:?}");
-        eprintln!("{name}: {}", got.image.compare(&expected).unwrap());
-        assert_images_close(&name, &got.image, &expected, b);
-        assert_eq!(counter(&got, "rays at step limit"), 0);
-        Some(got)
+        let [lists, peel] = [Entry::Lists, Entry::Peel].map(|entry| {
+            let got = framed(mesh, camera, tf, with(s, entry));
+            let name = format!("raycast-{name}-{s:?}-{entry:?}");
+            eprintln!("{name}: {}", got.image.compare(&expected).unwrap());
+            assert_images_close(&name, &got.image, &expected, b);
+            assert_eq!(counter(&got, "rays at step limit"), 0);
+            got
+        });
+        assert_eq!(peel.image.compare(&lists.image).unwrap().max_abs, 0.0);
+        Some(lists)
     });
     frames[0].take().unwrap()
 }
@@ -351,4 +363,71 @@ fn bluntfin_outside_and_eye_inside() {
     };
     let got = check("bluntfin-inside", &mesh, &inside, &tf, BOUNDS);
     assert_eq!(counter(&got, "eye in a tet"), 1);
+}
+
+/// Tiles: a view of nothing runs no tile with either entry method and gives a transparent
+/// image; lox zoomed out runs only the tiles its silhouette touches; the eye inside a grid runs
+/// every tile. Depth peeling takes one layer on a convex grid seen from outside and more where
+/// rays re-enter (the box with a hole).
+#[test]
+fn tiles_run_where_rays_enter_and_layers_follow_reentry() {
+    let mesh = lox();
+    let (tf, camera) = default_view(&mesh, 128);
+    let (lo, hi) = mesh.bounds();
+    let centre = (lo + hi) * 0.5;
+    let away = Camera {
+        target: camera.eye + (camera.eye - centre),
+        ..camera
+    };
+    for entry in [Entry::Lists, Entry::Peel] {
+        let s = with(Segments::Partial, entry);
+        let empty = framed(&mesh, &away, &tf, s);
+        assert_eq!(counter(&empty, "tiles run"), 0, "{entry:?}");
+        assert_eq!(counter(&empty, "image tiles"), 16 * 16);
+        assert!(empty.image.pixels.iter().all(|p| *p == [0.0; 4]));
+        // Zoomed out to a third of the view's width: the silhouette covers few tiles.
+        let far = Camera {
+            eye: centre + (camera.eye - centre) * 3.0,
+            ..camera
+        };
+        let zoomed = framed(&mesh, &far, &tf, s);
+        let run = counter(&zoomed, "tiles run");
+        assert!(run > 0 && run < 16 * 16 / 4, "{entry:?}: {run} tiles run");
+        // Without the skip every tile runs, and the picture is the same, bit for bit.
+        let every = RaycastSettings {
+            skip_empty_tiles: false,
+            ..s
+        };
+        let all = framed(&mesh, &far, &tf, every);
+        assert!(counter(&all, "tiles run") >= 16 * 16, "{entry:?}");
+        assert_eq!(all.image.compare(&zoomed.image).unwrap().max_abs, 0.0);
+    }
+    let grid = gaussians(6);
+    let (tf, outside) = default_view(&grid, 64);
+    let peel = with(Segments::Partial, Entry::Peel);
+    assert_eq!(
+        counter(&framed(&grid, &outside, &tf, peel), "peel layers"),
+        1
+    );
+    let (glo, ghi) = grid.bounds();
+    let inside = Camera {
+        eye: (glo + ghi) * 0.5,
+        target: ghi,
+        up: DVec3::Z,
+        fov_y_deg: 60.0,
+        width: 64,
+        height: 64,
+    };
+    // Every ray starts in the eye's tet and leaves the convex grid for good: peeling's second
+    // layer finds no hit and runs no tile.
+    let lists = framed(&grid, &inside, &tf, with(Segments::Partial, Entry::Lists));
+    assert_eq!(counter(&lists, "tiles run"), 8 * 8);
+    let got = framed(&grid, &inside, &tf, peel);
+    assert_eq!(counter(&got, "tiles run"), 8 * 8);
+    assert_eq!(counter(&got, "peel layers"), 2);
+    // Seen from the side, rays cross the hole: they enter, leave into it and enter again.
+    let hole = generate::shapes::box_with_hole(5_000, Field::Gaussians).unwrap();
+    let (tf, through) = default_view(&hole, 64);
+    let layers = counter(&framed(&hole, &through, &tf, peel), "peel layers");
+    assert!(layers >= 2, "{layers} layers");
 }

@@ -31,7 +31,7 @@ use glam::DVec3;
 use tetvr::camera::{Camera, View};
 use tetvr::deform::Deformation;
 use tetvr::generate::{self, Field};
-use tetvr::gpu::raycast::Segments;
+use tetvr::gpu::raycast::{Entry, Segments};
 use tetvr::gpu::{
     CellProjSettings, GpuContext, Integrate, IsoSettings, RaycastSettings, ShellSettings, Skip,
     Skips,
@@ -540,13 +540,18 @@ fn cellproj(integrate: Integrate, table_size: u32) -> Config {
     }
 }
 
-fn raycast(segments: Segments) -> Config {
+fn raycast(segments: Segments, entry: Entry) -> Config {
+    let integrate = match segments {
+        Segments::Partial => "partial",
+        Segments::Exact => "exact",
+    };
+    let entries = match entry {
+        Entry::Lists => "lists",
+        Entry::Peel => "peel",
+    };
     Config {
         mode: "raycast",
-        setting: match segments {
-            Segments::Partial => "partial".into(),
-            Segments::Exact => "exact".into(),
-        },
+        setting: format!("{integrate} {entries}"),
         truth: Truth::Volume,
         gpu: true,
         single_run: false,
@@ -554,6 +559,7 @@ fn raycast(segments: Segments) -> Config {
         settings: Box::new(move |_| {
             ModeSettings::Raycast(RaycastSettings {
                 segments,
+                entry,
                 ..RaycastSettings::default()
             })
         }),
@@ -569,7 +575,7 @@ pub fn configurations(quick: bool) -> Vec<Config> {
             shells(512, None),
             iso(Shading::Flat),
             cellproj(Integrate::Table, 128),
-            raycast(Segments::Partial),
+            raycast(Segments::Partial, Entry::default()),
         ]
     } else {
         let mut c = vec![
@@ -586,8 +592,9 @@ pub fn configurations(quick: bool) -> Vec<Config> {
             cellproj(Integrate::Table, 64),
             cellproj(Integrate::Table, 128),
             cellproj(Integrate::Exact, 128),
-            raycast(Segments::Partial),
-            raycast(Segments::Exact),
+            raycast(Segments::Partial, Entry::Lists),
+            raycast(Segments::Partial, Entry::Peel),
+            raycast(Segments::Exact, Entry::default()),
         ]);
         c
     };

@@ -6,7 +6,7 @@ use std::time::Instant;
 use indicatif::{ProgressBar, ProgressStyle};
 use tetvr::camera::{Camera, CameraError, View};
 use tetvr::gpu::cellproj::sort::sort_check;
-use tetvr::gpu::raycast::Segments;
+use tetvr::gpu::raycast::{Entry, Segments};
 use tetvr::gpu::{
     AdapterChoice, CellProjSettings, GpuContext, GpuError, Integrate, IsoSettings, RaycastSettings,
     ShellSettings, Skip,
@@ -25,8 +25,8 @@ use tetvr::tf::file::{TfFileError, load_tf};
 use tetvr::{TetMesh, generate};
 
 use super::{
-    AnimateArgs, Cli, Command, CompareArgs, GenerateArgs, GenerateShape, InfoArgs, IntegrateArg,
-    IsoExportArgs, MeshArgs, Mode, RenderArgs, ShadingArg,
+    AnimateArgs, Cli, Command, CompareArgs, EntryArg, GenerateArgs, GenerateShape, InfoArgs,
+    IntegrateArg, IsoExportArgs, MeshArgs, Mode, RenderArgs, ShadingArg,
 };
 
 /// Everything a command can fail with; each message says what to fix.
@@ -213,6 +213,12 @@ fn mode_settings(
     tf: &TransferFunction,
 ) -> Result<ModeSettings, CliError> {
     let frustum = !args.shells.no_skip.contains(&Skip::Frustum);
+    if args.cellproj.entry.is_some() && args.mode != Mode::Raycast {
+        return Err(CliError::Usage(
+            "--entry belongs to --mode raycast (how its rays find where they enter the mesh)"
+                .into(),
+        ));
+    }
     Ok(match args.mode {
         Mode::Auto => ModeSettings::Auto(shell_settings(args)),
         Mode::Reference => ModeSettings::Reference(ReferenceSettings::default()),
@@ -244,6 +250,11 @@ fn mode_settings(
                             .into(),
                     ));
                 }
+            },
+            entry: match args.cellproj.entry {
+                None => Entry::default(),
+                Some(EntryArg::Lists) => Entry::Lists,
+                Some(EntryArg::Peel) => Entry::Peel,
             },
             ..RaycastSettings::default()
         }),

@@ -89,6 +89,15 @@ pub enum IntegrateArg {
     Partial,
 }
 
+/// How the ray caster finds where rays enter the mesh.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EntryArg {
+    /// Per-pixel lists of every boundary-face hit, built in one pass.
+    Lists,
+    /// Depth peeling of the boundary faces (Bernardon et al. 2004), one layer per pass.
+    Peel,
+}
+
 /// Isosurface shading.
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ShadingArg {
@@ -229,6 +238,10 @@ pub struct CellProjArgs {
     /// raycast).
     #[arg(long, value_enum)]
     pub integrate: Option<IntegrateArg>,
+    /// raycast: how rays find where they enter the mesh (the same picture either way; default
+    /// lists).
+    #[arg(long, value_enum)]
+    pub entry: Option<EntryArg>,
     /// cellproj: pre-integration table samples per scalar axis (and half as many lengths).
     #[arg(long, default_value_t = 128)]
     pub table_size: u32,

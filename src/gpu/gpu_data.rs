@@ -176,6 +176,21 @@ pub struct RaycastUniforms {
 }
 const _: () = assert!(size_of::<RaycastUniforms>() == 16);
 
+/// The ray caster's depth-peeling layer (WGSL `Layer` in `shaders/raycast_rays.wgsl`, 16
+/// bytes); 0 for entry lists.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct LayerUniforms {
+    /// The layer: 0 first.
+    pub index: u32,
+    /// 1: the tile list holds every tile ([`crate::gpu::raycast::RaycastSettings`]'s
+    /// `skip_empty_tiles` off), 0: only those with work.
+    pub all_tiles: u32,
+    /// Zero: pads the struct to the 16 bytes of a uniform binding.
+    pub _pad: [u32; 2],
+}
+const _: () = assert!(size_of::<LayerUniforms>() == 16);
+
 /// Per tet and frame (WGSL `TetPlanes`, 80 bytes): the outward face planes `(n, w)` in eye
 /// space and the linear scalar `(gradient, value at the eye)`.
 #[repr(C)]

@@ -25,31 +25,54 @@ const ISO_GRADIENTS: &str = include_str!("../../shaders/iso_gradients.wgsl");
 const CELLPROJ_RASTER: &str = include_str!("../../shaders/cellproj_raster.wgsl");
 
 const RAYCAST_SHARED: &str = include_str!("../../shaders/raycast_shared.wgsl");
+const RAYCAST_RAYS: &str = include_str!("../../shaders/raycast_rays.wgsl");
+const RAYCAST_COVER: &str = include_str!("../../shaders/raycast_cover.wgsl");
 const RAYCAST_PLANES: &str = include_str!("../../shaders/raycast_planes.wgsl");
 const RAYCAST_ENTRIES: &str = include_str!("../../shaders/raycast_entries.wgsl");
+const RAYCAST_PEEL: &str = include_str!("../../shaders/raycast_peel.wgsl");
+const RAYCAST_TILES: &str = include_str!("../../shaders/raycast_tiles.wgsl");
+const RAYCAST_LISTS: &str = include_str!("../../shaders/raycast_lists.wgsl");
+const RAYCAST_LAYERS: &str = include_str!("../../shaders/raycast_layers.wgsl");
 const RAYCAST_TRAVERSE: &str = include_str!("../../shaders/raycast_traverse.wgsl");
 const RAYCAST_PSI: &str = include_str!("../../shaders/raycast_psi.wgsl");
 
-/// The ray caster's stages as it loads them (entry point `main` in each): planes, entries, and
-/// the traversal with each integrator (`Segments`: exact, partial).
-pub fn raycast_stages() -> [(&'static str, String); 4] {
-    let common = format!("{}\n{RAYCAST_SHARED}", SHARED);
-    let traverse = |name, psi: &str| {
-        let integrate = INTEGRATE_SEGMENT;
-        (
-            name,
-            format!("{common}\n{integrate}\n{psi}\n{RAYCAST_TRAVERSE}"),
-        )
-    };
+/// The ray caster's stages as it loads them (entry point `main` in each): planes; entries;
+/// the two depth-peeling passes (least t, then least face code); the tile list from entry
+/// lists and from peeled hits; the traversal with entry lists (exact, partial segments) and
+/// with depth peeling (exact, partial).
+pub fn raycast_stages() -> [(&'static str, String); 10] {
+    let common = format!("{SHARED}\n{RAYCAST_SHARED}\n{RAYCAST_RAYS}");
     let table = format!(
         "// Generated: samples per psi table axis.\nconst PSI_SIZE: u32 = {}u;\n{RAYCAST_PSI}",
         crate::gpu::raycast::psi::PSI_SIZE
     );
+    let traverse = |name, entries: &str, psi: &str| {
+        let integrate = INTEGRATE_SEGMENT;
+        let source = format!("{common}\n{integrate}\n{psi}\n{entries}\n{RAYCAST_TRAVERSE}");
+        (name, source)
+    };
+    let peel = |pick: bool| {
+        let prelude = format!("// Generated: which pass.\nconst PICK: bool = {pick};");
+        format!("{common}\n{prelude}\n{RAYCAST_COVER}\n{RAYCAST_PEEL}")
+    };
+    let tiles = |stride: u32| {
+        let prelude = format!("// Generated: u32s per pixel.\nconst STRIDE: u32 = {stride}u;");
+        format!("{common}\n{prelude}\n{RAYCAST_TILES}")
+    };
     [
         ("raycast_planes", format!("{common}\n{RAYCAST_PLANES}")),
-        ("raycast_entries", format!("{common}\n{RAYCAST_ENTRIES}")),
-        traverse("raycast_traverse (exact)", PSI_EXACT),
-        traverse("raycast_traverse (partial)", &table),
+        (
+            "raycast_entries",
+            format!("{common}\n{RAYCAST_COVER}\n{RAYCAST_ENTRIES}"),
+        ),
+        ("raycast_peel (least t)", peel(false)),
+        ("raycast_peel (least face)", peel(true)),
+        ("raycast_tiles (entry lists)", tiles(1)),
+        ("raycast_tiles (peeled hits)", tiles(2)),
+        traverse("raycast_traverse (lists, exact)", RAYCAST_LISTS, PSI_EXACT),
+        traverse("raycast_traverse (lists, partial)", RAYCAST_LISTS, &table),
+        traverse("raycast_traverse (peel, exact)", RAYCAST_LAYERS, PSI_EXACT),
+        traverse("raycast_traverse (peel, partial)", RAYCAST_LAYERS, &table),
     ]
 }
 

@@ -1,11 +1,12 @@
-//! One ray-cast frame: upload, the three stages recorded on the shared frame recorder, the
-//! readback, and the rerun with longer entry lists when a list overflowed.
+//! One ray-cast frame: upload, the stages recorded on the shared frame recorder (once, or once
+//! per depth-peeling layer), the readback, and the rerun with longer entry lists when a list
+//! overflowed.
 
 use std::time::Instant;
 
 use crate::camera::Camera;
 use crate::gpu::frame::{ImageReadback, Timestamps};
-use crate::gpu::gpu_data::FrameUniforms;
+use crate::gpu::gpu_data::{FrameUniforms, LayerUniforms};
 use crate::gpu::tf::tf_points;
 use crate::gpu::util::{check_image_size, entry, map_read, ms_since, settings_error, texture_2d};
 use crate::gpu::view::ViewFrame;
@@ -13,9 +14,10 @@ use crate::image::Image;
 use crate::render::{Frame, RenderError, Timings};
 use crate::tf::TransferFunction;
 
-use super::pipelines::{Pipelines, Stage, encode, linear_groups};
+use super::pipelines::{Groups, encode, linear};
 use super::{
-    COUNTERS, RaycastRenderer, RaycastUniforms, Segments, Targets, default_max_steps, near_tol, psi,
+    COUNTERS, Entry, PixelBuffers, RAY_STATE_BYTES, RaycastRenderer, RaycastUniforms, Segments,
+    TILE, Targets, default_max_steps, near_tol, psi,
 };
 
 /// A storage buffer of `bytes` (at least 16) that is also a copy source and destination.
@@ -40,20 +42,35 @@ pub fn mappable(device: &wgpu::Device, label: &str, bytes: usize) -> wgpu::Buffe
     })
 }
 
-/// What one run of the stages read back.
+/// What one run of the stages (all its layers) read back.
+#[derive(Default)]
 struct Run {
+    /// Milliseconds per stage, summed over the layers.
     stages: Vec<(&'static str, f64)>,
     gpu_clock: bool,
-    /// See [`COUNTERS`].
+    /// See [`COUNTERS`] (after the last layer).
     counters: [u32; COUNTERS],
+    /// Layers run (1 with entry lists).
+    layers: u64,
+    /// Tiles the traversal ran, summed over the layers.
+    tiles_run: u64,
 }
 
-/// The traversal stage of `segments`.
-fn traversal(p: &Pipelines, segments: Segments) -> &Stage {
-    match segments {
-        Segments::Exact => &p.exact,
-        Segments::Partial => &p.partial,
-    }
+/// What a layer read back besides the counters: the tiles it ran, the rays that wait for a
+/// later layer, whether a pixel had a second hit (`shaders/raycast_peel.wgsl`).
+struct Progress {
+    tiles: u32,
+    waiting: u32,
+    more: bool,
+}
+
+/// The bind groups of a frame's stages.
+struct BindGroups {
+    planes: wgpu::BindGroup,
+    /// The entries stage's, or both peeling passes'.
+    entry: wgpu::BindGroup,
+    tiles: wgpu::BindGroup,
+    traverse: wgpu::BindGroup,
 }
 
 impl RaycastRenderer {
@@ -81,19 +98,14 @@ impl RaycastRenderer {
         };
         let t = Instant::now();
         let image = self.read_image()?;
-        for stage in ["planes", "entries", "traverse"] {
-            let ms = run
-                .stages
-                .iter()
-                .find(|(s, _)| *s == stage)
-                .map_or(0.0, |s| s.1);
+        for &(stage, ms) in &run.stages {
             timings.stage(stage, ms);
         }
         timings.stage("readback", ms_since(t));
         timings.stage("total", ms_since(start));
         timings.clock = if run.gpu_clock {
-            "GPU timestamps for planes, entries, traverse (the last run); wall clock for \
-             upload, readback and total"
+            "GPU timestamps for planes, entries or peel, tiles, traverse (the last run, summed \
+             over layers); wall clock for upload, readback and total"
         } else {
             "wall clock, GPU drained after each stage"
         };
@@ -106,8 +118,15 @@ impl RaycastRenderer {
         timings.count("boundary faces", self.boundary_count as u64);
         timings.count("thin tets", run.counters[0] as u64);
         timings.count("eye in a tet", (run.counters[1] != u32::MAX) as u64);
-        timings.count("entry list length", self.capacity as u64);
-        timings.count("list overflow reruns", reruns);
+        match self.settings.entry {
+            Entry::Lists => {
+                timings.count("entry list length", self.capacity as u64);
+                timings.count("list overflow reruns", reruns);
+            }
+            Entry::Peel => timings.count("peel layers", run.layers),
+        }
+        timings.count("tiles run", run.tiles_run);
+        timings.count("image tiles", self.image_tiles());
         timings.count("rays at step limit", run.counters[3] as u64);
         timings.count("bytes per tet", self.bytes_per_tet().round() as u64);
     }
@@ -149,26 +168,36 @@ impl RaycastRenderer {
             .write_buffer(&self.params_buf, 0, bytemuck::bytes_of(&params));
     }
 
-    /// The output image and entry lists for `width` x `height` at the current capacity, kept
-    /// while both match; an error naming the sizes when the lists exceed one binding.
+    /// The output image, the entry method's per-pixel buffers and the tile list for `width` x
+    /// `height`, kept while they match; an error naming the sizes when the per-pixel buffers
+    /// exceed one binding.
     fn ensure_targets(&mut self, width: u32, height: u32) -> Result<(), RenderError> {
-        let keep = self
-            .targets
-            .as_ref()
-            .is_some_and(|t| (t.width, t.height, t.capacity) == (width, height, self.capacity));
+        let entry = self.settings.entry;
+        let keep = self.targets.as_ref().is_some_and(|t| {
+            let pixels = match t.pixels {
+                PixelBuffers::Lists { capacity, .. } => (Entry::Lists, capacity),
+                PixelBuffers::Peel { .. } => (Entry::Peel, self.capacity),
+            };
+            (t.width, t.height) == (width, height) && pixels == (entry, self.capacity)
+        });
         if keep {
             return Ok(());
         }
         check_image_size(&self.limits, width, height)?;
         let pixels = width as u64 * height as u64;
-        let bytes = pixels * self.capacity as u64 * 8;
+        let (per_pixel, what) = match entry {
+            Entry::Lists => (
+                self.capacity as u64 * 8,
+                format!("entry lists of {} boundary-face hits", self.capacity),
+            ),
+            Entry::Peel => (RAY_STATE_BYTES, "depth-peeling ray states".to_string()),
+        };
+        let bytes = pixels * per_pixel;
         let max = (self.limits.max_storage_buffer_binding_size).min(self.limits.max_buffer_size);
         if bytes > max {
             return Err(settings_error(format!(
-                "--mode raycast: entry lists of {} boundary-face hits per pixel at \
-                 {width}x{height} need {bytes} bytes, more than one storage binding of this \
-                 adapter holds ({max}); render a smaller image",
-                self.capacity
+                "--mode raycast: {what} per pixel at {width}x{height} need {bytes} bytes, more \
+                 than one storage binding of this adapter holds ({max}); render a smaller image"
             )));
         }
         let format = wgpu::TextureFormat::Rgba32Float;
@@ -180,33 +209,68 @@ impl RaycastRenderer {
             wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
         );
         let device = &self.device;
+        let px = pixels as usize;
+        let pixels = match entry {
+            Entry::Lists => PixelBuffers::Lists {
+                counts: storage(device, "raycast entry counts", 4 * px),
+                entries: storage(device, "raycast entries", bytes as usize),
+                capacity: self.capacity,
+            },
+            Entry::Peel => PixelBuffers::Peel {
+                hits: storage(device, "raycast peeled hits", 8 * px),
+                rays: storage(device, "raycast ray states", bytes as usize),
+            },
+        };
+        let tiles = width.div_ceil(TILE) as usize * height.div_ceil(TILE) as usize;
         self.targets = Some(Targets {
             width,
             height,
             readback: ImageReadback::new(device, "raycast readback", width, height, format),
             image,
-            counts: storage(device, "raycast entry counts", 4 * pixels as usize),
-            entries: storage(device, "raycast entries", bytes as usize),
-            capacity: self.capacity,
+            pixels,
+            tiles: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("raycast tile list"),
+                size: 4 * (4 + tiles as u64),
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::INDIRECT
+                    | wgpu::BufferUsages::COPY_DST
+                    | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            }),
         });
         Ok(())
     }
 
-    fn group(&self, stage: &Stage, entries: &[wgpu::BindGroupEntry]) -> wgpu::BindGroup {
+    /// The tiles of the current image.
+    fn image_tiles(&self) -> u64 {
+        self.targets.as_ref().map_or(0, |t| {
+            t.width.div_ceil(TILE) as u64 * t.height.div_ceil(TILE) as u64
+        })
+    }
+
+    fn group(
+        &self,
+        layout: &wgpu::BindGroupLayout,
+        entries: &[wgpu::BindGroupEntry],
+    ) -> wgpu::BindGroup {
         self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("raycast"),
-            layout: &stage.layout,
+            layout,
             entries,
         })
     }
 
-    /// The bind groups of the planes, entries and traversal stages.
-    fn bind(&self, t: &Targets) -> [wgpu::BindGroup; 3] {
+    /// The bind groups of the stages.
+    fn bind(&self, t: &Targets) -> BindGroups {
         let nt = self.mesh.tet_count() as u64;
         let p = &self.pipelines;
         let view = t.image.create_view(&Default::default());
+        let image = |binding| wgpu::BindGroupEntry {
+            binding,
+            resource: wgpu::BindingResource::TextureView(&view),
+        };
         let planes = self.group(
-            &p.planes,
+            &p.planes.layout,
             &[
                 entry(0, &self.frame_buf),
                 entry(1, self.mesh.positions()),
@@ -217,72 +281,133 @@ impl RaycastRenderer {
                 entry(6, &self.params_buf),
             ],
         );
-        let entries = self.group(
-            &p.entries,
+        let (first, second) = match &t.pixels {
+            PixelBuffers::Lists {
+                counts, entries, ..
+            } => (counts, entries),
+            PixelBuffers::Peel { hits, rays } => (hits, rays),
+        };
+        let faces = [
+            entry(0, &self.frame_buf),
+            entry(1, self.mesh.positions()),
+            self.links.window(2, 0, nt),
+            self.planes.window(3, 0, nt),
+            entry(4, &self.boundary),
+            entry(5, first),
+            entry(6, second),
+            entry(7, &self.counters),
+            entry(8, &self.params_buf),
+        ];
+        let entry_group = match self.settings.entry {
+            Entry::Lists => self.group(&p.entries.layout, &faces),
+            Entry::Peel => {
+                let layer = [entry(9, &self.layer_buf), entry(10, &self.progress)];
+                self.group(&p.peel[0].layout, &[&faces[..], &layer].concat())
+            }
+        };
+        let tiles = self.group(
+            &p.tiles(self.settings.entry).layout,
             &[
                 entry(0, &self.frame_buf),
-                entry(1, self.mesh.positions()),
-                self.links.window(2, 0, nt),
-                self.planes.window(3, 0, nt),
-                entry(4, &self.boundary),
-                entry(5, &t.counts),
-                entry(6, &t.entries),
-                entry(7, &self.counters),
-                entry(8, &self.params_buf),
+                entry(1, &self.counters),
+                entry(2, first),
+                entry(3, &t.tiles),
+                entry(4, &self.layer_buf),
+                image(5),
             ],
         );
-        let traverse = self.group(
-            traversal(p, self.settings.segments),
-            &[
-                entry(0, &self.frame_buf),
-                self.links.window(1, 0, nt),
-                self.planes.window(2, 0, nt),
-                entry(3, &t.counts),
-                entry(4, &t.entries),
-                entry(5, &self.tf_buf),
-                entry(6, &self.params_buf),
-                entry(7, &self.counters),
-                wgpu::BindGroupEntry {
-                    binding: 8,
-                    resource: wgpu::BindingResource::TextureView(&view),
-                },
-                entry(9, self.mesh.positions()),
-                entry(10, &self.psi),
-            ],
-        );
-        [planes, entries, traverse]
+        let mut traverse = vec![
+            entry(0, &self.frame_buf),
+            self.links.window(1, 0, nt),
+            self.planes.window(2, 0, nt),
+            entry(3, first),
+            entry(4, second),
+            entry(5, &self.tf_buf),
+            entry(6, &self.params_buf),
+            entry(7, &self.counters),
+            image(8),
+            entry(9, self.mesh.positions()),
+            entry(10, &self.psi),
+            entry(11, &t.tiles),
+        ];
+        if self.settings.entry == Entry::Peel {
+            traverse.extend([entry(12, &self.layer_buf), entry(13, &self.progress)]);
+        }
+        let stage = p.traverse(self.settings.entry, self.settings.segments);
+        BindGroups {
+            planes,
+            entry: entry_group,
+            tiles,
+            traverse: self.group(&stage.layout, &traverse),
+        }
     }
 
-    /// Runs the three stages once and reads the counters back.
+    /// Runs the stages once (each layer of depth peeling in turn, until no ray can enter
+    /// another) and reads the counters back.
     fn record(&mut self) -> Result<Run, RenderError> {
-        let t = (self.targets.as_ref())
-            .ok_or_else(|| settings_error("internal: render target missing"))?;
-        let [planes, entries, traverse] = self.bind(t);
         let reset: [u32; COUNTERS] = [0, u32::MAX, 0, 0];
         self.queue
             .write_buffer(&self.counters, 0, bytemuck::cast_slice(&reset));
+        let groups = self.bind(self.targets()?);
+        let mut run = Run::default();
+        loop {
+            let layer = LayerUniforms {
+                index: run.layers as u32,
+                all_tiles: !self.settings.skip_empty_tiles as u32,
+                ..Default::default()
+            };
+            self.queue
+                .write_buffer(&self.layer_buf, 0, bytemuck::bytes_of(&layer));
+            let progress = self.record_layer(&mut run, &groups)?;
+            run.layers += 1;
+            run.tiles_run += progress.tiles as u64;
+            let eye_inside = run.counters[1] != u32::MAX;
+            let first_from_eye = run.layers == 1 && eye_inside;
+            let again = progress.waiting > 0 && (progress.more || first_from_eye);
+            if self.settings.entry == Entry::Lists || !again {
+                return Ok(run);
+            }
+        }
+    }
+
+    /// Records, runs and reads back one layer (the whole frame with entry lists).
+    fn record_layer(
+        &mut self,
+        run: &mut Run,
+        groups: &BindGroups,
+    ) -> Result<Progress, RenderError> {
+        let t = (self.targets.as_ref())
+            .ok_or_else(|| settings_error("internal: render target missing"))?;
+        let p = &self.pipelines;
         let max = self.limits.max_compute_workgroups_per_dimension;
-        let nt = self.mesh.tet_count() as u64;
-        let tiles = (t.width.div_ceil(8), t.height.div_ceil(8));
-        let passes = [
-            (
-                "planes",
-                &self.pipelines.planes,
-                &planes,
-                linear_groups(nt, max),
-            ),
-            ("entries", &self.pipelines.entries, &entries, {
-                linear_groups(self.boundary_count as u64, max)
-            }),
-            (
-                "traverse",
-                traversal(&self.pipelines, self.settings.segments),
-                &traverse,
-                tiles,
-            ),
-        ];
-        let mut rec = (self.frame).recorder(&self.device, &self.queue, 3, 0);
-        rec.encoder().clear_buffer(&t.counts, 0, None);
+        let first = run.layers == 0;
+        let entry = self.settings.entry;
+        let faces = linear(self.boundary_count as u64, max);
+        let mut rec = (self.frame).recorder(&self.device, &self.queue, 5, 0);
+        let mut passes = Vec::new();
+        if first {
+            let nt = self.mesh.tet_count() as u64;
+            passes.push(("planes", &p.planes, &groups.planes, linear(nt, max)));
+        }
+        match &t.pixels {
+            PixelBuffers::Lists { counts, .. } => {
+                rec.encoder().clear_buffer(counts, 0, None);
+                passes.push(("entries", &p.entries, &groups.entry, faces));
+            }
+            PixelBuffers::Peel { hits, .. } => {
+                rec.encoder().clear_buffer(hits, 0, None);
+                rec.encoder().clear_buffer(&self.progress, 0, None);
+                for pass in &p.peel {
+                    passes.push(("peel", pass, &groups.entry, faces));
+                }
+            }
+        }
+        rec.encoder().clear_buffer(&t.tiles, 0, Some(16));
+        let tiles = (t.width.div_ceil(TILE) * t.height.div_ceil(TILE)) as u64;
+        passes.push(("tiles", p.tiles(entry), &groups.tiles, linear(tiles, max)));
+        let traverse = p.traverse(entry, self.settings.segments);
+        let indirect = Groups::Indirect(&t.tiles);
+        passes.push(("traverse", traverse, &groups.traverse, indirect));
         for (name, stage, group, groups) in passes {
             let ts = rec.timestamps(name);
             let writes = ts.as_ref().map(Timestamps::compute);
@@ -290,28 +415,56 @@ impl RaycastRenderer {
             rec.end_stage(name)?;
         }
         let bytes = 4 * COUNTERS as u64;
-        (rec.encoder()).copy_buffer_to_buffer(&self.counters, 0, &self.counters_read, 0, bytes);
-        let stats = rec.finish(&[(&t.image, &t.readback)], &self.counters, 0)?;
-        map_read(&self.device, &self.counters_read)?;
-        let counters = {
-            let data = (self.counters_read.get_mapped_range(..))
-                .map_err(|e| settings_error(format!("mapping the counters failed: {e}")))?;
-            let words: &[u32] = bytemuck::cast_slice(&data);
-            std::array::from_fn(|i| words[i])
-        };
-        self.counters_read.unmap();
-        Ok(Run {
-            stages: stats.stages,
-            gpu_clock: stats.gpu_clock,
-            counters,
+        let enc = rec.encoder();
+        enc.copy_buffer_to_buffer(&self.counters, 0, &self.counters_read, 0, bytes);
+        enc.copy_buffer_to_buffer(&t.tiles, 12, &self.counters_read, bytes, 4);
+        enc.copy_buffer_to_buffer(&self.progress, 0, &self.counters_read, bytes + 4, 8);
+        let stats = rec.finish(&[], &self.counters, 0)?;
+        for (stage, ms) in stats.stages {
+            match run.stages.iter_mut().find(|(s, _)| *s == stage) {
+                Some((_, sum)) => *sum += ms,
+                None => run.stages.push((stage, ms)),
+            }
+        }
+        run.gpu_clock = stats.gpu_clock;
+        let words: [u32; COUNTERS + 3] = read_words(&self.device, &self.counters_read)?;
+        run.counters = std::array::from_fn(|i| words[i]);
+        let [tiles, waiting, more] = std::array::from_fn(|i| words[COUNTERS + i]);
+        Ok(Progress {
+            tiles,
+            waiting,
+            more: more != 0,
         })
     }
 
+    fn targets(&self) -> Result<&Targets, RenderError> {
+        (self.targets.as_ref()).ok_or_else(|| settings_error("internal: render target missing"))
+    }
+
+    /// Copies the image out and reads it back.
     fn read_image(&self) -> Result<Image, RenderError> {
-        let t = (self.targets.as_ref())
-            .ok_or_else(|| settings_error("internal: render target missing"))?;
+        let t = self.targets()?;
+        let mut enc = (self.device).create_command_encoder(&Default::default());
+        t.readback.copy(&mut enc, &t.image);
+        self.queue.submit([enc.finish()]);
         let mut image = Image::new(t.width, t.height);
         image.pixels = t.readback.read(&self.device)?;
         Ok(image)
     }
+}
+
+/// The first `N` u32s of a mappable buffer the GPU has written.
+fn read_words<const N: usize>(
+    device: &wgpu::Device,
+    buffer: &wgpu::Buffer,
+) -> Result<[u32; N], RenderError> {
+    map_read(device, buffer)?;
+    let words = {
+        let data = (buffer.get_mapped_range(..))
+            .map_err(|e| settings_error(format!("mapping the counters failed: {e}")))?;
+        let words: &[u32] = bytemuck::cast_slice(&data);
+        std::array::from_fn(|i| words[i])
+    };
+    buffer.unmap();
+    Ok(words)
 }

@@ -1,6 +1,7 @@
 //! `--mode raycast`: GPU ray casting on compute shaders through face adjacency (Weiler et al.
 //! 2003), one thread per ray in 8 x 8 pixel tiles, with partial pre-integration (Espinha &
-//! Celes 2005) or exact segment integration.
+//! Celes 2005) or exact segment integration; rays enter by per-pixel entry lists or by depth
+//! peeling of the boundary faces (Bernardon et al. 2004), [`Entry`].
 //!
 //! Per frame:
 //! 1. upload (`frame.rs`): frame constants, the TF, the ray caster's constants (and, on the
@@ -8,16 +9,27 @@
 //! 2. planes (`shaders/raycast_planes.wgsl`): once per tet, its face planes and linear scalar
 //!    in eye space from the current positions (a deforming mesh needs no preprocessing), and
 //!    the eye's tet when the eye is inside the mesh;
-//! 3. entries (`shaders/raycast_entries.wgsl`): once per boundary face, its hit (t, face) into
-//!    the list of every pixel whose ray enters the mesh through it (watertight edge tests); a
-//!    full list counts an overflow and the frame is rendered again with longer lists;
-//! 4. traversal (`shaders/raycast_traverse.wgsl`): once per pixel, from the eye's tet or the
-//!    nearest entry, tet to tet through the face the ray leaves by ([`links`]: neighbour and
-//!    face across, built once), each segment integrated for the piecewise-linear TF
-//!    (`integrate_segment.wgsl`, shared with cellproj; [`Segments`]: exact or partial
+//! 3. entries, [`Entry::Lists`] (`shaders/raycast_entries.wgsl`): once per boundary face, its
+//!    hit (t, face) into the list of every pixel whose ray enters the mesh through it
+//!    (watertight edge tests, `raycast_cover.wgsl`); a full list counts an overflow and the
+//!    frame is rendered again with longer lists;
+//! 4. tiles (`shaders/raycast_tiles.wgsl`): the 8 x 8 pixel tiles where some ray has an entry
+//!    (all when the eye is in a tet) into a list, the traversal's indirect dispatch: an empty
+//!    tile costs the traversal nothing;
+//! 5. traversal (`shaders/raycast_traverse.wgsl`): once per pixel of the listed tiles, from the
+//!    eye's tet or the nearest entry, tet to tet through the face the ray leaves by ([`links`]:
+//!    neighbour and face across, built once), each segment integrated for the piecewise-linear
+//!    TF (`integrate_segment.wgsl`, shared with cellproj; [`Segments`]: exact or partial
 //!    pre-integration), re-entering at the next entry of its list after it leaves a
 //!    non-convex mesh; early ray termination, and a step limit whose hits are counted;
-//! 5. readback (`gpu/frame.rs`) with the GPU timestamps of stages 2-4.
+//! 6. readback (`gpu/frame.rs`) with the GPU timestamps of stages 2-5.
+//!
+//! With [`Entry::Peel`] stage 3 is depth peeling (`shaders/raycast_peel.wgsl`), and stages 3-5
+//! run once per layer: layer k holds each pixel's first boundary-face hit by which its ray
+//! may enter after leaving the mesh in layer k - 1; only the tiles with such a hit run the
+//! layer's traversal, which keeps each ray's state for the next layer; the frame ends when the
+//! layer's peel found no pixel with a second hit (or no ray waits), read back after each layer.
+//! Both methods choose the same entries and give the same picture, bit for bit.
 //!
 //! **Robustness in f32.** The two tets sharing a face compute its plane from the same three
 //! vertices in the same (global index) order, so the ray leaves one at exactly the t where it
@@ -40,7 +52,7 @@ use glam::DVec3;
 use crate::camera::Camera;
 use crate::gpu::GpuContext;
 use crate::gpu::frame::{FrameResources, ImageReadback};
-use crate::gpu::gpu_data::{FrameUniforms, TfPoints};
+use crate::gpu::gpu_data::{FrameUniforms, LayerUniforms, TfPoints};
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
 use crate::gpu::util::{settings_error, uniform_buffer};
 use crate::mesh::TetMesh;
@@ -61,18 +73,43 @@ pub enum Segments {
 
 pub use crate::gpu::gpu_data::{RaycastUniforms, TetLinks, TetPlanes};
 
+/// How rays find the boundary faces they enter the mesh by (the same entries, the same
+/// picture; only the cost differs).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Entry {
+    /// Per-pixel lists of every boundary-face hit, built in one pass.
+    #[default]
+    Lists = 0,
+    /// Depth peeling of the boundary faces (Bernardon et al. 2004), one layer per pass.
+    Peel = 1,
+}
+
+/// Pixels along a screen tile's side: the traversal's workgroup is one tile.
+pub const TILE: u32 = 8;
+
+/// Bytes of a ray's state between depth-peeling layers (WGSL `RayState`).
+pub const RAY_STATE_BYTES: u64 = 32;
+
 /// The counters the stages write (u32 each): thin tets (see [`twin::THIN`]), the eye's tet (`u32::MAX`: none),
 /// list overflows, rays stopped by the step limit.
 pub const COUNTERS: usize = 4;
+
+/// Bytes read back after each layer: the counters, the tiles run, the layer's progress.
+const READ_BYTES: usize = 4 * COUNTERS + 16;
 
 /// Settings of the ray caster.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct RaycastSettings {
     /// Segment integration.
     pub segments: Segments,
-    /// Boundary-face hits each pixel's entry list starts with (doubled and the frame rendered
-    /// again while a list overflows; kept for later frames).
+    /// How rays find their entries.
+    pub entry: Entry,
+    /// With [`Entry::Lists`]: boundary-face hits each pixel's entry list starts with (doubled
+    /// and the frame rendered again while a list overflows; kept for later frames).
     pub list_capacity: u32,
+    /// Whether the traversal skips the tiles where no ray has an entry (on by default; off
+    /// only to measure what the skip saves: the picture is the same).
+    pub skip_empty_tiles: bool,
     /// Tets one ray may step through; `None`: [`default_max_steps`] of the mesh.
     pub max_steps: Option<u32>,
 }
@@ -81,7 +118,9 @@ impl Default for RaycastSettings {
     fn default() -> Self {
         Self {
             segments: Segments::Partial,
+            entry: Entry::default(),
             list_capacity: 4,
+            skip_empty_tiles: true,
             max_steps: None,
         }
     }
@@ -112,7 +151,12 @@ pub struct RaycastRenderer {
     frame_buf: wgpu::Buffer,
     tf_buf: wgpu::Buffer,
     params_buf: wgpu::Buffer,
-    /// [`COUNTERS`] u32s, and their mappable copy.
+    /// The depth-peeling layer ([`LayerUniforms`]).
+    layer_buf: wgpu::Buffer,
+    /// Per layer: rays that wait for a later layer, and whether a pixel had a second hit.
+    progress: wgpu::Buffer,
+    /// [`COUNTERS`] u32s, and their mappable copy followed by the layer's tile count and
+    /// [`Self::progress`] (one readback per layer).
     counters: wgpu::Buffer,
     counters_read: wgpu::Buffer,
     links: TetArray,
@@ -128,16 +172,43 @@ pub struct RaycastRenderer {
     targets: Option<Targets>,
 }
 
-/// Per image size: the output, its readback, the per-pixel entry lists.
+/// Per image size and entry method: the output, its readback, the per-pixel entry buffers,
+/// the tile list.
 struct Targets {
     width: u32,
     height: u32,
     image: wgpu::Texture,
     readback: ImageReadback,
-    counts: wgpu::Buffer,
-    /// `capacity` hits per pixel.
-    entries: wgpu::Buffer,
-    capacity: u32,
+    pixels: PixelBuffers,
+    /// The traversal's indirect dispatch, the list's length, and the tiles listed
+    /// (`shaders/raycast_tiles.wgsl`).
+    tiles: wgpu::Buffer,
+}
+
+/// The per-pixel buffers of an entry method.
+enum PixelBuffers {
+    /// The hits each pixel's list has, and `capacity` hits per pixel.
+    Lists {
+        counts: wgpu::Buffer,
+        entries: wgpu::Buffer,
+        capacity: u32,
+    },
+    /// The layer's peeled hit (two u32s per pixel), and the rays' states between layers.
+    Peel {
+        hits: wgpu::Buffer,
+        rays: wgpu::Buffer,
+    },
+}
+
+impl PixelBuffers {
+    fn size(&self) -> u64 {
+        match self {
+            Self::Lists {
+                counts, entries, ..
+            } => counts.size() + entries.size(),
+            Self::Peel { hits, rays } => hits.size() + rays.size(),
+        }
+    }
 }
 
 impl RaycastRenderer {
@@ -165,8 +236,10 @@ impl RaycastRenderer {
             frame_buf: uniform("raycast frame", size_of::<FrameUniforms>()),
             tf_buf: uniform("raycast tf", size_of::<TfPoints>()),
             params_buf: uniform("raycast constants", size_of::<RaycastUniforms>()),
+            layer_buf: uniform("raycast layer", size_of::<LayerUniforms>()),
+            progress: frame::storage(&device, "raycast layer progress", 16),
             counters: frame::storage(&device, "raycast counters", 4 * COUNTERS),
-            counters_read: frame::mappable(&device, "raycast counters readback", 4 * COUNTERS),
+            counters_read: frame::mappable(&device, "raycast counters readback", READ_BYTES),
             links,
             planes,
             boundary,
@@ -197,6 +270,11 @@ impl RaycastRenderer {
     /// needs it).
     pub fn set_segments(&mut self, segments: Segments) {
         self.settings.segments = segments;
+    }
+
+    /// Switches how rays find their entries (the per-pixel buffers follow on the next frame).
+    pub fn set_entry(&mut self, entry: Entry) {
+        self.settings.entry = entry;
     }
 
     /// Bytes per tet of what scales with the mesh: planes, links, the boundary and the
@@ -244,6 +322,8 @@ impl Renderer for RaycastRenderer {
             &self.frame_buf,
             &self.tf_buf,
             &self.params_buf,
+            &self.layer_buf,
+            &self.progress,
             &self.counters,
             &self.counters_read,
             &self.boundary,
@@ -253,8 +333,8 @@ impl Renderer for RaycastRenderer {
         .map(|b| b.size())
         .sum();
         let targets = self.targets.as_ref().map_or(0, |t| {
-            t.counts.size()
-                + t.entries.size()
+            t.pixels.size()
+                + t.tiles.size()
                 + t.readback.size()
                 + 16 * t.width as u64 * t.height as u64
         });

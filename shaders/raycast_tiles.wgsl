@@ -1,0 +1,58 @@
+// Ray caster stage, tiles (Bernardon et al. 2004; one thread per TILE x TILE screen tile):
+// lists the tiles where some ray has an entry this layer (every tile in the first layer when
+// rays start in the eye's tet, and every tile when skipping empty ones is off), for the traversal's indirect dispatch; a tile left out costs the
+// traversal nothing. In the frame's first layer it writes transparent black to the pixels of
+// the tiles it leaves out (later layers keep what earlier ones wrote there).
+//
+// The list (`tiles`, cleared to zero before): the indirect dispatch (x, y, z) in rows of
+// MAX_GROUPS workgroups, the list's length, then the tiles' indices (row-major).
+// Generated before: const STRIDE: u32, the u32s per pixel of `source`, whose first is not zero
+// where the pixel has an entry (entry lists: the count; depth peeling: the peeled hit).
+
+@group(0) @binding(1) var<storage, read> counters: array<u32, 4>;
+@group(0) @binding(2) var<storage, read> source: array<u32>;
+@group(0) @binding(3) var<storage, read_write> tiles: array<atomic<u32>>;
+@group(0) @binding(4) var<uniform> layer: Layer;
+@group(0) @binding(5) var image: texture_storage_2d<rgba32float, write>;
+// Named by raycast_shared.wgsl's face helpers; this stage reads neither (nor binds them).
+@group(0) @binding(6) var<storage, read> positions: array<vec4<f32>>;
+@group(0) @binding(7) var<storage, read> links: array<TetLinks>;
+
+// Whether a pixel of the tile [lo, hi) has an entry.
+fn entered(lo: vec2<u32>, hi: vec2<u32>, width: u32) -> bool {
+    for (var y = lo.y; y < hi.y; y++) {
+        for (var x = lo.x; x < hi.x; x++) {
+            if source[STRIDE * (y * width + x)] != 0u {
+                return true;
+            }
+        }
+    }
+    return false;
+}
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let size = vec2<u32>(frame.size);
+    let cols = (size.x + TILE - 1u) / TILE;
+    let tile = gid.y * groups.x * 64u + gid.x;
+    if tile >= cols * ((size.y + TILE - 1u) / TILE) {
+        return;
+    }
+    let lo = vec2<u32>(tile % cols, tile / cols) * TILE;
+    let hi = min(lo + TILE, size);
+    let first = layer.index == 0u;
+    let every = layer.all_tiles != 0u || (first && counters[1] != NO_NEIGHBOR);
+    if every || entered(lo, hi, size.x) {
+        let k = atomicAdd(&tiles[3], 1u);
+        atomicStore(&tiles[TILES_AT + k], tile);
+        atomicMax(&tiles[0], min(k + 1u, MAX_GROUPS));
+        atomicMax(&tiles[1], k / MAX_GROUPS + 1u);
+        atomicMax(&tiles[2], 1u);
+    } else if first {
+        for (var y = lo.y; y < hi.y; y++) {
+            for (var x = lo.x; x < hi.x; x++) {
+                textureStore(image, vec2<i32>(vec2<u32>(x, y)), vec4<f32>(0.0));
+            }
+        }
+    }
+}
