@@ -29,6 +29,7 @@ use std::time::Instant;
 use glam::DVec3;
 
 use tetvr::camera::{Camera, View};
+use tetvr::cpu::raycast::CpuRaycastSettings;
 use tetvr::deform::Deformation;
 use tetvr::generate::{self, Field};
 use tetvr::gpu::raycast::Segments;
@@ -560,8 +561,23 @@ fn raycast(segments: Segments) -> Config {
     }
 }
 
+fn raycast_cpu(segments: Segments) -> Config {
+    Config {
+        mode: "raycast-cpu",
+        gpu: false,
+        settings: Box::new(move |_| {
+            ModeSettings::RaycastCpu(CpuRaycastSettings {
+                segments,
+                ..CpuRaycastSettings::default()
+            })
+        }),
+        ..raycast(segments)
+    }
+}
+
 /// The configurations of the bench: `quick` keeps two shells settings, flat iso, the default
-/// cell projection, the ray caster and the reference. Modes and settings join here.
+/// cell projection, the ray casters (GPU and CPU) and the reference. Modes and settings join
+/// here.
 pub fn configurations(quick: bool) -> Vec<Config> {
     let mut c = if quick {
         vec![
@@ -570,6 +586,7 @@ pub fn configurations(quick: bool) -> Vec<Config> {
             iso(Shading::Flat),
             cellproj(Integrate::Table, 128),
             raycast(Segments::Partial),
+            raycast_cpu(Segments::Partial),
         ]
     } else {
         let mut c = vec![
@@ -588,6 +605,8 @@ pub fn configurations(quick: bool) -> Vec<Config> {
             cellproj(Integrate::Exact, 128),
             raycast(Segments::Partial),
             raycast(Segments::Exact),
+            raycast_cpu(Segments::Partial),
+            raycast_cpu(Segments::Exact),
         ]);
         c
     };
@@ -880,7 +899,7 @@ pub fn run(
         let mut truths: Vec<(ViewKind, Truth, Image)> = Vec::new();
         for config in runnable {
             let what = format!("{} {} {}", scene.name, config.mode, config.setting);
-            if !config.gpu && wants_gpu && !gpu_built {
+            if config.mode == "reference" && wants_gpu && !gpu_built {
                 let reason = "no GPU configuration could render this scene (see their reasons), \
                               so its reference would measure nothing";
                 skip(&mut report, config, "all", reason);
