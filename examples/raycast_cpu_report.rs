@@ -52,12 +52,15 @@ fn report(
     r.render(camera, tf)?;
     let (mut wall, mut stages) = (Vec::new(), Vec::<Vec<(&str, f64)>>::new());
     let cpu = cpu_seconds();
-    let mut image = None;
+    let (mut image, mut steps) = (None, 0);
     for _ in 0..frames {
         let t = Instant::now();
         let frame = r.render(camera, tf)?;
         wall.push(t.elapsed().as_secs_f64() * 1e3);
         stages.push(frame.timings.stages.clone());
+        steps = (frame.timings.counters.iter())
+            .find(|c| c.0 == "tet steps")
+            .map_or(0, |c| c.1);
         image = Some(frame.image);
     }
     let cpu_ms = (cpu_seconds() - cpu) * 1e3 / frames as f64;
@@ -65,8 +68,13 @@ fn report(
         .map(|(k, (s, _))| format!("{s} {:.1}", median(stages.iter().map(|v| v[k].1).collect())))
         .collect();
     let error = image.expect("frames").compare(truth)?;
+    let per_step = if steps > 0 {
+        format!(" ({:.1} ns per tet step)", cpu_ms * 1e6 / steps as f64)
+    } else {
+        String::new()
+    };
     println!(
-        "{name}: median {:.1} ms wall (min {:.1}), {cpu_ms:.0} ms CPU per frame; {}; {error}",
+        "{name}: median {:.1} ms wall (min {:.1}), {cpu_ms:.0} ms CPU per frame{per_step}; {}; {error}",
         median(wall.clone()),
         wall.iter().copied().fold(f64::INFINITY, f64::min),
         split.join(", ")

@@ -19,20 +19,41 @@ const GL_W: [f32; 4] = [0.173_927_42, 0.326_072_58, 0.326_072_58, 0.173_927_42];
 const SUB_DEPTH: f32 = 0.5;
 const STOP_DEPTH: f32 = 16.0;
 
-/// One control point with its scalar normalized to the mesh's range.
+/// Buckets of [`SegmentTf::first`] over `u` in `[0, 1]`.
+const BUCKETS: usize = 256;
+
+/// The TF between two control points (or beyond the ends), linear in `u`: its values at both
+/// ends, `lo` and `1 / width` (0 beyond the ends and across a step, where it is constant).
 #[derive(Clone, Copy, Debug)]
-struct Point {
-    u: f32,
-    tau: f32,
-    rgb: Vec3,
-    /// `1 / (next.u - u)`; 0 at a step and at the last point.
+struct Interval {
+    lo: f32,
     inv_width: f32,
+    tau: [f32; 2],
+    rgb: [Vec3; 2],
+}
+
+impl Interval {
+    /// Extinction and colour at `u`, clamped to the interval (f32 rounding of `u` never
+    /// reaches beyond its ends' values, so extinction stays at least 0).
+    fn at(&self, u: f32) -> (f32, Vec3) {
+        let w = ((u - self.lo) * self.inv_width).clamp(0.0, 1.0);
+        (
+            self.tau[0] * (1.0 - w) + self.tau[1] * w,
+            self.rgb[0] * (1.0 - w) + self.rgb[1] * w,
+        )
+    }
 }
 
 /// A transfer function as the traversal integrates it.
 #[derive(Clone, Debug)]
 pub struct SegmentTf {
-    points: Vec<Point>,
+    /// The control points' normalized scalars.
+    u: Vec<f32>,
+    /// Interval `j` lies between points `j - 1` and `j` (`u.len() + 1` of them).
+    intervals: Vec<Interval>,
+    /// `first[b]`: how many points lie below `b / BUCKETS` (0 for `b = 0`), where the search
+    /// for a scalar in bucket `b` starts.
+    first: Vec<u32>,
     segments: Segments,
     /// The psi table ([`psi::table`]) for `Partial`; empty for `Exact`.
     table: &'static [f32],
@@ -42,16 +63,34 @@ impl SegmentTf {
     /// `tf` for scalars normalized as `u = (s - lo) / span`.
     pub fn new(tf: &TransferFunction, lo: f64, span: f64, segments: Segments) -> Self {
         let p = tf.points();
-        let u = |k: usize| (p[k].s - lo) / span;
-        let points = (p.iter().zip(tf.taus()).enumerate())
-            .map(|(k, (q, &tau))| Point {
-                u: u(k) as f32,
-                tau: tau as f32,
-                rgb: Vec3::from_array(q.color.map(|c| c as f32)),
-                inv_width: match (k + 1 < p.len()).then(|| u(k + 1)) {
-                    Some(v) if v > u(k) => (1.0 / (v - u(k))) as f32,
-                    _ => 0.0,
-                },
+        let u: Vec<f64> = p.iter().map(|q| (q.s - lo) / span).collect();
+        let point = |k: usize| {
+            (
+                tf.taus()[k] as f32,
+                Vec3::from_array(p[k].color.map(|c| c as f32)),
+            )
+        };
+        let n = p.len();
+        let intervals = (0..=n)
+            .map(|j| {
+                let (a, b) = (j.max(1) - 1, j.min(n - 1));
+                let ((ta, ca), (tb, cb)) = (point(a), point(b));
+                Interval {
+                    lo: u[a] as f32,
+                    inv_width: if u[b] > u[a] {
+                        (1.0 / (u[b] - u[a])) as f32
+                    } else {
+                        0.0
+                    },
+                    tau: [ta, tb],
+                    rgb: [ca, cb],
+                }
+            })
+            .collect();
+        let first = (0..BUCKETS)
+            .map(|b| match b {
+                0 => 0,
+                _ => u.partition_point(|&v| v < b as f64 / BUCKETS as f64) as u32,
             })
             .collect();
         let table = match segments {
@@ -59,28 +98,39 @@ impl SegmentTf {
             Segments::Exact => &[],
         };
         Self {
-            points,
+            u: u.iter().map(|&v| v as f32).collect(),
+            intervals,
+            first,
             segments,
             table,
         }
     }
 
+    /// How many points lie below `u` (at or below it when `at_too`).
+    fn below(&self, u: f32, at_too: bool) -> usize {
+        let b = ((u * BUCKETS as f32) as usize).min(BUCKETS - 1);
+        let mut j = self.first[b] as usize;
+        while j < self.u.len() && (self.u[j] < u || (at_too && self.u[j] == u)) {
+            j += 1;
+        }
+        j
+    }
+
     /// Premultiplied colour and transmittance of a segment of length `len` along which the
-    /// normalized scalar goes linearly from `u_front` to `u_back`.
+    /// normalized scalar goes linearly from `u_front` to `u_back`: split where it crosses
+    /// control points, each piece composited behind the ones before.
     pub fn segment(&self, u_front: f32, u_back: f32, len: f32) -> (Vec3, f32) {
         let du = u_back - u_front;
         let up = du >= 0.0;
-        let n = self.points.len();
-        let mut j = self
-            .points
-            .partition_point(|p| p.u < u_front || (up && p.u == u_front));
+        let n = self.u.len();
+        let mut j = self.below(u_front, up);
         let (mut color, mut trans) = (Vec3::ZERO, 1.0f32);
         let mut s0 = u_front;
         loop {
             let next = if up {
-                (j < n && self.points[j].u < u_back).then(|| self.points[j].u)
+                (j < n && self.u[j] < u_back).then(|| self.u[j])
             } else {
-                (j > 0 && self.points[j - 1].u > u_back).then(|| self.points[j - 1].u)
+                (j > 0 && self.u[j - 1] > u_back).then(|| self.u[j - 1])
             };
             let s1 = next.unwrap_or(u_back);
             let l = if du == 0.0 { len } else { len * (s1 - s0) / du };
@@ -98,31 +148,15 @@ impl SegmentTf {
         }
     }
 
-    /// Extinction and colour at `u` on the interval between points `j - 1` and `j` (both the
-    /// end point outside the TF's range).
-    fn on_interval(&self, j: usize, u: f32) -> (f32, Vec3) {
-        let last = self.points.len() - 1;
-        let (a, b) = (j.max(1).min(last + 1) - 1, j.min(last));
-        let (pa, pb) = (&self.points[a], &self.points[b]);
-        let w = if b == a + 1 {
-            ((u - pa.u) * pa.inv_width).clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
-        (
-            pa.tau * (1.0 - w) + pb.tau * w,
-            pa.rgb * (1.0 - w) + pb.rgb * w,
-        )
-    }
-
     /// Colour and transmittance of the piece from `u0` to `u1` of length `l` on interval `j`;
     /// `None` when it has no length or no extinction.
     fn piece(&self, j: usize, u0: f32, u1: f32, l: f32) -> Option<(Vec3, f32)> {
         if !(l > 0.0) {
             return None;
         }
-        let (ta, ca) = self.on_interval(j, u0);
-        let (tb, cb) = self.on_interval(j, u1);
+        let interval = &self.intervals[j];
+        let (ta, ca) = interval.at(u0);
+        let (tb, cb) = interval.at(u1);
         let (a, b) = (ta * l, tb * l);
         if a + b == 0.0 {
             return None;

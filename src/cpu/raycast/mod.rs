@@ -164,7 +164,7 @@ impl CpuRaycastRenderer {
             max_steps: (self.settings.max_steps)
                 .unwrap_or_else(|| default_max_steps(self.links.len())),
         };
-        let (image, stopped) = render_tiles(&sc, &seg, camera.width, camera.height);
+        let (image, work) = render_tiles(&sc, &seg, camera.width, camera.height);
         timings.stage("traverse", ms_since(t));
         timings.stage("total", ms_since(start));
         timings.count("tets", self.links.len() as u64);
@@ -175,19 +175,25 @@ impl CpuRaycastRenderer {
             "eye in a tet",
             (pass.eye_tet != crate::mesh::topology::NO_NEIGHBOR) as u64,
         );
-        timings.count("rays at step limit", stopped);
+        timings.count("tet steps", work.steps);
+        timings.count("rays at step limit", work.stopped);
         timings.count("threads", rayon::current_num_threads() as u64);
         Frame { image, timings }
     }
 }
 
 /// Every tile's rays in parallel (scratch for the entries reused per worker), then the tiles
-/// into an image; and the count of rays the step limit stopped.
-fn render_tiles(sc: &trace::Scene, tf: &SegmentTf, width: u32, height: u32) -> (Image, u64) {
+/// into an image; and what the rays did.
+fn render_tiles(
+    sc: &trace::Scene,
+    tf: &SegmentTf,
+    width: u32,
+    height: u32,
+) -> (Image, trace::Work) {
     let tiles = sc.bins.tiles;
     let area = (TILE * TILE) as usize;
     let mut buf = vec![[0.0f32; 4]; (tiles.x * tiles.y) as usize * area];
-    let stopped = (buf.par_chunks_mut(area).enumerate())
+    let work = (buf.par_chunks_mut(area).enumerate())
         .map_init(Vec::new, |hits, (k, out)| trace::tile(sc, tf, k, out, hits))
         .sum();
     let mut image = Image::new(width, height);
@@ -198,7 +204,7 @@ fn render_tiles(sc: &trace::Scene, tf: &SegmentTf, width: u32, height: u32) -> (
             *px = buf[k * area + (y % tile) * tile + x % tile];
         }
     });
-    (image, stopped)
+    (image, work)
 }
 
 impl Renderer for CpuRaycastRenderer {

@@ -26,19 +26,42 @@ pub struct Scene<'a> {
     pub max_steps: u32,
 }
 
+/// What a tile's rays did: tets stepped through, rays the step limit stopped.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Work {
+    pub steps: u64,
+    pub stopped: u64,
+}
+
+impl std::ops::Add for Work {
+    type Output = Self;
+    fn add(self, o: Self) -> Self {
+        Self {
+            steps: self.steps + o.steps,
+            stopped: self.stopped + o.stopped,
+        }
+    }
+}
+
+impl std::iter::Sum for Work {
+    fn sum<I: Iterator<Item = Self>>(iter: I) -> Self {
+        iter.fold(Self::default(), |a, b| a + b)
+    }
+}
+
 /// Renders tile `k` into `out` (its pixels row by row, `TILE` per row; those beyond the image
-/// untouched); returns how many of its rays the step limit stopped. `hits` is scratch space.
+/// untouched); returns what its rays did. `hits` is scratch space.
 pub fn tile(
     sc: &Scene,
     tf: &SegmentTf,
     k: usize,
     out: &mut [[f32; 4]],
     hits: &mut Vec<(f32, u32)>,
-) -> u64 {
+) -> Work {
     let size = UVec2::new(sc.frame.size[0] as u32, sc.frame.size[1] as u32);
     let origin = UVec2::new(k as u32 % sc.bins.tiles.x, k as u32 / sc.bins.tiles.x) * TILE;
     let faces = sc.bins.of(k);
-    let mut stopped = 0;
+    let mut work = Work::default();
     for (i, px) in out.iter_mut().enumerate() {
         let p = origin + UVec2::new(i as u32 % TILE, i as u32 / TILE);
         if p.x >= size.x || p.y >= size.y {
@@ -48,16 +71,15 @@ pub fn tile(
         hits.clear();
         hits.extend(faces.iter().filter_map(|f| f.hit(d).map(|t| (t, f.code))));
         hits.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        let (rgba, at_limit) = walk(sc, tf, d, hits);
+        let (rgba, ray) = walk(sc, tf, d, hits);
         *px = rgba;
-        stopped += at_limit as u64;
+        work = work + ray;
     }
-    stopped
+    work
 }
 
-/// One ray along unit `d` with its sorted entries `hits`: premultiplied RGBA, and whether the
-/// step limit stopped it.
-fn walk(sc: &Scene, tf: &SegmentTf, d: Vec3, hits: &[(f32, u32)]) -> ([f32; 4], bool) {
+/// One ray along unit `d` with its sorted entries `hits`: premultiplied RGBA, and its work.
+fn walk(sc: &Scene, tf: &SegmentTf, d: Vec3, hits: &[(f32, u32)]) -> ([f32; 4], Work) {
     let (mut color, mut trans) = (Vec3::ZERO, 1.0f32);
     let (mut t, mut tet, mut entry) = (0.0f32, sc.eye_tet, 4usize);
     let (mut next_hit, mut steps) = (0, 0);
@@ -98,7 +120,11 @@ fn walk(sc: &Scene, tf: &SegmentTf, d: Vec3, hits: &[(f32, u32)]) -> ([f32; 4], 
             (next / 4, (next % 4) as usize)
         };
     };
-    ([color.x, color.y, color.z, 1.0 - trans], at_limit)
+    let work = Work {
+        steps: steps as u64,
+        stopped: at_limit as u64,
+    };
+    ([color.x, color.y, color.z, 1.0 - trans], work)
 }
 
 /// The face the ray leaves tet `tet` by and where: by its edges when it is thin (gradient
