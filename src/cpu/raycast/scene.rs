@@ -166,7 +166,7 @@ pub fn bins(
             let (tet, face) = ((code / 4) as usize, (code % 4) as usize);
             let plane = Vec4::from(tets[tet].planes.face[face]);
             // A ray meets the plane at t > 0 moving inward only if the eye is outside it.
-            if !(plane.w > 0.0) {
+            if plane.w.is_nan() || plane.w <= 0.0 {
                 return None;
             }
             let c = face_corners(eye, links[tet].tet, face);
@@ -206,7 +206,7 @@ fn tile_rect(f: &FrameUniforms, size: UVec2, c: [Vec3; 3]) -> Option<[UVec2; 2]>
         return None;
     }
     let last = (size - UVec2::ONE).as_vec2();
-    if c.iter().any(|p| !(p.z > 0.0)) {
+    if c.iter().any(|p| p.z.is_nan() || p.z <= 0.0) {
         return Some([UVec2::ZERO, size - UVec2::ONE]);
     }
     // Pixel x has its centre ray at u = (2 (x + 0.5) / width - 1) half_extent (twin::ray_of).
