@@ -839,6 +839,7 @@ fn mesh_larger_than_one_storage_binding() {
         Ok(_) => panic!("raycast rendered a mesh beyond one binding: move it into the loop"),
     }
     cells.push("clear error (not chunked yet)".to_string());
+    cells.push("(CPU: no binding)".to_string());
     write_readme_row(name, &cells, 0);
 }
 

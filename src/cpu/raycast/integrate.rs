@@ -123,6 +123,7 @@ impl SegmentTf {
     pub fn segment(&self, u_front: f32, u_back: f32, len: f32) -> (Vec3, f32) {
         let du = u_back - u_front;
         let up = du >= 0.0;
+        let per_u = len / du;
         let n = self.u.len();
         let mut j = self.below(u_front, up);
         let (mut color, mut trans) = (Vec3::ZERO, 1.0f32);
@@ -192,10 +193,14 @@ const OPTICALLY_THIN: f32 = 1.0 / 32.0;
 fn thin(a: f32, b: f32) -> (f32, f32) {
     let (d, k) = (0.5 * (a + b), 0.5 * (b - a));
     let absorbed = d * (1.0 - d * (0.5 - d * (1.0 / 6.0 - d * (1.0 / 24.0))));
-    let e1 = 0.5 * a + k / 3.0;
-    let e2 = a * a / 3.0 + 0.5 * a * k + 0.2 * k * k;
-    let e3 = a * a * a / 4.0 + 0.6 * a * a * k + 0.5 * a * k * k + k * k * k / 7.0;
-    (absorbed, e1 - 0.5 * e2 + e3 / 6.0)
+    // Multiplications by reciprocals: f32 division costs several multiplications.
+    const THIRD: f32 = 1.0 / 3.0;
+    const SEVENTH: f32 = 1.0 / 7.0;
+    const SIXTH: f32 = 1.0 / 6.0;
+    let e1 = 0.5 * a + k * THIRD;
+    let e2 = a * a * THIRD + 0.5 * a * k + 0.2 * k * k;
+    let e3 = a * (a * (0.25 * a + 0.6 * k) + 0.5 * k * k) + k * k * k * SEVENTH;
+    (absorbed, e1 - 0.5 * e2 + e3 * SIXTH)
 }
 
 /// Bilinear lookup of `psi(a, b)` in the psi table over `gamma = sqrt(A) / (1 + sqrt(A))`
