@@ -123,6 +123,8 @@ impl SegmentTf {
     pub fn segment(&self, u_front: f32, u_back: f32, len: f32) -> (Vec3, f32) {
         let du = u_back - u_front;
         let up = du >= 0.0;
+        // Length per unit of u (a piece is never longer than the segment, whatever rounding
+        // does when du is tiny).
         let per_u = len / du;
         let n = self.u.len();
         let mut j = self.below(u_front, up);
@@ -135,7 +137,11 @@ impl SegmentTf {
                 (j > 0 && self.u[j - 1] > u_back).then(|| self.u[j - 1])
             };
             let s1 = next.unwrap_or(u_back);
-            let l = if du == 0.0 { len } else { len * (s1 - s0) / du };
+            let l = if du == 0.0 {
+                len
+            } else {
+                ((s1 - s0) * per_u).min(len)
+            };
             if let Some((c, t)) = self.piece(j, s0, s1, l) {
                 color += trans * c;
                 trans *= t;
