@@ -3,15 +3,15 @@
 //! the machine has no GPU or only a software one (see [`crate::mode`]).
 //!
 //! Per frame:
-//! 1. planes ([`scene`]): every vertex in eye space, then every tet's outward face planes and
+//! 1. planes (`scene.rs`): every vertex in eye space, then every tet's outward face planes and
 //!    linear scalar from the current positions (the GPU's arithmetic, [`twin::planes`](crate::gpu::raycast::twin::planes): shared
 //!    faces get bit-identical negated planes, thin tets a constant scalar), stored beside its
 //!    links in one 96-byte record, and the eye's tet;
-//! 2. entries ([`scene::bins`]): the boundary faces that face the eye, each set up once (plane,
+//! 2. entries (`scene.rs`): the boundary faces that face the eye, each set up once (plane,
 //!    edge Pluecker normals) and binned to the tiles its projection covers;
-//! 3. traverse ([`trace`]): per pixel, the tile's faces its ray enters through (watertight edge
+//! 3. traverse (`trace.rs`): per pixel, the tile's faces its ray enters through (watertight edge
 //!    tests, sorted by t then face code), then the walk through face adjacency from the eye's
-//!    tet or the first entry, each segment integrated by [`integrate`] (partial
+//!    tet or the first entry, each segment integrated by `integrate.rs` (partial
 //!    pre-integration or exact), re-entering non-convex meshes at the next entry, with early
 //!    ray termination and a counted step limit.
 //!
@@ -36,7 +36,7 @@ use crate::mesh::{TetMesh, check_new_positions, check_values};
 use crate::render::{Frame, RenderError, Renderer, Timings};
 use crate::tf::TransferFunction;
 
-pub use integrate::SegmentTf;
+use integrate::SegmentTf;
 use scene::{TILE, Tet};
 
 /// Settings of the CPU ray caster.
