@@ -12,6 +12,7 @@
 #![warn(missing_docs)]
 
 pub mod camera;
+pub mod cpu;
 pub mod deform;
 pub mod export;
 pub mod generate;

@@ -23,6 +23,7 @@
 //! # }
 //! ```
 
+use crate::cpu::raycast::{CpuRaycastRenderer, CpuRaycastSettings};
 use crate::gpu::raycast::{Entry, Segments};
 use crate::gpu::{
     AdapterChoice, CellProjRenderer, CellProjSettings, GpuContext, GpuError, Integrate,
@@ -33,9 +34,37 @@ use crate::reference::ReferenceRenderer;
 use crate::render::{Progress, RenderError, Renderer};
 use crate::tf::TransferFunction;
 
-/// What [`ModeSettings::note`] says when `Auto` finds no adapter.
-const CPU_FALLBACK_NOTE: &str = "no GPU adapter (install mesa-vulkan-drivers for a software one); \
-                                 rendering with the exact CPU reference renderer";
+/// Which path `auto` renders with on a machine, and why: [`AutoPath::of`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AutoPath {
+    /// A hardware adapter: `shells` on the GPU.
+    Gpu,
+    /// No adapter at all: the CPU ray caster.
+    NoAdapter,
+    /// Only a software adapter (type Cpu, e.g. lavapipe), which measured slower than the CPU
+    /// ray caster: the CPU ray caster.
+    SoftwareSlower,
+}
+
+impl AutoPath {
+    /// The path for the adapter `auto` opened (its type; `None`: no adapter). The rule is
+    /// measured, not guessed: on lavapipe (2 cores) the CPU ray caster renders the blunt fin
+    /// and the oxygen post at 512x512 in a fraction of the time of lavapipe's fastest volume
+    /// mode (`tetvr bench --modes raycast,raycast-cpu`, figures in the README), and a
+    /// software adapter runs on the same cores, so the ratio does not depend on their number.
+    pub fn of(adapter: Option<wgpu::DeviceType>) -> Self {
+        match adapter {
+            None => Self::NoAdapter,
+            Some(wgpu::DeviceType::Cpu) => Self::SoftwareSlower,
+            Some(_) => Self::Gpu,
+        }
+    }
+
+    /// The path for `gpu` as [`ModeSettings::open_gpu`] gave it.
+    pub fn for_gpu(gpu: Option<&GpuContext>) -> Self {
+        Self::of(gpu.map(|g| g.info.device_type))
+    }
+}
 
 /// Settings of the exact CPU reference renderer ([`ReferenceRenderer`]).
 #[derive(Clone, Debug, Default)]
@@ -48,8 +77,8 @@ pub struct ReferenceSettings {
 /// A rendering mode and its settings: everything needed to build its [`Renderer`] for a mesh.
 #[derive(Clone, Debug)]
 pub enum ModeSettings {
-    /// `shells` with these settings on a GPU when an adapter exists, otherwise the reference
-    /// (the only CPU path), saying so through [`Self::note`].
+    /// The fastest path the machine has ([`AutoPath`]): `shells` with these settings on a
+    /// hardware adapter, else the CPU ray caster, saying which and why through [`Self::note`].
     Auto(ShellSettings),
     /// The exact f64 CPU ray caster, the ground truth.
     Reference(ReferenceSettings),
@@ -61,6 +90,8 @@ pub enum ModeSettings {
     CellProj(CellProjSettings),
     /// Ray casting through face adjacency on GPU compute shaders.
     Raycast(RaycastSettings),
+    /// The same ray casting on the CPU, f32, on every core; needs no adapter.
+    RaycastCpu(CpuRaycastSettings),
 }
 
 impl ModeSettings {
@@ -73,16 +104,17 @@ impl ModeSettings {
             Self::Iso(_) => "iso",
             Self::CellProj(_) => "cellproj",
             Self::Raycast(_) => "raycast",
+            Self::RaycastCpu(_) => "raycast-cpu",
         }
     }
 
-    /// Opens the GPU this mode renders on: none for the reference; for a GPU mode named
+    /// Opens the GPU this mode renders on: none for the CPU modes; for a GPU mode named
     /// explicitly, an adapter or [`GpuError::NoAdapter`] (whose message names the Mesa package
     /// to install); for `Auto`, an adapter if there is one, else `None` (other GPU errors are
     /// returned).
     pub fn open_gpu(&self, choice: AdapterChoice) -> Result<Option<GpuContext>, GpuError> {
         match self {
-            Self::Reference(_) => Ok(None),
+            Self::Reference(_) | Self::RaycastCpu(_) => Ok(None),
             Self::Auto(_) => match GpuContext::new(choice) {
                 Ok(gpu) => Ok(Some(gpu)),
                 Err(GpuError::NoAdapter { .. }) => Ok(None),
@@ -95,19 +127,34 @@ impl ModeSettings {
     }
 
     /// The mode that renders when `gpu` is what [`Self::open_gpu`] gave: `Auto` becomes
-    /// `Shells` with an adapter and `Reference` without; every other mode is itself.
+    /// `Shells` on a hardware adapter and `RaycastCpu` otherwise ([`AutoPath`]); every other
+    /// mode is itself.
     pub fn resolve(&self, gpu: Option<&GpuContext>) -> Self {
-        match (self, gpu) {
-            (Self::Auto(shells), Some(_)) => Self::Shells(*shells),
-            (Self::Auto(_), None) => Self::Reference(ReferenceSettings::default()),
+        match (self, AutoPath::for_gpu(gpu)) {
+            (Self::Auto(shells), AutoPath::Gpu) => Self::Shells(*shells),
+            (Self::Auto(_), _) => Self::RaycastCpu(CpuRaycastSettings::default()),
             (mode, _) => mode.clone(),
         }
     }
 
-    /// What a user should be told about how the mode was resolved: `Auto` without an adapter
-    /// says it falls back to the reference; otherwise `None`.
-    pub fn note(&self, gpu: Option<&GpuContext>) -> Option<&'static str> {
-        matches!((self, gpu), (Self::Auto(_), None)).then_some(CPU_FALLBACK_NOTE)
+    /// What a user should be told, in one line, about how `Auto` was resolved when it does not
+    /// render on the GPU: which path it took and why; otherwise `None`.
+    pub fn note(&self, gpu: Option<&GpuContext>) -> Option<String> {
+        if !matches!(self, Self::Auto(_)) {
+            return None;
+        }
+        match (AutoPath::for_gpu(gpu), gpu) {
+            (AutoPath::SoftwareSlower, Some(gpu)) => Some(format!(
+                "the only GPU adapter, {}, is a software one and measured slower than the CPU \
+                 ray caster; rendering with --mode raycast-cpu (name a GPU mode to use the \
+                 adapter)",
+                gpu.info.name
+            )),
+            (AutoPath::NoAdapter, _) => Some(
+                "no GPU adapter; rendering with the CPU ray caster (--mode raycast-cpu)".into(),
+            ),
+            _ => None,
+        }
     }
 
     /// Builds the renderer of this mode (resolved as [`Self::resolve`]) for `mesh`. Errors:
@@ -132,6 +179,7 @@ impl ModeSettings {
             Self::Iso(s) => Box::new(IsoRenderer::new(needs_gpu()?, mesh, s.clone())?),
             Self::CellProj(s) => Box::new(CellProjRenderer::new(needs_gpu()?, mesh, *s)?),
             Self::Raycast(s) => Box::new(RaycastRenderer::new(needs_gpu()?, mesh, *s)?),
+            Self::RaycastCpu(s) => Box::new(CpuRaycastRenderer::new(mesh, *s)?),
         })
     }
 
@@ -157,17 +205,25 @@ impl ModeSettings {
                 format!("mode cellproj ({how}) on {on}")
             }
             Self::Raycast(s) => {
-                let how = match s.segments {
-                    Segments::Partial => "partial pre-integration",
-                    Segments::Exact => "exact segments",
-                };
                 let entry = match s.entry {
                     Entry::Lists => "entry lists",
                     Entry::Peel => "depth peeling",
                 };
-                format!("mode raycast ({how}, {entry}) on {on}")
+                format!("mode raycast ({}, {entry}) on {on}", segments(s.segments))
             }
+            Self::RaycastCpu(s) => format!(
+                "mode raycast-cpu ({}) on the CPU, {} threads",
+                segments(s.segments),
+                rayon::current_num_threads()
+            ),
         }
+    }
+}
+
+fn segments(s: Segments) -> &'static str {
+    match s {
+        Segments::Partial => "partial pre-integration",
+        Segments::Exact => "exact segments",
     }
 }
 
@@ -199,15 +255,30 @@ mod tests {
     }
 
     #[test]
-    fn auto_without_an_adapter_is_the_reference_and_says_so() {
+    fn auto_without_an_adapter_is_the_cpu_ray_caster_and_says_so() {
         let auto = ModeSettings::Auto(ShellSettings::default());
-        assert!(matches!(auto.resolve(None), ModeSettings::Reference(_)));
-        assert_eq!(auto.note(None), Some(CPU_FALLBACK_NOTE));
-        assert_eq!(auto.describe(None), "mode reference, exact f64 on the CPU");
+        assert!(matches!(auto.resolve(None), ModeSettings::RaycastCpu(_)));
+        let note = auto.note(None).expect("a note");
+        assert!(
+            note.contains("no GPU adapter") && note.contains("raycast-cpu"),
+            "{note}"
+        );
+        assert!(auto.describe(None).starts_with("mode raycast-cpu (partial"));
         let (mesh, ..) = scene();
-        assert_eq!(auto.build(None, &mesh).unwrap().name(), "reference");
+        assert_eq!(auto.build(None, &mesh).unwrap().name(), "raycast-cpu");
         let reference = ModeSettings::Reference(ReferenceSettings::default());
         assert_eq!(reference.note(None), None);
+    }
+
+    /// The GPU only on hardware; a software adapter and none take the CPU ray caster.
+    #[test]
+    fn auto_takes_the_gpu_only_on_hardware() {
+        use wgpu::DeviceType as D;
+        assert_eq!(AutoPath::of(None), AutoPath::NoAdapter);
+        assert_eq!(AutoPath::of(Some(D::Cpu)), AutoPath::SoftwareSlower);
+        for hardware in [D::DiscreteGpu, D::IntegratedGpu, D::VirtualGpu, D::Other] {
+            assert_eq!(AutoPath::of(Some(hardware)), AutoPath::Gpu);
+        }
     }
 
     #[test]

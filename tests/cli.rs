@@ -128,6 +128,44 @@ fn raycast_takes_depth_peeling_and_other_modes_refuse_it() {
 }
 
 #[test]
+fn raycast_cpu_render_prints_its_stages_and_counters() {
+    let stdout = render_lox("raycast-cpu");
+    for line in [
+        "planes",
+        "entries",
+        "traverse",
+        "tet steps",
+        "mode raycast-cpu",
+    ] {
+        assert!(stdout.contains(line), "no {line} in {stdout}");
+    }
+}
+
+/// On a software adapter (lavapipe here), auto renders with the CPU ray caster and says why in
+/// one line.
+#[test]
+fn auto_on_a_software_adapter_takes_the_cpu_ray_caster_and_says_why() {
+    let png = out_dir("auto-software").join("lox.png");
+    let o = tetvr(&[
+        "render",
+        LOX,
+        "--size",
+        "32x32",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stderr}");
+    let notes: Vec<&str> = stderr.lines().filter(|l| l.starts_with("note:")).collect();
+    assert_eq!(notes.len(), 1, "{stderr}");
+    assert!(
+        notes[0].contains("software") && notes[0].contains("raycast-cpu"),
+        "{stderr}"
+    );
+    assert!(stdout.contains("mode raycast-cpu"), "{stdout}");
+}
+
+#[test]
 fn raycast_takes_partial_or_exact_and_refuses_the_table() {
     let png = out_dir("raycast-exact").join("lox.png");
     let png_arg = png.to_str().unwrap();
@@ -259,6 +297,7 @@ fn without_vulkan_auto_falls_back_in_one_line_and_shells_names_the_package() {
         1,
         "{stderr}"
     );
+    assert!(stderr.contains("raycast-cpu"), "{stderr}");
     assert!(png.exists());
     let o = tetvr_without_vulkan(&[
         "render",
@@ -473,7 +512,17 @@ fn no_skip_turns_skips_off_and_unknown_skips_are_named() {
     // With early ray termination off its counters are absent; with it on they are printed.
     let png = out_dir("no-skip").join("lox.png");
     let png_arg = png.to_str().unwrap();
-    let base = ["render", LOX, "--size", "48x40", "-o", png_arg, "--timings"];
+    let base = [
+        "render",
+        LOX,
+        "--mode",
+        "shells",
+        "--size",
+        "48x40",
+        "-o",
+        png_arg,
+        "--timings",
+    ];
     let on = tetvr(&[&base[..], &["--ert-threshold", "0.99"]].concat());
     let (stdout, stderr) = text(&on);
     assert!(on.status.success(), "{stderr}");
@@ -527,7 +576,17 @@ fn adaptive_slices_can_be_turned_off_and_a_fixed_count_overrides_them() {
     // as given whether or not adaptive slices are on.
     let png = out_dir("no-skip-adaptive").join("lox.png");
     let png_arg = png.to_str().unwrap();
-    let base = ["render", LOX, "--size", "48x40", "-o", png_arg, "--timings"];
+    let base = [
+        "render",
+        LOX,
+        "--mode",
+        "shells",
+        "--size",
+        "48x40",
+        "-o",
+        png_arg,
+        "--timings",
+    ];
     let slices = |stdout: &str| -> u32 {
         let line = stdout
             .lines()

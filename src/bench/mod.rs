@@ -29,6 +29,7 @@ use std::time::Instant;
 use glam::DVec3;
 
 use tetvr::camera::{Camera, View};
+use tetvr::cpu::raycast::CpuRaycastSettings;
 use tetvr::deform::Deformation;
 use tetvr::generate::{self, Field};
 use tetvr::gpu::raycast::{Entry, Segments};
@@ -566,8 +567,25 @@ fn raycast(segments: Segments, entry: Entry) -> Config {
     }
 }
 
+fn raycast_cpu(segments: Segments) -> Config {
+    let on_gpu = raycast(segments, Entry::Lists);
+    Config {
+        mode: "raycast-cpu",
+        setting: on_gpu.setting.trim_end_matches(" lists").to_string(),
+        gpu: false,
+        settings: Box::new(move |_| {
+            ModeSettings::RaycastCpu(CpuRaycastSettings {
+                segments,
+                ..CpuRaycastSettings::default()
+            })
+        }),
+        ..on_gpu
+    }
+}
+
 /// The configurations of the bench: `quick` keeps two shells settings, flat iso, the default
-/// cell projection, the ray caster and the reference. Modes and settings join here.
+/// cell projection, the ray casters (GPU and CPU) and the reference. Modes and settings join
+/// here.
 pub fn configurations(quick: bool) -> Vec<Config> {
     let mut c = if quick {
         vec![
@@ -576,6 +594,7 @@ pub fn configurations(quick: bool) -> Vec<Config> {
             iso(Shading::Flat),
             cellproj(Integrate::Table, 128),
             raycast(Segments::Partial, Entry::default()),
+            raycast_cpu(Segments::Partial),
         ]
     } else {
         let mut c = vec![
@@ -595,6 +614,8 @@ pub fn configurations(quick: bool) -> Vec<Config> {
             raycast(Segments::Partial, Entry::Lists),
             raycast(Segments::Partial, Entry::Peel),
             raycast(Segments::Exact, Entry::default()),
+            raycast_cpu(Segments::Partial),
+            raycast_cpu(Segments::Exact),
         ]);
         c
     };
@@ -887,7 +908,7 @@ pub fn run(
         let mut truths: Vec<(ViewKind, Truth, Image)> = Vec::new();
         for config in runnable {
             let what = format!("{} {} {}", scene.name, config.mode, config.setting);
-            if !config.gpu && wants_gpu && !gpu_built {
+            if config.mode == "reference" && wants_gpu && !gpu_built {
                 let reason = "no GPU configuration could render this scene (see their reasons), \
                               so its reference would measure nothing";
                 skip(&mut report, config, "all", reason);

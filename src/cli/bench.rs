@@ -58,7 +58,7 @@ pub fn bench(args: BenchArgs) -> Result<(), CliError> {
         Ok(ctx) => Some(ctx),
         Err(GpuError::NoAdapter { .. }) => {
             eprintln!(
-                "note: no GPU adapter (install mesa-vulkan-drivers for a software one); the bench runs the reference only"
+                "note: no GPU adapter (install mesa-vulkan-drivers for a software one); the bench runs the CPU modes only"
             );
             None
         }

@@ -5,6 +5,7 @@ use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressStyle};
 use tetvr::camera::{Camera, CameraError, View};
+use tetvr::cpu::raycast::CpuRaycastSettings;
 use tetvr::gpu::cellproj::sort::sort_check;
 use tetvr::gpu::raycast::{Entry, Segments};
 use tetvr::gpu::{
@@ -175,8 +176,8 @@ fn camera(args: &RenderArgs, mesh: &TetMesh) -> Result<Camera, CliError> {
     Ok(c)
 }
 
-/// The mode `args` ask for and the GPU it renders on, opened; `auto` without an adapter says in
-/// one line that it falls back to the reference, a GPU mode by name without one is an error.
+/// The mode `args` ask for and the GPU it renders on, opened; `auto` off the GPU says in one
+/// line which path it took and why, a GPU mode by name without an adapter is an error.
 fn open_mode(
     args: &RenderArgs,
     mesh: &TetMesh,
@@ -240,23 +241,17 @@ fn mode_settings(
             frustum,
         }),
         Mode::Raycast => ModeSettings::Raycast(RaycastSettings {
-            segments: match args.cellproj.integrate {
-                None | Some(IntegrateArg::Partial) => Segments::Partial,
-                Some(IntegrateArg::Exact) => Segments::Exact,
-                Some(IntegrateArg::Table) => {
-                    return Err(CliError::Usage(
-                        "--mode raycast integrates with partial (the default) or exact; the 3D \
-                         table belongs to --mode cellproj"
-                            .into(),
-                    ));
-                }
-            },
+            segments: ray_segments(args)?,
             entry: match args.cellproj.entry {
                 None => Entry::default(),
                 Some(EntryArg::Lists) => Entry::Lists,
                 Some(EntryArg::Peel) => Entry::Peel,
             },
             ..RaycastSettings::default()
+        }),
+        Mode::RaycastCpu => ModeSettings::RaycastCpu(CpuRaycastSettings {
+            segments: ray_segments(args)?,
+            ..CpuRaycastSettings::default()
         }),
         Mode::Iso => {
             let isovalues = if args.iso.is_empty() {
@@ -279,6 +274,19 @@ fn mode_settings(
             })
         }
     })
+}
+
+/// The ray casters' `--integrate`: partial (the default) or exact.
+fn ray_segments(args: &RenderArgs) -> Result<Segments, CliError> {
+    match args.cellproj.integrate {
+        None | Some(IntegrateArg::Partial) => Ok(Segments::Partial),
+        Some(IntegrateArg::Exact) => Ok(Segments::Exact),
+        Some(IntegrateArg::Table) => Err(CliError::Usage(
+            "--mode raycast and raycast-cpu integrate with partial (the default) or exact; the \
+             3D table belongs to --mode cellproj"
+                .into(),
+        )),
+    }
 }
 
 fn shell_settings(args: &RenderArgs) -> ShellSettings {

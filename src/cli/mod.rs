@@ -18,6 +18,7 @@ Examples:
   tetvr render assets/bluntfin_tet.vtu --mode cellproj --integrate exact --timings --sort-check -o cp.png
   tetvr render assets/bluntfin_tet.vtu --mode raycast --timings -o fin.png
   tetvr iso-export assets/bluntfin_tet.vtu --iso 0.5,0.7 --tf viridis -o fin.glb
+  tetvr render assets/bluntfin_tet.vtu --mode raycast-cpu --integrate exact -o fin.png
   tetvr render mesh.vtk --array Pressure --tf my_tf.json --unit-distance 0.05 -o p.png
   tetvr render mesh.msh --eye 10,0,2 --target 0,0,0 --up 0,0,1 --fov 40 -o close.png
   tetvr animate ../shared/data/kiefer_bracket_tet.vtk --deform twist --frames 24 -o bracket.gif
@@ -62,7 +63,8 @@ pub enum Command {
 /// Rendering modes.
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Mode {
-    /// `shells` on the GPU when an adapter exists, otherwise `reference` on the CPU.
+    /// The fastest path the machine has: `shells` on a hardware GPU, else `raycast-cpu` (which
+    /// measured faster than a software adapter); says which it took.
     Auto,
     /// Exact f64 CPU ray caster (the ground truth).
     Reference,
@@ -75,6 +77,8 @@ pub enum Mode {
     /// Ray casting on compute shaders through face adjacency (Weiler et al. 2003), exact
     /// segments; rays re-enter non-convex meshes, the eye may be inside.
     Raycast,
+    /// The same ray casting on the CPU (f32, every core), no adapter needed (--integrate).
+    RaycastCpu,
 }
 
 /// How cell projection integrates each tet's segment.
@@ -234,8 +238,8 @@ pub struct IsoExportArgs {
 
 #[derive(clap::Args, Debug)]
 pub struct CellProjArgs {
-    /// cellproj and raycast: segment integration (default: table for cellproj, partial for
-    /// raycast).
+    /// cellproj and raycast(-cpu): segment integration (default: table for cellproj, partial
+    /// for the ray casters).
     #[arg(long, value_enum)]
     pub integrate: Option<IntegrateArg>,
     /// raycast: how rays find where they enter the mesh (the same picture either way; default

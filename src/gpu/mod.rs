@@ -23,7 +23,7 @@ pub mod raycast;
 pub mod shaders;
 pub mod shells;
 pub(crate) mod tf;
-mod util;
+pub(crate) mod util;
 pub(crate) mod view;
 
 // For the twin tests (tests/twins.rs): the assembly's degenerate threshold and the transfer

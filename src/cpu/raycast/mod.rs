@@ -1,0 +1,232 @@
+//! `--mode raycast-cpu`: the GPU ray caster's traversal and integrators in Rust, f32, on every
+//! core (rayon over 16 x 16 pixel tiles), needing no adapter: what `auto` renders with when
+//! the machine has no GPU or only a software one (see [`crate::mode`]).
+//!
+//! Per frame:
+//! 1. planes (`scene.rs`): every vertex in eye space, then every tet's outward face planes and
+//!    linear scalar from the current positions (the GPU's arithmetic, [`twin::planes`](crate::gpu::raycast::twin::planes): shared
+//!    faces get bit-identical negated planes, thin tets a constant scalar), stored beside its
+//!    links in one 96-byte record, and the eye's tet;
+//! 2. entries (`scene.rs`): the boundary faces that face the eye, each set up once (plane,
+//!    edge Pluecker normals) and binned to the tiles its projection covers;
+//! 3. traverse (`trace.rs`): per pixel, the tile's faces its ray enters through (watertight edge
+//!    tests, sorted by t then face code), then the walk through face adjacency from the eye's
+//!    tet or the first entry, each segment integrated by `integrate.rs` (partial
+//!    pre-integration or exact), re-entering non-convex meshes at the next entry, with early
+//!    ray termination and a counted step limit.
+//!
+//! The robustness rules are the GPU's (see [`crate::gpu::raycast`]); the exit and plane
+//! arithmetic is its CPU twin's ([`crate::gpu::raycast::twin`]), so both paths walk the same tets.
+
+mod integrate;
+mod scene;
+mod trace;
+
+use std::time::Instant;
+
+use glam::{DVec3, Vec3};
+use rayon::prelude::*;
+
+use crate::camera::Camera;
+use crate::gpu::raycast::{Segments, TetLinks, default_max_steps, links};
+use crate::gpu::util::{bounding_sphere, ms_since, scalar_frame};
+use crate::gpu::view::ViewFrame;
+use crate::image::Image;
+use crate::mesh::{TetMesh, check_new_positions, check_values};
+use crate::render::{Frame, RenderError, Renderer, Timings};
+use crate::tf::TransferFunction;
+
+use integrate::SegmentTf;
+use scene::{TILE, Tet};
+
+/// Settings of the CPU ray caster.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CpuRaycastSettings {
+    /// Segment integration.
+    pub segments: Segments,
+    /// Tets one ray may step through; `None`: [`default_max_steps`] of the mesh.
+    pub max_steps: Option<u32>,
+}
+
+/// The CPU ray caster; see the module docs.
+pub struct CpuRaycastRenderer {
+    settings: CpuRaycastSettings,
+    /// The positions' frame: bounding-box centre and bounding-sphere radius.
+    origin: DVec3,
+    radius: f64,
+    /// Positions relative to `origin` in f32, as the GPU reads them.
+    positions: Vec<Vec3>,
+    /// Scalars normalized as `(s - scalar_min) / scalar_span`, f32.
+    scalars: Vec<f32>,
+    raw_scalars: Vec<f64>,
+    scalar_min: f64,
+    scalar_span: f64,
+    tet_ids: Vec<[u32; 4]>,
+    links: Vec<TetLinks>,
+    /// Boundary face codes (`4 * tet + face`).
+    boundary: Vec<u32>,
+    /// Per frame, kept to reuse their memory: eye-space positions, per-tet records.
+    eye: Vec<Vec3>,
+    tets: Vec<Tet>,
+}
+
+impl CpuRaycastRenderer {
+    /// Copies `mesh` (its active scalars) and builds its links; errors when it has no scalars
+    /// or too many tets for face codes in a u32.
+    pub fn new(mesh: &TetMesh, settings: CpuRaycastSettings) -> Result<Self, RenderError> {
+        let tet_ids = mesh.tets().to_vec();
+        if tet_ids.len() >= 1 << 30 {
+            return Err(RenderError::Settings(format!(
+                "--mode raycast-cpu numbers faces as 4 x tet in 32 bits, so at most 2^30 tets; \
+                 this mesh has {}",
+                tet_ids.len()
+            )));
+        }
+        let (links, boundary) = links::build(&tet_ids);
+        let mut r = Self {
+            settings,
+            origin: DVec3::ZERO,
+            radius: 0.0,
+            positions: Vec::new(),
+            scalars: Vec::new(),
+            raw_scalars: mesh.scalars()?.to_vec(),
+            scalar_min: 0.0,
+            scalar_span: 1.0,
+            tet_ids,
+            links,
+            boundary,
+            eye: Vec::new(),
+            tets: Vec::new(),
+        };
+        r.set_positions(mesh.positions());
+        r.normalize_scalars();
+        Ok(r)
+    }
+
+    /// The settings in use.
+    pub fn settings(&self) -> CpuRaycastSettings {
+        self.settings
+    }
+
+    fn set_positions(&mut self, positions: &[DVec3]) {
+        (self.origin, self.radius) = bounding_sphere(positions);
+        let o = self.origin;
+        self.positions = positions.par_iter().map(|&p| (p - o).as_vec3()).collect();
+    }
+
+    fn normalize_scalars(&mut self) {
+        (self.scalar_min, self.scalar_span) = scalar_frame(&self.raw_scalars);
+        let (lo, span) = (self.scalar_min, self.scalar_span);
+        self.scalars = (self.raw_scalars.par_iter())
+            .map(|&s| ((s - lo) / span) as f32)
+            .collect();
+    }
+
+    fn frame(&mut self, camera: &Camera, tf: &TransferFunction) -> Frame {
+        let start = Instant::now();
+        let mut timings = Timings {
+            clock: "wall clock",
+            ..Timings::default()
+        };
+        // The eye-in-tet tolerance: 1e-5 of the bounding radius (the GPU's).
+        let eye_tol = (1e-5 * self.radius) as f32;
+        let f = ViewFrame::new(camera).uniforms(self.origin, 0.0, eye_tol, self.links.len() as u32);
+        let t = Instant::now();
+        scene::eye_positions(&f, &self.positions, &mut self.eye);
+        let pass = scene::tets(
+            &self.eye,
+            &self.scalars,
+            &self.links,
+            eye_tol,
+            &mut self.tets,
+        );
+        timings.stage("planes", ms_since(t));
+        let t = Instant::now();
+        let bins = scene::bins(&f, &self.boundary, &self.tets, &self.links, &self.eye);
+        timings.stage("entries", ms_since(t));
+        let t = Instant::now();
+        let seg = SegmentTf::new(
+            tf,
+            self.scalar_min,
+            self.scalar_span,
+            self.settings.segments,
+        );
+        timings.stage("tf", ms_since(t));
+        let t = Instant::now();
+        let sc = trace::Scene {
+            frame: &f,
+            tets: &self.tets,
+            ids: &self.tet_ids,
+            eye: &self.eye,
+            bins: &bins,
+            eye_tet: pass.eye_tet,
+            eye_tol,
+            max_steps: (self.settings.max_steps)
+                .unwrap_or_else(|| default_max_steps(self.links.len())),
+        };
+        let (image, work) = render_tiles(&sc, &seg, camera.width, camera.height);
+        timings.stage("traverse", ms_since(t));
+        timings.stage("total", ms_since(start));
+        timings.count("tets", self.links.len() as u64);
+        timings.count("boundary faces", self.boundary.len() as u64);
+        timings.count("faces in tiles", bins.len() as u64);
+        timings.count("thin tets", pass.thin);
+        timings.count(
+            "eye in a tet",
+            (pass.eye_tet != crate::mesh::topology::NO_NEIGHBOR) as u64,
+        );
+        timings.count("tet steps", work.steps);
+        timings.count("rays at step limit", work.stopped);
+        timings.count("threads", rayon::current_num_threads() as u64);
+        Frame { image, timings }
+    }
+}
+
+/// Every tile's rays in parallel (scratch for the entries reused per worker), then the tiles
+/// into an image; and what the rays did.
+fn render_tiles(
+    sc: &trace::Scene,
+    tf: &SegmentTf,
+    width: u32,
+    height: u32,
+) -> (Image, trace::Work) {
+    let tiles = sc.bins.tiles;
+    let area = (TILE * TILE) as usize;
+    let mut buf = vec![[0.0f32; 4]; (tiles.x * tiles.y) as usize * area];
+    let work = (buf.par_chunks_mut(area).enumerate())
+        .map_init(Vec::new, |hits, (k, out)| trace::tile(sc, tf, k, out, hits))
+        .sum();
+    let mut image = Image::new(width, height);
+    let tile = TILE as usize;
+    (image.pixels.par_chunks_mut(width as usize).enumerate()).for_each(|(y, row)| {
+        for (x, px) in row.iter_mut().enumerate() {
+            let k = (y / tile) * tiles.x as usize + x / tile;
+            *px = buf[k * area + (y % tile) * tile + x % tile];
+        }
+    });
+    (image, work)
+}
+
+impl Renderer for CpuRaycastRenderer {
+    fn name(&self) -> &'static str {
+        "raycast-cpu"
+    }
+
+    fn render(&mut self, camera: &Camera, tf: &TransferFunction) -> Result<Frame, RenderError> {
+        camera.validate()?;
+        Ok(self.frame(camera, tf))
+    }
+
+    fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {
+        check_new_positions(positions, self.positions.len())?;
+        self.set_positions(positions);
+        Ok(())
+    }
+
+    fn update_scalars(&mut self, scalars: &[f64]) -> Result<(), RenderError> {
+        check_values("scalars", scalars, self.raw_scalars.len())?;
+        self.raw_scalars.copy_from_slice(scalars);
+        self.normalize_scalars();
+        Ok(())
+    }
+}

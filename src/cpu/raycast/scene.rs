@@ -1,0 +1,225 @@
+//! What the CPU ray caster computes once per frame before any ray: every vertex in eye space,
+//! every tet's face planes and linear scalar (the GPU's arithmetic, [`twin::planes`]) beside
+//! its links, the eye's tet, and the boundary faces a ray may enter through, binned to the
+//! screen tiles their projection covers.
+
+use glam::{UVec2, Vec3, Vec4};
+use rayon::prelude::*;
+
+use crate::gpu::gpu_data::FrameUniforms;
+use crate::gpu::raycast::{TetLinks, TetPlanes, twin};
+use crate::mesh::topology::{FACES, NO_NEIGHBOR};
+
+/// Tiles are `TILE` x `TILE` pixels: the unit of parallel work and of entry binning.
+pub const TILE: u32 = 16;
+
+/// One tet as the traversal reads it (96 bytes, one fetch per step): its planes and scalar,
+/// and across each face the neighbour's face code (`4 * tet + face`).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Tet {
+    pub planes: TetPlanes,
+    pub next: [u32; 4],
+}
+
+/// The corners of face `f` of a tet with vertex indices `ids`, in eye space, in global index
+/// order (the order the GPU's edge tests use, so faces sharing an edge agree on it).
+pub fn face_corners(eye: &[Vec3], ids: [u32; 4], f: usize) -> [Vec3; 3] {
+    let mut v = FACES[f].map(|i| ids[i]);
+    v.sort_unstable();
+    v.map(|i| eye[i as usize])
+}
+
+/// Writes every vertex (world, relative to the mesh origin in f32, as the GPU reads it) in eye
+/// space into `out`.
+pub fn eye_positions(f: &FrameUniforms, positions: &[Vec3], out: &mut Vec<Vec3>) {
+    positions
+        .par_iter()
+        .map(|&p| twin::eye_space(f, p))
+        .collect_into_vec(out);
+}
+
+/// What the per-tet pass found: tets too thin for their planes, and the smallest index of a
+/// tet holding the eye (`NO_NEIGHBOR`: none).
+#[derive(Clone, Copy, Debug)]
+pub struct TetPass {
+    pub thin: u64,
+    pub eye_tet: u32,
+}
+
+/// Fills `out` with each tet's planes and links, from eye-space `eye` and normalized
+/// `scalars`; the eye is in a (not thin) tet when it lies at most `eye_tol` outside each face.
+pub fn tets(
+    eye: &[Vec3],
+    scalars: &[f32],
+    links: &[TetLinks],
+    eye_tol: f32,
+    out: &mut Vec<Tet>,
+) -> TetPass {
+    out.resize(links.len(), Tet::default());
+    (out.par_iter_mut().zip(links).enumerate())
+        .map(|(k, (tet, l))| {
+            let ids = l.tet;
+            let (planes, thin) = twin::planes(
+                ids.map(|v| eye[v as usize]),
+                ids,
+                ids.map(|v| scalars[v as usize]),
+            );
+            *tet = Tet {
+                planes,
+                next: l.next,
+            };
+            let holds_eye = !thin
+                && (planes.face.iter()).all(|q| q[3] <= eye_tol * Vec3::from_slice(q).length());
+            TetPass {
+                thin: thin as u64,
+                eye_tet: if holds_eye { k as u32 } else { NO_NEIGHBOR },
+            }
+        })
+        .reduce(
+            || TetPass {
+                thin: 0,
+                eye_tet: NO_NEIGHBOR,
+            },
+            |a, b| TetPass {
+                thin: a.thin + b.thin,
+                eye_tet: a.eye_tet.min(b.eye_tet),
+            },
+        )
+}
+
+/// A boundary face a ray may enter through, set up for the per-pixel test: its outward plane
+/// and the Pluecker normals of its edges (corners in global index order).
+#[derive(Clone, Copy, Debug)]
+pub struct EntryFace {
+    plane: Vec4,
+    /// `|n|` of the plane, for the runs-along test.
+    norm: f32,
+    /// `c0 x c1`, `c1 x c2`, `c0 x c2`.
+    edge: [Vec3; 3],
+    /// `4 * tet + face`.
+    pub code: u32,
+}
+
+impl EntryFace {
+    fn new(code: u32, plane: Vec4, c: [Vec3; 3]) -> Self {
+        Self {
+            plane,
+            norm: plane.truncate().length(),
+            edge: [c[0].cross(c[1]), c[1].cross(c[2]), c[0].cross(c[2])],
+            code,
+        }
+    }
+
+    /// The t where ray `d` enters through this face, edges included; `None` when it misses,
+    /// runs along it, leaves through it or meets it behind the eye. The operations of
+    /// [`twin::face_hit`] with the edges' cross products taken once per frame, so the faces
+    /// sharing an edge compute the same products and no ray slips between them.
+    pub fn hit(&self, d: Vec3) -> Option<f32> {
+        let den = self.plane.truncate().dot(d);
+        if den >= 0.0 || den.is_nan() || den.abs() <= twin::PARALLEL * self.norm {
+            return None;
+        }
+        let e = self.edge;
+        if !twin::passes([e[0].dot(d), e[1].dot(d), -e[2].dot(d)]) {
+            return None;
+        }
+        let t = -self.plane.w / den;
+        (t > 0.0).then_some(t)
+    }
+}
+
+/// The entry faces of each screen tile, tiles row by row.
+pub struct Bins {
+    /// Tiles across and down.
+    pub tiles: UVec2,
+    /// Tile `k`'s faces are `faces[start[k]..start[k + 1]]`.
+    start: Vec<u32>,
+    faces: Vec<EntryFace>,
+}
+
+impl Bins {
+    /// The entry faces of tile `k`.
+    pub fn of(&self, k: usize) -> &[EntryFace] {
+        &self.faces[self.start[k] as usize..self.start[k + 1] as usize]
+    }
+
+    /// Faces binned, counted once per tile they cover.
+    pub fn len(&self) -> usize {
+        self.faces.len()
+    }
+}
+
+/// Bins the `boundary` faces (codes) that face the eye into the tiles of the image that their
+/// projection's pixel box, one pixel wider on each side, covers (every tile where a face
+/// reaches behind the eye plane).
+pub fn bins(
+    f: &FrameUniforms,
+    boundary: &[u32],
+    tets: &[Tet],
+    links: &[TetLinks],
+    eye: &[Vec3],
+) -> Bins {
+    let size = UVec2::new(f.size[0] as u32, f.size[1] as u32);
+    let tiles = (size + UVec2::splat(TILE - 1)) / TILE;
+    let placed: Vec<(EntryFace, [UVec2; 2])> = (boundary.par_iter())
+        .filter_map(|&code| {
+            let (tet, face) = ((code / 4) as usize, (code % 4) as usize);
+            let plane = Vec4::from(tets[tet].planes.face[face]);
+            // A ray meets the plane at t > 0 moving inward only if the eye is outside it.
+            if plane.w.is_nan() || plane.w <= 0.0 {
+                return None;
+            }
+            let c = face_corners(eye, links[tet].tet, face);
+            let rect = tile_rect(f, size, c)?;
+            Some((EntryFace::new(code, plane, c), rect.map(|p| p / TILE)))
+        })
+        .collect();
+    let covered = |[lo, hi]: [UVec2; 2]| {
+        (lo.y..=hi.y).flat_map(move |y| (lo.x..=hi.x).map(move |x| y * tiles.x + x))
+    };
+    // (tile, face) pairs grouped by tile.
+    let mut pairs: Vec<(u32, u32)> = (placed.iter().enumerate())
+        .flat_map(|(i, &(_, rect))| covered(rect).map(move |k| (k, i as u32)))
+        .collect();
+    pairs.par_sort_unstable();
+    let faces = pairs.iter().map(|&(_, i)| placed[i as usize].0).collect();
+    let mut start = vec![0u32; (tiles.x * tiles.y) as usize + 1];
+    for &(k, _) in &pairs {
+        start[k as usize + 1] += 1;
+    }
+    for k in 1..start.len() {
+        start[k] += start[k - 1];
+    }
+    Bins {
+        tiles,
+        start,
+        faces,
+    }
+}
+
+/// The pixel box (first and last pixel, inclusive) whose rays may pass the face with eye-space
+/// corners `c`: its projection's box widened by one pixel, clamped to the image; the whole
+/// image when a corner is at or behind the eye plane; `None` when it is off screen or
+/// entirely behind the eye (rays meet nothing there at t > 0).
+fn tile_rect(f: &FrameUniforms, size: UVec2, c: [Vec3; 3]) -> Option<[UVec2; 2]> {
+    if c.iter().all(|p| p.z <= 0.0) {
+        return None;
+    }
+    let last = (size - UVec2::ONE).as_vec2();
+    if c.iter().any(|p| p.z.is_nan() || p.z <= 0.0) {
+        return Some([UVec2::ZERO, size - UVec2::ONE]);
+    }
+    // Pixel x has its centre ray at u = (2 (x + 0.5) / width - 1) half_extent (twin::ray_of).
+    let pixel = |p: Vec3| {
+        let (u, v) = (p.x / p.z / f.half_extent[0], p.y / p.z / f.half_extent[1]);
+        glam::Vec2::new((u + 1.0) * 0.5 * f.size[0], (1.0 - v) * 0.5 * f.size[1]) - 0.5
+    };
+    let q = c.map(pixel);
+    let lo = q[0].min(q[1]).min(q[2]).floor() - 1.0;
+    let hi = q[0].max(q[1]).max(q[2]).ceil() + 1.0;
+    if hi.x < 0.0 || hi.y < 0.0 || lo.x > last.x || lo.y > last.y {
+        return None;
+    }
+    let clamp = |p: glam::Vec2| p.clamp(glam::Vec2::ZERO, last).as_uvec2();
+    Some([clamp(lo), clamp(hi)])
+}

@@ -1,0 +1,246 @@
+//! `--mode raycast-cpu` against the exact f64 reference, with the GPU ray caster's scenes and
+//! bounds: the oxygen post subset, a box with a hole seen through the hole, the eye inside a
+//! grid, a head-on grid (holes 0), a sharp TF, the blunt fin, and a mesh after
+//! `update_positions`; and the step limit counted. No GPU adapter is needed.
+
+mod common;
+
+use glam::{DVec3, UVec3};
+use tetvr::cpu::raycast::{CpuRaycastRenderer, CpuRaycastSettings};
+use tetvr::deform::Deformation;
+use tetvr::generate::{self, fields::Field};
+use tetvr::gpu::raycast::Segments;
+use tetvr::reference::ReferenceRenderer;
+use tetvr::tf::ControlPoint;
+use tetvr::{Camera, Frame, Image, Renderer, TetMesh, TransferFunction, View};
+
+use common::{Bounds, assert_images_close};
+
+/// The default TF (viridis, opacity ramp to 0.1) and an ISO view of `size` x `size`.
+fn default_view(mesh: &TetMesh, size: u32) -> (TransferFunction, Camera) {
+    let (lo, hi) = mesh.bounds();
+    let (s_lo, s_hi) = mesh.active_array().and_then(|a| a.range()).unwrap();
+    let tf = TransferFunction::default_for_range(s_lo, s_hi, mesh.diagonal() / 100.0).unwrap();
+    (
+        tf,
+        Camera::framing(lo, hi, View::ISO, 1.0, 30.0, size, size),
+    )
+}
+
+fn lox() -> TetMesh {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/lox_post_subset_tet.vtk");
+    tetvr::io::load(&path).expect("the asset loads").mesh
+}
+
+fn renderer(mesh: &TetMesh, segments: Segments) -> CpuRaycastRenderer {
+    let settings = CpuRaycastSettings {
+        segments,
+        ..Default::default()
+    };
+    CpuRaycastRenderer::new(mesh, settings).expect("renderer")
+}
+
+fn counter(frame: &Frame, name: &str) -> u64 {
+    let c = frame.timings.counters.iter().find(|c| c.0 == name);
+    c.unwrap_or_else(|| panic!("no counter {name}")).1
+}
+
+fn reference(mesh: &TetMesh, camera: &Camera, tf: &TransferFunction) -> Image {
+    ReferenceRenderer::new(mesh)
+        .expect("reference")
+        .render_image(camera, tf, None)
+        .expect("reference frame")
+}
+
+/// The GPU ray caster's bound (tests/raycast.rs): max_abs 1e-3 is the target; rmse
+/// 3e-6 is about 10x the figures measured here (rmse 1.8e-7 to 3.5e-7, max_abs up to 9.5e-5
+/// on lox at 512x512), f32 planes, scalars and integration.
+const BOUNDS: Bounds = bounds(3e-6, 1e-3);
+
+const fn bounds(max_rmse: f64, max_abs: f64) -> Bounds {
+    Bounds {
+        max_rmse,
+        max_abs,
+        max_holes: 0,
+        max_spill: 0,
+    }
+}
+
+/// Renders `mesh` with both integrators, checks each against the reference within `b` and
+/// that no ray hit the step limit; returns the exact frame. The psi table's interpolation
+/// (at most 8.9e-6 per piece) keeps partial within the same bound.
+fn check(name: &str, mesh: &TetMesh, camera: &Camera, tf: &TransferFunction, b: Bounds) -> Frame {
+    let expected = reference(mesh, camera, tf);
+    let mut frames = [Segments::Exact, Segments::Partial].map(|s| {
+        let got = renderer(mesh, s).render(camera, tf).expect("frame");
+        let name = format!("raycast-cpu-{name}-{s:?}");
+        eprintln!("{name}: {}", got.image.compare(&expected).unwrap());
+        assert_images_close(&name, &got.image, &expected, b);
+        assert_eq!(counter(&got, "rays at step limit"), 0);
+        Some(got)
+    });
+    frames[0].take().unwrap()
+}
+
+fn gaussians(cells: u32) -> TetMesh {
+    generate::fields::grid(Field::Gaussians, UVec3::splat(cells), "gaussians").expect("grid")
+}
+
+#[test]
+fn lox_subset_matches_reference() {
+    let mesh = lox();
+    let (tf, camera) = default_view(&mesh, 128);
+    check("lox", &mesh, &camera, &tf, BOUNDS);
+}
+
+/// Rays cross a wall, leave into the hole, re-enter through the opposite wall.
+#[test]
+fn box_with_hole_seen_through_the_hole() {
+    let mesh = generate::shapes::box_with_hole(20_000, Field::Gaussians).unwrap();
+    let (tf, _) = default_view(&mesh, 96);
+    let camera = Camera {
+        eye: DVec3::new(0.15, 0.25, 4.0),
+        target: DVec3::ZERO,
+        up: DVec3::Y,
+        fov_y_deg: 40.0,
+        width: 96,
+        height: 96,
+    };
+    check("hole", &mesh, &camera, &tf, BOUNDS);
+}
+
+/// The eye inside a grid: rays start in the eye's tet.
+#[test]
+fn eye_inside_a_grid() {
+    let mesh = gaussians(12);
+    let (tf, _) = default_view(&mesh, 96);
+    let (lo, hi) = mesh.bounds();
+    let centre = (lo + hi) * 0.5;
+    let camera = Camera {
+        eye: centre + DVec3::new(0.13, -0.07, 0.05) * (hi - lo),
+        target: centre + DVec3::new(1.0, 0.4, 0.2),
+        up: DVec3::Z,
+        fov_y_deg: 60.0,
+        width: 96,
+        height: 96,
+    };
+    let got = check("eye-inside", &mesh, &camera, &tf, BOUNDS);
+    assert_eq!(counter(&got, "eye in a tet"), 1);
+}
+
+/// An axis-aligned grid seen head-on with an odd image: the centre column and row of rays lie
+/// in grid planes and the centre ray runs down a grid edge; no ray is lost (holes 0).
+#[test]
+fn head_on_grid_has_no_holes() {
+    let field = |p: DVec3| 0.5 + 0.2 * p.x + 0.1 * p.y + 0.04 * p.z;
+    let mesh = generate::box_grid(DVec3::splat(-1.0), DVec3::ONE, UVec3::splat(6), "f", field);
+    let (tf, _) = default_view(&mesh, 65);
+    let camera = Camera {
+        eye: DVec3::new(0.0, 0.0, 5.0),
+        target: DVec3::ZERO,
+        up: DVec3::Y,
+        fov_y_deg: 40.0,
+        width: 65,
+        height: 65,
+    };
+    check("head-on", &mesh, &camera, &tf, BOUNDS);
+}
+
+/// After `update_positions` the renderer draws what one built for the deformed mesh draws
+/// (the same bits), and that is the deformed mesh's picture.
+#[test]
+fn deformed_mesh_matches_reference() {
+    let mut mesh = lox();
+    let (tf, camera) = default_view(&mesh, 96);
+    let (lo, hi) = mesh.bounds();
+    let mut r = renderer(&mesh, Segments::Partial);
+    let rest = r.render(&camera, &tf).unwrap().image;
+    let moved = Deformation::Bend.apply(mesh.positions(), lo, hi, 0.4, 0.3);
+    r.update_positions(&moved).unwrap();
+    let got = r.render(&camera, &tf).unwrap().image;
+    // The bend moves the picture far more than any bound here (measured rmse 3e-2 on the GPU).
+    assert!(got.compare(&rest).unwrap().rmse > 1e-3);
+    mesh.set_positions(moved).unwrap();
+    let fresh = renderer(&mesh, Segments::Partial)
+        .render(&camera, &tf)
+        .unwrap()
+        .image;
+    assert_eq!(got.compare(&fresh).unwrap().max_abs, 0.0);
+    check("bent", &mesh, &camera, &tf, BOUNDS);
+}
+
+/// A step limit of 5 stops rays, and they are counted; wrong-length updates are errors.
+#[test]
+fn step_limit_is_counted_and_bad_updates_are_refused() {
+    let mesh = generate::shapes::box_with_hole(20_000, Field::Gaussians).unwrap();
+    let (tf, camera) = default_view(&mesh, 64);
+    let settings = CpuRaycastSettings {
+        max_steps: Some(5),
+        ..Default::default()
+    };
+    let mut r = CpuRaycastRenderer::new(&mesh, settings).unwrap();
+    assert!(counter(&r.render(&camera, &tf).unwrap(), "rays at step limit") > 0);
+    let msg = r
+        .update_positions(&[DVec3::ZERO; 3])
+        .unwrap_err()
+        .to_string();
+    assert!(msg.contains("positions"), "{msg}");
+    let msg = r.update_scalars(&[f64::NAN]).unwrap_err().to_string();
+    assert!(msg.contains("scalars"), "{msg}");
+}
+
+/// A TF with a step and opacity up to 0.8 per unit distance (optically deep pieces).
+#[test]
+fn sharp_tf_on_a_grid() {
+    let mesh = gaussians(16);
+    let (_, camera) = default_view(&mesh, 96);
+    let (lo, hi) = mesh.active_array().and_then(|a| a.range()).unwrap();
+    let cp = |u: f64, color, opacity| ControlPoint {
+        s: lo + (hi - lo) * u,
+        color,
+        opacity,
+    };
+    let points = vec![
+        cp(0.0, [0.1, 0.2, 0.9], 0.0),
+        cp(0.45, [0.2, 0.9, 0.3], 0.5),
+        cp(0.45, [0.9, 0.2, 0.1], 0.05),
+        cp(1.0, [1.0, 0.9, 0.1], 0.8),
+    ];
+    let tf = TransferFunction::new(points, mesh.diagonal() / 100.0).unwrap();
+    check("sharp", &mesh, &camera, &tf, BOUNDS);
+}
+
+/// The blunt fin (77 thin tets, left by their edges) from outside with the default and the
+/// `shock` TF, and with the eye inside it.
+#[test]
+fn bluntfin_outside_and_eye_inside() {
+    let mesh = tetvr::io::load(&common::asset("bluntfin_tet.vtu"))
+        .expect("the data set loads")
+        .mesh;
+    let (tf, outside) = default_view(&mesh, 96);
+    let got = check("bluntfin", &mesh, &outside, &tf, BOUNDS);
+    assert_eq!(counter(&got, "thin tets"), 77);
+    let range = mesh.active_array().and_then(|a| a.range()).unwrap();
+    let shock = tetvr::tf::file::load_tf("shock", range, mesh.diagonal() / 100.0).unwrap();
+    // The shock TF's narrow opaque bands turn f32 scalar rounding into colour (GPU: rmse
+    // 8.4e-6, max 4.3e-4): the GPU test's bound.
+    check(
+        "bluntfin-shock",
+        &mesh,
+        &outside,
+        &shock,
+        bounds(3e-5, 1e-3),
+    );
+    let (lo, hi) = mesh.bounds();
+    let inside = Camera {
+        eye: lo + (hi - lo) * DVec3::new(0.6, 0.5, 0.5),
+        target: lo + (hi - lo) * DVec3::new(0.1, 0.4, 0.3),
+        up: DVec3::Z,
+        fov_y_deg: 60.0,
+        width: 96,
+        height: 96,
+    };
+    let got = check("bluntfin-inside", &mesh, &inside, &tf, BOUNDS);
+    assert_eq!(counter(&got, "eye in a tet"), 1);
+}
