@@ -158,6 +158,21 @@ pub struct IsoUniforms {
 }
 const _: () = assert!(size_of::<IsoUniforms>() == 336);
 
+/// Which dispatch of the iso gradient stage this is (WGSL `GradientPass` in
+/// `shaders/iso_gradients.wgsl`, 16 bytes): the stage runs once per chunk of the mesh's tets,
+/// and each vertex's running sums wait in its gradient slot between dispatches.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct GradientPass {
+    /// 1 for the first chunk: the sums start at zero instead of from the slot.
+    pub first: u32,
+    /// 1 for the last chunk: the slot gets the gradient instead of the sums.
+    pub last: u32,
+    /// Zero: pads the struct to the 16 bytes of a uniform binding.
+    pub _pad: [u32; 2],
+}
+const _: () = assert!(size_of::<GradientPass>() == 16);
+
 /// The cellproj raster's table constants (WGSL `CellProj` in `shaders/cellproj_raster.wgsl`,
 /// 16 bytes).
 #[repr(C)]

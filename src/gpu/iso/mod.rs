@@ -188,30 +188,14 @@ impl IsoRenderer {
             let middle = m.scalar_min + 0.5 * m.scalar_span;
             settings.isovalues.push((middle, DEFAULT_COLOR));
         }
-        let limits = ctx.limits.clone();
-        let smooth = settings.shading == Shading::Smooth;
-        // The gradient stage (smooth shading) binds its tet list and vertex-tet adjacency, 16
-        // bytes a tet over the whole mesh, whole; the other per-tet arrays are chunked.
-        let tet_bytes = m.tets.len() as u64 * 16;
-        let max_binding = limits
-            .max_storage_buffer_binding_size
-            .min(limits.max_buffer_size);
-        if smooth && tet_bytes > max_binding {
-            return Err(settings_error(format!(
-                "the mesh has {} tets; the iso mode keeps 16 bytes per tet in one storage \
-                 buffer, and this adapter binds at most {max_binding} bytes; split the mesh or \
-                 use another mode",
-                m.tets.len(),
-            )));
-        }
-        let device = ctx.device.clone();
-        let queue = ctx.queue.clone();
         let nv = m.positions.len() as u64;
-        let uniform = |label: &str, bytes: usize| uniform_buffer(&device, label, bytes);
-        let gradient_stage = smooth
-            .then(|| gradients::GradientStage::new(&device, &queue, &m.tets, m.positions.len()));
         let scalars_version = m.scalars_version;
         drop(m);
+        let gradient_stage = (settings.shading == Shading::Smooth)
+            .then(|| gradients::GradientStage::new(&mesh))
+            .transpose()?;
+        let device = ctx.device.clone();
+        let uniform = |label: &str, bytes: usize| uniform_buffer(&device, label, bytes);
         Ok(Self {
             pipelines: Pipelines::new(&device),
             assembly: AssemblyStage::new(&device),
@@ -231,8 +215,8 @@ impl IsoRenderer {
             gradient_vertices: None,
             gradient_stage,
             device,
-            queue,
-            limits,
+            queue: ctx.queue.clone(),
+            limits: ctx.limits.clone(),
             settings,
             mesh,
             scalars_version,
@@ -413,7 +397,7 @@ impl IsoRenderer {
             let ts = rec.timestamps("gradients");
             let list = (list, vertices.len() as u32);
             let writes = ts.as_ref().map(Timestamps::compute);
-            stage.encode(rec.encoder(), &self.mesh, &self.gradients_buf, list, writes);
+            stage.encode(rec.encoder(), &self.mesh, &self.gradients_buf, list, writes)?;
             rec.end_stage("gradients")?;
         }
         let ts = rec.timestamps("assembly");
