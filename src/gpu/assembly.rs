@@ -5,6 +5,8 @@
 //! [`crate::gpu::mesh::Chunking`]; each chunk is assembled through its own bind group over the
 //! chunk's windows, so records beyond one storage binding or one buffer are fine.
 
+use crate::gpu::GpuError;
+use crate::gpu::frame::{Recorder, Timestamps};
 use crate::gpu::gpu_data::TetRecord;
 use crate::gpu::mesh::{GpuTetMesh, TetArray};
 use crate::gpu::shaders;
@@ -105,9 +107,22 @@ impl AssemblyStage {
         AssemblyGroups(groups)
     }
 
-    /// Encodes the assembly in one compute pass (timed by `timestamps`), after zeroing the
-    /// degenerate count. `max_groups`: the adapter's workgroups per dimension.
-    pub(crate) fn encode(
+    /// Records the assembly of `groups` (from [`Self::bind`]) as the frame's "assembly" stage:
+    /// one compute pass, after zeroing the degenerate count. `max_groups`: the adapter's
+    /// workgroups per dimension.
+    pub(crate) fn record(
+        &self,
+        rec: &mut Recorder,
+        groups: &AssemblyGroups,
+        max_groups: u32,
+    ) -> Result<(), GpuError> {
+        let ts = rec.timestamps("assembly");
+        let writes = ts.as_ref().map(Timestamps::compute);
+        self.encode(rec.encoder(), groups, max_groups, writes);
+        rec.end_stage("assembly")
+    }
+
+    fn encode(
         &self,
         enc: &mut wgpu::CommandEncoder,
         groups: &AssemblyGroups,

@@ -49,7 +49,7 @@ use glam::DVec3;
 use crate::camera::Camera;
 use crate::gpu::GpuContext;
 use crate::gpu::assembly::{AssemblyInputs, AssemblyStage, RECORD_BYTES};
-use crate::gpu::frame::{FrameResources, FrameStats, ImageReadback, Timestamps};
+use crate::gpu::frame::{FrameResources, FrameStats, ImageReadback};
 pub use crate::gpu::gpu_data::CellProjUniforms;
 use crate::gpu::gpu_data::{TfPoints, ViewUniforms};
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
@@ -258,11 +258,8 @@ impl CellProjRenderer {
             })
             .collect();
         let mut rec = (self.frame).recorder(&self.device, &self.queue, 2, 1);
-        let ts = rec.timestamps("assembly");
         let max_groups = self.limits.max_compute_workgroups_per_dimension;
-        let writes = ts.as_ref().map(Timestamps::compute);
-        (self.assembly).encode(rec.encoder(), &assembly, max_groups, writes);
-        rec.end_stage("assembly")?;
+        (self.assembly).record(&mut rec, &assembly, max_groups)?;
         let ts = rec.timestamps("raster");
         let occlusion = rec.occlusion();
         raster::encode_raster(

@@ -400,11 +400,8 @@ impl IsoRenderer {
             stage.encode(rec.encoder(), &self.mesh, &self.gradients_buf, list, writes)?;
             rec.end_stage("gradients")?;
         }
-        let ts = rec.timestamps("assembly");
         let max_groups = self.limits.max_compute_workgroups_per_dimension;
-        let writes = ts.as_ref().map(Timestamps::compute);
-        (self.assembly).encode(rec.encoder(), &assembly, max_groups, writes);
-        rec.end_stage("assembly")?;
+        (self.assembly).record(&mut rec, &assembly, max_groups)?;
         let ts = rec.timestamps("raster");
         let occlusion = rec.occlusion();
         let raster = (&self.pipelines.raster, raster_groups.as_slice());

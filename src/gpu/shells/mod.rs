@@ -434,11 +434,8 @@ impl ShellsRenderer {
             0
         };
         let mut rec = (self.frame).recorder(&self.device, &self.queue, count, occlusion);
-        let ts = rec.timestamps("assembly");
         let max_groups = self.limits.max_compute_workgroups_per_dimension;
-        let writes = ts.as_ref().map(|t| t.compute());
-        (self.assembly).encode(rec.encoder(), &self.assembly_groups, max_groups, writes);
-        rec.end_stage("assembly")?;
+        (self.assembly).record(&mut rec, &self.assembly_groups, max_groups)?;
         if f.drawn.is_empty() {
             composite::clear(&mut rec, &passes);
         }
