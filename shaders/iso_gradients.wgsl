@@ -7,8 +7,19 @@
 // a tet's signed volume and g = grad * det (so no division per tet); tets of zero volume are
 // left out, and a vertex with none gets 0. Each vertex writes only its own output: no atomics.
 // Inputs as the other iso stages read them: positions relative to the mesh centre, normalized
-// scalars. Standalone (not appended to shared.wgsl). The CPU twin is
-// gpu::iso::gradients::vertex_gradients_twin.
+// scalars. The mesh's tets may span several bindings: the stage then runs once per chunk, in
+// tet order, with `tets` that chunk's window and the adjacency of that chunk alone (chunk-local
+// tet ids), and each vertex's running sums wait in its gradient slot from one chunk to the
+// next, so the terms add in the same order as in one pass. Standalone (not appended to
+// shared.wgsl). The CPU twin is gpu::iso::gradients::vertex_gradients_twin.
+
+// See gpu_data::GradientPass.
+struct GradientPass {
+    first: u32,
+    last: u32,
+    _pad0: u32,
+    _pad1: u32,
+}
 
 @group(0) @binding(0) var<storage, read> positions: array<vec4<f32>>;
 @group(0) @binding(1) var<storage, read> scalars: array<f32>;
@@ -18,6 +29,7 @@
 @group(0) @binding(5) var<storage, read_write> gradients: array<vec4<f32>>;
 // The vertices to update (those of the selected tets), each once.
 @group(0) @binding(6) var<storage, read> vertices: array<u32>;
+@group(0) @binding(7) var<uniform> chunk: GradientPass;
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
@@ -28,6 +40,11 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
     let v = vertices[i];
     var sum = vec3<f32>(0.0);
     var weight = 0.0;
+    if chunk.first == 0u {
+        let carried = gradients[v];
+        sum = carried.xyz;
+        weight = carried.w;
+    }
     for (var k = offsets[v]; k < offsets[v + 1u]; k++) {
         let t = tets[vertex_tets[k]];
         let p0 = positions[t.x].xyz;
@@ -44,6 +61,10 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
             sum += sign(det) * g;
             weight += abs(det);
         }
+    }
+    if chunk.last == 0u {
+        gradients[v] = vec4<f32>(sum, weight);
+        return;
     }
     var out = vec3<f32>(0.0);
     if weight > 0.0 {

@@ -58,7 +58,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     for (var y = r.y; y < r.w; y++) {
         for (var x = r.x; x < r.z; x++) {
             let t = entry_t(p, face, ray_of(vec2<u32>(u32(x), u32(y))));
-            let pixel = u32(y) * u32(frame.size.x) + u32(x);
+            let pixel = u32(y) * u32(view.size.x) + u32(x);
             if t > 0.0 && may_take(pixel, t, code) {
                 peel(pixel, t, code);
             }

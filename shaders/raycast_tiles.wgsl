@@ -32,7 +32,7 @@ fn entered(lo: vec2<u32>, hi: vec2<u32>, width: u32) -> bool {
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    let size = vec2<u32>(frame.size);
+    let size = vec2<u32>(view.size);
     let cols = (size.x + TILE - 1u) / TILE;
     let tile = gid.y * groups.x * 64u + gid.x;
     if tile >= cols * ((size.y + TILE - 1u) / TILE) {

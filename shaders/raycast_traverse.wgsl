@@ -95,14 +95,14 @@ fn tile_pixel(group: vec3<u32>, local: vec2<u32>) -> vec2<u32> {
         return vec2<u32>(NO_NEIGHBOR);
     }
     let tile = tiles[TILES_AT + k];
-    let cols = (u32(frame.size.x) + TILE - 1u) / TILE;
+    let cols = (u32(view.size.x) + TILE - 1u) / TILE;
     return vec2<u32>(tile % cols, tile / cols) * TILE + local;
 }
 
 @compute @workgroup_size(8, 8)
 fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>) {
     let px = tile_pixel(group, local.xy);
-    let size = vec2<u32>(frame.size);
+    let size = vec2<u32>(view.size);
     if px.x >= size.x || px.y >= size.y {
         return;
     }

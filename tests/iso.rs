@@ -401,6 +401,47 @@ fn brute_force_selected(mesh: &TetMesh, isovalues: &[f64]) -> u64 {
         .count() as u64
 }
 
+/// Smooth shading on a mesh whose tets span several storage bindings (the binding lowered to
+/// 1 MiB: the 24,576 tets of the Gaussians grid in 4 chunks): the gradient stage runs once per
+/// chunk and carries each vertex's sums from one to the next, so the same terms add in the
+/// same order, and gradients, colours, depths and normals are those of one binding to the bit
+/// (bound: 0 differing bits).
+#[test]
+fn smooth_shading_over_several_bindings_is_bit_identical() {
+    let mesh = gaussians();
+    let (lo, hi) = mesh.bounds();
+    let camera = Camera::framing(lo, hi, View::ISO, 1.2, 30.0, 96, 96);
+    let settings = IsoSettings {
+        isovalues: vec![(0.3, RED), (0.6, BLUE)],
+        shading: Shading::Smooth,
+        ..Default::default()
+    };
+    let binding = 1 << 20;
+    assert!(
+        mesh.tet_count() as u64 * 144 > 3 * binding,
+        "4 chunks of tets"
+    );
+    let run = |c: &GpuContext| {
+        let mut r = IsoRenderer::new(c, &mesh, settings.clone()).expect("iso renderer");
+        let (image, _) = r.render_surface(&camera).expect("frame");
+        let gradients = (r.read_vertex_gradients().expect("read gradients"))
+            .expect("smooth shading has gradients");
+        let values = (image.color.pixels.iter().flatten())
+            .chain(image.normal.iter().flatten())
+            .chain(&image.depth)
+            .chain(gradients.iter().flat_map(|(_, g)| g));
+        values.map(|v| v.to_bits()).collect::<Vec<u32>>()
+    };
+    let whole = run(ctx());
+    let parts = run(&common::with_storage_binding_limit(ctx(), binding));
+    assert_eq!(whole.len(), parts.len());
+    let differing = whole.iter().zip(&parts).filter(|(a, b)| a != b).count();
+    assert_eq!(
+        differing, 0,
+        "values differ between one binding and several"
+    );
+}
+
 /// A deforming mesh: one long-lived renderer is handed new positions (a twist), then new
 /// scalars (the field rescaled and shifted, so other tets hold the isovalues). After each,
 /// the selection is the brute-force one of the new data, the picture matches the reference of

@@ -21,9 +21,14 @@ fn iso_uniform_layout_matches() {
     assert_eq!(wgsl_struct_size(&module, "Iso"), size_of::<IsoUniforms>());
 }
 
-/// The smooth-shading gradient stage (standalone WGSL) parses and validates.
+/// The smooth-shading gradient stage (standalone WGSL) parses and validates, and its
+/// per-chunk flags have the size of `GradientPass`.
 #[test]
 fn iso_gradients_validates() {
     let module = validated_wgsl("iso_gradients", &shaders::iso_gradients());
     assert_eq!(entry_points(&module), ["main"]);
+    assert_eq!(
+        wgsl_struct_size(&module, "GradientPass"),
+        size_of::<tetvr::gpu::gpu_data::GradientPass>()
+    );
 }

@@ -5,6 +5,8 @@
 //! [`crate::gpu::mesh::Chunking`]; each chunk is assembled through its own bind group over the
 //! chunk's windows, so records beyond one storage binding or one buffer are fine.
 
+use crate::gpu::GpuError;
+use crate::gpu::frame::{Recorder, Timestamps};
 use crate::gpu::gpu_data::TetRecord;
 use crate::gpu::mesh::{GpuTetMesh, TetArray};
 use crate::gpu::shaders;
@@ -32,8 +34,8 @@ pub(crate) struct AssemblyGroups(Vec<(wgpu::BindGroup, u64)>);
 
 /// What one assembly reads and writes: record `k` is built from list entry `k`.
 pub(crate) struct AssemblyInputs<'a> {
-    /// The frame uniforms (`tet_count` bounds the list).
-    pub frame: &'a wgpu::Buffer,
+    /// The view uniforms (`tet_count` bounds the list).
+    pub view: &'a wgpu::Buffer,
     /// The mesh's vertex buffers.
     pub mesh: &'a GpuTetMesh,
     /// The tets to assemble (vertex indices).
@@ -91,7 +93,7 @@ impl AssemblyStage {
                     label: Some("assemble"),
                     layout: &self.layout,
                     entries: &[
-                        entry(0, inputs.frame),
+                        entry(0, inputs.view),
                         entry(1, inputs.mesh.positions()),
                         entry(2, inputs.mesh.scalars()),
                         inputs.tets.window(3, first, count),
@@ -105,9 +107,22 @@ impl AssemblyStage {
         AssemblyGroups(groups)
     }
 
-    /// Encodes the assembly in one compute pass (timed by `timestamps`), after zeroing the
-    /// degenerate count. `max_groups`: the adapter's workgroups per dimension.
-    pub(crate) fn encode(
+    /// Records the assembly of `groups` (from [`Self::bind`]) as the frame's "assembly" stage:
+    /// one compute pass, after zeroing the degenerate count. `max_groups`: the adapter's
+    /// workgroups per dimension.
+    pub(crate) fn record(
+        &self,
+        rec: &mut Recorder,
+        groups: &AssemblyGroups,
+        max_groups: u32,
+    ) -> Result<(), GpuError> {
+        let ts = rec.timestamps("assembly");
+        let writes = ts.as_ref().map(Timestamps::compute);
+        self.encode(rec.encoder(), groups, max_groups, writes);
+        rec.end_stage("assembly")
+    }
+
+    fn encode(
         &self,
         enc: &mut wgpu::CommandEncoder,
         groups: &AssemblyGroups,

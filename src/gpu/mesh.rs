@@ -150,6 +150,11 @@ impl GpuTetMesh {
         &self.device
     }
 
+    /// The queue its uploads go through.
+    pub(crate) fn queue(&self) -> &wgpu::Queue {
+        &self.queue
+    }
+
     /// The limits the buffers were cut for.
     pub(crate) fn limits(&self) -> &wgpu::Limits {
         &self.limits

@@ -6,7 +6,7 @@
 use glam::{UVec2, Vec3, Vec4};
 use rayon::prelude::*;
 
-use crate::gpu::gpu_data::FrameUniforms;
+use crate::gpu::gpu_data::ViewUniforms;
 use crate::gpu::raycast::{TetLinks, TetPlanes, twin};
 use crate::mesh::topology::{FACES, NO_NEIGHBOR};
 
@@ -31,7 +31,7 @@ pub fn face_corners(eye: &[Vec3], ids: [u32; 4], f: usize) -> [Vec3; 3] {
 
 /// Writes every vertex (world, relative to the mesh origin in f32, as the GPU reads it) in eye
 /// space into `out`.
-pub fn eye_positions(f: &FrameUniforms, positions: &[Vec3], out: &mut Vec<Vec3>) {
+pub fn eye_positions(f: &ViewUniforms, positions: &[Vec3], out: &mut Vec<Vec3>) {
     positions
         .par_iter()
         .map(|&p| twin::eye_space(f, p))
@@ -153,7 +153,7 @@ impl Bins {
 /// projection's pixel box, one pixel wider on each side, covers (every tile where a face
 /// reaches behind the eye plane).
 pub fn bins(
-    f: &FrameUniforms,
+    f: &ViewUniforms,
     boundary: &[u32],
     tets: &[Tet],
     links: &[TetLinks],
@@ -201,7 +201,7 @@ pub fn bins(
 /// corners `c`: its projection's box widened by one pixel, clamped to the image; the whole
 /// image when a corner is at or behind the eye plane; `None` when it is off screen or
 /// entirely behind the eye (rays meet nothing there at t > 0).
-fn tile_rect(f: &FrameUniforms, size: UVec2, c: [Vec3; 3]) -> Option<[UVec2; 2]> {
+fn tile_rect(f: &ViewUniforms, size: UVec2, c: [Vec3; 3]) -> Option<[UVec2; 2]> {
     if c.iter().all(|p| p.z <= 0.0) {
         return None;
     }

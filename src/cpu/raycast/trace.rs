@@ -6,7 +6,7 @@
 
 use glam::{UVec2, Vec3, Vec4};
 
-use crate::gpu::gpu_data::FrameUniforms;
+use crate::gpu::gpu_data::ViewUniforms;
 use crate::gpu::raycast::twin;
 use crate::mesh::topology::NO_NEIGHBOR;
 
@@ -15,7 +15,7 @@ use super::scene::{Bins, TILE, Tet, face_corners};
 
 /// What the rays read: the frame, the per-tet data, the entry bins.
 pub struct Scene<'a> {
-    pub frame: &'a FrameUniforms,
+    pub frame: &'a ViewUniforms,
     pub tets: &'a [Tet],
     /// Each tet's vertex indices (for thin tets' edge tests).
     pub ids: &'a [[u32; 4]],

@@ -6,15 +6,18 @@
 //! computed independently): at each vertex, the volume-weighted mean of the gradients of the
 //! tets around it, `sum |V| grad / sum |V|`, leaving out zero-volume tets; zero where every
 //! adjacent tet has zero volume. A vertex-to-tets adjacency in CSR form ([`VertexTets`]) is
-//! built once at load; each invocation gathers its vertex's tets, so no float atomics are
+//! built once at load, per chunk of the mesh's tets (so no binding holds more than a chunk);
+//! each invocation gathers its vertex's tets, chunk after chunk, so no float atomics are
 //! needed. [`vertex_gradients_twin`] is the stage's CPU twin, in f32 with the shader's
 //! operation order, for tests.
 
 use rayon::prelude::*;
 
+use crate::gpu::gpu_data::GradientPass;
 use crate::gpu::mesh::GpuTetMesh;
 use crate::gpu::shaders;
 use crate::gpu::util::{bind_group_layout, buffer_entry, compute_main, entry};
+use crate::render::RenderError;
 
 /// Vertex-to-tets adjacency in CSR form: vertex `v`'s tets are
 /// `tets[offsets[v] as usize..offsets[v + 1] as usize]`, in increasing tet order.
@@ -99,25 +102,39 @@ pub fn vertex_gradients_twin(
         .collect()
 }
 
-/// The GPU stage: pipeline and the adjacency buffers (uploaded once).
+/// One dispatch of the GPU stage: a chunk of the mesh's tets (a window of [`GpuTetMesh::tets`])
+/// and the adjacency of that chunk (chunk-local tet ids), uploaded once.
+struct ChunkPass {
+    /// The chunk: its first tet and tet count.
+    tets: (u64, u64),
+    offsets: wgpu::Buffer,
+    vertex_tets: wgpu::Buffer,
+    /// Its [`GradientPass`] flags.
+    flags: wgpu::Buffer,
+}
+
+/// The GPU stage: the pipeline and one [`ChunkPass`] per chunk of the mesh's tets, run in
+/// tet order. Each vertex's sums carry from dispatch to dispatch in its own gradient slot, so the
+/// gradient adds the same terms in the same order however many chunks the tets span.
 pub(super) struct GradientStage {
     layout: wgpu::BindGroupLayout,
     pipeline: wgpu::ComputePipeline,
-    tets_buf: wgpu::Buffer,
-    offsets_buf: wgpu::Buffer,
-    vertex_tets_buf: wgpu::Buffer,
+    passes: Vec<ChunkPass>,
 }
 
 impl GradientStage {
-    pub(super) fn new(
-        device: &wgpu::Device,
-        queue: &wgpu::Queue,
-        tets: &[[u32; 4]],
-        vertex_count: usize,
-    ) -> Self {
+    /// The stage for `mesh`, its tets cut into the mesh's chunks (takes the mesh's read lock:
+    /// the caller must not hold it).
+    pub(super) fn new(mesh: &GpuTetMesh) -> Result<Self, RenderError> {
         use wgpu::ShaderStages as S;
+        // The mesh's shared tet array, created now (it takes the read lock once) so that the
+        // frames find it made.
+        mesh.tets()?;
+        let m = mesh.read();
+        let device = mesh.device();
         let ro = wgpu::BufferBindingType::Storage { read_only: true };
         let rw = wgpu::BufferBindingType::Storage { read_only: false };
+        let uniform = wgpu::BufferBindingType::Uniform;
         let layout = bind_group_layout(
             device,
             "iso gradients",
@@ -129,35 +146,52 @@ impl GradientStage {
                 buffer_entry(4, S::COMPUTE, ro),
                 buffer_entry(5, S::COMPUTE, rw),
                 buffer_entry(6, S::COMPUTE, ro),
+                buffer_entry(7, S::COMPUTE, uniform),
             ],
         );
         let pipeline = compute_main(device, "iso gradients", &layout, shaders::iso_gradients());
-        let adjacency = VertexTets::build(tets, vertex_count);
-        let upload = |label: &str, bytes: &[u8]| {
-            let buf = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: (bytes.len() as u64).max(16),
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
-            queue.write_buffer(&buf, 0, bytes);
-            buf
-        };
-        Self {
-            tets_buf: upload("iso gradient tets", bytemuck::cast_slice(tets)),
-            offsets_buf: upload(
-                "iso vertex-tet offsets",
-                bytemuck::cast_slice(&adjacency.offsets),
-            ),
-            vertex_tets_buf: upload("iso vertex tets", bytemuck::cast_slice(&adjacency.tets)),
+        let chunks = mesh.chunking()?.ranges(m.tets.len() as u64);
+        let last = chunks.len().saturating_sub(1);
+        let passes = (chunks.iter().enumerate())
+            .map(|(c, &(first, count))| {
+                let tets = &m.tets[first as usize..(first + count) as usize];
+                let adjacency = VertexTets::build(tets, m.positions.len());
+                let flags = GradientPass {
+                    first: (c == 0) as u32,
+                    last: (c == last) as u32,
+                    _pad: [0; 2],
+                };
+                let storage = wgpu::BufferUsages::STORAGE;
+                let cast = bytemuck::cast_slice;
+                ChunkPass {
+                    tets: (first, count),
+                    offsets: upload(
+                        mesh,
+                        "iso vertex-tet offsets",
+                        cast(&adjacency.offsets),
+                        storage,
+                    ),
+                    vertex_tets: upload(mesh, "iso vertex tets", cast(&adjacency.tets), storage),
+                    flags: upload(
+                        mesh,
+                        "iso gradient pass",
+                        bytemuck::bytes_of(&flags),
+                        wgpu::BufferUsages::UNIFORM,
+                    ),
+                }
+            })
+            .collect();
+        Ok(Self {
             layout,
             pipeline,
-        }
+            passes,
+        })
     }
 
-    /// Records the pass (timed by `timestamps`) writing the gradient of each vertex listed in
-    /// `vertices` (a buffer of exactly `count` u32s: the shader takes the count from its
-    /// length) into `gradients`, from the mesh's current positions and scalars.
+    /// Records the pass (timed by `timestamps`; one dispatch per chunk, in tet order) writing
+    /// the gradient of each vertex listed in `vertices` (a buffer of exactly `count` u32s: the
+    /// shader takes the count from its length) into `gradients`, from the mesh's current
+    /// positions and scalars.
     pub(super) fn encode(
         &self,
         enc: &mut wgpu::CommandEncoder,
@@ -165,32 +199,53 @@ impl GradientStage {
         gradients: &wgpu::Buffer,
         (vertices, count): (&wgpu::Buffer, u32),
         timestamps: Option<wgpu::ComputePassTimestampWrites>,
-    ) {
-        let group = mesh.device().create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("iso gradients"),
-            layout: &self.layout,
-            entries: &[
-                entry(0, mesh.positions()),
-                entry(1, mesh.scalars()),
-                entry(2, &self.tets_buf),
-                entry(3, &self.offsets_buf),
-                entry(4, &self.vertex_tets_buf),
-                entry(5, gradients),
-                entry(6, vertices),
-            ],
-        });
+    ) -> Result<(), RenderError> {
+        let tets = mesh.tets()?;
+        let groups: Vec<wgpu::BindGroup> = (self.passes.iter())
+            .map(|chunk| {
+                mesh.device().create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("iso gradients"),
+                    layout: &self.layout,
+                    entries: &[
+                        entry(0, mesh.positions()),
+                        entry(1, mesh.scalars()),
+                        tets.window(2, chunk.tets.0, chunk.tets.1),
+                        entry(3, &chunk.offsets),
+                        entry(4, &chunk.vertex_tets),
+                        entry(5, gradients),
+                        entry(6, vertices),
+                        entry(7, &chunk.flags),
+                    ],
+                })
+            })
+            .collect();
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("iso gradients"),
             timestamp_writes: timestamps,
         });
         pass.set_pipeline(&self.pipeline);
-        pass.set_bind_group(0, &group, &[]);
-        let groups = count.div_ceil(64).max(1);
-        let x = groups
+        let workgroups = count.div_ceil(64).max(1);
+        let x = workgroups
             .min(mesh.limits().max_compute_workgroups_per_dimension)
             .max(1);
-        pass.dispatch_workgroups(x, groups.div_ceil(x), 1);
+        for group in &groups {
+            pass.set_bind_group(0, group, &[]);
+            pass.dispatch_workgroups(x, workgroups.div_ceil(x), 1);
+        }
+        Ok(())
     }
+}
+
+/// A buffer of `usage` holding `bytes` (at least 16 bytes).
+fn upload(mesh: &GpuTetMesh, label: &str, bytes: &[u8], usage: wgpu::BufferUsages) -> wgpu::Buffer {
+    let buf = mesh.device().create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: (bytes.len() as u64).max(16),
+        usage: usage | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    mesh.queue().write_buffer(&buf, 0, bytes);
+    buf
 }
 
 #[cfg(test)]

@@ -8,7 +8,7 @@
 //!    recomputed only when the scalars or the isovalues change; Frustum culling
 //!    ([`IsoSettings::frustum`]) then drops, every frame, the selected tets entirely outside one
 //!    plane of the view frustum (stage "frustum");
-//! 2. upload (`upload.rs`): frame constants and the tets to draw;
+//! 2. upload (`upload.rs`): view constants and the tets to draw;
 //! 3. gradients (smooth shading only): a compute pass recomputes the gradient of every vertex of a
 //!    selected tet from the current positions, the volume-weighted mean over its tets
 //!    ([`gradients`]);
@@ -45,7 +45,7 @@ use crate::camera::Camera;
 use crate::gpu::GpuContext;
 use crate::gpu::assembly::{AssemblyInputs, AssemblyStage};
 use crate::gpu::frame::{FrameResources, FrameStats, ImageReadback, Timestamps};
-use crate::gpu::gpu_data::FrameUniforms;
+use crate::gpu::gpu_data::ViewUniforms;
 pub use crate::gpu::gpu_data::{IsoUniforms, MAX_ISOVALUES};
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
 use crate::gpu::util::{map_read, ms_since, settings_error, uniform_buffer};
@@ -123,7 +123,7 @@ pub struct IsoRenderer {
     pipelines: Pipelines,
     assembly: AssemblyStage,
     frame: FrameResources,
-    frame_buf: wgpu::Buffer,
+    view_buf: wgpu::Buffer,
     iso_buf: wgpu::Buffer,
     gradients_buf: wgpu::Buffer,
     targets: Option<Targets>,
@@ -188,35 +188,19 @@ impl IsoRenderer {
             let middle = m.scalar_min + 0.5 * m.scalar_span;
             settings.isovalues.push((middle, DEFAULT_COLOR));
         }
-        let limits = ctx.limits.clone();
-        let smooth = settings.shading == Shading::Smooth;
-        // The gradient stage (smooth shading) binds its tet list and vertex-tet adjacency, 16
-        // bytes a tet over the whole mesh, whole; the other per-tet arrays are chunked.
-        let tet_bytes = m.tets.len() as u64 * 16;
-        let max_binding = limits
-            .max_storage_buffer_binding_size
-            .min(limits.max_buffer_size);
-        if smooth && tet_bytes > max_binding {
-            return Err(settings_error(format!(
-                "the mesh has {} tets; the iso mode keeps 16 bytes per tet in one storage \
-                 buffer, and this adapter binds at most {max_binding} bytes; split the mesh or \
-                 use another mode",
-                m.tets.len(),
-            )));
-        }
-        let device = ctx.device.clone();
-        let queue = ctx.queue.clone();
         let nv = m.positions.len() as u64;
-        let uniform = |label: &str, bytes: usize| uniform_buffer(&device, label, bytes);
-        let gradient_stage = smooth
-            .then(|| gradients::GradientStage::new(&device, &queue, &m.tets, m.positions.len()));
         let scalars_version = m.scalars_version;
         drop(m);
+        let gradient_stage = (settings.shading == Shading::Smooth)
+            .then(|| gradients::GradientStage::new(&mesh))
+            .transpose()?;
+        let device = ctx.device.clone();
+        let uniform = |label: &str, bytes: usize| uniform_buffer(&device, label, bytes);
         Ok(Self {
             pipelines: Pipelines::new(&device),
             assembly: AssemblyStage::new(&device),
             frame: FrameResources::new(ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY)),
-            frame_buf: uniform("iso frame", size_of::<FrameUniforms>()),
+            view_buf: uniform("iso view", size_of::<ViewUniforms>()),
             iso_buf: uniform("iso isovalues", size_of::<IsoUniforms>()),
             // One gradient per vertex, written by the gradient stage (smooth shading); zeros,
             // unused, for flat shading.
@@ -231,8 +215,8 @@ impl IsoRenderer {
             gradient_vertices: None,
             gradient_stage,
             device,
-            queue,
-            limits,
+            queue: ctx.queue.clone(),
+            limits: ctx.limits.clone(),
             settings,
             mesh,
             scalars_version,
@@ -399,7 +383,7 @@ impl IsoRenderer {
         };
         let chunks = lists.chunking.ranges(drawn);
         let inputs = AssemblyInputs {
-            frame: &self.frame_buf,
+            view: &self.view_buf,
             mesh: &self.mesh,
             tets: &lists.tets,
             records: &lists.records,
@@ -413,14 +397,11 @@ impl IsoRenderer {
             let ts = rec.timestamps("gradients");
             let list = (list, vertices.len() as u32);
             let writes = ts.as_ref().map(Timestamps::compute);
-            stage.encode(rec.encoder(), &self.mesh, &self.gradients_buf, list, writes);
+            stage.encode(rec.encoder(), &self.mesh, &self.gradients_buf, list, writes)?;
             rec.end_stage("gradients")?;
         }
-        let ts = rec.timestamps("assembly");
         let max_groups = self.limits.max_compute_workgroups_per_dimension;
-        let writes = ts.as_ref().map(Timestamps::compute);
-        (self.assembly).encode(rec.encoder(), &assembly, max_groups, writes);
-        rec.end_stage("assembly")?;
+        (self.assembly).record(&mut rec, &assembly, max_groups)?;
         let ts = rec.timestamps("raster");
         let occlusion = rec.occlusion();
         let raster = (&self.pipelines.raster, raster_groups.as_slice());
@@ -457,7 +438,7 @@ impl Renderer for IsoRenderer {
     }
 
     fn gpu_memory(&self) -> u64 {
-        let buffers = [&self.frame_buf, &self.iso_buf, &self.gradients_buf]
+        let buffers = [&self.view_buf, &self.iso_buf, &self.gradients_buf]
             .iter()
             .map(|b| b.size())
             .sum::<u64>();

@@ -52,7 +52,7 @@ use glam::DVec3;
 use crate::camera::Camera;
 use crate::gpu::GpuContext;
 use crate::gpu::frame::{FrameResources, ImageReadback};
-use crate::gpu::gpu_data::{FrameUniforms, LayerUniforms, TfPoints};
+use crate::gpu::gpu_data::{LayerUniforms, TfPoints, ViewUniforms};
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
 use crate::gpu::util::{settings_error, uniform_buffer};
 use crate::mesh::TetMesh;
@@ -233,7 +233,7 @@ impl RaycastRenderer {
         Ok(Self {
             pipelines: Pipelines::new(&device),
             frame: FrameResources::new(ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY)),
-            frame_buf: uniform("raycast frame", size_of::<FrameUniforms>()),
+            frame_buf: uniform("raycast frame", size_of::<ViewUniforms>()),
             tf_buf: uniform("raycast tf", size_of::<TfPoints>()),
             params_buf: uniform("raycast constants", size_of::<RaycastUniforms>()),
             layer_buf: uniform("raycast layer", size_of::<LayerUniforms>()),
