@@ -160,6 +160,7 @@ impl ModeSettings {
                 let how = match s.segments {
                     Segments::Partial => "partial pre-integration",
                     Segments::Exact => "exact segments",
+                    Segments::Table => "3D pre-integration table",
                 };
                 format!("mode raycast ({how}) on {on}")
             }

@@ -20,10 +20,10 @@ fn validate(name: &str, src: &str) -> Vec<String> {
 #[test]
 fn every_registered_shader_validates() {
     let registry = shaders::registry();
-    // assemble, shells_mark, iso_raster, iso_gradients, cellproj_raster, four raycast stages
-    // (planes, entries, traversal exact and partial), and per target count one shells raster
-    // variant and 33 composite variants.
-    assert_eq!(registry.len(), 9 + shaders::MAX_TARGETS as usize * 34);
+    // assemble, shells_mark, iso_raster, iso_gradients, cellproj_raster, six raycast stages
+    // (vertices, planes, entries, traversal exact, partial and table), and per target count one
+    // shells raster variant and 33 composite variants.
+    assert_eq!(registry.len(), 11 + shaders::MAX_TARGETS as usize * 34);
     for (name, src, entries) in registry {
         assert_eq!(validate(&name, &src), entries, "{name}");
     }
@@ -45,16 +45,12 @@ fn shared_struct_layouts_match_gpu_data() {
 /// The ray caster's structs have the sizes of their Rust twins in every stage.
 #[test]
 fn raycast_struct_layouts_match_gpu_data() {
-    use tetvr::gpu::gpu_data::{RaycastUniforms, TetLinks, TetPlanes};
+    use tetvr::gpu::gpu_data::{RaycastUniforms, TetLinks};
     for (name, src) in shaders::raycast_stages() {
         let module = validated_wgsl(name, &src);
         assert_eq!(
             wgsl_struct_size(&module, "Raycast"),
             size_of::<RaycastUniforms>()
-        );
-        assert_eq!(
-            wgsl_struct_size(&module, "TetPlanes"),
-            size_of::<TetPlanes>()
         );
         assert_eq!(wgsl_struct_size(&module, "TetLinks"), size_of::<TetLinks>());
     }

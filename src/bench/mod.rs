@@ -546,6 +546,7 @@ fn raycast(segments: Segments) -> Config {
         setting: match segments {
             Segments::Partial => "partial".into(),
             Segments::Exact => "exact".into(),
+            Segments::Table => "table".into(),
         },
         truth: Truth::Volume,
         gpu: true,
@@ -588,6 +589,7 @@ pub fn configurations(quick: bool) -> Vec<Config> {
             cellproj(Integrate::Exact, 128),
             raycast(Segments::Partial),
             raycast(Segments::Exact),
+            raycast(Segments::Table),
         ]);
         c
     };

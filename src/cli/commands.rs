@@ -237,14 +237,10 @@ fn mode_settings(
             segments: match args.cellproj.integrate {
                 None | Some(IntegrateArg::Partial) => Segments::Partial,
                 Some(IntegrateArg::Exact) => Segments::Exact,
-                Some(IntegrateArg::Table) => {
-                    return Err(CliError::Usage(
-                        "--mode raycast integrates with partial (the default) or exact; the 3D \
-                         table belongs to --mode cellproj"
-                            .into(),
-                    ));
-                }
+                Some(IntegrateArg::Table) => Segments::Table,
             },
+            table_size: args.cellproj.table_size,
+            table_lengths: (args.cellproj.table_size / 2).max(2),
             ..RaycastSettings::default()
         }),
         Mode::Iso => {

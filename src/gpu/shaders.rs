@@ -25,31 +25,49 @@ const ISO_GRADIENTS: &str = include_str!("../../shaders/iso_gradients.wgsl");
 const CELLPROJ_RASTER: &str = include_str!("../../shaders/cellproj_raster.wgsl");
 
 const RAYCAST_SHARED: &str = include_str!("../../shaders/raycast_shared.wgsl");
+const RAYCAST_VERTICES: &str = include_str!("../../shaders/raycast_vertices.wgsl");
 const RAYCAST_PLANES: &str = include_str!("../../shaders/raycast_planes.wgsl");
 const RAYCAST_ENTRIES: &str = include_str!("../../shaders/raycast_entries.wgsl");
 const RAYCAST_TRAVERSE: &str = include_str!("../../shaders/raycast_traverse.wgsl");
 const RAYCAST_PSI: &str = include_str!("../../shaders/raycast_psi.wgsl");
+const RAYCAST_TABLE: &str = include_str!("../../shaders/raycast_table.wgsl");
 
-/// The ray caster's stages as it loads them (entry point `main` in each): planes, entries, and
-/// the traversal with each integrator (`Segments`: exact, partial).
-pub fn raycast_stages() -> [(&'static str, String); 4] {
+/// The traversal's `segment` for the integrators of `integrate_segment.wgsl`.
+const SEGMENT_PIECEWISE: &str = "fn segment(u_front: f32, u_back: f32, len: f32) -> Acc {\n    \
+    return integrate_segment(u_front, u_back, len);\n}\n";
+
+/// The ray caster's stages as it loads them (entry point `main` in each): vertices, planes,
+/// entries, and the traversal with each integrator (`Segments`: exact, partial, table).
+pub fn raycast_stages() -> [(&'static str, String); 6] {
     let common = format!("{}\n{RAYCAST_SHARED}", SHARED);
-    let traverse = |name, psi: &str| {
+    // Every traversal has integrate_segment.wgsl (its `Acc`); the variant gives `segment`.
+    let traverse = |name, integrator: &str| {
         let integrate = INTEGRATE_SEGMENT;
         (
             name,
-            format!("{common}\n{integrate}\n{psi}\n{RAYCAST_TRAVERSE}"),
+            format!("{common}\n{integrate}\n{integrator}\n{RAYCAST_TRAVERSE}"),
         )
     };
-    let table = format!(
+    let psi = format!(
         "// Generated: samples per psi table axis.\nconst PSI_SIZE: u32 = {}u;\n{RAYCAST_PSI}",
         crate::gpu::raycast::psi::PSI_SIZE
     );
     [
+        ("raycast_vertices", format!("{common}\n{RAYCAST_VERTICES}")),
         ("raycast_planes", format!("{common}\n{RAYCAST_PLANES}")),
         ("raycast_entries", format!("{common}\n{RAYCAST_ENTRIES}")),
-        traverse("raycast_traverse (exact)", PSI_EXACT),
-        traverse("raycast_traverse (partial)", &table),
+        traverse(
+            "raycast_traverse (exact)",
+            &format!("{PSI_EXACT}\n{SEGMENT_PIECEWISE}"),
+        ),
+        traverse(
+            "raycast_traverse (partial)",
+            &format!("{psi}\n{SEGMENT_PIECEWISE}"),
+        ),
+        traverse(
+            "raycast_traverse (table)",
+            &format!("{PSI_EXACT}\n{RAYCAST_TABLE}"),
+        ),
     ]
 }
 

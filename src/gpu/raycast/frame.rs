@@ -1,11 +1,13 @@
-//! One ray-cast frame: upload, the three stages recorded on the shared frame recorder, the
+//! One ray-cast frame: upload, the four stages recorded on the shared frame recorder, the
 //! readback, and the rerun with longer entry lists when a list overflowed.
 
 use std::time::Instant;
 
 use crate::camera::Camera;
 use crate::gpu::frame::{ImageReadback, Timestamps};
+use crate::gpu::cellproj::preint::TableKey;
 use crate::gpu::gpu_data::FrameUniforms;
+use crate::gpu::mesh::{MeshData, chunk_ranges};
 use crate::gpu::tf::tf_points;
 use crate::gpu::util::{check_image_size, entry, map_read, ms_since, settings_error, texture_2d};
 use crate::gpu::view::ViewFrame;
@@ -13,6 +15,7 @@ use crate::image::Image;
 use crate::render::{Frame, RenderError, Timings};
 use crate::tf::TransferFunction;
 
+use super::links::LINK_BINDINGS;
 use super::pipelines::{Pipelines, Stage, encode, linear_groups};
 use super::{
     COUNTERS, RaycastRenderer, RaycastUniforms, Segments, Targets, default_max_steps, near_tol, psi,
@@ -53,8 +56,12 @@ fn traversal(p: &Pipelines, segments: Segments) -> &Stage {
     match segments {
         Segments::Exact => &p.exact,
         Segments::Partial => &p.partial,
+        Segments::Table => &p.table,
     }
 }
+
+/// The stages in order, as their timestamps name them.
+const STAGES: [&str; 4] = ["vertices", "planes", "entries", "traverse"];
 
 impl RaycastRenderer {
     /// Renders one frame; see the module docs.
@@ -66,7 +73,7 @@ impl RaycastRenderer {
         let start = Instant::now();
         let mut timings = Timings::default();
         let t = Instant::now();
-        self.upload(camera, tf)?;
+        let rebuilt = self.upload(camera, tf)?;
         timings.stage("upload", ms_since(t));
         let mut reruns = 0;
         let run = loop {
@@ -81,7 +88,7 @@ impl RaycastRenderer {
         };
         let t = Instant::now();
         let image = self.read_image()?;
-        for stage in ["planes", "entries", "traverse"] {
+        for stage in STAGES {
             let ms = run
                 .stages
                 .iter()
@@ -92,12 +99,15 @@ impl RaycastRenderer {
         timings.stage("readback", ms_since(t));
         timings.stage("total", ms_since(start));
         timings.clock = if run.gpu_clock {
-            "GPU timestamps for planes, entries, traverse (the last run); wall clock for \
-             upload, readback and total"
+            "GPU timestamps for vertices, planes, entries, traverse (the last run); wall \
+             clock for upload (with the 3D table's build), readback and total"
         } else {
             "wall clock, GPU drained after each stage"
         };
         self.count(&mut timings, &run, reruns);
+        if self.settings.segments == Segments::Table {
+            timings.count("table rebuilt", rebuilt as u64);
+        }
         Ok(Frame { image, timings })
     }
 
@@ -110,11 +120,14 @@ impl RaycastRenderer {
         timings.count("list overflow reruns", reruns);
         timings.count("rays at step limit", run.counters[3] as u64);
         timings.count("bytes per tet", self.bytes_per_tet().round() as u64);
+        timings.count("record buffers", self.links.buffer_count() as u64);
     }
 
-    /// Writes the frame constants, the TF and the ray caster's constants.
-    fn upload(&mut self, camera: &Camera, tf: &TransferFunction) -> Result<(), RenderError> {
-        let m = self.mesh.read();
+    /// Writes the frame constants, the TF, the integrator's table and the ray caster's
+    /// constants; returns whether the 3D table was rebuilt.
+    fn upload(&mut self, camera: &Camera, tf: &TransferFunction) -> Result<bool, RenderError> {
+        let mesh = self.mesh.clone();
+        let m = mesh.read();
         let view = ViewFrame::new(camera);
         let nt = m.tets.len() as u32;
         let frame = FrameUniforms {
@@ -127,6 +140,10 @@ impl RaycastRenderer {
         self.queue
             .write_buffer(&self.tf_buf, 0, bytemuck::bytes_of(&points));
         self.eye_tol = near_tol(m.radius);
+        let rebuilt = match self.settings.segments {
+            Segments::Table => self.ensure_table(&m, tf)?,
+            _ => false,
+        };
         drop(m);
         if self.settings.segments == Segments::Partial && self.psi.size() == 16 {
             let table = psi::table();
@@ -134,16 +151,49 @@ impl RaycastRenderer {
             (self.queue).write_buffer(&self.psi, 0, bytemuck::cast_slice(table));
         }
         self.write_params();
-        Ok(())
+        Ok(rebuilt)
+    }
+
+    /// Builds and uploads the 3D pre-integration table when the TF, the scalar range or the
+    /// longest edge (grown) changed (`preint::TableKey`, cellproj's rule); returns whether it
+    /// did. An error when the table exceeds one storage binding.
+    fn ensure_table(&mut self, m: &MeshData, tf: &TransferFunction) -> Result<bool, RenderError> {
+        let max_edge = self.max_edge.of(m);
+        let Some(key) = TableKey::stale(self.preint_key.as_ref(), m, tf, max_edge) else {
+            return Ok(false);
+        };
+        let (n, l) = (self.settings.table_size, self.settings.table_lengths);
+        let bytes = 16 * n as u64 * n as u64 * l as u64;
+        let max = (self.limits.max_storage_buffer_binding_size).min(self.limits.max_buffer_size);
+        if bytes > max {
+            return Err(settings_error(format!(
+                "the pre-integration table of {n} scalars x {n} x {l} lengths needs {bytes} \
+                 bytes, more than one storage binding of this adapter holds ({max}); choose a \
+                 smaller table"
+            )));
+        }
+        let table = key.build(n, l);
+        if self.preint.size() != bytes {
+            self.preint = storage(&self.device, "raycast 3D table", bytes as usize);
+        }
+        (self.queue).write_buffer(&self.preint, 0, bytemuck::cast_slice(&table.data));
+        self.preint_key = Some(key);
+        Ok(true)
     }
 
     fn write_params(&self) {
+        let lengths = self.settings.table_lengths;
         let params = RaycastUniforms {
             capacity: self.capacity,
             max_steps: (self.settings.max_steps)
                 .unwrap_or_else(|| default_max_steps(self.mesh.tet_count())),
             boundary_count: self.boundary_count,
             eye_tol: self.eye_tol,
+            link_chunk: self.link_chunk as u32,
+            table_size: self.settings.table_size,
+            table_lengths: lengths,
+            inv_length_step: (self.preint_key.as_ref())
+                .map_or(0.0, |k| ((lengths - 1) as f64 / k.max_length) as f32),
         };
         self.queue
             .write_buffer(&self.params_buf, 0, bytemuck::bytes_of(&params));
@@ -200,71 +250,99 @@ impl RaycastRenderer {
         })
     }
 
-    /// The bind groups of the planes, entries and traversal stages.
-    fn bind(&self, t: &Targets) -> [wgpu::BindGroup; 3] {
+    /// The entries every stage binds first (`pipelines::layout`): the frame, the constants,
+    /// the vertices, the links windows (the first window again where there are fewer).
+    fn shared_entries(&self) -> Vec<wgpu::BindGroupEntry<'_>> {
         let nt = self.mesh.tet_count() as u64;
-        let p = &self.pipelines;
-        let view = t.image.create_view(&Default::default());
-        let planes = self.group(
-            &p.planes,
-            &[
-                entry(0, &self.frame_buf),
-                entry(1, self.mesh.positions()),
-                entry(2, self.mesh.scalars()),
-                self.links.window(3, 0, nt),
-                self.planes.window(4, 0, nt),
-                entry(5, &self.counters),
-                entry(6, &self.params_buf),
-            ],
-        );
-        let entries = self.group(
-            &p.entries,
-            &[
-                entry(0, &self.frame_buf),
-                entry(1, self.mesh.positions()),
-                self.links.window(2, 0, nt),
-                self.planes.window(3, 0, nt),
-                entry(4, &self.boundary),
-                entry(5, &t.counts),
-                entry(6, &t.entries),
-                entry(7, &self.counters),
-                entry(8, &self.params_buf),
-            ],
-        );
-        let traverse = self.group(
-            traversal(p, self.settings.segments),
-            &[
-                entry(0, &self.frame_buf),
-                self.links.window(1, 0, nt),
-                self.planes.window(2, 0, nt),
-                entry(3, &t.counts),
-                entry(4, &t.entries),
-                entry(5, &self.tf_buf),
-                entry(6, &self.params_buf),
-                entry(7, &self.counters),
-                wgpu::BindGroupEntry {
-                    binding: 8,
-                    resource: wgpu::BindingResource::TextureView(&view),
-                },
-                entry(9, self.mesh.positions()),
-                entry(10, &self.psi),
-            ],
-        );
-        [planes, entries, traverse]
+        let windows = self.links_windows(nt);
+        let mut out = vec![
+            entry(0, &self.frame_buf),
+            entry(1, &self.params_buf),
+            entry(2, &self.verts),
+        ];
+        for w in 0..LINK_BINDINGS {
+            let (first, count) = windows.get(w as usize).copied().unwrap_or(windows[0]);
+            out.push(self.links.window(3 + w as u32, first, count));
+        }
+        out
     }
 
-    /// Runs the three stages once and reads the counters back.
+    /// The shared entries followed by a stage's own.
+    fn with_shared<'a>(
+        &'a self,
+        own: impl IntoIterator<Item = wgpu::BindGroupEntry<'a>>,
+    ) -> Vec<wgpu::BindGroupEntry<'a>> {
+        let mut all = self.shared_entries();
+        all.extend(own);
+        all
+    }
+
+    /// The links windows: (first tet, tets) of each, at least one.
+    fn links_windows(&self, nt: u64) -> Vec<(u64, u64)> {
+        let mut w = chunk_ranges(nt, self.link_chunk);
+        if w.is_empty() {
+            w.push((0, 1));
+        }
+        w
+    }
+
+    /// The bind groups of the vertices, planes, entries and traversal stages.
+    fn bind(&self, t: &Targets) -> [wgpu::BindGroup; 4] {
+        let p = &self.pipelines;
+        let view = t.image.create_view(&Default::default());
+        let vertices = self.with_shared([
+            entry(7, self.mesh.positions()),
+            entry(8, self.mesh.scalars()),
+        ]);
+        let planes = self.with_shared([entry(7, &self.counters)]);
+        let entries = self.with_shared([
+            entry(7, &self.boundary),
+            entry(8, &t.counts),
+            entry(9, &t.entries),
+            entry(10, &self.counters),
+        ]);
+        let table = match self.settings.segments {
+            Segments::Table => &self.preint,
+            _ => &self.psi,
+        };
+        let traverse = self.with_shared([
+            entry(7, &t.counts),
+            entry(8, &t.entries),
+            entry(9, &self.tf_buf),
+            entry(10, &self.counters),
+            wgpu::BindGroupEntry {
+                binding: 11,
+                resource: wgpu::BindingResource::TextureView(&view),
+            },
+            entry(12, table),
+        ]);
+        [
+            self.group(&p.vertices, &vertices),
+            self.group(&p.planes, &planes),
+            self.group(&p.entries, &entries),
+            self.group(traversal(p, self.settings.segments), &traverse),
+        ]
+    }
+
+    /// Runs the four stages once and reads the counters back.
     fn record(&mut self) -> Result<Run, RenderError> {
         let t = (self.targets.as_ref())
             .ok_or_else(|| settings_error("internal: render target missing"))?;
-        let [planes, entries, traverse] = self.bind(t);
+        let [vertices, planes, entries, traverse] = self.bind(t);
         let reset: [u32; COUNTERS] = [0, u32::MAX, 0, 0];
         self.queue
             .write_buffer(&self.counters, 0, bytemuck::cast_slice(&reset));
         let max = self.limits.max_compute_workgroups_per_dimension;
         let nt = self.mesh.tet_count() as u64;
         let tiles = (t.width.div_ceil(8), t.height.div_ceil(8));
+        let nv = self.verts.size() / 16;
         let passes = [
+            (
+                "vertices",
+                &self.pipelines.vertices,
+                &vertices,
+                linear_groups(nv, max),
+            ),
             (
                 "planes",
                 &self.pipelines.planes,
@@ -281,7 +359,7 @@ impl RaycastRenderer {
                 tiles,
             ),
         ];
-        let mut rec = (self.frame).recorder(&self.device, &self.queue, 3, 0);
+        let mut rec = (self.frame).recorder(&self.device, &self.queue, STAGES.len() as u32, 0);
         rec.encoder().clear_buffer(&t.counts, 0, None);
         for (name, stage, group, groups) in passes {
             let ts = rec.timestamps(name);

@@ -1,23 +1,34 @@
 //! `--mode raycast`: GPU ray casting on compute shaders through face adjacency (Weiler et al.
 //! 2003), one thread per ray in 8 x 8 pixel tiles, with partial pre-integration (Espinha &
-//! Celes 2005) or exact segment integration.
+//! Celes 2005), Weiler's 3D pre-integration table, or exact segment integration.
 //!
 //! Per frame:
 //! 1. upload (`frame.rs`): frame constants, the TF, the ray caster's constants (and, on the
-//!    first `partial` frame, the psi table, [`psi`]);
-//! 2. planes (`shaders/raycast_planes.wgsl`): once per tet, its face planes and linear scalar
-//!    in eye space from the current positions (a deforming mesh needs no preprocessing), and
-//!    the eye's tet when the eye is inside the mesh;
-//! 3. entries (`shaders/raycast_entries.wgsl`): once per boundary face, its hit (t, face) into
+//!    first `partial` frame, the psi table, [`psi`]; with `table`, the 3D pre-integration
+//!    table when the TF, the scalar range or the longest edge (grown) changed, built by
+//!    cellproj's incremental builder, `gpu::cellproj::preint`);
+//! 2. vertices (`shaders/raycast_vertices.wgsl`): once per vertex, its eye-space position and
+//!    scalar from the current positions (a deforming mesh needs no preprocessing);
+//! 3. planes (`shaders/raycast_planes.wgsl`): once per tet, its face planes from its vertices,
+//!    for the eye's tet when the eye is inside the mesh and the count of thin tets;
+//! 4. entries (`shaders/raycast_entries.wgsl`): once per boundary face, its hit (t, face) into
 //!    the list of every pixel whose ray enters the mesh through it (watertight edge tests); a
 //!    full list counts an overflow and the frame is rendered again with longer lists;
-//! 4. traversal (`shaders/raycast_traverse.wgsl`): once per pixel, from the eye's tet or the
+//! 5. traversal (`shaders/raycast_traverse.wgsl`): once per pixel, from the eye's tet or the
 //!    nearest entry, tet to tet through the face the ray leaves by ([`links`]: neighbour and
-//!    face across, built once), each segment integrated for the piecewise-linear TF
-//!    (`integrate_segment.wgsl`, shared with cellproj; [`Segments`]: exact or partial
-//!    pre-integration), re-entering at the next entry of its list after it leaves a
-//!    non-convex mesh; early ray termination, and a step limit whose hits are counted;
-//! 5. readback (`gpu/frame.rs`) with the GPU timestamps of stages 2-4.
+//!    face across, built once; the face planes and the linear scalar computed from the tet's
+//!    vertices at each step), each segment integrated for the piecewise-linear TF ([`Segments`]:
+//!    `integrate_segment.wgsl`, shared with cellproj, exact or with partial pre-integration; or
+//!    the 3D table), re-entering at the next entry of its list after it leaves a non-convex
+//!    mesh; early ray termination, and a step limit whose hits are counted;
+//! 6. readback (`gpu/frame.rs`) with the GPU timestamps of stages 2-5.
+//!
+//! **Memory.** Per tet only its links (32 bytes, [`links`], in up to [`links::LINK_BINDINGS`]
+//! storage bindings); per vertex the shared positions and scalars and the eye-space vertices
+//! (36 bytes); per boundary face 4 bytes: 36-45 bytes per tet on the meshes of the tests and
+//! the bench ([`RaycastRenderer::bytes_per_tet`]). Planes are not stored: the traversal
+//! computes a tet's four planes from its vertices where a ray steps into it (80 bytes per tet
+//! and frame before, measured no faster on lavapipe; README).
 //!
 //! **Robustness in f32.** The two tets sharing a face compute its plane from the same three
 //! vertices in the same (global index) order, so the ray leaves one at exactly the t where it
@@ -25,7 +36,8 @@
 //! and the walk is topological, so a ray cannot fall through a shared face whatever rounding
 //! does at edges and vertices. A thin tet (slivers, caps, needles, flat tets: its planes'
 //! outward directions are rounding) is left by the face its edges' Pluecker products say the
-//! ray passes (Platis & Theoharis 2003), computed alike in every tet sharing an edge. CPU twin of the arithmetic: [`twin`].
+//! ray passes (Platis & Theoharis 2003), computed alike in every tet sharing an edge. CPU twin
+//! of the arithmetic: [`twin`].
 
 mod frame;
 pub mod links;
@@ -41,7 +53,8 @@ use crate::camera::Camera;
 use crate::gpu::GpuContext;
 use crate::gpu::frame::{FrameResources, ImageReadback};
 use crate::gpu::gpu_data::{FrameUniforms, TfPoints};
-use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
+use crate::gpu::cellproj::preint::{LongestEdge, TableKey};
+use crate::gpu::mesh::{GpuTetMesh, TetArray};
 use crate::gpu::util::{settings_error, uniform_buffer};
 use crate::mesh::TetMesh;
 use crate::render::{Frame, RenderError, Renderer};
@@ -57,9 +70,12 @@ pub enum Segments {
     Partial,
     /// Each piece's mean transmittance by Gauss-Legendre quadrature converged to f32.
     Exact,
+    /// The whole segment from Weiler's 3D pre-integration table (front scalar, back scalar,
+    /// length), rebuilt on the CPU when the TF changes.
+    Table,
 }
 
-pub use crate::gpu::gpu_data::{RaycastUniforms, TetLinks, TetPlanes};
+pub use crate::gpu::gpu_data::{RaycastUniforms, TetLinks};
 
 /// The counters the stages write (u32 each): thin tets (see [`twin::THIN`]), the eye's tet (`u32::MAX`: none),
 /// list overflows, rays stopped by the step limit.
@@ -75,6 +91,10 @@ pub struct RaycastSettings {
     pub list_capacity: u32,
     /// Tets one ray may step through; `None`: [`default_max_steps`] of the mesh.
     pub max_steps: Option<u32>,
+    /// [`Segments::Table`]: samples along each scalar axis (front, back), at least 2.
+    pub table_size: u32,
+    /// [`Segments::Table`]: length levels (the first of length 0), at least 2.
+    pub table_lengths: u32,
 }
 
 impl Default for RaycastSettings {
@@ -83,6 +103,8 @@ impl Default for RaycastSettings {
             segments: Segments::Partial,
             list_capacity: 4,
             max_steps: None,
+            table_size: 128,
+            table_lengths: 64,
         }
     }
 }
@@ -115,12 +137,20 @@ pub struct RaycastRenderer {
     /// [`COUNTERS`] u32s, and their mappable copy.
     counters: wgpu::Buffer,
     counters_read: wgpu::Buffer,
+    /// The links in windows of `link_chunk` tets ([`links::chunking`]).
     links: TetArray,
-    planes: TetArray,
+    link_chunk: u64,
+    /// Eye-space position and normalized scalar per vertex, written each frame.
+    verts: wgpu::Buffer,
     boundary: wgpu::Buffer,
     boundary_count: u32,
     /// The psi table ([`psi::table`]), uploaded on the first partial frame; 16 bytes before.
     psi: wgpu::Buffer,
+    /// The 3D pre-integration table (`Segments::Table`) and what it was built for; 16 bytes
+    /// before the first table frame.
+    preint: wgpu::Buffer,
+    preint_key: Option<TableKey>,
+    max_edge: LongestEdge,
     /// Hits each pixel's list holds now.
     capacity: u32,
     /// The eye-in-tet tolerance of the current frame ([`near_tol`]).
@@ -148,12 +178,12 @@ impl RaycastRenderer {
         settings: RaycastSettings,
     ) -> Result<Self, RenderError> {
         let nt = mesh.tet_count() as u64;
-        check_fits(&ctx.limits, nt)?;
+        let nv = mesh.read().positions.len() as u64;
+        check_fits(&ctx.limits, nt, nv, &settings)?;
         let (links_cpu, boundary_cpu) = links::build(&mesh.read().tets);
-        let whole = Chunking { chunk: nt.max(1) };
-        let links = mesh.tet_array("raycast links", whole, nt, 32)?;
+        let chunking = links::chunking(nt, &ctx.limits)?;
+        let links = mesh.tet_array("raycast links", chunking, nt, links::LINK_BYTES)?;
         links.write(&ctx.queue, bytemuck::cast_slice(&links_cpu));
-        let planes = mesh.tet_array("raycast planes", whole, nt, 80)?;
         let boundary = frame::storage(&ctx.device, "raycast boundary", 4 * boundary_cpu.len());
         ctx.queue
             .write_buffer(&boundary, 0, bytemuck::cast_slice(&boundary_cpu));
@@ -168,10 +198,14 @@ impl RaycastRenderer {
             counters: frame::storage(&device, "raycast counters", 4 * COUNTERS),
             counters_read: frame::mappable(&device, "raycast counters readback", 4 * COUNTERS),
             links,
-            planes,
+            link_chunk: chunking.chunk,
+            verts: frame::storage(&device, "raycast eye-space vertices", 16 * nv as usize),
             boundary,
             boundary_count: boundary_cpu.len() as u32,
             psi: frame::storage(&device, "raycast psi table (none yet)", 16),
+            preint: frame::storage(&device, "raycast 3D table (none yet)", 16),
+            preint_key: None,
+            max_edge: LongestEdge::default(),
             capacity: settings.list_capacity.max(1),
             eye_tol: 0.0,
             queue: ctx.queue.clone(),
@@ -199,23 +233,43 @@ impl RaycastRenderer {
         self.settings.segments = segments;
     }
 
-    /// Bytes per tet of what scales with the mesh: planes, links, the boundary and the
-    /// vertex buffers.
+    /// Bytes per tet of what scales with the mesh: the links, the boundary and the vertex
+    /// buffers (positions, scalars, eye-space vertices).
     pub fn bytes_per_tet(&self) -> f64 {
         let mesh = self.mesh.positions().size() + self.mesh.scalars().size();
-        let own = self.planes.size() + self.links.size() + self.boundary.size();
+        let own = self.links.size() + self.verts.size() + self.boundary.size();
         (mesh + own) as f64 / self.mesh.tet_count().max(1) as f64
     }
 }
 
-/// An error unless the per-tet planes fit one storage binding and face codes fit a u32.
-fn check_fits(limits: &wgpu::Limits, tets: u64) -> Result<(), RenderError> {
+/// An error unless face codes (`4 tet + face`) fit a u32, the eye-space vertices fit one
+/// storage binding, and the table has at least 2 samples per axis (the links:
+/// [`links::chunking`]; the table's size: `frame.rs`).
+fn check_fits(
+    limits: &wgpu::Limits,
+    tets: u64,
+    vertices: u64,
+    s: &RaycastSettings,
+) -> Result<(), RenderError> {
     let max = (limits.max_storage_buffer_binding_size).min(limits.max_buffer_size);
-    if tets * 80 > max || tets >= 1 << 30 {
+    if tets >= 1 << 30 {
         return Err(settings_error(format!(
-            "--mode raycast keeps its {tets} tets' planes (80 bytes each) in one storage \
-             binding, and this adapter binds at most {max} bytes; use --mode cellproj for \
-             this mesh"
+            "--mode raycast numbers faces as 4 tet + face in 32 bits: at most 2^30 tets, not \
+             {tets}; use --mode cellproj for this mesh"
+        )));
+    }
+    if vertices * 16 > max {
+        return Err(settings_error(format!(
+            "--mode raycast keeps its {vertices} vertices' eye-space positions (16 bytes each) \
+             in one storage binding, and this adapter binds at most {max} bytes; use --mode \
+             cellproj for this mesh"
+        )));
+    }
+    if s.table_size < 2 || s.table_lengths < 2 {
+        return Err(settings_error(format!(
+            "the pre-integration table needs at least 2 samples per axis, not {} scalars x {} \
+             lengths",
+            s.table_size, s.table_lengths
         )));
     }
     Ok(())
@@ -247,7 +301,9 @@ impl Renderer for RaycastRenderer {
             &self.counters,
             &self.counters_read,
             &self.boundary,
+            &self.verts,
             &self.psi,
+            &self.preint,
         ]
         .iter()
         .map(|b| b.size())
@@ -261,7 +317,6 @@ impl Renderer for RaycastRenderer {
         self.mesh.gpu_memory()
             + buffers
             + self.links.size()
-            + self.planes.size()
             + self.frame.size()
             + targets
     }

@@ -1,4 +1,4 @@
-//! The ray caster's three compute pipelines (planes, entries, traversal), their bind group
+//! The ray caster's compute pipelines (vertices, planes, entries, traversal), their bind group
 //! layouts and their dispatch.
 
 use wgpu::BufferBindingType as B;
@@ -7,19 +7,23 @@ use wgpu::ShaderStages as S;
 use crate::gpu::shaders;
 use crate::gpu::util::{bind_group_layout, buffer_entry, pipeline_layout_for, wgsl_module};
 
+use super::links::LINK_BINDINGS;
+
 /// One compute stage: its layout and pipeline.
 pub struct Stage {
     pub layout: wgpu::BindGroupLayout,
     pub pipeline: wgpu::ComputePipeline,
 }
 
-/// The stages: planes, entries, and the traversal with the exact and the partial integrator
-/// (one layout).
+/// The stages: vertices, planes, entries, and the traversal with the exact, the partial and
+/// the table integrator (one layout).
 pub struct Pipelines {
+    pub vertices: Stage,
     pub planes: Stage,
     pub entries: Stage,
     pub exact: Stage,
     pub partial: Stage,
+    pub table: Stage,
 }
 
 const RO: B = B::Storage { read_only: true };
@@ -39,24 +43,32 @@ fn image_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
     }
 }
 
+/// The bindings every stage shares (`raycast_shared.wgsl`): 0 the frame, 1 the constants, 2
+/// the vertices (`verts`, written by the vertices stage), 3.. the links windows; then the
+/// stage's own, `own`, from binding 7 on.
+fn layout(verts: B, own: &[B]) -> Vec<wgpu::BindGroupLayoutEntry> {
+    let shared = [B::Uniform, B::Uniform, verts];
+    let links = [RO; LINK_BINDINGS as usize];
+    let types: Vec<B> = shared.into_iter().chain(links).chain(own.iter().copied()).collect();
+    buffers(&types)
+}
+
 impl Pipelines {
     /// Compiles the stages.
     pub fn new(device: &wgpu::Device) -> Self {
-        let [planes, entries, exact, partial] = shaders::raycast_stages();
-        // Binding 0 of each is the frame uniform; the rest follow the stage files.
-        let planes_layout = [B::Uniform, RO, RO, RO, RW, RW, B::Uniform];
-        let entries_layout = [B::Uniform, RO, RO, RO, RO, RW, RW, RW, B::Uniform];
-        let traverse_layout = [B::Uniform, RO, RO, RO, RO, B::Uniform, B::Uniform, RW];
-        // Binding 8 the image, 9 the positions, 10 the psi table (not read by `exact`).
-        let mut traverse_entries = buffers(&traverse_layout);
-        traverse_entries.push(image_entry(8));
-        traverse_entries.push(buffer_entry(9, S::COMPUTE, RO));
-        traverse_entries.push(buffer_entry(10, S::COMPUTE, RO));
+        let [vertices, planes, entries, exact, partial, table] = shaders::raycast_stages();
+        // The traversal: counts, entries, the TF, the counters, then binding 11 the image and
+        // 12 the integrator's table (psi or 3D; not read by `exact`).
+        let mut traverse = layout(RO, &[RO, RO, B::Uniform, RW]);
+        traverse.push(image_entry(11));
+        traverse.push(buffer_entry(12, S::COMPUTE, RO));
         Self {
-            planes: stage(device, planes, &buffers(&planes_layout)),
-            entries: stage(device, entries, &buffers(&entries_layout)),
-            exact: stage(device, exact, &traverse_entries),
-            partial: stage(device, partial, &traverse_entries),
+            vertices: stage(device, vertices, &layout(RW, &[RO, RO])),
+            planes: stage(device, planes, &layout(RO, &[RW])),
+            entries: stage(device, entries, &layout(RO, &[RO, RW, RW, RW])),
+            exact: stage(device, exact, &traverse),
+            partial: stage(device, partial, &traverse),
+            table: stage(device, table, &traverse),
         }
     }
 }
