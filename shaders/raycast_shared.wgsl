@@ -101,22 +101,40 @@ fn plane(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -> vec4<f32> {
     return vec4<f32>(n, -dot(n, a));
 }
 
-// Face f's plane with its vertices sorted by global index.
+// Face f's plane with its vertices sorted by global index (a compare-and-swap network on
+// values: no dynamic index into a private array, which software adapters spill to memory).
 fn face_plane(p: array<vec3<f32>, 4>, ids: vec4<u32>, f: u32) -> vec4<f32> {
     var fv = FACE_VERTICES;
-    var a = fv[3u * f];
-    var b = fv[3u * f + 1u];
-    var c = fv[3u * f + 2u];
-    if ids[a] > ids[b] {
-        let s = a; a = b; b = s;
-    }
-    if ids[b] > ids[c] {
-        let s = b; b = c; c = s;
-    }
-    if ids[a] > ids[b] {
-        let s = a; a = b; b = s;
-    }
-    return plane(p[a], p[b], p[c]);
+    var a = p[fv[3u * f]];
+    var b = p[fv[3u * f + 1u]];
+    var c = p[fv[3u * f + 2u]];
+    var ia = ids[fv[3u * f]];
+    var ib = ids[fv[3u * f + 1u]];
+    var ic = ids[fv[3u * f + 2u]];
+    var swap = ia > ib;
+    let a1 = select(a, b, swap);
+    b = select(b, a, swap);
+    a = a1;
+    let ia1 = min(ia, ib);
+    ib = max(ia, ib);
+    ia = ia1;
+    swap = ib > ic;
+    let b1 = select(b, c, swap);
+    c = select(c, b, swap);
+    b = b1;
+    ib = min(ib, ic);
+    swap = ia > ib;
+    let a2 = select(a, b, swap);
+    b = select(b, a, swap);
+    a = a2;
+    return plane(a, b, c);
+}
+
+// Face f's plane turned outward: the opposite vertex p[f] on its negative side.
+fn outward_plane(p: array<vec3<f32>, 4>, ids: vec4<u32>, f: u32) -> vec4<f32> {
+    let q = face_plane(p, ids, f);
+    let side = dot(q.xyz, p[f]) + q.w;
+    return select(q, -q, side > 0.0);
 }
 
 // A tet is thin when its volume (|det| = |plane_f(p_f)|) is at most this times |n|^1.5 of its
@@ -143,11 +161,9 @@ fn tet_planes(ids: vec4<u32>) -> TetPlanes {
     var height = vec4<f32>(0.0);
     var largest = 0.0;
     for (var f = 0u; f < 4u; f++) {
-        let q = face_plane(p, ids, f);
-        // Outward: the opposite vertex on the negative side.
-        let side = dot(q.xyz, p[f]) + q.w;
-        out.face[f] = select(q, -q, side > 0.0);
-        height[f] = -abs(side);
+        let q = outward_plane(p, ids, f);
+        out.face[f] = q;
+        height[f] = dot(q.xyz, p[f]) + q.w;
         largest = max(largest, length(q.xyz));
     }
     // Scalar: sum_f s_f lambda_f with lambda_f = plane_f(x) / plane_f(p_f).
