@@ -4,8 +4,8 @@
 use std::time::Instant;
 
 use crate::camera::Camera;
-use crate::gpu::frame::{ImageReadback, Timestamps};
 use crate::gpu::cellproj::preint::TableKey;
+use crate::gpu::frame::{ImageReadback, Timestamps};
 use crate::gpu::gpu_data::FrameUniforms;
 use crate::gpu::mesh::{MeshData, chunk_ranges};
 use crate::gpu::tf::tf_points;

@@ -51,9 +51,9 @@ use glam::DVec3;
 
 use crate::camera::Camera;
 use crate::gpu::GpuContext;
+use crate::gpu::cellproj::preint::{LongestEdge, TableKey};
 use crate::gpu::frame::{FrameResources, ImageReadback};
 use crate::gpu::gpu_data::{FrameUniforms, TfPoints};
-use crate::gpu::cellproj::preint::{LongestEdge, TableKey};
 use crate::gpu::mesh::{GpuTetMesh, TetArray};
 use crate::gpu::util::{settings_error, uniform_buffer};
 use crate::mesh::TetMesh;
@@ -314,10 +314,6 @@ impl Renderer for RaycastRenderer {
                 + t.readback.size()
                 + 16 * t.width as u64 * t.height as u64
         });
-        self.mesh.gpu_memory()
-            + buffers
-            + self.links.size()
-            + self.frame.size()
-            + targets
+        self.mesh.gpu_memory() + buffers + self.links.size() + self.frame.size() + targets
     }
 }

@@ -49,7 +49,11 @@ fn image_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
 fn layout(verts: B, own: &[B]) -> Vec<wgpu::BindGroupLayoutEntry> {
     let shared = [B::Uniform, B::Uniform, verts];
     let links = [RO; LINK_BINDINGS as usize];
-    let types: Vec<B> = shared.into_iter().chain(links).chain(own.iter().copied()).collect();
+    let types: Vec<B> = shared
+        .into_iter()
+        .chain(links)
+        .chain(own.iter().copied())
+        .collect();
     buffers(&types)
 }
 
