@@ -768,7 +768,16 @@ fn mesh_larger_than_one_storage_binding() {
             ..CellProjSettings::default()
         },
     );
-    let results: [(&str, Built, Option<Image>); 3] = [
+    // The ray caster's links (32 bytes a tet: 41,472) fit 64 KiB; bound at most 40 KiB they
+    // take two windows, and its entry lists of one hit per pixel (33,800 bytes at 65x65; the
+    // cube is convex, so no list overflows) still fit one binding.
+    let narrow = common::with_storage_binding_limit(c, 40 << 10);
+    let one_hit = RaycastSettings {
+        list_capacity: 1,
+        ..RaycastSettings::default()
+    };
+    let raycast = RaycastRenderer::new(&narrow, &g, one_hit);
+    let results: [(&str, Built, Option<Image>); 4] = [
         (
             "shells",
             shells.map(|r| Box::new(r) as Box<dyn Renderer>),
@@ -778,6 +787,11 @@ fn mesh_larger_than_one_storage_binding() {
         (
             "cellproj",
             cellproj.map(|r| Box::new(r) as Box<dyn Renderer>),
+            Some(truth.clone()),
+        ),
+        (
+            "raycast",
+            raycast.map(|r| Box::new(r) as Box<dyn Renderer>),
             Some(truth),
         ),
     ];
@@ -809,15 +823,6 @@ fn mesh_larger_than_one_storage_binding() {
             Err(e) => panic!("{mode}: a mesh beyond one binding must render in chunks: {e}"),
         }
     }
-    // The ray caster does not split its per-tet planes into chunks yet (issue 10): it must
-    // refuse with a clear error naming the binding, never draw a truncated mesh.
-    let raycast = RaycastRenderer::new(&small, &g, RaycastSettings::default())
-        .and_then(|mut r| r.render(&cam, &t));
-    match raycast {
-        Err(e) => assert!(e.to_string().contains("binding"), "raycast: {e}"),
-        Ok(_) => panic!("raycast rendered a mesh beyond one binding: move it into the loop"),
-    }
-    cells.push("clear error (not chunked yet)".to_string());
     write_readme_row(name, &cells, 0);
 }
 
@@ -852,14 +857,15 @@ fn bits_and_buffers(mode: &str, build: BuildOn, c: &GpuContext, g: &TetMesh) -> 
 #[test]
 fn mesh_larger_than_one_buffer_is_bit_identical() {
     // The same device, declared to bind at most 64 KiB (shells, two chunks of records per
-    // buffer) or 32 KiB (iso, cellproj: one chunk per buffer) per storage buffer: the records
-    // then span several buffers instead of one. The chunks and every GPU computation stay the
+    // buffer) or 32 KiB (iso, cellproj, raycast: one chunk per buffer) per storage buffer: the
+    // records (the ray caster's links) then span several buffers instead of one. The chunks and every GPU computation stay the
     // same, so the pictures must be the same to the bit (bound: 0 differing bits), every mode.
     let c = ctx();
     let g = grid();
     let align = c.limits.min_storage_buffer_offset_alignment as u64;
-    // Per mode: the binding size, and the buffer size in chunks of records.
-    let modes: [(&str, BuildOn, u64, u64); 5] = [
+    // Per mode: the binding size, the buffer size in chunks, and the bytes per tet of the
+    // chunked array (the records; the ray caster's links).
+    let modes: [(&str, BuildOn, u64, u64, u64); 6] = [
         (
             "shells",
             |c, g| {
@@ -873,6 +879,7 @@ fn mesh_larger_than_one_buffer_is_bit_identical() {
             },
             1 << 16,
             2,
+            144,
         ),
         (
             "iso flat",
@@ -885,6 +892,7 @@ fn mesh_larger_than_one_buffer_is_bit_identical() {
             },
             32 << 10,
             1,
+            144,
         ),
         (
             "iso smooth",
@@ -898,6 +906,7 @@ fn mesh_larger_than_one_buffer_is_bit_identical() {
             },
             32 << 10,
             1,
+            144,
         ),
         (
             "cellproj table",
@@ -910,6 +919,7 @@ fn mesh_larger_than_one_buffer_is_bit_identical() {
             },
             32 << 10,
             1,
+            144,
         ),
         (
             "cellproj exact",
@@ -922,13 +932,27 @@ fn mesh_larger_than_one_buffer_is_bit_identical() {
             },
             32 << 10,
             1,
+            144,
+        ),
+        (
+            // 32 KiB: 1,024 tets' links per window, two windows; the 32x32 entry lists of 4
+            // hits fill one binding exactly.
+            "raycast",
+            |c, g| {
+                let s = RaycastSettings::default();
+                Ok(Box::new(RaycastRenderer::new(c, g, s)?))
+            },
+            32 << 10,
+            1,
+            32,
         ),
     ];
-    for (mode, build, binding, chunks) in modes {
-        // Chunks of a list longer than one binding holds (the iso mode's selection is too).
-        let chunk = tetvr::gpu::mesh::chunk_tets(g.tet_count() as u64, binding, align).unwrap();
+    for (mode, build, binding, chunks, stride) in modes {
+        // Chunks of a list longer than one binding holds (the iso mode's selection is too),
+        // whole multiples of the offset alignment (`mesh::chunk_tets`, `raycast::links`).
+        let chunk = binding / stride / align * align;
         let one = common::with_buffer_limits(c, binding, c.limits.max_buffer_size);
-        let split = common::with_buffer_limits(c, binding, chunks * chunk * 144);
+        let split = common::with_buffer_limits(c, binding, chunks * chunk * stride);
         let (whole, one_buffer) = bits_and_buffers(mode, build, &one, &g);
         let (parts, buffers) = bits_and_buffers(mode, build, &split, &g);
         assert!(whole.iter().any(|&b| b != 0), "{mode}: an empty picture");
