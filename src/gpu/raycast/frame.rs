@@ -169,7 +169,7 @@ impl RaycastRenderer {
             return Err(settings_error(format!(
                 "the pre-integration table of {n} scalars x {n} x {l} lengths needs {bytes} \
                  bytes, more than one storage binding of this adapter holds ({max}); choose a \
-                 smaller table"
+                 smaller --table-size"
             )));
         }
         let table = key.build(n, l);
