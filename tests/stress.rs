@@ -826,8 +826,7 @@ fn mesh_larger_than_one_storage_binding() {
     };
     let refused = RaycastRenderer::new(&narrow, &g, table).and_then(|mut r| r.render(&cam, &t));
     let err = refused
-        .err()
-        .expect("a table beyond one binding is refused")
+        .expect_err("a table beyond one binding is refused")
         .to_string();
     assert!(
         err.contains("16777216") && err.contains("--table-size"),
