@@ -64,8 +64,15 @@ struct Counters {
 @group(0) @binding(5) var<storage, read> links2: array<TetLinks>;
 @group(0) @binding(6) var<storage, read> links3: array<TetLinks>;
 
+// The links windows the mesh uses (1 to 4), a pipeline constant: a mesh in one window reads it
+// directly (a software adapter otherwise pays for the switch on every step).
+override LINK_WINDOWS: u32 = 4u;
+
 // Tet t's links, from the window that holds it.
 fn link(t: u32) -> TetLinks {
+    if LINK_WINDOWS == 1u {
+        return links0[t];
+    }
     let w = t / params.link_chunk;
     let i = t - w * params.link_chunk;
     switch w {

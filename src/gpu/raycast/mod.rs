@@ -190,7 +190,7 @@ impl RaycastRenderer {
         let device = ctx.device.clone();
         let uniform = |label: &str, bytes: usize| uniform_buffer(&device, label, bytes);
         Ok(Self {
-            pipelines: Pipelines::new(&device),
+            pipelines: Pipelines::new(&device, nt.div_ceil(chunking.chunk).max(1)),
             frame: FrameResources::new(ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY)),
             frame_buf: uniform("raycast frame", size_of::<FrameUniforms>()),
             tf_buf: uniform("raycast tf", size_of::<TfPoints>()),

@@ -58,8 +58,13 @@ fn layout(verts: B, own: &[B]) -> Vec<wgpu::BindGroupLayoutEntry> {
 }
 
 impl Pipelines {
-    /// Compiles the stages.
-    pub fn new(device: &wgpu::Device) -> Self {
+    /// Compiles the stages for a mesh whose links take `windows` windows (WGSL
+    /// `LINK_WINDOWS`).
+    pub fn new(device: &wgpu::Device, windows: u64) -> Self {
+        let constants = [("LINK_WINDOWS", windows as f64)];
+        let stage = |shader, entries: &[wgpu::BindGroupLayoutEntry]| {
+            stage(device, shader, entries, &constants)
+        };
         let [vertices, planes, entries, exact, partial, table] = shaders::raycast_stages();
         // The traversal: counts, entries, the TF, the counters, then binding 11 the image and
         // 12 the integrator's table (psi or 3D; not read by `exact`).
@@ -67,12 +72,12 @@ impl Pipelines {
         traverse.push(image_entry(11));
         traverse.push(buffer_entry(12, S::COMPUTE, RO));
         Self {
-            vertices: stage(device, vertices, &layout(RW, &[RO, RO])),
-            planes: stage(device, planes, &layout(RO, &[RW])),
-            entries: stage(device, entries, &layout(RO, &[RO, RW, RW, RW])),
-            exact: stage(device, exact, &traverse),
-            partial: stage(device, partial, &traverse),
-            table: stage(device, table, &traverse),
+            vertices: stage(vertices, &layout(RW, &[RO, RO])),
+            planes: stage(planes, &layout(RO, &[RW])),
+            entries: stage(entries, &layout(RO, &[RO, RW, RW, RW])),
+            exact: stage(exact, &traverse),
+            partial: stage(partial, &traverse),
+            table: stage(table, &traverse),
         }
     }
 }
@@ -87,6 +92,7 @@ fn stage(
     device: &wgpu::Device,
     (name, source): (&str, String),
     entries: &[wgpu::BindGroupLayoutEntry],
+    constants: &[(&str, f64)],
 ) -> Stage {
     let layout = bind_group_layout(device, name, entries);
     let module = wgsl_module(device, name, source);
@@ -95,7 +101,10 @@ fn stage(
         layout: Some(&pipeline_layout_for(device, &layout)),
         module: &module,
         entry_point: Some("main"),
-        compilation_options: Default::default(),
+        compilation_options: wgpu::PipelineCompilationOptions {
+            constants,
+            ..Default::default()
+        },
         cache: None,
     });
     Stage { layout, pipeline }
