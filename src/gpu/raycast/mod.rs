@@ -25,10 +25,10 @@
 //!
 //! **Memory.** Per tet only its links (32 bytes, [`links`], in up to [`links::LINK_BINDINGS`]
 //! storage bindings); per vertex the shared positions and scalars and the eye-space vertices
-//! (36 bytes); per boundary face 4 bytes: 36-45 bytes per tet on the meshes of the tests and
-//! the bench ([`RaycastRenderer::bytes_per_tet`]). Planes are not stored: the traversal
-//! computes a tet's four planes from its vertices where a ray steps into it (80 bytes per tet
-//! and frame before, measured no faster on lavapipe; README).
+//! (36 bytes); per boundary face 4 bytes: 39-42 bytes per tet on lox, a 105k-tet grid and the
+//! blunt fin ([`RaycastRenderer::bytes_per_tet`]). Planes are not stored: the traversal
+//! computes a tet's four planes from its vertices where a ray steps into it (storing them, 80
+//! bytes per tet more, was no faster on lavapipe; README, "The ray caster's memory").
 //!
 //! **Robustness in f32.** The two tets sharing a face compute its plane from the same three
 //! vertices in the same (global index) order, so the ray leaves one at exactly the t where it
