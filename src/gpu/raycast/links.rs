@@ -126,5 +126,13 @@ mod tests {
         assert!(err.contains("4097 tets") && err.contains("32768"), "{err}");
         // A binding below one aligned group of links cannot be windowed.
         assert!(chunking(1000, &limits(4096)).is_err());
+        // 100M tets where a binding holds 4 GiB (NVIDIA's Vulkan drivers): one window of all,
+        // 3.2 GB of links (the module docs' budget).
+        let big = wgpu::Limits {
+            max_buffer_size: 1 << 40,
+            ..limits(u32::MAX as u64)
+        };
+        assert_eq!(chunking(100_000_000, &big).unwrap().chunk, 100_000_000);
+        assert_eq!(100_000_000 * LINK_BYTES, 3_200_000_000);
     }
 }
