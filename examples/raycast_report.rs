@@ -1,7 +1,7 @@
 //! Measures `--mode raycast` (partial, exact and table) beside `--mode cellproj --integrate
-//! exact` on one scene: median frame time (wall clock, GPU drained) over a few frames after one warm-up, the error against
-//! the exact reference, GPU memory and the ray caster's bytes per tet. Needs a GPU adapter
-//! (lavapipe will do).
+//! exact` on one scene: median frame time (wall clock, GPU drained) over a few frames after one
+//! warm-up, the error against the exact reference, GPU memory and the ray caster's bytes per
+//! tet. Needs a GPU adapter (lavapipe will do).
 //!
 //! ```sh
 //! cargo run --release --example raycast_report -- assets/lox_post_subset_tet.vtk 512 5
