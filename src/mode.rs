@@ -158,9 +158,12 @@ impl ModeSettings {
             }
             Self::Raycast(s) => {
                 let how = match s.segments {
-                    Segments::Partial => "partial pre-integration",
-                    Segments::Exact => "exact segments",
-                    Segments::Table => "3D pre-integration table",
+                    Segments::Partial => "partial pre-integration".into(),
+                    Segments::Exact => "exact segments".into(),
+                    Segments::Table => format!(
+                        "{}x{}x{} pre-integration table",
+                        s.table_size, s.table_size, s.table_lengths
+                    ),
                 };
                 format!("mode raycast ({how}) on {on}")
             }

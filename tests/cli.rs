@@ -113,7 +113,7 @@ fn raycast_takes_exact_and_table_integrators() {
     let png_arg = png.to_str().unwrap();
     for (integrate, says) in [
         ("exact", "exact segments"),
-        ("table", "3D pre-integration table"),
+        ("table", "128x128x64 pre-integration table"),
     ] {
         let args = [
             "render",
