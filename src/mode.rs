@@ -158,8 +158,12 @@ impl ModeSettings {
             }
             Self::Raycast(s) => {
                 let how = match s.segments {
-                    Segments::Partial => "partial pre-integration",
-                    Segments::Exact => "exact segments",
+                    Segments::Partial => "partial pre-integration".into(),
+                    Segments::Exact => "exact segments".into(),
+                    Segments::Table => format!(
+                        "{}x{}x{} pre-integration table",
+                        s.table_size, s.table_size, s.table_lengths
+                    ),
                 };
                 let entry = match s.entry {
                     Entry::Lists => "entry lists",

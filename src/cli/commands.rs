@@ -243,19 +243,15 @@ fn mode_settings(
             segments: match args.cellproj.integrate {
                 None | Some(IntegrateArg::Partial) => Segments::Partial,
                 Some(IntegrateArg::Exact) => Segments::Exact,
-                Some(IntegrateArg::Table) => {
-                    return Err(CliError::Usage(
-                        "--mode raycast integrates with partial (the default) or exact; the 3D \
-                         table belongs to --mode cellproj"
-                            .into(),
-                    ));
-                }
+                Some(IntegrateArg::Table) => Segments::Table,
             },
             entry: match args.cellproj.entry {
                 None => Entry::default(),
                 Some(EntryArg::Lists) => Entry::Lists,
                 Some(EntryArg::Peel) => Entry::Peel,
             },
+            table_size: args.cellproj.table_size,
+            table_lengths: (args.cellproj.table_size / 2).max(2),
             ..RaycastSettings::default()
         }),
         Mode::Iso => {
