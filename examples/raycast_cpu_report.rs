@@ -10,8 +10,8 @@
 
 use std::time::Instant;
 
+use tetvr::cpu::raycast::Segments;
 use tetvr::cpu::raycast::{CpuRaycastRenderer, CpuRaycastSettings};
-use tetvr::gpu::raycast::Segments;
 use tetvr::gpu::{AdapterChoice, GpuContext, RaycastRenderer, RaycastSettings};
 use tetvr::reference::ReferenceRenderer;
 use tetvr::{Camera, Image, Renderer, TransferFunction, View, io};

@@ -1,8 +1,7 @@
-//! Measures `--mode raycast` (partial and exact) beside `--mode cellproj --integrate exact` on
-//! one scene: median
-//! frame time (wall clock, GPU drained) over a few frames after one warm-up, the error against
-//! the exact reference, GPU memory and the ray caster's bytes per tet. Needs a GPU adapter
-//! (lavapipe will do).
+//! Measures `--mode raycast` (partial, exact and table) beside `--mode cellproj --integrate
+//! exact` on one scene: median frame time (wall clock, GPU drained) over a few frames after one
+//! warm-up, the error against the exact reference, GPU memory and the ray caster's bytes per
+//! tet. Needs a GPU adapter (lavapipe will do).
 //!
 //! ```sh
 //! cargo run --release --example raycast_report -- assets/lox_post_subset_tet.vtk 512 5
@@ -80,15 +79,17 @@ fn main() -> Result<(), Error> {
     };
     let mut partial = RaycastRenderer::new(&ctx, &mesh, with(Segments::Partial))?;
     let mut exact_rc = RaycastRenderer::new(&ctx, &mesh, with(Segments::Exact))?;
+    let mut table_rc = RaycastRenderer::new(&ctx, &mesh, with(Segments::Table))?;
     let exact = CellProjSettings {
         integrate: Integrate::Exact,
         ..CellProjSettings::default()
     };
     let mut cellproj = CellProjRenderer::new(&ctx, &mesh, exact)?;
     println!("raycast bytes per tet: {:.1}", partial.bytes_per_tet());
-    let modes: [(&str, &mut dyn Renderer); 3] = [
+    let modes: [(&str, &mut dyn Renderer); 4] = [
         ("raycast partial", &mut partial),
         ("raycast exact", &mut exact_rc),
+        ("raycast table", &mut table_rc),
         ("cellproj exact", &mut cellproj),
     ];
     for (name, r) in modes {

@@ -3,10 +3,10 @@
 // state for layer k + 1. Appended before raycast_traverse.wgsl, which calls ray_start,
 // start_tet, next_entry and ray_end.
 
-@group(0) @binding(3) var<storage, read> hits: array<u32>;
-@group(0) @binding(4) var<storage, read_write> rays: array<RayState>;
-@group(0) @binding(12) var<uniform> layer: Layer;
-@group(0) @binding(13) var<storage, read_write> progress: array<atomic<u32>, 4>;
+@group(0) @binding(7) var<storage, read> hits: array<u32>;
+@group(0) @binding(8) var<storage, read_write> rays: array<RayState>;
+@group(0) @binding(14) var<uniform> layer: Layer;
+@group(0) @binding(15) var<storage, read_write> progress: array<atomic<u32>, 4>;
 
 // The ray's state as the layer starts: the first state in layer 0, later where it left.
 fn ray_start(pixel: u32) -> RayState {

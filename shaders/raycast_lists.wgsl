@@ -3,8 +3,8 @@
 // re-entering by the next entry of its list after each exit. Appended before
 // raycast_traverse.wgsl, which calls ray_start, start_tet, next_entry and ray_end.
 
-@group(0) @binding(3) var<storage, read> counts: array<u32>;
-@group(0) @binding(4) var<storage, read> entries: array<vec2<u32>>;
+@group(0) @binding(7) var<storage, read> counts: array<u32>;
+@group(0) @binding(8) var<storage, read> entries: array<vec2<u32>>;
 
 // The ray's state as the layer starts.
 fn ray_start(pixel: u32) -> RayState {

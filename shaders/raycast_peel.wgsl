@@ -1,28 +1,26 @@
-// Ray caster stage, depth peeling of boundary faces (Bernardon et al. 2004, in compute; one
-// thread per boundary face, two passes per layer): a pixel's layer k is the first boundary-face
-// hit, in hit order (t, then face code), by which its ray may enter again after it left the
-// mesh in layer k - 1 (`may_enter`, as entry lists choose); in layer 0 the first hit of every
-// ray, and none when the eye is in a tet (rays start there). Rays that are done enter no layer.
-// The first pass (PICK false) keeps each pixel's least t, the second (PICK true) the least face
-// code among its hits at that t; both as the bitwise complement with atomicMax into `hits` (two
-// u32s per pixel, cleared to zero: no hit). The hits are those of entry lists
+// Ray caster stage 3 with depth peeling instead of entries, of boundary faces (Bernardon et al.
+// 2004, in compute; one thread per boundary face, two passes per layer): a pixel's layer k is the
+// first boundary-face hit, in hit order (t, then face code), by which its ray may enter again after
+// it left the mesh in layer k - 1 (`may_enter`, as entry lists choose); in layer 0 the first hit of
+// every ray, and none when the eye is in a tet (rays start there). Rays that are done enter no
+// layer. The first pass (PICK false) keeps each pixel's least t, the second (PICK true) the least
+// face code among its hits at that t; both as the bitwise complement with atomicMax into `hits`
+// (two u32s per pixel, cleared to zero: no hit). The hits are those of entry lists
 // (raycast_cover.wgsl), so both methods give the same picture, bit for bit.
 //
 // A pixel with a second hit by which its ray may enter sets progress[1]: a later layer may
 // have work. Without one, no ray can enter again after this layer (a later layer's hits are a
-// subset of this one's, less the one taken) and the frame ends.
+// subset of this one's, less the one taken) and the frame ends. The face's plane comes from its
+// tet's vertices (`tet_planes`), as the entries stage and the traversal compute it.
 // Generated before: const PICK: bool.
 
-@group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
-@group(0) @binding(2) var<storage, read> links: array<TetLinks>;
-@group(0) @binding(3) var<storage, read> planes: array<TetPlanes>;
-@group(0) @binding(4) var<storage, read> boundary: array<u32>;
-@group(0) @binding(5) var<storage, read_write> hits: array<atomic<u32>>;
-@group(0) @binding(6) var<storage, read> rays: array<RayState>;
-@group(0) @binding(7) var<storage, read> counters: array<u32, 4>;
-@group(0) @binding(8) var<uniform> params: Raycast;
-@group(0) @binding(9) var<uniform> layer: Layer;
-@group(0) @binding(10) var<storage, read_write> progress: array<atomic<u32>, 4>;
+@group(0) @binding(2) var<storage, read> verts: array<vec4<f32>>;
+@group(0) @binding(7) var<storage, read> boundary: array<u32>;
+@group(0) @binding(8) var<storage, read_write> hits: array<atomic<u32>>;
+@group(0) @binding(9) var<storage, read> rays: array<RayState>;
+@group(0) @binding(10) var<storage, read> counters: array<u32, 4>;
+@group(0) @binding(11) var<uniform> layer: Layer;
+@group(0) @binding(12) var<storage, read_write> progress: array<atomic<u32>, 4>;
 
 // Whether the ray of `pixel` may enter this layer by the hit (t, code).
 fn may_take(pixel: u32, t: f32, code: u32) -> bool {
@@ -52,8 +50,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
         return;
     }
     let code = boundary[k];
-    let p = planes[code >> 2u].face[code & 3u];
-    let face = face_of(code >> 2u, code & 3u);
+    let f = code & 3u;
+    let ids = link(code >> 2u).tet;
+    let p = tet_planes(ids).face[f];
+    let face = face_of(ids, f);
     let r = pixel_bounds(face);
     for (var y = r.y; y < r.w; y++) {
         for (var x = r.x; x < r.z; x++) {

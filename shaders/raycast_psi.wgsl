@@ -3,7 +3,7 @@
 // gamma = sqrt(A) / (1 + sqrt(A)) for each end's optical depth, interpolated bilinearly. PSI_SIZE is
 // generated in front of this file. CPU twin: gpu::raycast::psi::lookup.
 
-@group(0) @binding(10) var<storage, read> psi_table: array<f32>;
+@group(0) @binding(12) var<storage, read> psi_table: array<f32>;
 
 fn psi_at(x: u32, y: u32) -> f32 {
     return psi_table[y * PSI_SIZE + x];

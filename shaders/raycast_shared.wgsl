@@ -1,11 +1,17 @@
 // Shared by the stages of `--mode raycast` (Weiler et al. 2003, on compute): the per-tet data
-// of the ray caster, its constants and counters, and the pixel ray. Appended after
-// shared.wgsl; each stage file follows. Rust twins: gpu::raycast::{RaycastUniforms,
-// TetPlanes, TetLinks}; CPU twin of the arithmetic: gpu::raycast::twin.
+// of the ray caster, its constants and counters, the pixel ray, and each tet's face planes.
+// Appended after shared.wgsl; each stage file follows. Rust twins: gpu::raycast::{
+// RaycastUniforms, TetLinks}; CPU twin of the arithmetic: gpu::raycast::twin.
 //
-// Everything is in eye space (origin at the eye), recomputed from the current positions every
-// frame by raycast_planes.wgsl: the ray of a pixel is x = t d, d unit, t the distance from the
-// eye.
+// Everything is in eye space (origin at the eye): raycast_vertices.wgsl writes each vertex's
+// eye-space position and scalar every frame (`verts`, declared by each stage at binding 2), and
+// a tet's planes are computed from its four vertices where a stage needs them (`tet_planes`),
+// so a deforming mesh needs no preprocessing and nothing per tet is stored but its links. The
+// ray of a pixel is x = t d, d unit, t the distance from the eye.
+//
+// Bindings every stage shares: 0 the frame (shared.wgsl), 1 the constants, 2 `verts`, 3-6 the
+// links in LINK_BINDINGS windows of params.link_chunk tets each (gpu::raycast::links); a stage's
+// own bindings follow from 7.
 
 // See gpu::raycast::RaycastUniforms.
 struct Raycast {
@@ -17,14 +23,23 @@ struct Raycast {
     boundary_count: u32,
     // The eye is in a tet when it lies at most this far (eye space) outside each face plane.
     eye_tol: f32,
+    // Tets per links window (every window but the last is full).
+    link_chunk: u32,
+    // The 3D pre-integration table (`--integrate table`): scalar samples per axis, length
+    // levels, and 1 / the length between levels.
+    table_size: u32,
+    table_lengths: u32,
+    inv_length_step: f32,
 }
 
-// Per tet and frame (80 bytes): face f's plane (opposite local vertex f) as (n, w), outward,
-// the point x on the outer side where dot(n, x) + w > 0; and the linear scalar as
-// (gradient, value at the eye). Shared faces have the same plane bits up to sign in both tets.
+// A tet's face planes and scalar in eye space (`tet_planes`): face f's plane (opposite local
+// vertex f) as (n, w), outward, the point x on the outer side where dot(n, x) + w > 0; and the
+// linear scalar as (gradient, value at the eye). Shared faces have the same plane bits up to
+// sign in both tets. `thin`: see THIN.
 struct TetPlanes {
     face: array<vec4<f32>, 4>,
     scalar: vec4<f32>,
+    thin: bool,
 }
 
 // Per tet, built once (32 bytes): the four vertex indices, and across each face the neighbour
@@ -42,6 +57,40 @@ struct Counters {
     step_limit: u32,
 }
 
+@group(0) @binding(1) var<uniform> params: Raycast;
+// gpu::raycast::links::LINK_BINDINGS windows of the links; `link` picks one by tet index.
+@group(0) @binding(3) var<storage, read> links0: array<TetLinks>;
+@group(0) @binding(4) var<storage, read> links1: array<TetLinks>;
+@group(0) @binding(5) var<storage, read> links2: array<TetLinks>;
+@group(0) @binding(6) var<storage, read> links3: array<TetLinks>;
+
+// The links windows the mesh uses (1 to 4), a pipeline constant: a mesh in one window reads it
+// directly (a software adapter otherwise pays for the switch on every step).
+override LINK_WINDOWS: u32 = 4u;
+
+// Tet t's links, from the window that holds it.
+fn link(t: u32) -> TetLinks {
+    if LINK_WINDOWS == 1u {
+        return links0[t];
+    }
+    let w = t / params.link_chunk;
+    let i = t - w * params.link_chunk;
+    switch w {
+        case 0u: {
+            return links0[i];
+        }
+        case 1u: {
+            return links1[i];
+        }
+        case 2u: {
+            return links2[i];
+        }
+        default: {
+            return links3[i];
+        }
+    }
+}
+
 const NO_NEIGHBOR: u32 = 0xffffffffu;
 // No entry face: the ray starts inside the tet (at the eye).
 const NO_FACE: u32 = 4u;
@@ -50,13 +99,89 @@ const NO_FACE: u32 = 4u;
 // is never an exit or an entry (twin::PARALLEL; the cellproj raster's PARALLEL).
 const PARALLEL: f32 = 1e-5;
 
-// The helpers below read `positions` (vec4 per vertex) and `links`, which each stage binds.
+// The helpers below read `verts` (eye-space position, normalized scalar per vertex), which each
+// stage binds.
 
-// World (mesh-origin relative) point to eye space, the same operations for every tet and
-// stage, so a shared vertex has the same bits everywhere.
-fn eye_space(p: vec3<f32>) -> vec3<f32> {
-    let q = p - view.eye;
-    return vec3<f32>(dot(view.right, q), dot(view.up, q), dot(view.forward, q));
+// The plane through a, b, c (in global index order): (cross(b - a, c - a), -n . a).
+fn plane(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -> vec4<f32> {
+    let n = cross(b - a, c - a);
+    return vec4<f32>(n, -dot(n, a));
+}
+
+// Face f's plane with its vertices sorted by global index (a compare-and-swap network on
+// values: no dynamic index into a private array, which software adapters spill to memory).
+fn face_plane(p: array<vec3<f32>, 4>, ids: vec4<u32>, f: u32) -> vec4<f32> {
+    var fv = FACE_VERTICES;
+    var a = p[fv[3u * f]];
+    var b = p[fv[3u * f + 1u]];
+    var c = p[fv[3u * f + 2u]];
+    var ia = ids[fv[3u * f]];
+    var ib = ids[fv[3u * f + 1u]];
+    var ic = ids[fv[3u * f + 2u]];
+    var swap = ia > ib;
+    let a1 = select(a, b, swap);
+    b = select(b, a, swap);
+    a = a1;
+    let ia1 = min(ia, ib);
+    ib = max(ia, ib);
+    ia = ia1;
+    swap = ib > ic;
+    let b1 = select(b, c, swap);
+    c = select(c, b, swap);
+    b = b1;
+    ib = min(ib, ic);
+    swap = ia > ib;
+    let a2 = select(a, b, swap);
+    b = select(b, a, swap);
+    a = a2;
+    return plane(a, b, c);
+}
+
+// Face f's plane turned outward: the opposite vertex p[f] on its negative side.
+fn outward_plane(p: array<vec3<f32>, 4>, ids: vec4<u32>, f: u32) -> vec4<f32> {
+    let q = face_plane(p, ids, f);
+    let side = dot(q.xyz, p[f]) + q.w;
+    return select(q, -q, side > 0.0);
+}
+
+// A tet is thin when its volume (|det| = |plane_f(p_f)|) is at most this times |n|^1.5 of its
+// largest face normal (twice the face's area): height over size below ~1e-5, where the side
+// of the opposite vertex, and so each plane's outward direction, is decided by f32 rounding
+// (twin::THIN). A thin tet keeps its planes, but its outward directions and its scalar
+// gradient are rounding: it gets a constant scalar (gradient exactly 0, which tells the
+// traversal to leave it by its edges instead of its planes).
+const THIN: f32 = 1e-5;
+
+// The planes of the tet with vertices `ids` (CPU twin: twin::planes). Face planes come from
+// the face's three vertices taken in the order of their global indices, then turned outward by
+// the side of the opposite vertex: the two tets sharing a face compute the same plane negated,
+// bit for bit, so a ray leaves one at exactly the t where it enters the other.
+fn tet_planes(ids: vec4<u32>) -> TetPlanes {
+    var p: array<vec3<f32>, 4>;
+    var s: vec4<f32>;
+    for (var i = 0u; i < 4u; i++) {
+        let v = verts[ids[i]];
+        p[i] = v.xyz;
+        s[i] = v.w;
+    }
+    var out: TetPlanes;
+    var height = vec4<f32>(0.0);
+    var largest = 0.0;
+    for (var f = 0u; f < 4u; f++) {
+        let q = outward_plane(p, ids, f);
+        out.face[f] = q;
+        height[f] = dot(q.xyz, p[f]) + q.w;
+        largest = max(largest, length(q.xyz));
+    }
+    // Scalar: sum_f s_f lambda_f with lambda_f = plane_f(x) / plane_f(p_f).
+    out.thin = !all(height < vec4<f32>(-THIN * largest * sqrt(largest)));
+    if out.thin {
+        out.scalar = vec4<f32>(0.0, 0.0, 0.0, 0.25 * (s.x + s.y + s.z + s.w));
+    } else {
+        let k = s / height;
+        out.scalar = k.x * out.face[0] + k.y * out.face[1] + k.z * out.face[2] + k.w * out.face[3];
+    }
+    return out;
 }
 
 // A face's corners in eye space, in global index order, and its edges' Pluecker normals.
@@ -66,8 +191,7 @@ struct Face {
     edge: array<vec3<f32>, 3>,
 }
 
-fn face_of(tet: u32, f: u32) -> Face {
-    let ids = links[tet].tet;
+fn face_of(ids: vec4<u32>, f: u32) -> Face {
     var fv = FACE_VERTICES;
     var v = vec3<u32>(ids[fv[3u * f]], ids[fv[3u * f + 1u]], ids[fv[3u * f + 2u]]);
     if v.x > v.y {
@@ -81,7 +205,7 @@ fn face_of(tet: u32, f: u32) -> Face {
     }
     var out: Face;
     for (var i = 0u; i < 3u; i++) {
-        out.corner[i] = eye_space(positions[v[i]].xyz);
+        out.corner[i] = verts[v[i]].xyz;
     }
     out.edge[0] = cross(out.corner[0], out.corner[1]);
     out.edge[1] = cross(out.corner[1], out.corner[2]);

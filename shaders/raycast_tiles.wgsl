@@ -1,4 +1,4 @@
-// Ray caster stage, tiles (Bernardon et al. 2004; one thread per TILE x TILE screen tile):
+// Ray caster stage 4, tiles (Bernardon et al. 2004; one thread per TILE x TILE screen tile):
 // lists the tiles where some ray has an entry this layer (every tile in the first layer when
 // rays start in the eye's tet, and every tile when skipping empty ones is off), for the traversal's indirect dispatch; a tile left out costs the
 // traversal nothing. In the frame's first layer it writes transparent black to the pixels of
@@ -9,14 +9,13 @@
 // Generated before: const STRIDE: u32, the u32s per pixel of `source`, whose first is not zero
 // where the pixel has an entry (entry lists: the count; depth peeling: the peeled hit).
 
-@group(0) @binding(1) var<storage, read> counters: array<u32, 4>;
-@group(0) @binding(2) var<storage, read> source: array<u32>;
-@group(0) @binding(3) var<storage, read_write> tiles: array<atomic<u32>>;
-@group(0) @binding(4) var<uniform> layer: Layer;
-@group(0) @binding(5) var image: texture_storage_2d<rgba32float, write>;
-// Named by raycast_shared.wgsl's face helpers; this stage reads neither (nor binds them).
-@group(0) @binding(6) var<storage, read> positions: array<vec4<f32>>;
-@group(0) @binding(7) var<storage, read> links: array<TetLinks>;
+// Named by raycast_shared.wgsl's helpers (bound with the shared bindings); not read here.
+@group(0) @binding(2) var<storage, read> verts: array<vec4<f32>>;
+@group(0) @binding(7) var<storage, read> counters: array<u32, 4>;
+@group(0) @binding(8) var<storage, read> source: array<u32>;
+@group(0) @binding(9) var<storage, read_write> tiles: array<atomic<u32>>;
+@group(0) @binding(10) var<uniform> layer: Layer;
+@group(0) @binding(11) var image: texture_storage_2d<rgba32float, write>;
 
 // Whether a pixel of the tile [lo, hi) has an entry.
 fn entered(lo: vec2<u32>, hi: vec2<u32>, width: u32) -> bool {

@@ -1,22 +1,22 @@
-// Ray caster stage 3, traversal (Weiler et al. 2003; one thread per pixel, one workgroup per
+// Ray caster stage 5, traversal (Weiler et al. 2003; one thread per pixel, one workgroup per
 // listed 8 x 8 pixel tile, raycast_tiles.wgsl): the ray starts in the eye's tet (when the eye
 // is inside the mesh) or at its first entry, steps from tet to tet through the face it leaves by
-// (the nearest face plane it crosses moving outward; the face it came in by never), integrates
-// each segment exactly (integrate_segment.wgsl) front to back, and at the boundary resumes at
+// (the nearest face plane it crosses moving outward; the face it came in by never; the planes
+// computed from the tet's vertices, `tet_planes`), integrates each segment front to back
+// (`segment`, from the integrator composed in front of this file: exact or partial with
+// integrate_segment.wgsl, or the 3D table, raycast_table.wgsl), and at the boundary resumes at
 // its next entry beyond where it left (non-convex meshes). It stops when its transmittance
 // falls below TERMINATE (early ray termination) or after params.max_steps tets (counted).
-// Where entries come from (ray_start, start_tet, next_entry, ray_end): raycast_lists.wgsl or,
-// one depth-peeling layer per dispatch, raycast_layers.wgsl.
+// Where entries come from (ray_start, start_tet, next_entry, ray_end, with their bindings 7-8
+// and 14-15): raycast_lists.wgsl or, one depth-peeling layer per dispatch, raycast_layers.wgsl.
 // CPU twin: gpu::raycast::twin::exit and twin::trace.
 
-@group(0) @binding(1) var<storage, read> links: array<TetLinks>;
-@group(0) @binding(2) var<storage, read> planes: array<TetPlanes>;
-@group(0) @binding(5) var<uniform> tf: TfPoints;
-@group(0) @binding(6) var<uniform> params: Raycast;
-@group(0) @binding(7) var<storage, read_write> counters: array<atomic<u32>, 4>;
-@group(0) @binding(8) var image: texture_storage_2d<rgba32float, write>;
-@group(0) @binding(9) var<storage, read> positions: array<vec4<f32>>;
-@group(0) @binding(11) var<storage, read> tiles: array<u32>;
+@group(0) @binding(2) var<storage, read> verts: array<vec4<f32>>;
+@group(0) @binding(9) var<uniform> tf: TfPoints;
+@group(0) @binding(10) var<storage, read_write> counters: array<atomic<u32>, 4>;
+@group(0) @binding(11) var image: texture_storage_2d<rgba32float, write>;
+// Binding 12: the integrator's table (raycast_psi.wgsl, raycast_table.wgsl; none for exact).
+@group(0) @binding(13) var<storage, read> tiles: array<u32>;
 
 // Early ray termination: what lies behind a transmittance below this adds at most this much to
 // any channel (twin::TERMINATE).
@@ -54,18 +54,18 @@ fn exit(pl: TetPlanes, entry: u32, d: vec3<f32>, t_in: f32) -> vec2<f32> {
     return vec2<f32>(f32(best), max(t_in, best_t));
 }
 
-// The exit of a thin tet (its scalar gradient exactly 0, raycast_planes.wgsl), whose planes'
-// outward directions are rounding: the face other than `entry` that the ray line passes
+// The exit of a thin tet (its scalar gradient exactly 0, `tet_planes`), whose planes' outward
+// directions are rounding: the face other than `entry` that the ray line passes
 // through, from the edges' Pluecker products (Platis & Theoharis 2003), which are computed
 // the same way in every tet sharing an edge; a face passed strictly inside before one passed
 // on an edge. It leaves at the face's plane crossing (at least t_in; t_in where the ray runs
 // along it). NO_FACE when no face passes (then the planes decide).
-fn exit_by_edges(tet: u32, entry: u32, d: vec3<f32>, t_in: f32) -> vec2<f32> {
+fn exit_by_edges(ids: vec4<u32>, entry: u32, d: vec3<f32>, t_in: f32) -> vec2<f32> {
     var best = NO_FACE;
     var strict = false;
     var plane = vec4<f32>(0.0);
     for (var f = 0u; f < 4u; f++) {
-        let face = face_of(tet, f);
+        let face = face_of(ids, f);
         let e = edge_products(face, d);
         if f == entry || !passes(e) || strict {
             continue;
@@ -135,22 +135,23 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
             break;
         }
         steps++;
-        let pl = planes[tet];
+        let l = link(tet);
+        let pl = tet_planes(l.tet);
         var out = vec2<f32>(f32(NO_FACE), t);
         if all(pl.scalar.xyz == vec3<f32>(0.0)) {
-            out = exit_by_edges(tet, entry, d, t);
+            out = exit_by_edges(l.tet, entry, d, t);
         }
         if u32(out.x) == NO_FACE {
             out = exit(pl, entry, d, t);
         }
         let f = u32(out.x);
-        let seg = integrate_segment(scalar_at(pl, d, t), scalar_at(pl, d, out.y), out.y - t);
+        let seg = segment(scalar_at(pl, d, t), scalar_at(pl, d, out.y), out.y - t);
         acc = Acc(acc.color + acc.trans * seg.color, acc.trans * seg.trans);
         if acc.trans < TERMINATE {
             break;
         }
         t = out.y;
-        let next = links[tet].next[f];
+        let next = l.next[f];
         tet = select(next >> 2u, NO_NEIGHBOR, next == NO_NEIGHBOR);
         entry = next & 3u;
     }

@@ -23,7 +23,7 @@
 //! # }
 //! ```
 
-use crate::cpu::raycast::{CpuRaycastRenderer, CpuRaycastSettings};
+use crate::cpu::raycast::{self as cpu_raycast, CpuRaycastRenderer, CpuRaycastSettings};
 use crate::gpu::raycast::{Entry, Segments};
 use crate::gpu::{
     AdapterChoice, CellProjRenderer, CellProjSettings, GpuContext, GpuError, Integrate,
@@ -205,11 +205,19 @@ impl ModeSettings {
                 format!("mode cellproj ({how}) on {on}")
             }
             Self::Raycast(s) => {
+                let how = match s.segments {
+                    Segments::Partial => "partial pre-integration".into(),
+                    Segments::Exact => "exact segments".into(),
+                    Segments::Table => format!(
+                        "{}x{}x{} pre-integration table",
+                        s.table_size, s.table_size, s.table_lengths
+                    ),
+                };
                 let entry = match s.entry {
                     Entry::Lists => "entry lists",
                     Entry::Peel => "depth peeling",
                 };
-                format!("mode raycast ({}, {entry}) on {on}", segments(s.segments))
+                format!("mode raycast ({how}, {entry}) on {on}")
             }
             Self::RaycastCpu(s) => format!(
                 "mode raycast-cpu ({}) on the CPU, {} threads",
@@ -220,10 +228,10 @@ impl ModeSettings {
     }
 }
 
-fn segments(s: Segments) -> &'static str {
+fn segments(s: cpu_raycast::Segments) -> &'static str {
     match s {
-        Segments::Partial => "partial pre-integration",
-        Segments::Exact => "exact segments",
+        cpu_raycast::Segments::Partial => "partial pre-integration",
+        cpu_raycast::Segments::Exact => "exact segments",
     }
 }
 

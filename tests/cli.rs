@@ -97,6 +97,7 @@ fn reference_render_writes_a_picture_of_the_mesh() {
 fn raycast_render_prints_its_stages_and_counters() {
     let stdout = render_lox("raycast");
     for line in [
+        "vertices",
         "planes",
         "entries",
         "tiles",
@@ -166,35 +167,29 @@ fn auto_on_a_software_adapter_takes_the_cpu_ray_caster_and_says_why() {
 }
 
 #[test]
-fn raycast_takes_partial_or_exact_and_refuses_the_table() {
-    let png = out_dir("raycast-exact").join("lox.png");
+fn raycast_takes_exact_and_table_integrators() {
+    let png = out_dir("raycast-integrators").join("lox.png");
     let png_arg = png.to_str().unwrap();
-    let args = [
-        "render",
-        LOX,
-        "--mode",
-        "raycast",
-        "--integrate",
-        "exact",
-        "--size",
-        "32x32",
-    ];
-    let o = tetvr(&[&args[..], &["-o", png_arg]].concat());
-    assert!(o.status.success(), "{}", text(&o).1);
-    assert!(text(&o).0.contains("exact segments"), "{}", text(&o).0);
-    let table = [
-        "render",
-        LOX,
-        "--mode",
-        "raycast",
-        "--integrate",
-        "table",
-        "-o",
-        png_arg,
-    ];
-    let o = tetvr(&table);
-    assert!(!o.status.success());
-    assert!(text(&o).1.contains("--mode cellproj"), "{}", text(&o).1);
+    for (integrate, says) in [
+        ("exact", "exact segments"),
+        ("table", "128x128x64 pre-integration table"),
+    ] {
+        let args = [
+            "render",
+            LOX,
+            "--mode",
+            "raycast",
+            "--integrate",
+            integrate,
+            "--size",
+            "32x32",
+            "-o",
+            png_arg,
+        ];
+        let o = tetvr(&args);
+        assert!(o.status.success(), "{}", text(&o).1);
+        assert!(text(&o).0.contains(says), "{}", text(&o).0);
+    }
 }
 
 #[test]

@@ -1,8 +1,9 @@
 //! `--mode raycast` against the exact f64 reference: the oxygen post subset, a box with a hole
 //! seen through the hole, the eye inside a grid, a head-on grid (holes 0), a mesh after
-//! `update_positions`, each with both entry methods (lists, depth peeling: the same picture bit
-//! for bit); the tiles run and the peeling layers; and the CPU twin against the shipped
-//! shaders run on the adapter.
+//! `update_positions`, each with exact and partial segments and both entry methods (lists,
+//! depth peeling: the same picture bit for bit), and the 3D table; the tiles run and the
+//! peeling layers; the links in several bindings and buffers; and the CPU twin against the
+//! shipped shaders run on the adapter.
 //!
 //! GPU tests fail (never skip) when there is no adapter. Bounds were measured on lavapipe
 //! (Mesa llvmpipe, 2 cores); each is commented with what it allows for.
@@ -84,6 +85,14 @@ fn reference(mesh: &TetMesh, camera: &Camera, tf: &TransferFunction) -> Image {
 /// lox, the hole, the eye inside, head-on, the bent lox and the blunt fin; 1.4e-6 with the
 /// sharp TF), f32 planes and scalars.
 const BOUNDS: Bounds = bounds(3e-6, 1e-3);
+
+/// The table's bounds: its trilinear interpolation (1/127 in each scalar, 1/63 of the longest
+/// edge in length; cellproj's table measures rmse 3.5e-5, max 5e-4 on lox) measured rmse
+/// 2.2e-5, max 3.2e-4 on lox (lavapipe); bounds about 3x.
+const TABLE_LOX: Bounds = bounds(7e-5, 1e-3);
+/// With the sharp TF (a step, optically deep pieces, blurred by the interpolation across the
+/// step) measured rmse 3.5e-4, max 2.3e-3; bounds about 3x.
+const TABLE_SHARP: Bounds = bounds(1e-3, 7e-3);
 
 const fn bounds(max_rmse: f64, max_abs: f64) -> Bounds {
     Bounds {
@@ -288,11 +297,12 @@ fn list_overflow_reruns_and_step_limit_is_counted() {
     assert_eq!(counter(&long, "rays at step limit"), 0);
 }
 
-/// This milestone keeps the per-tet planes and the entry lists in one storage binding each: a
-/// mesh or an image beyond it is refused with a message that names the sizes and what to do
-/// (no panic, no wrong picture). lox's 8,750 tets need 700,000 bytes of planes.
+/// The links span at most four storage bindings (`links::LINK_BINDINGS`) and the entry lists
+/// one: a mesh or an image beyond them is refused with a message that names the sizes and what
+/// to do (no panic, no wrong picture). lox's 8,750 tets need 280,000 bytes of links, five
+/// windows of 64 KiB.
 #[test]
-fn mesh_or_image_beyond_one_binding_is_refused_clearly() {
+fn mesh_or_image_beyond_the_bindings_is_refused_clearly() {
     let small = common::with_storage_binding_limit(ctx(), 64 << 10);
     let err = RaycastRenderer::new(&small, &lox(), RaycastSettings::default())
         .err()
@@ -309,12 +319,87 @@ fn mesh_or_image_beyond_one_binding_is_refused_clearly() {
     assert!(msg.contains("128x128") && msg.contains("524288"), "{msg}");
 }
 
+/// The f32 bits of every pixel.
+fn bits(frame: &Frame) -> Vec<u32> {
+    frame
+        .image
+        .pixels
+        .iter()
+        .flatten()
+        .map(|v| v.to_bits())
+        .collect()
+}
+
+/// lox's links in three windows of 4,096 tets (128 KiB bindings), in one buffer and in three:
+/// rays step between windows, and the picture is the one-binding picture to the bit (bound: 0
+/// differing bits; nothing but where the links are read from changes).
+#[test]
+fn links_in_several_bindings_and_buffers_are_bit_identical() {
+    let mesh = lox();
+    let (tf, camera) = default_view(&mesh, 64);
+    let render = |c: &GpuContext| {
+        let mut r = RaycastRenderer::new(c, &mesh, RaycastSettings::default()).unwrap();
+        r.render(&camera, &tf).unwrap()
+    };
+    let whole = render(ctx());
+    assert!(bits(&whole).iter().any(|&b| b != 0), "an empty picture");
+    for buffer in [ctx().limits.max_buffer_size, 128 << 10] {
+        let split = common::with_buffer_limits(ctx(), 128 << 10, buffer);
+        let frame = render(&split);
+        let buffers = counter(&frame, "record buffers");
+        assert_eq!(buffers, if buffer == 128 << 10 { 3 } else { 1 });
+        let differing = (bits(&whole).iter().zip(bits(&frame)))
+            .filter(|(a, b)| *a != b)
+            .count();
+        assert_eq!(differing, 0, "{buffers} buffer(s)");
+    }
+}
+
+/// Weiler's 3D pre-integration table (128 x 128 scalars x 64 lengths, cellproj's incremental
+/// builder) against the reference on lox and the sharp TF's grid, with depth peeling giving
+/// entry lists' picture bit for bit (bound: 0, as `check`); rebuilt when the TF changes and
+/// only then.
+#[test]
+fn table_integrator_matches_reference_within_its_interpolation() {
+    let table = |mesh: &TetMesh, camera: &Camera, tf: &TransferFunction| {
+        let expected = reference(mesh, camera, tf);
+        let got = frame(mesh, camera, tf, Segments::Table);
+        assert_eq!(counter(&got, "rays at step limit"), 0);
+        let peel = framed(mesh, camera, tf, with(Segments::Table, Entry::Peel));
+        assert_eq!(peel.image.compare(&got.image).unwrap().max_abs, 0.0);
+        (got, expected)
+    };
+    let mesh = lox();
+    let (tf, camera) = default_view(&mesh, 96);
+    let (got, expected) = table(&mesh, &camera, &tf);
+    assert_images_close("raycast-lox-table", &got.image, &expected, TABLE_LOX);
+    let mesh = gaussians(16);
+    let (_, camera) = default_view(&mesh, 96);
+    let sharp = sharp_tf(&mesh);
+    let (got, expected) = table(&mesh, &camera, &sharp);
+    assert_images_close("raycast-sharp-table", &got.image, &expected, TABLE_SHARP);
+    let mut r =
+        RaycastRenderer::new(ctx(), &mesh, with(Segments::Table, Entry::default())).unwrap();
+    let rebuilt = |r: &mut RaycastRenderer, tf: &TransferFunction| {
+        counter(&r.render(&camera, tf).unwrap(), "table rebuilt")
+    };
+    assert_eq!(rebuilt(&mut r, &sharp), 1);
+    assert_eq!(rebuilt(&mut r, &sharp), 0);
+    let (other, _) = default_view(&mesh, 96);
+    assert_eq!(rebuilt(&mut r, &other), 1);
+}
+
 /// A TF with a step and opacity up to 0.8 per unit distance, where the psi table's pieces are
 /// optically deep: both integrators against the reference on a grid.
 #[test]
 fn sharp_tf_on_a_grid() {
     let mesh = gaussians(16);
     let (_, camera) = default_view(&mesh, 96);
+    check("sharp", &mesh, &camera, &sharp_tf(&mesh), BOUNDS);
+}
+
+/// A TF with a step and opacity up to 0.8 per unit distance over `mesh`'s scalar range.
+fn sharp_tf(mesh: &TetMesh) -> TransferFunction {
     let (lo, hi) = mesh.active_array().and_then(|a| a.range()).unwrap();
     let cp = |u: f64, color, opacity| ControlPoint {
         s: lo + (hi - lo) * u,
@@ -327,8 +412,7 @@ fn sharp_tf_on_a_grid() {
         cp(0.45, [0.9, 0.2, 0.1], 0.05),
         cp(1.0, [1.0, 0.9, 0.1], 0.8),
     ];
-    let tf = TransferFunction::new(points, mesh.diagonal() / 100.0).unwrap();
-    check("sharp", &mesh, &camera, &tf, BOUNDS);
+    TransferFunction::new(points, mesh.diagonal() / 100.0).unwrap()
 }
 
 /// The blunt fin (187,395 tets, 77 with coincident corners: thin, left by their edges), seen

@@ -6,10 +6,10 @@
 mod common;
 
 use glam::{DVec3, UVec3};
+use tetvr::cpu::raycast::Segments;
 use tetvr::cpu::raycast::{CpuRaycastRenderer, CpuRaycastSettings};
 use tetvr::deform::Deformation;
 use tetvr::generate::{self, fields::Field};
-use tetvr::gpu::raycast::Segments;
 use tetvr::reference::ReferenceRenderer;
 use tetvr::tf::ControlPoint;
 use tetvr::{Camera, Frame, Image, Renderer, TetMesh, TransferFunction, View};

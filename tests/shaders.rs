@@ -20,10 +20,11 @@ fn validate(name: &str, src: &str) -> Vec<String> {
 #[test]
 fn every_registered_shader_validates() {
     let registry = shaders::registry();
-    // assemble, shells_mark, iso_raster, iso_gradients, cellproj_raster, ten raycast stages
-    // (planes, entries, two peeling passes, tiles per entry method, traversal per entry method
-    // and integrator), and per target count one shells raster variant and 33 composite variants.
-    assert_eq!(registry.len(), 15 + shaders::MAX_TARGETS as usize * 34);
+    // assemble, shells_mark, iso_raster, iso_gradients, cellproj_raster, 13 raycast stages
+    // (vertices, planes, entries, two peeling passes, tiles per entry method, traversal per
+    // entry method and integrator: exact, partial, table), and per target count one shells
+    // raster variant and 33 composite variants.
+    assert_eq!(registry.len(), 18 + shaders::MAX_TARGETS as usize * 34);
     for (name, src, entries) in registry {
         assert_eq!(validate(&name, &src), entries, "{name}");
     }
@@ -49,7 +50,7 @@ fn shared_struct_layouts_match_gpu_data() {
 /// The ray caster's structs have the sizes of their Rust twins in every stage.
 #[test]
 fn raycast_struct_layouts_match_gpu_data() {
-    use tetvr::gpu::gpu_data::{LayerUniforms, RaycastUniforms, TetLinks, TetPlanes};
+    use tetvr::gpu::gpu_data::{LayerUniforms, RaycastUniforms, TetLinks};
     use tetvr::gpu::raycast::RAY_STATE_BYTES;
     for (name, src) in shaders::raycast_stages() {
         let module = validated_wgsl(name, &src);
@@ -62,10 +63,6 @@ fn raycast_struct_layouts_match_gpu_data() {
         assert_eq!(
             wgsl_struct_size(&module, "Raycast"),
             size_of::<RaycastUniforms>()
-        );
-        assert_eq!(
-            wgsl_struct_size(&module, "TetPlanes"),
-            size_of::<TetPlanes>()
         );
         assert_eq!(wgsl_struct_size(&module, "TetLinks"), size_of::<TetLinks>());
     }

@@ -29,7 +29,7 @@ use std::time::Instant;
 use glam::DVec3;
 
 use tetvr::camera::{Camera, View};
-use tetvr::cpu::raycast::CpuRaycastSettings;
+use tetvr::cpu::raycast::{self as cpu_raycast, CpuRaycastSettings};
 use tetvr::deform::Deformation;
 use tetvr::generate::{self, Field};
 use tetvr::gpu::raycast::{Entry, Segments};
@@ -545,6 +545,7 @@ fn raycast(segments: Segments, entry: Entry) -> Config {
     let integrate = match segments {
         Segments::Partial => "partial",
         Segments::Exact => "exact",
+        Segments::Table => "table",
     };
     let entries = match entry {
         Entry::Lists => "lists",
@@ -567,8 +568,11 @@ fn raycast(segments: Segments, entry: Entry) -> Config {
     }
 }
 
-fn raycast_cpu(segments: Segments) -> Config {
-    let on_gpu = raycast(segments, Entry::Lists);
+fn raycast_cpu(segments: cpu_raycast::Segments) -> Config {
+    let on_gpu = match segments {
+        cpu_raycast::Segments::Partial => raycast(Segments::Partial, Entry::Lists),
+        cpu_raycast::Segments::Exact => raycast(Segments::Exact, Entry::Lists),
+    };
     Config {
         mode: "raycast-cpu",
         setting: on_gpu.setting.trim_end_matches(" lists").to_string(),
@@ -594,7 +598,7 @@ pub fn configurations(quick: bool) -> Vec<Config> {
             iso(Shading::Flat),
             cellproj(Integrate::Table, 128),
             raycast(Segments::Partial, Entry::default()),
-            raycast_cpu(Segments::Partial),
+            raycast_cpu(cpu_raycast::Segments::Partial),
         ]
     } else {
         let mut c = vec![
@@ -614,8 +618,9 @@ pub fn configurations(quick: bool) -> Vec<Config> {
             raycast(Segments::Partial, Entry::Lists),
             raycast(Segments::Partial, Entry::Peel),
             raycast(Segments::Exact, Entry::default()),
-            raycast_cpu(Segments::Partial),
-            raycast_cpu(Segments::Exact),
+            raycast(Segments::Table, Entry::default()),
+            raycast_cpu(cpu_raycast::Segments::Partial),
+            raycast_cpu(cpu_raycast::Segments::Exact),
         ]);
         c
     };
@@ -682,6 +687,9 @@ pub struct Row {
     /// Tets of the mesh per second of median frame time.
     pub tets_per_s: f64,
     pub gpu_bytes: u64,
+    /// GPU bytes per tet of what scales with the mesh, where the mode reports it (its
+    /// "bytes per tet" counter: raycast).
+    pub bytes_per_tet: Option<u64>,
     pub error: ErrorMetrics,
     /// Per-stage medians (ms), in the order the renderer reports them.
     pub stages: Vec<(String, f64)>,
@@ -779,6 +787,7 @@ pub fn measure(
     let mut frame_ms = Vec::with_capacity(runs);
     let mut stages: BTreeMap<&'static str, (usize, Vec<f64>)> = BTreeMap::new();
     let mut last = None;
+    let mut bytes_per_tet = None;
     for i in 0..warmup + runs {
         let start = Instant::now();
         let mut update_ms = None;
@@ -798,6 +807,9 @@ pub fn measure(
                 stages.entry(name).or_insert((k, Vec::new())).1.push(t);
             }
         }
+        bytes_per_tet = (frame.timings.counters.iter())
+            .find(|c| c.0 == "bytes per tet")
+            .map(|c| c.1);
         last = Some(frame.image);
     }
     let image = last.expect("at least one frame");
@@ -824,6 +836,7 @@ pub fn measure(
         max_ms: frame_ms.iter().copied().fold(0.0, f64::max),
         tets_per_s: scene.mesh.tet_count() as f64 / (median_ms * 1e-3).max(f64::MIN_POSITIVE),
         gpu_bytes: renderer.gpu_memory(),
+        bytes_per_tet,
         error,
         stages: stages.into_iter().map(|(_, n, t)| (n, t)).collect(),
     })
@@ -983,6 +996,7 @@ pub const CSV_COLUMNS: &[&str] = &[
     "max_ms",
     "tets_per_s",
     "gpu_bytes",
+    "bytes_per_tet",
     "rmse",
     "max_abs",
     "psnr_db",
@@ -1086,6 +1100,7 @@ pub fn write_csv(path: &Path, rows: &[Row], env: &Environment) -> Result<(), Ben
             format!("{:.3}", r.max_ms),
             format!("{:.0}", r.tets_per_s),
             r.gpu_bytes.to_string(),
+            r.bytes_per_tet.map_or(String::new(), |b| b.to_string()),
             format!("{:.4e}", e.rmse),
             format!("{:.4e}", e.max_abs),
             format!("{:.2}", e.psnr),

@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressStyle};
 use tetvr::camera::{Camera, CameraError, View};
-use tetvr::cpu::raycast::CpuRaycastSettings;
+use tetvr::cpu::raycast::{self as cpu_raycast, CpuRaycastSettings};
 use tetvr::gpu::cellproj::sort::sort_check;
 use tetvr::gpu::raycast::{Entry, Segments};
 use tetvr::gpu::{
@@ -241,16 +241,22 @@ fn mode_settings(
             frustum,
         }),
         Mode::Raycast => ModeSettings::Raycast(RaycastSettings {
-            segments: ray_segments(args)?,
+            segments: match args.cellproj.integrate {
+                None | Some(IntegrateArg::Partial) => Segments::Partial,
+                Some(IntegrateArg::Exact) => Segments::Exact,
+                Some(IntegrateArg::Table) => Segments::Table,
+            },
             entry: match args.cellproj.entry {
                 None => Entry::default(),
                 Some(EntryArg::Lists) => Entry::Lists,
                 Some(EntryArg::Peel) => Entry::Peel,
             },
+            table_size: args.cellproj.table_size,
+            table_lengths: (args.cellproj.table_size / 2).max(2),
             ..RaycastSettings::default()
         }),
         Mode::RaycastCpu => ModeSettings::RaycastCpu(CpuRaycastSettings {
-            segments: ray_segments(args)?,
+            segments: cpu_ray_segments(args)?,
             ..CpuRaycastSettings::default()
         }),
         Mode::Iso => {
@@ -276,14 +282,14 @@ fn mode_settings(
     })
 }
 
-/// The ray casters' `--integrate`: partial (the default) or exact.
-fn ray_segments(args: &RenderArgs) -> Result<Segments, CliError> {
+/// The CPU ray caster's `--integrate`: partial (the default) or exact.
+fn cpu_ray_segments(args: &RenderArgs) -> Result<cpu_raycast::Segments, CliError> {
     match args.cellproj.integrate {
-        None | Some(IntegrateArg::Partial) => Ok(Segments::Partial),
-        Some(IntegrateArg::Exact) => Ok(Segments::Exact),
+        None | Some(IntegrateArg::Partial) => Ok(cpu_raycast::Segments::Partial),
+        Some(IntegrateArg::Exact) => Ok(cpu_raycast::Segments::Exact),
         Some(IntegrateArg::Table) => Err(CliError::Usage(
-            "--mode raycast and raycast-cpu integrate with partial (the default) or exact; the \
-             3D table belongs to --mode cellproj"
+            "--mode raycast-cpu integrates with partial (the default) or exact; the 3D table \
+             belongs to --mode raycast and --mode cellproj"
                 .into(),
         )),
     }

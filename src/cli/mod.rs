@@ -84,8 +84,8 @@ pub enum Mode {
 /// How cell projection integrates each tet's segment.
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum IntegrateArg {
-    /// cellproj: trilinear lookup in a 3D pre-integration table (front scalar, back scalar,
-    /// length).
+    /// cellproj, raycast: trilinear lookup in a 3D pre-integration table (front scalar, back
+    /// scalar, length).
     Table,
     /// Exactly for the piecewise-linear TF, per fragment or per ray segment.
     Exact,
@@ -246,7 +246,8 @@ pub struct CellProjArgs {
     /// lists).
     #[arg(long, value_enum)]
     pub entry: Option<EntryArg>,
-    /// cellproj: pre-integration table samples per scalar axis (and half as many lengths).
+    /// cellproj, raycast: pre-integration table samples per scalar axis (and half as many
+    /// lengths).
     #[arg(long, default_value_t = 128)]
     pub table_size: u32,
     /// cellproj: check the sort against the true order along every 4th pixel's ray; prints the

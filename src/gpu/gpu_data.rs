@@ -189,7 +189,7 @@ pub struct CellProjUniforms {
 }
 const _: () = assert!(size_of::<CellProjUniforms>() == 16);
 
-/// The ray caster's constants (WGSL `Raycast` in `shaders/raycast_shared.wgsl`, 16 bytes).
+/// The ray caster's constants (WGSL `Raycast` in `shaders/raycast_shared.wgsl`, 32 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct RaycastUniforms {
@@ -201,8 +201,16 @@ pub struct RaycastUniforms {
     pub boundary_count: u32,
     /// The eye is in a tet when it lies at most this far outside each face plane.
     pub eye_tol: f32,
+    /// Tets per links window.
+    pub link_chunk: u32,
+    /// `--integrate table`: scalar samples per table axis.
+    pub table_size: u32,
+    /// `--integrate table`: length levels.
+    pub table_lengths: u32,
+    /// `--integrate table`: `(table_lengths - 1) / max_length`, length to level.
+    pub inv_length_step: f32,
 }
-const _: () = assert!(size_of::<RaycastUniforms>() == 16);
+const _: () = assert!(size_of::<RaycastUniforms>() == 32);
 
 /// The ray caster's depth-peeling layer (WGSL `Layer` in `shaders/raycast_rays.wgsl`, 16
 /// bytes); 0 for entry lists.
@@ -218,19 +226,6 @@ pub struct LayerUniforms {
     pub _pad: [u32; 2],
 }
 const _: () = assert!(size_of::<LayerUniforms>() == 16);
-
-/// Per tet and frame (WGSL `TetPlanes`, 80 bytes): the outward face planes `(n, w)` in eye
-/// space and the linear scalar `(gradient, value at the eye)`.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct TetPlanes {
-    /// Face `i`'s outward plane `(n, w)`: a point `p` is inside it where `n . p + w <= 0`;
-    /// face `i` is the face opposite corner `i`.
-    pub face: [[f32; 4]; 4],
-    /// The scalar as a linear function of eye-space position: `(gradient, value at the eye)`.
-    pub scalar: [f32; 4],
-}
-const _: () = assert!(size_of::<TetPlanes>() == 80);
 
 /// Per tet, built once (WGSL `TetLinks`, 32 bytes): vertex indices, and across each face
 /// `4 * neighbour + face` (`crate::mesh::topology::NO_NEIGHBOR` on the boundary).

@@ -31,6 +31,7 @@ const CELLPROJ_RASTER: &str = include_str!("../../shaders/cellproj_raster.wgsl")
 const RAYCAST_SHARED: &str = include_str!("../../shaders/raycast_shared.wgsl");
 const RAYCAST_RAYS: &str = include_str!("../../shaders/raycast_rays.wgsl");
 const RAYCAST_COVER: &str = include_str!("../../shaders/raycast_cover.wgsl");
+const RAYCAST_VERTICES: &str = include_str!("../../shaders/raycast_vertices.wgsl");
 const RAYCAST_PLANES: &str = include_str!("../../shaders/raycast_planes.wgsl");
 const RAYCAST_ENTRIES: &str = include_str!("../../shaders/raycast_entries.wgsl");
 const RAYCAST_PEEL: &str = include_str!("../../shaders/raycast_peel.wgsl");
@@ -39,20 +40,29 @@ const RAYCAST_LISTS: &str = include_str!("../../shaders/raycast_lists.wgsl");
 const RAYCAST_LAYERS: &str = include_str!("../../shaders/raycast_layers.wgsl");
 const RAYCAST_TRAVERSE: &str = include_str!("../../shaders/raycast_traverse.wgsl");
 const RAYCAST_PSI: &str = include_str!("../../shaders/raycast_psi.wgsl");
+const RAYCAST_TABLE: &str = include_str!("../../shaders/raycast_table.wgsl");
 
-/// The ray caster's stages as it loads them (entry point `main` in each): planes; entries;
-/// the two depth-peeling passes (least t, then least face code); the tile list from entry
-/// lists and from peeled hits; the traversal with entry lists (exact, partial segments) and
-/// with depth peeling (exact, partial).
-pub fn raycast_stages() -> [(&'static str, String); 10] {
+/// The traversal's `segment` for the integrators of `integrate_segment.wgsl`.
+const SEGMENT_PIECEWISE: &str = "fn segment(u_front: f32, u_back: f32, len: f32) -> Acc {\n    \
+    return integrate_segment(u_front, u_back, len);\n}\n";
+
+/// The ray caster's stages as it loads them (entry point `main` in each): vertices; planes;
+/// entries; the two depth-peeling passes (least t, then least face code); the tile list from
+/// entry lists and from peeled hits; the traversal with entry lists and with depth peeling,
+/// each with every integrator (`Segments`: exact, partial, table).
+pub fn raycast_stages() -> [(&'static str, String); 13] {
     let common = format!("{SHARED}\n{RAYCAST_SHARED}\n{RAYCAST_RAYS}");
-    let table = format!(
+    let psi = format!(
         "// Generated: samples per psi table axis.\nconst PSI_SIZE: u32 = {}u;\n{RAYCAST_PSI}",
         crate::gpu::raycast::psi::PSI_SIZE
     );
-    let traverse = |name, entries: &str, psi: &str| {
+    let exact = format!("{PSI_EXACT}\n{SEGMENT_PIECEWISE}");
+    let partial = format!("{psi}\n{SEGMENT_PIECEWISE}");
+    let table = format!("{PSI_EXACT}\n{RAYCAST_TABLE}");
+    // Every traversal has integrate_segment.wgsl (its `Acc`); the integrator gives `segment`.
+    let traverse = |name, entries: &str, integrator: &str| {
         let integrate = INTEGRATE_SEGMENT;
-        let source = format!("{common}\n{integrate}\n{psi}\n{entries}\n{RAYCAST_TRAVERSE}");
+        let source = format!("{common}\n{integrate}\n{integrator}\n{entries}\n{RAYCAST_TRAVERSE}");
         (name, source)
     };
     let peel = |pick: bool| {
@@ -64,6 +74,7 @@ pub fn raycast_stages() -> [(&'static str, String); 10] {
         format!("{common}\n{prelude}\n{RAYCAST_TILES}")
     };
     [
+        ("raycast_vertices", format!("{common}\n{RAYCAST_VERTICES}")),
         ("raycast_planes", format!("{common}\n{RAYCAST_PLANES}")),
         (
             "raycast_entries",
@@ -73,10 +84,12 @@ pub fn raycast_stages() -> [(&'static str, String); 10] {
         ("raycast_peel (least face)", peel(true)),
         ("raycast_tiles (entry lists)", tiles(1)),
         ("raycast_tiles (peeled hits)", tiles(2)),
-        traverse("raycast_traverse (lists, exact)", RAYCAST_LISTS, PSI_EXACT),
-        traverse("raycast_traverse (lists, partial)", RAYCAST_LISTS, &table),
-        traverse("raycast_traverse (peel, exact)", RAYCAST_LAYERS, PSI_EXACT),
-        traverse("raycast_traverse (peel, partial)", RAYCAST_LAYERS, &table),
+        traverse("raycast_traverse (lists, exact)", RAYCAST_LISTS, &exact),
+        traverse("raycast_traverse (lists, partial)", RAYCAST_LISTS, &partial),
+        traverse("raycast_traverse (lists, table)", RAYCAST_LISTS, &table),
+        traverse("raycast_traverse (peel, exact)", RAYCAST_LAYERS, &exact),
+        traverse("raycast_traverse (peel, partial)", RAYCAST_LAYERS, &partial),
+        traverse("raycast_traverse (peel, table)", RAYCAST_LAYERS, &table),
     ]
 }
 

@@ -9,7 +9,8 @@
 
 use glam::Vec3;
 
-use crate::gpu::raycast::{Segments, psi};
+use super::Segments;
+use crate::gpu::raycast::psi;
 use crate::tf::TransferFunction;
 
 /// Gauss-Legendre, 4 points on [0, 1] (the WGSL's `GL_X`, `GL_W`).

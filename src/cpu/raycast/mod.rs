@@ -28,7 +28,7 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::camera::Camera;
-use crate::gpu::raycast::{Segments, TetLinks, default_max_steps, links};
+use crate::gpu::raycast::{TetLinks, default_max_steps, links};
 use crate::gpu::util::{bounding_sphere, ms_since, scalar_frame};
 use crate::gpu::view::ViewFrame;
 use crate::image::Image;
@@ -38,6 +38,17 @@ use crate::tf::TransferFunction;
 
 use integrate::SegmentTf;
 use scene::{TILE, Tet};
+
+/// How the CPU ray caster integrates each segment (both split it at the TF's control points,
+/// as the GPU's [`crate::gpu::raycast::Segments`]; the 3D table is the GPU's alone).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Segments {
+    /// Partial pre-integration: each piece's mean transmittance from the psi table.
+    #[default]
+    Partial,
+    /// Each piece's mean transmittance by quadrature converged to f32.
+    Exact,
+}
 
 /// Settings of the CPU ray caster.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

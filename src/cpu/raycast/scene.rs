@@ -7,7 +7,8 @@ use glam::{UVec2, Vec3, Vec4};
 use rayon::prelude::*;
 
 use crate::gpu::gpu_data::ViewUniforms;
-use crate::gpu::raycast::{TetLinks, TetPlanes, twin};
+use crate::gpu::raycast::TetLinks;
+use crate::gpu::raycast::twin::{self, TetPlanes};
 use crate::mesh::topology::{FACES, NO_NEIGHBOR};
 
 /// Tiles are `TILE` x `TILE` pixels: the unit of parallel work and of entry binning.

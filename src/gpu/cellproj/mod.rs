@@ -100,9 +100,7 @@ impl Default for CellProjSettings {
 
 /// What a built table was built for.
 struct TableState {
-    tf: TransferFunction,
-    scalar_frame: (f64, f64),
-    max_length: f64,
+    key: preint::TableKey,
     texture: wgpu::Texture,
 }
 
@@ -117,7 +115,7 @@ pub struct CellProjRenderer {
     /// Circumspheres, with the positions' version they were computed for.
     spheres: Option<(u64, sort::Spheres)>,
     /// Longest tet edge (no segment inside one tet is longer), with the positions' version.
-    max_edge: Option<(u64, f64)>,
+    max_edge: preint::LongestEdge,
     table: Option<TableState>,
     /// A 2x2x2 stand-in bound in place of the table by the exact variant.
     no_table: wgpu::Texture,
@@ -194,7 +192,7 @@ impl CellProjRenderer {
             format,
             mesh,
             spheres: None,
-            max_edge: None,
+            max_edge: preint::LongestEdge::default(),
             table: None,
             targets: None,
         })

@@ -278,35 +278,77 @@ impl PreintTable {
     }
 }
 
-impl CellProjRenderer {
-    /// The longest tet edge of the current positions (computed once per positions' version).
-    pub(super) fn max_edge(&mut self, m: &MeshData) -> f64 {
-        match self.max_edge {
+/// The longest tet edge of the current positions (no segment inside one tet is longer),
+/// computed once per positions' version.
+#[derive(Debug, Default)]
+pub(crate) struct LongestEdge(Option<(u64, f64)>);
+
+impl LongestEdge {
+    pub(crate) fn of(&mut self, m: &MeshData) -> f64 {
+        match self.0 {
             Some((v, l)) if v == m.positions_version => l,
             _ => {
                 let l = longest_edge(&m.positions, &m.tets);
-                self.max_edge = Some((m.positions_version, l));
+                self.0 = Some((m.positions_version, l));
                 l
             }
         }
     }
+}
 
-    /// Builds the table when the TF, the scalar range or the longest edge (grown) changed;
-    /// returns whether it did.
-    pub(super) fn ensure_table(&mut self, m: &MeshData, tf: &TransferFunction) -> bool {
+/// What a pre-integration table is built for: the TF, the scalar frame, the longest segment.
+/// The rebuild rule of every mode with a table (cellproj, raycast).
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct TableKey {
+    pub tf: TransferFunction,
+    pub scalar_frame: (f64, f64),
+    pub max_length: f64,
+}
+
+impl TableKey {
+    /// The key of the table a frame of `tf` over `m` (longest tet edge `max_edge`) needs, or
+    /// `None` when `built` serves it: same TF and scalar frame, and no longer edge.
+    pub(crate) fn stale(
+        built: Option<&TableKey>,
+        m: &MeshData,
+        tf: &TransferFunction,
+        max_edge: f64,
+    ) -> Option<TableKey> {
         let frame = (m.scalar_min, m.scalar_span);
-        let max_edge = self.max_edge(m);
-        if let Some(t) = &self.table
+        if let Some(t) = built
             && t.tf == *tf
             && t.scalar_frame == frame
             && t.max_length >= max_edge
         {
-            return false;
+            return None;
         }
         // A little headroom so small deformations that stretch the longest edge keep the table.
-        let max_length = (max_edge * 1.05).max(f64::MIN_POSITIVE);
+        Some(TableKey {
+            tf: tf.clone(),
+            scalar_frame: frame,
+            max_length: (max_edge * 1.05).max(f64::MIN_POSITIVE),
+        })
+    }
+
+    /// The table of `scalars` x `scalars` x `lengths` entries for this key.
+    pub(crate) fn build(&self, scalars: u32, lengths: u32) -> PreintTable {
+        let (lo, span) = self.scalar_frame;
+        let tf = NormalizedTf::new(&self.tf, lo, span);
+        PreintTable::build(&tf, scalars, lengths, self.max_length)
+    }
+}
+
+impl CellProjRenderer {
+    /// Builds the table when the TF, the scalar range or the longest edge (grown) changed;
+    /// returns whether it did.
+    pub(super) fn ensure_table(&mut self, m: &MeshData, tf: &TransferFunction) -> bool {
+        let max_edge = self.max_edge.of(m);
+        let built = self.table.as_ref().map(|t| &t.key);
+        let Some(key) = TableKey::stale(built, m, tf, max_edge) else {
+            return false;
+        };
         let (n, m) = (self.settings.table_size, self.settings.table_lengths);
-        let table = PreintTable::build(&NormalizedTf::new(tf, frame.0, frame.1), n, m, max_length);
+        let table = key.build(n, m);
         let texture = match self.table.take() {
             Some(t) => t.texture,
             None => table_texture(&self.device, n, m),
@@ -321,17 +363,12 @@ impl CellProjRenderer {
             },
             texture.size(),
         );
-        self.table = Some(TableState {
-            tf: tf.clone(),
-            scalar_frame: frame,
-            max_length,
-            texture,
-        });
+        self.table = Some(TableState { key, texture });
         true
     }
 }
 
-pub(super) fn longest_edge(positions: &[DVec3], tets: &[[u32; 4]]) -> f64 {
+fn longest_edge(positions: &[DVec3], tets: &[[u32; 4]]) -> f64 {
     tets.par_iter()
         .map(|t| {
             let p = t.map(|i| positions[i as usize]);

@@ -33,7 +33,7 @@ impl CellProjRenderer {
             table_size: self.settings.table_size,
             table_lengths: self.settings.table_lengths,
             inv_length_step: self.table.as_ref().map_or(0.0, |t| {
-                ((self.settings.table_lengths - 1) as f64 / t.max_length) as f32
+                ((self.settings.table_lengths - 1) as f64 / t.key.max_length) as f32
             }),
             _pad: 0,
         };

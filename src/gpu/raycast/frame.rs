@@ -5,8 +5,10 @@
 use std::time::Instant;
 
 use crate::camera::Camera;
+use crate::gpu::cellproj::preint::TableKey;
 use crate::gpu::frame::{ImageReadback, Timestamps};
 use crate::gpu::gpu_data::LayerUniforms;
+use crate::gpu::mesh::{MeshData, chunk_ranges};
 use crate::gpu::tf::tf_points;
 use crate::gpu::util::{check_image_size, entry, map_read, ms_since, settings_error, texture_2d};
 use crate::gpu::view::ViewFrame;
@@ -14,6 +16,7 @@ use crate::image::Image;
 use crate::render::{Frame, RenderError, Timings};
 use crate::tf::TransferFunction;
 
+use super::links::LINK_BINDINGS;
 use super::pipelines::{Groups, encode, linear};
 use super::{
     COUNTERS, Entry, PixelBuffers, RAY_STATE_BYTES, RaycastRenderer, RaycastUniforms, Segments,
@@ -66,6 +69,7 @@ struct Progress {
 
 /// The bind groups of a frame's stages.
 struct BindGroups {
+    vertices: wgpu::BindGroup,
     planes: wgpu::BindGroup,
     /// The entries stage's, or both peeling passes'.
     entry: wgpu::BindGroup,
@@ -83,7 +87,7 @@ impl RaycastRenderer {
         let start = Instant::now();
         let mut timings = Timings::default();
         let t = Instant::now();
-        self.upload(camera, tf)?;
+        let rebuilt = self.upload(camera, tf)?;
         timings.stage("upload", ms_since(t));
         let mut reruns = 0;
         let run = loop {
@@ -104,12 +108,16 @@ impl RaycastRenderer {
         timings.stage("readback", ms_since(t));
         timings.stage("total", ms_since(start));
         timings.clock = if run.gpu_clock {
-            "GPU timestamps for planes, entries or peel, tiles, traverse (the last run, summed \
-             over layers); wall clock for upload, readback and total"
+            "GPU timestamps for vertices, planes, entries or peel, tiles, traverse (the last \
+             run, summed over layers); wall clock for upload (with the 3D table's build), \
+             readback and total"
         } else {
             "wall clock, GPU drained after each stage"
         };
         self.count(&mut timings, &run, reruns);
+        if self.settings.segments == Segments::Table {
+            timings.count("table rebuilt", rebuilt as u64);
+        }
         Ok(Frame { image, timings })
     }
 
@@ -129,11 +137,14 @@ impl RaycastRenderer {
         timings.count("image tiles", self.image_tiles());
         timings.count("rays at step limit", run.counters[3] as u64);
         timings.count("bytes per tet", self.bytes_per_tet().round() as u64);
+        timings.count("record buffers", self.links.buffer_count() as u64);
     }
 
-    /// Writes the frame constants, the TF and the ray caster's constants.
-    fn upload(&mut self, camera: &Camera, tf: &TransferFunction) -> Result<(), RenderError> {
-        let m = self.mesh.read();
+    /// Writes the frame constants, the TF, the integrator's table and the ray caster's
+    /// constants; returns whether the 3D table was rebuilt.
+    fn upload(&mut self, camera: &Camera, tf: &TransferFunction) -> Result<bool, RenderError> {
+        let mesh = self.mesh.clone();
+        let m = mesh.read();
         let view = ViewFrame::new(camera);
         let nt = m.tets.len() as u32;
         let frame = view.uniforms(m.origin, 0.0, near_tol(m.radius), nt);
@@ -143,6 +154,10 @@ impl RaycastRenderer {
         self.queue
             .write_buffer(&self.tf_buf, 0, bytemuck::bytes_of(&points));
         self.eye_tol = near_tol(m.radius);
+        let rebuilt = match self.settings.segments {
+            Segments::Table => self.ensure_table(&m, tf)?,
+            _ => false,
+        };
         drop(m);
         if self.settings.segments == Segments::Partial && self.psi.size() == 16 {
             let table = psi::table();
@@ -150,16 +165,49 @@ impl RaycastRenderer {
             (self.queue).write_buffer(&self.psi, 0, bytemuck::cast_slice(table));
         }
         self.write_params();
-        Ok(())
+        Ok(rebuilt)
+    }
+
+    /// Builds and uploads the 3D pre-integration table when the TF, the scalar range or the
+    /// longest edge (grown) changed (`preint::TableKey`, cellproj's rule); returns whether it
+    /// did. An error when the table exceeds one storage binding.
+    fn ensure_table(&mut self, m: &MeshData, tf: &TransferFunction) -> Result<bool, RenderError> {
+        let max_edge = self.max_edge.of(m);
+        let Some(key) = TableKey::stale(self.preint_key.as_ref(), m, tf, max_edge) else {
+            return Ok(false);
+        };
+        let (n, l) = (self.settings.table_size, self.settings.table_lengths);
+        let bytes = 16 * n as u64 * n as u64 * l as u64;
+        let max = (self.limits.max_storage_buffer_binding_size).min(self.limits.max_buffer_size);
+        if bytes > max {
+            return Err(settings_error(format!(
+                "the pre-integration table of {n} scalars x {n} x {l} lengths needs {bytes} \
+                 bytes, more than one storage binding of this adapter holds ({max}); choose a \
+                 smaller --table-size"
+            )));
+        }
+        let table = key.build(n, l);
+        if self.preint.size() != bytes {
+            self.preint = storage(&self.device, "raycast 3D table", bytes as usize);
+        }
+        (self.queue).write_buffer(&self.preint, 0, bytemuck::cast_slice(&table.data));
+        self.preint_key = Some(key);
+        Ok(true)
     }
 
     fn write_params(&self) {
+        let lengths = self.settings.table_lengths;
         let params = RaycastUniforms {
             capacity: self.capacity,
             max_steps: (self.settings.max_steps)
                 .unwrap_or_else(|| default_max_steps(self.mesh.tet_count())),
             boundary_count: self.boundary_count,
             eye_tol: self.eye_tol,
+            link_chunk: self.link_chunk as u32,
+            table_size: self.settings.table_size,
+            table_lengths: lengths,
+            inv_length_step: (self.preint_key.as_ref())
+                .map_or(0.0, |k| ((lengths - 1) as f64 / k.max_length) as f32),
         };
         self.queue
             .write_buffer(&self.params_buf, 0, bytemuck::bytes_of(&params));
@@ -257,84 +305,104 @@ impl RaycastRenderer {
         })
     }
 
-    /// The bind groups of the stages.
-    fn bind(&self, t: &Targets) -> BindGroups {
+    /// The entries every stage binds first (`pipelines::layout`): the frame, the constants,
+    /// the vertices, the links windows (the first window again where there are fewer).
+    fn shared_entries(&self) -> Vec<wgpu::BindGroupEntry<'_>> {
         let nt = self.mesh.tet_count() as u64;
+        let windows = self.links_windows(nt);
+        let mut out = vec![
+            entry(0, &self.frame_buf),
+            entry(1, &self.params_buf),
+            entry(2, &self.verts),
+        ];
+        for w in 0..LINK_BINDINGS {
+            let (first, count) = windows.get(w as usize).copied().unwrap_or(windows[0]);
+            out.push(self.links.window(3 + w as u32, first, count));
+        }
+        out
+    }
+
+    /// The shared entries followed by a stage's own.
+    fn with_shared<'a>(
+        &'a self,
+        own: impl IntoIterator<Item = wgpu::BindGroupEntry<'a>>,
+    ) -> Vec<wgpu::BindGroupEntry<'a>> {
+        let mut all = self.shared_entries();
+        all.extend(own);
+        all
+    }
+
+    /// The links windows: (first tet, tets) of each, at least one.
+    fn links_windows(&self, nt: u64) -> Vec<(u64, u64)> {
+        let mut w = chunk_ranges(nt, self.link_chunk);
+        if w.is_empty() {
+            w.push((0, 1));
+        }
+        w
+    }
+
+    /// The bind groups of the stages: the shared bindings, then each stage's own (the stage
+    /// files and `pipelines.rs` number them).
+    fn bind(&self, t: &Targets) -> BindGroups {
         let p = &self.pipelines;
         let view = t.image.create_view(&Default::default());
         let image = |binding| wgpu::BindGroupEntry {
             binding,
             resource: wgpu::BindingResource::TextureView(&view),
         };
-        let planes = self.group(
-            &p.planes.layout,
-            &[
-                entry(0, &self.frame_buf),
-                entry(1, self.mesh.positions()),
-                entry(2, self.mesh.scalars()),
-                self.links.window(3, 0, nt),
-                self.planes.window(4, 0, nt),
-                entry(5, &self.counters),
-                entry(6, &self.params_buf),
-            ],
-        );
+        let vertices = self.with_shared([
+            entry(7, self.mesh.positions()),
+            entry(8, self.mesh.scalars()),
+        ]);
+        let planes = self.with_shared([entry(7, &self.counters)]);
         let (first, second) = match &t.pixels {
             PixelBuffers::Lists {
                 counts, entries, ..
             } => (counts, entries),
             PixelBuffers::Peel { hits, rays } => (hits, rays),
         };
-        let faces = [
-            entry(0, &self.frame_buf),
-            entry(1, self.mesh.positions()),
-            self.links.window(2, 0, nt),
-            self.planes.window(3, 0, nt),
-            entry(4, &self.boundary),
-            entry(5, first),
-            entry(6, second),
-            entry(7, &self.counters),
-            entry(8, &self.params_buf),
-        ];
-        let entry_group = match self.settings.entry {
-            Entry::Lists => self.group(&p.entries.layout, &faces),
+        let mut faces = self.with_shared([
+            entry(7, &self.boundary),
+            entry(8, first),
+            entry(9, second),
+            entry(10, &self.counters),
+        ]);
+        let entry_layout = match self.settings.entry {
+            Entry::Lists => &p.entries.layout,
             Entry::Peel => {
-                let layer = [entry(9, &self.layer_buf), entry(10, &self.progress)];
-                self.group(&p.peel[0].layout, &[&faces[..], &layer].concat())
+                faces.extend([entry(11, &self.layer_buf), entry(12, &self.progress)]);
+                &p.peel[0].layout
             }
         };
-        let tiles = self.group(
-            &p.tiles(self.settings.entry).layout,
-            &[
-                entry(0, &self.frame_buf),
-                entry(1, &self.counters),
-                entry(2, first),
-                entry(3, &t.tiles),
-                entry(4, &self.layer_buf),
-                image(5),
-            ],
-        );
-        let mut traverse = vec![
-            entry(0, &self.frame_buf),
-            self.links.window(1, 0, nt),
-            self.planes.window(2, 0, nt),
-            entry(3, first),
-            entry(4, second),
-            entry(5, &self.tf_buf),
-            entry(6, &self.params_buf),
+        let tiles = self.with_shared([
             entry(7, &self.counters),
-            image(8),
-            entry(9, self.mesh.positions()),
-            entry(10, &self.psi),
-            entry(11, &t.tiles),
-        ];
+            entry(8, first),
+            entry(9, &t.tiles),
+            entry(10, &self.layer_buf),
+            image(11),
+        ]);
+        let table = match self.settings.segments {
+            Segments::Table => &self.preint,
+            _ => &self.psi,
+        };
+        let mut traverse = self.with_shared([
+            entry(7, first),
+            entry(8, second),
+            entry(9, &self.tf_buf),
+            entry(10, &self.counters),
+            image(11),
+            entry(12, table),
+            entry(13, &t.tiles),
+        ]);
         if self.settings.entry == Entry::Peel {
-            traverse.extend([entry(12, &self.layer_buf), entry(13, &self.progress)]);
+            traverse.extend([entry(14, &self.layer_buf), entry(15, &self.progress)]);
         }
         let stage = p.traverse(self.settings.entry, self.settings.segments);
         BindGroups {
-            planes,
-            entry: entry_group,
-            tiles,
+            vertices: self.group(&p.vertices.layout, &vertices),
+            planes: self.group(&p.planes.layout, &planes),
+            entry: self.group(entry_layout, &faces),
+            tiles: self.group(&p.tiles(self.settings.entry).layout, &tiles),
             traverse: self.group(&stage.layout, &traverse),
         }
     }
@@ -380,10 +448,11 @@ impl RaycastRenderer {
         let first = run.layers == 0;
         let entry = self.settings.entry;
         let faces = linear(self.boundary_count as u64, max);
-        let mut rec = (self.frame).recorder(&self.device, &self.queue, 5, 0);
+        let mut rec = (self.frame).recorder(&self.device, &self.queue, 6, 0);
         let mut passes = Vec::new();
         if first {
-            let nt = self.mesh.tet_count() as u64;
+            let (nv, nt) = (self.verts.size() / 16, self.mesh.tet_count() as u64);
+            passes.push(("vertices", &p.vertices, &groups.vertices, linear(nv, max)));
             passes.push(("planes", &p.planes, &groups.planes, linear(nt, max)));
         }
         match &t.pixels {

@@ -1,12 +1,54 @@
 //! The ray caster's topology, built once per mesh and unchanged under deformation: per tet its
 //! vertex indices and, across each face, the neighbour and the neighbour's face index
 //! ([`TetLinks`]); and the boundary faces through which rays enter.
+//!
+//! The links are the ray caster's only per-tet data on the GPU (32 bytes a tet), in windows of
+//! one storage binding each ([`chunking`]); every stage binds [`LINK_BINDINGS`] windows and
+//! reads tet `t` from window `t / chunk` (WGSL `link`), so a ray steps into any tet of any
+//! window. On an adapter that binds 4 GiB (NVIDIA's Vulkan drivers), one window holds 134M
+//! tets; 100M tets need 3.2 GB of links, plus the shared vertex buffers (positions 16, scalars 4
+//! and the ray caster's eye-space vertices 16 bytes a vertex: about 0.65 GB for the ~18M
+//! vertices of such a mesh), the boundary (4 bytes a boundary face) and the per-pixel entry
+//! lists (8 bytes a hit: 32 MiB at 1024 x 1024 with 4 hits): about 4 GB, far within an
+//! 80-140 GB GPU.
 
 use rayon::prelude::*;
 
+use crate::gpu::mesh::Chunking;
+use crate::gpu::util::settings_error;
 use crate::mesh::topology::{Adjacency, FACES, NO_NEIGHBOR};
+use crate::render::RenderError;
 
 use super::TetLinks;
+
+/// Windows of the links every stage binds (WGSL `links0` to `links3`).
+pub const LINK_BINDINGS: u64 = 4;
+
+/// Bytes of one tet's links.
+pub const LINK_BYTES: u64 = size_of::<TetLinks>() as u64;
+
+/// How the links of `tets` tets are cut into windows on an adapter with `limits`: all in one
+/// when they fit a storage binding (and a buffer), else as many as one holds, rounded down to
+/// whole multiples of the offset alignment (in tets, so every window starts aligned). An error
+/// naming the sizes when more than [`LINK_BINDINGS`] windows are needed.
+pub(crate) fn chunking(tets: u64, limits: &wgpu::Limits) -> Result<Chunking, RenderError> {
+    let max = (limits.max_storage_buffer_binding_size).min(limits.max_buffer_size);
+    let align = limits.min_storage_buffer_offset_alignment as u64;
+    let per_binding = max / LINK_BYTES;
+    let chunk = if tets <= per_binding {
+        tets.max(1)
+    } else {
+        per_binding / align * align
+    };
+    if chunk == 0 || tets.div_ceil(chunk) > LINK_BINDINGS {
+        return Err(settings_error(format!(
+            "--mode raycast binds its {tets} tets' links ({LINK_BYTES} bytes each) in at most \
+             {LINK_BINDINGS} storage bindings, and this adapter binds at most {max} bytes each; \
+             use --mode cellproj for this mesh"
+        )));
+    }
+    Ok(Chunking { chunk })
+}
 
 /// Face `f` of tet `t` as one code, `4 t + f` (what the shaders store).
 pub fn face_code(tet: u32, face: usize) -> u32 {
@@ -64,5 +106,33 @@ mod tests {
         assert_eq!(boundary.len(), 6);
         assert!(!boundary.contains(&face_code(0, 0)));
         assert!(!boundary.contains(&face_code(1, 3)));
+    }
+
+    #[test]
+    fn links_fill_up_to_four_aligned_windows() {
+        let limits = |binding: u64| wgpu::Limits {
+            max_storage_buffer_binding_size: binding,
+            min_storage_buffer_offset_alignment: 256,
+            ..wgpu::Limits::default()
+        };
+        // Fits one binding: one window of all tets (at least 1).
+        assert_eq!(chunking(1000, &limits(32_000)).unwrap().chunk, 1000);
+        assert_eq!(chunking(0, &limits(32_000)).unwrap().chunk, 1);
+        // 32 KiB holds 1024 links: 1296 tets in two windows of 1024 (a multiple of 256).
+        assert_eq!(chunking(1296, &limits(32 << 10)).unwrap().chunk, 1024);
+        // 4 windows of 1024 hold 4096 tets, not one more.
+        assert!(chunking(4096, &limits(32 << 10)).is_ok());
+        let err = chunking(4097, &limits(32 << 10)).unwrap_err().to_string();
+        assert!(err.contains("4097 tets") && err.contains("32768"), "{err}");
+        // A binding below one aligned group of links cannot be windowed.
+        assert!(chunking(1000, &limits(4096)).is_err());
+        // 100M tets where a binding holds 4 GiB (NVIDIA's Vulkan drivers): one window of all,
+        // 3.2 GB of links (the module docs' budget).
+        let big = wgpu::Limits {
+            max_buffer_size: 1 << 40,
+            ..limits(u32::MAX as u64)
+        };
+        assert_eq!(chunking(100_000_000, &big).unwrap().chunk, 100_000_000);
+        assert_eq!(100_000_000 * LINK_BYTES, 3_200_000_000);
     }
 }

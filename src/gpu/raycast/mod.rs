@@ -1,35 +1,48 @@
 //! `--mode raycast`: GPU ray casting on compute shaders through face adjacency (Weiler et al.
 //! 2003), one thread per ray in 8 x 8 pixel tiles, with partial pre-integration (Espinha &
-//! Celes 2005) or exact segment integration; rays enter by per-pixel entry lists or by depth
-//! peeling of the boundary faces (Bernardon et al. 2004), [`Entry`].
+//! Celes 2005), Weiler's 3D pre-integration table, or exact segment integration; rays enter
+//! by per-pixel entry lists or by depth peeling of the boundary faces (Bernardon et al. 2004),
+//! [`Entry`].
 //!
 //! Per frame:
 //! 1. upload (`frame.rs`): frame constants, the TF, the ray caster's constants (and, on the
-//!    first `partial` frame, the psi table, [`psi`]);
-//! 2. planes (`shaders/raycast_planes.wgsl`): once per tet, its face planes and linear scalar
-//!    in eye space from the current positions (a deforming mesh needs no preprocessing), and
-//!    the eye's tet when the eye is inside the mesh;
-//! 3. entries, [`Entry::Lists`] (`shaders/raycast_entries.wgsl`): once per boundary face, its
+//!    first `partial` frame, the psi table, [`psi`]; with `table`, the 3D pre-integration
+//!    table when the TF, the scalar range or the longest edge (grown) changed, built by
+//!    cellproj's incremental builder, `gpu::cellproj::preint`);
+//! 2. vertices (`shaders/raycast_vertices.wgsl`): once per vertex, its eye-space position and
+//!    scalar from the current positions (a deforming mesh needs no preprocessing);
+//! 3. planes (`shaders/raycast_planes.wgsl`): once per tet, its face planes from its vertices,
+//!    for the eye's tet when the eye is inside the mesh and the count of thin tets;
+//! 4. entries, [`Entry::Lists`] (`shaders/raycast_entries.wgsl`): once per boundary face, its
 //!    hit (t, face) into the list of every pixel whose ray enters the mesh through it
 //!    (watertight edge tests, `raycast_cover.wgsl`); a full list counts an overflow and the
 //!    frame is rendered again with longer lists;
-//! 4. tiles (`shaders/raycast_tiles.wgsl`): the 8 x 8 pixel tiles where some ray has an entry
+//! 5. tiles (`shaders/raycast_tiles.wgsl`): the 8 x 8 pixel tiles where some ray has an entry
 //!    (all when the eye is in a tet) into a list, the traversal's indirect dispatch: an empty
 //!    tile costs the traversal nothing;
-//! 5. traversal (`shaders/raycast_traverse.wgsl`): once per pixel of the listed tiles, from the
+//! 6. traversal (`shaders/raycast_traverse.wgsl`): once per pixel of the listed tiles, from the
 //!    eye's tet or the nearest entry, tet to tet through the face the ray leaves by ([`links`]:
-//!    neighbour and face across, built once), each segment integrated for the piecewise-linear
-//!    TF (`integrate_segment.wgsl`, shared with cellproj; [`Segments`]: exact or partial
-//!    pre-integration), re-entering at the next entry of its list after it leaves a
-//!    non-convex mesh; early ray termination, and a step limit whose hits are counted;
-//! 6. readback (`gpu/frame.rs`) with the GPU timestamps of stages 2-5.
+//!    neighbour and face across, built once; the face planes and the linear scalar computed
+//!    from the tet's vertices at each step), each segment integrated for the piecewise-linear
+//!    TF ([`Segments`]: `integrate_segment.wgsl`, shared with cellproj, exact or with partial
+//!    pre-integration; or the 3D table), re-entering at the next entry of its list after it
+//!    leaves a non-convex mesh; early ray termination, and a step limit whose hits are counted;
+//! 7. readback (`gpu/frame.rs`) with the GPU timestamps of stages 2-6.
 //!
-//! With [`Entry::Peel`] stage 3 is depth peeling (`shaders/raycast_peel.wgsl`), and stages 3-5
+//! With [`Entry::Peel`] stage 4 is depth peeling (`shaders/raycast_peel.wgsl`), and stages 4-6
 //! run once per layer: layer k holds each pixel's first boundary-face hit by which its ray
 //! may enter after leaving the mesh in layer k - 1; only the tiles with such a hit run the
 //! layer's traversal, which keeps each ray's state for the next layer; the frame ends when the
 //! layer's peel found no pixel with a second hit (or no ray waits), read back after each layer.
 //! Both methods choose the same entries and give the same picture, bit for bit.
+//!
+//! **Memory.** Per tet only its links (32 bytes, [`links`], in up to [`links::LINK_BINDINGS`]
+//! storage bindings); per vertex the shared positions and scalars and the eye-space vertices
+//! (36 bytes); per boundary face 4 bytes: 39-42 bytes per tet on lox, a 105k-tet grid and the
+//! blunt fin ([`RaycastRenderer::bytes_per_tet`]). Planes are not stored: the traversal (and
+//! an entry stage, for a boundary face's plane) computes a tet's four planes from its vertices
+//! where it needs them (storing them, 80 bytes per tet more, was no faster on lavapipe;
+//! README, "The ray caster's memory").
 //!
 //! **Robustness in f32.** The two tets sharing a face compute its plane from the same three
 //! vertices in the same (global index) order, so the ray leaves one at exactly the t where it
@@ -37,7 +50,8 @@
 //! and the walk is topological, so a ray cannot fall through a shared face whatever rounding
 //! does at edges and vertices. A thin tet (slivers, caps, needles, flat tets: its planes'
 //! outward directions are rounding) is left by the face its edges' Pluecker products say the
-//! ray passes (Platis & Theoharis 2003), computed alike in every tet sharing an edge. CPU twin of the arithmetic: [`twin`].
+//! ray passes (Platis & Theoharis 2003), computed alike in every tet sharing an edge. CPU twin
+//! of the arithmetic: [`twin`].
 
 mod frame;
 pub mod links;
@@ -51,9 +65,10 @@ use glam::DVec3;
 
 use crate::camera::Camera;
 use crate::gpu::GpuContext;
+use crate::gpu::cellproj::preint::{LongestEdge, TableKey};
 use crate::gpu::frame::{FrameResources, ImageReadback};
 use crate::gpu::gpu_data::{LayerUniforms, TfPoints, ViewUniforms};
-use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
+use crate::gpu::mesh::{GpuTetMesh, TetArray};
 use crate::gpu::util::{settings_error, uniform_buffer};
 use crate::mesh::TetMesh;
 use crate::render::{Frame, RenderError, Renderer};
@@ -69,9 +84,12 @@ pub enum Segments {
     Partial,
     /// Each piece's mean transmittance by Gauss-Legendre quadrature converged to f32.
     Exact,
+    /// The whole segment from Weiler's 3D pre-integration table (front scalar, back scalar,
+    /// length), rebuilt on the CPU when the TF changes.
+    Table,
 }
 
-pub use crate::gpu::gpu_data::{RaycastUniforms, TetLinks, TetPlanes};
+pub use crate::gpu::gpu_data::{RaycastUniforms, TetLinks};
 
 /// How rays find the boundary faces they enter the mesh by (the same entries, the same
 /// picture; only the cost differs).
@@ -112,6 +130,10 @@ pub struct RaycastSettings {
     pub skip_empty_tiles: bool,
     /// Tets one ray may step through; `None`: [`default_max_steps`] of the mesh.
     pub max_steps: Option<u32>,
+    /// [`Segments::Table`]: samples along each scalar axis (front, back), at least 2.
+    pub table_size: u32,
+    /// [`Segments::Table`]: length levels (the first of length 0), at least 2.
+    pub table_lengths: u32,
 }
 
 impl Default for RaycastSettings {
@@ -122,6 +144,8 @@ impl Default for RaycastSettings {
             list_capacity: 4,
             skip_empty_tiles: true,
             max_steps: None,
+            table_size: 128,
+            table_lengths: 64,
         }
     }
 }
@@ -159,12 +183,20 @@ pub struct RaycastRenderer {
     /// [`Self::progress`] (one readback per layer).
     counters: wgpu::Buffer,
     counters_read: wgpu::Buffer,
+    /// The links in windows of `link_chunk` tets ([`links::chunking`]).
     links: TetArray,
-    planes: TetArray,
+    link_chunk: u64,
+    /// Eye-space position and normalized scalar per vertex, written each frame.
+    verts: wgpu::Buffer,
     boundary: wgpu::Buffer,
     boundary_count: u32,
     /// The psi table ([`psi::table`]), uploaded on the first partial frame; 16 bytes before.
     psi: wgpu::Buffer,
+    /// The 3D pre-integration table (`Segments::Table`) and what it was built for; 16 bytes
+    /// before the first table frame.
+    preint: wgpu::Buffer,
+    preint_key: Option<TableKey>,
+    max_edge: LongestEdge,
     /// Hits each pixel's list holds now.
     capacity: u32,
     /// The eye-in-tet tolerance of the current frame ([`near_tol`]).
@@ -219,19 +251,19 @@ impl RaycastRenderer {
         settings: RaycastSettings,
     ) -> Result<Self, RenderError> {
         let nt = mesh.tet_count() as u64;
-        check_fits(&ctx.limits, nt)?;
+        let nv = mesh.read().positions.len() as u64;
+        check_fits(&ctx.limits, nt, nv, &settings)?;
         let (links_cpu, boundary_cpu) = links::build(&mesh.read().tets);
-        let whole = Chunking { chunk: nt.max(1) };
-        let links = mesh.tet_array("raycast links", whole, nt, 32)?;
+        let chunking = links::chunking(nt, &ctx.limits)?;
+        let links = mesh.tet_array("raycast links", chunking, nt, links::LINK_BYTES)?;
         links.write(&ctx.queue, bytemuck::cast_slice(&links_cpu));
-        let planes = mesh.tet_array("raycast planes", whole, nt, 80)?;
         let boundary = frame::storage(&ctx.device, "raycast boundary", 4 * boundary_cpu.len());
         ctx.queue
             .write_buffer(&boundary, 0, bytemuck::cast_slice(&boundary_cpu));
         let device = ctx.device.clone();
         let uniform = |label: &str, bytes: usize| uniform_buffer(&device, label, bytes);
         Ok(Self {
-            pipelines: Pipelines::new(&device),
+            pipelines: Pipelines::new(&device, nt.div_ceil(chunking.chunk).max(1)),
             frame: FrameResources::new(ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY)),
             frame_buf: uniform("raycast frame", size_of::<ViewUniforms>()),
             tf_buf: uniform("raycast tf", size_of::<TfPoints>()),
@@ -241,10 +273,14 @@ impl RaycastRenderer {
             counters: frame::storage(&device, "raycast counters", 4 * COUNTERS),
             counters_read: frame::mappable(&device, "raycast counters readback", READ_BYTES),
             links,
-            planes,
+            link_chunk: chunking.chunk,
+            verts: frame::storage(&device, "raycast eye-space vertices", 16 * nv as usize),
             boundary,
             boundary_count: boundary_cpu.len() as u32,
             psi: frame::storage(&device, "raycast psi table (none yet)", 16),
+            preint: frame::storage(&device, "raycast 3D table (none yet)", 16),
+            preint_key: None,
+            max_edge: LongestEdge::default(),
             capacity: settings.list_capacity.max(1),
             eye_tol: 0.0,
             queue: ctx.queue.clone(),
@@ -277,23 +313,43 @@ impl RaycastRenderer {
         self.settings.entry = entry;
     }
 
-    /// Bytes per tet of what scales with the mesh: planes, links, the boundary and the
-    /// vertex buffers.
+    /// Bytes per tet of what scales with the mesh: the links, the boundary and the vertex
+    /// buffers (positions, scalars, eye-space vertices).
     pub fn bytes_per_tet(&self) -> f64 {
         let mesh = self.mesh.positions().size() + self.mesh.scalars().size();
-        let own = self.planes.size() + self.links.size() + self.boundary.size();
+        let own = self.links.size() + self.verts.size() + self.boundary.size();
         (mesh + own) as f64 / self.mesh.tet_count().max(1) as f64
     }
 }
 
-/// An error unless the per-tet planes fit one storage binding and face codes fit a u32.
-fn check_fits(limits: &wgpu::Limits, tets: u64) -> Result<(), RenderError> {
+/// An error unless face codes (`4 tet + face`) fit a u32, the eye-space vertices fit one
+/// storage binding, and the table has at least 2 samples per axis (the links:
+/// [`links::chunking`]; the table's size: `frame.rs`).
+fn check_fits(
+    limits: &wgpu::Limits,
+    tets: u64,
+    vertices: u64,
+    s: &RaycastSettings,
+) -> Result<(), RenderError> {
     let max = (limits.max_storage_buffer_binding_size).min(limits.max_buffer_size);
-    if tets * 80 > max || tets >= 1 << 30 {
+    if tets >= 1 << 30 {
         return Err(settings_error(format!(
-            "--mode raycast keeps its {tets} tets' planes (80 bytes each) in one storage \
-             binding, and this adapter binds at most {max} bytes; use --mode cellproj for \
-             this mesh"
+            "--mode raycast numbers faces as 4 tet + face in 32 bits: at most 2^30 tets, not \
+             {tets}; use --mode cellproj for this mesh"
+        )));
+    }
+    if vertices * 16 > max {
+        return Err(settings_error(format!(
+            "--mode raycast keeps its {vertices} vertices' eye-space positions (16 bytes each) \
+             in one storage binding, and this adapter binds at most {max} bytes; use --mode \
+             cellproj for this mesh"
+        )));
+    }
+    if s.table_size < 2 || s.table_lengths < 2 {
+        return Err(settings_error(format!(
+            "the pre-integration table needs at least 2 samples per axis, not {} scalars x {} \
+             lengths",
+            s.table_size, s.table_lengths
         )));
     }
     Ok(())
@@ -327,7 +383,9 @@ impl Renderer for RaycastRenderer {
             &self.counters,
             &self.counters_read,
             &self.boundary,
+            &self.verts,
             &self.psi,
+            &self.preint,
         ]
         .iter()
         .map(|b| b.size())
@@ -338,11 +396,6 @@ impl Renderer for RaycastRenderer {
                 + t.readback.size()
                 + 16 * t.width as u64 * t.height as u64
         });
-        self.mesh.gpu_memory()
-            + buffers
-            + self.links.size()
-            + self.planes.size()
-            + self.frame.size()
-            + targets
+        self.mesh.gpu_memory() + buffers + self.links.size() + self.frame.size() + targets
     }
 }

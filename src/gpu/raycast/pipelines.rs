@@ -1,5 +1,5 @@
-//! The ray caster's compute pipelines (planes, entries, depth peeling, tiles, traversal),
-//! their bind group layouts and their dispatch.
+//! The ray caster's compute pipelines (vertices, planes, entries, depth peeling, tiles,
+//! traversal), their bind group layouts and their dispatch.
 
 use wgpu::BufferBindingType as B;
 use wgpu::ShaderStages as S;
@@ -7,6 +7,7 @@ use wgpu::ShaderStages as S;
 use crate::gpu::shaders;
 use crate::gpu::util::{bind_group_layout, buffer_entry, pipeline_layout_for, wgsl_module};
 
+use super::links::LINK_BINDINGS;
 use super::{Entry, Segments};
 
 /// One compute stage: its layout and pipeline.
@@ -15,16 +16,17 @@ pub struct Stage {
     pub pipeline: wgpu::ComputePipeline,
 }
 
-/// The stages: planes, entries, the two depth-peeling passes (least t, least face code), the
-/// tile list per entry method, and the traversal per entry method and integrator.
+/// The stages: vertices, planes, entries, the two depth-peeling passes (least t, least face
+/// code), the tile list per entry method, and the traversal per entry method and integrator.
 pub struct Pipelines {
+    pub vertices: Stage,
     pub planes: Stage,
     pub entries: Stage,
     pub peel: [Stage; 2],
     /// Indexed by [`Entry`].
     tiles: [Stage; 2],
-    /// Indexed by [`Entry`], then [`Segments`].
-    traverse: [[Stage; 2]; 2],
+    /// Indexed by [`Entry`], then [`Segments`] (exact, partial, table).
+    traverse: [[Stage; 3]; 2],
 }
 
 const RO: B = B::Storage { read_only: true };
@@ -44,26 +46,46 @@ fn image_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
     }
 }
 
-/// The traversal's bindings: binding 4 is the entry lists (read) or the ray states (written),
-/// 8 the image, 9 the positions, 10 the psi table (not read by `exact`), 11 the tile list;
-/// depth peeling adds 12 the layer and 13 its progress counters.
+/// The bindings every stage shares (`raycast_shared.wgsl`): 0 the frame, 1 the constants, 2
+/// the vertices (`verts`, written by the vertices stage), 3.. the links windows; then the
+/// stage's own, `own`, from binding 7 on.
+fn layout(verts: B, own: &[B]) -> Vec<wgpu::BindGroupLayoutEntry> {
+    let shared = [B::Uniform, B::Uniform, verts];
+    let links = [RO; LINK_BINDINGS as usize];
+    let types: Vec<B> = shared
+        .into_iter()
+        .chain(links)
+        .chain(own.iter().copied())
+        .collect();
+    buffers(&types)
+}
+
+/// The traversal's bindings after the shared ones: 7 and 8 the entry lists (read) or the
+/// peeled hits (read) and the ray states (written), 9 the TF, 10 the counters, 11 the image,
+/// 12 the integrator's table (psi or 3D; not read by `exact`), 13 the tile list; depth
+/// peeling adds 14 the layer and 15 its progress counters.
 fn traverse_entries(entry: Entry) -> Vec<wgpu::BindGroupLayoutEntry> {
-    let fourth = if entry == Entry::Lists { RO } else { RW };
-    let layout = [B::Uniform, RO, RO, RO, fourth, B::Uniform, B::Uniform, RW];
-    let mut entries = buffers(&layout);
-    entries.push(image_entry(8));
-    entries.extend([9, 10, 11].map(|b| buffer_entry(b, S::COMPUTE, RO)));
+    let second = if entry == Entry::Lists { RO } else { RW };
+    let mut entries = layout(RO, &[RO, second, B::Uniform, RW]);
+    entries.push(image_entry(11));
+    entries.extend([12, 13].map(|b| buffer_entry(b, S::COMPUTE, RO)));
     if entry == Entry::Peel {
-        entries.push(buffer_entry(12, S::COMPUTE, B::Uniform));
-        entries.push(buffer_entry(13, S::COMPUTE, RW));
+        entries.push(buffer_entry(14, S::COMPUTE, B::Uniform));
+        entries.push(buffer_entry(15, S::COMPUTE, RW));
     }
     entries
 }
 
 impl Pipelines {
-    /// Compiles the stages.
-    pub fn new(device: &wgpu::Device) -> Self {
+    /// Compiles the stages for a mesh whose links take `windows` windows (WGSL
+    /// `LINK_WINDOWS`).
+    pub fn new(device: &wgpu::Device, windows: u64) -> Self {
+        let constants = [("LINK_WINDOWS", windows as f64)];
+        let stage = |shader, entries: &[wgpu::BindGroupLayoutEntry]| {
+            stage(device, shader, entries, &constants)
+        };
         let [
+            vertices,
             planes,
             entries,
             least_t,
@@ -72,29 +94,30 @@ impl Pipelines {
             tiles_peel,
             lists_exact,
             lists_partial,
+            lists_table,
             peel_exact,
             peel_partial,
+            peel_table,
         ] = shaders::raycast_stages();
-        // Binding 0 of each is the view uniform; the rest follow the stage files.
-        let planes_layout = [B::Uniform, RO, RO, RO, RW, RW, B::Uniform];
-        let entries_layout = [B::Uniform, RO, RO, RO, RO, RW, RW, RW, B::Uniform];
+        // Peeling: the boundary, the hits, the ray states, the counters, the layer, progress.
         let u = B::Uniform;
-        let peel_layout = [u, RO, RO, RO, RO, RW, RO, RO, u, u, RW];
-        let mut tiles_entries = buffers(&[B::Uniform, RO, RO, RW, B::Uniform]);
-        tiles_entries.push(image_entry(5));
-        let peel = buffers(&peel_layout);
+        let peel = layout(RO, &[RO, RW, RO, RO, u, RW]);
+        // Tiles: the counters, the per-pixel source, the tile list, the layer, the image.
+        let mut tiles = layout(RO, &[RO, RO, RW, u]);
+        tiles.push(image_entry(11));
         let (lists, layers) = (
             traverse_entries(Entry::Lists),
             traverse_entries(Entry::Peel),
         );
         Self {
-            planes: stage(device, planes, &buffers(&planes_layout)),
-            entries: stage(device, entries, &buffers(&entries_layout)),
-            peel: [least_t, least_face].map(|s| stage(device, s, &peel)),
-            tiles: [tiles_lists, tiles_peel].map(|s| stage(device, s, &tiles_entries)),
+            vertices: stage(vertices, &layout(RW, &[RO, RO])),
+            planes: stage(planes, &layout(RO, &[RW])),
+            entries: stage(entries, &layout(RO, &[RO, RW, RW, RW])),
+            peel: [least_t, least_face].map(|s| stage(s, &peel)),
+            tiles: [tiles_lists, tiles_peel].map(|s| stage(s, &tiles)),
             traverse: [
-                [lists_exact, lists_partial].map(|s| stage(device, s, &lists)),
-                [peel_exact, peel_partial].map(|s| stage(device, s, &layers)),
+                [lists_exact, lists_partial, lists_table].map(|s| stage(s, &lists)),
+                [peel_exact, peel_partial, peel_table].map(|s| stage(s, &layers)),
             ],
         }
     }
@@ -106,10 +129,11 @@ impl Pipelines {
 
     /// The traversal stage of `entry` and `segments`.
     pub fn traverse(&self, entry: Entry, segments: Segments) -> &Stage {
-        let [exact, partial] = &self.traverse[entry as usize];
+        let [exact, partial, table] = &self.traverse[entry as usize];
         match segments {
             Segments::Exact => exact,
             Segments::Partial => partial,
+            Segments::Table => table,
         }
     }
 }
@@ -124,6 +148,7 @@ fn stage(
     device: &wgpu::Device,
     (name, source): (&str, String),
     entries: &[wgpu::BindGroupLayoutEntry],
+    constants: &[(&str, f64)],
 ) -> Stage {
     let layout = bind_group_layout(device, name, entries);
     let module = wgsl_module(device, name, source);
@@ -132,7 +157,10 @@ fn stage(
         layout: Some(&pipeline_layout_for(device, &layout)),
         module: &module,
         entry_point: Some("main"),
-        compilation_options: Default::default(),
+        compilation_options: wgpu::PipelineCompilationOptions {
+            constants,
+            ..Default::default()
+        },
         cache: None,
     });
     Stage { layout, pipeline }

@@ -17,7 +17,18 @@ use crate::image::Image;
 use crate::mesh::topology::{FACES, NO_NEIGHBOR};
 use crate::tf::TransferFunction;
 
-use super::{TetPlanes, default_max_steps, links, near_tol};
+use super::{default_max_steps, links, near_tol};
+
+/// A tet's outward face planes and linear scalar in eye space (WGSL `TetPlanes`, computed by
+/// `tet_planes` where a stage needs them, never stored).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct TetPlanes {
+    /// Face `i`'s outward plane `(n, w)`: a point `p` is inside it where `n . p + w <= 0`;
+    /// face `i` is the face opposite corner `i`.
+    pub face: [[f32; 4]; 4],
+    /// The scalar as a linear function of eye-space position: `(gradient, value at the eye)`.
+    pub scalar: [f32; 4],
+}
 
 /// WGSL `PARALLEL`: the ray runs along a plane when `|d . n|` is at most this times `|n|`; such
 /// a face is never an exit or an entry (the crossing's t is a ratio of rounding errors).
@@ -38,7 +49,7 @@ pub const REENTRY: f32 = 1e-5;
 /// edges ([`exit_by_edges`]).
 pub const THIN: f32 = 1e-5;
 
-/// World (mesh-origin relative) point to eye space (WGSL `eye_space`).
+/// World (mesh-origin relative) point to eye space (WGSL `raycast_vertices.wgsl`).
 pub fn eye_space(f: &ViewUniforms, p: Vec3) -> Vec3 {
     let q = p - Vec3::from(f.eye);
     Vec3::new(
@@ -65,7 +76,7 @@ fn sorted_face(ids: [u32; 4], f: usize) -> [usize; 3] {
 
 /// The outward face planes `(n, w)` and linear scalar of a tet with eye-space corners `p`,
 /// global indices `ids` and scalars `s`; `true` when the tet is thin ([`THIN`]; its scalar
-/// then the mean, constant). WGSL `raycast_planes.wgsl`.
+/// then the mean, constant). WGSL `tet_planes` (`raycast_shared.wgsl`).
 pub fn planes(p: [Vec3; 4], ids: [u32; 4], s: [f32; 4]) -> (TetPlanes, bool) {
     let mut out = TetPlanes::default();
     let mut height = [0.0f32; 4];
