@@ -12,13 +12,13 @@
 // World (mesh-origin relative) point to eye space. Every tet that uses a vertex transforms it
 // with exactly these operations, so shared vertices project to the same bits (no cracks).
 fn to_eye(p: vec3<f32>) -> vec3<f32> {
-    let q = p - frame.eye;
-    return vec3<f32>(dot(frame.right, q), dot(frame.up, q), dot(frame.forward, q));
+    let q = p - view.eye;
+    return vec3<f32>(dot(view.right, q), dot(view.up, q), dot(view.forward, q));
 }
 
 // A world-space vector's components along the eye axes.
 fn rotate(g: vec3<f32>) -> vec3<f32> {
-    return vec3<f32>(dot(frame.right, g), dot(frame.up, g), dot(frame.forward, g));
+    return vec3<f32>(dot(view.right, g), dot(view.up, g), dot(view.forward, g));
 }
 
 @compute @workgroup_size(64)
@@ -29,7 +29,7 @@ fn main(
 ) {
     let t = (wid.y * groups.x + wid.x) * 64u + lid;
     // A chunked mesh binds a window of `tets` per dispatch: its length is the chunk's count.
-    if t >= min(frame.tet_count, arrayLength(&tets)) {
+    if t >= min(view.tet_count, arrayLength(&tets)) {
         return;
     }
     let idx = tets[t];
@@ -55,7 +55,7 @@ fn main(
     let det = dot(n1, c23);
     let scale = length(n1) * length(n2) * length(n3);
     // Also false for NaN (l == 0 gives inv_l = inf and NaN edges).
-    if !(abs(det) > frame.degenerate_tol * scale) {
+    if !(abs(det) > view.degenerate_tol * scale) {
         atomicAdd(&degenerate_count, 1u);
         records[t] = rec;
         return;
@@ -71,7 +71,7 @@ fn main(
     let g2 = c31 * k;
     let g3 = c12 * k;
     let g0 = -(g1 + g2 + g3);
-    let q = (frame.eye - p0) * inv_l;
+    let q = (view.eye - p0) * inv_l;
     let l1 = dot(c23, q) / det;
     let l2 = dot(c31, q) / det;
     let l3 = dot(c12, q) / det;

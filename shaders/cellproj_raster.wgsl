@@ -2,7 +2,7 @@
 // is drawn once, in the back-to-front power order the CPU sorted (instance k is the k-th tet of
 // that order; the assembly stage built its record at index k), front faces only, so each pixel
 // a tet covers gets exactly one fragment of it. A tet with a corner at eye-space z <=
-// frame.near_z draws instead a screen-space quad over its part in front of that plane
+// view.near_z draws instead a screen-space quad over its part in front of that plane
 // (near_quad), so the eye may be inside the mesh.
 // Each fragment clips the pixel-centre ray against the tet's four face planes in barycentric
 // space (entry: the last plane it enters, clamped at the eye; exit: the first it leaves),
@@ -38,11 +38,11 @@ fn vs_faces(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instanc
     let p = rec.pos[faces[vertex]];
     let zs = vec4<f32>(rec.pos[0].z, rec.pos[1].z, rec.pos[2].z, rec.pos[3].z);
     var position = select(
-        vec4<f32>(p.x * frame.proj.x, p.y * frame.proj.y, 0.0, p.z),
+        vec4<f32>(p.x * view.proj.x, p.y * view.proj.y, 0.0, p.z),
         NOWHERE,
         p.w == 0.0,
     );
-    if any(zs <= vec4<f32>(frame.near_z)) {
+    if any(zs <= vec4<f32>(view.near_z)) {
         position = near_quad(rec, vertex);
     }
     return varyings(position, rec);
@@ -60,7 +60,7 @@ const PARALLEL: f32 = 1e-5;
 // rounding errors. Such a ray lies in the face plane up to rounding, and the rasterizer gave
 // its pixel to exactly one of the tets sharing the plane (the top-left rule on the edges
 // that lie on the plane's image line), so that tet keeps its whole chord between the other
-// faces, unless the chord's middle lies outside the face by more than frame.epsilon (a
+// faces, unless the chord's middle lies outside the face by more than view.epsilon (a
 // near-plane quad covers pixels outside the tet).
 fn segment(in: Varyings) -> vec3<f32> {
     let d = pixel_ray(in.position.xy);
@@ -83,7 +83,7 @@ fn segment(in: Varyings) -> vec3<f32> {
         }
     }
     let middle = in.lambda_eye + (0.5 * (t_in + t_out)) * gd;
-    if !(t_out > t_in) || t_out > 1.0e37 || any(along & (middle < vec4<f32>(-frame.epsilon))) {
+    if !(t_out > t_in) || t_out > 1.0e37 || any(along & (middle < vec4<f32>(-view.epsilon))) {
         return vec3<f32>(0.0, 0.0, -1.0);
     }
     // Encoded scalar 1 + u along the ray.

@@ -2,7 +2,7 @@
 // `exact` and `partial`): the segment is split at the TF's control points, each piece has a
 // closed-form transmittance and a colour from its mean transmittance psi(A, B) (Moreland &
 // Angel; Espinha & Celes' partial pre-integration). Appended after shared.wgsl by each stage
-// that uses it; the stage declares `tf: TfPoints` (frame.tf_count points used) and
+// that uses it; the stage declares `tf: TfPoints` (tf.count points used) and
 // `fn psi(a: f32, b: f32) -> f32`: `mean_transmittance` below (exact, Gauss-Legendre
 // converged to f32) or a lookup in the psi table (raycast_psi.wgsl). CPU twin:
 // gpu::cellproj::preint::integrate.
@@ -36,7 +36,7 @@ fn mean_transmittance(a: f32, b: f32) -> f32 {
 // The number of control points with s < u (strict) or s <= u: binary search.
 fn points_below(u: f32, strict: bool) -> u32 {
     var lo = 0u;
-    var hi = frame.tf_count;
+    var hi = tf.count;
     while lo < hi {
         let mid = (lo + hi) / 2u;
         let s = tf.points[mid].s;
@@ -52,7 +52,7 @@ fn points_below(u: f32, strict: bool) -> u32 {
 // Extinction (w) and colour (rgb) at u on the interval between points j - 1 and j (both the end
 // point outside the TF's range); preint::NormalizedTf::on_interval.
 fn on_interval(j: u32, u: f32) -> vec4<f32> {
-    let last = frame.tf_count - 1u;
+    let last = tf.count - 1u;
     let a = min(max(j, 1u) - 1u, last);
     let b = min(j, last);
     let pa = tf.points[a];
@@ -89,7 +89,7 @@ fn piece(acc: Acc, j: u32, u0: f32, u1: f32, l: f32) -> Acc {
 fn integrate_segment(u_front: f32, u_back: f32, len: f32) -> Acc {
     let du = u_back - u_front;
     let up = du >= 0.0;
-    let n = frame.tf_count;
+    let n = tf.count;
     var j = points_below(u_front, !up);
     var acc = Acc(vec3<f32>(0.0), 1.0);
     var s0 = u_front;

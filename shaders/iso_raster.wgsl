@@ -1,7 +1,7 @@
 // Isosurface raster (`--mode iso`, Georgii & Westermann 2006, section 4): the front faces of
 // every selected tet (those whose scalar range holds an isovalue) are drawn in one instanced
 // pass by vertex pulling from the shells assembly's records; a selected tet with a corner at
-// eye-space z <= frame.near_z (holding the eye, or crossing or behind its plane) draws instead
+// eye-space z <= view.near_z (holding the eye, or crossing or behind its plane) draws instead
 // a screen-space quad over its part in front of that plane, as the shells mode's vs_near.
 // Each fragment takes the exact pixel-centre ray into the tet's barycentric space, where the
 // scalar is linear along the ray, solves for the nearest isovalue crossing inside the tet
@@ -58,12 +58,12 @@ struct IsoOut {
 
 // A world-space vector's components along the eye axes.
 fn to_eye_vector(g: vec3<f32>) -> vec3<f32> {
-    return vec3<f32>(dot(frame.right, g), dot(frame.up, g), dot(frame.forward, g));
+    return vec3<f32>(dot(view.right, g), dot(view.up, g), dot(view.forward, g));
 }
 
 // An eye-space vector in world space (the eye axes are orthonormal).
 fn to_world_vector(g: vec3<f32>) -> vec3<f32> {
-    return frame.right * g.x + frame.up * g.y + frame.forward * g.z;
+    return view.right * g.x + view.up * g.y + view.forward * g.z;
 }
 
 
@@ -78,9 +78,9 @@ fn vs_faces(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instanc
     var faces = FACE_VERTICES;
     let p = rec.pos[faces[vertex]];
     let zs = vec4<f32>(rec.pos[0].z, rec.pos[1].z, rec.pos[2].z, rec.pos[3].z);
-    let near = any(zs <= vec4<f32>(frame.near_z));
+    let near = any(zs <= vec4<f32>(view.near_z));
     var position = select(
-        vec4<f32>(p.x * frame.proj.x, p.y * frame.proj.y, 0.0, p.z),
+        vec4<f32>(p.x * view.proj.x, p.y * view.proj.y, 0.0, p.z),
         NOWHERE,
         p.w == 0.0,
     );
@@ -136,7 +136,7 @@ fn fs_iso(in: Varyings) -> IsoOut {
         }
         let t = -dot(in.lambda_eye, f) / rate;
         let l = in.lambda_eye + t * gd;
-        let inside = min(min(l.x, l.y), min(l.z, l.w)) >= -frame.epsilon;
+        let inside = min(min(l.x, l.y), min(l.z, l.w)) >= -view.epsilon;
         // Hits at or behind the eye (t <= 0) belong to no pixel; depth is t / far.
         if inside && t > 0.0 && t < best_t {
             best_t = t;

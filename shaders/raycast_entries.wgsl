@@ -19,16 +19,16 @@
 
 // Eye-space point (z > 0) to pixel coordinates (x right, y down).
 fn to_pixel(c: vec3<f32>) -> vec2<f32> {
-    let uv = c.xy / c.z / frame.half_extent;
-    return vec2<f32>(0.5 * (uv.x + 1.0), 0.5 * (1.0 - uv.y)) * frame.size;
+    let uv = c.xy / c.z / view.half_extent;
+    return vec2<f32>(0.5 * (uv.x + 1.0), 0.5 * (1.0 - uv.y)) * view.size;
 }
 
-// The pixel rectangle [lo, hi) of the face's part in front of the plane z = frame.near_z (its
+// The pixel rectangle [lo, hi) of the face's part in front of the plane z = view.near_z (its
 // corners there and its edges' crossings of the plane), grown by one pixel, clamped to the
 // image; empty when the face lies behind the plane. A ray meets the part behind it within
 // near_z of the eye, where the eye's own tet (eye_tol = near_z) stands in.
 fn pixel_bounds(face: Face) -> vec4<i32> {
-    let zc = frame.near_z;
+    let zc = view.near_z;
     var lo = vec2<f32>(1e30);
     var hi = vec2<f32>(-1e30);
     for (var i = 0u; i < 3u; i++) {
@@ -44,12 +44,12 @@ fn pixel_bounds(face: Face) -> vec4<i32> {
             hi = max(hi, q);
         }
     }
-    let size = vec2<i32>(frame.size);
+    let size = vec2<i32>(view.size);
     if !all(lo <= hi) {
         return vec4<i32>(0);
     }
     // Clamped in f32 first: a corner just in front of the plane projects far outside.
-    let big = vec2<f32>(frame.size) + 2.0;
+    let big = vec2<f32>(view.size) + 2.0;
     let a = vec2<i32>(floor(clamp(lo, vec2<f32>(-2.0), big))) - 1;
     let b = vec2<i32>(ceil(clamp(hi, vec2<f32>(-2.0), big))) + 1;
     return vec4<i32>(clamp(a, vec2<i32>(0), size), clamp(b, vec2<i32>(0), size));
@@ -85,7 +85,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
             }
             let t = crossing(p, den);
             if t > 0.0 {
-                record(u32(y) * u32(frame.size.x) + u32(x), t, code);
+                record(u32(y) * u32(view.size.x) + u32(x), t, code);
             }
         }
     }

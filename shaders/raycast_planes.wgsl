@@ -50,7 +50,7 @@ const THIN: f32 = 1e-5;
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let t = gid.y * groups.x * 64u + gid.x;
-    if t >= frame.tet_count {
+    if t >= view.tet_count {
         return;
     }
     let ids = links[t].tet;

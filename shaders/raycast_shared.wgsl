@@ -55,8 +55,8 @@ const PARALLEL: f32 = 1e-5;
 // World (mesh-origin relative) point to eye space, the same operations for every tet and
 // stage, so a shared vertex has the same bits everywhere.
 fn eye_space(p: vec3<f32>) -> vec3<f32> {
-    let q = p - frame.eye;
-    return vec3<f32>(dot(frame.right, q), dot(frame.up, q), dot(frame.forward, q));
+    let q = p - view.eye;
+    return vec3<f32>(dot(view.right, q), dot(view.up, q), dot(view.forward, q));
 }
 
 // A face's corners in eye space, in global index order, and its edges' Pluecker normals.

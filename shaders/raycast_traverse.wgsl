@@ -119,7 +119,7 @@ fn next_entry(pixel: u32, t: f32, last: vec2<u32>) -> vec2<u32> {
 
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let size = vec2<u32>(frame.size);
+    let size = vec2<u32>(view.size);
     if gid.x >= size.x || gid.y >= size.y {
         return;
     }

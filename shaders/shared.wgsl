@@ -1,33 +1,23 @@
-// Shared by every stage of the shells pipeline (Georgii & Westermann 2006): the structs that
-// mirror src/gpu/gpu_data.rs and the pixel-centre ray. Stage files are appended to this text.
+// Shared by every mode's stages: the view binding, the structs that mirror
+// src/gpu/gpu_data.rs, the pixel-centre ray and the near-plane quad. Stage files are appended
+// to this text.
 
-// Per-frame constants; see gpu_data::FrameUniforms for each field.
-struct Frame {
+// The view every mode reads; see gpu_data::ViewUniforms for each field. Each mode's own
+// constants are in blocks of their own, declared by its stages.
+struct View {
     right: vec3<f32>,
     epsilon: f32,
     up: vec3<f32>,
     near_z: f32,
     forward: vec3<f32>,
-    t_first: f32,
+    degenerate_tol: f32,
     eye: vec3<f32>,
-    dz: f32,
+    tet_count: u32,
     proj: vec2<f32>,
     half_extent: vec2<f32>,
     size: vec2<f32>,
-    degenerate_tol: f32,
-    tet_count: u32,
-    slices_per_shell: u32,
-    tf_count: u32,
     _pad0: u32,
     _pad1: u32,
-}
-
-// Per-shell constants (dynamic uniform offset).
-struct Shell {
-    first_slice: u32,
-    _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
 }
 
 // Written by the assembly stage once per tet and frame; see gpu_data::TetRecord.
@@ -50,19 +40,20 @@ struct TfPoint {
     _pad1: f32,
 }
 
-// The transfer function's control points (gpu_data::MAX_TF_POINTS), frame.tf_count used.
+// The transfer function's control points (gpu_data::MAX_TF_POINTS), the first `count` used.
 struct TfPoints {
     points: array<TfPoint, 256>,
+    count: u32,
 }
 
-@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(0) var<uniform> view: View;
 
 // The unit eye-space direction of the ray through the pixel whose centre is at framebuffer
 // position `xy` (@builtin(position).xy is the pixel centre, x right, y down): the same ray as
 // Camera::ray_dir, (right * u + up * v + forward) normalized.
 fn pixel_ray(xy: vec2<f32>) -> vec3<f32> {
-    let u = (2.0 * xy.x / frame.size.x - 1.0) * frame.half_extent.x;
-    let v = (1.0 - 2.0 * xy.y / frame.size.y) * frame.half_extent.y;
+    let u = (2.0 * xy.x / view.size.x - 1.0) * view.half_extent.x;
+    let v = (1.0 - 2.0 * xy.y / view.size.y) * view.half_extent.y;
     return normalize(vec3<f32>(u, v, 1.0));
 }
 
@@ -82,7 +73,7 @@ const QUAD_CORNERS = array<u32, 6>(0u, 1u, 2u, 2u, 1u, 3u);
 // widest ray; iso: hits need t > 0 well past it), so the bounds hold every fragment needed.
 // Degenerate (zeroed) records and vertices past the quad's 6 give NOWHERE too.
 fn near_quad(rec: TetRecord, vertex: u32) -> vec4<f32> {
-    let zc = frame.near_z;
+    let zc = view.near_z;
     var lo = vec2<f32>(1e30);
     var hi = vec2<f32>(-1e30);
     for (var i = 0u; i < 4u; i++) {
@@ -103,9 +94,9 @@ fn near_quad(rec: TetRecord, vertex: u32) -> vec4<f32> {
             hi = max(hi, q);
         }
     }
-    let pad = 4.0 / frame.size;
-    let lo_ndc = max(lo * frame.proj - pad, vec2<f32>(-1.0));
-    let hi_ndc = min(hi * frame.proj + pad, vec2<f32>(1.0));
+    let pad = 4.0 / view.size;
+    let lo_ndc = max(lo * view.proj - pad, vec2<f32>(-1.0));
+    let hi_ndc = min(hi * view.proj + pad, vec2<f32>(1.0));
     var corners = QUAD_CORNERS;
     let c = corners[min(vertex, 5u)];
     let xy = vec2<f32>(

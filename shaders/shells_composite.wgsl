@@ -34,7 +34,7 @@ fn tf_last(out: vec4<f32>, u: f32, last: u32) -> vec4<f32> {
 // Composites one sample (encoded scalar e, 0 = none) under the running colour and alpha.
 fn under(acc: vec4<f32>, e: f32) -> vec4<f32> {
     let s = tf_eval(e - 1.0);
-    let a = select(0.0, 1.0 - exp(-s.w * frame.dz), e > 0.0) * (1.0 - acc.w);
+    let a = select(0.0, 1.0 - exp(-s.w * slicing.dz), e > 0.0) * (1.0 - acc.w);
     return vec4<f32>(acc.xyz + a * s.rgb, acc.w + a);
 }
 

@@ -17,7 +17,7 @@ fn vs_faces(@builtin(vertex_index) index: u32) -> Varyings {
     let rec = records[active_tets[index / 4u]];
     let p = rec.pos[index % 4u];
     let position = select(
-        vec4<f32>(p.x * frame.proj.x, p.y * frame.proj.y, 0.0, p.z),
+        vec4<f32>(p.x * view.proj.x, p.y * view.proj.y, 0.0, p.z),
         NOWHERE,
         p.w == 0.0,
     );
@@ -38,20 +38,20 @@ fn vs_near(@builtin(vertex_index) index: u32) -> Varyings {
 // The CPU twin is gpu::shells::twin::slice_span.
 fn slice_span(rec: Varyings, d: vec3<f32>) -> vec4<f32> {
     let gd = rec.grad_x * d.x + rec.grad_y * d.y + rec.grad_z * d.z;
-    let t0 = frame.t_first + f32(shell.first_slice) * frame.dz;
+    let t0 = slicing.t_first + f32(shell.first_slice) * slicing.dz;
     let a = rec.lambda_eye + t0 * gd;
-    let b = gd * frame.dz;
-    let r = (-frame.epsilon - a) / b;
+    let b = gd * slicing.dz;
+    let r = (-view.epsilon - a) / b;
     // Rising coordinates bound j from below, falling ones from above; a constant one admits
     // every j or none.
     let big = vec4<f32>(1e30);
-    let flat_lo = select(-big, big, a < vec4<f32>(-frame.epsilon));
+    let flat_lo = select(-big, big, a < vec4<f32>(-view.epsilon));
     let lo4 = select(select(flat_lo, -big, b < vec4<f32>(0.0)), r, b > vec4<f32>(0.0));
     let hi4 = select(big, r, b < vec4<f32>(0.0));
     let lo = max(max(lo4.x, lo4.y), max(lo4.z, lo4.w));
-    let hi = min(min(min(hi4.x, hi4.y), min(hi4.z, hi4.w)), f32(frame.slices_per_shell - 1u));
+    let hi = min(min(min(hi4.x, hi4.y), min(hi4.z, hi4.w)), f32(slicing.slices_per_shell - 1u));
     let sd = dot(rec.scalar.xyz, d);
-    return vec4<f32>(lo, hi, rec.scalar.w + t0 * sd, frame.dz * sd);
+    return vec4<f32>(lo, hi, rec.scalar.w + t0 * sd, slicing.dz * sd);
 }
 
 // The shell's slices from slice_span's (lo, hi, s0, s1): slice j (4 per target) holds

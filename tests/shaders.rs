@@ -35,11 +35,15 @@ fn shared_struct_layouts_match_gpu_data() {
     use tetvr::gpu::gpu_data::*;
     let module = validated_wgsl("shared", shaders::SHARED);
     let size = |name: &str| wgsl_struct_size(&module, name);
-    assert_eq!(size("Frame"), size_of::<FrameUniforms>());
-    assert_eq!(size("Shell"), size_of::<ShellUniforms>());
+    assert_eq!(size("View"), size_of::<ViewUniforms>());
     assert_eq!(size("TetRecord"), size_of::<TetRecord>());
     assert_eq!(size("TfPoint"), size_of::<TfPoint>());
     assert_eq!(size("TfPoints"), size_of::<TfPoints>());
+    let shells = format!("{}\n{}", shaders::SHARED, shaders::SHELLS_SHARED);
+    let module = validated_wgsl("shells_shared", &shells);
+    let size = |name: &str| wgsl_struct_size(&module, name);
+    assert_eq!(size("Slicing"), size_of::<SlicingUniforms>());
+    assert_eq!(size("Shell"), size_of::<ShellUniforms>());
 }
 
 /// The ray caster's structs have the sizes of their Rust twins in every stage.

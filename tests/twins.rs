@@ -20,7 +20,7 @@ use std::sync::OnceLock;
 
 use glam::{Vec3, Vec4};
 use tetvr::gpu::cellproj::twin as cellproj_twin;
-use tetvr::gpu::gpu_data::{FrameUniforms, ShellUniforms, TetRecord, TfPoint};
+use tetvr::gpu::gpu_data::{ShellUniforms, SlicingUniforms, TetRecord, TfPoint, ViewUniforms};
 use tetvr::gpu::shaders;
 use tetvr::gpu::shells::twin;
 use tetvr::gpu::tf_points;
@@ -321,8 +321,13 @@ impl Rng {
 }
 
 /// A camera at `eye` looking at `target` (world z up unless looking along it), `width` x
-/// `height` pixels at 40 degrees, and the shells slicing fields.
-fn frame(eye: Vec3, target: Vec3, size: [f32; 2], slicing: (f32, f32, u32)) -> FrameUniforms {
+/// `height` pixels at 40 degrees, and the shells slicing `(t_first, dz, slices_per_shell)`.
+fn frame(
+    eye: Vec3,
+    target: Vec3,
+    size: [f32; 2],
+    (t_first, dz, slices_per_shell): (f32, f32, u32),
+) -> (ViewUniforms, SlicingUniforms) {
     let forward = (target - eye).normalize();
     let up_hint = if forward.z.abs() > 0.9 {
         Vec3::Y
@@ -332,8 +337,7 @@ fn frame(eye: Vec3, target: Vec3, size: [f32; 2], slicing: (f32, f32, u32)) -> F
     let right = forward.cross(up_hint).normalize();
     let up = right.cross(forward);
     let slope = 20f32.to_radians().tan();
-    let (t_first, dz, slices_per_shell) = slicing;
-    FrameUniforms {
+    let view = ViewUniforms {
         right: right.to_array(),
         up: up.to_array(),
         forward: forward.to_array(),
@@ -344,20 +348,24 @@ fn frame(eye: Vec3, target: Vec3, size: [f32; 2], slicing: (f32, f32, u32)) -> F
         size,
         half_extent: [slope * size[0] / size[1], slope],
         proj: [1.0 / (slope * size[0] / size[1]), 1.0 / slope],
+        ..Default::default()
+    };
+    let slicing = SlicingUniforms {
         t_first,
         dz,
         slices_per_shell,
-        ..Default::default()
-    }
+        _pad: 0,
+    };
+    (view, slicing)
 }
 
 /// World direction of eye-space direction `d`.
-fn to_world(f: &FrameUniforms, d: Vec3) -> Vec3 {
+fn to_world(f: &ViewUniforms, d: Vec3) -> Vec3 {
     Vec3::from(f.right) * d.x + Vec3::from(f.up) * d.y + Vec3::from(f.forward) * d.z
 }
 
 /// A random pixel centre.
-fn pixel(rng: &mut Rng, f: &FrameUniforms) -> [f32; 2] {
+fn pixel(rng: &mut Rng, f: &ViewUniforms) -> [f32; 2] {
     [
         rng.below(f.size[0] as u32) as f32 + 0.5,
         rng.below(f.size[1] as u32) as f32 + 0.5,
@@ -370,7 +378,7 @@ fn pixel(rng: &mut Rng, f: &FrameUniforms) -> [f32; 2] {
 /// down to 1e-6 of its size, around the degenerate threshold), 4 a vertex on the ray at `t`.
 fn tet_on_ray(
     rng: &mut Rng,
-    f: &FrameUniforms,
+    f: &ViewUniforms,
     xy: [f32; 2],
     t: f32,
     s: f32,
@@ -416,7 +424,7 @@ fn tet_on_ray(
 
 /// A mesh of independent tets (and a few sharing vertices) with the sweep's families, for
 /// frame `f`: positions (w 1), normalized scalars, tets.
-fn assembly_mesh(rng: &mut Rng, f: &FrameUniforms) -> (Vec<[f32; 4]>, Vec<f32>, Vec<[u32; 4]>) {
+fn assembly_mesh(rng: &mut Rng, f: &ViewUniforms) -> (Vec<[f32; 4]>, Vec<f32>, Vec<[u32; 4]>) {
     let (mut positions, mut tets) = (Vec::new(), Vec::new());
     for k in 0..1200u32 {
         let xy = pixel(rng, f);
@@ -444,11 +452,11 @@ fn assembly_mesh(rng: &mut Rng, f: &FrameUniforms) -> (Vec<[f32; 4]>, Vec<f32>, 
 
 /// The shipped assembly on `f` and the mesh, against `twin::assemble` per tet (a degenerate
 /// tet: the GPU writes a zeroed record and counts it, the twin returns `None`).
-fn assembly_drift(src: String, f: &FrameUniforms, rng: &mut Rng) -> Drift {
+fn assembly_drift(src: String, f: &ViewUniforms, rng: &mut Rng) -> Drift {
     let (positions, scalars, tets) = assembly_mesh(rng, f);
     let n = tets.len();
-    let frame_buf = buffer(
-        bytemuck::bytes_of(&FrameUniforms {
+    let view_buf = buffer(
+        bytemuck::bytes_of(&ViewUniforms {
             tet_count: n as u32,
             ..*f
         }),
@@ -460,7 +468,7 @@ fn assembly_drift(src: String, f: &FrameUniforms, rng: &mut Rng) -> Drift {
     let records = buffer(&vec![0; n * size_of::<TetRecord>()], WRITE);
     let degenerate = buffer(&[0; 4], WRITE);
     let group = [
-        (0, &frame_buf, UNIFORM),
+        (0, &view_buf, UNIFORM),
         (1, &pos_buf, READ),
         (2, &scalar_buf, READ),
         (3, &tet_buf, READ),
@@ -526,7 +534,7 @@ fn condition(p: [Vec3; 4]) -> f32 {
 /// distance from the eye; gradients on the largest gradient times the condition; the eye's
 /// barycentrics and the encoded scalar (sums of terms up to the largest barycentric times
 /// encoded scalars up to 2, with cancellation against 1) on that times the condition.
-fn record_scales(f: &FrameUniforms, p: [Vec3; 4], rec: &TetRecord, cond: f32) -> Vec<f32> {
+fn record_scales(f: &ViewUniforms, p: [Vec3; 4], rec: &TetRecord, cond: f32) -> Vec<f32> {
     let eye = Vec3::from(f.eye);
     let mut scales: Vec<f32> = p
         .iter()
@@ -547,7 +555,7 @@ fn record_scales(f: &FrameUniforms, p: [Vec3; 4], rec: &TetRecord, cond: f32) ->
 }
 
 /// Cameras of the sweep: far, near the mesh, and far from the origin.
-fn cameras() -> Vec<FrameUniforms> {
+fn cameras() -> Vec<ViewUniforms> {
     let slicing = (0.01, 0.05, 8);
     vec![
         frame(Vec3::new(0.3, -6.0, 1.2), Vec3::ZERO, [64.0, 48.0], slicing),
@@ -564,6 +572,9 @@ fn cameras() -> Vec<FrameUniforms> {
             slicing,
         ),
     ]
+    .into_iter()
+    .map(|(view, _)| view)
+    .collect()
 }
 
 fn assembly_all(src: &str) -> Drift {
@@ -651,15 +662,14 @@ fn composite_drift(source: &dyn Fn(u32, u32) -> String) -> Drift {
         let n = tf.points().len();
         let block = tf_points(&tf, lo, span).expect("TF points");
         let pts = &block.points[..n];
-        let f = FrameUniforms {
-            tf_count: n as u32,
+        let slicing = SlicingUniforms {
             dz: 0.01,
             ..Default::default()
         };
-        let frame_buf = buffer(bytemuck::bytes_of(&f), UNIFORM);
+        let slicing_buf = buffer(bytemuck::bytes_of(&slicing), UNIFORM);
         let tf_buf = buffer(bytemuck::bytes_of(&block), UNIFORM);
         let u = tf_inputs(pts);
-        let group0 = [(0, &frame_buf, UNIFORM), (2, &tf_buf, UNIFORM)];
+        let group0 = [(2, &tf_buf, UNIFORM), (4, &slicing_buf, UNIFORM)];
         for variant in [n as u32, 0] {
             let out = run_cases(
                 source(2, variant),
@@ -710,22 +720,27 @@ struct FragmentCase {
     xy: [f32; 4],
 }
 
-/// Fragment cases for frame `f`, shell `first_slice`: records of the sweep's tet families
+/// Fragment cases for view `f` and slicing `sl`, shell `first_slice`: records of the sweep's tet families
 /// around pixel rays at distances within the shell (on slice boundaries for the face family),
 /// and some at random distances.
-fn fragment_cases(rng: &mut Rng, f: &FrameUniforms, first_slice: u32) -> Vec<FragmentCase> {
+fn fragment_cases(
+    rng: &mut Rng,
+    (f, sl): (&ViewUniforms, &SlicingUniforms),
+    first_slice: u32,
+) -> Vec<FragmentCase> {
     let mut cases = Vec::new();
     while cases.len() < 1500 {
         let xy = pixel(rng, f);
-        let j = rng.below(f.slices_per_shell) as f32;
+        let j = rng.below(sl.slices_per_shell) as f32;
         let t = match cases.len() % 3 {
-            0 => f.t_first + (first_slice as f32 + j) * f.dz,
+            0 => sl.t_first + (first_slice as f32 + j) * sl.dz,
             1 => {
-                f.t_first + (first_slice as f32 + rng.range(-1.0, f.slices_per_shell as f32)) * f.dz
+                let j = rng.range(-1.0, sl.slices_per_shell as f32);
+                sl.t_first + (first_slice as f32 + j) * sl.dz
             }
             _ => rng.range(0.001, 10.0),
         };
-        let size = f.dz * rng.range(0.5, 20.0);
+        let size = sl.dz * rng.range(0.5, 20.0);
         let kind = rng.below(5);
         let p = tet_on_ray(rng, f, xy, t, size, kind);
         let s = [0; 4].map(|_| rng.range(0.0, 1.0));
@@ -741,7 +756,7 @@ fn fragment_cases(rng: &mut Rng, f: &FrameUniforms, first_slice: u32) -> Vec<Fra
 
 /// Cameras for the fragments: slices of 0.05 seen from afar, and slices of 1e-3 starting at
 /// 1e-3 with tets at the eye.
-fn fragment_cameras() -> Vec<(FrameUniforms, u32)> {
+fn fragment_cameras() -> Vec<((ViewUniforms, SlicingUniforms), u32)> {
     vec![
         (
             frame(
@@ -787,17 +802,17 @@ fn twin_case(c: TwinIn) -> TwinOut {
 fn segment_drift(module: String) -> (Drift, u32) {
     let mut rng = Rng(8);
     let (mut drift, mut flips) = (Drift::default(), 0);
-    for (f, first) in fragment_cameras() {
-        let f = FrameUniforms {
+    for ((f, sl), first) in fragment_cameras() {
+        let f = ViewUniforms {
             epsilon: cellproj_twin::INSIDE_TOL,
             ..f
         };
-        let cases = fragment_cases(&mut rng, &f, first);
-        let frame_buf = buffer(bytemuck::bytes_of(&f), UNIFORM);
+        let cases = fragment_cases(&mut rng, (&f, &sl), first);
+        let view_buf = buffer(bytemuck::bytes_of(&f), UNIFORM);
         let out = run_cases(
             module.clone(),
             SEGMENT_CASE,
-            &[(0, &frame_buf, UNIFORM)],
+            &[(0, &view_buf, UNIFORM)],
             bytemuck::cast_slice(&cases),
             160,
             32,
@@ -853,15 +868,20 @@ fn twin_case(c: TwinIn) -> TwinOut {
 fn slices_drift(source: &dyn Fn(u32) -> String) -> (Drift, u32) {
     let mut rng = Rng(6);
     let (mut drift, mut flips) = (Drift::default(), 0);
-    for (f, first) in fragment_cameras() {
-        let cases = fragment_cases(&mut rng, &f, first);
-        let frame_buf = buffer(bytemuck::bytes_of(&f), UNIFORM);
+    for ((f, sl), first) in fragment_cameras() {
+        let cases = fragment_cases(&mut rng, (&f, &sl), first);
+        let view_buf = buffer(bytemuck::bytes_of(&f), UNIFORM);
         let shell = ShellUniforms {
             first_slice: first,
             ..Default::default()
         };
         let shell_buf = buffer(bytemuck::bytes_of(&shell), UNIFORM);
-        let group0 = [(0, &frame_buf, UNIFORM), (1, &shell_buf, UNIFORM)];
+        let slicing_buf = buffer(bytemuck::bytes_of(&sl), UNIFORM);
+        let group0 = [
+            (0, &view_buf, UNIFORM),
+            (1, &shell_buf, UNIFORM),
+            (4, &slicing_buf, UNIFORM),
+        ];
         let out = run_cases(
             source(2),
             SLICES_CASE,
@@ -878,7 +898,7 @@ fn slices_drift(source: &dyn Fn(u32) -> String) -> (Drift, u32) {
                 &twin::pixel_ray(&f, xy).to_array(),
                 &[1.0; 3],
             );
-            let twin = twin::sample_slices(&f, &c.rec, xy, first);
+            let twin = twin::sample_slices((&f, &sl), &c.rec, xy, first);
             for (j, (&g, &t)) in gpu[8..].iter().zip(&twin).enumerate() {
                 if (g == 0.0) != (t == 0.0) {
                     flips += 1;
@@ -886,7 +906,7 @@ fn slices_drift(source: &dyn Fn(u32) -> String) -> (Drift, u32) {
                 }
                 // Encoded scalars 1..2 plus the gradient times the distance.
                 let scale = 2.0
-                    + max_abs(&c.rec.scalar) * (f.t_first + (first + j as u32 + 1) as f32 * f.dz);
+                    + max_abs(&c.rec.scalar) * (sl.t_first + (first + j as u32 + 1) as f32 * sl.dz);
                 drift.check(
                     || format!("case {k} slice {j} {:?}", c.rec),
                     &[g],

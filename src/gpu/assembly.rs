@@ -32,8 +32,8 @@ pub(crate) struct AssemblyGroups(Vec<(wgpu::BindGroup, u64)>);
 
 /// What one assembly reads and writes: record `k` is built from list entry `k`.
 pub(crate) struct AssemblyInputs<'a> {
-    /// The frame uniforms (`tet_count` bounds the list).
-    pub frame: &'a wgpu::Buffer,
+    /// The view uniforms (`tet_count` bounds the list).
+    pub view: &'a wgpu::Buffer,
     /// The mesh's vertex buffers.
     pub mesh: &'a GpuTetMesh,
     /// The tets to assemble (vertex indices).
@@ -91,7 +91,7 @@ impl AssemblyStage {
                     label: Some("assemble"),
                     layout: &self.layout,
                     entries: &[
-                        entry(0, inputs.frame),
+                        entry(0, inputs.view),
                         entry(1, inputs.mesh.positions()),
                         entry(2, inputs.mesh.scalars()),
                         inputs.tets.window(3, first, count),

@@ -1,21 +1,23 @@
-//! GPU-visible data: the `#[repr(C)]` twins of the WGSL structs (`shaders/shared.wgsl`, and
-//! each stage's own uniforms), with compile-time size assertions that mirror the WGSL layout
+//! GPU-visible data: the `#[repr(C)]` twins of the WGSL structs (`shaders/shared.wgsl`, the
+//! shells' `shaders/shells_shared.wgsl`, and each stage's own uniforms), with compile-time size assertions that mirror the WGSL layout
 //! (vec3 aligned to 16 bytes, so each `vec3<f32>` is followed by one scalar that fills its last
 //! 4 bytes); `tests/shaders.rs`, `tests/iso_shaders.rs` and `tests/cellproj_shaders.rs` check
 //! each size against naga's layout of the WGSL.
 
 use bytemuck::{Pod, Zeroable};
 
-/// Per-frame constants every mode's assembly and raster stages read (WGSL `Frame`, uniform,
-/// 112 bytes). The slice fields (`t_first`, `dz`, `slices_per_shell`) are the shells mode's
-/// and zero in the others; `tf_count` is zero in the iso mode.
+/// The view every mode's stages read (WGSL `View` in `shaders/shared.wgsl`, uniform, 96
+/// bytes): the camera's eye space, the image, and the assembly's constants. Each mode's own
+/// constants are in blocks of their own ([`SlicingUniforms`], [`IsoUniforms`],
+/// [`CellProjUniforms`], [`RaycastUniforms`]); the transfer function carries its point count
+/// ([`TfPoints::count`]).
 ///
 /// Eye space has its origin at the eye and axes (right, up, forward): x to the image's right,
 /// y to its top, z into the scene. Positions on the GPU are relative to the mesh origin (the
 /// bounding-box centre), and so is `eye`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct FrameUniforms {
+pub struct ViewUniforms {
     /// Camera right axis (world, unit).
     pub right: [f32; 3],
     /// Barycentric inside tolerance: a sample is in a tet when its smallest barycentric
@@ -28,33 +30,41 @@ pub struct FrameUniforms {
     pub near_z: f32,
     /// Camera forward axis (world, unit).
     pub forward: [f32; 3],
-    /// Distance from the eye of slice 0.
-    pub t_first: f32,
+    /// A tet is degenerate (skipped) when |det(edges / L)| <= this times the product of the
+    /// normalized edge lengths, L the longest of the three edges from vertex 0.
+    pub degenerate_tol: f32,
     /// The eye, relative to the mesh origin.
     pub eye: [f32; 3],
-    /// Slice spacing (world units).
-    pub dz: f32,
+    /// Number of tets (assembly bound).
+    pub tet_count: u32,
     /// Projection scale: NDC = (x * proj.x / z, y * proj.y / z).
     pub proj: [f32; 2],
     /// Image-plane half extent at distance 1: (tan(fov/2) * aspect, tan(fov/2)).
     pub half_extent: [f32; 2],
     /// Image size in pixels.
     pub size: [f32; 2],
-    /// A tet is degenerate (skipped) when |det(edges / L)| <= this times the product of the
-    /// normalized edge lengths, L the longest of the three edges from vertex 0.
-    pub degenerate_tol: f32,
-    /// Number of tets (assembly bound).
-    pub tet_count: u32,
-    /// Slices per shell (the raster stage writes zeros beyond this).
-    pub slices_per_shell: u32,
-    /// Number of transfer-function control points.
-    pub tf_count: u32,
     /// Zero: pads the struct to WGSL's 16-byte alignment.
     pub _pad: [u32; 2],
 }
-const _: () = assert!(size_of::<FrameUniforms>() == 112);
+const _: () = assert!(size_of::<ViewUniforms>() == 96);
 
-/// Per-shell constants (WGSL `Shell`), bound with a dynamic offset.
+/// The shells mode's slicing (WGSL `Slicing` in `shaders/shells_shared.wgsl`, uniform, 16
+/// bytes): slice `k` lies at distance `t_first + k dz` from the eye.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct SlicingUniforms {
+    /// Distance from the eye of slice 0.
+    pub t_first: f32,
+    /// Slice spacing (world units).
+    pub dz: f32,
+    /// Slices per shell (the raster stage writes zeros beyond this).
+    pub slices_per_shell: u32,
+    /// Zero: pads the struct to the 16 bytes of a uniform binding.
+    pub _pad: u32,
+}
+const _: () = assert!(size_of::<SlicingUniforms>() == 16);
+
+/// Per-shell constants (WGSL `Shell` in `shaders/shells_shared.wgsl`), bound with a dynamic offset.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct ShellUniforms {
@@ -112,15 +122,18 @@ const _: () = assert!(size_of::<TfPoint>() == 32);
 /// The most control points the shells composite evaluates (a uniform array of 8 KiB).
 pub(crate) const MAX_TF_POINTS: usize = 256;
 
-/// The transfer function as a uniform block (WGSL `TfPoints`).
+/// The transfer function as a uniform block (WGSL `TfPoints`, 8,208 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct TfPoints {
-    /// The first `FrameUniforms::tf_count` entries are the control points in increasing `s`;
-    /// the rest are zero.
+    /// The first `count` entries are the control points in increasing `s`; the rest are zero.
     pub points: [TfPoint; MAX_TF_POINTS],
+    /// Number of control points.
+    pub count: u32,
+    /// Zero: pads the struct to WGSL's 16-byte alignment.
+    pub _pad: [u32; 3],
 }
-const _: () = assert!(size_of::<TfPoints>() == 32 * MAX_TF_POINTS);
+const _: () = assert!(size_of::<TfPoints>() == 32 * MAX_TF_POINTS + 16);
 
 /// The most isovalues one iso renderer draws (`IsoSettings::isovalues` longer than this is
 /// refused).

@@ -1,10 +1,11 @@
 //! The shader registry: WGSL sources, one file per stage in `shaders/`, composed at load time:
-//! `shared.wgsl` (structs and helpers) in front of each stage, `raster.wgsl` (the volume raster
-//! stages' varyings) in front of the shells and cellproj raster stages, plus a small generated
-//! prelude where a stage depends on a pipeline variant. [`registry`] lists every module and
+//! `shared.wgsl` (the view binding, structs and helpers) in front of each stage,
+//! `shells_shared.wgsl` (the shells' own uniforms) in front of the shells stages, `raster.wgsl`
+//! (the volume raster stages' varyings) in front of the shells and cellproj raster stages, plus
+//! a small generated prelude where a stage depends on a pipeline variant. [`registry`] lists every module and
 //! variant the renderers load; `tests/shaders.rs` parses and validates each with naga.
 
-/// Structs mirroring [`crate::gpu::gpu_data`], the frame uniform binding, the pixel ray.
+/// Structs mirroring [`crate::gpu::gpu_data`], the view uniform binding, the pixel ray.
 pub const SHARED: &str = include_str!("../../shaders/shared.wgsl");
 /// The segment integrator for the piecewise-linear TF (`fn integrate_segment`), shared by the
 /// cellproj raster and the raycast traversal; a stage appends it after [`SHARED`], declares
@@ -15,6 +16,9 @@ pub const INTEGRATE_SEGMENT: &str = include_str!("../../shaders/integrate_segmen
 pub const PSI_EXACT: &str =
     "fn psi(a: f32, b: f32) -> f32 {\n    return mean_transmittance(a, b);\n}\n";
 const ASSEMBLE: &str = include_str!("../../shaders/assemble.wgsl");
+/// The shells mode's own uniforms (slicing, per-shell constants), in front of its raster and
+/// composite stages.
+pub const SHELLS_SHARED: &str = include_str!("../../shaders/shells_shared.wgsl");
 const SHELLS_RASTER: &str = include_str!("../../shaders/shells_raster.wgsl");
 const SHELLS_COMPOSITE: &str = include_str!("../../shaders/shells_composite.wgsl");
 const SHELLS_MARK: &str = include_str!("../../shaders/shells_mark.wgsl");
@@ -71,7 +75,7 @@ pub fn shells_raster(targets: u32) -> String {
         .collect();
     let values: Vec<String> = (0..targets).map(|i| format!("v[{i}]")).collect();
     format!(
-        "{SHARED}\n{RASTER}\n// Generated: the raster variant with {targets} colour targets.\n\
+        "{SHARED}\n{SHELLS_SHARED}\n{RASTER}\n// Generated: the raster variant with {targets} colour targets.\n\
          const TARGETS: u32 = {targets}u;\n\
          struct SliceOut {{\n{fields}}}\n\
          fn slice_out(v: array<vec4<f32>, TARGETS>) -> SliceOut {{\n    return SliceOut({});\n}}\n\
@@ -106,13 +110,13 @@ pub fn shells_composite(targets: u32, tf_points: u32) -> String {
         )
     } else {
         "fn tf_eval(u: f32) -> vec4<f32> {\n    var out = tf_value(0u);\n    \
-         for (var k = 0u; k + 1u < frame.tf_count; k++) {\n        \
+         for (var k = 0u; k + 1u < tf.count; k++) {\n        \
          out = tf_segment(out, u, k);\n    }\n    \
-         return tf_last(out, u, frame.tf_count - 1u);\n}\n"
+         return tf_last(out, u, tf.count - 1u);\n}\n"
             .to_owned()
     };
     format!(
-        "{SHARED}\n// Generated: the composite variant reading {targets} layers, TF of {tf_points} \
+        "{SHARED}\n{SHELLS_SHARED}\n// Generated: the composite variant reading {targets} layers, TF of {tf_points} \
          points.\nconst TARGETS: u32 = {targets}u;\n\
          fn load_layers(xy: vec2<i32>) -> array<vec4<f32>, TARGETS> {{\n    \
          return array<vec4<f32>, TARGETS>({});\n}}\n{tf_eval}{SHELLS_COMPOSITE}",

@@ -19,6 +19,7 @@ pub fn tf_points(tf: &TransferFunction, lo: f64, span: f64) -> Result<TfPoints, 
         )));
     }
     let mut out = TfPoints::zeroed();
+    out.count = p.len() as u32;
     for (k, (q, &tau)) in p.iter().zip(tf.taus()).enumerate() {
         let u = (q.s - lo) / span;
         let next = p.get(k + 1).map(|n| (n.s - lo) / span);

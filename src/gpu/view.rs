@@ -1,4 +1,4 @@
-//! The view as every mode sees it: the camera's eye-space basis and frustum slopes, the frame
+//! The view as every mode sees it: the camera's eye-space basis and frustum slopes, the view
 //! uniforms built from them, and each vertex in eye space with its frustum outcode (for
 //! frustum culling on the CPU).
 
@@ -7,7 +7,7 @@ use rayon::prelude::*;
 
 use crate::camera::Camera;
 use crate::gpu::assembly::DEGENERATE_TOL;
-use crate::gpu::gpu_data::FrameUniforms;
+use crate::gpu::gpu_data::ViewUniforms;
 
 /// A camera's eye space: origin at the eye, axes (right, up, forward), and the frustum's
 /// half-slopes.
@@ -36,35 +36,30 @@ impl ViewFrame {
         }
     }
 
-    /// The frame uniforms of this view for a mesh centred at `origin`: `tet_count` tets to
-    /// assemble, barycentric tolerance `epsilon`, near-plane tets below eye-space `near_z`.
-    /// The shells fields (`t_first`, `dz`, `slices_per_shell`) are zero, `tf_count` too.
+    /// The view uniforms for a mesh centred at `origin`: `tets` tets to assemble, barycentric
+    /// tolerance `epsilon`, near-plane tets below eye-space `near_z`.
     pub(crate) fn uniforms(
         &self,
         origin: DVec3,
         epsilon: f32,
         near_z: f32,
         tets: u32,
-    ) -> FrameUniforms {
+    ) -> ViewUniforms {
         let f32x3 = |v: DVec3| v.as_vec3().to_array();
         let [right, up, forward] = self.basis;
         let slope = self.slope;
-        FrameUniforms {
+        ViewUniforms {
             right: f32x3(right),
             epsilon,
             up: f32x3(up),
             near_z,
             forward: f32x3(forward),
-            t_first: 0.0,
+            degenerate_tol: DEGENERATE_TOL,
             eye: f32x3(self.eye - origin),
-            dz: 0.0,
+            tet_count: tets,
             proj: [(1.0 / slope[0]) as f32, (1.0 / slope[1]) as f32],
             half_extent: [slope[0] as f32, slope[1] as f32],
             size: [self.size[0] as f32, self.size[1] as f32],
-            degenerate_tol: DEGENERATE_TOL,
-            tet_count: tets,
-            slices_per_shell: 0,
-            tf_count: 0,
             _pad: [0; 2],
         }
     }

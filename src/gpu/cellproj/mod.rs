@@ -9,7 +9,7 @@
 //! 2. preint table (`--integrate table` only, when the TF, the scalar range or the longest tet edge
 //!    grew since the last build): the 3D pre-integration table on the CPU (`preint.rs`,
 //!    Weiler et al.'s incremental build) into an `Rgba32Float` 3D texture;
-//! 3. upload (`upload.rs`): frame constants, the TF, the sorted tets' vertex indices;
+//! 3. upload (`upload.rs`): view constants, the TF, the sorted tets' vertex indices;
 //! 4. assembly: the shared per-tet eye-to-barycentric stage (`gpu/assembly.rs`)
 //!    over the sorted list, record `k` for the `k`-th tet of the order;
 //! 5. raster (`raster.rs`): one instanced draw in that order (the API blends primitives in
@@ -51,7 +51,7 @@ use crate::gpu::GpuContext;
 use crate::gpu::assembly::{AssemblyInputs, AssemblyStage, RECORD_BYTES};
 use crate::gpu::frame::{FrameResources, FrameStats, ImageReadback, Timestamps};
 pub use crate::gpu::gpu_data::CellProjUniforms;
-use crate::gpu::gpu_data::{FrameUniforms, TfPoints};
+use crate::gpu::gpu_data::{TfPoints, ViewUniforms};
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
 use crate::gpu::util::{entry, ms_since, settings_error, uniform_buffer};
 use crate::image::Image;
@@ -124,7 +124,7 @@ pub struct CellProjRenderer {
     pipelines: Pipelines,
     assembly: AssemblyStage,
     frame: FrameResources,
-    frame_buf: wgpu::Buffer,
+    view_buf: wgpu::Buffer,
     tf_buf: wgpu::Buffer,
     cellproj_buf: wgpu::Buffer,
     /// How the sorted list and the records are cut into binding-sized chunks.
@@ -181,7 +181,7 @@ impl CellProjRenderer {
             assembly: AssemblyStage::new(&device),
             frame: FrameResources::new(ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY)),
             no_table: preint::table_texture(&device, 2, 2),
-            frame_buf: uniform("cellproj frame", size_of::<FrameUniforms>()),
+            view_buf: uniform("cellproj view", size_of::<ViewUniforms>()),
             tf_buf: uniform("cellproj tf", size_of::<TfPoints>()),
             cellproj_buf: uniform("cellproj table constants", size_of::<CellProjUniforms>()),
             chunking,
@@ -223,7 +223,7 @@ impl CellProjRenderer {
             .ok_or_else(|| settings_error("internal: render target missing"))?;
         let chunks = self.chunking.ranges(drawn);
         let inputs = AssemblyInputs {
-            frame: &self.frame_buf,
+            view: &self.view_buf,
             mesh: &self.mesh,
             tets: &self.order_buf,
             records: &self.records,
@@ -244,7 +244,7 @@ impl CellProjRenderer {
                     label: Some("cellproj raster"),
                     layout: &self.pipelines.raster_layout,
                     entries: &[
-                        entry(0, &self.frame_buf),
+                        entry(0, &self.view_buf),
                         self.records.window(1, first, count),
                         entry(2, &self.tf_buf),
                         entry(3, &self.cellproj_buf),
@@ -354,7 +354,7 @@ impl Renderer for CellProjRenderer {
             s.width as u64 * s.height as u64 * s.depth_or_array_layers as u64 * texel
         };
         let buffers: u64 = [
-            &self.frame_buf,
+            &self.view_buf,
             &self.tf_buf,
             &self.cellproj_buf,
             self.assembly.degenerate(),

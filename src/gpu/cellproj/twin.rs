@@ -4,7 +4,7 @@
 
 use glam::{Vec3, Vec4};
 
-use crate::gpu::gpu_data::{FrameUniforms, TetRecord};
+use crate::gpu::gpu_data::{TetRecord, ViewUniforms};
 
 /// WGSL `PARALLEL`: the ray runs along face `i` when `|d . grad lambda_i|` is at most this
 /// times `|grad lambda_i|` (the sine of the angle between the ray and the face plane). f32
@@ -13,7 +13,7 @@ use crate::gpu::gpu_data::{FrameUniforms, TetRecord};
 /// 1e-5 of the chord's length of the plane.
 pub const PARALLEL: f32 = 1e-5;
 
-/// The barycentric tolerance the raster reads from `FrameUniforms::epsilon`: a face the ray
+/// The barycentric tolerance the raster reads from `ViewUniforms::epsilon`: a face the ray
 /// runs along rejects the ray when the chord's middle lies outside it by more than this (a
 /// near-plane quad covers pixels outside the tet). The shells mode's default inside
 /// tolerance; the ray's barycentric along such a face is rounding (~1e-6 at a distance of 100
@@ -30,7 +30,7 @@ fn v4(a: [f32; 4]) -> Vec4 {
 /// the rasterizer gives such a pixel to exactly one of the tets sharing the plane, which then
 /// keeps its whole chord between its other faces, unless the chord's middle lies outside the
 /// parallel face by more than `f.epsilon`.
-pub fn segment(f: &FrameUniforms, rec: &TetRecord, d: Vec3) -> Option<Vec3> {
+pub fn segment(f: &ViewUniforms, rec: &TetRecord, d: Vec3) -> Option<Vec3> {
     let (gx, gy, gz) = (v4(rec.grad_x), v4(rec.grad_y), v4(rec.grad_z));
     let lambda_eye = v4(rec.lambda_eye);
     let gd = gx * d.x + gy * d.y + gz * d.z;
@@ -71,9 +71,9 @@ mod tests {
 
     /// The head-on view of the stress suite: eye at (0, 0, 5) looking down -z, y up, 65 x 65
     /// pixels at 40 degrees, so the centre row's rays lie in the plane y = 0.
-    fn head_on() -> FrameUniforms {
+    fn head_on() -> ViewUniforms {
         let slope = 20f64.to_radians().tan() as f32;
-        FrameUniforms {
+        ViewUniforms {
             right: [1.0, 0.0, 0.0],
             up: [0.0, 1.0, 0.0],
             forward: [0.0, 0.0, -1.0],
@@ -170,7 +170,7 @@ mod tests {
             Vec3::new(2.0 * t, -t, -t),
         ];
         for (dy, inside) in [(0.01, false), (-0.01, true)] {
-            let f = FrameUniforms {
+            let f = ViewUniforms {
                 eye: [0.0, dy, 5.0],
                 ..head_on()
             };

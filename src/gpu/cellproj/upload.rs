@@ -1,10 +1,9 @@
-//! Stage 3 of a cellproj frame: the frame constants, the transfer function, the table
+//! Stage 3 of a cellproj frame: the view constants, the transfer function, the table
 //! constants and the sorted tets' vertex indices.
 
 use rayon::prelude::*;
 
 use crate::camera::Camera;
-use crate::gpu::gpu_data::FrameUniforms;
 use crate::gpu::mesh::MeshData;
 use crate::gpu::tf::tf_points;
 use crate::gpu::view::ViewFrame;
@@ -14,7 +13,7 @@ use crate::tf::TransferFunction;
 use super::{CellProjRenderer, CellProjUniforms, near_z, twin};
 
 impl CellProjRenderer {
-    /// Writes the frame constants, the TF, the table constants and the sorted tets.
+    /// Writes the view constants, the TF, the table constants and the sorted tets.
     pub(super) fn upload(
         &mut self,
         m: &MeshData,
@@ -24,12 +23,9 @@ impl CellProjRenderer {
     ) -> Result<(), RenderError> {
         let view = ViewFrame::new(camera);
         let drawn = order.len() as u32;
-        let frame = FrameUniforms {
-            tf_count: tf.points().len() as u32,
-            ..view.uniforms(m.origin, twin::INSIDE_TOL, near_z(m.radius), drawn)
-        };
+        let view = view.uniforms(m.origin, twin::INSIDE_TOL, near_z(m.radius), drawn);
         self.queue
-            .write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&frame));
+            .write_buffer(&self.view_buf, 0, bytemuck::bytes_of(&view));
         let points = tf_points(tf, m.scalar_min, m.scalar_span)?;
         self.queue
             .write_buffer(&self.tf_buf, 0, bytemuck::bytes_of(&points));

@@ -8,7 +8,7 @@
 //!    recomputed only when the scalars or the isovalues change; Frustum culling
 //!    ([`IsoSettings::frustum`]) then drops, every frame, the selected tets entirely outside one
 //!    plane of the view frustum (stage "frustum");
-//! 2. upload (`upload.rs`): frame constants and the tets to draw;
+//! 2. upload (`upload.rs`): view constants and the tets to draw;
 //! 3. gradients (smooth shading only): a compute pass recomputes the gradient of every vertex of a
 //!    selected tet from the current positions, the volume-weighted mean over its tets
 //!    ([`gradients`]);
@@ -45,7 +45,7 @@ use crate::camera::Camera;
 use crate::gpu::GpuContext;
 use crate::gpu::assembly::{AssemblyInputs, AssemblyStage};
 use crate::gpu::frame::{FrameResources, FrameStats, ImageReadback, Timestamps};
-use crate::gpu::gpu_data::FrameUniforms;
+use crate::gpu::gpu_data::ViewUniforms;
 pub use crate::gpu::gpu_data::{IsoUniforms, MAX_ISOVALUES};
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
 use crate::gpu::util::{map_read, ms_since, settings_error, uniform_buffer};
@@ -123,7 +123,7 @@ pub struct IsoRenderer {
     pipelines: Pipelines,
     assembly: AssemblyStage,
     frame: FrameResources,
-    frame_buf: wgpu::Buffer,
+    view_buf: wgpu::Buffer,
     iso_buf: wgpu::Buffer,
     gradients_buf: wgpu::Buffer,
     targets: Option<Targets>,
@@ -216,7 +216,7 @@ impl IsoRenderer {
             pipelines: Pipelines::new(&device),
             assembly: AssemblyStage::new(&device),
             frame: FrameResources::new(ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY)),
-            frame_buf: uniform("iso frame", size_of::<FrameUniforms>()),
+            view_buf: uniform("iso view", size_of::<ViewUniforms>()),
             iso_buf: uniform("iso isovalues", size_of::<IsoUniforms>()),
             // One gradient per vertex, written by the gradient stage (smooth shading); zeros,
             // unused, for flat shading.
@@ -399,7 +399,7 @@ impl IsoRenderer {
         };
         let chunks = lists.chunking.ranges(drawn);
         let inputs = AssemblyInputs {
-            frame: &self.frame_buf,
+            view: &self.view_buf,
             mesh: &self.mesh,
             tets: &lists.tets,
             records: &lists.records,
@@ -457,7 +457,7 @@ impl Renderer for IsoRenderer {
     }
 
     fn gpu_memory(&self) -> u64 {
-        let buffers = [&self.frame_buf, &self.iso_buf, &self.gradients_buf]
+        let buffers = [&self.view_buf, &self.iso_buf, &self.gradients_buf]
             .iter()
             .map(|b| b.size())
             .sum::<u64>();

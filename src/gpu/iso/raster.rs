@@ -58,7 +58,7 @@ impl IsoRenderer {
                     label: Some("iso raster"),
                     layout: &self.pipelines.raster_layout,
                     entries: &[
-                        entry(0, &self.frame_buf),
+                        entry(0, &self.view_buf),
                         lists.records.window(1, first, count),
                         lists.tets.window(2, first, count),
                         entry(3, self.mesh.scalars()),

@@ -20,14 +20,14 @@ impl IsoRenderer {
         visible: Option<&[[u32; 4]]>,
         drawn: usize,
     ) -> Result<(), RenderError> {
-        let frame = view.uniforms(
+        let uniforms = view.uniforms(
             m.origin,
             self.settings.epsilon,
             near_z(m.radius),
             drawn as u32,
         );
         self.queue
-            .write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&frame));
+            .write_buffer(&self.view_buf, 0, bytemuck::bytes_of(&uniforms));
         let mut iso = IsoUniforms::zeroed();
         for (k, &(v, c)) in self.settings.isovalues.iter().enumerate() {
             iso.values[k / 4][k % 4] = ((v - m.scalar_min) / m.scalar_span) as f32;

@@ -5,7 +5,6 @@ use std::time::Instant;
 
 use crate::camera::Camera;
 use crate::gpu::frame::{ImageReadback, Timestamps};
-use crate::gpu::gpu_data::FrameUniforms;
 use crate::gpu::tf::tf_points;
 use crate::gpu::util::{check_image_size, entry, map_read, ms_since, settings_error, texture_2d};
 use crate::gpu::view::ViewFrame;
@@ -117,10 +116,7 @@ impl RaycastRenderer {
         let m = self.mesh.read();
         let view = ViewFrame::new(camera);
         let nt = m.tets.len() as u32;
-        let frame = FrameUniforms {
-            tf_count: tf.points().len() as u32,
-            ..view.uniforms(m.origin, 0.0, near_tol(m.radius), nt)
-        };
+        let frame = view.uniforms(m.origin, 0.0, near_tol(m.radius), nt);
         self.queue
             .write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&frame));
         let points = tf_points(tf, m.scalar_min, m.scalar_span)?;

@@ -40,7 +40,7 @@ use glam::DVec3;
 use crate::camera::Camera;
 use crate::gpu::GpuContext;
 use crate::gpu::frame::{FrameResources, ImageReadback};
-use crate::gpu::gpu_data::{FrameUniforms, TfPoints};
+use crate::gpu::gpu_data::{TfPoints, ViewUniforms};
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
 use crate::gpu::util::{settings_error, uniform_buffer};
 use crate::mesh::TetMesh;
@@ -162,7 +162,7 @@ impl RaycastRenderer {
         Ok(Self {
             pipelines: Pipelines::new(&device),
             frame: FrameResources::new(ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY)),
-            frame_buf: uniform("raycast frame", size_of::<FrameUniforms>()),
+            frame_buf: uniform("raycast frame", size_of::<ViewUniforms>()),
             tf_buf: uniform("raycast tf", size_of::<TfPoints>()),
             params_buf: uniform("raycast constants", size_of::<RaycastUniforms>()),
             counters: frame::storage(&device, "raycast counters", 4 * COUNTERS),

@@ -43,7 +43,7 @@ impl Pipelines {
     /// Compiles the stages.
     pub fn new(device: &wgpu::Device) -> Self {
         let [planes, entries, exact, partial] = shaders::raycast_stages();
-        // Binding 0 of each is the frame uniform; the rest follow the stage files.
+        // Binding 0 of each is the view uniform; the rest follow the stage files.
         let planes_layout = [B::Uniform, RO, RO, RO, RW, RW, B::Uniform];
         let entries_layout = [B::Uniform, RO, RO, RO, RO, RW, RW, RW, B::Uniform];
         let traverse_layout = [B::Uniform, RO, RO, RO, RO, B::Uniform, B::Uniform, RW];

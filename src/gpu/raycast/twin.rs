@@ -10,7 +10,7 @@ use rayon::prelude::*;
 
 use crate::camera::Camera;
 use crate::gpu::cellproj::preint::{NormalizedTf, integrate};
-use crate::gpu::gpu_data::FrameUniforms;
+use crate::gpu::gpu_data::ViewUniforms;
 use crate::gpu::mesh::MeshData;
 use crate::gpu::view::ViewFrame;
 use crate::image::Image;
@@ -39,7 +39,7 @@ pub const REENTRY: f32 = 1e-5;
 pub const THIN: f32 = 1e-5;
 
 /// World (mesh-origin relative) point to eye space (WGSL `eye_space`).
-pub fn eye_space(f: &FrameUniforms, p: Vec3) -> Vec3 {
+pub fn eye_space(f: &ViewUniforms, p: Vec3) -> Vec3 {
     let q = p - Vec3::from(f.eye);
     Vec3::new(
         Vec3::from(f.right).dot(q),
@@ -49,7 +49,7 @@ pub fn eye_space(f: &FrameUniforms, p: Vec3) -> Vec3 {
 }
 
 /// The unit eye-space ray through the centre of pixel `px` (WGSL `ray_of`).
-pub fn ray_of(f: &FrameUniforms, px: UVec2) -> Vec3 {
+pub fn ray_of(f: &ViewUniforms, px: UVec2) -> Vec3 {
     let (x, y) = (px.x as f32 + 0.5, px.y as f32 + 0.5);
     let u = (2.0 * x / f.size[0] - 1.0) * f.half_extent[0];
     let v = (1.0 - 2.0 * y / f.size[1]) * f.half_extent[1];
@@ -190,7 +190,7 @@ struct Scene {
     eye_tol: f32,
 }
 
-fn scene(m: &MeshData, f: &FrameUniforms, eye_tol: f32) -> Scene {
+fn scene(m: &MeshData, f: &ViewUniforms, eye_tol: f32) -> Scene {
     let pos: Vec<Vec3> = (m.gpu_positions().iter())
         .map(|p| eye_space(f, Vec3::new(p[0], p[1], p[2])))
         .collect();

@@ -7,7 +7,7 @@
 //!    conservative distance range, frustum and transfer-function culling, the frame's `n`
 //!    chosen from the tets' slice ranges (`adaptive.rs`), every shell's active list in one
 //!    counting sort;
-//! 2. upload (`upload.rs`): frame constants, transfer function, per-shell constants, active
+//! 2. upload (`upload.rs`): view and slicing constants, transfer function, per-shell constants, active
 //!    lists (chunk-local tet ids), the face index pattern;
 //! 3. assembly (compute, `gpu/assembly.rs`, shared by every mode): once per tet,
 //!    eye-space corners and the eye-to-barycentric transform (`shaders/assemble.wgsl`);
@@ -65,7 +65,7 @@ use crate::camera::Camera;
 use crate::gpu::GpuContext;
 use crate::gpu::assembly::{AssemblyGroups, AssemblyInputs, AssemblyStage, RECORD_BYTES};
 use crate::gpu::frame::{FrameResources, FrameStats, Recorder};
-use crate::gpu::gpu_data::{FrameUniforms, ShellUniforms, TfPoints};
+use crate::gpu::gpu_data::{ShellUniforms, SlicingUniforms, TfPoints, ViewUniforms};
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
 use crate::gpu::util::{check_image_size, entry, ms_since, settings_error, uniform_buffer};
 use crate::image::Image;
@@ -180,7 +180,10 @@ pub struct ShellsRenderer {
     frame: FrameResources,
     /// How the last uploaded active list is drawn.
     instances: InstanceLayout,
-    frame_buf: wgpu::Buffer,
+    /// The view ([`ViewUniforms`]).
+    view_buf: wgpu::Buffer,
+    /// The slicing ([`SlicingUniforms`]).
+    slicing_buf: wgpu::Buffer,
     active_buf: wgpu::Buffer,
     /// Face corners of consecutive tets, 12 indices per tet: `4 k + FACES[f][c]`.
     face_indices: wgpu::Buffer,
@@ -209,10 +212,11 @@ impl ShellsRenderer {
         let records = mesh.tet_array("shells tet records", chunking, tet_count, RECORD_BYTES)?;
         let ert = (settings.skips.early_termination).then_some(settings.skips.ert_threshold);
         let pipelines = Pipelines::new(&device, config.format, ert);
-        let frame_buf = uniform_buffer(&device, "shells frame", size_of::<FrameUniforms>());
+        let view_buf = uniform_buffer(&device, "shells view", size_of::<ViewUniforms>());
+        let slicing_buf = uniform_buffer(&device, "shells slicing", size_of::<SlicingUniforms>());
         let assembly = AssemblyStage::new(&device);
         let inputs = AssemblyInputs {
-            frame: &frame_buf,
+            view: &view_buf,
             mesh: &mesh,
             tets: mesh.tets()?,
             records: &records,
@@ -259,7 +263,8 @@ impl ShellsRenderer {
             records,
             assembly,
             assembly_groups,
-            frame_buf,
+            view_buf,
+            slicing_buf,
             active_buf,
             face_indices,
             shell_buf,
@@ -473,7 +478,7 @@ impl ShellsRenderer {
                     label: Some("shells raster"),
                     layout: &self.pipelines.raster_layout,
                     entries: &[
-                        entry(0, &self.frame_buf),
+                        entry(0, &self.view_buf),
                         wgpu::BindGroupEntry {
                             binding: 1,
                             resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
@@ -484,24 +489,25 @@ impl ShellsRenderer {
                         },
                         self.records.window(2, first, count),
                         active,
+                        entry(4, &self.slicing_buf),
                     ],
                 })
             })
             .collect()
     }
 
-    /// The composite bind group: the frame constants, the slice layers, the transfer function.
+    /// The composite bind group: the slice layers, the transfer function, the slicing.
     fn composite_group(&self, targets: &Targets) -> wgpu::BindGroup {
         self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("shells composite"),
             layout: &self.pipelines.composite_layout,
             entries: &[
-                entry(0, &self.frame_buf),
                 wgpu::BindGroupEntry {
                     binding: 1,
                     resource: wgpu::BindingResource::TextureView(&targets.slices_view),
                 },
                 entry(2, &self.tf_buf),
+                entry(4, &self.slicing_buf),
             ],
         })
     }
@@ -642,7 +648,7 @@ impl Renderer for ShellsRenderer {
         let bin = binning::sort_into_shells(&bins, n, plan.shells(n) as u32);
         timings.stage("binning", ms_since(t0));
 
-        // 2. Upload: frame constants, transfer function, shell constants, active lists.
+        // 2. Upload: view and slicing constants, transfer function, shell constants, active lists.
         let t1 = Instant::now();
         let drawn = self.upload(&m, &plan, tf, (n, &bin))?;
         timings.stage("upload", ms_since(t1));
@@ -682,7 +688,8 @@ impl Renderer for ShellsRenderer {
     fn gpu_memory(&self) -> u64 {
         let buffers = [
             self.assembly.degenerate(),
-            &self.frame_buf,
+            &self.view_buf,
+            &self.slicing_buf,
             &self.active_buf,
             &self.face_indices,
             &self.shell_buf,

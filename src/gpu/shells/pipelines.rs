@@ -167,6 +167,7 @@ impl Pipelines {
                 },
                 buffer(2, S::VERTEX, ro),
                 buffer(3, S::VERTEX, ro),
+                buffer(4, S::FRAGMENT, uniform),
             ],
         );
         let raster_pipeline_layout = pipeline_layout(&raster_layout);
@@ -174,7 +175,6 @@ impl Pipelines {
         let composite_layout = layout(
             "shells composite",
             &[
-                buffer(0, S::FRAGMENT, uniform),
                 wgpu::BindGroupLayoutEntry {
                     binding: 1,
                     visibility: S::FRAGMENT,
@@ -186,6 +186,7 @@ impl Pipelines {
                     count: None,
                 },
                 buffer(2, S::FRAGMENT, uniform),
+                buffer(4, S::FRAGMENT, uniform),
             ],
         );
         let composite_pipeline_layout = pipeline_layout(&composite_layout);

@@ -6,24 +6,24 @@
 
 use glam::{Vec3, Vec4};
 
-use crate::gpu::gpu_data::{FrameUniforms, TetRecord, TfPoint};
+use crate::gpu::gpu_data::{SlicingUniforms, TetRecord, TfPoint, ViewUniforms};
 
 fn v3(a: [f32; 3]) -> Vec3 {
     Vec3::from_array(a)
 }
 
-fn to_eye(f: &FrameUniforms, p: Vec3) -> Vec3 {
+fn to_eye(f: &ViewUniforms, p: Vec3) -> Vec3 {
     let q = p - v3(f.eye);
     Vec3::new(v3(f.right).dot(q), v3(f.up).dot(q), v3(f.forward).dot(q))
 }
 
-fn rotate(f: &FrameUniforms, g: Vec3) -> Vec3 {
+fn rotate(f: &ViewUniforms, g: Vec3) -> Vec3 {
     Vec3::new(v3(f.right).dot(g), v3(f.up).dot(g), v3(f.forward).dot(g))
 }
 
 /// The assembly stage for one tet: corners `p` relative to the mesh origin, normalized scalars
 /// `s`. `None` for a degenerate tet (which the GPU counts and skips).
-pub fn assemble(f: &FrameUniforms, p: [Vec3; 4], s: [f32; 4]) -> Option<TetRecord> {
+pub fn assemble(f: &ViewUniforms, p: [Vec3; 4], s: [f32; 4]) -> Option<TetRecord> {
     let (e1, e2, e3) = (p[1] - p[0], p[2] - p[0], p[3] - p[0]);
     let l = e1.length().max(e2.length().max(e3.length()));
     let inv_l = 1.0 / l;
@@ -57,7 +57,7 @@ pub fn assemble(f: &FrameUniforms, p: [Vec3; 4], s: [f32; 4]) -> Option<TetRecor
 }
 
 /// The unit eye-space ray through framebuffer position `xy` (a pixel centre).
-pub fn pixel_ray(f: &FrameUniforms, xy: [f32; 2]) -> Vec3 {
+pub fn pixel_ray(f: &ViewUniforms, xy: [f32; 2]) -> Vec3 {
     let u = (2.0 * xy[0] / f.size[0] - 1.0) * f.half_extent[0];
     let v = (1.0 - 2.0 * xy[1] / f.size[1]) * f.half_extent[1];
     Vec3::new(u, v, 1.0).normalize()
@@ -76,16 +76,21 @@ pub fn barycentric(rec: &TetRecord, d: Vec3, t: f32) -> Vec4 {
 /// is inside the tet (smallest barycentric >= -epsilon) exactly when `lo <= j <= hi`, and its
 /// encoded scalar is `s0 + j s1`. Each barycentric is linear in `j`, `A + j B`, so the range is
 /// the intersection of the half-lines `A_i + j B_i >= -epsilon`.
-pub fn slice_span(f: &FrameUniforms, rec: &TetRecord, d: Vec3, first_slice: u32) -> Vec4 {
+pub fn slice_span(
+    (f, sl): (&ViewUniforms, &SlicingUniforms),
+    rec: &TetRecord,
+    d: Vec3,
+    first_slice: u32,
+) -> Vec4 {
     let gd = Vec4::from_array(rec.grad_x) * d.x
         + Vec4::from_array(rec.grad_y) * d.y
         + Vec4::from_array(rec.grad_z) * d.z;
-    let t0 = f.t_first + first_slice as f32 * f.dz;
+    let t0 = sl.t_first + first_slice as f32 * sl.dz;
     let a = Vec4::from_array(rec.lambda_eye) + gd * t0;
-    let b = gd * f.dz;
+    let b = gd * sl.dz;
     let r = (Vec4::splat(-f.epsilon) - a) / b;
     let big = 1e30f32;
-    let (mut lo, mut hi) = (-big, (f.slices_per_shell as f32) - 1.0);
+    let (mut lo, mut hi) = (-big, (sl.slices_per_shell as f32) - 1.0);
     for i in 0..4 {
         let lo_i = if b[i] > 0.0 {
             r[i]
@@ -99,19 +104,19 @@ pub fn slice_span(f: &FrameUniforms, rec: &TetRecord, d: Vec3, first_slice: u32)
         hi = hi.min(hi_i);
     }
     let sd = Vec3::from_slice(&rec.scalar[..3]).dot(d);
-    Vec4::new(lo, hi, rec.scalar[3] + t0 * sd, f.dz * sd)
+    Vec4::new(lo, hi, rec.scalar[3] + t0 * sd, sl.dz * sd)
 }
 
 /// The raster fragment for one pixel and shell: each slice's encoded scalar where the sample is
 /// inside the tet ([`slice_span`]), 0 elsewhere.
 pub fn sample_slices(
-    f: &FrameUniforms,
+    (f, sl): (&ViewUniforms, &SlicingUniforms),
     rec: &TetRecord,
     xy: [f32; 2],
     first_slice: u32,
 ) -> Vec<f32> {
-    let span = slice_span(f, rec, pixel_ray(f, xy), first_slice);
-    (0..f.slices_per_shell)
+    let span = slice_span((f, sl), rec, pixel_ray(f, xy), first_slice);
+    (0..sl.slices_per_shell)
         .map(|j| {
             let j = j as f32;
             if j >= span.x && j <= span.y {
@@ -143,9 +148,9 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
-    fn frame(eye: Vec3) -> FrameUniforms {
+    fn frame(eye: Vec3) -> ViewUniforms {
         // A camera at `eye` looking along +y with z up: right = +x, up = +z, forward = +y.
-        FrameUniforms {
+        ViewUniforms {
             right: [1.0, 0.0, 0.0],
             up: [0.0, 0.0, 1.0],
             forward: [0.0, 1.0, 0.0],
@@ -154,10 +159,16 @@ mod tests {
             degenerate_tol: 1e-6,
             size: [64.0, 48.0],
             half_extent: [0.5 * 64.0 / 48.0, 0.5],
-            slices_per_shell: 8,
-            dz: 0.05,
-            t_first: 0.5,
             ..Default::default()
+        }
+    }
+
+    fn slicing(t_first: f32, dz: f32, slices_per_shell: u32) -> SlicingUniforms {
+        SlicingUniforms {
+            t_first,
+            dz,
+            slices_per_shell,
+            _pad: 0,
         }
     }
 
@@ -206,13 +217,14 @@ mod tests {
         /// noise) passes the inside test and gets a value > 0; samples far outside get 0.
         #[test]
         fn inside_samples_are_written(p in good_tet(), w in weights(), j in 0u32..8) {
-            let mut f = frame(Vec3::new(0.0, -6.0, 0.0));
+            let f = frame(Vec3::new(0.0, -6.0, 0.0));
+            let mut sl = slicing(0.5, 0.05, 8);
             let x = p[0] * w.x + p[1] * w.y + p[2] * w.z + p[3] * w.w;
             let xe = to_eye(&f, x);
             prop_assume!(xe.z > 0.1);
             // Put slice j of shell 0 exactly at the point's distance, and the pixel on its ray.
             let t = xe.length();
-            f.t_first = t - j as f32 * f.dz;
+            sl.t_first = t - j as f32 * sl.dz;
             let d = xe / t;
             // The framebuffer position whose pixel ray is d (inverse of pixel_ray).
             let u = d.x / d.z / f.half_extent[0];
@@ -221,10 +233,10 @@ mod tests {
             let rec = assemble(&f, p, [0.5; 4]).expect("well conditioned");
             let lam = barycentric(&rec, pixel_ray(&f, xy), t);
             prop_assert!(lam.min_element() >= -f.epsilon, "inside point rejected: {lam}");
-            let out = sample_slices(&f, &rec, xy, 0);
+            let out = sample_slices((&f, &sl), &rec, xy, 0);
             prop_assert!(out[j as usize] > 0.0);
             for (k, &v) in out.iter().enumerate() {
-                let lam_k = barycentric(&rec, pixel_ray(&f, xy), f.t_first + k as f32 * f.dz);
+                let lam_k = barycentric(&rec, pixel_ray(&f, xy), sl.t_first + k as f32 * sl.dz);
                 if lam_k.min_element() < -0.01 {
                     prop_assert_eq!(v, 0.0);
                 }
@@ -238,20 +250,18 @@ mod tests {
         /// scalar with the per-sample scalar.
         #[test]
         fn slice_span_matches_per_sample_test(p in good_tet(), w in weights(), shift in 0u32..32) {
-            let mut f = frame(Vec3::new(0.0, -8.0, 0.0));
-            f.slices_per_shell = 32;
-            f.dz = 0.01;
-            f.t_first = 0.05;
+            let f = frame(Vec3::new(0.0, -8.0, 0.0));
+            let sl = slicing(0.05, 0.01, 32);
             // The ray through a point inside the tet, and a shell around that point.
             let xe = to_eye(&f, p[0] * w.x + p[1] * w.y + p[2] * w.z + p[3] * w.w);
             prop_assume!(xe.z > 0.1);
             let d = xe / xe.length();
-            let first = ((xe.length() - f.t_first) / f.dz) as u32 - shift;
+            let first = ((xe.length() - sl.t_first) / sl.dz) as u32 - shift;
             let rec = assemble(&f, p, [0.2, 0.9, 0.4, 0.6]).expect("well conditioned");
-            let span = slice_span(&f, &rec, d, first);
+            let span = slice_span((&f, &sl), &rec, d, first);
             let sd = Vec3::from_slice(&rec.scalar[..3]).dot(d);
-            for j in 0..f.slices_per_shell {
-                let t = f.t_first + (first + j) as f32 * f.dz;
+            for j in 0..sl.slices_per_shell {
+                let t = sl.t_first + (first + j) as f32 * sl.dz;
                 let m = barycentric(&rec, d, t).min_element();
                 let inside = j as f32 >= span.x && j as f32 <= span.y;
                 // Both forms round differently: barycentrics at distances up to ~15 edge

@@ -1,4 +1,4 @@
-//! Stage 2 of a shells frame: the upload of the frame constants, the transfer function, the
+//! Stage 2 of a shells frame: the upload of the view and slicing constants, the transfer function, the
 //! per-shell constants and the active lists (chunk-local tet ids), and the face index pattern.
 
 use std::ops::Range;
@@ -6,7 +6,7 @@ use std::ops::Range;
 use bytemuck::Zeroable;
 use rayon::prelude::*;
 
-use crate::gpu::gpu_data::{FrameUniforms, ShellUniforms};
+use crate::gpu::gpu_data::{ShellUniforms, SlicingUniforms};
 use crate::gpu::mesh::MeshData;
 use crate::gpu::tf::tf_points;
 use crate::gpu::util::settings_error;
@@ -32,17 +32,19 @@ impl ShellsRenderer {
         tf: &TransferFunction,
         (n, bin): (u32, &Binning),
     ) -> Result<Vec<DrawnShell>, RenderError> {
-        let view = plan.view;
         let near = (0.5 * plan.near_z) as f32;
-        let frame = FrameUniforms {
+        let tets = m.tets.len() as u32;
+        let view = (plan.view).uniforms(m.origin, self.settings.epsilon, near, tets);
+        self.queue
+            .write_buffer(&self.view_buf, 0, bytemuck::bytes_of(&view));
+        let slicing = SlicingUniforms {
             t_first: plan.t_first as f32,
             dz: plan.dz as f32,
             slices_per_shell: n,
-            tf_count: tf.points().len() as u32,
-            ..view.uniforms(m.origin, self.settings.epsilon, near, m.tets.len() as u32)
+            _pad: 0,
         };
         self.queue
-            .write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&frame));
+            .write_buffer(&self.slicing_buf, 0, bytemuck::bytes_of(&slicing));
         let points = tf_points(tf, m.scalar_min, m.scalar_span)?;
         self.queue
             .write_buffer(&self.tf_buf, 0, bytemuck::bytes_of(&points));
