@@ -20,10 +20,10 @@ fn validate(name: &str, src: &str) -> Vec<String> {
 #[test]
 fn every_registered_shader_validates() {
     let registry = shaders::registry();
-    // assemble, shells_mark, iso_raster, iso_gradients, cellproj_raster, four raycast stages
-    // (planes, entries, traversal exact and partial), and per target count one shells raster
-    // variant and 33 composite variants.
-    assert_eq!(registry.len(), 9 + shaders::MAX_TARGETS as usize * 34);
+    // assemble, shells_mark, shells_tiles, iso_raster, iso_gradients, cellproj_raster, four
+    // raycast stages (planes, entries, traversal exact and partial), and per target count one
+    // shells raster variant and 33 composite and 33 fine (compute sampler) variants.
+    assert_eq!(registry.len(), 10 + shaders::MAX_TARGETS as usize * 67);
     for (name, src, entries) in registry {
         assert_eq!(validate(&name, &src), entries, "{name}");
     }
