@@ -13,7 +13,8 @@ override threshold: f32 = 0.99999;
 @group(0) @binding(1) var<uniform> shell: Shell;
 @group(0) @binding(3) var<storage, read> records: array<TetRecord>;
 @group(0) @binding(7) var<storage, read_write> offsets: array<u32>;
-@group(0) @binding(8) var<storage, read_write> lists: array<u32>;
+// Per listed tet, its id and its pixel box within the tile (shells_tiles.wgsl).
+@group(0) @binding(8) var<storage, read_write> lists: array<vec2<u32>>;
 // Per pixel (row-major), the premultiplied colour and alpha accumulated so far.
 @group(0) @binding(10) var<storage, read_write> accum: array<vec4<f32>>;
 // Per tile, nonzero once all its pixels are finished.
@@ -22,12 +23,19 @@ override threshold: f32 = 0.99999;
 var<workgroup> tile_finished: u32;
 var<workgroup> live: atomic<u32>;
 
-// The shell's slices of the pixel whose centre is `xy`, from the tets listed in [start, end).
-fn sample_tets(xy: vec2<f32>, start: u32, end: u32) -> array<vec4<f32>, TARGETS> {
+// The shell's slices of the pixel whose centre is `xy` (tile-local pixel `local`), from the
+// tets listed in [start, end) whose pixel box holds it.
+fn sample_tets(xy: vec2<f32>, local: vec2<u32>, start: u32, end: u32) -> array<vec4<f32>, TARGETS> {
     let d = pixel_ray(xy);
+    let at = vec4<u32>(local.x, local.x, local.y, local.y);
     var v: array<vec4<f32>, TARGETS>;
     for (var i = start; i < end; i++) {
-        let r = records[lists[i]];
+        let item = lists[i];
+        let b = (vec4<u32>(item.y) >> vec4<u32>(0u, 8u, 16u, 24u)) & vec4<u32>(255u);
+        if any((at < b) != vec4<bool>(false, true, false, true)) {
+            continue;
+        }
+        let r = records[item.x];
         let span = tet_span(SpanTet(r.grad_x, r.grad_y, r.grad_z, r.lambda_eye, r.scalar), d);
         if span.x <= span.y {
             let values = slice_values(span);
@@ -66,7 +74,7 @@ fn main(
         let capacity = arrayLength(&lists);
         let start = min(offsets[tile], capacity);
         let end = min(offsets[tile + 1u], capacity);
-        let src = composite_shell(sample_tets(vec2<f32>(pixel) + 0.5, start, end));
+        let src = composite_shell(sample_tets(vec2<f32>(pixel) + 0.5, local.xy, start, end));
         // The raster sampler's "under" blend: dst = src (1 - dst.a) + dst.
         dst += src * (1.0 - dst.a);
         accum[p] = dst;

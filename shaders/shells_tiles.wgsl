@@ -13,7 +13,9 @@
 @group(0) @binding(6) var<storage, read_write> counts: array<atomic<u32>>;
 // Per tile, where its list starts; entry `tiles` holds the total.
 @group(0) @binding(7) var<storage, read_write> offsets: array<u32>;
-@group(0) @binding(8) var<storage, read_write> lists: array<u32>;
+// Per listed tet: its id and its pixel box within the tile, [x0, x1) and [y0, y1) in tile-local
+// pixels, 8 bits each (x0, x1, y0, y1 from the low byte up).
+@group(0) @binding(8) var<storage, read_write> lists: array<vec2<u32>>;
 // The largest list total of the frame.
 @group(0) @binding(9) var<storage, read_write> needed: atomic<u32>;
 
@@ -34,22 +36,53 @@ fn shell_tet(id: vec3<u32>, groups: vec3<u32>) -> vec2<u32> {
     return vec2<u32>(k, active_tets[at]);
 }
 
-// The tiles [x0, y0, x1, y1) the tet's samples can reach, within the shell's rectangle: the
-// screen box of the tet clipped to the near plane (near_quad's, two pixels wider than the
-// projection), empty for degenerate tets and tets behind the plane.
-fn tile_box(rec: TetRecord) -> vec4<u32> {
-    let lo = near_quad(rec, 0u);
-    // Quad vertices 0 and 5 are its corners (lo, lo) and (hi, hi).
-    let hi = near_quad(rec, 5u);
-    if all(lo.xy == hi.xy) {
-        return vec4<u32>(0u);
+// Pixels a tet's box grows by on each side: the rasterizer snaps vertices to 1/256 of a
+// pixel, so a pixel centre it covers lies within 1/64 of a pixel of the exact box.
+const BOX_PAD: f32 = 0.015625;
+
+// The pixels [x0, y0, x1, y1) whose centres the tet's samples can reach: those in the screen
+// box of its projected corners, or for a tet crossing the near plane, in near_quad's box of
+// its part in front of the plane (two pixels wider); empty for degenerate tets and tets
+// behind the plane.
+fn pixel_box(rec: TetRecord) -> vec4<u32> {
+    var lo = vec2<f32>(1e30);
+    var hi = vec2<f32>(-1e30);
+    var front = rec.pos[0].w != 0.0;
+    for (var i = 0u; i < 4u; i++) {
+        let p = rec.pos[i].xyz;
+        front = front && p.z >= view.near_z;
+        lo = min(lo, p.xy / p.z * view.proj);
+        hi = max(hi, p.xy / p.z * view.proj);
     }
-    // NDC to pixels (y down), then to tiles.
-    let px_lo = vec2<f32>(lo.x + 1.0, 1.0 - hi.y) * 0.5 * view.size;
-    let px_hi = vec2<f32>(hi.x + 1.0, 1.0 - lo.y) * 0.5 * view.size;
-    let t_lo = vec2<u32>(max(floor(px_lo / f32(TILE)), vec2<f32>(0.0)));
-    let t_hi = vec2<u32>(max(floor(px_hi / f32(TILE)) + 1.0, vec2<f32>(0.0)));
+    if !front {
+        // Quad vertices 0 and 5 are its corners (lo, lo) and (hi, hi); the quad of an
+        // empty tet is a point.
+        lo = near_quad(rec, 0u).xy;
+        hi = near_quad(rec, 5u).xy;
+        if all(lo == hi) {
+            return vec4<u32>(0u);
+        }
+    }
+    // NDC to pixels (y down); pixel x's centre is at x + 0.5.
+    let px_lo = vec2<f32>(lo.x + 1.0, 1.0 - hi.y) * 0.5 * view.size - 0.5 - BOX_PAD;
+    let px_hi = vec2<f32>(hi.x + 1.0, 1.0 - lo.y) * 0.5 * view.size - 0.5 + BOX_PAD;
+    let p_lo = vec2<u32>(clamp(ceil(px_lo), vec2<f32>(0.0), view.size));
+    let p_hi = vec2<u32>(clamp(floor(px_hi) + 1.0, vec2<f32>(0.0), view.size));
+    return vec4<u32>(p_lo, p_hi);
+}
+
+// The tiles [x0, y0, x1, y1) of the pixel box `b`, within the shell's rectangle.
+fn tile_box(b: vec4<u32>) -> vec4<u32> {
+    let t_lo = b.xy / TILE;
+    let t_hi = select((b.zw + TILE - 1u) / TILE, t_lo, any(b.zw <= b.xy));
     return vec4<u32>(max(t_lo, shell.tiles.xy), min(t_hi, shell.tiles.zw));
+}
+
+// The pixel box `b` within tile `t` (x, y), in tile-local pixels packed as `lists` keeps it.
+fn local_box(b: vec4<u32>, t: vec2<u32>) -> u32 {
+    let origin = vec4<u32>(t * TILE, t * TILE);
+    let local = min(max(b, origin) - origin, vec4<u32>(TILE));
+    return local.x | (local.z << 8u) | (local.y << 16u) | (local.w << 24u);
 }
 
 @compute @workgroup_size(64)
@@ -58,7 +91,7 @@ fn count(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) 
     if tet.x == shell.faces.y + shell.near.y {
         return;
     }
-    let b = tile_box(records[tet.y]);
+    let b = tile_box(pixel_box(records[tet.y]));
     let across = tiles_x();
     for (var y = b.y; y < b.w; y++) {
         for (var x = b.x; x < b.z; x++) {
@@ -110,7 +143,8 @@ fn scatter(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
     if tet.x == shell.faces.y + shell.near.y {
         return;
     }
-    let b = tile_box(records[tet.y]);
+    let pixels = pixel_box(records[tet.y]);
+    let b = tile_box(pixels);
     let across = tiles_x();
     let capacity = arrayLength(&lists);
     for (var y = b.y; y < b.w; y++) {
@@ -118,7 +152,7 @@ fn scatter(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
             let t = y * across + x;
             let at = offsets[t] + atomicSub(&counts[t], 1u) - 1u;
             if at < capacity {
-                lists[at] = tet.y;
+                lists[at] = vec2<u32>(tet.y, local_box(pixels, vec2<u32>(x, y)));
             }
         }
     }

@@ -103,7 +103,7 @@ pub enum ShadingArg {
 pub enum SamplerArg {
     /// The rasterizer: front faces per shell, slices blended into colour targets.
     Raster,
-    /// Compute workgroups on 16 x 16 pixel tiles (meshes of one storage binding of records).
+    /// Compute workgroups on 8 x 8 pixel tiles (meshes of one storage binding of records).
     Compute,
 }
 

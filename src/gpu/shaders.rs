@@ -137,7 +137,7 @@ fn tf_eval(tf_points: u32) -> String {
 
 /// Screen tile side of the compute sampler: a tile is one workgroup of the fine stage, one
 /// thread per pixel.
-pub const SHELLS_TILE: u32 = 16;
+pub const SHELLS_TILE: u32 = 8;
 
 /// The compute sampler's coarse stage (entry points `count`, `scan`, `scatter`), binning a
 /// shell's tets to tiles of [`SHELLS_TILE`] pixels.

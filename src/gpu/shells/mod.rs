@@ -105,7 +105,7 @@ pub enum Sampler {
     /// under MAX blending, then a composite pass (`raster.rs`, `composite.rs`).
     #[default]
     Raster,
-    /// Per shell, its tets binned to 16 x 16 pixel tiles and one workgroup per tile sampling
+    /// Per shell, its tets binned to 8 x 8 pixel tiles and one workgroup per tile sampling
     /// and compositing its pixels (`tiles.rs`, `fine.rs`). Meshes of one record chunk only
     /// (about 932k tets on lavapipe); larger ones are an error naming the raster sampler.
     Compute,

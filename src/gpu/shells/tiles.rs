@@ -132,7 +132,7 @@ impl TileBuffers {
             capacity,
             counts: buffer("shells tile counts", 4 * tiles, B::STORAGE),
             offsets: buffer("shells tile offsets", 4 * (tiles + 1), B::STORAGE),
-            lists: buffer("shells tile lists", 4 * capacity, B::STORAGE),
+            lists: buffer("shells tile lists", 8 * capacity, B::STORAGE),
             needed: buffer(
                 "shells tile lists needed",
                 4,
