@@ -1,8 +1,10 @@
 //! The shader registry: WGSL sources, one file per stage in `shaders/`, composed at load time:
 //! `shared.wgsl` (the view binding, structs and helpers) in front of each stage,
-//! `shells_shared.wgsl` (the shells' own uniforms) in front of the shells stages, `raster.wgsl`
-//! (the volume raster stages' varyings) in front of the shells and cellproj raster stages, plus
-//! a small generated prelude where a stage depends on a pipeline variant. [`registry`] lists every module and
+//! `shells_shared.wgsl` (the shells' own uniforms) in front of the shells stages,
+//! `shells_span.wgsl` (the slice sampling) and `shells_tf.wgsl` (the TF and the composite) in
+//! front of the stages of both shells samplers that use them, `raster.wgsl` (the volume raster
+//! stages' varyings) in front of the shells and cellproj raster stages, plus a small generated
+//! prelude where a stage depends on a pipeline variant. [`registry`] lists every module and
 //! variant the renderers load; `tests/shaders.rs` parses and validates each with naga.
 
 /// Structs mirroring [`crate::gpu::gpu_data`], the view uniform binding, the pixel ray.

@@ -23,6 +23,14 @@
 //! 5. readback (`gpu/frame.rs`): the accumulation target, the degenerate count, the
 //!    occlusion queries and the GPU timestamps of every pass.
 //!
+//! With [`Sampler::Compute`] stages 4. and 5. run in compute instead (`compute.rs`): per drawn
+//! shell, `tiles.rs` bins its tets to 8 x 8 pixel tiles (`shaders/shells_tiles.wgsl`) and
+//! `fine.rs` runs one workgroup per tile that samples the shell's slices of each unfinished
+//! pixel, composites them and blends them under the pixel's accumulated colour
+//! (`shaders/shells_fine.wgsl`); finished tiles are skipped. Both samplers share the slice
+//! sampling (`shaders/shells_span.wgsl`) and the composite (`shaders/shells_tf.wgsl`), so they
+//! take the same samples.
+//!
 //! Pipelines (`pipelines.rs`), targets (`targets.rs`) and the slice configuration
 //! (`config.rs`) have files of their own.
 //!

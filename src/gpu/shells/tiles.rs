@@ -166,3 +166,18 @@ impl TileBuffers {
         .sum()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tile_rects_hold_their_pixel_rects() {
+        // 8-pixel tiles: [5, 8) x [16, 17) lies in tiles x 0, y 2; a rectangle ending on a
+        // tile boundary takes no tile beyond it.
+        assert_eq!(SHELLS_TILE, 8);
+        assert_eq!(tile_rect([5, 16, 3, 1]), [0, 2, 1, 3]);
+        assert_eq!(tile_rect([8, 0, 16, 8]), [1, 0, 3, 1]);
+        assert_eq!(tile_rect([0, 0, 65, 64]), [0, 0, 9, 8]);
+    }
+}
