@@ -904,3 +904,58 @@ fn the_samplers_give_the_same_picture() {
         );
     }
 }
+
+#[test]
+fn tile_lists_that_outgrow_their_buffer_rerun_the_frame_whole() {
+    // A 12^3 grid (10,368 tets) in one shell (16 samples, 32 slices per shell) at 512x512: a
+    // cell is ~24 pixels wide, each tet's box covers ~16 tiles, ~166k list entries against the
+    // first frame's 65,536 (at least 4 per tet of the shell).
+    // The frame runs again with lists grown to fit, and its picture is the raster sampler's;
+    // the next frame keeps the grown lists.
+    let (lo, hi) = (DVec3::splat(-1.0), DVec3::splat(1.0));
+    let mesh = generate::box_grid(lo, hi, UVec3::splat(12), "lin", linear);
+    let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 512, 512);
+    let tf = tf3(-1.6, 1.6, 0.2);
+    let settings = |sampler| ShellSettings {
+        samples: 16,
+        slices_per_shell: Some(32),
+        sampler,
+        ..Default::default()
+    };
+    let (raster, _, _) = render(&mesh, settings(Sampler::Raster), &camera, &tf);
+    let (compute, mut r, timings) = render(&mesh, settings(Sampler::Compute), &camera, &tf);
+    assert_eq!(counter(&timings, "shells drawn"), 1);
+    assert_eq!(counter(&timings, "frame runs (tile lists grown)"), 2);
+    assert_images_close("shells-samplers-grown", &compute, &raster, SAMPLER_BOUNDS);
+    let again = r.render(&camera, &tf).expect("frame");
+    assert_eq!(counter(&again.timings, "frame runs (tile lists grown)"), 1);
+    assert_eq!(again.image.compare(&compute).unwrap().max_abs, 0.0);
+}
+
+#[test]
+fn finished_pixels_and_tiles_stop_the_compute_sampler_as_they_stop_the_raster() {
+    // lox under a nearly opaque TF (opacity 0.999 per 1/100 of the diagonal): most covered
+    // pixels reach the termination threshold within a few shells. The raster sampler marks
+    // finished pixels after a shell's composite, the compute sampler skips them from the next
+    // shell too, so both stop at the same sample: the pictures agree to SAMPLER_BOUNDS.
+    let mesh = lox();
+    let (lo, hi) = mesh.bounds();
+    let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 96, 96);
+    let (s_lo, s_hi) = mesh.active_array().and_then(|a| a.range()).unwrap();
+    let cp = |s, color| ControlPoint {
+        s,
+        color,
+        opacity: 0.999,
+    };
+    let points = vec![cp(s_lo, [0.2, 0.3, 0.9]), cp(s_hi, [0.9, 0.6, 0.1])];
+    let tf = TransferFunction::new(points, mesh.diagonal() / 100.0).unwrap();
+    let (raster, _, rt) = render(&mesh, with_sampler(Sampler::Raster), &camera, &tf);
+    let (compute, _, ct) = render(&mesh, with_sampler(Sampler::Compute), &camera, &tf);
+    let finished = counter(&ct, "pixels finished");
+    eprintln!(
+        "finished: compute {finished}, raster {}",
+        counter(&rt, "pixels finished")
+    );
+    assert!(finished > 1000, "{ct}");
+    assert_images_close("shells-samplers-opaque", &compute, &raster, SAMPLER_BOUNDS);
+}

@@ -25,6 +25,16 @@ use super::{ShellFrame, ShellsRenderer};
 /// Tile-list entries of the first frame at least (grown per frame as needed).
 const MIN_CAPACITY: u64 = 1 << 16;
 
+/// What a frame with the compute sampler gives back.
+pub(super) struct ComputeFrame {
+    pub(super) stats: FrameStats,
+    pub(super) image: Image,
+    /// Milliseconds of the image's readback.
+    pub(super) readback: f64,
+    /// Runs of the frame: 2 when the tile lists outgrew their buffer.
+    pub(super) runs: u64,
+}
+
 /// The compute sampler's pipelines and buffers.
 pub(super) struct ComputeSampler {
     tiles: TilePipelines,
@@ -49,33 +59,34 @@ impl ComputeSampler {
 }
 
 impl ShellsRenderer {
-    /// Stages 3.-6. with the compute sampler: the frame's statistics, its image and the
-    /// milliseconds of its readback.
+    /// Stages 3.-6. with the compute sampler.
     pub(super) fn draw_compute(
         &mut self,
         f: &ShellFrame,
         tf: &TransferFunction,
-    ) -> Result<(FrameStats, Image, f64), RenderError> {
+    ) -> Result<ComputeFrame, RenderError> {
         self.check_one_chunk()?;
         let [width, height] = f.plan.view.size;
         self.ensure_tile_buffers(f, (width, height), 0)?;
-        let (stats, needed) = self.run_compute(f, tf)?;
-        let stats = match needed {
-            Some(n) => {
-                self.ensure_tile_buffers(f, (width, height), n)?;
-                let (stats, again) = self.run_compute(f, tf)?;
-                if let Some(n) = again {
-                    return Err(settings_error(format!(
-                        "internal: the tile lists needed {n} entries after growing to it"
-                    )));
-                }
-                stats
+        let (mut stats, needed) = self.run_compute(f, tf)?;
+        if let Some(n) = needed {
+            self.ensure_tile_buffers(f, (width, height), n)?;
+            let again;
+            (stats, again) = self.run_compute(f, tf)?;
+            if let Some(n) = again {
+                return Err(settings_error(format!(
+                    "internal: the tile lists needed {n} entries after growing to it"
+                )));
             }
-            None => stats,
-        };
+        }
         let t_read = Instant::now();
         let image = self.read_compute_image()?;
-        Ok((stats, image, ms_since(t_read)))
+        Ok(ComputeFrame {
+            stats,
+            image,
+            readback: ms_since(t_read),
+            runs: 1 + needed.is_some() as u64,
+        })
     }
 
     /// The compute sampler binds the records as one window: meshes of one record chunk only.

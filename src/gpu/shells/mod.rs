@@ -732,10 +732,21 @@ impl Renderer for ShellsRenderer {
         let image = match self.settings.sampler {
             Sampler::Raster => self.render_raster(frame, tf, &mut timings)?,
             Sampler::Compute => {
-                let (stats, image, readback) = self.draw_compute(&frame, tf)?;
-                self.report_frame(&mut timings, &stats, &frame, &["assembly", "tiles", "fine"]);
-                timings.stage("readback", readback);
-                image
+                let c = self.draw_compute(&frame, tf)?;
+                self.report_frame(
+                    &mut timings,
+                    &c.stats,
+                    &frame,
+                    &["assembly", "tiles", "fine"],
+                );
+                timings.stage("readback", c.readback);
+                timings.count("frame runs (tile lists grown)", c.runs);
+                if self.settings.skips.early_termination {
+                    let threshold = self.settings.skips.ert_threshold;
+                    let finished = c.image.pixels.par_iter().filter(|p| p[3] >= threshold);
+                    timings.count("pixels finished", finished.count() as u64);
+                }
+                c.image
             }
         };
         timings.stage("total", ms_since(start));
