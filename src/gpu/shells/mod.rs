@@ -115,7 +115,8 @@ pub enum Sampler {
     Raster,
     /// Per shell, its tets binned to 8 x 8 pixel tiles and one workgroup per tile sampling
     /// and compositing its pixels (`tiles.rs`, `fine.rs`). Meshes of one record chunk only
-    /// (about 932k tets on lavapipe); larger ones are an error naming the raster sampler.
+    /// (about 932k tets on lavapipe); larger ones are an error naming the raster sampler. Its
+    /// slices and accumulation stay in f32 whatever [`ShellSettings::format`] says.
     Compute,
 }
 
