@@ -138,7 +138,10 @@ fn tf_eval(tf_points: u32) -> String {
 }
 
 /// Screen tile side of the compute sampler: a tile is one workgroup of the fine stage, one
-/// thread per pixel.
+/// thread per pixel. Measured on lavapipe (2 cores, blunt fin 512x512, medians of 5 warm
+/// frames, A-B-B-A): 8 pixels 501-506 ms, 4 pixels 533-536 ms, 16 pixels 1350-1520 ms (each
+/// pixel walks its whole tile's list, and small tets' boxes cover a larger share of a small
+/// tile).
 pub const SHELLS_TILE: u32 = 8;
 
 /// The compute sampler's coarse stage (entry points `count`, `scan`, `scatter`), binning a
