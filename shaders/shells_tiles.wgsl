@@ -18,6 +18,8 @@
 @group(0) @binding(8) var<storage, read_write> lists: array<vec2<u32>>;
 // The largest list total of the frame.
 @group(0) @binding(9) var<storage, read_write> needed: atomic<u32>;
+// Per tile, nonzero once all its pixels are finished (shells_fine.wgsl): it lists no tet.
+@group(0) @binding(11) var<storage, read_write> finished: array<u32>;
 
 // Tiles across the screen.
 fn tiles_x() -> u32 {
@@ -95,7 +97,10 @@ fn count(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) 
     let across = tiles_x();
     for (var y = b.y; y < b.w; y++) {
         for (var x = b.x; x < b.z; x++) {
-            atomicAdd(&counts[y * across + x], 1u);
+            let t = y * across + x;
+            if finished[t] == 0u {
+                atomicAdd(&counts[t], 1u);
+            }
         }
     }
 }
@@ -150,6 +155,9 @@ fn scatter(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
     for (var y = b.y; y < b.w; y++) {
         for (var x = b.x; x < b.z; x++) {
             let t = y * across + x;
+            if finished[t] != 0u {
+                continue;
+            }
             let at = offsets[t] + atomicSub(&counts[t], 1u) - 1u;
             if at < capacity {
                 lists[at] = vec2<u32>(tet.y, local_box(pixels, vec2<u32>(x, y)));
