@@ -1,5 +1,4 @@
-// The shells mode's own constants (appended after shared.wgsl in front of its raster and
-// composite stages); see gpu_data::SlicingUniforms and gpu_data::ShellUniforms.
+// The shells mode's own constants (appended after shared.wgsl in front of its stages); see gpu_data::SlicingUniforms and gpu_data::ShellUniforms.
 
 // Slice k lies at distance t_first + k dz from the eye.
 struct Slicing {
@@ -13,8 +12,12 @@ struct Slicing {
 struct Shell {
     first_slice: u32,
     _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
+    // The compute sampler's: the shell's tets in the active list, (start, count), drawn by
+    // their faces and near-plane ones, and the tiles of its rectangle, [x0, y0, x1, y1).
+    faces: vec2<u32>,
+    near: vec2<u32>,
+    _pad1: vec2<u32>,
+    tiles: vec4<u32>,
 }
 
 @group(0) @binding(4) var<uniform> slicing: Slicing;

@@ -42,6 +42,7 @@ const QUICK_SCENES: &[(&str, &[&str])] = &[
 const QUICK_CONFIGS: &[(&str, &str)] = &[
     ("shells", "samples 128"),
     ("shells", "samples 512"),
+    ("shells", "samples 512, compute"),
     ("iso", "flat"),
     ("cellproj", "table 128"),
     ("raycast", "partial lists"),

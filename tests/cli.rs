@@ -604,3 +604,44 @@ fn adaptive_slices_can_be_turned_off_and_a_fixed_count_overrides_them() {
     // Off, the count is the adapter's fixed default: whole colour targets of 4 slices.
     assert_eq!(slices(&stdout) % 4, 0, "{stdout}");
 }
+
+#[test]
+fn sampler_compute_renders_the_raster_samplers_picture_and_bad_samplers_are_named() {
+    // `--sampler compute` runs the compute stages (their timings are printed) and writes the
+    // raster sampler's picture: lox is bit-identical between the samplers (tests/shells.rs),
+    // so the 8-bit PNGs are identical.
+    let dir = out_dir("sampler");
+    let run = |sampler: &str| {
+        let png = dir.join(format!("{sampler}.png"));
+        let args = [
+            "render",
+            LOX,
+            "--mode",
+            "shells",
+            "--size",
+            "48x40",
+            "--timings",
+            "--sampler",
+            sampler,
+        ];
+        let o = tetvr(&[&args[..], &["-o", png.to_str().unwrap()]].concat());
+        let (stdout, stderr) = text(&o);
+        assert!(o.status.success(), "{stderr}");
+        (stdout, Image::load_png(&png).unwrap())
+    };
+    let (stdout, compute) = run("compute");
+    assert!(
+        stdout.contains("fine") && stdout.contains("tiles"),
+        "{stdout}"
+    );
+    let (stdout, raster) = run("raster");
+    assert!(stdout.contains("composite"), "{stdout}");
+    assert_eq!(compute.pixels, raster.pixels);
+    let bad = tetvr(&["render", LOX, "--sampler", "fragment"]);
+    let (_, stderr) = text(&bad);
+    assert!(!bad.status.success());
+    assert!(
+        stderr.contains("fragment") && stderr.contains("compute"),
+        "{stderr}"
+    );
+}

@@ -30,7 +30,7 @@ use tetvr::generate;
 use tetvr::gpu::raycast::Segments;
 use tetvr::gpu::{
     AdapterChoice, CellProjRenderer, CellProjSettings, GpuContext, Integrate, IsoRenderer,
-    IsoSettings, RaycastRenderer, RaycastSettings, ShellSettings, ShellsRenderer,
+    IsoSettings, RaycastRenderer, RaycastSettings, Sampler, ShellSettings, ShellsRenderer,
 };
 use tetvr::reference::ReferenceRenderer;
 use tetvr::reference::iso::{IsoReference, Shading};
@@ -78,6 +78,8 @@ struct ModeDef {
 /// - shells: 512 samples across the cube's depth with the default f32 slices; its point
 ///   sampling error on the benign 6^3 grid with this TF is 5e-4 rmse at 64x64 (measured), and
 ///   the bound is twice that.
+/// - shells compute: the same samples and composite as shells (the compute sampler), the same
+///   bound.
 /// - iso: the flat-shaded first hit in f32, measured at most 4.1e-7 rmse over every case (eye
 ///   on a face plane; 2e-8 to 2e-7 elsewhere): bound 2e-6, five times that. A ray whose f32 hit
 ///   lands in a neighbouring tet of another normal would flip one pixel's shading by ~0.5,
@@ -110,6 +112,18 @@ static MODES: &[ModeDef] = &[
                 mesh,
                 ShellSettings::default(),
             )?))
+        },
+        bound: (1e-3, 0),
+    },
+    ModeDef {
+        name: "shells compute",
+        truth: Truth::Volume,
+        build: |mesh, _| {
+            let settings = ShellSettings {
+                sampler: Sampler::Compute,
+                ..ShellSettings::default()
+            };
+            Ok(Box::new(ShellsRenderer::new(ctx(), mesh, settings)?))
         },
         bound: (1e-3, 0),
     },
@@ -759,7 +773,11 @@ fn transfer_function_opacity_zero_and_nearly_one() {
     case.closed_form = Some(Image::new(SIZE, SIZE));
     case.empty = vec![Truth::Volume];
     case.not_applicable = NO_TF;
-    check(case.bound("reference", 0.0, 0).bound("shells", 0.0, 0));
+    check(
+        case.bound("reference", 0.0, 0)
+            .bound("shells", 0.0, 0)
+            .bound("shells compute", 0.0, 0),
+    );
     // Opacity 0.9999 per unit distance 0.3 (tau = 31 per unit): rays saturate within ~0.15 of
     // the boundary, a few samples. Point sampling then shows its error at full contrast: rmse
     // 3.2e-3 measured, bound 1e-2. At the cube's silhouette a chord of only 3e-4 already gives
@@ -772,8 +790,11 @@ fn transfer_function_opacity_zero_and_nearly_one() {
     // The ray caster integrates exactly, at a contrast of 1 within ~0.15 of the boundary:
     // measured rmse 2.1e-6, bound 10x. Its table interpolates optical depths up to ~18 per
     // segment between 64 lengths: measured rmse 6.8e-4, bound 3x.
+    let saturated = case
+        .bound("shells", 1e-2, 4)
+        .bound("shells compute", 1e-2, 4);
     check(
-        case.bound("shells", 1e-2, 4)
+        saturated
             .bound("raycast", 2e-5, 0)
             .bound("raycast table", 2e-3, 0)
             .bound("raycast-cpu", 2e-5, 0),
@@ -880,10 +901,35 @@ fn mesh_larger_than_one_storage_binding() {
             }
             Err(e) => panic!("{mode}: a mesh beyond one binding must render in chunks: {e}"),
         }
+        if mode == "shells" {
+            cells.push(compute_refuses_chunks(&small, &g, (&cam, &t)));
+        }
     }
     cells.push("clear error (its 16 MiB table)".to_string());
     cells.push("(CPU: no binding)".to_string());
     write_readme_row(name, &cells, 0);
+}
+
+/// The compute sampler binds its records in one window: on a mesh beyond one binding it
+/// must refuse with an error naming the raster sampler, never draw a truncated mesh.
+fn compute_refuses_chunks(
+    c: &GpuContext,
+    g: &TetMesh,
+    (cam, t): (&Camera, &TransferFunction),
+) -> String {
+    let settings = ShellSettings {
+        sampler: Sampler::Compute,
+        ..ShellSettings::default()
+    };
+    let frame = ShellsRenderer::new(c, g, settings).and_then(|mut r| r.render(cam, t));
+    match frame {
+        Err(e) => assert!(
+            e.to_string().contains("--sampler raster"),
+            "shells compute: {e}"
+        ),
+        Ok(_) => panic!("the compute sampler rendered a mesh beyond one binding"),
+    }
+    "clear error (one binding only)".to_string()
 }
 
 /// A GPU mode built on a context.

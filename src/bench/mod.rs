@@ -34,8 +34,8 @@ use tetvr::deform::Deformation;
 use tetvr::generate::{self, Field};
 use tetvr::gpu::raycast::{Entry, Segments};
 use tetvr::gpu::{
-    CellProjSettings, GpuContext, Integrate, IsoSettings, RaycastSettings, ShellSettings, Skip,
-    Skips,
+    CellProjSettings, GpuContext, Integrate, IsoSettings, RaycastSettings, Sampler, ShellSettings,
+    Skip, Skips,
 };
 use tetvr::image::{ErrorMetrics, Image};
 use tetvr::io;
@@ -457,6 +457,17 @@ fn shells(samples: u32, slices_per_shell: Option<u32>) -> Config {
     shells_with(setting, &[], settings)
 }
 
+/// The shells mode at `samples` with the compute sampler (the `samples N` row's settings
+/// otherwise, so the two rows compare the samplers).
+fn shells_compute(samples: u32) -> Config {
+    let settings = ShellSettings {
+        samples,
+        sampler: Sampler::Compute,
+        ..ShellSettings::default()
+    };
+    shells_with(format!("samples {samples}, compute"), &[], settings)
+}
+
 /// The shells mode with `settings`, on the scenes named by the prefixes `scenes` (all when
 /// empty).
 fn shells_with(
@@ -587,14 +598,15 @@ fn raycast_cpu(segments: cpu_raycast::Segments) -> Config {
     }
 }
 
-/// The configurations of the bench: `quick` keeps two shells settings, flat iso, the default
-/// cell projection, the ray casters (GPU and CPU) and the reference. Modes and settings join
-/// here.
+/// The configurations of the bench: `quick` keeps two shells settings and the compute sampler's
+/// row, flat iso, the default cell projection, the ray casters (GPU and CPU) and the reference.
+/// Modes and settings join here.
 pub fn configurations(quick: bool) -> Vec<Config> {
     let mut c = if quick {
         vec![
             shells(128, None),
             shells(512, None),
+            shells_compute(512),
             iso(Shading::Flat),
             cellproj(Integrate::Table, 128),
             raycast(Segments::Partial, Entry::default()),
@@ -607,6 +619,8 @@ pub fn configurations(quick: bool) -> Vec<Config> {
             shells(512, None),
             shells(1024, None),
             shells(512, Some(32)),
+            shells_compute(128),
+            shells_compute(512),
         ];
         c.extend(Skip::ALL.map(shells_without));
         c.extend([

@@ -10,7 +10,7 @@ use tetvr::gpu::cellproj::sort::sort_check;
 use tetvr::gpu::raycast::{Entry, Segments};
 use tetvr::gpu::{
     AdapterChoice, CellProjSettings, GpuContext, GpuError, Integrate, IsoSettings, RaycastSettings,
-    ShellSettings, Skip,
+    Sampler, ShellSettings, Skip,
 };
 use tetvr::image::{Image, ImageError};
 use tetvr::io::{self, LoadError, Loaded};
@@ -27,7 +27,7 @@ use tetvr::{TetMesh, generate};
 
 use super::{
     AnimateArgs, Cli, Command, CompareArgs, EntryArg, GenerateArgs, GenerateShape, InfoArgs,
-    IntegrateArg, IsoExportArgs, MeshArgs, Mode, RenderArgs, ShadingArg,
+    IntegrateArg, IsoExportArgs, MeshArgs, Mode, RenderArgs, SamplerArg, ShadingArg,
 };
 
 /// Everything a command can fail with; each message says what to fix.
@@ -308,6 +308,10 @@ fn shell_settings(args: &RenderArgs) -> ShellSettings {
     if let Some(t) = args.shells.ert_threshold {
         settings.skips.ert_threshold = t;
     }
+    settings.sampler = match args.shells.sampler {
+        SamplerArg::Raster => Sampler::Raster,
+        SamplerArg::Compute => Sampler::Compute,
+    };
     settings
 }
 

@@ -111,6 +111,15 @@ pub enum ShadingArg {
     Smooth,
 }
 
+/// What samples the shells' slices.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SamplerArg {
+    /// The rasterizer: front faces per shell, slices blended into colour targets.
+    Raster,
+    /// Compute workgroups on 8 x 8 pixel tiles (meshes of one storage binding of records).
+    Compute,
+}
+
 #[derive(clap::Args, Debug)]
 pub struct MeshArgs {
     /// Mesh file: legacy VTK (.vtk), VTK XML (.vtu), Gmsh (.msh v2/v4) or TetGen (.node/.ele).
@@ -219,6 +228,9 @@ pub struct ShellArgs {
     /// termination; in (0, 1], default 0.99999).
     #[arg(long)]
     pub ert_threshold: Option<f32>,
+    /// shells: what samples the slices; both give the same picture to rounding.
+    #[arg(long, value_enum, default_value_t = SamplerArg::Raster)]
+    pub sampler: SamplerArg,
 }
 
 #[derive(clap::Args, Debug)]

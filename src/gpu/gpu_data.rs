@@ -70,10 +70,19 @@ const _: () = assert!(size_of::<SlicingUniforms>() == 16);
 pub struct ShellUniforms {
     /// Global index of the shell's first slice.
     pub first_slice: u32,
-    /// Zero: pads the struct to the 16 bytes of a uniform binding.
-    pub _pad: [u32; 3],
+    /// Zero: aligns `faces`.
+    pub _pad: u32,
+    /// Compute sampler: the shell's tets drawn by their faces, `(start, count)` in the active
+    /// list.
+    pub faces: [u32; 2],
+    /// Compute sampler: the shell's near-plane tets, `(start, count)` in the active list.
+    pub near: [u32; 2],
+    /// Zero: aligns `tiles`.
+    pub _pad1: [u32; 2],
+    /// Compute sampler: the screen tiles of the shell's rectangle, `[x0, y0, x1, y1)`.
+    pub tiles: [u32; 4],
 }
-const _: () = assert!(size_of::<ShellUniforms>() == 16);
+const _: () = assert!(size_of::<ShellUniforms>() == 48);
 
 /// What the assembly stage writes once per tet and frame and the raster stage reads (WGSL
 /// `TetRecord`, 144 bytes).

@@ -1,8 +1,10 @@
 //! The shader registry: WGSL sources, one file per stage in `shaders/`, composed at load time:
 //! `shared.wgsl` (the view binding, structs and helpers) in front of each stage,
-//! `shells_shared.wgsl` (the shells' own uniforms) in front of the shells stages, `raster.wgsl`
-//! (the volume raster stages' varyings) in front of the shells and cellproj raster stages, plus
-//! a small generated prelude where a stage depends on a pipeline variant. [`registry`] lists every module and
+//! `shells_shared.wgsl` (the shells' own uniforms) in front of the shells stages,
+//! `shells_span.wgsl` (the slice sampling) and `shells_tf.wgsl` (the TF and the composite) in
+//! front of the stages of both shells samplers that use them, `raster.wgsl` (the volume raster
+//! stages' varyings) in front of the shells and cellproj raster stages, plus a small generated
+//! prelude where a stage depends on a pipeline variant. [`registry`] lists every module and
 //! variant the renderers load; `tests/shaders.rs` parses and validates each with naga.
 
 /// Structs mirroring [`crate::gpu::gpu_data`], the view uniform binding, the pixel ray.
@@ -19,8 +21,12 @@ const ASSEMBLE: &str = include_str!("../../shaders/assemble.wgsl");
 /// The shells mode's own uniforms (slicing, per-shell constants), in front of its raster and
 /// composite stages.
 pub const SHELLS_SHARED: &str = include_str!("../../shaders/shells_shared.wgsl");
+const SHELLS_SPAN: &str = include_str!("../../shaders/shells_span.wgsl");
+const SHELLS_TF: &str = include_str!("../../shaders/shells_tf.wgsl");
 const SHELLS_RASTER: &str = include_str!("../../shaders/shells_raster.wgsl");
 const SHELLS_COMPOSITE: &str = include_str!("../../shaders/shells_composite.wgsl");
+const SHELLS_TILES: &str = include_str!("../../shaders/shells_tiles.wgsl");
+const SHELLS_FINE: &str = include_str!("../../shaders/shells_fine.wgsl");
 const SHELLS_MARK: &str = include_str!("../../shaders/shells_mark.wgsl");
 /// Declarations the volume raster stages share (shells, cellproj).
 pub(crate) const RASTER: &str = include_str!("../../shaders/raster.wgsl");
@@ -115,7 +121,7 @@ pub fn shells_raster(targets: u32) -> String {
          const TARGETS: u32 = {targets}u;\n\
          struct SliceOut {{\n{fields}}}\n\
          fn slice_out(v: array<vec4<f32>, TARGETS>) -> SliceOut {{\n    return SliceOut({});\n}}\n\
-         {SHELLS_RASTER}",
+         {SHELLS_SPAN}\n{SHELLS_RASTER}",
         values.join(", ")
     )
 }
@@ -135,7 +141,21 @@ pub fn shells_composite(targets: u32, tf_points: u32) -> String {
     let loads: Vec<String> = (0..targets)
         .map(|i| format!("textureLoad(slices, xy, {i}, 0)"))
         .collect();
-    let tf_eval = if (1..=UNROLLED_TF_POINTS).contains(&tf_points) {
+    let tf_eval = tf_eval(tf_points);
+    format!(
+        "{SHARED}\n{SHELLS_SHARED}\n// Generated: the composite variant reading {targets} layers, TF of {tf_points} \
+         points.\nconst TARGETS: u32 = {targets}u;\n\
+         fn load_layers(xy: vec2<i32>) -> array<vec4<f32>, TARGETS> {{\n    \
+         return array<vec4<f32>, TARGETS>({});\n}}\n{tf_eval}{SHELLS_TF}\n{SHELLS_COMPOSITE}",
+        loads.join(", ")
+    )
+}
+
+/// `tf_eval(u)` for a transfer function of `tf_points` control points: its segments walked
+/// with constant indices when `tf_points <= UNROLLED_TF_POINTS` (dynamic indices make every
+/// lane gather the control points), else a loop over `tf.count` points.
+fn tf_eval(tf_points: u32) -> String {
+    if (1..=UNROLLED_TF_POINTS).contains(&tf_points) {
         let steps: String = (0..tf_points - 1)
             .map(|k| format!("    out = tf_segment(out, u, {k}u);\n"))
             .collect();
@@ -150,13 +170,36 @@ pub fn shells_composite(targets: u32, tf_points: u32) -> String {
          out = tf_segment(out, u, k);\n    }\n    \
          return tf_last(out, u, tf.count - 1u);\n}\n"
             .to_owned()
-    };
+    }
+}
+
+/// Screen tile side of the compute sampler: a tile is one workgroup of the fine stage, one
+/// thread per pixel. Measured on lavapipe (2 cores, blunt fin 512x512, medians of 5 warm
+/// frames, A-B-B-A): 8 pixels 501-506 ms, 4 pixels 533-536 ms, 16 pixels 1350-1520 ms (each
+/// pixel walks its whole tile's list, and small tets' boxes cover a larger share of a small
+/// tile).
+pub const SHELLS_TILE: u32 = 8;
+
+/// The compute sampler's coarse stage (entry points `count`, `scan`, `scatter`), binning a
+/// shell's tets to tiles of [`SHELLS_TILE`] pixels.
+pub fn shells_tiles() -> String {
     format!(
-        "{SHARED}\n{SHELLS_SHARED}\n// Generated: the composite variant reading {targets} layers, TF of {tf_points} \
-         points.\nconst TARGETS: u32 = {targets}u;\n\
-         fn load_layers(xy: vec2<i32>) -> array<vec4<f32>, TARGETS> {{\n    \
-         return array<vec4<f32>, TARGETS>({});\n}}\n{tf_eval}{SHELLS_COMPOSITE}",
-        loads.join(", ")
+        "{SHARED}\n{SHELLS_SHARED}\n// Generated: the tile side in pixels.\n\
+         const TILE: u32 = {SHELLS_TILE}u;\n{SHELLS_TILES}"
+    )
+}
+
+/// The compute sampler's fine stage (entry point `main`) sampling `4 * targets` slices per
+/// shell (`targets` in 1..=[`MAX_TARGETS`]), compositing with a transfer function of
+/// `tf_points` control points as [`shells_composite`] does.
+pub fn shells_fine(targets: u32, tf_points: u32) -> String {
+    let targets = targets.clamp(1, MAX_TARGETS);
+    format!(
+        "{SHARED}\n{SHELLS_SHARED}\n// Generated: the fine variant sampling {targets} vec4 of \
+         slices, TF of {tf_points} points, tiles of {SHELLS_TILE} pixels.\n\
+         const TILE: u32 = {SHELLS_TILE}u;\nconst TARGETS: u32 = {targets}u;\n{}\
+         {SHELLS_SPAN}\n{SHELLS_TF}\n{SHELLS_FINE}",
+        tf_eval(tf_points)
     )
 }
 
@@ -195,6 +238,11 @@ pub fn registry() -> Vec<(String, String, &'static [&'static str])> {
             shells_mark(),
             &["vs_mark", "fs_mark", "tiles"],
         ),
+        (
+            "shells_tiles".into(),
+            shells_tiles(),
+            &["count", "scan", "scatter"],
+        ),
         ("iso_raster".into(), iso_raster(), &["vs_faces", "fs_iso"]),
         ("iso_gradients".into(), iso_gradients(), &["main"]),
         (
@@ -215,6 +263,8 @@ pub fn registry() -> Vec<(String, String, &'static [&'static str])> {
             let name = format!("shells_composite ({targets} layers, {tf_points} TF points)");
             let entries = ["vs_fullscreen", "fs_composite"].as_slice();
             out.push((name, shells_composite(targets, tf_points), entries));
+            let name = format!("shells_fine ({targets} vec4 of slices, {tf_points} TF points)");
+            out.push((name, shells_fine(targets, tf_points), ["main"].as_slice()));
         }
     }
     out

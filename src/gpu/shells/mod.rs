@@ -23,6 +23,14 @@
 //! 5. readback (`gpu/frame.rs`): the accumulation target, the degenerate count, the
 //!    occlusion queries and the GPU timestamps of every pass.
 //!
+//! With [`Sampler::Compute`] stages 4. and 5. run in compute instead (`compute.rs`): per drawn
+//! shell, `tiles.rs` bins its tets to 8 x 8 pixel tiles (`shaders/shells_tiles.wgsl`) and
+//! `fine.rs` runs one workgroup per tile that samples the shell's slices of each unfinished
+//! pixel, composites them and blends them under the pixel's accumulated colour
+//! (`shaders/shells_fine.wgsl`); finished tiles are skipped. Both samplers share the slice
+//! sampling (`shaders/shells_span.wgsl`) and the composite (`shaders/shells_tf.wgsl`), so they
+//! take the same samples.
+//!
 //! Pipelines (`pipelines.rs`), targets (`targets.rs`) and the slice configuration
 //! (`config.rs`) have files of their own.
 //!
@@ -45,13 +53,16 @@
 pub(crate) mod adaptive;
 pub(crate) mod binning;
 mod composite;
+mod compute;
 mod config;
+mod fine;
 mod pipelines;
 mod plan;
 mod raster;
 pub mod skips;
 mod targets;
 mod termination;
+mod tiles;
 pub mod twin;
 mod upload;
 
@@ -93,6 +104,22 @@ pub enum SliceFormat {
     Float16,
 }
 
+/// What samples a shell's slices: the paper's rasterizer or compute workgroups on screen tiles.
+/// Both take the same samples and composite them the same way; their pictures agree to
+/// rounding.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Sampler {
+    /// Front faces rasterized per shell, each fragment writing its slices into colour targets
+    /// under MAX blending, then a composite pass (`raster.rs`, `composite.rs`).
+    #[default]
+    Raster,
+    /// Per shell, its tets binned to 8 x 8 pixel tiles and one workgroup per tile sampling
+    /// and compositing its pixels (`tiles.rs`, `fine.rs`). Meshes of one record chunk only
+    /// (about 932k tets on lavapipe); larger ones are an error naming the raster sampler. Its
+    /// slices and accumulation stay in f32 whatever [`ShellSettings::format`] says.
+    Compute,
+}
+
 /// Settings of the shells renderer.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ShellSettings {
@@ -116,6 +143,8 @@ pub struct ShellSettings {
     pub format: SliceFormat,
     /// Work the renderer skips where a scene does not need it (all on by default).
     pub skips: Skips,
+    /// What samples the slices (default [`Sampler::Raster`]).
+    pub sampler: Sampler,
 }
 
 impl Default for ShellSettings {
@@ -129,6 +158,7 @@ impl Default for ShellSettings {
             epsilon: 1e-4,
             format: SliceFormat::Auto,
             skips: Skips::ALL,
+            sampler: Sampler::Raster,
         }
     }
 }
@@ -190,6 +220,8 @@ pub struct ShellsRenderer {
     shell_buf: wgpu::Buffer,
     tf_buf: wgpu::Buffer,
     targets: Option<Targets>,
+    /// The compute sampler, with [`Sampler::Compute`].
+    compute: Option<compute::ComputeSampler>,
     /// The transfer function of the last frame, the scalars' version, and its transparent
     /// tets.
     transparent: Option<(TransferFunction, u64, Vec<bool>)>,
@@ -212,6 +244,8 @@ impl ShellsRenderer {
         let records = mesh.tet_array("shells tet records", chunking, tet_count, RECORD_BYTES)?;
         let ert = (settings.skips.early_termination).then_some(settings.skips.ert_threshold);
         let pipelines = Pipelines::new(&device, config.format, ert);
+        let compute = (settings.sampler == Sampler::Compute)
+            .then(|| compute::ComputeSampler::new(&device, ert));
         let view_buf = uniform_buffer(&device, "shells view", size_of::<ViewUniforms>());
         let slicing_buf = uniform_buffer(&device, "shells slicing", size_of::<SlicingUniforms>());
         let assembly = AssemblyStage::new(&device);
@@ -270,6 +304,7 @@ impl ShellsRenderer {
             shell_buf,
             tf_buf,
             targets: None,
+            compute,
             transparent: None,
         })
     }
@@ -390,6 +425,28 @@ struct Draws {
 }
 
 impl ShellsRenderer {
+    /// Stages 3.-6. with the raster sampler: the frame's image, its stage times and counters
+    /// added to `timings`.
+    fn render_raster(
+        &mut self,
+        mut frame: ShellFrame,
+        tf: &TransferFunction,
+        timings: &mut Timings,
+    ) -> Result<Image, RenderError> {
+        let [width, height] = frame.plan.view.size;
+        self.ensure_targets(width, height)?;
+        let (stats, draws, term) = self.draw(&mut frame, tf)?;
+        let t_read = Instant::now();
+        let targets = (self.targets.as_ref())
+            .ok_or_else(|| settings_error("internal: targets missing after ensure_targets"))?;
+        let mut image = Image::new(targets.width, targets.height);
+        image.pixels = targets.readback.read(&self.device)?;
+        let readback = ms_since(t_read);
+        self.report(timings, &stats, (&frame, &draws, &term), &image);
+        timings.stage("readback", readback);
+        Ok(image)
+    }
+
     /// Stages 3.-5.: the assembly, then per drawn shell its raster, composite and early
     /// termination passes; runs them and reads the statistics back.
     fn draw(
@@ -509,7 +566,7 @@ impl ShellsRenderer {
         })
     }
 
-    /// The frame's GPU stage times and counters.
+    /// The raster sampler's GPU stage times and counters.
     fn report(
         &self,
         timings: &mut Timings,
@@ -523,12 +580,32 @@ impl ShellsRenderer {
         } else {
             &["assembly", "raster", "composite"]
         };
+        self.report_frame(timings, stats, f, stages);
+        timings.count("tet-shell instances", draws.instances);
+        timings.count("triangles", draws.triangles);
+        if let Some(fragments) = stats.fragments {
+            timings.count("fragments (occlusion query)", fragments);
+        }
+        if ert {
+            report_termination(timings, term, image, self.settings.skips.ert_threshold);
+        }
+    }
+
+    /// The stage times of `stages` (GPU ones first) and the counters both samplers have.
+    fn report_frame(
+        &self,
+        timings: &mut Timings,
+        stats: &FrameStats,
+        f: &ShellFrame,
+        stages: &[&'static str],
+    ) {
         for &stage in stages {
             timings.stage(stage, stats.stage(stage));
         }
         timings.clock = if stats.gpu_clock {
-            "GPU timestamps for assembly, raster, composite; wall clock for binning, upload, \
-             readback (map + convert, after the GPU drained) and total"
+            "GPU timestamps for assembly, the samplers' passes (raster, composite, termination \
+             or tiles, fine); wall clock for binning, upload, readback (map + convert, after \
+             the GPU drained) and total"
         } else {
             "wall clock, GPU drained after each stage"
         };
@@ -544,16 +621,8 @@ impl ShellsRenderer {
         timings.count("slices per shell", f.n as u64);
         timings.count("shells", f.plan.shells(f.n));
         timings.count("shells drawn", f.drawn.len() as u64);
-        timings.count("tet-shell instances", draws.instances);
-        timings.count("triangles", draws.triangles);
         timings.count("near-plane tets", bin.near);
         timings.count("degenerate tets", stats.degenerate as u64);
-        if let Some(fragments) = stats.fragments {
-            timings.count("fragments (occlusion query)", fragments);
-        }
-        if ert {
-            report_termination(timings, term, image, self.settings.skips.ert_threshold);
-        }
     }
 }
 
@@ -650,26 +719,34 @@ impl Renderer for ShellsRenderer {
         let drawn = self.upload(&m, &plan, tf, (n, &bin))?;
         timings.stage("upload", ms_since(t1));
 
-        // 3.-5. Assembly, then per drawn shell: raster, composite, early termination.
-        self.ensure_targets(camera.width, camera.height)?;
-        let mut frame = ShellFrame {
+        // 3.-6. Assembly, per drawn shell its sampling and composite, readback.
+        let frame = ShellFrame {
             plan,
             n,
             bins,
             bin,
             drawn,
         };
-        let (stats, draws, term) = self.draw(&mut frame, tf)?;
-
-        // 6. Readback.
-        let t_read = Instant::now();
-        let targets = (self.targets.as_ref())
-            .ok_or_else(|| settings_error("internal: targets missing after ensure_targets"))?;
-        let mut image = Image::new(targets.width, targets.height);
-        image.pixels = targets.readback.read(&self.device)?;
-        let readback = ms_since(t_read);
-        self.report(&mut timings, &stats, (&frame, &draws, &term), &image);
-        timings.stage("readback", readback);
+        let image = match self.settings.sampler {
+            Sampler::Raster => self.render_raster(frame, tf, &mut timings)?,
+            Sampler::Compute => {
+                let c = self.draw_compute(&frame, tf)?;
+                self.report_frame(
+                    &mut timings,
+                    &c.stats,
+                    &frame,
+                    &["assembly", "tiles", "fine"],
+                );
+                timings.stage("readback", c.readback);
+                timings.count("frame runs (tile lists grown)", c.runs);
+                if self.settings.skips.early_termination {
+                    let threshold = self.settings.skips.ert_threshold;
+                    let finished = c.image.pixels.par_iter().filter(|p| p[3] >= threshold);
+                    timings.count("pixels finished", finished.count() as u64);
+                }
+                c.image
+            }
+        };
         timings.stage("total", ms_since(start));
         Ok(Frame { image, timings })
     }
@@ -696,7 +773,11 @@ impl Renderer for ShellsRenderer {
         .map(|b| b.size())
         .sum::<u64>();
         let texel = self.format.block_copy_size(None).unwrap_or(16) as u64;
-        let targets = (self.targets.as_ref()).map_or(0, |t| t.size(self.slice_layers, texel));
+        let targets = (self.targets.as_ref()).map_or(0, |t| t.size(self.slice_layers, texel))
+            + self
+                .compute
+                .as_ref()
+                .map_or(0, compute::ComputeSampler::size);
         let frame = self.frame.size() + self.records.size();
         self.mesh.gpu_memory() + frame + buffers + targets
     }

@@ -17,6 +17,7 @@ use crate::tf::TransferFunction;
 use super::ShellsRenderer;
 use super::binning::{Binning, EVERYWHERE, ShellRange};
 use super::plan::FramePlan;
+use super::tiles::tile_rect;
 
 /// A shell to draw: its index and its ranges of the active list.
 pub(super) type DrawnShell = (u32, ShellRange);
@@ -49,7 +50,7 @@ impl ShellsRenderer {
         self.queue
             .write_buffer(&self.tf_buf, 0, bytemuck::bytes_of(&points));
         let drawn = self.drawn_shells(bin);
-        self.upload_shells(&drawn, n);
+        self.upload_shells(&drawn, n, plan);
         self.upload_instances(bin, m.tets.len() as u32)?;
         Ok(drawn)
     }
@@ -69,13 +70,17 @@ impl ShellsRenderer {
             .collect()
     }
 
-    /// Each drawn shell's first slice, at the dynamic-offset stride.
-    fn upload_shells(&mut self, drawn: &[DrawnShell], n: u32) {
+    /// Each drawn shell's first slice and, for the compute sampler, its ranges of the active
+    /// list and the tiles of its rectangle, at the dynamic-offset stride.
+    fn upload_shells(&mut self, drawn: &[DrawnShell], n: u32, plan: &FramePlan) {
         let stride = self.shell_stride as usize;
         let mut shell_data = vec![0u8; stride * drawn.len().max(1)];
-        for (i, (s, _)) in drawn.iter().enumerate() {
+        for (i, (s, r)) in drawn.iter().enumerate() {
             let u = ShellUniforms {
                 first_slice: s * n,
+                faces: [r.faces.start, r.faces.len() as u32],
+                near: [r.near.start, r.near.len() as u32],
+                tiles: tile_rect(plan.scissor(r.screen)),
                 ..Zeroable::zeroed()
             };
             shell_data[i * stride..i * stride + size_of::<ShellUniforms>()]

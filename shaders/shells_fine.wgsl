@@ -1,0 +1,89 @@
+// Compute sampler, fine stage (one dispatch per shell): one workgroup per tile of the shell's
+// rectangle, one thread per pixel. Each unfinished pixel samples the shell's slices in every
+// tet of its tile's list (shells_span.wgsl, the raster sampler's arithmetic; where the inside
+// tolerance lets two tets claim a sample, the larger value is kept, as the raster's MAX blend
+// does), composites them (shells_tf.wgsl) and blends the result under its accumulated colour.
+// A pixel whose alpha reached `threshold` is finished; a tile whose pixels are all finished
+// is flagged and skipped by the later shells. The generated prelude defines TILE, TARGETS and
+// tf_eval().
+
+// Accumulated alpha at which a pixel is finished (pipeline-overridable; above 1: never).
+override threshold: f32 = 0.99999;
+
+@group(0) @binding(1) var<uniform> shell: Shell;
+@group(0) @binding(3) var<storage, read> records: array<TetRecord>;
+@group(0) @binding(7) var<storage, read_write> offsets: array<u32>;
+// Per listed tet, its id and its pixel box within the tile (shells_tiles.wgsl).
+@group(0) @binding(8) var<storage, read_write> lists: array<vec2<u32>>;
+// Per pixel (row-major), the premultiplied colour and alpha accumulated so far.
+@group(0) @binding(10) var<storage, read_write> accum: array<vec4<f32>>;
+// Per tile, nonzero once all its pixels are finished.
+@group(0) @binding(11) var<storage, read_write> finished: array<u32>;
+
+var<workgroup> tile_finished: u32;
+var<workgroup> live: atomic<u32>;
+
+// The shell's slices of the pixel whose centre is `xy` (tile-local pixel `local`), from the
+// tets listed in [start, end) whose pixel box holds it.
+fn sample_tets(xy: vec2<f32>, local: vec2<u32>, start: u32, end: u32) -> array<vec4<f32>, TARGETS> {
+    let d = pixel_ray(xy);
+    let at = vec4<u32>(local.x, local.x, local.y, local.y);
+    var v: array<vec4<f32>, TARGETS>;
+    for (var i = start; i < end; i++) {
+        let item = lists[i];
+        let b = (vec4<u32>(item.y) >> vec4<u32>(0u, 8u, 16u, 24u)) & vec4<u32>(255u);
+        if any((at < b) != vec4<bool>(false, true, false, true)) {
+            continue;
+        }
+        let r = records[item.x];
+        let span = tet_span(SpanTet(r.grad_x, r.grad_y, r.grad_z, r.lambda_eye, r.scalar), d);
+        if span.x <= span.y {
+            let values = slice_values(span);
+            for (var k = 0u; k < TARGETS; k++) {
+                v[k] = max(v[k], values[k]);
+            }
+        }
+    }
+    return v;
+}
+
+@compute @workgroup_size(TILE, TILE)
+fn main(
+    @builtin(workgroup_id) group: vec3<u32>,
+    @builtin(local_invocation_id) local: vec3<u32>,
+    @builtin(local_invocation_index) index: u32,
+) {
+    let size = vec2<u32>(view.size);
+    let tile_xy = shell.tiles.xy + group.xy;
+    let tile = tile_xy.y * ((size.x + TILE - 1u) / TILE) + tile_xy.x;
+    if index == 0u {
+        tile_finished = finished[tile];
+        atomicStore(&live, 0u);
+    }
+    if workgroupUniformLoad(&tile_finished) != 0u {
+        return;
+    }
+    let pixel = tile_xy * TILE + local.xy;
+    let inside = all(pixel < size);
+    let p = pixel.y * size.x + pixel.x;
+    var dst = vec4<f32>(0.0);
+    if inside {
+        dst = accum[p];
+    }
+    if inside && dst.a < threshold {
+        let capacity = arrayLength(&lists);
+        let start = min(offsets[tile], capacity);
+        let end = min(offsets[tile + 1u], capacity);
+        let src = composite_shell(sample_tets(vec2<f32>(pixel) + 0.5, local.xy, start, end));
+        // The raster sampler's "under" blend: dst = src (1 - dst.a) + dst.
+        dst += src * (1.0 - dst.a);
+        accum[p] = dst;
+        if dst.a < threshold {
+            atomicAdd(&live, 1u);
+        }
+    }
+    workgroupBarrier();
+    if index == 0u && atomicLoad(&live) == 0u {
+        finished[tile] = 1u;
+    }
+}
