@@ -4,7 +4,8 @@
 use std::time::Instant;
 
 use crate::bench::{
-    self, BenchError, Environment, Options, Plan, QUICK_SCENES, cache::ReferenceCache, plot,
+    self, BenchError, Environment, ON_REQUEST_SCENES, Options, Plan, QUICK_SCENES,
+    cache::ReferenceCache, plot,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 use tetvr::gpu::{AdapterChoice, GpuContext, GpuError};
@@ -47,7 +48,11 @@ pub fn bench(args: BenchArgs) -> Result<(), CliError> {
     }
     let wanted = |name: &str| {
         if args.scenes.is_empty() {
-            !args.quick || QUICK_SCENES.contains(&name)
+            if args.quick {
+                QUICK_SCENES.contains(&name)
+            } else {
+                !ON_REQUEST_SCENES.contains(&name)
+            }
         } else {
             args.scenes.iter().any(|s| s == name)
         }

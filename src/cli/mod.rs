@@ -307,8 +307,8 @@ pub struct BenchArgs {
     /// Image size (default 128x128 with --quick, else 256x256).
     #[arg(long, value_parser = args::parse_size)]
     pub size: Option<(u32, u32)>,
-    /// Scenes to run, comma separated (default: all, or the quick ones with --quick); an
-    /// unknown name lists them.
+    /// Scenes to run, comma separated (default: all but grid-35m, which runs when named; or
+    /// the quick ones with --quick); an unknown name lists them.
     #[arg(long, value_delimiter = ',')]
     pub scenes: Vec<String>,
     /// Modes to run, comma separated (default: all).
