@@ -1,0 +1,109 @@
+#!/usr/bin/env python3
+"""Puts `tetvr bench` results into the README's tables.
+
+Each table sits between two markers that say where its figures come from:
+
+    <!-- bench-table csv=docs/bench/h200/real-512/bench.csv,docs/bench/h200/grids-1024/bench.csv
+         view=outside bytes=raycast:partial lists cols=shells:samples 512|raycast:partial lists -->
+    ...generated rows...
+    <!-- bench-table end -->
+
+One row per scene (and view, where `view=` is not given) in the CSVs' order, one column per
+`mode:setting` of `cols` (separated by `|`), each cell "median ms, PSNR dB" of that bench row,
+then, with `bytes=mode:setting`, that row's GPU bytes per tet (its `bytes_per_tet` column where
+the mode reports one, else GPU memory over tets). A caption line under the table names the adapter,
+machine, date, runs and image sizes, all read from the CSVs. Fails when a CSV is missing or a
+column matches no row at all; a scene without a row for a column shows "–".
+"""
+import csv
+import pathlib
+import re
+import sys
+
+root = pathlib.Path(__file__).resolve().parent.parent
+readme = root / "README.md"
+marker = re.compile(r"<!-- bench-table (csv=.*?) -->\n(.*?)<!-- bench-table end -->", re.S)
+
+
+def spec_of(text):
+    """key=value pairs (csv, view, bytes, cols); a value runs to the next " key=" (values hold
+    spaces: "raycast:partial lists")."""
+    text = " ".join(text.split())
+    spec = dict(re.findall(r"(\w+)=(.*?)(?= \w+=|$)", text))
+    spec["cols"] = [c.split(":", 1) for c in spec["cols"].split("|")]
+    return spec
+
+
+def rows_of(paths):
+    rows = []
+    for path in paths.split(","):
+        with open(root / path, newline="") as f:
+            rows += list(csv.DictReader(f))
+    return rows
+
+
+def cell(row):
+    if row is None:
+        return "–"
+    ms = float(row["median_ms"])
+    ms = f"{ms:.3g}" if ms < 100 else f"{ms:.0f}"
+    psnr = row["psnr_db"]
+    return f"{ms} ms, {float(psnr):.1f} dB" if psnr not in ("", "inf") else f"{ms} ms"
+
+
+def bytes_per_tet(row, tets):
+    if row is None:
+        return "–"
+    if row.get("bytes_per_tet"):
+        return row["bytes_per_tet"]
+    return f"{int(row['gpu_bytes']) / int(tets):.0f}" if row["gpu_bytes"] else "–"
+
+
+def table(spec):
+    rows = rows_of(spec["csv"])
+    view = spec.get("view")
+    if view:
+        rows = [r for r in rows if r["view"] == view]
+    keys = []
+    for r in rows:
+        key = (r["scene"], r["view"], r["tets"], f"{r['width']}x{r['height']}")
+        if key not in keys:
+            keys.append(key)
+    found = {(r["scene"], r["view"], r["mode"], r["setting"]): r for r in rows}
+    for mode, setting in spec["cols"]:
+        if not any(r["mode"] == mode and r["setting"] == setting for r in rows):
+            sys.exit(f"bench-table: no row for {mode}:{setting} in {spec['csv']}")
+    per_tet_of = spec["bytes"].split(":", 1) if "bytes" in spec else None
+    head = ["scene", "tets", "size"] + ([] if view else ["view"])
+    head += [f"{m} {s}" for m, s in spec["cols"]]
+    head += [f"{per_tet_of[0]} {per_tet_of[1]}: bytes per tet"] if per_tet_of else []
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for scene, v, tets, size in keys:
+        cells = [scene, f"{int(tets):,}", size] + ([] if view else [v])
+        cells += [cell(found.get((scene, v, m, s))) for m, s in spec["cols"]]
+        if per_tet_of:
+            cells.append(bytes_per_tet(found.get((scene, v, *per_tet_of)), tets))
+        lines.append("| " + " | ".join(cells) + " |")
+    first = rows[0]
+    runs = sorted({r["runs"] for r in rows})
+    dates = sorted({r["date"] for r in rows})
+    lines.append("")
+    lines.append(
+        f"Medians of {'/'.join(runs)} runs; {first['adapter']}; {first['machine']}; "
+        f"{', '.join(dates)}; from `{spec['csv']}`."
+    )
+    return "\n".join(lines) + "\n"
+
+
+text = readme.read_text()
+count = 0
+
+
+def replace(m):
+    global count
+    count += 1
+    return f"<!-- bench-table {m.group(1)} -->\n{table(spec_of(m.group(1)))}<!-- bench-table end -->"
+
+
+readme.write_text(marker.sub(replace, text))
+print(f"README: {count} bench tables")
