@@ -160,7 +160,18 @@ pub fn face_hit(c: [Vec3; 3], p: Vec4, d: Vec3) -> Option<f32> {
     (t > 0.0).then_some(t)
 }
 
-/// The exit of a thin tet whose faces have eye-space corners `faces[f]` (global index order):
+/// Whether the ray moves outward through `entry`, the face it came in by (4: none): the tet
+/// lies behind that face, folded back over the tet the ray left (an inverted tet of the data,
+/// reoriented on load, overlaps its neighbours). Its planes have no exit ahead of the ray; it
+/// is left by its edges ([`exit_by_edges`]: the other face the ray line passes, crossed at or
+/// before `t_in`, so its segment is empty) into the tet beyond that face. WGSL `folded`.
+pub fn folded(pl: &TetPlanes, entry: usize, d: Vec3) -> bool {
+    pl.face
+        .get(entry)
+        .is_some_and(|p| Vec3::from_slice(p).dot(d) > 0.0)
+}
+
+/// The exit of a thin or folded tet whose faces have eye-space corners `faces[f]` (global index order):
 /// the face other than `entry` the ray line passes, one passed strictly inside before one
 /// passed on an edge, at its plane crossing (at least `t_in`); `None` when none passes. WGSL
 /// `exit_by_edges`.
@@ -264,7 +275,7 @@ fn trace(sc: &Scene, tf: &NormalizedTf, d: Vec3, max_steps: u32) -> [f32; 4] {
         }
         steps += 1;
         let pl = &sc.planes[tet as usize];
-        let by_edges = (pl.scalar[..3] == [0.0; 3])
+        let by_edges = (pl.scalar[..3] == [0.0; 3] || folded(pl, entry, d))
             .then(|| exit_by_edges(sc.faces[tet as usize], entry, d, t))
             .flatten();
         let (f, t_out) = by_edges.unwrap_or_else(|| exit(pl, entry, d, t));
