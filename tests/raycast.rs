@@ -522,8 +522,8 @@ fn tiles_run_where_rays_enter_and_layers_follow_reentry() {
 /// reference within the ray caster's bounds.
 #[test]
 fn combustor_and_twisted_combustor_match_reference() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("assets/combustor_subset_tet.vtu");
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/combustor_subset_tet.vtu");
     let mut mesh = tetvr::io::load(&path).expect("the asset loads").mesh;
     let (tf, camera) = default_view(&mesh, 96);
     check("combustor", &mesh, &camera, &tf, BOUNDS);

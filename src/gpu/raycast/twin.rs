@@ -408,6 +408,29 @@ mod tests {
     }
 
     #[test]
+    fn a_folded_tet_is_left_by_its_edges_with_an_empty_segment() {
+        // Tet a (the unit tet) and tet b share face {1, 2, 3} (x + y + z = 3); b's fourth
+        // corner lies on a's side of it, so b is folded back over a. The ray enters a by its
+        // face 3 (z = 2) and leaves it by face 0 at (0.25, 0.25, 2.5), inside the shared face.
+        let p = unit();
+        let q = Vec3::new(0.1, 0.1, 2.5);
+        let b = [p[1], p[2], p[3], q];
+        let d = Vec3::new(0.1, 0.1, 1.0).normalize();
+        let (pa, _) = planes(p, [0, 1, 2, 3], [0.0; 4]);
+        let (pb, thin) = planes(b, [1, 2, 3, 4], [0.0; 4]);
+        assert!(!thin && !folded(&pa, 3, d) && !folded(&pa, 4, d));
+        let (f, t_in) = exit(&pa, 3, d, 2.0);
+        assert_eq!(f, 0);
+        // In b the ray moves outward through the face it came in by (b's face 3).
+        assert!(folded(&pb, 3, d));
+        let faces = std::array::from_fn(|f| sorted_face([1, 2, 3, 4], f).map(|i| b[i]));
+        let (f, t) = exit_by_edges(faces, 3, d, t_in).expect("a face passes");
+        // The other face the line passes, crossed before t_in: an empty segment.
+        assert!(f != 3 && passes(edge_products(faces[f], d)));
+        assert_eq!(t, t_in);
+    }
+
+    #[test]
     fn a_ray_through_a_shared_edge_enters_at_least_one_face() {
         // Two boundary triangles sharing the edge (0, 0, 2)-(1, 1, 2), both facing the eye
         // (outward normal -z); rays exactly on the edge and just off it on either side.
