@@ -151,7 +151,7 @@ fn twin_check(name: &str, mesh: &TetMesh, camera: &Camera, tf: &TransferFunction
 }
 
 /// The twin against the shaders: a real mesh (lox), rays leaving and re-entering (the box with
-/// a hole), and a grid with flat tets (thin, left by their edges) seen from inside it.
+/// a hole), rays through folded tets (the combustor), and a grid with flat tets (thin, left by their edges) seen from inside it.
 #[test]
 fn twin_matches_the_shaders() {
     let mesh = lox();
@@ -160,6 +160,12 @@ fn twin_matches_the_shaders() {
     let mesh = generate::shapes::box_with_hole(5_000, Field::Gaussians).unwrap();
     let (tf, camera) = default_view(&mesh, 64);
     twin_check("hole", &mesh, &camera, &tf);
+    // At 96x96 three rays step into the combustor's folded tets (left by their edges).
+    let mesh = tetvr::io::load(&common::asset("combustor_subset_tet.vtu"))
+        .expect("the asset loads")
+        .mesh;
+    let (tf, camera) = default_view(&mesh, 96);
+    twin_check("combustor", &mesh, &camera, &tf);
     let grid = gaussians(6);
     let mut tets = grid.tets().to_vec();
     // Vertices of the grid are numbered x fastest over 7 x 7 x 7: two cube faces' corners.
