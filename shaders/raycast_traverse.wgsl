@@ -55,7 +55,7 @@ fn exit(pl: TetPlanes, entry: u32, d: vec3<f32>, t_in: f32) -> vec2<f32> {
 }
 
 // The exit of a thin tet (its scalar gradient exactly 0, `tet_planes`), whose planes' outward
-// directions are rounding: the face other than `entry` that the ray line passes
+// directions are rounding, or of a folded one (`folded`): the face other than `entry` that the ray line passes
 // through, from the edges' Pluecker products (Platis & Theoharis 2003), which are computed
 // the same way in every tet sharing an edge; a face passed strictly inside before one passed
 // on an edge. It leaves at the face's plane crossing (at least t_in; t_in where the ray runs
@@ -80,6 +80,15 @@ fn exit_by_edges(ids: vec4<u32>, entry: u32, d: vec3<f32>, t_in: f32) -> vec2<f3
         return vec2<f32>(f32(best), t_in);
     }
     return vec2<f32>(f32(best), max(t_in, crossing(plane, den)));
+}
+
+// Whether the ray moves outward through `entry`, the face it came in by (NO_FACE: none): the
+// tet lies behind that face, folded back over the tet the ray left (an inverted tet of the
+// data, reoriented on load, overlaps its neighbours). Its planes have no exit ahead of the ray;
+// it is left by its edges (exit_by_edges: the other face the ray line passes, crossed at or
+// before t_in, so its segment is empty) into the tet beyond that face. twin::folded.
+fn folded(pl: TetPlanes, entry: u32, d: vec3<f32>) -> bool {
+    return entry < NO_FACE && dot(pl.face[entry].xyz, d) > 0.0;
 }
 
 // The normalized scalar at t along d, clamped to [0, 1].
@@ -138,7 +147,7 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
         let l = link(tet);
         let pl = tet_planes(l.tet);
         var out = vec2<f32>(f32(NO_FACE), t);
-        if all(pl.scalar.xyz == vec3<f32>(0.0)) {
+        if all(pl.scalar.xyz == vec3<f32>(0.0)) || folded(pl, entry, d) {
             out = exit_by_edges(l.tet, entry, d, t);
         }
         if u32(out.x) == NO_FACE {

@@ -244,3 +244,14 @@ fn bluntfin_outside_and_eye_inside() {
     let got = check("bluntfin-inside", &mesh, &inside, &tf, BOUNDS);
     assert_eq!(counter(&got, "eye in a tet"), 1);
 }
+
+/// The combustor crop: its 2 inverted tets (reoriented on load) fold back over their
+/// neighbours, so rays step into them through a face they leave by (left by their edges).
+#[test]
+fn combustor_with_folded_tets_matches_reference() {
+    let mesh = tetvr::io::load(&common::asset("combustor_subset_tet.vtu"))
+        .expect("the asset loads")
+        .mesh;
+    let (tf, camera) = default_view(&mesh, 96);
+    check("combustor", &mesh, &camera, &tf, BOUNDS);
+}

@@ -128,9 +128,11 @@ fn walk(sc: &Scene, tf: &SegmentTf, d: Vec3, hits: &[(f32, u32)]) -> ([f32; 4], 
 }
 
 /// The face the ray leaves tet `tet` by and where: by its edges when it is thin (gradient
-/// exactly 0), else (or when no face passes) by its planes.
+/// exactly 0) or folded behind the face the ray came in by ([`twin::folded`]), else (or when
+/// no face passes) by its planes.
 fn exit(sc: &Scene, here: &Tet, tet: u32, entry: usize, d: Vec3, t: f32) -> (usize, f32) {
-    let by_edges = (here.planes.scalar[..3] == [0.0; 3])
+    let thin = here.planes.scalar[..3] == [0.0; 3];
+    let by_edges = (thin || twin::folded(&here.planes, entry, d))
         .then(|| {
             let ids = sc.ids[tet as usize];
             let faces = std::array::from_fn(|f| face_corners(sc.eye, ids, f));

@@ -50,8 +50,11 @@
 //! and the walk is topological, so a ray cannot fall through a shared face whatever rounding
 //! does at edges and vertices. A thin tet (slivers, caps, needles, flat tets: its planes'
 //! outward directions are rounding) is left by the face its edges' Pluecker products say the
-//! ray passes (Platis & Theoharis 2003), computed alike in every tet sharing an edge. CPU twin
-//! of the arithmetic: [`twin`].
+//! ray passes (Platis & Theoharis 2003), computed alike in every tet sharing an edge; so is a
+//! folded tet (an inverted tet of the data, reoriented on load, lies on its neighbours' side of
+//! their shared faces: the ray moves outward through the face it came in by, [`twin::folded`]),
+//! with an empty segment, into the tet beyond the other face the ray passes. CPU twin of the
+//! arithmetic: [`twin`].
 
 mod frame;
 pub mod links;

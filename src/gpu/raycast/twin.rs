@@ -160,7 +160,18 @@ pub fn face_hit(c: [Vec3; 3], p: Vec4, d: Vec3) -> Option<f32> {
     (t > 0.0).then_some(t)
 }
 
-/// The exit of a thin tet whose faces have eye-space corners `faces[f]` (global index order):
+/// Whether the ray moves outward through `entry`, the face it came in by (4: none): the tet
+/// lies behind that face, folded back over the tet the ray left (an inverted tet of the data,
+/// reoriented on load, overlaps its neighbours). Its planes have no exit ahead of the ray; it
+/// is left by its edges ([`exit_by_edges`]: the other face the ray line passes, crossed at or
+/// before `t_in`, so its segment is empty) into the tet beyond that face. WGSL `folded`.
+pub fn folded(pl: &TetPlanes, entry: usize, d: Vec3) -> bool {
+    pl.face
+        .get(entry)
+        .is_some_and(|p| Vec3::from_slice(p).dot(d) > 0.0)
+}
+
+/// The exit of a thin or folded tet whose faces have eye-space corners `faces[f]` (global index order):
 /// the face other than `entry` the ray line passes, one passed strictly inside before one
 /// passed on an edge, at its plane crossing (at least `t_in`); `None` when none passes. WGSL
 /// `exit_by_edges`.
@@ -264,7 +275,7 @@ fn trace(sc: &Scene, tf: &NormalizedTf, d: Vec3, max_steps: u32) -> [f32; 4] {
         }
         steps += 1;
         let pl = &sc.planes[tet as usize];
-        let by_edges = (pl.scalar[..3] == [0.0; 3])
+        let by_edges = (pl.scalar[..3] == [0.0; 3] || folded(pl, entry, d))
             .then(|| exit_by_edges(sc.faces[tet as usize], entry, d, t))
             .flatten();
         let (f, t_out) = by_edges.unwrap_or_else(|| exit(pl, entry, d, t));
@@ -394,6 +405,29 @@ mod tests {
         assert_eq!(f, passed[0]);
         // The plane z = 2 is crossed at t = 2 |d| / d.z.
         assert!((t - 2.0 / d.z).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_folded_tet_is_left_by_its_edges_with_an_empty_segment() {
+        // Tet a (the unit tet) and tet b share face {1, 2, 3} (x + y + z = 3); b's fourth
+        // corner lies on a's side of it, so b is folded back over a. The ray enters a by its
+        // face 3 (z = 2) and leaves it by face 0 at (0.25, 0.25, 2.5), inside the shared face.
+        let p = unit();
+        let q = Vec3::new(0.1, 0.1, 2.5);
+        let b = [p[1], p[2], p[3], q];
+        let d = Vec3::new(0.1, 0.1, 1.0).normalize();
+        let (pa, _) = planes(p, [0, 1, 2, 3], [0.0; 4]);
+        let (pb, thin) = planes(b, [1, 2, 3, 4], [0.0; 4]);
+        assert!(!thin && !folded(&pa, 3, d) && !folded(&pa, 4, d));
+        let (f, t_in) = exit(&pa, 3, d, 2.0);
+        assert_eq!(f, 0);
+        // In b the ray moves outward through the face it came in by (b's face 3).
+        assert!(folded(&pb, 3, d));
+        let faces = std::array::from_fn(|f| sorted_face([1, 2, 3, 4], f).map(|i| b[i]));
+        let (f, t) = exit_by_edges(faces, 3, d, t_in).expect("a face passes");
+        // The other face the line passes, crossed before t_in: an empty segment.
+        assert!(f != 3 && passes(edge_products(faces[f], d)));
+        assert_eq!(t, t_in);
     }
 
     #[test]
