@@ -74,8 +74,9 @@ pub enum Mode {
     Iso,
     /// Cell projection on the GPU in a power-sort order (--integrate, --table-size, --sort-check).
     Cellproj,
-    /// Ray casting on compute shaders through face adjacency (Weiler et al. 2003), exact
-    /// segments; rays re-enter non-convex meshes, the eye may be inside.
+    /// Ray casting on compute shaders through face adjacency (Weiler et al. 2003; --integrate
+    /// partial, exact or table; --entry lists or peel); rays re-enter non-convex meshes, the eye
+    /// may be inside.
     Raycast,
     /// The same ray casting on the CPU (f32, every core), no adapter needed (--integrate).
     RaycastCpu,
