@@ -29,7 +29,8 @@ pub enum GpuError {
     #[error(
         "no GPU adapter found{detail}. tetvr needs Vulkan (or Metal/DX12). Without a GPU, install \
          Mesa's software Vulkan driver: `apt-get install mesa-vulkan-drivers libvulkan1` \
-         (Debian/Ubuntu), or render with --mode reference on the CPU"
+         (Debian/Ubuntu), or render on the CPU with --mode raycast-cpu (or the exact \
+         --mode reference)"
     )]
     NoAdapter {
         /// Empty, or why the search was narrowed (`TETVR_ADAPTER=software`).
