@@ -3,7 +3,7 @@
 //! ([`TetLinks`]); and the boundary faces through which rays enter.
 //!
 //! The links are the ray caster's only per-tet data on the GPU (32 bytes a tet), in windows of
-//! one storage binding each ([`chunking`]); every stage binds [`LINK_BINDINGS`] windows and
+//! one storage binding each (`chunking`); every stage binds [`LINK_BINDINGS`] windows and
 //! reads tet `t` from window `t / chunk` (WGSL `link`), so a ray steps into any tet of any
 //! window. On an adapter that binds 4 GiB (NVIDIA's Vulkan drivers), one window holds 134M
 //! tets; 100M tets need 3.2 GB of links, plus the shared vertex buffers (positions 16, scalars 4
