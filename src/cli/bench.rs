@@ -1,6 +1,7 @@
 //! `tetvr bench`: picks scenes and configurations from the arguments, runs them with a
 //! progress bar, and writes the CSV, the skipped list and the plots.
 
+use std::path::Path;
 use std::time::Instant;
 
 use crate::bench::{
@@ -21,54 +22,9 @@ impl From<BenchError> for CliError {
 
 pub fn bench(args: BenchArgs) -> Result<(), CliError> {
     let start = Instant::now();
-    let mut configs = bench::configurations(args.quick);
-    let all_modes = bench::mode_names(&configs);
-    if let Some(m) = args
-        .modes
-        .iter()
-        .find(|m| !configs.iter().any(|c| c.mode == m.as_str()))
-    {
-        return Err(BenchError::UnknownMode(m.clone(), all_modes).into());
-    }
-    if !args.modes.is_empty() {
-        configs.retain(|c| args.modes.iter().any(|m| m == c.mode));
-    }
-    let catalogue = bench::catalogue();
-    let names = catalogue
-        .iter()
-        .map(|s| s.name)
-        .collect::<Vec<_>>()
-        .join(", ");
-    if let Some(s) = args
-        .scenes
-        .iter()
-        .find(|s| !catalogue.iter().any(|c| c.name == s.as_str()))
-    {
-        return Err(BenchError::UnknownScene(s.clone(), names).into());
-    }
-    let wanted = |name: &str| {
-        if args.scenes.is_empty() {
-            if args.quick {
-                QUICK_SCENES.contains(&name)
-            } else {
-                !ON_REQUEST_SCENES.contains(&name)
-            }
-        } else {
-            args.scenes.iter().any(|s| s == name)
-        }
-    };
-    let scenes = catalogue.into_iter().filter(|s| wanted(s.name)).collect();
-
-    let ctx = match GpuContext::new(AdapterChoice::from_env()) {
-        Ok(ctx) => Some(ctx),
-        Err(GpuError::NoAdapter { .. }) => {
-            eprintln!(
-                "note: no GPU adapter (install mesa-vulkan-drivers for a software one); the bench runs the CPU modes only"
-            );
-            None
-        }
-        Err(e) => return Err(e.into()),
-    };
+    let configs = selected_configs(&args)?;
+    let scenes = selected_scenes(&args)?;
+    let ctx = open_gpu()?;
     let adapter = ctx
         .as_ref()
         .map_or_else(|| "no GPU adapter".to_string(), |c| c.summary());
@@ -100,38 +56,7 @@ pub fn bench(args: BenchArgs) -> Result<(), CliError> {
     })?;
     bar.finish_and_clear();
 
-    let csv = bench::csv_path(&args.out);
-    bench::write_csv(&csv, &report.rows, &env)?;
-    let mut written = vec![csv.display().to_string()];
-    let mut pairs: Vec<(&str, &str)> = Vec::new();
-    for r in &report.rows {
-        if !pairs.contains(&(r.scene.as_str(), r.view)) {
-            pairs.push((r.scene.as_str(), r.view));
-        }
-    }
-    for (scene, view) in pairs {
-        let path = args.out.join(format!("pareto-{scene}-{view}.svg"));
-        plot::pareto(&path, &report.rows, scene, view, &env)?;
-        written.push(path.display().to_string());
-    }
-    let path = args.out.join("scaling.svg");
-    plot::scaling(&path, &report.rows, &env)?;
-    written.push(path.display().to_string());
-    if !report.skipped.is_empty() {
-        let path = args.out.join("skipped.csv");
-        bench::write_skipped(&path, &report.skipped)?;
-        written.push(path.display().to_string());
-    }
-
-    let skips = bench::skips_table(&report.rows);
-    if skips.lines().count() > 2 {
-        let path = args.out.join("skips.md");
-        std::fs::write(&path, &skips).map_err(|source| BenchError::Write {
-            path: path.display().to_string(),
-            source,
-        })?;
-        written.push(path.display().to_string());
-    }
+    let written = write_outputs(&args.out, &report, &env)?;
     print!("{}", bench::table(&report.rows));
     for s in &report.skipped {
         println!(
@@ -153,4 +78,100 @@ pub fn bench(args: BenchArgs) -> Result<(), CliError> {
         start.elapsed().as_secs_f64()
     );
     Ok(())
+}
+
+/// The configurations `--modes` names (all without it); an unknown mode lists the known ones.
+fn selected_configs(args: &BenchArgs) -> Result<Vec<bench::Config>, CliError> {
+    let mut configs = bench::configurations(args.quick);
+    let all_modes = bench::mode_names(&configs);
+    if let Some(m) = args
+        .modes
+        .iter()
+        .find(|m| !configs.iter().any(|c| c.mode == m.as_str()))
+    {
+        return Err(BenchError::UnknownMode(m.clone(), all_modes).into());
+    }
+    if !args.modes.is_empty() {
+        configs.retain(|c| args.modes.iter().any(|m| m == c.mode));
+    }
+    Ok(configs)
+}
+
+/// The scenes `--scenes` names; without it, the quick ones with `--quick`, else every scene
+/// but those run only on request. An unknown scene lists the known ones.
+fn selected_scenes(args: &BenchArgs) -> Result<Vec<bench::SceneSpec>, CliError> {
+    let catalogue = bench::catalogue();
+    if let Some(s) = args
+        .scenes
+        .iter()
+        .find(|s| !catalogue.iter().any(|c| c.name == s.as_str()))
+    {
+        let names = catalogue.iter().map(|s| s.name).collect::<Vec<_>>();
+        return Err(BenchError::UnknownScene(s.clone(), names.join(", ")).into());
+    }
+    let wanted = |name: &str| {
+        if !args.scenes.is_empty() {
+            args.scenes.iter().any(|s| s == name)
+        } else if args.quick {
+            QUICK_SCENES.contains(&name)
+        } else {
+            !ON_REQUEST_SCENES.contains(&name)
+        }
+    };
+    Ok(catalogue.into_iter().filter(|s| wanted(s.name)).collect())
+}
+
+/// The GPU the bench measures on, or `None` (said on stderr) without an adapter.
+fn open_gpu() -> Result<Option<GpuContext>, CliError> {
+    match GpuContext::new(AdapterChoice::from_env()) {
+        Ok(ctx) => Ok(Some(ctx)),
+        Err(GpuError::NoAdapter { .. }) => {
+            eprintln!(
+                "note: no GPU adapter (install mesa-vulkan-drivers for a software one); the bench runs the CPU modes only"
+            );
+            Ok(None)
+        }
+        Err(e) => Err(e.into()),
+    }
+}
+
+/// Writes the CSV, one Pareto plot per scene and view, the scaling plot, and where they have
+/// rows the skipped list and the skips table into `out`; returns the paths written.
+fn write_outputs(
+    out: &Path,
+    report: &bench::Report,
+    env: &Environment,
+) -> Result<Vec<String>, CliError> {
+    let csv = bench::csv_path(out);
+    bench::write_csv(&csv, &report.rows, env)?;
+    let mut written = vec![csv.display().to_string()];
+    let mut pairs: Vec<(&str, &str)> = Vec::new();
+    for r in &report.rows {
+        if !pairs.contains(&(r.scene.as_str(), r.view)) {
+            pairs.push((r.scene.as_str(), r.view));
+        }
+    }
+    for (scene, view) in pairs {
+        let path = out.join(format!("pareto-{scene}-{view}.svg"));
+        plot::pareto(&path, &report.rows, scene, view, env)?;
+        written.push(path.display().to_string());
+    }
+    let path = out.join("scaling.svg");
+    plot::scaling(&path, &report.rows, env)?;
+    written.push(path.display().to_string());
+    if !report.skipped.is_empty() {
+        let path = out.join("skipped.csv");
+        bench::write_skipped(&path, &report.skipped)?;
+        written.push(path.display().to_string());
+    }
+    let skips = bench::skips_table(&report.rows);
+    if skips.lines().count() > 2 {
+        let path = out.join("skips.md");
+        std::fs::write(&path, &skips).map_err(|source| BenchError::Write {
+            path: path.display().to_string(),
+            source,
+        })?;
+        written.push(path.display().to_string());
+    }
+    Ok(written)
 }
