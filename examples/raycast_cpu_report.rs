@@ -16,7 +16,9 @@ use tetvr::gpu::{AdapterChoice, GpuContext, RaycastRenderer, RaycastSettings};
 use tetvr::reference::ReferenceRenderer;
 use tetvr::{Camera, Image, Renderer, TransferFunction, View, io};
 
-type Error = Box<dyn std::error::Error>;
+mod common;
+
+use common::{Error, median};
 
 /// User plus system CPU seconds of this process so far (Linux `/proc/self/stat`, 100 ticks
 /// per second); NaN elsewhere.
@@ -33,11 +35,6 @@ fn cpu_seconds() -> f64 {
         (Some(u), Some(s)) => (u + s) / 100.0,
         _ => f64::NAN,
     }
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
 }
 
 /// Renders a warm-up and `frames` timed frames; prints the medians; returns the last image.

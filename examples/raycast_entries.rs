@@ -14,30 +14,14 @@
 //! size, frames per configuration, view (as `--view`), distance as a multiple of the framing
 //! distance (3: zoomed out).
 
-use glam::UVec3;
-use tetvr::generate::{self, fields::Field};
 use tetvr::gpu::raycast::{Entry, Segments};
 use tetvr::gpu::{AdapterChoice, GpuContext, RaycastRenderer, RaycastSettings};
 use tetvr::render::Timings;
-use tetvr::{Camera, Renderer, TetMesh, TransferFunction, View, io};
+use tetvr::{Camera, Renderer, TransferFunction, View};
 
-type Error = Box<dyn std::error::Error>;
+mod common;
 
-fn load(what: &str) -> Result<TetMesh, Error> {
-    match what.strip_prefix("grid:") {
-        Some(n) => Ok(generate::fields::grid(
-            Field::Gaussians,
-            UVec3::splat(n.parse()?),
-            "g",
-        )?),
-        None => Ok(io::load(std::path::Path::new(what))?.mesh),
-    }
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
+use common::{Error, load, median};
 
 /// One configuration's renderer and the timings of its measured frames.
 struct Config {

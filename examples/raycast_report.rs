@@ -9,28 +9,17 @@
 //! ```
 //! `grid:N` is the Gaussians field on an N^3-cell grid (6 tets per cell: N = 26 gives 105,456).
 
-use glam::UVec3;
-use tetvr::generate::{self, fields::Field};
 use tetvr::gpu::raycast::Segments;
 use tetvr::gpu::{
     AdapterChoice, CellProjRenderer, CellProjSettings, GpuContext, Integrate, RaycastRenderer,
     RaycastSettings,
 };
 use tetvr::reference::ReferenceRenderer;
-use tetvr::{Camera, Image, Renderer, TetMesh, TransferFunction, View, io};
+use tetvr::{Camera, Image, Renderer, TransferFunction, View};
 
-type Error = Box<dyn std::error::Error>;
+mod common;
 
-fn load(what: &str) -> Result<TetMesh, Error> {
-    match what.strip_prefix("grid:") {
-        Some(n) => Ok(generate::fields::grid(
-            Field::Gaussians,
-            UVec3::splat(n.parse()?),
-            "g",
-        )?),
-        None => Ok(io::load(std::path::Path::new(what))?.mesh),
-    }
-}
+use common::{Error, load};
 
 /// The last frame's image and the median of `frames` frames' total milliseconds, after one
 /// warm-up frame.

@@ -19,7 +19,7 @@ use tetvr::reference::ReferenceRenderer;
 use tetvr::tf::ControlPoint;
 use tetvr::{Camera, Image, Renderer, TetMesh, TransferFunction, View};
 
-use common::{Bounds, assert_images_close};
+use common::{Bounds, assert_images_close, default_view, load_asset, lox, reference_image};
 
 fn ctx() -> &'static GpuContext {
     static CTX: OnceLock<GpuContext> = OnceLock::new();
@@ -28,29 +28,6 @@ fn ctx() -> &'static GpuContext {
             panic!("the cellproj tests need a GPU adapter (Mesa's lavapipe will do): {e}")
         })
     })
-}
-
-/// The default TF (viridis, opacity ramp to 0.1) and an ISO view of `size` x `size`.
-fn default_view(mesh: &TetMesh, size: u32) -> (TransferFunction, Camera) {
-    let (lo, hi) = mesh.bounds();
-    let (s_lo, s_hi) = mesh.active_array().and_then(|a| a.range()).unwrap();
-    let tf = TransferFunction::default_for_range(s_lo, s_hi, mesh.diagonal() / 100.0).unwrap();
-    (
-        tf,
-        Camera::framing(lo, hi, View::ISO, 1.0, 30.0, size, size),
-    )
-}
-
-fn load(name: &str) -> TetMesh {
-    tetvr::io::load(&common::asset(name))
-        .expect("the data set loads")
-        .mesh
-}
-
-fn lox() -> TetMesh {
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/lox_post_subset_tet.vtk");
-    tetvr::io::load(&path).expect("the asset loads").mesh
 }
 
 fn gaussians() -> TetMesh {
@@ -71,13 +48,6 @@ fn render(mesh: &TetMesh, integrate: Integrate, camera: &Camera, tf: &TransferFu
     frame.image
 }
 
-fn reference(mesh: &TetMesh, camera: &Camera, tf: &TransferFunction) -> Image {
-    ReferenceRenderer::new(mesh)
-        .expect("reference")
-        .render_image(camera, tf, None)
-        .expect("reference frame")
-}
-
 /// Renders with both integrators and checks each against the reference, then the table
 /// against the exact integrator; returns (exact, table) metrics.
 fn check_both(
@@ -89,7 +59,7 @@ fn check_both(
     table: Bounds,
     table_vs_exact: Bounds,
 ) {
-    let expected = reference(mesh, camera, tf);
+    let expected = reference_image(mesh, camera, tf);
     let e = render(mesh, Integrate::Exact, camera, tf);
     let t = render(mesh, Integrate::Table, camera, tf);
     assert_images_close(&format!("cellproj-{name}-exact"), &e, &expected, exact);
@@ -155,7 +125,7 @@ fn lox_subset_matches_reference() {
 /// 2.0e-3; table rmse 3.4e-5, max 2.1e-3. Flat tets are skipped (counted), nothing is NaN.
 #[test]
 fn bluntfin_matches_reference() {
-    let mesh = load("bluntfin_tet.vtu");
+    let mesh = load_asset("bluntfin_tet.vtu");
     let (tf, camera) = default_view(&mesh, 128);
     check_both(
         "bluntfin",
@@ -220,7 +190,7 @@ fn tf_change_rebuilds_the_table() {
     // The sharp TF's step and opacity up to 0.8 per unit distance: bilinear interpolation
     // across the step costs 10x more than with the default; measured rmse 3.5e-4, max 2.3e-3;
     // bounds about 3x.
-    let expected = reference(&mesh, &camera, &sharp);
+    let expected = reference_image(&mesh, &camera, &sharp);
     assert_images_close(
         "cellproj-sharp-tf-table",
         &changed.image,
@@ -260,7 +230,7 @@ fn deformed_mesh_matches_reference() {
         &fresh,
         bounds(1e-6, 1e-5),
     );
-    let expected = reference(&mesh, &camera, &tf);
+    let expected = reference_image(&mesh, &camera, &tf);
     // The twisted subset is further from Delaunay: the sort check finds 5.0e-2 of the pairs on
     // a ray in the wrong order (2.7e-2 untwisted), and the error sits where they are. Measured
     // rmse 1.8e-3, max 5.4e-2 (same for the table: the error is the order's); bounds 1.7x.
@@ -299,7 +269,7 @@ fn flat_tets_and_eye_inside() {
             .iter()
             .find(|c| c.0 == "flat tets skipped");
         assert_eq!(flat.map(|c| c.1), Some(2));
-        let expected = reference(&mesh, &camera, &tf);
+        let expected = reference_image(&mesh, &camera, &tf);
         // A grid (right order): f32 only; measured rmse 4.0e-7 (outside) and 1.5e-7 (inside,
         // the near-plane tets' segments start at the eye), max 1.2e-5; bounds about 5x.
         assert_images_close(
@@ -325,7 +295,7 @@ fn sort_check_grid_and_bluntfin() {
     assert_eq!(check.wrong_pairs, 0);
     assert!(check.wrong_ties <= check.pairs / 1000);
 
-    let fin = load("bluntfin_tet.vtu");
+    let fin = load_asset("bluntfin_tet.vtu");
     let (_, camera) = default_view(&fin, 64);
     let check = sort_check(&ReferenceRenderer::new(&fin).unwrap(), &camera, 2);
     eprintln!("bluntfin: {check}");
@@ -343,7 +313,7 @@ fn sort_check_grid_and_bluntfin() {
 fn box_with_hole_matches_reference() {
     let mesh = generate::shapes::box_with_hole(20_000, Field::Gaussians).unwrap();
     let (tf, camera) = default_view(&mesh, 96);
-    let expected = reference(&mesh, &camera, &tf);
+    let expected = reference_image(&mesh, &camera, &tf);
     let got = render(&mesh, Integrate::Exact, &camera, &tf);
     // As the gaussians grid (f32 only): about 2x and 5x the measured figures.
     assert_images_close("cellproj-hole", &got, &expected, bounds(1e-5, 2e-3));
@@ -439,7 +409,7 @@ fn head_on_grid_with_rays_in_a_face_plane_matches_reference() {
         width: 65,
         height: 65,
     };
-    let expected = reference(&mesh, &camera, &tf);
+    let expected = reference_image(&mesh, &camera, &tf);
     let got = render(&mesh, Integrate::Exact, &camera, &tf);
     // Measured rmse 4.1e-7, max 5.5e-6 (f32 only: the grid is Delaunay); about 5x and 10x
     // that, 1/1000 and 1/3000 of the failure's.

@@ -17,11 +17,10 @@ use tetvr::deform::Deformation;
 use tetvr::generate::{self, fields::Field};
 use tetvr::gpu::raycast::{Entry, Segments, twin};
 use tetvr::gpu::{AdapterChoice, GpuContext, GpuTetMesh, RaycastRenderer, RaycastSettings};
-use tetvr::reference::ReferenceRenderer;
 use tetvr::tf::ControlPoint;
-use tetvr::{Camera, Frame, Image, Renderer, TetMesh, TransferFunction, View};
+use tetvr::{Camera, Frame, Renderer, TetMesh, TransferFunction};
 
-use common::{Bounds, assert_images_close};
+use common::{Bounds, assert_images_close, counter, default_view, lox, reference_image};
 
 fn ctx() -> &'static GpuContext {
     static CTX: OnceLock<GpuContext> = OnceLock::new();
@@ -30,23 +29,6 @@ fn ctx() -> &'static GpuContext {
             panic!("the raycast tests need a GPU adapter (Mesa's lavapipe will do): {e}")
         })
     })
-}
-
-/// The default TF (viridis, opacity ramp to 0.1) and an ISO view of `size` x `size`.
-fn default_view(mesh: &TetMesh, size: u32) -> (TransferFunction, Camera) {
-    let (lo, hi) = mesh.bounds();
-    let (s_lo, s_hi) = mesh.active_array().and_then(|a| a.range()).unwrap();
-    let tf = TransferFunction::default_for_range(s_lo, s_hi, mesh.diagonal() / 100.0).unwrap();
-    (
-        tf,
-        Camera::framing(lo, hi, View::ISO, 1.0, 30.0, size, size),
-    )
-}
-
-fn lox() -> TetMesh {
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/lox_post_subset_tet.vtk");
-    tetvr::io::load(&path).expect("the asset loads").mesh
 }
 
 fn with(segments: Segments, entry: Entry) -> RaycastSettings {
@@ -66,18 +48,6 @@ fn framed(mesh: &TetMesh, camera: &Camera, tf: &TransferFunction, s: RaycastSett
     let frame = r.render(camera, tf).expect("frame");
     eprintln!("{}", frame.timings);
     frame
-}
-
-fn counter(frame: &Frame, name: &str) -> u64 {
-    let c = frame.timings.counters.iter().find(|c| c.0 == name);
-    c.unwrap_or_else(|| panic!("no counter {name}")).1
-}
-
-fn reference(mesh: &TetMesh, camera: &Camera, tf: &TransferFunction) -> Image {
-    ReferenceRenderer::new(mesh)
-        .expect("reference")
-        .render_image(camera, tf, None)
-        .expect("reference frame")
 }
 
 /// Every scene's bound: max_abs 1e-3 is the target for exact segments; rmse 3e-6 is
@@ -110,14 +80,14 @@ const fn bounds(max_rmse: f64, max_abs: f64) -> Bounds {
 /// bilinear interpolation (at most 8.9e-6 per piece's colour, `psi` unit test), which
 /// measured within 5% of exact on every scene here, so both share the bound.
 fn check(name: &str, mesh: &TetMesh, camera: &Camera, tf: &TransferFunction, b: Bounds) -> Frame {
-    let expected = reference(mesh, camera, tf);
+    let expected = reference_image(mesh, camera, tf);
     let mut frames = [Segments::Exact, Segments::Partial].map(|s| {
         let [lists, peel] = [Entry::Lists, Entry::Peel].map(|entry| {
             let got = framed(mesh, camera, tf, with(s, entry));
             let name = format!("raycast-{name}-{s:?}-{entry:?}");
             eprintln!("{name}: {}", got.image.compare(&expected).unwrap());
             assert_images_close(&name, &got.image, &expected, b);
-            assert_eq!(counter(&got, "rays at step limit"), 0);
+            assert_eq!(counter(&got.timings, "rays at step limit"), 0);
             got
         });
         assert_eq!(peel.image.compare(&lists.image).unwrap().max_abs, 0.0);
@@ -184,8 +154,8 @@ fn twin_matches_the_shaders() {
         height: 64,
     };
     let got = frame(&mesh, &camera, &tf, Segments::Exact);
-    assert_eq!(counter(&got, "thin tets"), 2);
-    assert_eq!(counter(&got, "eye in a tet"), 1);
+    assert_eq!(counter(&got.timings, "thin tets"), 2);
+    assert_eq!(counter(&got.timings, "eye in a tet"), 1);
     twin_check("flat-inside", &mesh, &camera, &tf);
 }
 
@@ -227,7 +197,7 @@ fn eye_inside_a_grid() {
         height: 96,
     };
     let got = check("eye-inside", &mesh, &camera, &tf, BOUNDS);
-    assert_eq!(counter(&got, "eye in a tet"), 1);
+    assert_eq!(counter(&got.timings, "eye in a tet"), 1);
 }
 
 /// An axis-aligned grid seen head-on with an odd image: the centre column and row of rays lie
@@ -292,15 +262,15 @@ fn list_overflow_reruns_and_step_limit_is_counted() {
         list_capacity: 1,
         ..Default::default()
     });
-    assert_eq!(counter(&long, "list overflow reruns"), 0);
-    assert!(counter(&short, "list overflow reruns") >= 1);
+    assert_eq!(counter(&long.timings, "list overflow reruns"), 0);
+    assert!(counter(&short.timings, "list overflow reruns") >= 1);
     assert_eq!(short.image.compare(&long.image).unwrap().max_abs, 0.0);
     let stopped = render(RaycastSettings {
         max_steps: Some(5),
         ..Default::default()
     });
-    assert!(counter(&stopped, "rays at step limit") > 0);
-    assert_eq!(counter(&long, "rays at step limit"), 0);
+    assert!(counter(&stopped.timings, "rays at step limit") > 0);
+    assert_eq!(counter(&long.timings, "rays at step limit"), 0);
 }
 
 /// The links span at most four storage bindings (`links::LINK_BINDINGS`) and the entry lists
@@ -352,7 +322,7 @@ fn links_in_several_bindings_and_buffers_are_bit_identical() {
     for buffer in [ctx().limits.max_buffer_size, 128 << 10] {
         let split = common::with_buffer_limits(ctx(), 128 << 10, buffer);
         let frame = render(&split);
-        let buffers = counter(&frame, "record buffers");
+        let buffers = counter(&frame.timings, "record buffers");
         assert_eq!(buffers, if buffer == 128 << 10 { 3 } else { 1 });
         let differing = (bits(&whole).iter().zip(bits(&frame)))
             .filter(|(a, b)| *a != b)
@@ -368,9 +338,9 @@ fn links_in_several_bindings_and_buffers_are_bit_identical() {
 #[test]
 fn table_integrator_matches_reference_within_its_interpolation() {
     let table = |mesh: &TetMesh, camera: &Camera, tf: &TransferFunction| {
-        let expected = reference(mesh, camera, tf);
+        let expected = reference_image(mesh, camera, tf);
         let got = frame(mesh, camera, tf, Segments::Table);
-        assert_eq!(counter(&got, "rays at step limit"), 0);
+        assert_eq!(counter(&got.timings, "rays at step limit"), 0);
         let peel = framed(mesh, camera, tf, with(Segments::Table, Entry::Peel));
         assert_eq!(peel.image.compare(&got.image).unwrap().max_abs, 0.0);
         (got, expected)
@@ -387,7 +357,7 @@ fn table_integrator_matches_reference_within_its_interpolation() {
     let mut r =
         RaycastRenderer::new(ctx(), &mesh, with(Segments::Table, Entry::default())).unwrap();
     let rebuilt = |r: &mut RaycastRenderer, tf: &TransferFunction| {
-        counter(&r.render(&camera, tf).unwrap(), "table rebuilt")
+        counter(&r.render(&camera, tf).unwrap().timings, "table rebuilt")
     };
     assert_eq!(rebuilt(&mut r, &sharp), 1);
     assert_eq!(rebuilt(&mut r, &sharp), 0);
@@ -430,7 +400,7 @@ fn bluntfin_outside_and_eye_inside() {
         .mesh;
     let (tf, outside) = default_view(&mesh, 96);
     let got = check("bluntfin", &mesh, &outside, &tf, BOUNDS);
-    assert_eq!(counter(&got, "thin tets"), 77);
+    assert_eq!(counter(&got.timings, "thin tets"), 77);
     let range = mesh.active_array().and_then(|a| a.range()).unwrap();
     let shock = tetvr::tf::file::load_tf("shock", range, mesh.diagonal() / 100.0).unwrap();
     // The shock TF's narrow opaque bands turn f32 scalar rounding into colour: measured rmse
@@ -452,7 +422,7 @@ fn bluntfin_outside_and_eye_inside() {
         height: 96,
     };
     let got = check("bluntfin-inside", &mesh, &inside, &tf, BOUNDS);
-    assert_eq!(counter(&got, "eye in a tet"), 1);
+    assert_eq!(counter(&got.timings, "eye in a tet"), 1);
 }
 
 /// Tiles: a view of nothing runs no tile with either entry method and gives a transparent
@@ -472,8 +442,8 @@ fn tiles_run_where_rays_enter_and_layers_follow_reentry() {
     for entry in [Entry::Lists, Entry::Peel] {
         let s = with(Segments::Partial, entry);
         let empty = framed(&mesh, &away, &tf, s);
-        assert_eq!(counter(&empty, "tiles run"), 0, "{entry:?}");
-        assert_eq!(counter(&empty, "image tiles"), 16 * 16);
+        assert_eq!(counter(&empty.timings, "tiles run"), 0, "{entry:?}");
+        assert_eq!(counter(&empty.timings, "image tiles"), 16 * 16);
         assert!(empty.image.pixels.iter().all(|p| *p == [0.0; 4]));
         // Zoomed out to a third of the view's width: the silhouette covers few tiles.
         let far = Camera {
@@ -481,7 +451,7 @@ fn tiles_run_where_rays_enter_and_layers_follow_reentry() {
             ..camera
         };
         let zoomed = framed(&mesh, &far, &tf, s);
-        let run = counter(&zoomed, "tiles run");
+        let run = counter(&zoomed.timings, "tiles run");
         assert!(run > 0 && run < 16 * 16 / 4, "{entry:?}: {run} tiles run");
         // Without the skip every tile runs, and the picture is the same, bit for bit.
         let every = RaycastSettings {
@@ -489,14 +459,14 @@ fn tiles_run_where_rays_enter_and_layers_follow_reentry() {
             ..s
         };
         let all = framed(&mesh, &far, &tf, every);
-        assert!(counter(&all, "tiles run") >= 16 * 16, "{entry:?}");
+        assert!(counter(&all.timings, "tiles run") >= 16 * 16, "{entry:?}");
         assert_eq!(all.image.compare(&zoomed.image).unwrap().max_abs, 0.0);
     }
     let grid = gaussians(6);
     let (tf, outside) = default_view(&grid, 64);
     let peel = with(Segments::Partial, Entry::Peel);
     assert_eq!(
-        counter(&framed(&grid, &outside, &tf, peel), "peel layers"),
+        counter(&framed(&grid, &outside, &tf, peel).timings, "peel layers"),
         1
     );
     let (glo, ghi) = grid.bounds();
@@ -511,14 +481,14 @@ fn tiles_run_where_rays_enter_and_layers_follow_reentry() {
     // Every ray starts in the eye's tet and leaves the convex grid for good: peeling's second
     // layer finds no hit and runs no tile.
     let lists = framed(&grid, &inside, &tf, with(Segments::Partial, Entry::Lists));
-    assert_eq!(counter(&lists, "tiles run"), 8 * 8);
+    assert_eq!(counter(&lists.timings, "tiles run"), 8 * 8);
     let got = framed(&grid, &inside, &tf, peel);
-    assert_eq!(counter(&got, "tiles run"), 8 * 8);
-    assert_eq!(counter(&got, "peel layers"), 2);
+    assert_eq!(counter(&got.timings, "tiles run"), 8 * 8);
+    assert_eq!(counter(&got.timings, "peel layers"), 2);
     // Seen from the side, rays cross the hole: they enter, leave into it and enter again.
     let hole = generate::shapes::box_with_hole(5_000, Field::Gaussians).unwrap();
     let (tf, through) = default_view(&hole, 64);
-    let layers = counter(&framed(&hole, &through, &tf, peel), "peel layers");
+    let layers = counter(&framed(&hole, &through, &tf, peel).timings, "peel layers");
     assert!(layers >= 2, "{layers} layers");
 }
 
@@ -528,9 +498,7 @@ fn tiles_run_where_rays_enter_and_layers_follow_reentry() {
 /// reference within the ray caster's bounds.
 #[test]
 fn combustor_and_twisted_combustor_match_reference() {
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/combustor_subset_tet.vtu");
-    let mut mesh = tetvr::io::load(&path).expect("the asset loads").mesh;
+    let mut mesh = common::load_asset("combustor_subset_tet.vtu");
     let (tf, camera) = default_view(&mesh, 96);
     check("combustor", &mesh, &camera, &tf, BOUNDS);
     let (lo, hi) = mesh.bounds();
@@ -539,7 +507,7 @@ fn combustor_and_twisted_combustor_match_reference() {
     r.update_positions(&twisted).unwrap();
     let got = r.render(&camera, &tf).unwrap().image;
     mesh.set_positions(twisted).unwrap();
-    let expected = reference(&mesh, &camera, &tf);
+    let expected = reference_image(&mesh, &camera, &tf);
     eprintln!("twisted combustor: {}", got.compare(&expected).unwrap());
     assert_images_close("raycast-twisted-combustor", &got, &expected, BOUNDS);
     check("twisted-combustor", &mesh, &camera, &tf, BOUNDS);

@@ -10,28 +10,10 @@ use tetvr::cpu::raycast::Segments;
 use tetvr::cpu::raycast::{CpuRaycastRenderer, CpuRaycastSettings};
 use tetvr::deform::Deformation;
 use tetvr::generate::{self, fields::Field};
-use tetvr::reference::ReferenceRenderer;
 use tetvr::tf::ControlPoint;
-use tetvr::{Camera, Frame, Image, Renderer, TetMesh, TransferFunction, View};
+use tetvr::{Camera, Frame, Renderer, TetMesh, TransferFunction};
 
-use common::{Bounds, assert_images_close};
-
-/// The default TF (viridis, opacity ramp to 0.1) and an ISO view of `size` x `size`.
-fn default_view(mesh: &TetMesh, size: u32) -> (TransferFunction, Camera) {
-    let (lo, hi) = mesh.bounds();
-    let (s_lo, s_hi) = mesh.active_array().and_then(|a| a.range()).unwrap();
-    let tf = TransferFunction::default_for_range(s_lo, s_hi, mesh.diagonal() / 100.0).unwrap();
-    (
-        tf,
-        Camera::framing(lo, hi, View::ISO, 1.0, 30.0, size, size),
-    )
-}
-
-fn lox() -> TetMesh {
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/lox_post_subset_tet.vtk");
-    tetvr::io::load(&path).expect("the asset loads").mesh
-}
+use common::{Bounds, assert_images_close, counter, default_view, lox, reference_image};
 
 fn renderer(mesh: &TetMesh, segments: Segments) -> CpuRaycastRenderer {
     let settings = CpuRaycastSettings {
@@ -39,18 +21,6 @@ fn renderer(mesh: &TetMesh, segments: Segments) -> CpuRaycastRenderer {
         ..Default::default()
     };
     CpuRaycastRenderer::new(mesh, settings).expect("renderer")
-}
-
-fn counter(frame: &Frame, name: &str) -> u64 {
-    let c = frame.timings.counters.iter().find(|c| c.0 == name);
-    c.unwrap_or_else(|| panic!("no counter {name}")).1
-}
-
-fn reference(mesh: &TetMesh, camera: &Camera, tf: &TransferFunction) -> Image {
-    ReferenceRenderer::new(mesh)
-        .expect("reference")
-        .render_image(camera, tf, None)
-        .expect("reference frame")
 }
 
 /// The GPU ray caster's bound (tests/raycast.rs): max_abs 1e-3 is the target; rmse
@@ -71,13 +41,13 @@ const fn bounds(max_rmse: f64, max_abs: f64) -> Bounds {
 /// that no ray hit the step limit; returns the exact frame. The psi table's interpolation
 /// (at most 8.9e-6 per piece) keeps partial within the same bound.
 fn check(name: &str, mesh: &TetMesh, camera: &Camera, tf: &TransferFunction, b: Bounds) -> Frame {
-    let expected = reference(mesh, camera, tf);
+    let expected = reference_image(mesh, camera, tf);
     let mut frames = [Segments::Exact, Segments::Partial].map(|s| {
         let got = renderer(mesh, s).render(camera, tf).expect("frame");
         let name = format!("raycast-cpu-{name}-{s:?}");
         eprintln!("{name}: {}", got.image.compare(&expected).unwrap());
         assert_images_close(&name, &got.image, &expected, b);
-        assert_eq!(counter(&got, "rays at step limit"), 0);
+        assert_eq!(counter(&got.timings, "rays at step limit"), 0);
         Some(got)
     });
     frames[0].take().unwrap()
@@ -126,7 +96,7 @@ fn eye_inside_a_grid() {
         height: 96,
     };
     let got = check("eye-inside", &mesh, &camera, &tf, BOUNDS);
-    assert_eq!(counter(&got, "eye in a tet"), 1);
+    assert_eq!(counter(&got.timings, "eye in a tet"), 1);
 }
 
 /// An axis-aligned grid seen head-on with an odd image: the centre column and row of rays lie
@@ -180,7 +150,12 @@ fn step_limit_is_counted_and_bad_updates_are_refused() {
         ..Default::default()
     };
     let mut r = CpuRaycastRenderer::new(&mesh, settings).unwrap();
-    assert!(counter(&r.render(&camera, &tf).unwrap(), "rays at step limit") > 0);
+    assert!(
+        counter(
+            &r.render(&camera, &tf).unwrap().timings,
+            "rays at step limit"
+        ) > 0
+    );
     let msg = r
         .update_positions(&[DVec3::ZERO; 3])
         .unwrap_err()
@@ -220,7 +195,7 @@ fn bluntfin_outside_and_eye_inside() {
         .mesh;
     let (tf, outside) = default_view(&mesh, 96);
     let got = check("bluntfin", &mesh, &outside, &tf, BOUNDS);
-    assert_eq!(counter(&got, "thin tets"), 77);
+    assert_eq!(counter(&got.timings, "thin tets"), 77);
     let range = mesh.active_array().and_then(|a| a.range()).unwrap();
     let shock = tetvr::tf::file::load_tf("shock", range, mesh.diagonal() / 100.0).unwrap();
     // The shock TF's narrow opaque bands turn f32 scalar rounding into colour (GPU: rmse
@@ -242,7 +217,7 @@ fn bluntfin_outside_and_eye_inside() {
         height: 96,
     };
     let got = check("bluntfin-inside", &mesh, &inside, &tf, BOUNDS);
-    assert_eq!(counter(&got, "eye in a tet"), 1);
+    assert_eq!(counter(&got.timings, "eye in a tet"), 1);
 }
 
 /// The combustor crop: its 2 inverted tets (reoriented on load) fold back over their

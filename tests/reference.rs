@@ -12,7 +12,7 @@ use tetvr::render::RenderError;
 use tetvr::tf::{ControlPoint, opacity_to_tau};
 use tetvr::{Camera, Image, Renderer, TetMesh, TransferFunction, View};
 
-use common::{Bounds, assert_images_close};
+use common::{Bounds, assert_images_close, load_asset};
 
 // ---------------------------------------------------------------------------------------------
 // Helpers
@@ -785,13 +785,6 @@ fn renderer_contract_timings_progress_and_updates() {
 // ---------------------------------------------------------------------------------------------
 // 8. Real data
 
-fn load(name: &str) -> TetMesh {
-    let path = common::asset(name);
-    tetvr::io::load(&path)
-        .unwrap_or_else(|e| panic!("{e}"))
-        .mesh
-}
-
 /// The default TF over the data range with unit distance diagonal / 100.
 fn default_tf(m: &TetMesh) -> TransferFunction {
     let (lo, hi) = m.active_array().unwrap().range().unwrap();
@@ -810,7 +803,7 @@ fn default_camera(m: &TetMesh, distance_factor: f64, size: u32) -> Camera {
 #[test]
 fn real_data_renders_without_nan_with_degenerate_tets() {
     for (name, size) in [("lox_post_subset_tet.vtk", 96), ("bluntfin_tet.vtu", 64)] {
-        let m = load(name);
+        let m = load_asset(name);
         let mean =
             (0..m.tet_count()).map(|t| m.signed_volume(t)).sum::<f64>() / m.tet_count() as f64;
         let tiny = (0..m.tet_count())
@@ -853,7 +846,7 @@ fn real_data_renders_without_nan_with_degenerate_tets() {
 
 #[test]
 fn real_data_agrees_with_brute_force_stepping() {
-    let m = load("lox_post_subset_tet.vtk");
+    let m = load_asset("lox_post_subset_tet.vtk");
     let tf = default_tf(&m);
     let r = ReferenceRenderer::new(&m).unwrap();
     let camera = default_camera(&m, 1.0, 9);
@@ -892,7 +885,7 @@ fn real_data_agrees_with_brute_force_stepping() {
 #[ignore = "timing, run on demand"]
 fn reference_timings() {
     for (name, size) in [("lox_post_subset_tet.vtk", 256), ("bluntfin_tet.vtu", 512)] {
-        let m = load(name);
+        let m = load_asset(name);
         let tf = default_tf(&m);
         let start = std::time::Instant::now();
         let r = ReferenceRenderer::new(&m).unwrap();

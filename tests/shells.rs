@@ -12,11 +12,10 @@ use std::sync::OnceLock;
 use glam::{DVec3, UVec3};
 use tetvr::generate::fields::Field;
 use tetvr::gpu::{AdapterChoice, GpuContext, Sampler, ShellSettings, ShellsRenderer, SliceFormat};
-use tetvr::reference::ReferenceRenderer;
 use tetvr::tf::ControlPoint;
 use tetvr::{Camera, Image, Renderer, TetMesh, TransferFunction, View, generate};
 
-use common::{Bounds, assert_images_close};
+use common::{Bounds, assert_images_close, counter, lox, reference_image};
 
 fn ctx() -> &'static GpuContext {
     static CTX: OnceLock<GpuContext> = OnceLock::new();
@@ -158,14 +157,6 @@ fn with_sampler(sampler: Sampler) -> ShellSettings {
         sampler,
         ..Default::default()
     }
-}
-
-fn counter(t: &tetvr::Timings, name: &str) -> u64 {
-    t.counters
-        .iter()
-        .find(|(n, _)| *n == name)
-        .map(|&(_, c)| c)
-        .unwrap_or_else(|| panic!("no counter {name}"))
 }
 
 /// Samples this close to the mesh boundary may fall either way: the GPU accepts samples whose
@@ -593,7 +584,7 @@ fn bench_bluntfin_512() {
     let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 512, 512);
     let tf = default_tf(&mesh);
     let t = std::time::Instant::now();
-    let g = reference(&mesh, &camera, &tf);
+    let g = reference_image(&mesh, &camera, &tf);
     eprintln!("reference: {:?}", t.elapsed());
     // The default (32 slices per shell, Rgba32Float), half-size shells, and 16-bit slices.
     let variants = [
@@ -632,13 +623,6 @@ fn default_tf(mesh: &TetMesh) -> TransferFunction {
     TransferFunction::default_for_range(lo, hi, mesh.diagonal() / 100.0).expect("valid TF")
 }
 
-fn reference(mesh: &TetMesh, camera: &Camera, tf: &TransferFunction) -> Image {
-    ReferenceRenderer::new(mesh)
-        .expect("reference renderer")
-        .render_image(camera, tf, None)
-        .expect("reference image")
-}
-
 fn shells_with(
     mesh: &TetMesh,
     (samples, sampler): (u32, Sampler),
@@ -651,12 +635,6 @@ fn shells_with(
         ..Default::default()
     };
     render(mesh, settings, camera, tf).0
-}
-
-fn lox() -> TetMesh {
-    tetvr::io::load(&common::asset("lox_post_subset_tet.vtk"))
-        .expect("the lox subset loads")
-        .mesh
 }
 
 fn gaussians(cells: u32) -> TetMesh {
@@ -701,7 +679,7 @@ fn real_mesh_matches_the_reference() {
     let (lo, hi) = mesh.bounds();
     let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 128, 128);
     let tf = default_tf(&mesh);
-    let truth = reference(&mesh, &camera, &tf);
+    let truth = reference_image(&mesh, &camera, &tf);
     for sampler in SAMPLERS {
         let img = shells_with(&mesh, (512, sampler), &camera, &tf);
         let name = format!("shells-lox-{sampler:?}");
@@ -716,7 +694,7 @@ fn generated_mesh_matches_the_reference_and_converges_with_dz() {
     let (lo, hi) = mesh.bounds();
     let camera = Camera::framing(lo, hi, View::parse("30,20").unwrap(), 1.0, 30.0, 160, 128);
     let tf = default_tf(&mesh);
-    let g = reference(&mesh, &camera, &tf);
+    let g = reference_image(&mesh, &camera, &tf);
     let mut errors = Vec::new();
     for samples in [64, 128, 256, 512] {
         let img = shells_with(&mesh, (samples, Sampler::Raster), &camera, &tf);
@@ -772,7 +750,7 @@ fn non_convex_mesh_and_inside_eye_match_the_reference() {
         ),
     ] {
         let tf = default_tf(mesh);
-        let truth = reference(mesh, &camera, &tf);
+        let truth = reference_image(mesh, &camera, &tf);
         for sampler in SAMPLERS {
             let img = shells_with(mesh, (512, sampler), &camera, &tf);
             assert_images_close(&format!("{name}-{sampler:?}"), &img, &truth, bounds);
@@ -806,7 +784,7 @@ fn large_transfer_functions_use_the_looping_variant_and_match() {
     assert_images_close(
         "shells-lox-40-points",
         &img,
-        &reference(&mesh, &camera, &tf),
+        &reference_image(&mesh, &camera, &tf),
         LOX_BOUNDS,
     );
 }
@@ -979,7 +957,7 @@ fn bluntfin_matches_the_reference_with_both_samplers() {
     let (lo, hi) = mesh.bounds();
     let camera = Camera::framing(lo, hi, View::parse("0,0").unwrap(), 1.0, 30.0, 128, 128);
     let tf = default_tf(&mesh);
-    let truth = reference(&mesh, &camera, &tf);
+    let truth = reference_image(&mesh, &camera, &tf);
     for sampler in SAMPLERS {
         let img = shells_with(&mesh, (512, sampler), &camera, &tf);
         eprintln!("bluntfin {sampler:?}: {}", img.compare(&truth).unwrap());

@@ -11,11 +11,10 @@ use std::sync::OnceLock;
 use glam::UVec3;
 use tetvr::generate::fields::{Field, grid};
 use tetvr::gpu::{AdapterChoice, GpuContext, ShellSettings, ShellsRenderer, Skip, Skips};
-use tetvr::reference::ReferenceRenderer;
 use tetvr::tf::ControlPoint;
-use tetvr::{Camera, Frame, Image, Renderer, TetMesh, Timings, TransferFunction, View};
+use tetvr::{Camera, Frame, Image, Renderer, TetMesh, TransferFunction, View};
 
-use common::{Bounds, assert_images_close};
+use common::{Bounds, assert_images_close, counter, reference_image};
 
 fn ctx() -> &'static GpuContext {
     static CTX: OnceLock<GpuContext> = OnceLock::new();
@@ -24,13 +23,6 @@ fn ctx() -> &'static GpuContext {
             panic!("the skips tests need a GPU adapter (Mesa's lavapipe will do): {e}")
         })
     })
-}
-
-fn counter(t: &Timings, name: &str) -> u64 {
-    t.counters
-        .iter()
-        .find(|(n, _)| *n == name)
-        .map_or_else(|| panic!("no counter '{name}' in\n{t}"), |&(_, c)| c)
 }
 
 fn render(mesh: &TetMesh, skips: Skips, camera: &Camera, tf: &TransferFunction) -> Frame {
@@ -42,13 +34,6 @@ fn render(mesh: &TetMesh, skips: Skips, camera: &Camera, tf: &TransferFunction) 
         .expect("renderer")
         .render(camera, tf)
         .expect("frame")
-}
-
-fn reference(mesh: &TetMesh, camera: &Camera, tf: &TransferFunction) -> Image {
-    ReferenceRenderer::new(mesh)
-        .expect("reference renderer")
-        .render_image(camera, tf, None)
-        .expect("reference image")
 }
 
 /// Gaussian blobs on a 16^3 grid (24,576 tets), values in about [0, 1].
@@ -161,7 +146,7 @@ fn tf_culling_and_empty_space_skip_work_and_change_nothing() {
             (1.0, [1.0, 0.8, 0.1], 0.5),
         ],
     );
-    let g = reference(&mesh, &cam, &top);
+    let g = reference_image(&mesh, &cam, &top);
     let (on, off) = on_and_off(
         "skips-tf-cull",
         Skip::TfCull,
@@ -202,7 +187,7 @@ fn frustum_culling_drops_tets_outside_a_zoomed_view_and_changes_nothing() {
     // A third of the framing distance: the view holds the middle of the grid only.
     let cam = camera(&mesh, 0.3);
     let tf = default_tf(&mesh);
-    let g = reference(&mesh, &cam, &tf);
+    let g = reference_image(&mesh, &cam, &tf);
     let (on, off) = on_and_off(
         "skips-frustum",
         Skip::Frustum,
@@ -231,7 +216,7 @@ fn early_termination_on_an_opaque_scene_loses_at_most_the_threshold() {
             (1.0, [0.3, 0.7, 0.9], 0.99),
         ],
     );
-    let g = reference(&mesh, &cam, &opaque);
+    let g = reference_image(&mesh, &cam, &opaque);
     let threshold = Skips::ALL.ert_threshold as f64;
     // A finished pixel's remaining transmittance is below 1 - threshold and colours are at most
     // 1, so it loses at most that much per channel; 1e-5 covers f32 accumulation noise.
@@ -271,7 +256,7 @@ fn early_termination_changes_nothing_where_no_pixel_finishes() {
     let mesh = gaussians();
     let cam = camera(&mesh, 1.0);
     let tf = default_tf(&mesh);
-    let g = reference(&mesh, &cam, &tf);
+    let g = reference_image(&mesh, &cam, &tf);
     let exact = Bounds {
         max_rmse: 0.0,
         max_abs: 0.0,
@@ -410,7 +395,7 @@ fn adaptive_slices_follow_the_tets_depth_and_change_the_picture_only_by_rounding
     let mesh = gaussians();
     let cam = camera(&mesh, 1.0);
     let tf = default_tf(&mesh);
-    let g = reference(&mesh, &cam, &tf);
+    let g = reference_image(&mesh, &cam, &tf);
     let (deep, deep_off) = on_and_off(
         "skips-adaptive-deep",
         Skip::AdaptiveSlices,

@@ -3,13 +3,54 @@
 
 use std::path::{Path, PathBuf};
 
-use tetvr::{ErrorMetrics, Image};
+use tetvr::reference::ReferenceRenderer;
+use tetvr::{Camera, ErrorMetrics, Image, TetMesh, Timings, TransferFunction, View};
 
 /// `assets/<name>`: the meshes the tests need ship with the repository (assets/SOURCES.md).
 pub fn asset(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("assets")
         .join(name)
+}
+
+/// The mesh of `assets/<name>`.
+pub fn load_asset(name: &str) -> TetMesh {
+    tetvr::io::load(&asset(name))
+        .unwrap_or_else(|e| panic!("{e}"))
+        .mesh
+}
+
+/// The bundled lox subset (8,750 tets, non-convex).
+pub fn lox() -> TetMesh {
+    load_asset("lox_post_subset_tet.vtk")
+}
+
+/// The default TF (viridis, opacity ramp to 0.1 per diagonal / 100) and an ISO view of
+/// `size` x `size`.
+pub fn default_view(mesh: &TetMesh, size: u32) -> (TransferFunction, Camera) {
+    let (lo, hi) = mesh.bounds();
+    let (s_lo, s_hi) = mesh.active_array().and_then(|a| a.range()).unwrap();
+    let tf = TransferFunction::default_for_range(s_lo, s_hi, mesh.diagonal() / 100.0).unwrap();
+    (
+        tf,
+        Camera::framing(lo, hi, View::ISO, 1.0, 30.0, size, size),
+    )
+}
+
+/// The exact reference's picture: the truth the GPU modes are compared with.
+pub fn reference_image(mesh: &TetMesh, camera: &Camera, tf: &TransferFunction) -> Image {
+    ReferenceRenderer::new(mesh)
+        .expect("reference renderer")
+        .render_image(camera, tf, None)
+        .expect("reference image")
+}
+
+/// The counter `name` of a frame's timings; a missing counter fails the test, naming them all.
+pub fn counter(t: &Timings, name: &str) -> u64 {
+    t.counters
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map_or_else(|| panic!("no counter '{name}' in\n{t}"), |&(_, c)| c)
 }
 
 /// `../shared/data` beside the checkout, for the few tests whose point is the shared data sets
