@@ -12,7 +12,7 @@ mod common;
 
 use std::sync::OnceLock;
 
-use glam::{DVec3, UVec3};
+use glam::DVec3;
 use tetvr::deform::Deformation;
 use tetvr::generate::{self, fields::Field};
 use tetvr::gpu::raycast::{Entry, Segments, twin};
@@ -20,7 +20,7 @@ use tetvr::gpu::{AdapterChoice, GpuContext, GpuTetMesh, RaycastRenderer, Raycast
 use tetvr::tf::ControlPoint;
 use tetvr::{Camera, Frame, Renderer, TetMesh, TransferFunction};
 
-use common::{Bounds, assert_images_close, counter, default_view, lox, reference_image};
+use common::{Bounds, assert_images_close, counter, default_view, gaussians, lox, reference_image};
 
 fn ctx() -> &'static GpuContext {
     static CTX: OnceLock<GpuContext> = OnceLock::new();
@@ -159,43 +159,19 @@ fn twin_matches_the_shaders() {
     twin_check("flat-inside", &mesh, &camera, &tf);
 }
 
-fn gaussians(cells: u32) -> TetMesh {
-    generate::fields::grid(Field::Gaussians, UVec3::splat(cells), "gaussians").expect("grid")
-}
-
 /// The box with a square hole along z, seen through the hole from a little off its axis: rays
 /// cross a wall, leave into the hole, re-enter through the opposite wall; others pass the hole
 /// untouched.
 #[test]
 fn box_with_hole_seen_through_the_hole() {
-    let mesh = generate::shapes::box_with_hole(20_000, Field::Gaussians).unwrap();
-    let (tf, _) = default_view(&mesh, 96);
-    let camera = Camera {
-        eye: DVec3::new(0.15, 0.25, 4.0),
-        target: DVec3::ZERO,
-        up: DVec3::Y,
-        fov_y_deg: 40.0,
-        width: 96,
-        height: 96,
-    };
+    let (mesh, tf, camera) = common::hole_seen_through_the_hole();
     check("hole", &mesh, &camera, &tf, BOUNDS);
 }
 
 /// The eye inside a grid: rays start in the eye's tet.
 #[test]
 fn eye_inside_a_grid() {
-    let mesh = gaussians(12);
-    let (tf, _) = default_view(&mesh, 96);
-    let (lo, hi) = mesh.bounds();
-    let centre = (lo + hi) * 0.5;
-    let camera = Camera {
-        eye: centre + DVec3::new(0.13, -0.07, 0.05) * (hi - lo),
-        target: centre + DVec3::new(1.0, 0.4, 0.2),
-        up: DVec3::Z,
-        fov_y_deg: 60.0,
-        width: 96,
-        height: 96,
-    };
+    let (mesh, tf, camera) = common::eye_inside_a_grid();
     let got = check("eye-inside", &mesh, &camera, &tf, BOUNDS);
     assert_eq!(counter(&got.timings, "eye in a tet"), 1);
 }
@@ -204,17 +180,7 @@ fn eye_inside_a_grid() {
 /// in grid planes and the centre ray runs down a grid edge; no ray is lost (holes 0).
 #[test]
 fn head_on_grid_has_no_holes() {
-    let field = |p: DVec3| 0.5 + 0.2 * p.x + 0.1 * p.y + 0.04 * p.z;
-    let mesh = generate::box_grid(DVec3::splat(-1.0), DVec3::ONE, UVec3::splat(6), "f", field);
-    let (tf, _) = default_view(&mesh, 65);
-    let camera = Camera {
-        eye: DVec3::new(0.0, 0.0, 5.0),
-        target: DVec3::ZERO,
-        up: DVec3::Y,
-        fov_y_deg: 40.0,
-        width: 65,
-        height: 65,
-    };
+    let (mesh, tf, camera) = common::head_on_grid();
     check("head-on", &mesh, &camera, &tf, BOUNDS);
 }
 

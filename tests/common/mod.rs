@@ -175,3 +175,69 @@ pub fn wgsl_struct_size(module: &naga::Module, name: &str) -> usize {
         .map(|(_, t)| t.inner.size(module.to_ctx()) as usize)
         .unwrap_or_else(|| panic!("the WGSL has no struct {name}"))
 }
+
+/// Gaussian blobs on a `cells`^3 grid of cubes (6 tets each).
+pub fn gaussians(cells: u32) -> TetMesh {
+    tetvr::generate::fields::grid(
+        tetvr::generate::fields::Field::Gaussians,
+        glam::UVec3::splat(cells),
+        "gaussians",
+    )
+    .expect("grid")
+}
+
+/// A test scene: a mesh, its default TF and a camera.
+pub type Scene = (TetMesh, TransferFunction, Camera);
+
+fn camera(eye: glam::DVec3, target: glam::DVec3, up: glam::DVec3, fov: f64, size: u32) -> Camera {
+    Camera {
+        eye,
+        target,
+        up,
+        fov_y_deg: fov,
+        width: size,
+        height: size,
+    }
+}
+
+/// The box with a square hole along z, seen through the hole from a little off its axis
+/// (96x96): rays cross a wall, leave into the hole, re-enter through the opposite wall; others
+/// pass the hole untouched. The ray casters' re-entry scene.
+pub fn hole_seen_through_the_hole() -> Scene {
+    use glam::DVec3;
+    let mesh =
+        tetvr::generate::shapes::box_with_hole(20_000, tetvr::generate::fields::Field::Gaussians)
+            .unwrap();
+    let (tf, _) = default_view(&mesh, 96);
+    let camera = camera(DVec3::new(0.15, 0.25, 4.0), DVec3::ZERO, DVec3::Y, 40.0, 96);
+    (mesh, tf, camera)
+}
+
+/// The eye inside a 12^3 Gaussians grid, looking off-axis (96x96): rays start in the eye's tet.
+pub fn eye_inside_a_grid() -> Scene {
+    use glam::DVec3;
+    let mesh = gaussians(12);
+    let (tf, _) = default_view(&mesh, 96);
+    let (lo, hi) = mesh.bounds();
+    let centre = (lo + hi) * 0.5;
+    let eye = centre + DVec3::new(0.13, -0.07, 0.05) * (hi - lo);
+    let camera = camera(eye, centre + DVec3::new(1.0, 0.4, 0.2), DVec3::Z, 60.0, 96);
+    (mesh, tf, camera)
+}
+
+/// An axis-aligned 6^3 grid of a linear field seen head-on with an odd image (65x65): the
+/// centre column and row of rays lie in grid planes and the centre ray runs down a grid edge.
+pub fn head_on_grid() -> Scene {
+    use glam::DVec3;
+    let field = |p: DVec3| 0.5 + 0.2 * p.x + 0.1 * p.y + 0.04 * p.z;
+    let mesh = tetvr::generate::box_grid(
+        DVec3::splat(-1.0),
+        DVec3::ONE,
+        glam::UVec3::splat(6),
+        "f",
+        field,
+    );
+    let (tf, _) = default_view(&mesh, 65);
+    let camera = camera(DVec3::new(0.0, 0.0, 5.0), DVec3::ZERO, DVec3::Y, 40.0, 65);
+    (mesh, tf, camera)
+}
