@@ -9,6 +9,7 @@
 mod common;
 
 use std::sync::OnceLock;
+use tetvr::gpu::iso::gradients::{VertexTets, vertex_gradients_twin};
 
 use glam::{DVec3, UVec3};
 use tetvr::generate::{self, fields::Field};
@@ -449,7 +450,6 @@ fn smooth_shading_over_several_bindings_is_bit_identical() {
 /// match the CPU twin on this frame's positions (so they were recomputed, not reused).
 #[test]
 fn deformed_and_rescaled_mesh_matches_reference() {
-    use tetvr::gpu::iso::gradients::{VertexTets, vertex_gradients_twin};
     use tetvr::render::Renderer;
     let mut mesh = gaussians();
     let (lo, hi) = mesh.bounds();
@@ -499,76 +499,96 @@ fn deformed_and_rescaled_mesh_matches_reference() {
         );
         assert!(timings.get("select index").is_some() && timings.get("gradients").is_some());
 
-        let reference = ReferenceRenderer::new(&mesh).expect("reference");
-        let query = IsoReference::new(&reference, &values, Shading::Smooth).expect("query");
-        let expected = query.render_surface(&camera, &colors).expect("reference");
-        image
-            .color
-            .save_comparison(&expected.color, &common::test_output_dir(), &name, 0.1)
-            .expect("write comparison images");
-        let e = compare(&image, &expected, 1e-3, 1.0);
-        eprintln!("{name}: {e:?}");
-        assert_eq!(e.non_finite, 0, "{name}");
-        // As the undeformed Gaussians test (same grid and isovalues; the twist keeps the tets
-        // well shaped): a handful of tet-edge pixels may flip, depth and normals as there.
-        // Measured: 703 and 758 pixels hit of 9216, 0 mismatches, depth 1.1e-6 mean and
-        // 2.6e-5 max, normals 0.023 degrees max.
-        assert!(e.matched > 600, "{name}: {e:?}");
-        assert!(e.mismatches <= 5, "{name}: {e:?}");
-        assert!(e.depth_mean <= 1e-5, "{name}: {e:?}");
-        assert_eq!(e.depth_outliers, 0, "{name}: {e:?}");
-        assert!(e.angle_outliers <= 5, "{name}: {e:?}");
-        assert!(e.angle_mean_deg <= 0.05, "{name}: {e:?}");
-
-        // GPU gradient stage against its CPU twin on the same f32 inputs.
-        let got = gpu
-            .read_vertex_gradients()
-            .expect("read gradients")
-            .expect("smooth shading has gradients");
-        let twin = vertex_gradients_twin(
-            &gpu.gpu_positions(),
-            &gpu.gpu_scalars(),
-            mesh.tets(),
-            &adjacency,
-        );
-        let scale = twin
-            .iter()
-            .map(|g| glam::Vec3::from_slice(&g[..3]).length())
-            .fold(0.0f32, f32::max);
-        // Every vertex of a selected tet is updated (and only those are read).
-        let wanted = {
-            let mut v: Vec<u32> = mesh
-                .tets()
-                .iter()
-                .filter(|t| {
-                    let s = t.map(|i| mesh.scalars().expect("scalars")[i as usize]);
-                    let lo = s.iter().copied().fold(f64::INFINITY, f64::min);
-                    let hi = s.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-                    lo < hi && values.iter().any(|x| lo <= *x && *x <= hi)
-                })
-                .flatten()
-                .copied()
-                .collect();
-            v.sort_unstable();
-            v.dedup();
-            v
-        };
-        assert_eq!(
-            got.iter().map(|g| g.0).collect::<Vec<_>>(),
-            wanted,
-            "{name}"
-        );
-        let worst = got
-            .iter()
-            .map(|&(v, a)| {
-                (glam::Vec4::from(a) - glam::Vec4::from(twin[v as usize])).length() / scale
-            })
-            .fold(0.0f32, f32::max);
-        eprintln!("{name}: gradient stage vs twin, worst difference {worst:e} of the largest");
-        // Same f32 arithmetic in the same order: measured bit-identical (0) on lavapipe; a
-        // driver that fuses multiply-adds may differ by a few ulps of the terms.
-        assert!(worst <= 1e-5, "{name}: {worst}");
+        surfaces_match_reference(&name, &image, &mesh, &values, &colors, &camera);
+        gradients_match_twin(&name, &gpu, &mesh, &values, &adjacency);
     }
+}
+
+/// The deformed test's surfaces against the reference's exact first hits of `mesh`.
+fn surfaces_match_reference(
+    name: &str,
+    image: &IsoImage,
+    mesh: &TetMesh,
+    values: &[f64],
+    colors: &[[f32; 3]],
+    camera: &Camera,
+) {
+    let reference = ReferenceRenderer::new(mesh).expect("reference");
+    let query = IsoReference::new(&reference, values, Shading::Smooth).expect("query");
+    let expected = query.render_surface(camera, colors).expect("reference");
+    image
+        .color
+        .save_comparison(&expected.color, &common::test_output_dir(), name, 0.1)
+        .expect("write comparison images");
+    let e = compare(image, &expected, 1e-3, 1.0);
+    eprintln!("{name}: {e:?}");
+    assert_eq!(e.non_finite, 0, "{name}");
+    // As the undeformed Gaussians test (same grid and isovalues; the twist keeps the tets
+    // well shaped): a handful of tet-edge pixels may flip, depth and normals as there.
+    // Measured: 703 and 758 pixels hit of 9216, 0 mismatches, depth 1.1e-6 mean and
+    // 2.6e-5 max, normals 0.023 degrees max.
+    assert!(e.matched > 600, "{name}: {e:?}");
+    assert!(e.mismatches <= 5, "{name}: {e:?}");
+    assert!(e.depth_mean <= 1e-5, "{name}: {e:?}");
+    assert_eq!(e.depth_outliers, 0, "{name}: {e:?}");
+    assert!(e.angle_outliers <= 5, "{name}: {e:?}");
+    assert!(e.angle_mean_deg <= 0.05, "{name}: {e:?}");
+}
+
+/// The deformed test's GPU gradient stage against its CPU twin on the same f32 inputs.
+fn gradients_match_twin(
+    name: &str,
+    gpu: &IsoRenderer,
+    mesh: &TetMesh,
+    values: &[f64],
+    adjacency: &VertexTets,
+) {
+    // GPU gradient stage against its CPU twin on the same f32 inputs.
+    let got = gpu
+        .read_vertex_gradients()
+        .expect("read gradients")
+        .expect("smooth shading has gradients");
+    let twin = vertex_gradients_twin(
+        &gpu.gpu_positions(),
+        &gpu.gpu_scalars(),
+        mesh.tets(),
+        adjacency,
+    );
+    let scale = twin
+        .iter()
+        .map(|g| glam::Vec3::from_slice(&g[..3]).length())
+        .fold(0.0f32, f32::max);
+    // Every vertex of a selected tet is updated (and only those are read).
+    let wanted = {
+        let mut v: Vec<u32> = mesh
+            .tets()
+            .iter()
+            .filter(|t| {
+                let s = t.map(|i| mesh.scalars().expect("scalars")[i as usize]);
+                let lo = s.iter().copied().fold(f64::INFINITY, f64::min);
+                let hi = s.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                lo < hi && values.iter().any(|x| lo <= *x && *x <= hi)
+            })
+            .flatten()
+            .copied()
+            .collect();
+        v.sort_unstable();
+        v.dedup();
+        v
+    };
+    assert_eq!(
+        got.iter().map(|g| g.0).collect::<Vec<_>>(),
+        wanted,
+        "{name}"
+    );
+    let worst = got
+        .iter()
+        .map(|&(v, a)| (glam::Vec4::from(a) - glam::Vec4::from(twin[v as usize])).length() / scale)
+        .fold(0.0f32, f32::max);
+    eprintln!("{name}: gradient stage vs twin, worst difference {worst:e} of the largest");
+    // Same f32 arithmetic in the same order: measured bit-identical (0) on lavapipe; a
+    // driver that fuses multiply-adds may differ by a few ulps of the terms.
+    assert!(worst <= 1e-5, "{name}: {worst}");
 }
 
 #[test]
