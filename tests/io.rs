@@ -683,104 +683,107 @@ fn write_vtu_round_trips_exactly() {
     assert_eq!(a, b);
 }
 
+/// Each malformed corpus file and the start of the message its load must give.
+const MALFORMED: &[(&str, &str)] = &[
+    (
+        "truncated_binary.vtk",
+        "truncated_binary.vtk: byte 239: file ends inside CELLS (expected 68 more bytes)",
+    ),
+    (
+        "bad_header.vtk",
+        "bad_header.vtk: line 1: not a legacy VTK file",
+    ),
+    (
+        "bad_counts.vtk",
+        "bad_counts.vtk: line 23: unknown keyword '4'",
+    ),
+    (
+        "index_out_of_range.vtk",
+        "index_out_of_range.vtk: cell 3: vertex index 99 of the tetrahedron is out of range (the mesh has 12 points)",
+    ),
+    (
+        "nan_coordinate.vtk",
+        "nan_coordinate.vtk: line 8: point 2 has the non-finite coordinate NaN",
+    ),
+    (
+        "unknown_cell_type.vtk",
+        "unknown_cell_type.vtk: cell 1: cell type 25 (quadratic hexahedron) is not supported",
+    ),
+    (
+        "structured_points.vtk",
+        "structured_points.vtk: line 4: dataset type 'STRUCTURED_POINTS' is not supported",
+    ),
+    (
+        "negative_count.vtk",
+        "negative_count.vtk: line 5: expected the number of points (a non-negative integer), found '-12'",
+    ),
+    (
+        "huge_count.vtk",
+        "huge_count.vtk: byte 91: file ends inside POINTS (expected 11999999999964 more bytes)",
+    ),
+    (
+        "repeated_index.msh",
+        "repeated_index.msh: element 3 (tag 103): the tetrahedron repeats vertex 5",
+    ),
+    (
+        "missing_node.msh",
+        "missing_node.msh: element 3 (tag 103): node 999 is not defined",
+    ),
+    (
+        "unknown_element.msh",
+        "unknown_element.msh: element 4 (tag 104): unknown element type 99",
+    ),
+    (
+        "negative_count.msh",
+        "negative_count.msh: line 9: expected the number of nodes (a non-negative integer), found '-12'",
+    ),
+    (
+        "huge_count.msh",
+        "huge_count.msh: line 7: file ends where a node tag was expected",
+    ),
+    (
+        "nan_scalar.msh",
+        "nan_scalar.msh: line 41: $NodeData 's' has the non-finite value inf at node 13",
+    ),
+    (
+        "quadratic_hex.msh",
+        "quadratic_hex.msh: element 0 (tag 100): element type 17 (a 20-node 3D element) is not supported",
+    ),
+    (
+        "nan_scalar.vtu",
+        "nan_scalar.vtu: line 8: array 't' has the non-finite value NaN at point 4",
+    ),
+    (
+        "polydata.vtu",
+        "polydata.vtu: byte 64: VTK XML type 'PolyData' is not supported",
+    ),
+    (
+        "truncated_compressed.vtu",
+        "truncated_compressed.vtu: byte 354: file ends inside DataArray",
+    ),
+    ("bad_xml.vtu", "bad_xml.vtu: byte "),
+    (
+        "nan_point.node",
+        "nan_point.node: line 5: point 3 has the non-finite coordinate inf",
+    ),
+    (
+        "overflow_index.ele",
+        "overflow_index.ele: element 0 (tag 1): vertex index -9223372036854775808 of the tetrahedron is out of range",
+    ),
+    (
+        "huge_points.vtu",
+        "huge_points.vtu: byte 163: Piece announces 18446744073709551615 points, more than any file holds",
+    ),
+    (
+        "bad_index.ele",
+        "bad_index.ele: element 4 (tag 5): vertex index 8 of the tetrahedron is out of range (the mesh has 8 points)",
+    ),
+];
+
 /// Every file in tests/corpus/malformed gives an error naming the file and the place.
 #[test]
 fn malformed_corpus_gives_located_errors() {
-    let cases: &[(&str, &str)] = &[
-        (
-            "truncated_binary.vtk",
-            "truncated_binary.vtk: byte 239: file ends inside CELLS (expected 68 more bytes)",
-        ),
-        (
-            "bad_header.vtk",
-            "bad_header.vtk: line 1: not a legacy VTK file",
-        ),
-        (
-            "bad_counts.vtk",
-            "bad_counts.vtk: line 23: unknown keyword '4'",
-        ),
-        (
-            "index_out_of_range.vtk",
-            "index_out_of_range.vtk: cell 3: vertex index 99 of the tetrahedron is out of range (the mesh has 12 points)",
-        ),
-        (
-            "nan_coordinate.vtk",
-            "nan_coordinate.vtk: line 8: point 2 has the non-finite coordinate NaN",
-        ),
-        (
-            "unknown_cell_type.vtk",
-            "unknown_cell_type.vtk: cell 1: cell type 25 (quadratic hexahedron) is not supported",
-        ),
-        (
-            "structured_points.vtk",
-            "structured_points.vtk: line 4: dataset type 'STRUCTURED_POINTS' is not supported",
-        ),
-        (
-            "negative_count.vtk",
-            "negative_count.vtk: line 5: expected the number of points (a non-negative integer), found '-12'",
-        ),
-        (
-            "huge_count.vtk",
-            "huge_count.vtk: byte 91: file ends inside POINTS (expected 11999999999964 more bytes)",
-        ),
-        (
-            "repeated_index.msh",
-            "repeated_index.msh: element 3 (tag 103): the tetrahedron repeats vertex 5",
-        ),
-        (
-            "missing_node.msh",
-            "missing_node.msh: element 3 (tag 103): node 999 is not defined",
-        ),
-        (
-            "unknown_element.msh",
-            "unknown_element.msh: element 4 (tag 104): unknown element type 99",
-        ),
-        (
-            "negative_count.msh",
-            "negative_count.msh: line 9: expected the number of nodes (a non-negative integer), found '-12'",
-        ),
-        (
-            "huge_count.msh",
-            "huge_count.msh: line 7: file ends where a node tag was expected",
-        ),
-        (
-            "nan_scalar.msh",
-            "nan_scalar.msh: line 41: $NodeData 's' has the non-finite value inf at node 13",
-        ),
-        (
-            "quadratic_hex.msh",
-            "quadratic_hex.msh: element 0 (tag 100): element type 17 (a 20-node 3D element) is not supported",
-        ),
-        (
-            "nan_scalar.vtu",
-            "nan_scalar.vtu: line 8: array 't' has the non-finite value NaN at point 4",
-        ),
-        (
-            "polydata.vtu",
-            "polydata.vtu: byte 64: VTK XML type 'PolyData' is not supported",
-        ),
-        (
-            "truncated_compressed.vtu",
-            "truncated_compressed.vtu: byte 354: file ends inside DataArray",
-        ),
-        ("bad_xml.vtu", "bad_xml.vtu: byte "),
-        (
-            "nan_point.node",
-            "nan_point.node: line 5: point 3 has the non-finite coordinate inf",
-        ),
-        (
-            "overflow_index.ele",
-            "overflow_index.ele: element 0 (tag 1): vertex index -9223372036854775808 of the tetrahedron is out of range",
-        ),
-        (
-            "huge_points.vtu",
-            "huge_points.vtu: byte 163: Piece announces 18446744073709551615 points, more than any file holds",
-        ),
-        (
-            "bad_index.ele",
-            "bad_index.ele: element 4 (tag 5): vertex index 8 of the tetrahedron is out of range (the mesh has 8 points)",
-        ),
-    ];
+    let cases = MALFORMED;
     let dir = corpus("malformed");
     let mut files: Vec<String> = std::fs::read_dir(&dir)
         .unwrap()
