@@ -104,6 +104,22 @@ pub enum MeshError {
         /// Vertices in the mesh.
         count: usize,
     },
+    /// Per-tet values ([`TetMesh::set_cell_scalars`]) not one per tet.
+    #[error("the cell values have {len} entries, but the mesh has {count} tets")]
+    CellValuesLength {
+        /// Values given.
+        len: usize,
+        /// Tets in the mesh.
+        count: usize,
+    },
+    /// A per-tet value is NaN or infinite.
+    #[error("the cell values have the non-finite value {value} at tet {tet}")]
+    NonFiniteCellValue {
+        /// 0-based tet index.
+        tet: usize,
+        /// The value.
+        value: f64,
+    },
     /// More vertices than 32-bit indices can name.
     #[error("the mesh has {count} vertices; tetvr indexes vertices with 32 bits (at most {max})")]
     TooManyVertices {
@@ -134,6 +150,9 @@ pub struct TetMesh {
     tets: Vec<[u32; 4]>,
     arrays: Vec<ScalarArray>,
     active: Option<usize>,
+    /// One value per tet when the active field is cell data rendered constant per tet (see
+    /// [`TetMesh::cell_scalars`]).
+    cell_values: Option<Vec<f64>>,
 }
 
 impl TetMesh {
@@ -190,6 +209,7 @@ impl TetMesh {
                 tets,
                 arrays,
                 active,
+                cell_values: None,
             },
             BuildReport { reoriented },
         ))
@@ -311,9 +331,30 @@ impl TetMesh {
         (hi - lo).length()
     }
 
-    /// (min, max) of the active scalars over each tet's four vertices.
+    /// The field renderers integrate is constant per tet when this is `Some`: one value per tet,
+    /// in tet order (cell data rendered as cells, `--cell-data constant`). The active per-vertex
+    /// array then holds the same data averaged to the vertices, for what needs vertex values
+    /// (ranges for the default TF, isosurfaces). `None` for ordinary per-vertex fields.
+    pub fn cell_scalars(&self) -> Option<&[f64]> {
+        self.cell_values.as_deref()
+    }
+
+    /// Sets (or, with `None`, clears) the per-tet values of [`TetMesh::cell_scalars`].
+    pub fn set_cell_scalars(&mut self, values: Option<Vec<f64>>) -> Result<(), MeshError> {
+        if let Some(v) = &values {
+            check_cell_values(v, self.tets.len())?;
+        }
+        self.cell_values = values;
+        Ok(())
+    }
+
+    /// (min, max) of the field over each tet: over its four vertices' active scalars, or its one
+    /// value when the field is constant per tet ([`TetMesh::cell_scalars`]).
     pub fn tet_scalar_ranges(&self) -> Result<Vec<(f64, f64)>, MeshError> {
-        Ok(tet_ranges(&self.tets, self.scalars()?))
+        match &self.cell_values {
+            Some(c) => Ok(c.iter().map(|&v| (v, v)).collect()),
+            None => Ok(tet_ranges(&self.tets, self.scalars()?)),
+        }
     }
 
     /// Face adjacency (each tet's four neighbours) and boundary faces.
@@ -398,6 +439,23 @@ pub(crate) fn check_values(array: &str, values: &[f64], count: usize) -> Result<
             array: array.into(),
             vertex: v,
             value: values[v],
+        }),
+        None => Ok(()),
+    }
+}
+
+/// Per-tet values: one finite value per tet.
+fn check_cell_values(values: &[f64], tets: usize) -> Result<(), MeshError> {
+    if values.len() != tets {
+        return Err(MeshError::CellValuesLength {
+            len: values.len(),
+            count: tets,
+        });
+    }
+    match values.iter().position(|v| !v.is_finite()) {
+        Some(t) => Err(MeshError::NonFiniteCellValue {
+            tet: t,
+            value: values[t],
         }),
         None => Ok(()),
     }
@@ -524,5 +582,21 @@ mod tests {
             e.to_string(),
             "no scalar array named 'c'; the mesh has: a, b"
         );
+    }
+
+    #[test]
+    fn cell_values_are_checked_and_give_the_tet_ranges() {
+        let a = ScalarArray::new("a", vec![0.0, 1.0, 2.0, 3.0]);
+        let (mut m, _) = TetMesh::new(unit_tet(), vec![[0, 1, 2, 3]], vec![a]).unwrap();
+        assert_eq!(m.tet_scalar_ranges().unwrap(), vec![(0.0, 3.0)]);
+        let e = m.set_cell_scalars(Some(vec![1.0, 2.0])).unwrap_err();
+        assert_eq!(e, MeshError::CellValuesLength { len: 2, count: 1 });
+        let e = m.set_cell_scalars(Some(vec![f64::NAN])).unwrap_err();
+        assert!(matches!(e, MeshError::NonFiniteCellValue { tet: 0, .. }));
+        m.set_cell_scalars(Some(vec![5.0])).unwrap();
+        assert_eq!(m.cell_scalars(), Some(&[5.0][..]));
+        assert_eq!(m.tet_scalar_ranges().unwrap(), vec![(5.0, 5.0)]);
+        m.set_cell_scalars(None).unwrap();
+        assert_eq!(m.tet_scalar_ranges().unwrap(), vec![(0.0, 3.0)]);
     }
 }
