@@ -1,4 +1,4 @@
-// Ray caster stage 3, entries (one thread per boundary face): every pixel whose ray enters the
+// Ray caster stage 3, entries (one workgroup per boundary face): every pixel whose ray enters the
 // mesh through the face gets the hit (t, 4 * tet + face) in its list; rays leave and re-enter a
 // non-convex mesh through as many faces as they cross. A list that is full counts the hit as an
 // overflow and the CPU renders the frame again with longer lists; nothing is dropped silently.
@@ -20,25 +20,43 @@ fn record(pixel: u32, t: f32, code: u32) {
     }
 }
 
+// The face a workgroup works on, set up once by its first thread.
+var<workgroup> face_w: Face;
+var<workgroup> plane_w: vec4<f32>;
+var<workgroup> code_w: u32;
+// The face's pixel rectangle [x, y, x_end, y_end).
+var<workgroup> rect_w: vec4<i32>;
+
+// One workgroup per boundary face, its 64 threads sharing the face's pixels: a large face costs
+// no more wall time than a small one takes threads (with one thread per face, the few faces
+// covering thousands of pixels kept a GPU waiting on them).
 @compute @workgroup_size(64)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    let k = gid.y * groups.x * 64u + gid.x;
+fn main(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) lane: u32,
+) {
+    let k = wid.y * groups.x + wid.x;
     if k >= params.boundary_count {
         return;
     }
-    let code = boundary[k];
-    let tet = code >> 2u;
-    let f = code & 3u;
-    let ids = link(tet).tet;
-    let p = tet_planes(ids).face[f];
-    let face = face_of(ids, f);
-    let r = pixel_bounds(face);
-    for (var y = r.y; y < r.w; y++) {
-        for (var x = r.x; x < r.z; x++) {
-            let t = entry_t(p, face, ray_of(vec2<u32>(u32(x), u32(y))));
-            if t > 0.0 {
-                record(u32(y) * u32(view.size.x) + u32(x), t, code);
-            }
+    if lane == 0u {
+        let code = boundary[k];
+        let ids = link(code >> 2u).tet;
+        let face = face_of(ids, code & 3u);
+        face_w = face;
+        plane_w = tet_planes(ids).face[code & 3u];
+        code_w = code;
+        rect_w = pixel_bounds(face);
+    }
+    let r = workgroupUniformLoad(&rect_w);
+    let w = r.z - r.x;
+    let n = w * (r.w - r.y);
+    for (var i = i32(lane); i < n; i += 64) {
+        let px = vec2<u32>(vec2<i32>(r.x + i % w, r.y + i / w));
+        let t = entry_t(plane_w, face_w, ray_of(px));
+        if t > 0.0 {
+            record(px.y * u32(view.size.x) + px.x, t, code_w);
         }
     }
 }

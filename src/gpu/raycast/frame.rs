@@ -458,7 +458,8 @@ impl RaycastRenderer {
         match &t.pixels {
             PixelBuffers::Lists { counts, .. } => {
                 rec.encoder().clear_buffer(counts, 0, None);
-                passes.push(("entries", &p.entries, &groups.entry, faces));
+                let one_group_per_face = linear(64 * self.boundary_count as u64, max);
+                passes.push(("entries", &p.entries, &groups.entry, one_group_per_face));
             }
             PixelBuffers::Peel { hits, .. } => {
                 rec.encoder().clear_buffer(hits, 0, None);
@@ -485,6 +486,9 @@ impl RaycastRenderer {
         enc.copy_buffer_to_buffer(&self.counters, 0, &self.counters_read, 0, bytes);
         enc.copy_buffer_to_buffer(&t.tiles, 12, &self.counters_read, bytes, 4);
         enc.copy_buffer_to_buffer(&self.progress, 0, &self.counters_read, bytes + 4, 8);
+        // The image travels with the counters: the frame's last layer (or its run without an
+        // overflow) then needs no second submission and wait to be read.
+        t.readback.copy(enc, &t.image);
         let stats = rec.finish(&[], &self.counters, 0)?;
         for (stage, ms) in stats.stages {
             match run.stages.iter_mut().find(|(s, _)| *s == stage) {
@@ -507,12 +511,9 @@ impl RaycastRenderer {
         (self.targets.as_ref()).ok_or_else(|| settings_error("internal: render target missing"))
     }
 
-    /// Copies the image out and reads it back.
+    /// Reads back the image the last layer copied out ([`Self::record_layer`]).
     fn read_image(&self) -> Result<Image, RenderError> {
         let t = self.targets()?;
-        let mut enc = (self.device).create_command_encoder(&Default::default());
-        t.readback.copy(&mut enc, &t.image);
-        self.queue.submit([enc.finish()]);
         let mut image = Image::new(t.width, t.height);
         image.pixels = t.readback.read(&self.device)?;
         Ok(image)
