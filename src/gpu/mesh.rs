@@ -110,7 +110,12 @@ impl MeshData {
     pub(crate) fn gpu_cells(&self) -> Option<Vec<f32>> {
         let (lo, span) = (self.scalar_min, self.scalar_span);
         let cells = self.cells.as_ref()?;
-        Some(cells.par_iter().map(|&s| ((s - lo) / span) as f32).collect())
+        Some(
+            cells
+                .par_iter()
+                .map(|&s| ((s - lo) / span) as f32)
+                .collect(),
+        )
     }
 }
 
