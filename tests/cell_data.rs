@@ -339,4 +339,3 @@ fn iso_says_it_draws_the_vertex_average_of_cells() {
     let shells = ModeSettings::Shells(ShellSettings::default());
     assert_eq!(shells.mesh_note(&mesh), None);
 }
-

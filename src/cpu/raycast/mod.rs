@@ -142,10 +142,9 @@ impl CpuRaycastRenderer {
             Some(c) => scalar_frame(&[self.raw_scalars.as_slice(), c].concat()),
             None => scalar_frame(&self.raw_scalars),
         };
-        let (lo, span) = (self.scalar_min, self.scalar_span);
-        let normalize = |v: &[f64]| v.par_iter().map(|&s| ((s - lo) / span) as f32).collect();
-        self.scalars = normalize(&self.raw_scalars);
-        self.cells = self.raw_cells.as_deref().map(normalize);
+        let frame = (self.scalar_min, self.scalar_span);
+        self.scalars = normalized(&self.raw_scalars, frame);
+        self.cells = (self.raw_cells.as_deref()).map(|c| normalized(c, frame));
     }
 
     fn frame(&mut self, camera: &Camera, tf: &TransferFunction) -> Frame {
@@ -207,6 +206,14 @@ impl CpuRaycastRenderer {
         timings.count("threads", rayon::current_num_threads() as u64);
         Frame { image, timings }
     }
+}
+
+/// `values` as `(s - lo) / span` in f32, `(lo, span)` the scalar frame.
+fn normalized(values: &[f64], (lo, span): (f64, f64)) -> Vec<f32> {
+    values
+        .par_iter()
+        .map(|&s| ((s - lo) / span) as f32)
+        .collect()
 }
 
 /// Every tile's rays in parallel (scratch for the entries reused per worker), then the tiles
