@@ -339,3 +339,29 @@ fn iso_says_it_draws_the_vertex_average_of_cells() {
     let shells = ModeSettings::Shells(ShellSettings::default());
     assert_eq!(shells.mesh_note(&mesh), None);
 }
+
+/// Cell values cost the GPU modes 4 bytes a tet (one f32 per tet: the mesh's for shells and
+/// the ray caster, the sorted copy for cellproj), and point data nothing more: the renderers'
+/// memory right after construction, with and without the cell values.
+#[test]
+fn cell_values_cost_four_bytes_a_tet() {
+    let (mesh, _, _) = scene(common::gaussians(6), 8);
+    let point = averaged(&mesh);
+    let extra = 4 * mesh.tet_count() as u64;
+    type Build = fn(&TetMesh) -> Box<dyn Renderer>;
+    let builds: [(&str, Build); 3] = [
+        ("shells", |m| {
+            Box::new(ShellsRenderer::new(ctx(), m, ShellSettings::default()).unwrap())
+        }),
+        ("cellproj", |m| {
+            Box::new(CellProjRenderer::new(ctx(), m, CellProjSettings::default()).unwrap())
+        }),
+        ("raycast", |m| {
+            Box::new(RaycastRenderer::new(ctx(), m, RaycastSettings::default()).unwrap())
+        }),
+    ];
+    for (name, build) in builds {
+        let (cells, points) = (build(&mesh).gpu_memory(), build(&point).gpu_memory());
+        assert_eq!(cells - points, extra, "{name}: {cells} vs {points} bytes");
+    }
+}
