@@ -1,13 +1,17 @@
 // Assembly (a compute pass standing in for a geometry shader): once per tet and frame, fetch
 // the four vertices from the shared vertex buffer, transform them to eye space, and build the
 // eye-to-barycentric transform and the eye's barycentric coordinates. The CPU twin is
-// gpu::shells::twin::assemble (shared by every mode, gpu::assembly).
+// gpu::shells::twin::assemble (shared by every mode, gpu::assembly). `main_cells` is the same
+// for a field constant per tet (cell data, gpu::mesh): the record's scalar is the tet's value
+// from `cells` (one per list entry), with gradient exactly 0.
 
 @group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> scalars: array<f32>;
 @group(0) @binding(3) var<storage, read> tets: array<vec4<u32>>;
 @group(0) @binding(4) var<storage, read_write> records: array<TetRecord>;
 @group(0) @binding(5) var<storage, read_write> degenerate_count: atomic<u32>;
+// main_cells only: the normalized value of each list entry's tet.
+@group(0) @binding(6) var<storage, read> cells: array<f32>;
 
 // World (mesh-origin relative) point to eye space. Every tet that uses a vertex transforms it
 // with exactly these operations, so shared vertices project to the same bits (no cracks).
@@ -27,10 +31,26 @@ fn main(
     @builtin(num_workgroups) groups: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
+    assemble((wid.y * groups.x + wid.x) * 64u + lid);
+}
+
+@compute @workgroup_size(64)
+fn main_cells(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
     let t = (wid.y * groups.x + wid.x) * 64u + lid;
+    if assemble(t) {
+        records[t].scalar = vec4<f32>(0.0, 0.0, 0.0, cells[t] + 1.0);
+    }
+}
+
+// Builds and writes the record of list entry t; whether it is a usable tet.
+fn assemble(t: u32) -> bool {
     // A chunked mesh binds a window of `tets` per dispatch: its length is the chunk's count.
     if t >= min(view.tet_count, arrayLength(&tets)) {
-        return;
+        return false;
     }
     let idx = tets[t];
     let p0 = positions[idx.x].xyz;
@@ -58,7 +78,7 @@ fn main(
     if !(abs(det) > view.degenerate_tol * scale) {
         atomicAdd(&degenerate_count, 1u);
         records[t] = rec;
-        return;
+        return false;
     }
     rec.pos[0] = vec4<f32>(to_eye(p0), 1.0);
     rec.pos[1] = vec4<f32>(to_eye(p1), 1.0);
@@ -91,4 +111,5 @@ fn main(
     let gs = r0 * s.x + r1 * s.y + r2 * s.z + r3 * s.w;
     rec.scalar = vec4<f32>(gs, dot(lambda_eye, s));
     records[t] = rec;
+    return true;
 }

@@ -68,6 +68,11 @@ struct Counters {
 // directly (a software adapter otherwise pays for the switch on every step).
 override LINK_WINDOWS: u32 = 4u;
 
+// Whether the field is constant per tet (cell data, gpu::mesh), a pipeline constant: the
+// traversal then integrates each tet's value (`cells`, raycast_traverse.wgsl) instead of the
+// linear scalar of its planes.
+override CELLS: bool = false;
+
 // Tet t's links, from the window that holds it.
 fn link(t: u32) -> TetLinks {
     if LINK_WINDOWS == 1u {

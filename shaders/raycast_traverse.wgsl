@@ -17,6 +17,8 @@
 @group(0) @binding(11) var image: texture_storage_2d<rgba32float, write>;
 // Binding 12: the integrator's table (raycast_psi.wgsl, raycast_table.wgsl; none for exact).
 @group(0) @binding(13) var<storage, read> tiles: array<u32>;
+// Cell data (CELLS, raycast_shared.wgsl): each tet's normalized value; unread otherwise.
+@group(0) @binding(16) var<storage, read> cells: array<f32>;
 
 // Early ray termination: what lies behind a transmittance below this adds at most this much to
 // any channel (twin::TERMINATE).
@@ -96,6 +98,16 @@ fn scalar_at(pl: TetPlanes, d: vec3<f32>, t: f32) -> f32 {
     return clamp(pl.scalar.w + t * dot(pl.scalar.xyz, d), 0.0, 1.0);
 }
 
+// The normalized scalars at the ends t0, t1 of tet `tet`'s segment: the linear scalar of its
+// planes, or, for cell data, its one value at both ends.
+fn segment_scalars(tet: u32, pl: TetPlanes, d: vec3<f32>, t0: f32, t1: f32) -> vec2<f32> {
+    if CELLS {
+        let c = clamp(cells[tet], 0.0, 1.0);
+        return vec2<f32>(c, c);
+    }
+    return vec2<f32>(scalar_at(pl, d, t0), scalar_at(pl, d, t1));
+}
+
 // The pixel of thread `local` in workgroup `group` of the dispatch over the tile list; out of
 // the image past the list's end.
 fn tile_pixel(group: vec3<u32>, local: vec2<u32>) -> vec2<u32> {
@@ -154,7 +166,8 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
             out = exit(pl, entry, d, t);
         }
         let f = u32(out.x);
-        let seg = segment(scalar_at(pl, d, t), scalar_at(pl, d, out.y), out.y - t);
+        let u = segment_scalars(tet, pl, d, t, out.y);
+        let seg = segment(u.x, u.y, out.y - t);
         acc = Acc(acc.color + acc.trans * seg.color, acc.trans * seg.trans);
         if acc.trans < TERMINATE {
             break;

@@ -157,6 +157,16 @@ impl ModeSettings {
         }
     }
 
+    /// What a user should be told, in one line, about how this mode renders `mesh`: for cell
+    /// data ([`TetMesh::cell_scalars`]), that `iso` draws the isosurfaces of the cell values
+    /// averaged to the vertices (every other mode renders them constant per tet); else `None`.
+    pub fn mesh_note(&self, mesh: &TetMesh) -> Option<&'static str> {
+        (matches!(self, Self::Iso(_)) && mesh.cell_scalars().is_some()).then_some(
+            "iso draws the isosurfaces of the cell data averaged to the vertices, not the faces \
+             between cells; the volume modes render it constant per tet",
+        )
+    }
+
     /// Builds the renderer of this mode (resolved as [`Self::resolve`]) for `mesh`. Errors:
     /// [`GpuError::NoAdapter`] for a GPU mode without `gpu`, and whatever the renderer's
     /// constructor refuses (no active scalars, a mesh over the adapter's limits, bad settings).

@@ -4,13 +4,17 @@
 //! ([`TetRecord`]). The list and the records are [`TetArray`]s of one
 //! [`crate::gpu::mesh::Chunking`]; each chunk is assembled through its own bind group over the
 //! chunk's windows, so records beyond one storage binding or one buffer are fine.
+//!
+//! For a field constant per tet (cell data, [`crate::gpu::mesh`]) the stage runs the shader's
+//! `main_cells`, which reads one more per-list-entry array, the tets' values
+//! ([`AssemblyInputs::cells`]), and gives each record that constant scalar.
 
 use crate::gpu::GpuError;
 use crate::gpu::frame::{Recorder, Timestamps};
 use crate::gpu::gpu_data::TetRecord;
 use crate::gpu::mesh::{GpuTetMesh, TetArray};
 use crate::gpu::shaders;
-use crate::gpu::util::{bind_group_layout, buffer_entry, compute_main, entry};
+use crate::gpu::util::{bind_group_layout, buffer_entry, compute_entry, entry};
 
 /// A tet is degenerate (skipped, counted) when the determinant of its edges, each divided by
 /// the longest, is at most this times the product of their lengths: its barycentric transform
@@ -42,27 +46,32 @@ pub(crate) struct AssemblyInputs<'a> {
     pub tets: &'a TetArray,
     /// The records to write.
     pub records: &'a TetArray,
+    /// Cell data: the normalized value of each list entry's tet (parallel to `tets`, same
+    /// chunking); `None` for point data. Must match the stage ([`AssemblyStage::new`]).
+    pub cells: Option<&'a TetArray>,
 }
 
 impl AssemblyStage {
-    /// Builds the pipeline.
-    pub(crate) fn new(device: &wgpu::Device) -> Self {
+    /// Builds the pipeline: the one for a field constant per tet when `cells` (its inputs then
+    /// carry [`AssemblyInputs::cells`]).
+    pub(crate) fn new(device: &wgpu::Device, cells: bool) -> Self {
         use wgpu::ShaderStages as S;
         let ro = wgpu::BufferBindingType::Storage { read_only: true };
         let rw = wgpu::BufferBindingType::Storage { read_only: false };
-        let layout = bind_group_layout(
-            device,
-            "assemble",
-            &[
-                buffer_entry(0, S::COMPUTE, wgpu::BufferBindingType::Uniform),
-                buffer_entry(1, S::COMPUTE, ro),
-                buffer_entry(2, S::COMPUTE, ro),
-                buffer_entry(3, S::COMPUTE, ro),
-                buffer_entry(4, S::COMPUTE, rw),
-                buffer_entry(5, S::COMPUTE, rw),
-            ],
-        );
-        let pipeline = compute_main(device, "assemble", &layout, shaders::assemble());
+        let mut entries = vec![
+            buffer_entry(0, S::COMPUTE, wgpu::BufferBindingType::Uniform),
+            buffer_entry(1, S::COMPUTE, ro),
+            buffer_entry(2, S::COMPUTE, ro),
+            buffer_entry(3, S::COMPUTE, ro),
+            buffer_entry(4, S::COMPUTE, rw),
+            buffer_entry(5, S::COMPUTE, rw),
+        ];
+        if cells {
+            entries.push(buffer_entry(6, S::COMPUTE, ro));
+        }
+        let layout = bind_group_layout(device, "assemble", &entries);
+        let entry = if cells { "main_cells" } else { "main" };
+        let pipeline = compute_entry(device, "assemble", &layout, shaders::assemble(), entry);
         let degenerate = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("degenerate tet count"),
             size: 16,
@@ -89,17 +98,21 @@ impl AssemblyStage {
         let groups = chunks
             .iter()
             .map(|&(first, count)| {
+                let mut entries = vec![
+                    entry(0, inputs.view),
+                    entry(1, inputs.mesh.positions()),
+                    entry(2, inputs.mesh.scalars()),
+                    inputs.tets.window(3, first, count),
+                    inputs.records.window(4, first, count),
+                    entry(5, &self.degenerate),
+                ];
+                if let Some(cells) = inputs.cells {
+                    entries.push(cells.window(6, first, count));
+                }
                 let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some("assemble"),
                     layout: &self.layout,
-                    entries: &[
-                        entry(0, inputs.view),
-                        entry(1, inputs.mesh.positions()),
-                        entry(2, inputs.mesh.scalars()),
-                        inputs.tets.window(3, first, count),
-                        inputs.records.window(4, first, count),
-                        entry(5, &self.degenerate),
-                    ],
+                    entries: &entries,
                 });
                 (group, count)
             })

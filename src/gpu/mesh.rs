@@ -5,6 +5,15 @@
 //! many buffers as the adapter's largest buffer needs, so no single buffer's limit caps the
 //! mesh.
 //!
+//! **Cell data** ([`TetMesh::cell_scalars`]): the field is constant per tet. The mesh then also
+//! holds one normalized value per tet ([`GpuTetMesh::cells`], 4 bytes a tet, uploaded when a
+//! mode first asks), and every mode's stage that builds a tet's linear scalar from its four
+//! vertex values takes the tet's value instead, with gradient exactly 0 (the assembly's
+//! `main_cells`, the ray caster's traversal with `CELLS`). The scalar frame spans the vertex
+//! and the cell values, so both normalize into [0, 1]. The per-vertex scalars stay (the
+//! vertex-averaged field, which iso renders). Such a mesh's values change only with the
+//! mesh: [`GpuTetMesh::update_scalars`] refuses it ([`cell_update_error`]).
+//!
 //! A renderer holds an `Arc<GpuTetMesh>`; several renderers may share one. Positions and
 //! scalars change through [`GpuTetMesh::update_positions`] and
 //! [`GpuTetMesh::update_scalars`] (one upload each); each change bumps a version
@@ -39,7 +48,9 @@ pub struct MeshData {
     pub scalar_min: f64,
     /// Scalar range (1 for a constant field).
     pub scalar_span: f64,
-    /// Each tet's (min, max) scalar, for transfer-function culling.
+    /// The field's value per tet when it is constant per tet ([`TetMesh::cell_scalars`]).
+    pub cells: Option<Vec<f64>>,
+    /// Each tet's (min, max) scalar, for transfer-function culling (its one value for cells).
     pub ranges: Vec<(f64, f64)>,
     /// Counts the position updates: what was derived from older positions is stale.
     pub positions_version: u64,
@@ -53,9 +64,14 @@ impl MeshData {
         let scalars = mesh.scalars()?.to_vec();
         let tets = mesh.tets().to_vec();
         let (origin, radius) = bounding_sphere(&positions);
-        let (scalar_min, scalar_span) = scalar_frame(&scalars);
+        let cells = mesh.cell_scalars().map(<[f64]>::to_vec);
+        let (scalar_min, scalar_span) = match &cells {
+            Some(c) => scalar_frame(&[scalars.as_slice(), c].concat()),
+            None => scalar_frame(&scalars),
+        };
         Ok(Self {
-            ranges: tet_ranges(&tets, &scalars),
+            ranges: mesh.tet_scalar_ranges()?,
+            cells,
             positions,
             scalars,
             tets,
@@ -88,6 +104,30 @@ impl MeshData {
             .map(|&s| ((s - lo) / span) as f32)
             .collect()
     }
+
+    /// The per-tet values of a cell-data mesh, normalized as [`Self::gpu_scalars`]; `None` for
+    /// point data.
+    pub(crate) fn gpu_cells(&self) -> Option<Vec<f32>> {
+        let (lo, span) = (self.scalar_min, self.scalar_span);
+        let cells = self.cells.as_ref()?;
+        Some(
+            cells
+                .par_iter()
+                .map(|&s| ((s - lo) / span) as f32)
+                .collect(),
+        )
+    }
+}
+
+/// The error of a per-vertex scalar update on a mesh whose field is constant per tet: the
+/// per-vertex values are only its average, so the update cannot change what is rendered.
+pub(crate) fn cell_update_error() -> RenderError {
+    settings_error(
+        "this mesh renders cell data constant per tet, and update_scalars takes one value per \
+         vertex: build the renderer again from the mesh with its new cell values \
+         (TetMesh::set_cell_scalars), or render the cell data averaged to the vertices \
+         (--cell-data points)",
+    )
 }
 
 /// The mesh on the GPU, shared by every mode; see the module docs.
@@ -103,6 +143,11 @@ pub struct GpuTetMesh {
     scalars: wgpu::Buffer,
     /// The tets' vertex indices (16 bytes each), uploaded when a mode first asks.
     tets: OnceLock<TetArray>,
+    /// Whether the field is constant per tet (fixed for the mesh's life).
+    has_cells: bool,
+    /// A cell-data mesh's normalized value per tet (4 bytes each), uploaded when a mode first
+    /// asks.
+    cells: OnceLock<TetArray>,
 }
 
 impl GpuTetMesh {
@@ -126,10 +171,12 @@ impl GpuTetMesh {
             limits: ctx.limits.clone(),
             adapter: ctx.info.name.clone(),
             tet_count: data.tets.len(),
+            has_cells: data.cells.is_some(),
             data: RwLock::new(data),
             positions,
             scalars,
             tets: OnceLock::new(),
+            cells: OnceLock::new(),
         };
         let data = gpu.read();
         gpu.upload_positions(&data);
@@ -177,7 +224,31 @@ impl GpuTetMesh {
 
     /// The tets' vertex indices (`vec4<u32>` per tet), in chunks of [`Self::chunking`].
     pub(crate) fn tets(&self) -> Result<&TetArray, RenderError> {
-        self.lazy(&self.tets, "mesh tets", |d| d.tets.clone())
+        self.lazy(&self.tets, "mesh tets", 16, |d| {
+            bytemuck::cast_slice(&d.tets).to_vec()
+        })
+    }
+
+    /// Whether the field is constant per tet (cell data; see the module docs).
+    pub fn has_cells(&self) -> bool {
+        self.has_cells
+    }
+
+    /// The normalized value per tet (`f32`, in tet order and chunks of [`Self::chunking`]) of
+    /// a cell-data mesh; `None` for point data.
+    pub(crate) fn cells(&self) -> Result<Option<&TetArray>, RenderError> {
+        if !self.has_cells() {
+            return Ok(None);
+        }
+        let array = self.lazy(&self.cells, "mesh cell values", 4, |d| {
+            bytemuck::cast_slice(&d.gpu_cells().unwrap_or_default()).to_vec()
+        })?;
+        Ok(Some(array))
+    }
+
+    /// The values per tet of [`Self::cells`] once a mode has asked for them.
+    pub(crate) fn uploaded_cells(&self) -> Option<&TetArray> {
+        self.cells.get()
     }
 
     /// How arrays of one entry per tet of this mesh are cut into binding-sized chunks.
@@ -189,14 +260,16 @@ impl GpuTetMesh {
         &'a self,
         cell: &'a OnceLock<TetArray>,
         label: &str,
-        values: impl FnOnce(&MeshData) -> Vec<[u32; 4]>,
+        stride: u64,
+        bytes: impl FnOnce(&MeshData) -> Vec<u8>,
     ) -> Result<&'a TetArray, RenderError> {
         if let Some(array) = cell.get() {
             return Ok(array);
         }
-        let data = values(&self.read());
-        let array = self.tet_array(label, self.chunking()?, data.len() as u64, 16)?;
-        array.write(&self.queue, bytemuck::cast_slice(&data));
+        let data = bytes(&self.read());
+        let count = data.len() as u64 / stride;
+        let array = self.tet_array(label, self.chunking()?, count, stride)?;
+        array.write(&self.queue, &data);
         Ok(cell.get_or_init(|| array))
     }
 
@@ -228,9 +301,13 @@ impl GpuTetMesh {
     }
 
     /// New values of the active scalar array (same count, finite): recomputes the scalar frame
-    /// and the per-tet ranges and uploads them (one buffer write).
+    /// and the per-tet ranges and uploads them (one buffer write). A cell-data mesh refuses
+    /// ([`cell_update_error`]).
     pub fn update_scalars(&self, scalars: &[f64]) -> Result<(), RenderError> {
         let mut data = self.data.write().unwrap_or_else(PoisonError::into_inner);
+        if data.cells.is_some() {
+            return Err(cell_update_error());
+        }
         check_values("scalars", scalars, data.scalars.len())?;
         data.scalars.copy_from_slice(scalars);
         (data.scalar_min, data.scalar_span) = scalar_frame(&data.scalars);
@@ -255,7 +332,8 @@ impl GpuTetMesh {
     /// Bytes of the mesh's GPU buffers (vertices, and the per-tet arrays uploaded so far).
     pub fn gpu_memory(&self) -> u64 {
         let tets = self.tets.get().map_or(0, TetArray::size);
-        self.positions.size() + self.scalars.size() + tets
+        let cells = self.cells.get().map_or(0, TetArray::size);
+        self.positions.size() + self.scalars.size() + tets + cells
     }
 }
 

@@ -102,7 +102,8 @@ pub fn raycast_stages() -> [(&'static str, String); 13] {
 /// The most colour targets a raster variant may write (WebGPU's cap on colour attachments).
 pub const MAX_TARGETS: u32 = 8;
 
-/// The assembly stage every mode shares (compute entry point `main`).
+/// The assembly stage every mode shares (compute entry points `main`, and `main_cells` for a
+/// field constant per tet).
 pub fn assemble() -> String {
     format!("{SHARED}\n{ASSEMBLE}")
 }
@@ -232,7 +233,7 @@ pub fn cellproj_raster() -> String {
 /// in source order.
 pub fn registry() -> Vec<(String, String, &'static [&'static str])> {
     let mut out: Vec<(String, String, &'static [&'static str])> = vec![
-        ("assemble".into(), assemble(), &["main"]),
+        ("assemble".into(), assemble(), &["main", "main_cells"]),
         (
             "shells_mark".into(),
             shells_mark(),

@@ -190,12 +190,23 @@ pub(crate) fn compute_main(
     layout: &wgpu::BindGroupLayout,
     source: String,
 ) -> wgpu::ComputePipeline {
+    compute_entry(device, label, layout, source, "main")
+}
+
+/// [`compute_main`] with the entry point `entry`.
+pub(crate) fn compute_entry(
+    device: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::BindGroupLayout,
+    source: String,
+    entry: &str,
+) -> wgpu::ComputePipeline {
     let module = wgsl_module(device, label, source);
     device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
         label: Some(label),
         layout: Some(&pipeline_layout_for(device, layout)),
         module: &module,
-        entry_point: Some("main"),
+        entry_point: Some(entry),
         compilation_options: Default::default(),
         cache: None,
     })

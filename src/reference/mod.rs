@@ -28,6 +28,12 @@
 //! starting at `t = 0`. The walk belongs to the GPU ray caster, which is validated against
 //! this.
 //!
+//! **Cell data** ([`TetMesh::cell_scalars`]): the field is constant per tet, so each segment
+//! takes its tet's value at both ends. A constant scalar lies in one TF interval, where
+//! extinction and colour are constant along the segment: [`integrate_segment`] then gives the
+//! closed form `C = c (1 - T)`, `T = exp(-tau L)`, exactly. The isosurfaces of [`iso`] are
+//! those of the per-vertex field (for cell data, its average to the vertices).
+//!
 //! **Termination.** A ray stops when its transmittance falls below [`MIN_TRANSMITTANCE`]
 //! (1e-9): everything behind can add at most that transmittance to alpha and to each colour
 //! channel (colours are at most 1), far below the 1e-6 accuracy DESIGN asks for.
@@ -44,6 +50,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::camera::Camera;
+use crate::gpu::mesh::cell_update_error;
 use crate::image::Image;
 use crate::mesh::TetMesh;
 use crate::render::{Frame, Progress, RenderError, Renderer, Timings};
@@ -192,13 +199,21 @@ impl ReferenceRenderer {
         let Ok(scalars) = self.mesh.scalars() else {
             return;
         };
+        let cells = self.mesh.cell_scalars();
         let ray = BoxRay::new(origin, dir);
         let raw = &mut scratch.raw;
         self.bvh.for_each_candidate(&ray, |t| {
             let tet = tets[t as usize];
             let p = tet.map(|v| positions[v as usize]);
-            let s = tet.map(|v| scalars[v as usize]);
-            if let Some((t_in, t_out, s_in, s_out)) = clip::clip_tet(p, s, origin, dir) {
+            let s = match cells {
+                Some(c) => [c[t as usize]; 4],
+                None => tet.map(|v| scalars[v as usize]),
+            };
+            if let Some((t_in, t_out, mut s_in, mut s_out)) = clip::clip_tet(p, s, origin, dir) {
+                if let Some(c) = cells {
+                    // Exactly the tet's value, not an interpolation of four equal ones.
+                    (s_in, s_out) = (c[t as usize], c[t as usize]);
+                }
                 raw.push(Segment {
                     tet: t,
                     t_in,
@@ -259,7 +274,12 @@ impl Renderer for ReferenceRenderer {
         Ok(())
     }
 
+    /// Refuses a cell-data mesh ([`crate::gpu::mesh::cell_update_error`]): its per-vertex
+    /// values are only the average of what is rendered.
     fn update_scalars(&mut self, scalars: &[f64]) -> Result<(), RenderError> {
+        if self.mesh.cell_scalars().is_some() {
+            return Err(cell_update_error());
+        }
         // The BVH depends on positions only.
         self.mesh.set_scalars(scalars.to_vec())?;
         Ok(())

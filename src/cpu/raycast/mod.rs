@@ -15,6 +15,11 @@
 //!    pre-integration or exact), re-entering non-convex meshes at the next entry, with early
 //!    ray termination and a counted step limit.
 //!
+//! Cell data ([`TetMesh::cell_scalars`]): each segment takes its tet's normalized value at both
+//! ends (the GPU traversal's `CELLS`); the planes, and so the walk, are those of the per-vertex
+//! field as for point data. Such a renderer refuses [`Renderer::update_scalars`]
+//! ([`crate::gpu::mesh::cell_update_error`]).
+//!
 //! The robustness rules are the GPU's (see [`crate::gpu::raycast`]); the exit and plane
 //! arithmetic is its CPU twin's ([`crate::gpu::raycast::twin`]), so both paths walk the same tets.
 
@@ -28,6 +33,7 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::camera::Camera;
+use crate::gpu::mesh::cell_update_error;
 use crate::gpu::raycast::{TetLinks, default_max_steps, links};
 use crate::gpu::util::{bounding_sphere, ms_since, scalar_frame};
 use crate::gpu::view::ViewFrame;
@@ -70,6 +76,9 @@ pub struct CpuRaycastRenderer {
     /// Scalars normalized as `(s - scalar_min) / scalar_span`, f32.
     scalars: Vec<f32>,
     raw_scalars: Vec<f64>,
+    /// Cell data: the value per tet, normalized as `scalars`; `None` for point data.
+    cells: Option<Vec<f32>>,
+    raw_cells: Option<Vec<f64>>,
     scalar_min: f64,
     scalar_span: f64,
     tet_ids: Vec<[u32; 4]>,
@@ -101,6 +110,8 @@ impl CpuRaycastRenderer {
             positions: Vec::new(),
             scalars: Vec::new(),
             raw_scalars: mesh.scalars()?.to_vec(),
+            cells: None,
+            raw_cells: mesh.cell_scalars().map(<[f64]>::to_vec),
             scalar_min: 0.0,
             scalar_span: 1.0,
             tet_ids,
@@ -125,12 +136,15 @@ impl CpuRaycastRenderer {
         self.positions = positions.par_iter().map(|&p| (p - o).as_vec3()).collect();
     }
 
+    /// Normalizes the vertex scalars and any cell values into [0, 1] over both's range.
     fn normalize_scalars(&mut self) {
-        (self.scalar_min, self.scalar_span) = scalar_frame(&self.raw_scalars);
-        let (lo, span) = (self.scalar_min, self.scalar_span);
-        self.scalars = (self.raw_scalars.par_iter())
-            .map(|&s| ((s - lo) / span) as f32)
-            .collect();
+        (self.scalar_min, self.scalar_span) = match &self.raw_cells {
+            Some(c) => scalar_frame(&[self.raw_scalars.as_slice(), c].concat()),
+            None => scalar_frame(&self.raw_scalars),
+        };
+        let frame = (self.scalar_min, self.scalar_span);
+        self.scalars = normalized(&self.raw_scalars, frame);
+        self.cells = (self.raw_cells.as_deref()).map(|c| normalized(c, frame));
     }
 
     fn frame(&mut self, camera: &Camera, tf: &TransferFunction) -> Frame {
@@ -168,6 +182,7 @@ impl CpuRaycastRenderer {
             frame: &f,
             tets: &self.tets,
             ids: &self.tet_ids,
+            cells: self.cells.as_deref(),
             eye: &self.eye,
             bins: &bins,
             eye_tet: pass.eye_tet,
@@ -191,6 +206,14 @@ impl CpuRaycastRenderer {
         timings.count("threads", rayon::current_num_threads() as u64);
         Frame { image, timings }
     }
+}
+
+/// `values` as `(s - lo) / span` in f32, `(lo, span)` the scalar frame.
+fn normalized(values: &[f64], (lo, span): (f64, f64)) -> Vec<f32> {
+    values
+        .par_iter()
+        .map(|&s| ((s - lo) / span) as f32)
+        .collect()
 }
 
 /// Every tile's rays in parallel (scratch for the entries reused per worker), then the tiles
@@ -235,6 +258,9 @@ impl Renderer for CpuRaycastRenderer {
     }
 
     fn update_scalars(&mut self, scalars: &[f64]) -> Result<(), RenderError> {
+        if self.cells.is_some() {
+            return Err(cell_update_error());
+        }
         check_values("scalars", scalars, self.raw_scalars.len())?;
         self.raw_scalars.copy_from_slice(scalars);
         self.normalize_scalars();

@@ -19,6 +19,8 @@ pub struct Scene<'a> {
     pub tets: &'a [Tet],
     /// Each tet's vertex indices (for thin tets' edge tests).
     pub ids: &'a [[u32; 4]],
+    /// Cell data: each tet's normalized value, integrated constant over its segment.
+    pub cells: Option<&'a [f32]>,
     pub eye: &'a [Vec3],
     pub bins: &'a Bins,
     pub eye_tet: u32,
@@ -100,9 +102,8 @@ fn walk(sc: &Scene, tf: &SegmentTf, d: Vec3, hits: &[(f32, u32)]) -> ([f32; 4], 
         steps += 1;
         let here = &sc.tets[tet as usize];
         let (f, t_out) = exit(sc, here, tet, entry, d, t);
-        let g = Vec4::from(here.planes.scalar);
-        let u = |t: f32| (g.w + t * g.truncate().dot(d)).clamp(0.0, 1.0);
-        let (c, tr) = tf.segment(u(t), u(t_out), t_out - t);
+        let (u_in, u_out) = segment_scalars(sc, here, tet, d, t, t_out);
+        let (c, tr) = tf.segment(u_in, u_out, t_out - t);
         color += trans * c;
         trans *= tr;
         if trans < twin::TERMINATE {
@@ -125,6 +126,18 @@ fn walk(sc: &Scene, tf: &SegmentTf, d: Vec3, hits: &[(f32, u32)]) -> ([f32; 4], 
         stopped: at_limit as u64,
     };
     ([color.x, color.y, color.z, 1.0 - trans], work)
+}
+
+/// The normalized scalars at the ends `t0`, `t1` of tet `tet`'s segment: the linear scalar of
+/// its planes, or, for cell data, its one value at both ends (the GPU's `segment_scalars`).
+fn segment_scalars(sc: &Scene, here: &Tet, tet: u32, d: Vec3, t0: f32, t1: f32) -> (f32, f32) {
+    if let Some(cells) = sc.cells {
+        let c = cells[tet as usize].clamp(0.0, 1.0);
+        return (c, c);
+    }
+    let g = Vec4::from(here.planes.scalar);
+    let u = |t: f32| (g.w + t * g.truncate().dot(d)).clamp(0.0, 1.0);
+    (u(t0), u(t1))
 }
 
 /// The face the ray leaves tet `tet` by and where: by its edges when it is thin (gradient

@@ -9,9 +9,11 @@
 //! 2. preint table (`--integrate table` only, when the TF, the scalar range or the longest tet edge
 //!    grew since the last build): the 3D pre-integration table on the CPU (`preint.rs`,
 //!    Weiler et al.'s incremental build) into an `Rgba32Float` 3D texture;
-//! 3. upload (`upload.rs`): view constants, the TF, the sorted tets' vertex indices;
+//! 3. upload (`upload.rs`): view constants, the TF, the sorted tets' vertex indices (and, for
+//!    cell data, their values in the same order, 4 bytes a tet);
 //! 4. assembly: the shared per-tet eye-to-barycentric stage (`gpu/assembly.rs`)
-//!    over the sorted list, record `k` for the `k`-th tet of the order;
+//!    over the sorted list, record `k` for the `k`-th tet of the order (for cell data its
+//!    constant value, so every integrator integrates the tet's one value);
 //! 5. raster (`raster.rs`): one instanced draw in that order (the API blends primitives in
 //!    submission order) of each tet's front faces, or of its screen quad when it has a corner at or
 //!    behind `near_z` (the eye inside the mesh); each fragment clips its ray against the four face
@@ -129,6 +131,9 @@ pub struct CellProjRenderer {
     chunking: Chunking,
     /// The sorted tets' vertex indices.
     order_buf: TetArray,
+    /// Cell data: the sorted tets' normalized values (parallel to `order_buf`); `None` for
+    /// point data.
+    order_cells: Option<TetArray>,
     records: TetArray,
     targets: Option<Targets>,
 }
@@ -166,6 +171,9 @@ impl CellProjRenderer {
         let chunking = mesh.chunking()?;
         let nt = mesh.tet_count() as u64;
         let order_buf = mesh.tet_array("cellproj sorted tets", chunking, nt, 16)?;
+        let order_cells = (mesh.has_cells())
+            .then(|| mesh.tet_array("cellproj sorted cell values", chunking, nt, 4))
+            .transpose()?;
         let records = mesh.tet_array("cellproj tet records", chunking, nt, RECORD_BYTES)?;
         let format = if ctx.features.contains(wgpu::Features::FLOAT32_BLENDABLE) {
             wgpu::TextureFormat::Rgba32Float
@@ -176,7 +184,7 @@ impl CellProjRenderer {
         let uniform = |label: &str, bytes: usize| uniform_buffer(&device, label, bytes);
         Ok(Self {
             pipelines: Pipelines::new(&device, format),
-            assembly: AssemblyStage::new(&device),
+            assembly: AssemblyStage::new(&device, order_cells.is_some()),
             frame: FrameResources::new(ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY)),
             no_table: preint::table_texture(&device, 2, 2),
             view_buf: uniform("cellproj view", size_of::<ViewUniforms>()),
@@ -184,6 +192,7 @@ impl CellProjRenderer {
             cellproj_buf: uniform("cellproj table constants", size_of::<CellProjUniforms>()),
             chunking,
             order_buf,
+            order_cells,
             records,
             queue: ctx.queue.clone(),
             limits: ctx.limits.clone(),
@@ -225,6 +234,7 @@ impl CellProjRenderer {
             mesh: &self.mesh,
             tets: &self.order_buf,
             records: &self.records,
+            cells: self.order_cells.as_ref(),
         };
         let assembly = self.assembly.bind(&self.device, &inputs, &chunks);
         let (table, pipeline) = match self.settings.integrate {
@@ -357,7 +367,8 @@ impl Renderer for CellProjRenderer {
         .iter()
         .map(|b| b.size())
         .sum();
-        let arrays = self.order_buf.size() + self.records.size() + self.frame.size();
+        let cells = self.order_cells.as_ref().map_or(0, TetArray::size);
+        let arrays = self.order_buf.size() + cells + self.records.size() + self.frame.size();
         let table = self.table.as_ref().map_or(0, |t| texture(&t.texture));
         let targets = self
             .targets

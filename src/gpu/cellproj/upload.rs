@@ -44,6 +44,12 @@ impl CellProjRenderer {
             self.order_buf
                 .write(&self.queue, bytemuck::cast_slice(&indices));
         }
+        if let (Some(buf), Some(cells)) = (&self.order_cells, m.gpu_cells()) {
+            let sorted: Vec<f32> = order.par_iter().map(|&t| cells[t as usize]).collect();
+            if !sorted.is_empty() {
+                buf.write(&self.queue, bytemuck::cast_slice(&sorted));
+            }
+        }
         Ok(())
     }
 }

@@ -28,6 +28,11 @@
 //! The transfer function passed to [`Renderer::render`] is ignored: the surfaces take the
 //! colours given with their isovalues in [`IsoSettings`].
 //!
+//! Cell data ([`crate::mesh::TetMesh::cell_scalars`]): the isosurfaces are those of the
+//! per-vertex field, i.e. of the cell values averaged to the vertices, not the faces between
+//! cells on either side of the isovalue ([`crate::ModeSettings::mesh_note`] says so to users),
+//! as in [`crate::reference::iso`].
+//!
 //! Limitation: in a near-plane tet, surface points with eye-space z in `(0, near_z)` project
 //! outside its clipped bounds and may be lost; `near_z` is 1e-5 of the mesh's bounding radius.
 
@@ -198,7 +203,8 @@ impl IsoRenderer {
         let uniform = |label: &str, bytes: usize| uniform_buffer(&device, label, bytes);
         Ok(Self {
             pipelines: Pipelines::new(&device),
-            assembly: AssemblyStage::new(&device),
+            // Iso renders the per-vertex field: for cell data its vertex average (module docs).
+            assembly: AssemblyStage::new(&device, false),
             frame: FrameResources::new(ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY)),
             view_buf: uniform("iso view", size_of::<ViewUniforms>()),
             iso_buf: uniform("iso isovalues", size_of::<IsoUniforms>()),
@@ -387,6 +393,7 @@ impl IsoRenderer {
             mesh: &self.mesh,
             tets: &lists.tets,
             records: &lists.records,
+            cells: None,
         };
         let assembly = self.assembly.bind(&self.device, &inputs, &chunks);
         let raster_groups = self.raster_groups(lists, &chunks);

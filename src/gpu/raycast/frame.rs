@@ -397,6 +397,13 @@ impl RaycastRenderer {
         if self.settings.entry == Entry::Peel {
             traverse.extend([entry(14, &self.layer_buf), entry(15, &self.progress)]);
         }
+        // Cell data's values (uploaded by `with_mesh`); else a stand-in the traversal never
+        // reads (WGSL CELLS false), as the psi buffer stands in for the exact integrator's table.
+        let nt = self.mesh.tet_count() as u64;
+        traverse.push(match self.mesh.uploaded_cells() {
+            Some(cells) => cells.window(16, 0, nt),
+            None => entry(16, &self.psi),
+        });
         let stage = p.traverse(self.settings.entry, self.settings.segments);
         BindGroups {
             vertices: self.group(&p.vertices.layout, &vertices),

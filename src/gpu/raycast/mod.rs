@@ -260,13 +260,18 @@ impl RaycastRenderer {
         let chunking = links::chunking(nt, &ctx.limits)?;
         let links = mesh.tet_array("raycast links", chunking, nt, links::LINK_BYTES)?;
         links.write(&ctx.queue, bytemuck::cast_slice(&links_cpu));
+        check_cells(&mesh)?;
         let boundary = frame::storage(&ctx.device, "raycast boundary", 4 * boundary_cpu.len());
         ctx.queue
             .write_buffer(&boundary, 0, bytemuck::cast_slice(&boundary_cpu));
         let device = ctx.device.clone();
         let uniform = |label: &str, bytes: usize| uniform_buffer(&device, label, bytes);
         Ok(Self {
-            pipelines: Pipelines::new(&device, nt.div_ceil(chunking.chunk).max(1)),
+            pipelines: Pipelines::new(
+                &device,
+                nt.div_ceil(chunking.chunk).max(1),
+                mesh.has_cells(),
+            ),
             frame: FrameResources::new(ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY)),
             frame_buf: uniform("raycast frame", size_of::<ViewUniforms>()),
             tf_buf: uniform("raycast tf", size_of::<TfPoints>()),
@@ -316,12 +321,27 @@ impl RaycastRenderer {
         self.settings.entry = entry;
     }
 
-    /// Bytes per tet of what scales with the mesh: the links, the boundary and the vertex
-    /// buffers (positions, scalars, eye-space vertices).
+    /// Bytes per tet of what scales with the mesh: the links, the boundary, the vertex
+    /// buffers (positions, scalars, eye-space vertices) and, for cell data, the tets' values.
     pub fn bytes_per_tet(&self) -> f64 {
-        let mesh = self.mesh.positions().size() + self.mesh.scalars().size();
+        let cells = self.mesh.uploaded_cells().map_or(0, TetArray::size);
+        let mesh = self.mesh.positions().size() + self.mesh.scalars().size() + cells;
         let own = self.links.size() + self.verts.size() + self.boundary.size();
         (mesh + own) as f64 / self.mesh.tet_count().max(1) as f64
+    }
+}
+
+/// Uploads a cell-data mesh's values per tet, which the traversal binds as one window; an
+/// error when they do not fit one buffer (they take an eighth of the links' bytes, so a mesh
+/// whose links fit the ray caster's windows never gets it).
+fn check_cells(mesh: &GpuTetMesh) -> Result<(), RenderError> {
+    match mesh.cells()? {
+        Some(cells) if cells.buffer_count() > 1 => Err(settings_error(format!(
+            "--mode raycast binds the {} tets' cell values (4 bytes each) as one buffer, and \
+             this adapter's buffers hold less; use --mode cellproj for this mesh",
+            mesh.tet_count()
+        ))),
+        _ => Ok(()),
     }
 }
 

@@ -63,12 +63,13 @@ fn layout(verts: B, own: &[B]) -> Vec<wgpu::BindGroupLayoutEntry> {
 /// The traversal's bindings after the shared ones: 7 and 8 the entry lists (read) or the
 /// peeled hits (read) and the ray states (written), 9 the TF, 10 the counters, 11 the image,
 /// 12 the integrator's table (psi or 3D; not read by `exact`), 13 the tile list; depth
-/// peeling adds 14 the layer and 15 its progress counters.
+/// peeling adds 14 the layer and 15 its progress counters; 16 the tets' values (cell data;
+/// not read otherwise).
 fn traverse_entries(entry: Entry) -> Vec<wgpu::BindGroupLayoutEntry> {
     let second = if entry == Entry::Lists { RO } else { RW };
     let mut entries = layout(RO, &[RO, second, B::Uniform, RW]);
     entries.push(image_entry(11));
-    entries.extend([12, 13].map(|b| buffer_entry(b, S::COMPUTE, RO)));
+    entries.extend([12, 13, 16].map(|b| buffer_entry(b, S::COMPUTE, RO)));
     if entry == Entry::Peel {
         entries.push(buffer_entry(14, S::COMPUTE, B::Uniform));
         entries.push(buffer_entry(15, S::COMPUTE, RW));
@@ -78,9 +79,10 @@ fn traverse_entries(entry: Entry) -> Vec<wgpu::BindGroupLayoutEntry> {
 
 impl Pipelines {
     /// Compiles the stages for a mesh whose links take `windows` windows (WGSL
-    /// `LINK_WINDOWS`).
-    pub fn new(device: &wgpu::Device, windows: u64) -> Self {
-        let constants = [("LINK_WINDOWS", windows as f64)];
+    /// `LINK_WINDOWS`) and whose field is constant per tet when `cells` (WGSL `CELLS`).
+    pub fn new(device: &wgpu::Device, windows: u64, cells: bool) -> Self {
+        let cells = if cells { 1.0 } else { 0.0 };
+        let constants = [("LINK_WINDOWS", windows as f64), ("CELLS", cells)];
         let stage = |shader, entries: &[wgpu::BindGroupLayoutEntry]| {
             stage(device, shader, entries, &constants)
         };

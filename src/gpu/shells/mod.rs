@@ -248,12 +248,13 @@ impl ShellsRenderer {
             .then(|| compute::ComputeSampler::new(&device, ert));
         let view_buf = uniform_buffer(&device, "shells view", size_of::<ViewUniforms>());
         let slicing_buf = uniform_buffer(&device, "shells slicing", size_of::<SlicingUniforms>());
-        let assembly = AssemblyStage::new(&device);
+        let assembly = AssemblyStage::new(&device, mesh.has_cells());
         let inputs = AssemblyInputs {
             view: &view_buf,
             mesh: &mesh,
             tets: mesh.tets()?,
             records: &records,
+            cells: mesh.cells()?,
         };
         let assembly_groups = assembly.bind(&device, &inputs, &chunking.ranges(tet_count));
         let shell_stride = (size_of::<ShellUniforms>() as u64)
