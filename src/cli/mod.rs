@@ -1,5 +1,6 @@
 //! Argument definitions and dispatch for the `tetvr` binary.
 
+mod animate;
 mod args;
 mod bench;
 mod commands;
