@@ -1,6 +1,7 @@
-//! `tetvr animate`: a mesh under an analytic deformation, rendered frame by frame. Each frame
-//! is written as soon as it is rendered (numbered PNGs, or one GIF encoded frame by frame), so
-//! memory stays flat however many frames there are.
+//! `tetvr animate`: a mesh under an analytic deformation, or a time series of meshes (a `.pvd`
+//! collection or numbered files), rendered frame by frame on one renderer. Each frame is written
+//! as soon as it is rendered (numbered PNGs, or one GIF encoded frame by frame), so memory stays
+//! flat however many frames there are.
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -8,90 +9,148 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressStyle};
-use tetvr::Image;
-use tetvr::io::Loaded;
+use tetvr::camera::Camera;
+use tetvr::deform::Deformation;
+use tetvr::io::series::Series;
 use tetvr::render::Renderer;
+use tetvr::tf::TransferFunction;
+use tetvr::{Image, TetMesh};
 
-use super::AnimateArgs;
-use super::commands::{CliError, camera, load_mesh, median, ms, open_mode, transfer_function};
+use super::commands::{
+    CliError, camera, load_mesh, median, ms, open_mode, read_limits, transfer_function,
+};
+use super::{AnimateArgs, RenderArgs};
 
 pub(super) fn animate(args: AnimateArgs) -> Result<(), CliError> {
-    let r = &args.render;
-    if args.frames == 0 || args.fps == 0 {
+    if args.frames == Some(0) || args.fps == 0 {
         return Err(CliError::Usage(
             "--frames and --fps must be at least 1".into(),
         ));
     }
-    let output = r.output.clone().unwrap_or_else(|| "tetvr.gif".into());
-    let Loaded { mesh, .. } = load_mesh(&r.mesh)?;
-    let tf = transfer_function(r, &mesh)?;
-    let camera = camera(r, &mesh)?;
-    let (mode, gpu) = open_mode(r, &mesh, &tf)?;
-    let mut renderer = mode.build(gpu.as_ref(), &mesh)?;
-    let mut sink = FrameSink::create(&output, r.background.color(), args.fps)?;
-    let bar = frame_bar(args.frames as u64);
-    let (lo, hi) = mesh.bounds();
-    let mut times = FrameTimes::default();
-    for i in 0..args.frames {
-        let phase = i as f64 / args.frames as f64;
-        let t = Instant::now();
-        let positions = args
-            .deform
-            .apply(mesh.positions(), lo, hi, args.amplitude, phase);
-        renderer.update_positions(&positions)?;
-        times.update_ms.push(ms(t));
-        times.render(&mut *renderer, &camera, &tf, &mut sink)?;
-        bar.inc(1);
+    if Series::is_series(&args.render.mesh.mesh) {
+        if args.deform.is_some() || args.amplitude.is_some() || args.frames.is_some() {
+            return Err(CliError::Usage(
+                "a series plays its own steps: --deform, --amplitude and --frames animate a \
+                 single mesh"
+                    .into(),
+            ));
+        }
+        return play_series(&args);
     }
-    bar.finish_and_clear();
-    let written = sink.finish()?;
-    times.report(
-        &written,
-        &camera,
-        &mode.describe(gpu.as_ref()),
-        "deform + update",
+    deform(&args)
+}
+
+/// One mesh under `--deform`, one period in `--frames` frames.
+fn deform(args: &AnimateArgs) -> Result<(), CliError> {
+    let mesh = load_mesh(&args.render.mesh)?.mesh;
+    let frames = args.frames.unwrap_or(24);
+    let (deformation, amplitude) = (
+        args.deform.unwrap_or(Deformation::Twist),
+        args.amplitude.unwrap_or(0.5),
     );
-    Ok(())
+    let mut play = Playback::open(args, &mesh, frames as u64)?;
+    let (lo, hi) = mesh.bounds();
+    for i in 0..frames {
+        let phase = i as f64 / frames as f64;
+        play.frame(|renderer| {
+            let positions = deformation.apply(mesh.positions(), lo, hi, amplitude, phase);
+            Ok(renderer.update_positions(&positions)?)
+        })?;
+    }
+    play.finish("deform + update")
 }
 
-fn frame_bar(frames: u64) -> ProgressBar {
-    ProgressBar::new(frames).with_style(
-        ProgressStyle::with_template("frame {pos}/{len} {bar:40} {eta} left")
-            .expect("a valid template"),
-    )
+/// The steps of a series, each loaded, checked against the first and handed to the renderer
+/// as new positions and scalars; camera and transfer function are the first step's.
+fn play_series(args: &AnimateArgs) -> Result<(), CliError> {
+    let series = Series::open(&args.render.mesh.mesh)?;
+    let limits = read_limits(&args.render.mesh);
+    let mut first = series.load(0, &limits)?.mesh;
+    if let Some(name) = &args.render.mesh.array {
+        let file = series.steps()[0].path.display();
+        (first.set_active_array(name)).map_err(|e| CliError::Usage(format!("{file}: {e}")))?;
+    }
+    let mut play = Playback::open(args, &first, series.steps().len() as u64)?;
+    play.frame(|_| Ok(()))?;
+    for i in 1..series.steps().len() {
+        play.frame(|renderer| {
+            let step = series.load_like(i, &first, &limits)?;
+            renderer.update_positions(step.positions())?;
+            Ok(renderer.update_scalars(step.scalars()?)?)
+        })?;
+    }
+    play.finish("load + update")
 }
 
-/// Per-frame times of the update and the render, for the closing line.
-#[derive(Default)]
-struct FrameTimes {
+/// What every frame needs: the renderer built on the first mesh, the camera and transfer
+/// function made for that mesh, where frames go, and the progress shown.
+struct Playback {
+    renderer: Box<dyn Renderer>,
+    camera: Camera,
+    tf: TransferFunction,
+    sink: FrameSink,
+    what: String,
+    bar: ProgressBar,
     update_ms: Vec<f64>,
     render_ms: Vec<f64>,
 }
 
-impl FrameTimes {
-    /// Renders one frame, timing it, and hands it to `sink`.
-    fn render(
-        &mut self,
-        renderer: &mut dyn Renderer,
-        camera: &tetvr::camera::Camera,
-        tf: &tetvr::tf::TransferFunction,
-        sink: &mut FrameSink,
-    ) -> Result<(), CliError> {
-        let t = Instant::now();
-        let frame = renderer.render(camera, tf)?;
-        self.render_ms.push(ms(t));
-        sink.push(&frame.image)
+impl Playback {
+    fn open(args: &AnimateArgs, mesh: &TetMesh, frames: u64) -> Result<Self, CliError> {
+        let r: &RenderArgs = &args.render;
+        let tf = transfer_function(r, mesh)?;
+        let camera = camera(r, mesh)?;
+        let (mode, gpu) = open_mode(r, mesh, &tf)?;
+        let renderer = mode.build(gpu.as_ref(), mesh)?;
+        let output = r.output.clone().unwrap_or_else(|| "tetvr.gif".into());
+        let sink = FrameSink::create(&output, r.background.color(), args.fps)?;
+        let bar = ProgressBar::new(frames).with_style(
+            ProgressStyle::with_template("frame {pos}/{len} {bar:40} {eta} left")
+                .expect("a valid template"),
+        );
+        Ok(Self {
+            renderer,
+            camera,
+            tf,
+            sink,
+            what: mode.describe(gpu.as_ref()),
+            bar,
+            update_ms: Vec::new(),
+            render_ms: Vec::new(),
+        })
     }
 
-    fn report(mut self, written: &str, camera: &tetvr::camera::Camera, what: &str, update: &str) {
+    /// Updates the renderer with `update`, renders, and writes the frame; each part timed.
+    fn frame(
+        &mut self,
+        update: impl FnOnce(&mut dyn Renderer) -> Result<(), CliError>,
+    ) -> Result<(), CliError> {
+        let t = Instant::now();
+        update(&mut *self.renderer)?;
+        self.update_ms.push(ms(t));
+        let t = Instant::now();
+        let frame = self.renderer.render(&self.camera, &self.tf)?;
+        self.render_ms.push(ms(t));
+        self.sink.push(&frame.image)?;
+        self.bar.inc(1);
+        Ok(())
+    }
+
+    /// Ends the output and prints what was written and the median times, the update's as
+    /// `update`.
+    fn finish(mut self, update: &str) -> Result<(), CliError> {
+        self.bar.finish_and_clear();
+        let written = self.sink.finish()?;
         println!(
-            "wrote {written} ({} frames of {}x{}, {what}); per frame, median: {update} {:.1} ms, render {:.1} ms",
+            "wrote {written} ({} frames of {}x{}, {}); per frame, median: {update} {:.1} ms, render {:.1} ms",
             self.render_ms.len(),
-            camera.width,
-            camera.height,
+            self.camera.width,
+            self.camera.height,
+            self.what,
             median(&mut self.update_ms),
             median(&mut self.render_ms),
         );
+        Ok(())
     }
 }
 

@@ -40,6 +40,8 @@ pub enum CliError {
     #[error(transparent)]
     Load(#[from] LoadError),
     #[error(transparent)]
+    Series(#[from] io::series::SeriesError),
+    #[error(transparent)]
     Write(#[from] io::WriteError),
     #[error(transparent)]
     Mesh(#[from] MeshError),
@@ -83,12 +85,16 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
     }
 }
 
-pub(super) fn load_mesh(args: &MeshArgs) -> Result<Loaded, CliError> {
+pub(super) fn read_limits(args: &MeshArgs) -> io::ReadLimits {
     let mut limits = io::ReadLimits::default();
     if let Some(bytes) = args.max_memory {
         limits.max_memory = bytes;
     }
-    let mut loaded = io::load_with(&args.mesh, &limits)?;
+    limits
+}
+
+pub(super) fn load_mesh(args: &MeshArgs) -> Result<Loaded, CliError> {
+    let mut loaded = io::load_with(&args.mesh, &read_limits(args))?;
     if let Some(name) = &args.array {
         loaded.mesh.set_active_array(name)?;
     }

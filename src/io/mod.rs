@@ -18,6 +18,7 @@
 
 mod gmsh;
 mod limits;
+pub mod series;
 mod tetgen;
 mod text;
 mod vtk;
