@@ -4,7 +4,11 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
+use tetvr::cpu::raycast::CpuRaycastSettings;
+use tetvr::deform::Deformation;
 use tetvr::generate::{self, Field};
+use tetvr::tf::file::load_tf;
+use tetvr::{Camera, ModeSettings, ScalarArray, TetMesh, View};
 
 const BIN: &str = env!("CARGO_BIN_EXE_tetvr");
 
@@ -109,4 +113,216 @@ fn gif_frames(path: &Path) -> Vec<image::Frame> {
         .into_frames()
         .collect_frames()
         .unwrap()
+}
+
+/// Step `k` of a deforming grid: the base grid twisted by `k` tenths of a half-turn, its field
+/// scaled by `1 + k / 4`, and a second array.
+fn step_mesh(base: &TetMesh, k: usize) -> TetMesh {
+    let (lo, hi) = base.bounds();
+    let amplitude = 0.1 * k as f64;
+    let positions = Deformation::Twist.apply(base.positions(), lo, hi, amplitude, 0.25);
+    let field: Vec<f64> = base
+        .scalars()
+        .unwrap()
+        .iter()
+        .map(|v| v * (1.0 + k as f64 / 4.0))
+        .collect();
+    let other = vec![k as f64; base.vertex_count()];
+    let arrays = vec![
+        ScalarArray::new("field", field),
+        ScalarArray::new("other", other),
+    ];
+    TetMesh::new(positions, base.tets().to_vec(), arrays)
+        .unwrap()
+        .0
+}
+
+/// Writes `steps` steps as `dir/data/step_000.vtu`, ... and `dir/run.pvd` listing them out of
+/// order with relative paths; returns the step files.
+fn write_series(dir: &Path, steps: usize) -> Vec<PathBuf> {
+    let base = generate::grid(
+        Field::Gaussians,
+        generate::cells_for_tet_count(800),
+        "field",
+    )
+    .unwrap();
+    std::fs::create_dir_all(dir.join("data")).unwrap();
+    let files: Vec<PathBuf> = (0..steps)
+        .map(|k| {
+            let path = dir.join(format!("data/step_{k:03}.vtu"));
+            tetvr::io::write_vtu(&step_mesh(&base, k), &path).unwrap();
+            path
+        })
+        .collect();
+    let entries: String = (0..steps)
+        .rev()
+        .map(|k| {
+            format!(
+                "    <DataSet timestep=\"{}\" part=\"0\" file=\"data/step_{k:03}.vtu\"/>\n",
+                k as f64 * 0.5
+            )
+        })
+        .collect();
+    let pvd = format!(
+        "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n  <Collection>\n{entries}  </Collection>\n</VTKFile>\n"
+    );
+    std::fs::write(dir.join("run.pvd"), pvd).unwrap();
+    files
+}
+
+const SIZE: u32 = 40;
+
+/// Runs `tetvr animate SERIES` in raycast-cpu mode at SIZE x SIZE into `dir/NAME-0000.png`, ...
+/// and returns the frames as 8-bit RGBA over white, as written.
+fn animate_frames(series: &Path, dir: &Path, name: &str, extra: &[&str]) -> Vec<Vec<u8>> {
+    let out = dir.join(format!("{name}.png"));
+    let size = format!("{SIZE}x{SIZE}");
+    let mut args = vec![
+        "animate",
+        series.to_str().unwrap(),
+        "--mode",
+        "raycast-cpu",
+        "--size",
+        &size,
+        "-o",
+        out.to_str().unwrap(),
+    ];
+    args.extend(extra);
+    let o = Command::new(BIN).args(&args).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    (0..)
+        .map(|i| dir.join(format!("{name}-{i:04}.png")))
+        .take_while(|p| p.exists())
+        .map(|p| image::open(p).unwrap().to_rgba8().into_raw())
+        .collect()
+}
+
+/// Each step loaded alone and rendered by a renderer built for it, with the camera and
+/// transfer function `tetvr animate` takes from the first step; 8-bit RGBA over white.
+fn per_step_frames(files: &[PathBuf], prepare: impl Fn(&mut TetMesh)) -> Vec<Vec<u8>> {
+    let load = |p: &PathBuf| {
+        let mut mesh = tetvr::io::load(p).unwrap().mesh;
+        prepare(&mut mesh);
+        mesh
+    };
+    let first = load(&files[0]);
+    let (lo, hi) = first.bounds();
+    let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, SIZE, SIZE);
+    let range = first.active_array().unwrap().range().unwrap();
+    let tf = load_tf("viridis", range, first.diagonal() / 100.0).unwrap();
+    files
+        .iter()
+        .map(|p| {
+            let mesh = load(p);
+            let mode = ModeSettings::RaycastCpu(CpuRaycastSettings::default());
+            let frame = mode
+                .build(None, &mesh)
+                .unwrap()
+                .render(&camera, &tf)
+                .unwrap();
+            frame.image.to_rgba8(Some([1.0; 3]))
+        })
+        .collect()
+}
+
+/// Largest difference of two 8-bit pictures, in levels.
+fn max_level_difference(a: &[u8], b: &[u8]) -> u8 {
+    assert_eq!(a.len(), b.len());
+    a.iter().zip(b).map(|(x, y)| x.abs_diff(*y)).max().unwrap()
+}
+
+/// A played step and the same step rendered alone integrate the same rays through the same
+/// positions and values; only the renderer's state differs (updated versus built), so the
+/// pictures may differ by f32 rounding, at most one 8-bit level. Steps differ from each other by
+/// far more, so a series that did not update would fail.
+const LEVELS: u8 = 1;
+
+#[test]
+fn pvd_and_numbered_series_play_as_each_step_rendered_alone() {
+    let dir = out_dir("play");
+    let files = write_series(&dir, 4);
+    let expected = per_step_frames(&files, |_| {});
+    let apart = max_level_difference(&expected[0], &expected[3]);
+    eprintln!("steps 0 and 3 differ by up to {apart} levels");
+    assert!(apart > 20 * LEVELS);
+    let pattern = dir.join("data/step_*.vtu");
+    for (name, series) in [("pvd", dir.join("run.pvd")), ("numbered", pattern)] {
+        let frames = animate_frames(&series, &dir, name, &[]);
+        assert_eq!(frames.len(), 4, "{name}");
+        for (k, (got, want)) in frames.iter().zip(&expected).enumerate() {
+            let d = max_level_difference(got, want);
+            eprintln!("{name} step {k}: {d} levels off the step rendered alone");
+            assert!(
+                d <= LEVELS,
+                "{name} step {k}: {d} levels off the step rendered alone"
+            );
+        }
+    }
+}
+
+/// Runs `tetvr animate` expecting failure; returns its error message.
+fn animate_error(args: &[&str]) -> String {
+    let o = Command::new(BIN)
+        .arg("animate")
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(!o.status.success(), "tetvr animate {args:?} succeeded");
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn a_step_that_does_not_fit_the_first_is_named() {
+    let dir = out_dir("errors");
+    let files = write_series(&dir, 3);
+    let out = dir.join("x.gif");
+    let out = out.to_str().unwrap();
+    let coarse = generate::grid(
+        Field::Gaussians,
+        generate::cells_for_tet_count(100),
+        "field",
+    )
+    .unwrap();
+    tetvr::io::write_vtu(&coarse, &files[2]).unwrap();
+    let pattern = dir.join("data/step_*.vtu");
+    let e = animate_error(&[
+        pattern.to_str().unwrap(),
+        "--mode",
+        "raycast-cpu",
+        "-o",
+        out,
+    ]);
+    assert!(
+        e.contains("step 2 (time 2)") && e.contains("step_002.vtu") && e.contains("vertices and"),
+        "{e}"
+    );
+
+    let (lo, hi) = coarse.bounds();
+    let moved = Deformation::Bend.apply(coarse.positions(), lo, hi, 0.2, 0.25);
+    let other = ScalarArray::new("other", vec![1.0; coarse.vertex_count()]);
+    let no_field = TetMesh::new(moved, coarse.tets().to_vec(), vec![other])
+        .unwrap()
+        .0;
+    tetvr::io::write_vtu(&no_field, &files[2]).unwrap();
+    tetvr::io::write_vtu(&coarse, &files[0]).unwrap();
+    tetvr::io::write_vtu(&coarse, &files[1]).unwrap();
+    let e = animate_error(&[
+        pattern.to_str().unwrap(),
+        "--mode",
+        "raycast-cpu",
+        "-o",
+        out,
+    ]);
+    assert!(
+        e.contains("step 2") && e.contains("no point array 'field'") && e.contains("other"),
+        "{e}"
+    );
+
+    std::fs::remove_file(&files[1]).unwrap();
+    let pvd = dir.join("run.pvd");
+    let e = animate_error(&[pvd.to_str().unwrap(), "-o", out]);
+    assert!(
+        e.contains("step 1 (time 0.5)") && e.contains("step_001.vtu") && e.contains("cannot read"),
+        "{e}"
+    );
 }
