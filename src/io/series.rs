@@ -426,3 +426,126 @@ fn line_of(text: &[u8], at: usize) -> usize {
         .filter(|&&b| b == b'\n')
         .count()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A fresh folder for one test.
+    fn folder(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("tetvr-series-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    fn touch(dir: &Path, names: &[&str]) {
+        for n in names {
+            std::fs::write(dir.join(n), b"").unwrap();
+        }
+    }
+
+    /// A `.pvd` around `entries`, written to `dir/run.pvd`.
+    fn pvd(dir: &Path, entries: &str) -> PathBuf {
+        let path = dir.join("run.pvd");
+        let text = format!(
+            "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\">\n<Collection>\n{entries}</Collection>\n</VTKFile>\n"
+        );
+        std::fs::write(&path, text).unwrap();
+        path
+    }
+
+    fn times(s: &Series) -> Vec<(String, f64)> {
+        let name = |p: &Path| p.file_name().unwrap().to_str().unwrap().to_owned();
+        s.steps().iter().map(|s| (name(&s.path), s.time)).collect()
+    }
+
+    #[test]
+    fn pvd_steps_in_time_order_from_the_pvd_folder() {
+        let dir = folder("pvd");
+        touch(&dir, &["a.vtu", "b.vtu", "c.vtu"]);
+        let path = pvd(
+            &dir,
+            "<DataSet timestep=\"2.5\" file=\"b.vtu\"/>\n<DataSet timestep=\"-1\" part=\"0\" file=\"a.vtu\"/>\n<DataSet timestep=\"1e1\" file=\"c.vtu\"></DataSet>\n",
+        );
+        let s = Series::open(&path).unwrap();
+        let want = [("a.vtu", -1.0), ("b.vtu", 2.5), ("c.vtu", 10.0)];
+        assert_eq!(times(&s), want.map(|(n, t)| (n.to_owned(), t)));
+        assert!(s.steps().iter().all(|s| s.path.starts_with(&dir)));
+        assert!(Series::is_series(&path) && Series::is_series(Path::new("d/s_*.vtu")));
+        assert!(!Series::is_series(Path::new("d*/mesh.vtu")));
+    }
+
+    #[test]
+    fn bad_collections_name_the_line_and_entry() {
+        let dir = folder("bad-pvd");
+        touch(&dir, &["a.vtu"]);
+        let cases = [
+            (
+                "<DataSet timestep=\"0\"/>\n",
+                "line 4: DataSet entry 0 has no file",
+            ),
+            (
+                "<DataSet file=\"a.vtu\"/>\n<DataSet timestep=\"x\" file=\"a.vtu\"/>\n",
+                "line 5: DataSet entry 1: timestep x is not a finite number",
+            ),
+            (
+                "<DataSet timestep=\"1\" file=\"a.vtu\"/>\n<DataSet timestep=\"1\" file=\"a.vtu\"/>\n",
+                "line 5: a second DataSet at timestep 1 (the other is on line 4)",
+            ),
+            (
+                "<DataSet part=\"1\" file=\"a.vtu\"/>\n",
+                "line 4: DataSet entry 0 is part 1",
+            ),
+            ("", "the Collection lists no DataSet"),
+            ("<DataSet file=\"gone.vtu\"/>\n", "step 0 (time 0): "),
+        ];
+        for (entries, want) in cases {
+            let e = Series::open(&pvd(&dir, entries)).unwrap_err().to_string();
+            assert!(
+                e.contains("run.pvd") && e.contains(want),
+                "{e}\nwanted: {want}"
+            );
+        }
+        std::fs::write(
+            dir.join("x.pvd"),
+            "<VTKFile><DataSet file=\"a.vtu\"/></VTKFile>",
+        )
+        .unwrap();
+        let e = Series::open(&dir.join("x.pvd")).unwrap_err().to_string();
+        assert!(
+            e.contains("line 1: a DataSet outside the Collection"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn numbered_files_play_in_the_order_of_their_numbers() {
+        let dir = folder("numbered");
+        touch(
+            &dir,
+            &[
+                "s_10.vtu",
+                "s_2.vtu",
+                "s_003.vtu",
+                "s_x.vtu",
+                "s_.vtu",
+                "t_1.vtu",
+            ],
+        );
+        let s = Series::open(&dir.join("s_*.vtu")).unwrap();
+        let want = [("s_2.vtu", 2.0), ("s_003.vtu", 3.0), ("s_10.vtu", 10.0)];
+        assert_eq!(times(&s), want.map(|(n, t)| (n.to_owned(), t)));
+
+        touch(&dir, &["s_02.vtu"]);
+        let e = Series::open(&dir.join("s_*.vtu")).unwrap_err().to_string();
+        assert!(
+            e.contains("s_02.vtu and s_2.vtu have the same step number"),
+            "{e}"
+        );
+        let e = Series::open(&dir.join("*_*.vtu")).unwrap_err().to_string();
+        assert!(e.contains("one '*'"), "{e}");
+        let e = Series::open(&dir.join("u_*.vtu")).unwrap_err().to_string();
+        assert!(e.contains("u_*.vtu: no file in"), "{e}");
+    }
+}
