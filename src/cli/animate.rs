@@ -65,16 +65,16 @@ fn deform(args: &AnimateArgs) -> Result<(), CliError> {
 fn play_series(args: &AnimateArgs) -> Result<(), CliError> {
     let series = Series::open(&args.render.mesh.mesh)?;
     let limits = read_limits(&args.render.mesh);
-    let mut first = series.load(0, &limits)?.mesh;
-    if let Some(name) = &args.render.mesh.array {
-        let file = series.steps()[0].path.display();
-        (first.set_active_array(name)).map_err(|e| CliError::Usage(format!("{file}: {e}")))?;
-    }
+    let prepare = |mesh: &mut TetMesh| match &args.render.mesh.array {
+        Some(name) => mesh.set_active_array(name),
+        None => Ok(()),
+    };
+    let first = series.load_prepared(0, &limits, prepare)?;
     let mut play = Playback::open(args, &first, series.steps().len() as u64)?;
     play.frame(|_| Ok(()))?;
     for i in 1..series.steps().len() {
         play.frame(|renderer| {
-            let step = series.load_like(i, &first, &limits)?;
+            let step = series.load_like(i, &first, &limits, prepare)?;
             renderer.update_positions(step.positions())?;
             Ok(renderer.update_scalars(step.scalars()?)?)
         })?;

@@ -8,9 +8,10 @@
 //! # fn main() -> Result<(), Box<dyn std::error::Error>> {
 //! let series = Series::open("run/result.pvd".as_ref())?;
 //! let limits = ReadLimits::default();
-//! let first = series.load(0, &limits)?.mesh;
+//! let choose = |m: &mut tetvr::TetMesh| m.set_active_array("temperature");
+//! let first = series.load_prepared(0, &limits, choose)?;
 //! for i in 1..series.steps().len() {
-//!     let step = series.load_like(i, &first, &limits)?;
+//!     let step = series.load_like(i, &first, &limits, choose)?;
 //!     // renderer.update_positions(step.positions())?; renderer.update_scalars(step.scalars()?)?;
 //! #   let _ = step;
 //! }
@@ -22,8 +23,8 @@ use std::path::{Path, PathBuf};
 use quick_xml::events::Event;
 
 use super::{LoadError, LoadErrorKind, Loaded, ReadLimits, load_with};
-use crate::mesh::TetMesh;
 use crate::mesh::name::{shown_list, shown_name};
+use crate::mesh::{MeshError, TetMesh};
 
 /// One time step: its mesh file and its time.
 #[derive(Clone, Debug, PartialEq)]
@@ -102,6 +103,14 @@ pub enum StepProblem {
         file: String,
         /// What differs, e.g. "1200 vertices where the first step has 1000".
         what: String,
+    },
+    /// The step's mesh cannot be prepared as the first was (e.g. it lacks the chosen array).
+    #[error("{file}: {source}")]
+    Mesh {
+        /// The step's file.
+        file: String,
+        /// What is wrong.
+        source: MeshError,
     },
     /// The step lacks the array the series renders.
     #[error(
@@ -259,35 +268,62 @@ impl Series {
         load_with(&self.steps[index].path, limits).map_err(|e| self.step_error(index, e.into()))
     }
 
-    /// Loads step `index` for playing after `first` (the first step, as loaded and with its
-    /// active array chosen): checks that it has `first`'s vertex count and tets (each tet the
-    /// same four vertices; the order may differ, as readers reorient inverted tets) and makes
-    /// the array of `first`'s active name active.
+    /// Loads step `index` and applies `prepare` to it (e.g. choosing the rendered array);
+    /// errors of either name the step.
+    pub fn load_prepared(
+        &self,
+        index: usize,
+        limits: &ReadLimits,
+        prepare: impl FnOnce(&mut TetMesh) -> Result<(), MeshError>,
+    ) -> Result<TetMesh, SeriesError> {
+        let mesh = self.load(index, limits)?.mesh;
+        self.prepared(index, mesh, prepare)
+    }
+
+    fn prepared(
+        &self,
+        index: usize,
+        mut mesh: TetMesh,
+        prepare: impl FnOnce(&mut TetMesh) -> Result<(), MeshError>,
+    ) -> Result<TetMesh, SeriesError> {
+        prepare(&mut mesh).map_err(|source| {
+            let file = self.steps[index].path.display().to_string();
+            self.step_error(index, StepProblem::Mesh { file, source })
+        })?;
+        Ok(mesh)
+    }
+
+    /// Loads step `index` for playing after `first` (step 0 as [`Series::load_prepared`] gave
+    /// it): checks that it has `first`'s vertex count and tets (each tet the same four
+    /// vertices; their order may differ, as readers reorient inverted tets), applies `prepare`
+    /// as it was applied to `first`, and makes the array of `first`'s active name active if
+    /// `prepare` did not.
     pub fn load_like(
         &self,
         index: usize,
         first: &TetMesh,
         limits: &ReadLimits,
+        prepare: impl FnOnce(&mut TetMesh) -> Result<(), MeshError>,
     ) -> Result<TetMesh, SeriesError> {
-        let mut mesh = self.load(index, limits)?.mesh;
-        let file = self.steps[index].path.display().to_string();
-        let problem = if let Some(what) = topology_difference(first, &mesh) {
-            StepProblem::Topology { file, what }
-        } else {
-            let Some(active) = first.active_array() else {
-                return Ok(mesh);
-            };
-            if mesh.set_active_array(&active.name).is_ok() {
-                return Ok(mesh);
-            }
-            StepProblem::MissingArray {
-                file,
-                name: shown_name(&active.name),
-                available: match mesh.arrays() {
-                    [] => "(none)".into(),
-                    arrays => shown_list(arrays.iter().map(|a| a.name.as_str())),
-                },
-            }
+        let file = || self.steps[index].path.display().to_string();
+        let mesh = self.load(index, limits)?.mesh;
+        if let Some(what) = topology_difference(first, &mesh) {
+            return Err(self.step_error(index, StepProblem::Topology { file: file(), what }));
+        }
+        let mut mesh = self.prepared(index, mesh, prepare)?;
+        let Some(active) = first.active_array() else {
+            return Ok(mesh);
+        };
+        if mesh.set_active_array(&active.name).is_ok() {
+            return Ok(mesh);
+        }
+        let problem = StepProblem::MissingArray {
+            file: file(),
+            name: shown_name(&active.name),
+            available: match mesh.arrays() {
+                [] => "(none)".into(),
+                arrays => shown_list(arrays.iter().map(|a| a.name.as_str())),
+            },
         };
         Err(self.step_error(index, problem))
     }
