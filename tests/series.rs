@@ -7,6 +7,7 @@ use std::process::{Command, Stdio};
 use tetvr::cpu::raycast::CpuRaycastSettings;
 use tetvr::deform::Deformation;
 use tetvr::generate::{self, Field};
+use tetvr::gpu::{AdapterChoice, ShellSettings};
 use tetvr::tf::file::load_tf;
 use tetvr::{Camera, ModeSettings, ScalarArray, TetMesh, View};
 
@@ -172,9 +173,15 @@ fn write_series(dir: &Path, steps: usize) -> Vec<PathBuf> {
 
 const SIZE: u32 = 40;
 
-/// Runs `tetvr animate SERIES` in raycast-cpu mode at SIZE x SIZE into `dir/NAME-0000.png`, ...
-/// and returns the frames as 8-bit RGBA over white, as written.
-fn animate_frames(series: &Path, dir: &Path, name: &str, extra: &[&str]) -> Vec<Vec<u8>> {
+/// Runs `tetvr animate SERIES --mode MODE` at SIZE x SIZE into `dir/NAME-0000.png`, ... and
+/// returns the frames as 8-bit RGBA over white, as written.
+fn animate_frames(
+    series: &Path,
+    mode: &str,
+    dir: &Path,
+    name: &str,
+    extra: &[&str],
+) -> Vec<Vec<u8>> {
     let out = dir.join(format!("{name}.png"));
     let size = format!("{SIZE}x{SIZE}");
     let mut args = vec![
@@ -197,9 +204,13 @@ fn animate_frames(series: &Path, dir: &Path, name: &str, extra: &[&str]) -> Vec<
         .collect()
 }
 
-/// Each step loaded alone and rendered by a renderer built for it, with the camera and
+/// Each step loaded alone and rendered in `mode` by a renderer built for it, with the camera and
 /// transfer function `tetvr animate` takes from the first step; 8-bit RGBA over white.
-fn per_step_frames(files: &[PathBuf], prepare: impl Fn(&mut TetMesh)) -> Vec<Vec<u8>> {
+fn per_step_frames(
+    files: &[PathBuf],
+    mode: &ModeSettings,
+    prepare: impl Fn(&mut TetMesh),
+) -> Vec<Vec<u8>> {
     let load = |p: &PathBuf| {
         let mut mesh = tetvr::io::load(p).unwrap().mesh;
         prepare(&mut mesh);
@@ -210,6 +221,7 @@ fn per_step_frames(files: &[PathBuf], prepare: impl Fn(&mut TetMesh)) -> Vec<Vec
     let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, SIZE, SIZE);
     let range = first.active_array().unwrap().range().unwrap();
     let tf = load_tf("viridis", range, first.diagonal() / 100.0).unwrap();
+    let gpu = mode.open_gpu(AdapterChoice::from_env()).unwrap();
     files
         .iter()
         .map(|p| {
@@ -241,21 +253,27 @@ const LEVELS: u8 = 1;
 fn pvd_and_numbered_series_play_as_each_step_rendered_alone() {
     let dir = out_dir("play");
     let files = write_series(&dir, 4);
-    let expected = per_step_frames(&files, |_| {});
-    let apart = max_level_difference(&expected[0], &expected[3]);
-    eprintln!("steps 0 and 3 differ by up to {apart} levels");
-    assert!(apart > 20 * LEVELS);
     let pattern = dir.join("data/step_*.vtu");
-    for (name, series) in [("pvd", dir.join("run.pvd")), ("numbered", pattern)] {
-        let frames = animate_frames(&series, &dir, name, &[]);
-        assert_eq!(frames.len(), 4, "{name}");
-        for (k, (got, want)) in frames.iter().zip(&expected).enumerate() {
-            let d = max_level_difference(got, want);
-            eprintln!("{name} step {k}: {d} levels off the step rendered alone");
-            assert!(
-                d <= LEVELS,
-                "{name} step {k}: {d} levels off the step rendered alone"
-            );
+    let modes = [
+        (
+            "raycast-cpu",
+            ModeSettings::RaycastCpu(CpuRaycastSettings::default()),
+        ),
+        ("shells", ModeSettings::Shells(ShellSettings::default())),
+    ];
+    for (mode, settings) in &modes {
+        let expected = per_step_frames(&files, settings, |_| {});
+        let apart = max_level_difference(&expected[0], &expected[3]);
+        eprintln!("{mode}: steps 0 and 3 differ by up to {apart} levels");
+        assert!(apart > 20 * LEVELS);
+        for (name, series) in [("pvd", dir.join("run.pvd")), ("numbered", pattern.clone())] {
+            let frames = animate_frames(&series, mode, &dir, name, &[]);
+            assert_eq!(frames.len(), 4, "{name}");
+            for (k, (got, want)) in frames.iter().zip(&expected).enumerate() {
+                let d = max_level_difference(got, want);
+                eprintln!("{mode} {name} step {k}: {d} levels off the step rendered alone");
+                assert!(d <= LEVELS, "{mode} {name} step {k}: {d} levels off");
+            }
         }
     }
 }
