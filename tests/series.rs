@@ -188,7 +188,7 @@ fn animate_frames(
         "animate",
         series.to_str().unwrap(),
         "--mode",
-        "raycast-cpu",
+        mode,
         "--size",
         &size,
         "-o",
@@ -226,12 +226,8 @@ fn per_step_frames(
         .iter()
         .map(|p| {
             let mesh = load(p);
-            let mode = ModeSettings::RaycastCpu(CpuRaycastSettings::default());
-            let frame = mode
-                .build(None, &mesh)
-                .unwrap()
-                .render(&camera, &tf)
-                .unwrap();
+            let mut renderer = mode.build(gpu.as_ref(), &mesh).unwrap();
+            let frame = renderer.render(&camera, &tf).unwrap();
             frame.image.to_rgba8(Some([1.0; 3]))
         })
         .collect()
