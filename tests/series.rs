@@ -138,20 +138,14 @@ fn step_mesh(base: &TetMesh, k: usize) -> TetMesh {
         .0
 }
 
-/// Writes `steps` steps as `dir/data/step_000.vtu`, ... and `dir/run.pvd` listing them out of
-/// order with relative paths; returns the step files.
-fn write_series(dir: &Path, steps: usize) -> Vec<PathBuf> {
-    let base = generate::grid(
-        Field::Gaussians,
-        generate::cells_for_tet_count(800),
-        "field",
-    )
-    .unwrap();
+/// Writes `steps` steps as `dir/data/step_000.vtu`, ... (step `k` written by `write(k, path)`)
+/// and `dir/run.pvd` listing them out of order with relative paths; returns the step files.
+fn write_series_with(dir: &Path, steps: usize, write: impl Fn(usize, &Path)) -> Vec<PathBuf> {
     std::fs::create_dir_all(dir.join("data")).unwrap();
     let files: Vec<PathBuf> = (0..steps)
         .map(|k| {
             let path = dir.join(format!("data/step_{k:03}.vtu"));
-            tetvr::io::write_vtu(&step_mesh(&base, k), &path).unwrap();
+            write(k, &path);
             path
         })
         .collect();
@@ -169,6 +163,23 @@ fn write_series(dir: &Path, steps: usize) -> Vec<PathBuf> {
     );
     std::fs::write(dir.join("run.pvd"), pvd).unwrap();
     files
+}
+
+fn base_grid() -> TetMesh {
+    generate::grid(
+        Field::Gaussians,
+        generate::cells_for_tet_count(800),
+        "field",
+    )
+    .unwrap()
+}
+
+/// The steps of [`step_mesh`], the positions moved in the files.
+fn write_series(dir: &Path, steps: usize) -> Vec<PathBuf> {
+    let base = base_grid();
+    write_series_with(dir, steps, |k, path| {
+        tetvr::io::write_vtu(&step_mesh(&base, k), path).unwrap()
+    })
 }
 
 const SIZE: u32 = 40;
@@ -339,4 +350,95 @@ fn a_step_that_does_not_fit_the_first_is_named() {
         e.contains("step 1 (time 0.5)") && e.contains("step_001.vtu") && e.contains("cannot read"),
         "{e}"
     );
+}
+
+/// The steps of [`step_mesh`] as a solver writes them: every file holds the rest positions and
+/// a `displacement` array, half the motion (the test warps with scale 2).
+fn write_displaced_series(dir: &Path, steps: usize) -> Vec<PathBuf> {
+    let base = base_grid();
+    write_series_with(dir, steps, |k, path| {
+        let moved = step_mesh(&base, k);
+        let rest = TetMesh::new(
+            base.positions().to_vec(),
+            base.tets().to_vec(),
+            moved.arrays().to_vec(),
+        )
+        .unwrap()
+        .0;
+        let half: Vec<[f64; 3]> = (moved.positions().iter().zip(base.positions()))
+            .map(|(m, b)| (0.5 * (*m - *b)).to_array())
+            .collect();
+        write_vtu_with_vectors(&rest, "displacement", &half, path);
+    })
+}
+
+/// `tetvr animate --warp displacement --scale 2` plays each step warped by its own array, as
+/// the step loaded alone, warped and rendered; the warp moves the picture by far more than the
+/// bound (the unwarped last step differs).
+#[test]
+fn a_series_warped_by_its_displacement_plays_as_each_step_warped_alone() {
+    let dir = out_dir("warp");
+    let files = write_displaced_series(&dir, 4);
+    let mode = ModeSettings::RaycastCpu(CpuRaycastSettings::default());
+    let warp = |m: &mut TetMesh| m.warp("displacement", 2.0).unwrap();
+    let expected = per_step_frames(&files, &mode, warp);
+    let unwarped = per_step_frames(&files, &mode, |_| {});
+    let moved = max_level_difference(&expected[3], &unwarped[3]);
+    eprintln!("the warp moves the last step's picture by up to {moved} levels");
+    assert!(moved > 20 * LEVELS);
+    let extra = ["--warp", "displacement", "--scale", "2"];
+    let frames = animate_frames(&dir.join("run.pvd"), "raycast-cpu", &dir, "warped", &extra);
+    assert_eq!(frames.len(), 4);
+    for (k, (got, want)) in frames.iter().zip(&expected).enumerate() {
+        let d = max_level_difference(got, want);
+        eprintln!("warped step {k}: {d} levels off the step warped alone");
+        assert!(d <= LEVELS, "warped step {k}: {d} levels off");
+    }
+}
+
+/// Writes `mesh` (its positions, tets and every scalar array) with a 3-component point array
+/// `vectors` (named `name`) as an ASCII `.vtu`, as a solver writes a displacement field.
+fn write_vtu_with_vectors(mesh: &TetMesh, name: &str, vectors: &[[f64; 3]], path: &Path) {
+    let join = |it: &mut dyn Iterator<Item = String>| it.collect::<Vec<_>>().join(" ");
+    let array = |name: &str, ncomp: usize, values: String| {
+        format!(
+            "<DataArray type=\"Float64\" Name=\"{name}\" NumberOfComponents=\"{ncomp}\" format=\"ascii\">{values}</DataArray>\n"
+        )
+    };
+    let mut point_data: String = mesh
+        .arrays()
+        .iter()
+        .map(|a| {
+            array(
+                &a.name,
+                1,
+                join(&mut a.values.iter().map(|v| v.to_string())),
+            )
+        })
+        .collect();
+    let flat = |v: &[[f64; 3]]| join(&mut v.iter().flatten().map(|x| x.to_string()));
+    point_data += &array(name, 3, flat(vectors));
+    let points: Vec<[f64; 3]> = mesh.positions().iter().map(|p| p.to_array()).collect();
+    let nt = mesh.tet_count();
+    let cells = [
+        (
+            "connectivity",
+            join(&mut mesh.tets().iter().flatten().map(|i| i.to_string())),
+        ),
+        ("offsets", join(&mut (1..=nt).map(|i| (4 * i).to_string()))),
+        ("types", join(&mut (0..nt).map(|_| "10".to_string()))),
+    ]
+    .map(|(n, v)| {
+        format!("<DataArray type=\"Int64\" Name=\"{n}\" format=\"ascii\">{v}</DataArray>\n")
+    })
+    .concat();
+    let active = mesh.active_array().unwrap().name.as_str();
+    let xml = format!(
+        "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\">\n<UnstructuredGrid>\n\
+         <Piece NumberOfPoints=\"{}\" NumberOfCells=\"{nt}\">\n<PointData Scalars=\"{active}\">\n{point_data}</PointData>\n\
+         <Points>\n{}</Points>\n<Cells>\n{cells}</Cells>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>\n",
+        mesh.vertex_count(),
+        array("Points", 3, flat(&points)),
+    );
+    std::fs::write(path, xml).unwrap();
 }

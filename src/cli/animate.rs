@@ -12,6 +12,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use tetvr::camera::Camera;
 use tetvr::deform::Deformation;
 use tetvr::io::series::Series;
+use tetvr::mesh::CellDataMode;
 use tetvr::render::Renderer;
 use tetvr::tf::TransferFunction;
 use tetvr::{Image, TetMesh};
@@ -42,7 +43,10 @@ pub(super) fn animate(args: AnimateArgs) -> Result<(), CliError> {
 
 /// One mesh under `--deform`, one period in `--frames` frames.
 fn deform(args: &AnimateArgs) -> Result<(), CliError> {
-    let mesh = load_mesh(&args.render.mesh)?.mesh;
+    let mut mesh = load_mesh(&args.render.mesh)?.mesh;
+    if let Some(name) = &args.warp {
+        mesh.warp(name, args.scale)?;
+    }
     let frames = args.frames.unwrap_or(24);
     let (deformation, amplitude) = (
         args.deform.unwrap_or(Deformation::Twist),
@@ -60,14 +64,21 @@ fn deform(args: &AnimateArgs) -> Result<(), CliError> {
     play.finish("deform + update")
 }
 
-/// The steps of a series, each loaded, checked against the first and handed to the renderer
-/// as new positions and scalars; camera and transfer function are the first step's.
+/// The steps of a series, each loaded, checked against the first, given the chosen array and
+/// warp, and handed to the renderer as new positions and scalars; camera and transfer function
+/// are the first step's. A cell array plays averaged to the vertices: the renderers take new
+/// values per vertex only.
 fn play_series(args: &AnimateArgs) -> Result<(), CliError> {
     let series = Series::open(&args.render.mesh.mesh)?;
     let limits = read_limits(&args.render.mesh);
-    let prepare = |mesh: &mut TetMesh| match &args.render.mesh.array {
-        Some(name) => mesh.set_active_array(name),
-        None => Ok(()),
+    let prepare = |mesh: &mut TetMesh| {
+        if let Some(spec) = &args.render.mesh.array {
+            mesh.select(spec, CellDataMode::Points)?;
+        }
+        match &args.warp {
+            Some(name) => mesh.warp(name, args.scale),
+            None => Ok(()),
+        }
     };
     let first = series.load_prepared(0, &limits, prepare)?;
     let mut play = Playback::open(args, &first, series.steps().len() as u64)?;

@@ -23,7 +23,7 @@ Examples:
   tetvr render mesh.vtk --array Pressure --tf my_tf.json --unit-distance 0.05 -o p.png
   tetvr render mesh.msh --eye 10,0,2 --target 0,0,0 --up 0,0,1 --fov 40 -o close.png
   tetvr animate ../shared/data/kiefer_bracket_tet.vtk --deform twist --frames 24 -o bracket.gif
-  tetvr animate run/result.pvd --array T -o run.gif
+  tetvr animate run/result.pvd --array T --warp displacement --scale 10 -o run.gif
   tetvr animate 'run/step_*.vtu' --size 256x256 -o frames/run.png
   tetvr info assets/bluntfin_tet.vtu
   tetvr compare a.png b.png -o diff.png
@@ -214,6 +214,18 @@ pub struct AnimateArgs {
     /// Frames per second of the GIF.
     #[arg(long, default_value_t = 12)]
     pub fps: u32,
+    /// Move each vertex by this 3-component point array times --scale (ParaView's Warp By
+    /// Vector); in a series, each step by its own array.
+    #[arg(long)]
+    pub warp: Option<String>,
+    /// Multiplier of the --warp vectors.
+    #[arg(
+        long,
+        default_value_t = 1.0,
+        requires = "warp",
+        allow_hyphen_values = true
+    )]
+    pub scale: f64,
 }
 
 #[derive(clap::Args, Debug)]
