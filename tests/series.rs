@@ -8,6 +8,7 @@ use tetvr::cpu::raycast::CpuRaycastSettings;
 use tetvr::deform::Deformation;
 use tetvr::generate::{self, Field};
 use tetvr::gpu::{AdapterChoice, ShellSettings};
+use tetvr::mesh::CellDataMode;
 use tetvr::tf::file::load_tf;
 use tetvr::{Camera, ModeSettings, ScalarArray, TetMesh, View};
 
@@ -368,7 +369,7 @@ fn write_displaced_series(dir: &Path, steps: usize) -> Vec<PathBuf> {
         let half: Vec<[f64; 3]> = (moved.positions().iter().zip(base.positions()))
             .map(|(m, b)| (0.5 * (*m - *b)).to_array())
             .collect();
-        write_vtu_with_vectors(&rest, "displacement", &half, path);
+        write_ascii_vtu(&rest, &[("displacement", &half)], &[], path);
     })
 }
 
@@ -396,49 +397,91 @@ fn a_series_warped_by_its_displacement_plays_as_each_step_warped_alone() {
     }
 }
 
-/// Writes `mesh` (its positions, tets and every scalar array) with a 3-component point array
-/// `vectors` (named `name`) as an ASCII `.vtu`, as a solver writes a displacement field.
-fn write_vtu_with_vectors(mesh: &TetMesh, name: &str, vectors: &[[f64; 3]], path: &Path) {
+/// A series whose only field is a cell array plays it averaged to the vertices (the renderers
+/// take new values per vertex; a per-tet field would stay the first step's), as each step
+/// loaded alone with `--cell-data points` renders; the steps' pictures differ.
+#[test]
+fn a_series_of_cell_data_plays_averaged_to_the_vertices() {
+    let dir = out_dir("cells");
+    let base = base_grid();
+    let files = write_series_with(&dir, 3, |k, path| {
+        let moved = step_mesh(&base, k);
+        let bare = TetMesh::new(moved.positions().to_vec(), moved.tets().to_vec(), vec![]);
+        let field = moved.scalars().unwrap();
+        let per_tet: Vec<f64> = (moved.tets().iter())
+            .map(|t| t.iter().map(|&v| field[v as usize]).sum::<f64>() / 4.0)
+            .collect();
+        write_ascii_vtu(&bare.unwrap().0, &[], &[("pressure", &per_tet)], path);
+    });
+    let loaded = tetvr::io::load(&files[0]).unwrap().mesh;
+    assert!(loaded.cell_scalars().is_some(), "the reader makes it constant per tet");
+    let mode = ModeSettings::RaycastCpu(CpuRaycastSettings::default());
+    let points = |m: &mut TetMesh| m.select("pressure", CellDataMode::Points).unwrap();
+    let expected = per_step_frames(&files, &mode, points);
+    assert!(max_level_difference(&expected[0], &expected[2]) > 20 * LEVELS);
+    let frames = animate_frames(&dir.join("run.pvd"), "raycast-cpu", &dir, "cells", &[]);
+    assert_eq!(frames.len(), 3);
+    for (k, (got, want)) in frames.iter().zip(&expected).enumerate() {
+        let d = max_level_difference(got, want);
+        assert!(d <= LEVELS, "cell step {k}: {d} levels off the step alone");
+    }
+}
+
+/// Writes `mesh` (its positions, tets and scalar arrays) with 3-component point arrays
+/// `vectors` and per-tet arrays `cells` as an ASCII `.vtu`, as a solver writes its results.
+fn write_ascii_vtu(
+    mesh: &TetMesh,
+    vectors: &[(&str, &[[f64; 3]])],
+    cells: &[(&str, &[f64])],
+    path: &Path,
+) {
     let join = |it: &mut dyn Iterator<Item = String>| it.collect::<Vec<_>>().join(" ");
-    let array = |name: &str, ncomp: usize, values: String| {
+    let flat = |v: &[[f64; 3]]| join(&mut v.iter().flatten().map(|x| x.to_string()));
+    let list = |v: &[f64]| join(&mut v.iter().map(|x| x.to_string()));
+    let array = |ty: &str, name: &str, ncomp: usize, values: String| {
         format!(
-            "<DataArray type=\"Float64\" Name=\"{name}\" NumberOfComponents=\"{ncomp}\" format=\"ascii\">{values}</DataArray>\n"
+            "<DataArray type=\"{ty}\" Name=\"{name}\" NumberOfComponents=\"{ncomp}\" format=\"ascii\">{values}</DataArray>\n"
         )
     };
-    let mut point_data: String = mesh
+    let scalars = mesh
         .arrays()
         .iter()
-        .map(|a| {
-            array(
-                &a.name,
-                1,
-                join(&mut a.values.iter().map(|v| v.to_string())),
-            )
-        })
+        .map(|a| array("Float64", &a.name, 1, list(&a.values)));
+    let vectors = vectors.iter().map(|(n, v)| array("Float64", n, 3, flat(v)));
+    let point_data: String = scalars.chain(vectors).collect();
+    let cell_data: String = cells
+        .iter()
+        .map(|(n, v)| array("Float64", n, 1, list(v)))
         .collect();
-    let flat = |v: &[[f64; 3]]| join(&mut v.iter().flatten().map(|x| x.to_string()));
-    point_data += &array(name, 3, flat(vectors));
-    let points: Vec<[f64; 3]> = mesh.positions().iter().map(|p| p.to_array()).collect();
     let nt = mesh.tet_count();
-    let cells = [
-        (
-            "connectivity",
-            join(&mut mesh.tets().iter().flatten().map(|i| i.to_string())),
+    let connectivity = join(&mut mesh.tets().iter().flatten().map(|i| i.to_string()));
+    let topology = [
+        array("Int64", "connectivity", 1, connectivity),
+        array(
+            "Int64",
+            "offsets",
+            1,
+            join(&mut (1..=nt).map(|i| (4 * i).to_string())),
         ),
-        ("offsets", join(&mut (1..=nt).map(|i| (4 * i).to_string()))),
-        ("types", join(&mut (0..nt).map(|_| "10".to_string()))),
+        array(
+            "UInt8",
+            "types",
+            1,
+            join(&mut (0..nt).map(|_| "10".to_string())),
+        ),
     ]
-    .map(|(n, v)| {
-        format!("<DataArray type=\"Int64\" Name=\"{n}\" format=\"ascii\">{v}</DataArray>\n")
-    })
     .concat();
-    let active = mesh.active_array().unwrap().name.as_str();
+    let points: Vec<[f64; 3]> = mesh.positions().iter().map(|p| p.to_array()).collect();
+    let active = mesh
+        .active_array()
+        .map_or(String::new(), |a| format!(" Scalars=\"{}\"", a.name));
     let xml = format!(
         "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\">\n<UnstructuredGrid>\n\
-         <Piece NumberOfPoints=\"{}\" NumberOfCells=\"{nt}\">\n<PointData Scalars=\"{active}\">\n{point_data}</PointData>\n\
-         <Points>\n{}</Points>\n<Cells>\n{cells}</Cells>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>\n",
+         <Piece NumberOfPoints=\"{}\" NumberOfCells=\"{nt}\">\n<PointData{active}>\n{point_data}</PointData>\n\
+         <CellData>\n{cell_data}</CellData>\n<Points>\n{}</Points>\n<Cells>\n{topology}</Cells>\n</Piece>\n\
+         </UnstructuredGrid>\n</VTKFile>\n",
         mesh.vertex_count(),
-        array("Points", 3, flat(&points)),
+        array("Float64", "Points", 3, flat(&points)),
     );
     std::fs::write(path, xml).unwrap();
 }

@@ -75,6 +75,9 @@ fn play_series(args: &AnimateArgs) -> Result<(), CliError> {
         if let Some(spec) = &args.render.mesh.array {
             mesh.select(spec, CellDataMode::Points)?;
         }
+        // A cell array the file made active plays averaged to the vertices too: its active
+        // vertex array already holds that average.
+        mesh.set_cell_scalars(None)?;
         match &args.warp {
             Some(name) => mesh.warp(name, args.scale),
             None => Ok(()),
