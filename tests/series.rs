@@ -414,7 +414,10 @@ fn a_series_of_cell_data_plays_averaged_to_the_vertices() {
         write_ascii_vtu(&bare.unwrap().0, &[], &[("pressure", &per_tet)], path);
     });
     let loaded = tetvr::io::load(&files[0]).unwrap().mesh;
-    assert!(loaded.cell_scalars().is_some(), "the reader makes it constant per tet");
+    assert!(
+        loaded.cell_scalars().is_some(),
+        "the reader makes it constant per tet"
+    );
     let mode = ModeSettings::RaycastCpu(CpuRaycastSettings::default());
     let points = |m: &mut TetMesh| m.select("pressure", CellDataMode::Points).unwrap();
     let expected = per_step_frames(&files, &mode, points);
