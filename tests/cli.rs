@@ -387,7 +387,7 @@ fn bad_input_is_an_error_naming_the_file_never_a_panic() {
     ]);
     let (_, stderr) = text(&o);
     assert!(
-        stderr.contains("no scalar array named 'Nope'; the mesh has: "),
+        stderr.contains("no array named 'Nope'; the mesh has: "),
         "{stderr}"
     );
     let o = tetvr(&[

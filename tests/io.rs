@@ -611,13 +611,83 @@ fn mixed_cells_load_identically_from_every_format_and_encoding() {
 }
 
 #[test]
-fn legacy_vectors_and_cell_data_are_reported() {
+fn legacy_vectors_and_cell_data_are_read() {
     let l = load(&corpus("valid/mixed.vtk")).unwrap();
-    let names: Vec<&str> = l.mesh.arrays().iter().map(|a| a.name.as_str()).collect();
+    let m = &l.mesh;
+    let names: Vec<&str> = m.arrays().iter().map(|a| a.name.as_str()).collect();
     assert_eq!(names, ["s", "vel magnitude"]);
-    assert_eq!(l.report.skipped_arrays, ["cellid"]);
+    assert!(l.report.skipped_arrays.is_empty());
     // vel = position, so its magnitude at (1, 1, 1) (point 6) is sqrt(3).
-    assert_eq!(l.mesh.arrays()[1].values[6], 3f64.sqrt());
+    assert_eq!(m.arrays()[1].values[6], 3f64.sqrt());
+    let vel = m.point_vector("vel").unwrap();
+    assert_eq!(vel.components, 3);
+    let pts: Vec<f64> = m.positions().iter().flat_map(|p| p.to_array()).collect();
+    assert_eq!(vel.values, pts);
+    // cellid 0..4 on the hex, wedge, pyramid, tet and (skipped) triangle: each tet keeps its
+    // cell's value (6, 3, 2, 1 tets; the tets are in cell order).
+    let c = m.cell_array("cellid").unwrap();
+    assert_eq!((c.components, c.values.len()), (1, 12));
+    assert_eq!(
+        c.values,
+        [[0.0; 6].as_slice(), &[1.0; 3], &[2.0; 2], &[3.0]].concat()
+    );
+    // Point scalars stay the active field.
+    assert_eq!(
+        (m.active_array().unwrap().name.as_str(), m.cell_scalars()),
+        ("s", None)
+    );
+}
+
+/// A tet in one piece and a vertex cell in another, with a vector point array `d`
+/// (point i: (i, 2i, -i)) and a 2-component cell array `c`.
+const TWO_PIECES_VTU: &str = r#"<VTKFile type="UnstructuredGrid" version="1.0">
+<UnstructuredGrid>
+<Piece NumberOfPoints="4" NumberOfCells="1">
+<PointData Scalars="s">
+<DataArray type="Float64" Name="s" format="ascii">0 1 2 3</DataArray>
+<DataArray type="Float64" Name="d" NumberOfComponents="3" format="ascii">0 0 0 1 2 -1 2 4 -2 3 6 -3</DataArray>
+</PointData>
+<CellData><DataArray type="Float32" Name="c" NumberOfComponents="2" format="ascii">3 4</DataArray></CellData>
+<Points><DataArray type="Float64" NumberOfComponents="3" format="ascii">0 0 0 1 0 0 0 1 0 0 0 1</DataArray></Points>
+<Cells>
+<DataArray type="Int32" Name="connectivity" format="ascii">0 1 2 3</DataArray>
+<DataArray type="Int32" Name="offsets" format="ascii">4</DataArray>
+<DataArray type="UInt8" Name="types" format="ascii">10</DataArray>
+</Cells>
+</Piece>
+<Piece NumberOfPoints="1" NumberOfCells="1">
+<PointData>
+<DataArray type="Float64" Name="s" format="ascii">4</DataArray>
+<DataArray type="Float64" Name="d" NumberOfComponents="3" format="ascii">4 8 -4</DataArray>
+</PointData>
+<CellData><DataArray type="Float32" Name="c" NumberOfComponents="2" format="ascii">-6 8</DataArray></CellData>
+<Points><DataArray type="Float64" NumberOfComponents="3" format="ascii">1 1 1</DataArray></Points>
+<Cells>
+<DataArray type="Int32" Name="connectivity" format="ascii">0</DataArray>
+<DataArray type="Int32" Name="offsets" format="ascii">1</DataArray>
+<DataArray type="UInt8" Name="types" format="ascii">1</DataArray>
+</Cells>
+</Piece>
+</UnstructuredGrid>
+</VTKFile>
+"#;
+
+#[test]
+fn vtu_vector_point_arrays_and_cell_arrays_are_read_across_pieces() {
+    let l = load_bytes(TWO_PIECES_VTU.as_bytes(), Format::Vtu, "two.vtu").unwrap();
+    let m = &l.mesh;
+    let d = m.point_vector("d").unwrap();
+    assert_eq!(d.components, 3);
+    let want: Vec<f64> = (0..5)
+        .flat_map(|i| [i as f64, 2.0 * i as f64, -i as f64])
+        .collect();
+    assert_eq!(d.values, want);
+    let names: Vec<&str> = m.arrays().iter().map(|a| a.name.as_str()).collect();
+    assert_eq!(names, ["s", "d magnitude"]);
+    // The second piece's only cell is a vertex (skipped): its cell value goes nowhere.
+    let c = m.cell_array("c").unwrap();
+    assert_eq!((c.components, c.values.as_slice()), (2, &[3.0, 4.0][..]));
+    assert!(l.report.skipped_arrays.is_empty());
 }
 
 #[test]
@@ -632,7 +702,8 @@ fn hex_grid_vtu_is_split_conformingly() {
     assert_eq!(m.tet_count(), 24);
     assert_conforming(m, 4.0, 32, "hexgrid.vtu");
     assert_eq!(m.active_array().unwrap().name, "t");
-    assert_eq!(l.report.skipped_arrays, ["region"]);
+    assert!(l.report.skipped_arrays.is_empty());
+    assert_eq!(m.cell_array("region").unwrap().values, [1.0; 24]);
     // t = x y + z at (2, 2, 1), the last point.
     assert_eq!(m.active_array().unwrap().values[17], 5.0);
 }

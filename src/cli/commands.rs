@@ -1,6 +1,6 @@
 //! What each subcommand does.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressStyle};
@@ -26,8 +26,8 @@ use tetvr::tf::file::{TfFileError, load_tf};
 use tetvr::{TetMesh, generate};
 
 use super::{
-    AnimateArgs, Cli, Command, CompareArgs, EntryArg, GenerateArgs, GenerateShape, InfoArgs,
-    IntegrateArg, IsoExportArgs, MeshArgs, Mode, RenderArgs, SamplerArg, ShadingArg,
+    Cli, Command, CompareArgs, EntryArg, GenerateArgs, GenerateShape, InfoArgs, IntegrateArg,
+    IsoExportArgs, MeshArgs, Mode, RenderArgs, SamplerArg, ShadingArg,
 };
 
 /// Everything a command can fail with; each message says what to fix.
@@ -39,6 +39,8 @@ pub enum CliError {
     Animation { path: String, message: String },
     #[error(transparent)]
     Load(#[from] LoadError),
+    #[error(transparent)]
+    Series(#[from] io::series::SeriesError),
     #[error(transparent)]
     Write(#[from] io::WriteError),
     #[error(transparent)]
@@ -70,7 +72,7 @@ pub enum CliError {
 pub fn run(cli: Cli) -> Result<(), CliError> {
     match cli.command {
         Command::Render(args) => render(*args),
-        Command::Animate(args) => animate(*args),
+        Command::Animate(args) => super::animate::animate(*args),
         Command::Info(args) => info(args),
         Command::IsoExport(args) => iso_export(args),
         Command::GpuInfo => {
@@ -83,12 +85,16 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
     }
 }
 
-fn load_mesh(args: &MeshArgs) -> Result<Loaded, CliError> {
+pub(super) fn read_limits(args: &MeshArgs) -> io::ReadLimits {
     let mut limits = io::ReadLimits::default();
     if let Some(bytes) = args.max_memory {
         limits.max_memory = bytes;
     }
-    let mut loaded = io::load_with(&args.mesh, &limits)?;
+    limits
+}
+
+pub(super) fn load_mesh(args: &MeshArgs) -> Result<Loaded, CliError> {
+    let mut loaded = io::load_with(&args.mesh, &read_limits(args))?;
     if let Some(name) = &args.array {
         loaded.mesh.set_active_array(name)?;
     }
@@ -142,7 +148,10 @@ fn render(args: RenderArgs) -> Result<(), CliError> {
 }
 
 /// `--tf` over the active scalars' range, with `--unit-distance` if given.
-fn transfer_function(args: &RenderArgs, mesh: &TetMesh) -> Result<TransferFunction, CliError> {
+pub(super) fn transfer_function(
+    args: &RenderArgs,
+    mesh: &TetMesh,
+) -> Result<TransferFunction, CliError> {
     let range = mesh
         .active_array()
         .and_then(|a| a.range())
@@ -154,7 +163,7 @@ fn transfer_function(args: &RenderArgs, mesh: &TetMesh) -> Result<TransferFuncti
     })
 }
 
-fn camera(args: &RenderArgs, mesh: &TetMesh) -> Result<Camera, CliError> {
+pub(super) fn camera(args: &RenderArgs, mesh: &TetMesh) -> Result<Camera, CliError> {
     let (lo, hi) = mesh.bounds();
     let view = View::parse(&args.view)?;
     let mut c = Camera::framing(
@@ -178,7 +187,7 @@ fn camera(args: &RenderArgs, mesh: &TetMesh) -> Result<Camera, CliError> {
 
 /// The mode `args` ask for and the GPU it renders on, opened; `auto` off the GPU says in one
 /// line which path it took and why, a GPU mode by name without an adapter is an error.
-fn open_mode(
+pub(super) fn open_mode(
     args: &RenderArgs,
     mesh: &TetMesh,
     tf: &TransferFunction,
@@ -315,101 +324,7 @@ fn shell_settings(args: &RenderArgs) -> ShellSettings {
     settings
 }
 
-fn animate(args: AnimateArgs) -> Result<(), CliError> {
-    let r = &args.render;
-    if args.frames == 0 || args.fps == 0 {
-        return Err(CliError::Usage(
-            "--frames and --fps must be at least 1".into(),
-        ));
-    }
-    let output = r.output.clone().unwrap_or_else(|| "tetvr.gif".into());
-    let gif = match output.extension().and_then(|e| e.to_str()) {
-        Some("gif") => true,
-        Some("png") => false,
-        _ => {
-            return Err(CliError::Usage(format!(
-                "{}: animate writes .gif or .png",
-                output.display()
-            )));
-        }
-    };
-    let Loaded { mesh, .. } = load_mesh(&r.mesh)?;
-    let tf = transfer_function(r, &mesh)?;
-    let camera = camera(r, &mesh)?;
-    let (lo, hi) = mesh.bounds();
-    let (mode, gpu) = open_mode(r, &mesh, &tf)?;
-    let mut renderer = mode.build(gpu.as_ref(), &mesh)?;
-    let what = mode.describe(gpu.as_ref());
-    let bar = ProgressBar::new(args.frames as u64).with_style(
-        ProgressStyle::with_template("frame {pos}/{len} {bar:40} {eta} left")
-            .expect("a valid template"),
-    );
-    let (mut frames, mut update_ms, mut render_ms) = (Vec::new(), Vec::new(), Vec::new());
-    for i in 0..args.frames {
-        let phase = i as f64 / args.frames as f64;
-        let t = Instant::now();
-        let positions = args
-            .deform
-            .apply(mesh.positions(), lo, hi, args.amplitude, phase);
-        renderer.update_positions(&positions)?;
-        update_ms.push(ms(t));
-        let t = Instant::now();
-        let frame = renderer.render(&camera, &tf)?;
-        render_ms.push(ms(t));
-        frames.push(frame.image);
-        bar.inc(1);
-    }
-    bar.finish_and_clear();
-    let background = r.background.color().or(Some([1.0; 3]).filter(|_| gif));
-    let written = write_animation(&frames, &output, gif, background, args.fps)?;
-    println!(
-        "wrote {written} ({} frames of {}x{}, {what}); per frame, median: deform + update {:.1} ms, render {:.1} ms",
-        frames.len(),
-        camera.width,
-        camera.height,
-        median(&mut update_ms),
-        median(&mut render_ms),
-    );
-    Ok(())
-}
-
-/// Writes the frames as one GIF or as numbered PNGs; returns what was written, for the user.
-fn write_animation(
-    frames: &[Image],
-    output: &Path,
-    gif: bool,
-    background: Option<[f32; 3]>,
-    fps: u32,
-) -> Result<String, CliError> {
-    let fail = |message: String| CliError::Animation {
-        path: output.display().to_string(),
-        message,
-    };
-    if !gif {
-        let stem = output.with_extension("");
-        let name = |i: usize| format!("{}-{i:04}.png", stem.display());
-        for (i, img) in frames.iter().enumerate() {
-            img.save_png(&PathBuf::from(name(i)), background)?;
-        }
-        return Ok(format!("{} .. {}", name(0), name(frames.len() - 1)));
-    }
-    use image::codecs::gif::{GifEncoder, Repeat};
-    let file = std::fs::File::create(output).map_err(|e| fail(e.to_string()))?;
-    let mut encoder = GifEncoder::new_with_speed(std::io::BufWriter::new(file), 10);
-    let gif_err = |e: image::ImageError| fail(e.to_string());
-    encoder.set_repeat(Repeat::Infinite).map_err(gif_err)?;
-    let delay = image::Delay::from_numer_denom_ms(1000, fps);
-    for img in frames {
-        let rgba = image::RgbaImage::from_raw(img.width, img.height, img.to_rgba8(background))
-            .expect("4 bytes per pixel");
-        encoder
-            .encode_frame(image::Frame::from_parts(rgba, 0, 0, delay))
-            .map_err(gif_err)?;
-    }
-    Ok(output.display().to_string())
-}
-
-fn median(v: &mut [f64]) -> f64 {
+pub(super) fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
 }
@@ -544,6 +459,6 @@ fn write(mesh: &TetMesh, path: &Path) -> Result<(), CliError> {
     Ok(())
 }
 
-fn ms(t: Instant) -> f64 {
+pub(super) fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }

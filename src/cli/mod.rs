@@ -1,5 +1,6 @@
 //! Argument definitions and dispatch for the `tetvr` binary.
 
+mod animate;
 mod args;
 mod bench;
 mod commands;
@@ -22,6 +23,8 @@ Examples:
   tetvr render mesh.vtk --array Pressure --tf my_tf.json --unit-distance 0.05 -o p.png
   tetvr render mesh.msh --eye 10,0,2 --target 0,0,0 --up 0,0,1 --fov 40 -o close.png
   tetvr animate ../shared/data/kiefer_bracket_tet.vtk --deform twist --frames 24 -o bracket.gif
+  tetvr animate run/result.pvd --array T --warp displacement --scale 10 -o run.gif
+  tetvr animate 'run/step_*.vtu' --size 256x256 -o frames/run.png
   tetvr info assets/bluntfin_tet.vtu
   tetvr compare a.png b.png -o diff.png
   tetvr generate grid --tets 100000 --field marschner-lobb -o ml.vtu
@@ -41,7 +44,9 @@ pub enum Command {
     /// Render a mesh to a PNG.
     #[command(after_help = EXAMPLES)]
     Render(Box<RenderArgs>),
-    /// Render a mesh under an analytic deformation over time, to an animated GIF or PNGs.
+    /// Render a mesh under an analytic deformation over time, or play a time series (a ParaView
+    /// .pvd, or numbered files as a quoted pattern 'step_*.vtu'), to an animated GIF or PNGs
+    /// written frame by frame.
     #[command(after_help = EXAMPLES)]
     Animate(Box<AnimateArgs>),
     /// Extract isosurfaces (marching tetrahedra, on the CPU) and write them as glTF binary (.glb).
@@ -195,19 +200,32 @@ pub struct RenderArgs {
 pub struct AnimateArgs {
     #[command(flatten)]
     pub render: RenderArgs,
-    /// Deformation: twist (about the longest axis), bend, or wave (travelling along it).
-    #[arg(long, default_value = "twist")]
-    pub deform: tetvr::deform::Deformation,
+    /// Deformation of a single mesh: twist (about the longest axis; the default), bend, or wave
+    /// (travelling along it).
+    #[arg(long)]
+    pub deform: Option<tetvr::deform::Deformation>,
     /// Strength: half-turns at the far end (twist), tip displacement per length (bend), or
-    /// wave height per shortest extent (wave).
-    #[arg(long, default_value_t = 0.5)]
-    pub amplitude: f64,
-    /// Frames in one period of the motion.
-    #[arg(long, default_value_t = 24)]
-    pub frames: u32,
+    /// wave height per shortest extent (wave); default 0.5.
+    #[arg(long)]
+    pub amplitude: Option<f64>,
+    /// Frames in one period of the motion (default 24).
+    #[arg(long)]
+    pub frames: Option<u32>,
     /// Frames per second of the GIF.
     #[arg(long, default_value_t = 12)]
     pub fps: u32,
+    /// Move each vertex by this 3-component point array times --scale (ParaView's Warp By
+    /// Vector); in a series, each step by its own array.
+    #[arg(long)]
+    pub warp: Option<String>,
+    /// Multiplier of the --warp vectors.
+    #[arg(
+        long,
+        default_value_t = 1.0,
+        requires = "warp",
+        allow_hyphen_values = true
+    )]
+    pub scale: f64,
 }
 
 #[derive(clap::Args, Debug)]

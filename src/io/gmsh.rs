@@ -21,8 +21,7 @@ use std::collections::HashMap;
 
 use super::text::Cursor;
 use super::{
-    Assembler, Budget, Format, LoadError, LoadErrorKind, Loaded, Location, Scalar, point_array,
-    shown,
+    Assembler, Budget, Fields, Format, LoadError, LoadErrorKind, Loaded, Location, Scalar, shown,
 };
 use crate::mesh::name::shown_name;
 use crate::mesh::split::CellKind;
@@ -241,12 +240,15 @@ pub(super) fn read(data: &[u8], name: &str, budget: &Budget) -> Result<Loaded, L
     let asm = s
         .asm
         .ok_or_else(|| r.c.err(end, "the file has no $Elements section"))?;
-    let mut out = Vec::with_capacity(s.arrays.list.len());
+    let mut fields = Fields {
+        skipped: s.skipped,
+        ..Fields::default()
+    };
     for a in s.arrays.list {
         let (aname, nc) = (a.name.clone(), a.nc);
-        out.push(point_array(&aname, a.dense(&tags, budget, name)?, nc));
+        fields.point(&aname, a.dense(&tags, budget, name)?, nc);
     }
-    asm.finish(name, Format::Gmsh, positions, out, s.skipped)
+    asm.finish(name, Format::Gmsh, positions, fields)
 }
 
 /// `$MeshFormat`'s line: the version, ASCII or binary (with binary's endianness marker) and
@@ -645,8 +647,7 @@ fn element(
         nodes.push(t);
     }
     if dim < 3 {
-        asm.skip();
-        return Ok(());
+        return asm.skip();
     }
     let Some(kind) = solid_kind(ty) else {
         return Err(LoadError::unsupported(

@@ -12,12 +12,17 @@
 //! lower-dimensional cells (vertices, lines, triangles, quads, ...) are skipped and counted.
 //!
 //! Per-vertex arrays become [`ScalarArray`]s; the file's active scalars come first (so they are
-//! the mesh's active array). Multi-component point arrays become one `"<name> magnitude"` array
-//! (the Euclidean norm of the components). Anything else (cell data, dataset field data, string
-//! arrays) is named in [`LoadReport::skipped_arrays`].
+//! the mesh's active array). Multi-component point arrays are kept whole
+//! ([`TetMesh::point_vectors`]) and give a `"<name> magnitude"` scalar array (the Euclidean
+//! norm of the components). Cell arrays are kept per tet ([`TetMesh::cell_arrays`]), each tet
+//! split from a cell taking the cell's values; a file whose first field is cell data (Gmsh), or
+//! that has cell arrays and no point scalars, gets its first cell array as the active field,
+//! rendered constant per tet. Anything else (dataset field data, string arrays) is named in
+//! [`LoadReport::skipped_arrays`].
 
 mod gmsh;
 mod limits;
+pub mod series;
 mod tetgen;
 mod text;
 mod vtk;
@@ -29,7 +34,7 @@ use std::path::{Path, PathBuf};
 use glam::DVec3;
 
 use crate::mesh::split::{CellKind, split_cell};
-use crate::mesh::{MeshError, ScalarArray, TetMesh};
+use crate::mesh::{CellDataMode, DataArray, MeshError, ScalarArray, TetMesh};
 
 pub use limits::{Bytes, ReadLimits, parse_size};
 pub use vtu::write_vtu;
@@ -74,7 +79,7 @@ pub struct LoadReport {
     pub split_cells: Vec<(CellKind, usize)>,
     /// 0D to 2D cells (vertices, lines, triangles, quads, ...) that were ignored.
     pub skipped_cells: usize,
-    /// Arrays not usable as per-vertex scalars (cell data, dataset field data, strings, ...),
+    /// Arrays not read (dataset field data, strings, arrays missing from a piece, ...),
     /// named exactly as in the file: show them through [`crate::mesh::name::shown_list`].
     pub skipped_arrays: Vec<String>,
 }
@@ -341,6 +346,38 @@ pub(crate) struct Assembler<'a> {
     counts: [usize; 6],
     skipped_cells: usize,
     ids: Vec<u32>,
+    /// Tets made from each cell of the file, in file order (0 for a skipped cell): how cell
+    /// data reach the tets.
+    cell_tets: Vec<u8>,
+}
+
+/// The arrays a reader found, for [`Assembler::finish`].
+#[derive(Default)]
+pub(crate) struct Fields {
+    /// Per-vertex scalars (a vector's magnitude among them), the active one first.
+    pub(crate) scalars: Vec<ScalarArray>,
+    /// Point arrays of several components.
+    pub(crate) vectors: Vec<DataArray>,
+    /// Cell arrays, one tuple per cell of the file (skipped cells included).
+    pub(crate) cells: Vec<DataArray>,
+    /// Arrays not read, named as in the file.
+    pub(crate) skipped: Vec<String>,
+    /// The file's first field is cell data: make it the active one.
+    pub(crate) cell_first: bool,
+}
+
+impl Fields {
+    /// A point array of `nc` components: a scalar array, or a vector kept whole with its
+    /// magnitude as the scalar array `"<name> magnitude"`.
+    pub(crate) fn point(&mut self, name: &str, values: Vec<f64>, nc: usize) {
+        if nc == 1 {
+            self.scalars.push(ScalarArray::new(name, values));
+        } else {
+            let m = ScalarArray::new(format!("{name} magnitude"), magnitudes(&values, nc));
+            self.scalars.push(m);
+            self.vectors.push(DataArray::new(name, nc, values));
+        }
+    }
 }
 
 impl<'a> Assembler<'a> {
@@ -353,7 +390,25 @@ impl<'a> Assembler<'a> {
             counts: [0; 6],
             skipped_cells: 0,
             ids: Vec::with_capacity(10),
+            cell_tets: Vec::new(),
         }
+    }
+
+    /// Notes that the next cell of the file made `tets` tets, paying for the list's growth.
+    fn note_cell(&mut self, tets: usize) -> Result<(), LoadError> {
+        if self.cell_tets.len() == self.cell_tets.capacity() {
+            let more = self.cell_tets.len().max(1024);
+            self.budget
+                .charge_items(more, 1, || "the cell-to-tet table".to_owned())?;
+            self.cell_tets.reserve_exact(more);
+        }
+        self.cell_tets.push(tets as u8);
+        Ok(())
+    }
+
+    /// Cells of the file seen so far (skipped ones included).
+    pub(crate) fn cells_seen(&self) -> usize {
+        self.cell_tets.len()
     }
 
     /// Adds one 3D cell given its 0-based vertex indices as read; `locate` turns a message
@@ -399,7 +454,9 @@ impl<'a> Assembler<'a> {
             })?;
             self.charged += more;
         }
+        let before = self.tets.len();
         split_cell(kind, &self.ids, &mut self.tets);
+        self.note_cell(self.tets.len() - before)?;
         if let Some(k) = KINDS.iter().position(|&k| k == kind) {
             self.counts[k] += 1;
         }
@@ -407,21 +464,69 @@ impl<'a> Assembler<'a> {
     }
 
     /// Counts a lower-dimensional cell that is ignored.
-    pub(crate) fn skip(&mut self) {
+    pub(crate) fn skip(&mut self) -> Result<(), LoadError> {
         self.skipped_cells += 1;
+        self.note_cell(0)
     }
 
-    /// Builds the mesh. `arrays` must have the active array first.
+    /// Cell array `a` (one tuple per cell of the file) as one tuple per tet: each tet gets
+    /// its cell's tuple; skipped cells' tuples are dropped.
+    fn per_tet(&self, path: &str, a: DataArray) -> Result<DataArray, LoadError> {
+        let nc = a.components.max(1);
+        if a.values.len() != self.cell_tets.len().saturating_mul(nc) {
+            return Err(LoadError::new(
+                path,
+                None,
+                LoadErrorKind::Malformed(format!(
+                    "cell array '{}' has {} values, not {nc} for each of the {} cells",
+                    crate::mesh::name::shown_name(&a.name),
+                    a.values.len(),
+                    self.cell_tets.len()
+                )),
+            ));
+        }
+        let name = a.name.clone();
+        self.budget.charge_items(self.tets.len(), 8 * nc, || {
+            format!(
+                "cell array '{}' on the tets",
+                crate::mesh::name::shown_name(&name)
+            )
+        })?;
+        let mut v = Vec::with_capacity(self.tets.len() * nc);
+        for (&k, t) in self.cell_tets.iter().zip(a.tuples()) {
+            for _ in 0..k {
+                v.extend_from_slice(t);
+            }
+        }
+        Ok(DataArray::new(a.name, nc, v))
+    }
+
+    /// Builds the mesh with the arrays found (the active scalar array first). The active
+    /// field is a cell array, rendered constant per tet, when the file's first field is one or
+    /// when the file has cell arrays and no point scalars.
     pub(crate) fn finish(
         self,
         path: &str,
         format: Format,
         positions: Vec<DVec3>,
-        arrays: Vec<ScalarArray>,
-        skipped_arrays: Vec<String>,
+        fields: Fields,
     ) -> Result<Loaded, LoadError> {
-        let (mesh, build) = TetMesh::new(positions, self.tets, arrays)
-            .map_err(|e| LoadError::new(path, None, LoadErrorKind::Mesh(e)))?;
+        let mesh_err = |e| LoadError::new(path, None, LoadErrorKind::Mesh(e));
+        let first_cell = fields.cells.first().map(|a| a.name.clone());
+        let cells: Vec<DataArray> = (fields.cells.into_iter())
+            .map(|c| self.per_tet(path, c))
+            .collect::<Result<_, _>>()?;
+        let (mut mesh, build) =
+            TetMesh::new(positions, self.tets, fields.scalars).map_err(mesh_err)?;
+        mesh.set_data_arrays(fields.vectors, cells)
+            .map_err(mesh_err)?;
+        if let Some(name) = first_cell
+            && (fields.cell_first || mesh.active_array().is_none())
+        {
+            mesh.select(&name, CellDataMode::Constant)
+                .map_err(mesh_err)?;
+        }
+        let skipped_arrays = fields.skipped;
         let split_cells = KINDS
             .iter()
             .zip(self.counts)
@@ -463,15 +568,6 @@ pub(crate) fn magnitudes(values: &[f64], ncomp: usize) -> Vec<f64> {
         .chunks_exact(ncomp.max(1))
         .map(|c| c.iter().map(|x| x * x).sum::<f64>().sqrt())
         .collect()
-}
-
-/// Turns a point array of `ncomp` components into a scalar array: itself, or the magnitude.
-pub(crate) fn point_array(name: &str, values: Vec<f64>, ncomp: usize) -> ScalarArray {
-    if ncomp == 1 {
-        ScalarArray::new(name, values)
-    } else {
-        ScalarArray::new(format!("{name} magnitude"), magnitudes(&values, ncomp))
-    }
 }
 
 /// Positions from a flat x,y,z list, charged to the budget.

@@ -1,12 +1,13 @@
 //! TetGen `.node` + `.ele`: `#` comments, 0- or 1-based numbering (taken from the first point's
 //! index; points must be numbered consecutively from there), 4- or 10-node tets. Point
-//! attributes become arrays `attribute0`, `attribute1`, ...; tet attributes are skipped and
-//! reported as one entry with their count.
+//! attributes become arrays `attribute0`, `attribute1`, ...; tet attributes (TetGen's region
+//! attributes) become one cell array `tetrahedron attributes` of as many components (select one
+//! with `tetrahedron attributes:0`).
 
 use super::text::Cursor;
-use super::{Assembler, Budget, Format, LoadError, Loaded, Location, Scalar};
-use crate::mesh::ScalarArray;
+use super::{Assembler, Budget, Fields, Format, LoadError, Loaded, Location, Scalar};
 use crate::mesh::split::CellKind;
+use crate::mesh::{DataArray, ScalarArray};
 use glam::DVec3;
 
 pub(super) fn read(
@@ -21,29 +22,30 @@ pub(super) fn read(
     let points = read_points(&mut c, header)?;
     let mut e = Cursor::new(ele, ele_name, Some(b'#'), budget);
     let mut asm = Assembler::new(points.positions.len(), budget);
-    let eattr = read_tets(&mut e, points.base, &mut asm)?;
-    let nattr = header.attributes;
-    let arrays = (0..nattr)
-        .map(|k| {
-            let v = points
-                .attrs
-                .iter()
-                .skip(k)
-                .step_by(nattr)
-                .copied()
-                .collect();
-            ScalarArray::new(format!("attribute{k}"), v)
-        })
-        .collect();
-    let skipped = match eattr {
-        0 => vec![],
-        1 => vec!["tetrahedron attribute0".to_owned()],
-        _ => vec![format!(
-            "{eattr} tetrahedron attributes (attribute0 .. attribute{})",
-            eattr - 1
-        )],
+    let tet_attrs = read_tets(&mut e, points.base, &mut asm)?;
+    let mut fields = Fields {
+        scalars: split_rows(&points.attrs, header.attributes)
+            .enumerate()
+            .map(|(k, v)| ScalarArray::new(format!("attribute{k}"), v))
+            .collect(),
+        ..Fields::default()
     };
-    asm.finish(ele_name, Format::TetGen, points.positions, arrays, skipped)
+    if tet_attrs.count > 0 {
+        let a = DataArray::new("tetrahedron attributes", tet_attrs.count, tet_attrs.values);
+        fields.cells.push(a);
+    }
+    asm.finish(ele_name, Format::TetGen, points.positions, fields)
+}
+
+/// Columns of a row-by-row table of `columns` values per row.
+fn split_rows(rows: &[f64], columns: usize) -> impl Iterator<Item = Vec<f64>> + '_ {
+    (0..columns).map(move |k| rows.iter().skip(k).step_by(columns).copied().collect())
+}
+
+/// The `.ele` file's tet attributes: `count` per tet, row by row.
+struct TetAttributes {
+    count: usize,
+    values: Vec<f64>,
 }
 
 /// The `.node` file's first line.
@@ -170,8 +172,8 @@ fn point_index(c: &mut Cursor, i: usize, base: &mut usize) -> Result<usize, Load
 }
 
 /// The `.ele` file: its header, then each tet (its point indices numbered from `base`) into
-/// `asm`, and nothing after. Returns the number of tet attributes, which are skipped.
-fn read_tets(e: &mut Cursor, base: usize, asm: &mut Assembler) -> Result<usize, LoadError> {
+/// `asm`, and nothing after; returns the tet attributes.
+fn read_tets(e: &mut Cursor, base: usize, asm: &mut Assembler) -> Result<TetAttributes, LoadError> {
     let m = e.count("the number of tetrahedra")?;
     let (kat, k) = e.expect("the number of nodes per tetrahedron")?;
     let kind = match k {
@@ -180,6 +182,14 @@ fn read_tets(e: &mut Cursor, base: usize, asm: &mut Assembler) -> Result<usize, 
         _ => return Err(e.err(kat, "nodes per tetrahedron must be 4 or 10")),
     };
     let eattr = e.count("the number of tetrahedron attributes")?;
+    // Each attribute takes at least two bytes per tet: reserve no more than the file holds.
+    let cap = m.saturating_mul(eattr).min(e.remaining() / 2);
+    e.budget
+        .charge_items(cap, 8, || format!("{m} tetrahedra with {eattr} attributes"))?;
+    let mut attrs = TetAttributes {
+        count: eattr,
+        values: Vec::with_capacity(cap),
+    };
     let name = e.name;
     let mut ids = [0i64; 10];
     for i in 0..m {
@@ -189,9 +199,16 @@ fn read_tets(e: &mut Cursor, base: usize, asm: &mut Assembler) -> Result<usize, 
         for id in ids.iter_mut().take(kind.vertex_count()) {
             *id = e.parse::<i64>("a point index")?.saturating_sub(base as i64);
         }
-        for _ in 0..eattr {
-            e.parse::<f64>("a tetrahedron attribute")?;
-        }
+        let describe =
+            |k: usize, x: f64| format!("attribute {k} of tetrahedron {tag} is not finite ({x})");
+        let a = e.values(
+            eattr,
+            Scalar::F64,
+            None,
+            "the tetrahedron attributes",
+            Some(&describe),
+        )?;
+        attrs.values.extend_from_slice(&a);
         asm.cell(kind, &ids[..kind.vertex_count()], |msg| {
             LoadError::malformed(
                 name,
@@ -203,5 +220,5 @@ fn read_tets(e: &mut Cursor, base: usize, asm: &mut Assembler) -> Result<usize, 
     if !e.at_end() {
         return Err(e.err(e.pos, format!("unexpected data after the {m} tetrahedra")));
     }
-    Ok(eattr)
+    Ok(attrs)
 }

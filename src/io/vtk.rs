@@ -8,10 +8,9 @@
 
 use super::text::Cursor;
 use super::{
-    Assembler, Budget, Format, LoadError, Loaded, Location, Scalar, point_array, positions_from,
-    shown,
+    Assembler, Budget, Fields, Format, LoadError, Loaded, Location, Scalar, positions_from, shown,
 };
-use crate::mesh::ScalarArray;
+use crate::mesh::DataArray;
 use crate::mesh::name::shown_name;
 use crate::mesh::split::CellKind;
 
@@ -192,10 +191,11 @@ struct Sections {
     cells: Option<(usize, RawCells)>,
     /// The cell types and the offset of their keyword.
     types: Option<(usize, Vec<i64>)>,
-    arrays: Vec<ScalarArray>,
+    fields: Fields,
     /// The first SCALARS read as a point array: the file's active scalars.
     active: Option<usize>,
-    skipped: Vec<String>,
+    /// The `CELL_DATA` line's offset and count, checked against the cells at the end.
+    cell_data: Option<(usize, usize)>,
     /// The attribute section the next arrays belong to.
     section: Section,
 }
@@ -262,8 +262,9 @@ impl<'a> Reader<'a> {
             }
             b"POINT_DATA" => s.section = self.point_data(l, s.positions.as_deref())?,
             b"CELL_DATA" => {
-                s.section =
-                    Section::Cell(self.count(l.args_at, first, "the number of cell values")?);
+                let n = self.count(l.args_at, first, "the number of cell values")?;
+                s.section = Section::Cell(n);
+                s.cell_data = Some((l.at, n));
             }
             b"SCALARS"
             | b"VECTORS"
@@ -396,8 +397,8 @@ impl<'a> Reader<'a> {
         })
     }
 
-    /// An attribute (SCALARS, VECTORS, ...): point scalars and vectors become arrays, the
-    /// rest is skipped and named.
+    /// An attribute (SCALARS, VECTORS, ...): point and cell scalars and vectors become arrays,
+    /// the rest is skipped and named.
     fn attribute(&mut self, s: &mut Sections, kw: &[u8], l: &Line<'a>) -> Result<(), LoadError> {
         let what = String::from_utf8_lossy(kw).into_owned();
         let n = self.attr_count(s.section, l.at, &what)?;
@@ -421,38 +422,44 @@ impl<'a> Reader<'a> {
                 ),
             )
         })?;
-        let usable = matches!(s.section, Section::Point(_))
-            && matches!(kw, b"SCALARS" | b"VECTORS" | b"NORMALS");
+        let usable = matches!(kw, b"SCALARS" | b"VECTORS" | b"NORMALS");
         if !usable || ncomp == 0 {
             self.skip(count, ty, &what)?;
-            s.skipped.push(arr_name);
+            s.fields.skipped.push(arr_name);
             return Ok(());
         }
-        let v = self.point_values(&arr_name, count, ncomp, ty, &what)?;
-        s.arrays.push(point_array(&arr_name, v, ncomp));
-        if kw == b"SCALARS" && s.active.is_none() {
-            s.active = Some(s.arrays.len() - 1);
+        let v = self.tuple_values(s.section, &arr_name, count, ncomp, ty, &what)?;
+        let point = matches!(s.section, Section::Point(_));
+        s.add(arr_name, v, ncomp);
+        if point && kw == b"SCALARS" && s.active.is_none() {
+            s.active = Some(s.fields.scalars.len() - 1);
         }
         Ok(())
     }
 
-    /// `count` values of point array `name` (`ncomp` per point), all finite.
-    fn point_values(
+    /// `count` values of array `name` (`ncomp` per point or cell, as `section` says), all
+    /// finite.
+    fn tuple_values(
         &mut self,
+        section: Section,
         name: &str,
         count: usize,
         ncomp: usize,
         ty: Scalar,
-        section: &str,
+        what: &str,
     ) -> Result<Vec<f64>, LoadError> {
+        let per = match section {
+            Section::Cell(_) => "cell",
+            _ => "point",
+        };
         let describe = |i: usize, x: f64| {
             format!(
-                "array '{}' has the non-finite value {x} at point {}",
+                "array '{}' has the non-finite value {x} at {per} {}",
                 shown_name(name),
                 i / ncomp
             )
         };
-        self.values(count, ty, section, Some(&describe))
+        self.values(count, ty, what, Some(&describe))
     }
 
     /// `COLOR_SCALARS name n`: skipped (bytes in BINARY files, floats in ASCII) and named.
@@ -463,7 +470,8 @@ impl<'a> Reader<'a> {
             .checked_mul(nc)
             .ok_or_else(|| self.err(l.at, "COLOR_SCALARS too large"))?;
         self.skip(count, self.color_type(), "COLOR_SCALARS")?;
-        s.skipped
+        s.fields
+            .skipped
             .push(decode_name(l.args.first().copied().unwrap_or(b"")));
         Ok(())
     }
@@ -486,7 +494,8 @@ impl<'a> Reader<'a> {
         }
     }
 
-    /// `FIELD name n` and its n arrays: those with one tuple per point become point arrays.
+    /// `FIELD name n` and its n arrays: those with one tuple per point or cell become point or
+    /// cell arrays.
     fn field(&mut self, s: &mut Sections, l: &Line) -> Result<(), LoadError> {
         let narrays = self.count(l.args_at, l.args.get(1), "the number of field arrays")?;
         for _ in 0..narrays {
@@ -523,13 +532,13 @@ impl<'a> Reader<'a> {
         })?;
         let section = format!("field array '{}'", shown_name(&aname));
         match s.section {
-            Section::Point(n) if nt == n && nc > 0 => {
-                let v = self.point_values(&aname, count, nc, ty, &section)?;
-                s.arrays.push(point_array(&aname, v, nc));
+            Section::Point(n) | Section::Cell(n) if nt == n && nc > 0 => {
+                let v = self.tuple_values(s.section, &aname, count, nc, ty, &section)?;
+                s.add(aname, v, nc);
             }
             _ => {
                 self.skip(count, ty, &section)?;
-                s.skipped.push(aname);
+                s.fields.skipped.push(aname);
             }
         }
         Ok(())
@@ -562,13 +571,24 @@ impl<'a> Reader<'a> {
         }
         let mut asm = Assembler::new(n_points, self.c.budget);
         self.assemble(&mut asm, cells, types)?;
-        let mut arrays = s.arrays;
+        if let Some((at, n)) = s.cell_data
+            && n != asm.cells_seen()
+        {
+            return Err(self.err(
+                at,
+                format!(
+                    "CELL_DATA has {n} values, but CELLS has {} cells",
+                    asm.cells_seen()
+                ),
+            ));
+        }
+        let mut fields = s.fields;
         if let Some(a) = s.active {
-            let active = arrays.remove(a);
-            arrays.insert(0, active);
+            let active = fields.scalars.remove(a);
+            fields.scalars.insert(0, active);
         }
         let positions = positions_from(&positions, self.c.budget)?;
-        asm.finish(self.c.name, Format::VtkLegacy, positions, arrays, s.skipped)
+        asm.finish(self.c.name, Format::VtkLegacy, positions, fields)
     }
 
     /// Adds every cell, in either layout, with its type; `cells` and `types` come with the
@@ -614,6 +634,16 @@ impl<'a> Reader<'a> {
     }
 }
 
+impl Sections {
+    /// An array of the current section: a point array, or a cell array.
+    fn add(&mut self, name: String, values: Vec<f64>, nc: usize) {
+        match self.section {
+            Section::Cell(_) => self.fields.cells.push(DataArray::new(name, nc, values)),
+            _ => self.fields.point(&name, values, nc),
+        }
+    }
+}
+
 /// Adds cell `i` of VTK type `ty` with vertex indices `list`.
 fn add_cell(
     asm: &mut Assembler,
@@ -623,10 +653,7 @@ fn add_cell(
     list: &[i64],
 ) -> Result<(), LoadError> {
     match classify(ty) {
-        Class::Skip => {
-            asm.skip();
-            Ok(())
-        }
+        Class::Skip => asm.skip(),
         Class::Unsupported(what) => Err(unsupported_cell(name, Location::Cell(i), ty, what)),
         Class::Solid(kind) => asm.cell(kind, list, |m| {
             LoadError::malformed(name, Location::Cell(i), m)

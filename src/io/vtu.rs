@@ -21,11 +21,11 @@ use quick_xml::events::{BytesStart, Event};
 
 use super::vtk::{Class, classify, unsupported_cell};
 use super::{
-    Assembler, Budget, Format, LoadError, LoadErrorKind, Loaded, Location, Scalar, WriteError,
-    parse_int, point_array, positions_from, shown,
+    Assembler, Budget, Fields, Format, LoadError, LoadErrorKind, Loaded, Location, Scalar,
+    WriteError, parse_int, positions_from, shown,
 };
-use crate::mesh::TetMesh;
 use crate::mesh::name::shown_name;
+use crate::mesh::{DataArray, TetMesh};
 
 fn scalar_type(name: &str) -> Option<Scalar> {
     Some(match name {
@@ -800,10 +800,10 @@ impl File<'_> {
         Ok(())
     }
 
-    /// Reads every piece's points, point arrays and cells into one mesh.
+    /// Reads every piece's points, point and cell arrays, and cells into one mesh.
     fn assemble(&self, pieces: &[Piece]) -> Result<Loaded, LoadError> {
         let index: Vec<PieceIndex> = pieces.iter().map(PieceIndex::new).collect();
-        let (names, skipped) = point_array_names(&pieces[0], &index);
+        let names = array_names(&pieces[0], &index);
         check_own_offsets(self, &index, &names)?;
         let total_points = pieces
             .iter()
@@ -815,24 +815,35 @@ impl File<'_> {
                 )
             })?;
         let mut positions: Vec<f64> = Vec::new();
-        let mut arrays: Vec<(String, usize, Vec<f64>)> =
-            names.iter().map(|n| (n.clone(), 0, Vec::new())).collect();
+        let start = |list: &[String]| -> Vec<(String, usize, Vec<f64>)> {
+            list.iter().map(|n| (n.clone(), 0, Vec::new())).collect()
+        };
+        let (mut point_arrays, mut cell_arrays) = (start(&names.points), start(&names.cells));
         let mut asm = Assembler::new(total_points, self.budget);
         let (mut base, mut cell_base) = (0usize, 0usize);
         for (p, ix) in pieces.iter().zip(&index) {
             let v = read_points(self, p, ix, base)?;
             append(&mut positions, v);
-            read_point_data(self, p, ix, base, &mut arrays)?;
+            let at_points = Tuples::Points(p.points, base);
+            read_data(self, &ix.point_data, at_points, &mut point_arrays)?;
+            let at_cells = Tuples::Cells(p.cells, cell_base);
+            read_data(self, &ix.cell_data, at_cells, &mut cell_arrays)?;
             read_cells(self, p, ix, (base, cell_base), &mut asm)?;
             base += p.points;
             cell_base += p.cells;
         }
-        let arrays = arrays
-            .into_iter()
-            .map(|(n, nc, v)| point_array(&n, v, nc))
+        let mut fields = Fields {
+            skipped: names.skipped,
+            ..Fields::default()
+        };
+        for (n, nc, v) in point_arrays {
+            fields.point(&n, v, nc);
+        }
+        fields.cells = (cell_arrays.into_iter())
+            .map(|(n, nc, v)| DataArray::new(n, nc, v))
             .collect();
         let positions = positions_from(&positions, self.budget)?;
-        asm.finish(self.name, Format::Vtu, positions, arrays, skipped)
+        asm.finish(self.name, Format::Vtu, positions, fields)
     }
 }
 
@@ -851,6 +862,7 @@ struct PieceIndex<'p> {
     points: Option<&'p Array>,
     cells: HashMap<&'p str, &'p Array>,
     point_data: HashMap<&'p str, &'p Array>,
+    cell_data: HashMap<&'p str, &'p Array>,
 }
 
 impl<'p> PieceIndex<'p> {
@@ -859,6 +871,7 @@ impl<'p> PieceIndex<'p> {
             points: None,
             cells: HashMap::new(),
             point_data: HashMap::new(),
+            cell_data: HashMap::new(),
         };
         for a in &p.arrays {
             match a.part {
@@ -871,60 +884,78 @@ impl<'p> PieceIndex<'p> {
                 Part::PointData => {
                     ix.point_data.entry(a.name()).or_insert(a);
                 }
-                Part::CellData | Part::Other => {}
+                Part::CellData => {
+                    ix.cell_data.entry(a.name()).or_insert(a);
+                }
+                Part::Other => {}
             }
         }
         ix
     }
 }
 
-/// The per-vertex arrays present in every piece, the active one first; and the names of the
-/// arrays that are not read (cell data, string arrays, arrays missing from a piece, repeats).
-fn point_array_names(first: &Piece, index: &[PieceIndex]) -> (Vec<String>, Vec<String>) {
-    let mut names: Vec<String> = Vec::new();
-    let mut seen: HashSet<&str> = HashSet::new();
-    let mut skipped: Vec<String> = Vec::new();
-    for a in first.arrays.iter().filter(|a| a.part == Part::PointData) {
+/// The arrays read and those not read.
+struct Names {
+    /// Point arrays present in every piece, the active one first.
+    points: Vec<String>,
+    /// Cell arrays present in every piece.
+    cells: Vec<String>,
+    /// String arrays, arrays missing from a piece, repeats.
+    skipped: Vec<String>,
+}
+
+/// The numeric point and cell arrays present in every piece (the active point array first),
+/// and the names of those that are not read.
+fn array_names(first: &Piece, index: &[PieceIndex]) -> Names {
+    let mut names = Names {
+        points: Vec::new(),
+        cells: Vec::new(),
+        skipped: Vec::new(),
+    };
+    let (mut seen_p, mut seen_c): (HashSet<&str>, HashSet<&str>) = Default::default();
+    for a in &first.arrays {
         let n = a.name();
-        let everywhere = index.iter().all(|ix| ix.point_data.contains_key(n));
         let numeric = a.attr("type").and_then(scalar_type).is_some();
+        let (list, seen, everywhere) = match a.part {
+            Part::PointData => (
+                &mut names.points,
+                &mut seen_p,
+                index.iter().all(|ix| ix.point_data.contains_key(n)),
+            ),
+            Part::CellData => (
+                &mut names.cells,
+                &mut seen_c,
+                index.iter().all(|ix| ix.cell_data.contains_key(n)),
+            ),
+            _ => continue,
+        };
         if everywhere && numeric && seen.insert(n) {
-            names.push(n.to_owned());
+            list.push(n.to_owned());
         } else {
-            skipped.push(n.to_owned());
+            names.skipped.push(n.to_owned());
         }
     }
-    skipped.extend(
-        first
-            .arrays
-            .iter()
-            .filter(|a| a.part == Part::CellData)
-            .map(|a| a.name().to_owned()),
-    );
     if let Some(s) = &first.scalars
-        && let Some(i) = names.iter().position(|n| n == s)
+        && let Some(i) = names.points.iter().position(|n| n == s)
     {
-        let n = names.remove(i);
-        names.insert(0, n);
+        let n = names.points.remove(i);
+        names.points.insert(0, n);
     }
-    (names, skipped)
+    names
 }
 
 /// Every appended array that is read must have data of its own: two arrays at one offset
 /// would be decoded and kept twice (a file of hundreds of arrays at one offset would take
 /// hundreds of times its mesh's memory). VTK never writes such files.
-fn check_own_offsets(file: &File, index: &[PieceIndex], names: &[String]) -> Result<(), LoadError> {
+fn check_own_offsets(file: &File, index: &[PieceIndex], names: &Names) -> Result<(), LoadError> {
     let mut owner: HashMap<usize, &str> = HashMap::new();
     for ix in index {
         let read = ix
             .points
             .into_iter()
             .chain(ix.cells.values().copied())
-            .chain(
-                names
-                    .iter()
-                    .filter_map(|n| ix.point_data.get(n.as_str()).copied()),
-            );
+            .chain((names.points.iter()).filter_map(|n| ix.point_data.get(n.as_str()).copied()))
+            .chain((names.cells.iter()).filter_map(|n| ix.cell_data.get(n.as_str()).copied()));
         for a in read.filter(|a| a.attr("format") == Some("appended")) {
             let Some(o) = a.offset() else { continue };
             if let Some(first) = owner.insert(o, a.name()) {
@@ -973,17 +1004,36 @@ fn read_points(
     file.values(a, Some(&want), Some(&describe))
 }
 
-/// A piece's values of every array in `arrays` (name, components, values so far).
-fn read_point_data(
+/// The tuples a piece's arrays hold: its points or cells, with the count of those in the
+/// pieces before it.
+#[derive(Clone, Copy)]
+enum Tuples {
+    Points(usize, usize),
+    Cells(usize, usize),
+}
+
+impl Tuples {
+    /// (tuples in the piece, tuples before it, what a tuple is).
+    fn parts(self) -> (usize, usize, &'static str) {
+        match self {
+            Tuples::Points(n, base) => (n, base, "point"),
+            Tuples::Cells(n, base) => (n, base, "cell"),
+        }
+    }
+}
+
+/// A piece's values of every array in `arrays` (name, components, values so far), found in
+/// `arrays_of` (its point or cell data), one tuple per point or cell as `tuples` says.
+fn read_data(
     file: &File,
-    p: &Piece,
-    ix: &PieceIndex,
-    base: usize,
+    arrays_of: &HashMap<&str, &Array>,
+    tuples: Tuples,
     arrays: &mut [(String, usize, Vec<f64>)],
 ) -> Result<(), LoadError> {
-    for (n, ncomp, values) in arrays.iter_mut() {
-        let shown_n = shown_name(n);
-        let a = ix.point_data[n.as_str()];
+    let (n, base, per) = tuples.parts();
+    for (name, ncomp, values) in arrays.iter_mut() {
+        let shown_n = shown_name(name);
+        let a = arrays_of[name.as_str()];
         let nc = a
             .attr("NumberOfComponents")
             .unwrap_or("1")
@@ -1004,7 +1054,7 @@ fn read_point_data(
             ));
         }
         *ncomp = nc;
-        let count = p.points.checked_mul(nc).ok_or_else(|| {
+        let count = n.checked_mul(nc).ok_or_else(|| {
             file.err(
                 a.at,
                 format!("DataArray '{shown_n}' has too many components"),
@@ -1012,13 +1062,12 @@ fn read_point_data(
         })?;
         let wrong = |found: usize| {
             format!(
-                "DataArray '{shown_n}' has {found} values, expected {} points x {nc} components",
-                p.points
+                "DataArray '{shown_n}' has {found} values, expected {n} {per}s x {nc} components"
             )
         };
         let describe = |i: usize, x: f64| {
             format!(
-                "array '{shown_n}' has the non-finite value {x} at point {}",
+                "array '{shown_n}' has the non-finite value {x} at {per} {}",
                 base + i / nc
             )
         };
@@ -1067,7 +1116,7 @@ fn read_cells(
         prev = end;
         let locate = |m: String| LoadError::malformed(name, loc.clone(), m);
         match classify(types[i]) {
-            Class::Skip => asm.skip(),
+            Class::Skip => asm.skip()?,
             Class::Unsupported(what) => {
                 return Err(unsupported_cell(name, loc, types[i], what));
             }

@@ -6,6 +6,7 @@
 //! (`(b - a) . ((c - a) x (d - a)) >= 0`, VTK's convention). [`TetMesh::new`] enforces this and
 //! reports what it had to repair in a [`BuildReport`].
 
+pub mod arrays;
 pub mod name;
 pub mod split;
 pub mod stats;
@@ -14,6 +15,7 @@ pub mod topology;
 use glam::DVec3;
 use rayon::prelude::*;
 
+pub use arrays::{CellDataMode, Component, DataArray, Per, cell_to_point, warp_by_vector};
 pub use topology::{Adjacency, BoundaryFace, NO_NEIGHBOR};
 
 /// A named per-vertex scalar field.
@@ -129,12 +131,65 @@ pub enum MeshError {
         max: u64,
     },
     /// The array asked for (`--array`) is not in the mesh.
-    #[error("no scalar array named '{}'; the mesh has: {available}", name::shown_name(.name))]
+    #[error("no array named '{}'; the mesh has: {available}", name::shown_name(.name))]
     NoSuchArray {
         /// The name asked for.
         name: String,
         /// The mesh's array names, comma separated.
         available: String,
+    },
+    /// A point or cell array has not one tuple of `components` values per vertex or tet.
+    #[error(
+        "array '{}' has {values} values, not {components} components for each of the mesh's {count} {}",
+        name::shown_name(.array), .per.plural(*.count)
+    )]
+    TupleCount {
+        /// The array's name (boxed, as the other fields: keeps the error small).
+        array: Box<str>,
+        /// Values it has.
+        values: usize,
+        /// Components per tuple.
+        components: u32,
+        /// Vertices or tets in the mesh.
+        count: usize,
+        /// Vertices or tets.
+        per: Per,
+    },
+    /// A point or cell array holds a NaN or infinite value.
+    #[error("array '{}' has the non-finite value {value} at {per} {index}", name::shown_name(.array))]
+    NonFiniteTuple {
+        /// The array's name (boxed, as the other fields: keeps the error small).
+        array: Box<str>,
+        /// Vertices or tets.
+        per: Per,
+        /// 0-based vertex or tet index.
+        index: usize,
+        /// The value.
+        value: f64,
+    },
+    /// A selection `NAME:C` names a component the array does not have.
+    #[error(
+        "array '{}' has no component '{}': {}", name::shown_name(.array),
+        name::shown_name(.component), arrays::component_hint(*.components)
+    )]
+    BadComponent {
+        /// The array's name (boxed, as the other fields: keeps the error small).
+        array: Box<str>,
+        /// The component as written.
+        component: Box<str>,
+        /// Components the array has.
+        components: usize,
+    },
+    /// Warping needs a point array of 3 components.
+    #[error(
+        "cannot warp by array '{}': it has {components} component(s) per vertex, warping needs a point vector array of 3",
+        name::shown_name(.array)
+    )]
+    WarpNeedsVector {
+        /// The array's name.
+        array: String,
+        /// Components it has (1 for a scalar).
+        components: usize,
     },
     /// The mesh has no per-vertex scalars, which every mode renders.
     #[error("the mesh has no per-vertex scalar array to render; add POINT_DATA to the file")]
@@ -153,6 +208,12 @@ pub struct TetMesh {
     /// One value per tet when the active field is cell data rendered constant per tet (see
     /// [`TetMesh::cell_scalars`]).
     cell_values: Option<Vec<f64>>,
+    /// Point arrays of several components ([`TetMesh::point_vectors`]).
+    point_vectors: Vec<DataArray>,
+    /// Cell arrays, one tuple per tet ([`TetMesh::cell_arrays`]).
+    cell_arrays: Vec<DataArray>,
+    /// The cell array selection the active field comes from ([`TetMesh::select`]).
+    active_cell: Option<String>,
 }
 
 impl TetMesh {
@@ -210,6 +271,9 @@ impl TetMesh {
                 arrays,
                 active,
                 cell_values: None,
+                point_vectors: Vec::new(),
+                cell_arrays: Vec::new(),
+                active_cell: None,
             },
             BuildReport { reoriented },
         ))
@@ -252,30 +316,31 @@ impl TetMesh {
             .ok_or(MeshError::NoScalars)
     }
 
-    /// Makes the array called `name` the active one.
+    /// Makes the per-vertex scalar array called `name` the active one (and clears per-tet
+    /// values: the field is that array). [`TetMesh::select`] also finds vector components and
+    /// cell arrays.
     pub fn set_active_array(&mut self, name: &str) -> Result<(), MeshError> {
         match self.arrays.iter().position(|a| a.name == name) {
             Some(i) => {
                 self.active = Some(i);
+                self.clear_cell_field();
                 Ok(())
             }
             None => Err(MeshError::NoSuchArray {
                 name: name.to_owned(),
-                available: self.array_names(),
+                available: self.all_array_names(),
             }),
         }
     }
 
-    /// The names of the arrays, comma separated and safe to print (for messages; see
-    /// [`name::shown_list`]).
-    pub(crate) fn array_names(&self) -> String {
-        if self.arrays.is_empty() {
-            return "(none)".to_owned();
-        }
-        name::shown_list(self.arrays.iter().map(|a| a.name.as_str()))
+    /// Forgets the per-tet values and the cell array they came from.
+    fn clear_cell_field(&mut self) {
+        self.cell_values = None;
+        self.active_cell = None;
     }
 
-    /// Adds (or replaces, by name) a scalar array and makes it active.
+    /// Adds (or replaces, by name) a scalar array and makes it active (clearing per-tet
+    /// values, as [`TetMesh::set_active_array`] does).
     pub fn add_array(&mut self, array: ScalarArray) -> Result<(), MeshError> {
         check_array(&array, self.positions.len())?;
         let i = match self.arrays.iter().position(|a| a.name == array.name) {
@@ -289,6 +354,7 @@ impl TetMesh {
             }
         };
         self.active = Some(i);
+        self.clear_cell_field();
         Ok(())
     }
 
@@ -578,10 +644,7 @@ mod tests {
         m.set_active_array("b").unwrap();
         assert_eq!(m.scalars().unwrap(), &[1.0; 4]);
         let e = m.set_active_array("c").unwrap_err();
-        assert_eq!(
-            e.to_string(),
-            "no scalar array named 'c'; the mesh has: a, b"
-        );
+        assert_eq!(e.to_string(), "no array named 'c'; the mesh has: a, b");
     }
 
     #[test]

@@ -1,0 +1,285 @@
+//! `tetvr animate`: a mesh under an analytic deformation, or a time series of meshes (a `.pvd`
+//! collection or numbered files), rendered frame by frame on one renderer. Each frame is written
+//! as soon as it is rendered (numbered PNGs, or one GIF encoded frame by frame), so memory stays
+//! flat however many frames there are.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use indicatif::{ProgressBar, ProgressStyle};
+use tetvr::camera::Camera;
+use tetvr::deform::Deformation;
+use tetvr::io::series::Series;
+use tetvr::mesh::CellDataMode;
+use tetvr::render::Renderer;
+use tetvr::tf::TransferFunction;
+use tetvr::{Image, TetMesh};
+
+use super::commands::{
+    CliError, camera, load_mesh, median, ms, open_mode, read_limits, transfer_function,
+};
+use super::{AnimateArgs, RenderArgs};
+
+pub(super) fn animate(args: AnimateArgs) -> Result<(), CliError> {
+    if args.frames == Some(0) || args.fps == 0 {
+        return Err(CliError::Usage(
+            "--frames and --fps must be at least 1".into(),
+        ));
+    }
+    if Series::is_series(&args.render.mesh.mesh) {
+        if args.deform.is_some() || args.amplitude.is_some() || args.frames.is_some() {
+            return Err(CliError::Usage(
+                "a series plays its own steps: --deform, --amplitude and --frames animate a \
+                 single mesh"
+                    .into(),
+            ));
+        }
+        return play_series(&args);
+    }
+    deform(&args)
+}
+
+/// One mesh under `--deform`, one period in `--frames` frames.
+fn deform(args: &AnimateArgs) -> Result<(), CliError> {
+    let mut mesh = load_mesh(&args.render.mesh)?.mesh;
+    if let Some(name) = &args.warp {
+        mesh.warp(name, args.scale)?;
+    }
+    let frames = args.frames.unwrap_or(24);
+    let (deformation, amplitude) = (
+        args.deform.unwrap_or(Deformation::Twist),
+        args.amplitude.unwrap_or(0.5),
+    );
+    let mut play = Playback::open(args, &mesh, frames as u64)?;
+    let (lo, hi) = mesh.bounds();
+    for i in 0..frames {
+        let phase = i as f64 / frames as f64;
+        play.frame(|renderer| {
+            let positions = deformation.apply(mesh.positions(), lo, hi, amplitude, phase);
+            Ok(renderer.update_positions(&positions)?)
+        })?;
+    }
+    play.finish("deform + update")
+}
+
+/// The steps of a series, each loaded, checked against the first, given the chosen array and
+/// warp, and handed to the renderer as new positions and scalars; camera and transfer function
+/// are the first step's. A cell array plays averaged to the vertices: the renderers take new
+/// values per vertex only.
+fn play_series(args: &AnimateArgs) -> Result<(), CliError> {
+    let series = Series::open(&args.render.mesh.mesh)?;
+    let limits = read_limits(&args.render.mesh);
+    let prepare = |mesh: &mut TetMesh| {
+        if let Some(spec) = &args.render.mesh.array {
+            mesh.select(spec, CellDataMode::Points)?;
+        }
+        // A cell array the file made active plays averaged to the vertices too: its active
+        // vertex array already holds that average.
+        mesh.set_cell_scalars(None)?;
+        match &args.warp {
+            Some(name) => mesh.warp(name, args.scale),
+            None => Ok(()),
+        }
+    };
+    let first = series.load_prepared(0, &limits, prepare)?;
+    let mut play = Playback::open(args, &first, series.steps().len() as u64)?;
+    play.frame(|_| Ok(()))?;
+    for i in 1..series.steps().len() {
+        play.frame(|renderer| {
+            let step = series.load_like(i, &first, &limits, prepare)?;
+            renderer.update_positions(step.positions())?;
+            Ok(renderer.update_scalars(step.scalars()?)?)
+        })?;
+    }
+    play.finish("load + update")
+}
+
+/// What every frame needs: the renderer built on the first mesh, the camera and transfer
+/// function made for that mesh, where frames go, and the progress shown.
+struct Playback {
+    renderer: Box<dyn Renderer>,
+    camera: Camera,
+    tf: TransferFunction,
+    sink: FrameSink,
+    what: String,
+    bar: ProgressBar,
+    update_ms: Vec<f64>,
+    render_ms: Vec<f64>,
+}
+
+impl Playback {
+    fn open(args: &AnimateArgs, mesh: &TetMesh, frames: u64) -> Result<Self, CliError> {
+        let r: &RenderArgs = &args.render;
+        let tf = transfer_function(r, mesh)?;
+        let camera = camera(r, mesh)?;
+        let (mode, gpu) = open_mode(r, mesh, &tf)?;
+        let renderer = mode.build(gpu.as_ref(), mesh)?;
+        let output = r.output.clone().unwrap_or_else(|| "tetvr.gif".into());
+        let sink = FrameSink::create(&output, r.background.color(), args.fps)?;
+        let bar = ProgressBar::new(frames).with_style(
+            ProgressStyle::with_template("frame {pos}/{len} {bar:40} {eta} left")
+                .expect("a valid template"),
+        );
+        Ok(Self {
+            renderer,
+            camera,
+            tf,
+            sink,
+            what: mode.describe(gpu.as_ref()),
+            bar,
+            update_ms: Vec::new(),
+            render_ms: Vec::new(),
+        })
+    }
+
+    /// Updates the renderer with `update`, renders, and writes the frame; each part timed.
+    fn frame(
+        &mut self,
+        update: impl FnOnce(&mut dyn Renderer) -> Result<(), CliError>,
+    ) -> Result<(), CliError> {
+        let t = Instant::now();
+        update(&mut *self.renderer)?;
+        self.update_ms.push(ms(t));
+        let t = Instant::now();
+        let frame = self.renderer.render(&self.camera, &self.tf)?;
+        self.render_ms.push(ms(t));
+        self.sink.push(&frame.image)?;
+        self.bar.inc(1);
+        Ok(())
+    }
+
+    /// Ends the output and prints what was written and the median times, the update's as
+    /// `update`.
+    fn finish(mut self, update: &str) -> Result<(), CliError> {
+        self.bar.finish_and_clear();
+        let written = self.sink.finish()?;
+        println!(
+            "wrote {written} ({} frames of {}x{}, {}); per frame, median: {update} {:.1} ms, render {:.1} ms",
+            self.render_ms.len(),
+            self.camera.width,
+            self.camera.height,
+            self.what,
+            median(&mut self.update_ms),
+            median(&mut self.render_ms),
+        );
+        Ok(())
+    }
+}
+
+/// Where frames go as they are rendered: numbered PNGs, or one GIF that the encoder extends
+/// frame by frame. Nothing of a frame is kept once it is written.
+enum FrameSink {
+    Png {
+        /// The output without its extension: frames are `{stem}-0000.png`, ...
+        stem: PathBuf,
+        written: usize,
+        background: Option<[f32; 3]>,
+    },
+    Gif {
+        path: PathBuf,
+        /// The file, until the first frame gives the picture's size and starts the encoder.
+        file: Option<BufWriter<File>>,
+        encoder: Option<gif::Encoder<BufWriter<File>>>,
+        /// Hundredths of a second per frame.
+        delay: u16,
+        /// The GIF has no partial transparency: frames are composited (white by default).
+        background: [f32; 3],
+    },
+}
+
+impl FrameSink {
+    /// A sink for `output` (`.gif`, or `.png` for a numbered sequence).
+    fn create(output: &Path, background: Option<[f32; 3]>, fps: u32) -> Result<Self, CliError> {
+        match output.extension().and_then(|e| e.to_str()) {
+            Some("png") => Ok(Self::Png {
+                stem: output.with_extension(""),
+                written: 0,
+                background,
+            }),
+            Some("gif") => {
+                let file = File::create(output).map_err(|e| animation_error(output, e))?;
+                Ok(Self::Gif {
+                    path: output.to_owned(),
+                    file: Some(BufWriter::new(file)),
+                    encoder: None,
+                    delay: (100 / fps.max(1)).clamp(1, u16::MAX as u32) as u16,
+                    background: background.unwrap_or([1.0; 3]),
+                })
+            }
+            _ => Err(CliError::Usage(format!(
+                "{}: animate writes .gif or .png",
+                output.display()
+            ))),
+        }
+    }
+
+    /// Writes one frame.
+    fn push(&mut self, img: &Image) -> Result<(), CliError> {
+        match self {
+            Self::Png {
+                stem,
+                written,
+                background,
+            } => {
+                img.save_png(&png_name(stem, *written), *background)?;
+                *written += 1;
+            }
+            Self::Gif {
+                path,
+                file,
+                encoder,
+                delay,
+                background,
+            } => {
+                // Sizes are at most 16384 (parse_size), within a GIF's 16 bits.
+                let (w, h) = (img.width as u16, img.height as u16);
+                let fail = |e: gif::EncodingError| animation_error(path, e);
+                if let Some(file) = file.take() {
+                    let mut started = gif::Encoder::new(file, w, h, &[]).map_err(fail)?;
+                    started.set_repeat(gif::Repeat::Infinite).map_err(fail)?;
+                    *encoder = Some(started);
+                }
+                let mut rgba = img.to_rgba8(Some(*background));
+                let mut frame = gif::Frame::from_rgba_speed(w, h, &mut rgba, 10);
+                frame.delay = *delay;
+                frame.dispose = gif::DisposalMethod::Background;
+                if let Some(encoder) = encoder {
+                    encoder.write_frame(&frame).map_err(fail)?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Ends the file(s) and says what was written, for the user.
+    fn finish(self) -> Result<String, CliError> {
+        match self {
+            Self::Png { stem, written, .. } => Ok(format!(
+                "{} .. {}",
+                png_name(&stem, 0).display(),
+                png_name(&stem, written.saturating_sub(1)).display()
+            )),
+            Self::Gif { path, encoder, .. } => {
+                let encoder = encoder.ok_or_else(|| animation_error(&path, "no frames"))?;
+                let mut file = encoder
+                    .into_inner()
+                    .map_err(|e| animation_error(&path, e))?;
+                file.flush().map_err(|e| animation_error(&path, e))?;
+                Ok(path.display().to_string())
+            }
+        }
+    }
+}
+
+fn png_name(stem: &Path, i: usize) -> PathBuf {
+    PathBuf::from(format!("{}-{i:04}.png", stem.display()))
+}
+
+fn animation_error(path: &Path, e: impl std::fmt::Display) -> CliError {
+    CliError::Animation {
+        path: path.display().to_string(),
+        message: e.to_string(),
+    }
+}
