@@ -264,7 +264,8 @@ pub struct CompareArgs {
 Examples:
   tetvr bench --quick                       # lox subset and a 10k grid at 128x128, 3 runs
   tetvr bench --out docs/bench              # the full bench (8 minutes on lavapipe, 2 cores)
-  tetvr bench --scenes bluntfin,grid-1m --modes shells,reference --runs 5")]
+  tetvr bench --scenes bluntfin,grid-1m --modes shells,reference --runs 5
+  tetvr bench --scene examples/lox-scene.json --quick --out lox-bench")]
 pub struct BenchArgs {
     /// The smoke-test bench: two small scenes, two shells settings, iso and the reference.
     #[arg(long)]
@@ -275,13 +276,18 @@ pub struct BenchArgs {
     /// Timed frames per measurement (default 3 with --quick, else 5).
     #[arg(long)]
     pub runs: Option<usize>,
-    /// Image size (default 128x128 with --quick, else 256x256).
+    /// Image size (default 128x128 with --quick, else 256x256; with --scene, the scene's).
     #[arg(long, value_parser = args::parse_size)]
     pub size: Option<(u32, u32)>,
     /// Scenes to run, comma separated (default: all but grid-35m, which runs when named; or
     /// the quick ones with --quick); an unknown name lists them.
     #[arg(long, value_delimiter = ',')]
     pub scenes: Vec<String>,
+    /// Bench your own scene file instead of the catalogue (see `tetvr render --scene`): every
+    /// mode and setting of the bench (the quick ones with --quick) on its mesh, transfer
+    /// function, camera and size (--size overrides it).
+    #[arg(long, conflicts_with = "scenes")]
+    pub scene: Option<PathBuf>,
     /// Modes to run, comma separated (default: all).
     #[arg(long, value_delimiter = ',')]
     pub modes: Vec<String>,
