@@ -253,3 +253,238 @@ fn a_tf_file_is_relative_to_the_scene() {
     let want = tetvr::tf::file::load_tf("shock", range, mesh.diagonal() / 100.0).unwrap();
     assert_eq!(scene.transfer_function(&mesh).unwrap(), want);
 }
+
+// The binary: `render --scene`, `--save-scene`, `--frames`, `bench --scene`, `bench --quick`.
+
+fn tetvr_in(dir: &Path, args: &[&str]) -> (String, String) {
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_tetvr"))
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .expect("run tetvr");
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    );
+    assert!(o.status.success(), "tetvr {args:?}: {stderr}");
+    (stdout, stderr)
+}
+
+fn tetvr(args: &[&str]) -> (String, String) {
+    tetvr_in(Path::new(env!("CARGO_MANIFEST_DIR")), args)
+}
+
+fn pixels(path: &Path) -> tetvr::Image {
+    tetvr::Image::load_png(path).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The example's inline transfer function as a file, for the flags that say the same.
+fn example_tf_file(dir: &Path) -> String {
+    let text = std::fs::read_to_string(example()).unwrap();
+    let doc: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let path = dir.join("tf.json");
+    std::fs::write(&path, doc["tf"].to_string()).unwrap();
+    path.display().to_string()
+}
+
+/// The example scene and the flags that say what it says render the same pixels; a flag given
+/// on the command line replaces the scene's value even when it is the flag's default (`--view
+/// iso`), and the scene's other settings stay (its `integrate exact`).
+#[test]
+fn render_scene_is_its_flags_and_given_flags_override_it() {
+    let dir = out_dir("render-scene");
+    let (tf, ex) = (example_tf_file(&dir), example().display().to_string());
+    let png = |name: &str| dir.join(name).display().to_string();
+    let lox = common::asset("lox_post_subset_tet.vtk")
+        .display()
+        .to_string();
+    let flags = [
+        lox.as_str(),
+        "--array",
+        "Pressure",
+        "--distance",
+        "0.9",
+        "--fov",
+        "30",
+        "--tf",
+        &tf,
+        "--background",
+        "white",
+        "--integrate",
+        "exact",
+    ];
+    let (scene, scene_png) = (["render", "--scene", &ex], png("scene.png"));
+    tetvr(&[&scene[..], &["--size", "48x40", "-o", &scene_png]].concat());
+    let view = ["--mode", "raycast", "--view", "30,20", "--size", "48x40"];
+    tetvr(&[&["render", "-o", &png("flags.png")][..], &view, &flags].concat());
+    assert_eq!(
+        pixels(&dir.join("scene.png")),
+        pixels(&dir.join("flags.png"))
+    );
+
+    let over = ["--mode", "raycast-cpu", "--view", "iso", "--size", "40x32"];
+    let (stdout, _) = tetvr(&[&scene[..], &["-o", &png("over.png")], &over].concat());
+    assert!(stdout.contains("raycast-cpu (exact segments"), "{stdout}");
+    tetvr(&[&["render", "-o", &png("over-flags.png")][..], &over, &flags].concat());
+    let overridden = pixels(&dir.join("over.png"));
+    assert_eq!((overridden.width, overridden.height), (40, 32));
+    assert_eq!(overridden, pixels(&dir.join("over-flags.png")));
+}
+
+/// What `--save-scene` writes renders the same pixels again, from another folder.
+#[test]
+fn a_saved_scene_renders_the_same_picture() {
+    let dir = out_dir("save-scene");
+    std::fs::create_dir_all(dir.join("elsewhere")).unwrap();
+    let lox = common::asset("lox_post_subset_tet.vtk")
+        .display()
+        .to_string();
+    let (first, scene) = (dir.join("first.png"), dir.join("elsewhere/s.json"));
+    let args = [
+        "render",
+        &lox,
+        "--mode",
+        "shells",
+        "--samples",
+        "200",
+        "--no-skip",
+        "tf-cull",
+        "--tf",
+        "shock",
+        "--view",
+        "-y",
+        "--size",
+        "40x30",
+        "--background",
+        "none",
+    ];
+    let saved = [
+        "-o",
+        first.to_str().unwrap(),
+        "--save-scene",
+        scene.to_str().unwrap(),
+    ];
+    let (stdout, _) = tetvr(&[&args[..], &saved].concat());
+    assert!(stdout.contains("s.json"), "{stdout}");
+    let again = dir.join("again.png");
+    tetvr_in(
+        &dir.join("elsewhere"),
+        &["render", "--scene", "s.json", "-o", again.to_str().unwrap()],
+    );
+    assert_eq!(pixels(&first), pixels(&again));
+}
+
+#[test]
+fn frames_print_the_warm_median_and_the_stages() {
+    let dir = out_dir("frames");
+    let png = dir.join("f.png").display().to_string();
+    let ex = example().display().to_string();
+    let args = [
+        "render",
+        "--scene",
+        &ex,
+        "--mode",
+        "raycast-cpu",
+        "--size",
+        "32x32",
+        "--frames",
+        "3",
+        "-o",
+        &png,
+    ];
+    let (stdout, _) = tetvr(&args);
+    assert!(stdout.contains("warm frames: 3, median "), "{stdout}");
+    assert!(stdout.contains("cold frame "), "{stdout}");
+    assert!(stdout.contains("stage medians"), "{stdout}");
+    // The CPU ray caster's stages, each with a time.
+    for stage in ["planes", "total"] {
+        let line = stdout.lines().find(|l| l.trim_start().starts_with(stage));
+        let ms = line.and_then(|l| l.split_whitespace().last()?.parse::<f64>().ok());
+        assert!(
+            ms.is_some_and(|ms| ms >= 0.0),
+            "no {stage} time in {stdout}"
+        );
+    }
+}
+
+#[test]
+fn a_bad_scene_is_an_error_naming_the_file_and_field() {
+    let dir = out_dir("bad-cli");
+    let path = dir.join("typo.json");
+    std::fs::write(&path, r#"{"mesh": "m.vtk", "camera": {"fvo": 30}}"#).unwrap();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_tetvr"))
+        .args(["render", "--scene", path.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(
+        stderr.contains("typo.json") && stderr.contains("unknown field `fvo`"),
+        "{stderr}"
+    );
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_tetvr"))
+        .arg("render")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && stderr.contains("MESH"), "{stderr}");
+}
+
+/// The bench's quick configurations on the example scene at 32x32, one run each: a CSV row per
+/// configuration on the scene's view, and its Pareto plot.
+#[test]
+fn bench_scene_writes_its_csv_and_plot() {
+    let dir = out_dir("bench-scene");
+    let out = dir.join("out");
+    let _ = std::fs::remove_dir_all(&out);
+    let ex = example().display().to_string();
+    let args = [
+        "bench",
+        "--scene",
+        &ex,
+        "--quick",
+        "--size",
+        "32x32",
+        "--runs",
+        "1",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    tetvr(&args);
+    let csv = std::fs::read_to_string(out.join("bench.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().skip(1).collect();
+    // Without an adapter only the CPU modes run: raycast-cpu and the reference at least.
+    assert!(rows.len() >= 2, "{csv}");
+    assert!(
+        rows.iter()
+            .all(|r| r.starts_with("lox-scene,8750,scene,32,32,")),
+        "{csv}"
+    );
+    assert!(rows.iter().any(|r| r.contains(",reference,")), "{csv}");
+    assert!(out.join("pareto-lox-scene-scene.svg").exists());
+}
+
+/// `bench --quick` finds its bundled mesh from any folder (here an empty one).
+#[test]
+fn bench_quick_runs_from_any_folder() {
+    let dir = out_dir("bench-anywhere");
+    let _ = std::fs::remove_dir_all(dir.join("out"));
+    let args = [
+        "bench",
+        "--quick",
+        "--modes",
+        "raycast-cpu,reference",
+        "--size",
+        "16x16",
+        "--runs",
+        "1",
+        "--out",
+        "out",
+    ];
+    tetvr_in(&dir, &args);
+    let csv = std::fs::read_to_string(dir.join("out/bench.csv")).unwrap();
+    assert!(
+        csv.lines().any(|l| l.starts_with("lox,8750,outside,")),
+        "{csv}"
+    );
+}
