@@ -3,8 +3,8 @@
 
 Each table sits between `<!-- test-table NAME begin -->` and `<!-- test-table NAME end -->`.
 The tests write one row per case to target/test-output/readme/NAME/ (`common::readme_row`):
-`cargo test --test stress` the `stress` table, `cargo test --test reference` the `reference`
-one. Each table's rows are replaced by the measured ones, keeping the README's order of cases and
+`cargo test --test NAME` the `stress`, `reference`, `cellproj` and `iso` tables, and
+`cargo run --example readme_pictures` the `shells` table's rows as it draws the pictures. Each table's rows are replaced by the measured ones, keeping the README's order of cases and
 appending new ones. A table whose folder does not exist (its test has not run) is left as it
 is, and said so; a case of the table without a measured row fails.
 """
