@@ -82,7 +82,9 @@ fn readme_row(
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/test-output/readme/shells");
     std::fs::create_dir_all(&dir)?;
     let name = PathBuf::from(mesh);
-    let stem = name.file_stem().map_or(mesh.into(), |s| s.to_string_lossy());
+    let stem = name
+        .file_stem()
+        .map_or(mesh.into(), |s| s.to_string_lossy());
     let case = format!("{stem}, `{tf}` TF, distance {distance}");
     let row = format!(
         "| {case} | {size}x{size} | {:.1} dB | {:.1e} | {:.1e} | {} |\n",
