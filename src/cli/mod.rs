@@ -23,6 +23,8 @@ Examples:
   tetvr render assets/bluntfin_tet.vtu --mode raycast-cpu --integrate exact -o fin.png
   tetvr render mesh.vtk --array Pressure --tf my_tf.json --unit-distance 0.05 -o p.png
   tetvr render mesh.msh --eye 10,0,2 --target 0,0,0 --up 0,0,1 --fov 40 -o close.png
+  tetvr render mesh.vtu --view -y --tf shock --save-scene fin.json -o fin.png
+  tetvr render --scene examples/lox-scene.json --mode shells --frames 5 -o lox.png
   tetvr animate ../shared/data/kiefer_bracket_tet.vtk --deform twist --frames 24 -o bracket.gif
   tetvr info assets/bluntfin_tet.vtu
   tetvr compare a.png b.png -o diff.png
