@@ -690,6 +690,54 @@ fn vtu_vector_point_arrays_and_cell_arrays_are_read_across_pieces() {
     assert!(l.report.skipped_arrays.is_empty());
 }
 
+/// The views of scripts/gmsh_fixtures.py: temperature = x + 2y + 3z, displacement = p / 10
+/// (node data), pressure = the tet's element tag (element data).
+fn check_gmsh_views(m: &tetvr::TetMesh, label: &str) {
+    // Gmsh writes 16 significant digits: values agree to a few ulps of their scale (6).
+    let close = |a: f64, b: f64| (a - b).abs() < 1e-14;
+    let t = m.active_array().unwrap();
+    assert_eq!(t.name, "temperature", "{label}");
+    let d = m.point_vector("displacement").unwrap();
+    for ((p, &t), d) in m.positions().iter().zip(&t.values).zip(d.tuples()) {
+        assert!(close(t, p.x + 2.0 * p.y + 3.0 * p.z), "{label}: {t} at {p}");
+        assert!(
+            (0..3).all(|k| close(d[k], p[k] / 10.0)),
+            "{label}: {d:?} at {p}"
+        );
+    }
+    let names: Vec<&str> = m.arrays().iter().map(|a| a.name.as_str()).collect();
+    assert_eq!(names, ["temperature", "displacement magnitude"], "{label}");
+    // One value per tet, each tet its own element's tag: all distinct integers.
+    let p = m.cell_array("pressure").unwrap();
+    let mut v = p.values.clone();
+    v.sort_by(f64::total_cmp);
+    v.dedup();
+    assert_eq!(v.len(), m.tet_count(), "{label}");
+    assert!(v.iter().all(|x| x.fract() == 0.0 && *x > 0.0), "{label}");
+    assert_eq!(m.cell_scalars(), None, "{label}");
+}
+
+#[test]
+fn gmsh_files_with_appended_views_load_with_the_first_view_active() {
+    let l22 = load(&corpus("valid/views22.msh")).unwrap_or_else(|e| panic!("{e}"));
+    let l41 = load(&corpus("valid/views41.msh")).unwrap_or_else(|e| panic!("{e}"));
+    check_gmsh_views(&l22.mesh, "views22.msh");
+    check_gmsh_views(&l41.mesh, "views41.msh");
+    // Same mesh and views in both versions.
+    assert_eq!(l22.mesh.tets(), l41.mesh.tets());
+    assert_eq!(l22.mesh.cell_arrays(), l41.mesh.cell_arrays());
+    // The boundary triangles, lines and points of the repeated $Elements are skipped once.
+    assert_eq!(l22.report.skipped_cells, l41.report.skipped_cells);
+    assert!(l22.report.skipped_arrays.is_empty());
+    // A file whose first view is element data renders it constant per tet.
+    let c = load(&corpus("valid/cellfirst41.msh")).unwrap().mesh;
+    assert_eq!(c.active_cell_array(), Some("pressure"));
+    assert_eq!(c.active_array().unwrap().name, "pressure (cells)");
+    let p = c.cell_array("pressure").unwrap();
+    assert_eq!(c.cell_scalars(), Some(p.values.as_slice()));
+    assert_eq!(p, l41.mesh.cell_array("pressure").unwrap());
+}
+
 #[test]
 fn hex_grid_vtu_is_split_conformingly() {
     let l = load(&corpus("valid/hexgrid.vtu")).unwrap();
@@ -844,6 +892,22 @@ const MALFORMED: &[(&str, &str)] = &[
     (
         "huge_points.vtu",
         "huge_points.vtu: byte 163: Piece announces 18446744073709551615 points, more than any file holds",
+    ),
+    (
+        "repeated_nodes.msh",
+        "repeated_nodes.msh: line 22: $Nodes at line 18 differs here from the one at line 4; tetvr reads a repeated mesh block",
+    ),
+    (
+        "element_data_missing.msh",
+        "element_data_missing.msh: $ElementData 'p' gives no value for element 1",
+    ),
+    (
+        "cell_data_count.vtk",
+        "cell_data_count.vtk: line 11: CELL_DATA has 2 values, but CELLS has 1 cells",
+    ),
+    (
+        "cell_data_count.vtu",
+        "cell_data_count.vtu: byte 122: DataArray 'c' has 3 values, expected 1 cells x 1 components",
     ),
     (
         "bad_index.ele",

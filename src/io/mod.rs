@@ -405,6 +405,11 @@ impl<'a> Assembler<'a> {
         Ok(())
     }
 
+    /// Whether cell `i` of the file (0-based, skipped cells included) made tets.
+    pub(crate) fn makes_tets(&self, i: usize) -> bool {
+        self.cell_tets.get(i).is_some_and(|&k| k > 0)
+    }
+
     /// Cells of the file seen so far (skipped ones included).
     pub(crate) fn cells_seen(&self) -> usize {
         self.cell_tets.len()

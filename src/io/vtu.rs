@@ -497,6 +497,10 @@ impl File<'_> {
             v
         };
         match want {
+            // ASCII reading stops one value past the count: count them all for the message.
+            Some(w) if v.len() > w.count && self.format(a)? == "ascii" => {
+                Err(self.err(a.at, (w.wrong)(tokens(&a.text).count())))
+            }
             Some(w) if v.len() != w.count => Err(self.err(a.at, (w.wrong)(v.len()))),
             _ => Ok(v),
         }
