@@ -14,9 +14,9 @@ use tetvr::gpu::{
 };
 use tetvr::image::{Image, ImageError};
 use tetvr::io::{self, LoadError, Loaded};
-use tetvr::mesh::MeshError;
 use tetvr::mesh::name::shown_list;
 use tetvr::mesh::stats::MeshStats;
+use tetvr::mesh::{CellDataMode, MeshError};
 use tetvr::mode::{ModeSettings, ReferenceSettings, iso_surfaces};
 use tetvr::reference::ReferenceRenderer;
 use tetvr::reference::iso::Shading;
@@ -26,8 +26,8 @@ use tetvr::tf::file::{TfFileError, load_tf};
 use tetvr::{TetMesh, generate};
 
 use super::{
-    AnimateArgs, Cli, Command, CompareArgs, EntryArg, GenerateArgs, GenerateShape, InfoArgs,
-    IntegrateArg, IsoExportArgs, MeshArgs, Mode, RenderArgs, SamplerArg, ShadingArg,
+    AnimateArgs, CellDataArg, Cli, Command, CompareArgs, EntryArg, GenerateArgs, GenerateShape,
+    InfoArgs, IntegrateArg, IsoExportArgs, MeshArgs, Mode, RenderArgs, SamplerArg, ShadingArg,
 };
 
 /// Everything a command can fail with; each message says what to fix.
@@ -89,8 +89,21 @@ fn load_mesh(args: &MeshArgs) -> Result<Loaded, CliError> {
         limits.max_memory = bytes;
     }
     let mut loaded = io::load_with(&args.mesh, &limits)?;
-    if let Some(name) = &args.array {
-        loaded.mesh.set_active_array(name)?;
+    let mode = match args.cell_data {
+        CellDataArg::Constant => CellDataMode::Constant,
+        CellDataArg::Points => CellDataMode::Points,
+    };
+    let mesh = &mut loaded.mesh;
+    // Without --array, a file's cell field is chosen again in the mode asked for.
+    let spec = args
+        .array
+        .clone()
+        .or(mesh.active_cell_array().map(str::to_owned));
+    if let Some(spec) = spec {
+        mesh.select(&spec, mode)?;
+    }
+    if let Some(name) = &args.warp {
+        mesh.warp(name, args.scale)?;
     }
     Ok(loaded)
 }
@@ -481,7 +494,7 @@ fn info(args: InfoArgs) -> Result<(), CliError> {
     }
     if !report.skipped_arrays.is_empty() {
         println!(
-            "  arrays not usable as point scalars, ignored: {}",
+            "  arrays not read (field data, strings, missing from a piece), ignored: {}",
             shown_list(report.skipped_arrays.iter().map(String::as_str))
         );
     }

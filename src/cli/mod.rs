@@ -121,13 +121,38 @@ pub enum SamplerArg {
     Compute,
 }
 
+/// `--cell-data`: how a cell array is rendered.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CellDataArg {
+    /// Constant per tet, as the file gives it.
+    Constant,
+    /// Averaged to the vertices, volume-weighted.
+    Points,
+}
+
 #[derive(clap::Args, Debug)]
 pub struct MeshArgs {
     /// Mesh file: legacy VTK (.vtk), VTK XML (.vtu), Gmsh (.msh v2/v4) or TetGen (.node/.ele).
     pub mesh: PathBuf,
-    /// Point scalar array to use (default: the file's active scalars).
+    /// Array to render (default: the file's active scalars): a scalar, a vector (its
+    /// magnitude), NAME:x|y|z|N (one component), or a cell array (see --cell-data).
     #[arg(long)]
     pub array: Option<String>,
+    /// Cell arrays: constant per tet (exact), or averaged to the vertices volume-weighted
+    /// (ParaView's Cell Data to Point Data) and rendered as point data.
+    #[arg(long, value_enum, default_value_t = CellDataArg::Constant)]
+    pub cell_data: CellDataArg,
+    /// Move each vertex by this 3-component point array times --scale (Warp By Vector).
+    #[arg(long)]
+    pub warp: Option<String>,
+    /// Factor of --warp.
+    #[arg(
+        long,
+        default_value_t = 1.0,
+        allow_hyphen_values = true,
+        requires = "warp"
+    )]
+    pub scale: f64,
     /// Most memory reading the mesh may take, e.g. 8G, 512M (default 8G): files whose declared
     /// mesh needs more are refused with what they need.
     #[arg(long, value_parser = tetvr::io::parse_size)]
