@@ -11,6 +11,7 @@ Files (a unit cube of a few dozen tets, with its boundary triangles):
                             'displacement' (node vector (x, y, z) / 10) and 'pressure' (element
                             scalar: the tet's tag), in that order.
   cellfirst41.msh           MSH 4.1 whose first view is the element view 'pressure'.
+  views22b.msh, views41b.msh  views22.msh and views41.msh in binary.
 """
 import sys
 
@@ -44,9 +45,10 @@ def element_view(name):
     return v
 
 
-def write(path, version, views):
+def write(path, version, views, binary=0):
     gmsh.option.setNumber("Mesh.MshFileVersion", version)
-    gmsh.option.setNumber("Mesh.Binary", 0)
+    gmsh.option.setNumber("Mesh.Binary", binary)
+    gmsh.option.setNumber("PostProcessing.Binary", binary)
     gmsh.write(path)
     for v in views:
         gmsh.view.write(v, path, append=True)
@@ -63,6 +65,8 @@ def main():
     write(f"{OUT}/views22.msh", 2.2, [t, d, p])
     write(f"{OUT}/views41.msh", 4.1, [t, d, p])
     write(f"{OUT}/cellfirst41.msh", 4.1, [p, t])
+    write(f"{OUT}/views22b.msh", 2.2, [t, d, p], binary=1)
+    write(f"{OUT}/views41b.msh", 4.1, [t, d, p], binary=1)
     gmsh.finalize()
 
 

@@ -723,9 +723,16 @@ fn gmsh_files_with_appended_views_load_with_the_first_view_active() {
     let l41 = load(&corpus("valid/views41.msh")).unwrap_or_else(|e| panic!("{e}"));
     check_gmsh_views(&l22.mesh, "views22.msh");
     check_gmsh_views(&l41.mesh, "views41.msh");
-    // Same mesh and views in both versions.
+    // Same mesh and views in both versions, ASCII and binary.
     assert_eq!(l22.mesh.tets(), l41.mesh.tets());
     assert_eq!(l22.mesh.cell_arrays(), l41.mesh.cell_arrays());
+    for f in ["views22b.msh", "views41b.msh"] {
+        let b = load(&corpus(&format!("valid/{f}"))).unwrap_or_else(|e| panic!("{e}"));
+        check_gmsh_views(&b.mesh, f);
+        assert_eq!(b.mesh.tets(), l41.mesh.tets(), "{f}");
+        assert_eq!(b.mesh.cell_arrays(), l41.mesh.cell_arrays(), "{f}");
+        assert_eq!(b.mesh.point_vectors(), l41.mesh.point_vectors(), "{f}");
+    }
     // The boundary triangles, lines and points of the repeated $Elements are skipped once.
     assert_eq!(l22.report.skipped_cells, l41.report.skipped_cells);
     assert!(l22.report.skipped_arrays.is_empty());
