@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use tetvr::io::{Format, load, load_bytes};
+use tetvr::mesh::{CellDataMode, DataArray};
 
 mod common;
 
@@ -794,6 +795,16 @@ fn write_vtu_round_trips_exactly() {
             .collect(),
     ))
     .unwrap();
+    let v = m
+        .positions()
+        .iter()
+        .flat_map(|p| [p.x, -p.y, p.z * 1e-3])
+        .collect();
+    m.add_point_vectors(DataArray::new("v", 3, v)).unwrap();
+    // The reader gives a vector its magnitude: so does the mesh written.
+    m.select("v", CellDataMode::Constant).unwrap();
+    let c = (0..m.tet_count()).flat_map(|t| [t as f64, 0.5]).collect();
+    m.add_cell_array(DataArray::new("c", 2, c)).unwrap();
     m.set_active_array("f").unwrap();
     let path = std::env::temp_dir().join(format!("tetvr-io-roundtrip-{}.vtu", std::process::id()));
     tetvr::io::write_vtu(&m, &path).unwrap();
@@ -807,6 +818,8 @@ fn write_vtu_round_trips_exactly() {
     a.sort_by(|x, y| x.name.cmp(&y.name));
     b.sort_by(|x, y| x.name.cmp(&y.name));
     assert_eq!(a, b);
+    assert_eq!(l.mesh.point_vectors(), m.point_vectors());
+    assert_eq!(l.mesh.cell_arrays(), m.cell_arrays());
 }
 
 /// Each malformed corpus file and the start of the message its load must give.

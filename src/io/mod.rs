@@ -520,8 +520,11 @@ impl<'a> Assembler<'a> {
         let cells: Vec<DataArray> = (fields.cells.into_iter())
             .map(|c| self.per_tet(path, c))
             .collect::<Result<_, _>>()?;
-        let (mut mesh, build) =
-            TetMesh::new(positions, self.tets, fields.scalars).map_err(mesh_err)?;
+        // A name read twice (a file's own "<v> magnitude" beside vector v) keeps its first.
+        let mut seen = std::collections::HashSet::new();
+        let mut scalars = fields.scalars;
+        scalars.retain(|a| seen.insert(a.name.clone()));
+        let (mut mesh, build) = TetMesh::new(positions, self.tets, scalars).map_err(mesh_err)?;
         mesh.set_data_arrays(fields.vectors, cells)
             .map_err(mesh_err)?;
         if let Some(name) = first_cell
