@@ -231,8 +231,10 @@ const MESH_SECTIONS: [&[u8]; 9] = [
 struct Sections<'b> {
     /// Positions, node tags in file order, and tags to indices.
     nodes: Option<(Vec<DVec3>, Vec<u64>, NodeMap)>,
-    /// The cells, with the element tags in file order and tags to indices.
-    elements: Option<(Assembler<'b>, Vec<u64>, NodeMap)>,
+    /// The cells, with the element tags in file order.
+    elements: Option<(Assembler<'b>, Vec<u64>)>,
+    /// Element tags to indices, built at the first `$ElementData`.
+    element_map: Option<NodeMap>,
     arrays: NodeArrays,
     cell_arrays: NodeArrays,
     /// Whether the first view read is element data.
@@ -255,7 +257,7 @@ pub(super) fn read(data: &[u8], name: &str, budget: &Budget) -> Result<Loaded, L
     let (positions, tags, _) = s
         .nodes
         .ok_or_else(|| r.c.err(end, "the file has no $Nodes section"))?;
-    let (asm, elem_tags, _) = s
+    let (asm, elem_tags) = s
         .elements
         .ok_or_else(|| r.c.err(end, "the file has no $Elements section"))?;
     let mut fields = Fields {
@@ -402,8 +404,7 @@ impl<'a> Reader<'a> {
                     .ok_or_else(|| self.c.err(at, "$Elements before $Nodes"))?;
                 let mut a = Assembler::new(p.len(), self.c.budget);
                 let tags = read_elements(self, map, &mut a)?;
-                let emap = tag_map(self, &tags, "element")?;
-                s.elements = Some((a, tags, emap));
+                s.elements = Some((a, tags));
                 self.expect_end("$EndElements")?;
             }
             b"$NodeData" | b"$ElementData" => self.view(s, at, t)?,
@@ -431,8 +432,14 @@ impl<'a> Reader<'a> {
         } else {
             ("$NodeData", "node")
         };
+        if cells
+            && s.element_map.is_none()
+            && let Some((_, tags)) = &s.elements
+        {
+            s.element_map = Some(tag_map(self, tags, "element")?);
+        }
         let map = if cells {
-            s.elements.as_ref().map(|e| &e.2)
+            s.element_map.as_ref()
         } else {
             s.nodes.as_ref().map(|n| &n.2)
         };
