@@ -160,7 +160,8 @@ fn corpus(rel: &str) -> PathBuf {
 }
 
 /// The mixed-cell fixture: a unit-cube hexahedron, a wedge on its x = 1 face, a pyramid on its
-/// top face, a tet on one pyramid side, and one triangle (skipped), with s = x + 2y + 3z.
+/// top face, a tet on one pyramid side, and one triangle (skipped), with s = x + 2y + 3z and
+/// the cell array cellid = the cell's index (every encoding carries it).
 struct Fixture {
     points: Vec<[f64; 3]>,
     /// (VTK cell type, vertex indices)
@@ -257,6 +258,15 @@ mod encode {
         for c in &f.cells {
             b.extend((c.0 as i32).to_be_bytes());
         }
+        let n = f.cells.len();
+        write!(
+            b,
+            "\nCELL_DATA {n}\nSCALARS cellid int\nLOOKUP_TABLE default\n"
+        )
+        .unwrap();
+        for k in 0..n as i32 {
+            b.extend(k.to_be_bytes());
+        }
         write!(
             b,
             "\nPOINT_DATA {}\nSCALARS s float\nLOOKUP_TABLE default\n",
@@ -336,8 +346,10 @@ mod encode {
         }
         let flat: Vec<f64> = f.points.iter().flatten().copied().collect();
         let types: Vec<f64> = f.cells.iter().map(|c| c.0 as f64).collect();
-        let arrays: [(&str, &str, &str, &[f64]); 5] = [
+        let cellid: Vec<f64> = (0..f.cells.len()).map(|k| k as f64).collect();
+        let arrays: [(&str, &str, &str, &[f64]); 6] = [
             ("PointData", "s", "Float64", &f.s),
+            ("CellData", "cellid", "Int32", &cellid),
             ("Points", "", "Float64", &flat),
             ("Cells", "connectivity", "Int32", &conn),
             ("Cells", "offsets", "Int32", &offs),
@@ -485,7 +497,16 @@ mod encode {
             b.extend((tag(i) as i32).to_le_bytes());
             b.extend(s.to_le_bytes());
         }
-        b.extend(b"\n$EndNodeData\n");
+        write!(
+            b,
+            "\n$EndNodeData\n$ElementData\n1\n\"cellid\"\n1\n0.0\n3\n0\n1\n{n}\n"
+        )
+        .unwrap();
+        for k in 0..n {
+            b.extend((k as i32 + 1).to_le_bytes());
+            b.extend((k as f64).to_le_bytes());
+        }
+        b.extend(b"\n$EndElementData\n");
         b
     }
 }
@@ -604,6 +625,13 @@ fn mixed_cells_load_identically_from_every_format_and_encoding() {
         assert_eq!(pts, f.points, "{label}");
         // The legacy binary writes s as float32; the values are exact in float32.
         assert_eq!(a.values, f.s, "{label}");
+        // Each tet takes its cell's cellid: hex 6 tets, wedge 3, pyramid 2, tet 1 (in cell
+        // order); the triangle's value goes nowhere.
+        let c = m
+            .cell_array("cellid")
+            .unwrap_or_else(|| panic!("{label}: no cellid"));
+        let want = [[0.0; 6].as_slice(), &[1.0; 3], &[2.0; 2], &[3.0]].concat();
+        assert_eq!(c.values, want, "{label}");
         match &reference {
             None => reference = Some(m.clone()),
             Some(r) => assert_eq!(r.tets(), m.tets(), "{label}"),

@@ -180,22 +180,24 @@ impl<'a> Reader<'a> {
     }
 }
 
-/// The values of one array as read: node indices and `nc` values for each, in file order.
-struct NodeArray {
+/// The values of one view as read: node (or element) indices and `nc` values for each, in
+/// file order.
+struct ViewArray {
     name: String,
     nc: usize,
+    /// Node or element indices.
     nodes: Vec<u32>,
     values: Vec<f64>,
 }
 
 /// The arrays so far, found by name in constant time (files may hold many thousand blocks).
 #[derive(Default)]
-struct NodeArrays {
-    list: Vec<NodeArray>,
+struct ViewArrays {
+    list: Vec<ViewArray>,
     slots: HashMap<String, usize>,
 }
 
-impl NodeArray {
+impl ViewArray {
     /// The values laid out per node or element, `n` of them (the last value given for one
     /// wins); NaN where none was given (values read are finite).
     fn dense(self, n: usize, budget: &Budget) -> Result<Vec<f64>, LoadError> {
@@ -235,8 +237,8 @@ struct Sections<'b> {
     elements: Option<(Assembler<'b>, Vec<u64>)>,
     /// Element tags to indices, built at the first `$ElementData`.
     element_map: Option<NodeMap>,
-    arrays: NodeArrays,
-    cell_arrays: NodeArrays,
+    arrays: ViewArrays,
+    cell_arrays: ViewArrays,
     /// Whether the first view read is element data.
     first_view_cells: Option<bool>,
     /// Each mesh section's first byte range, for comparing repeats.
@@ -804,7 +806,7 @@ fn element(
     Ok(tag)
 }
 
-impl NodeArrays {
+impl ViewArrays {
     /// The index of array `name` with `nc` components, a new one if the name is new; `None`
     /// if an array of that name has another number of components.
     fn slot(&mut self, name: &str, nc: usize) -> Option<usize> {
@@ -813,7 +815,7 @@ impl NodeArrays {
             Some(_) => None,
             None => {
                 self.slots.insert(name.to_owned(), self.list.len());
-                self.list.push(NodeArray {
+                self.list.push(ViewArray {
                     name: name.to_owned(),
                     nc,
                     nodes: Vec::new(),
@@ -846,7 +848,7 @@ impl View<'_> {
 }
 
 /// A `$NodeData` or `$ElementData` block's values into `arrays` (by the view's name).
-fn read_view(r: &mut Reader, v: &View, arrays: &mut NodeArrays) -> Result<(), LoadError> {
+fn read_view(r: &mut Reader, v: &View, arrays: &mut ViewArrays) -> Result<(), LoadError> {
     let (map, section, item) = (v.map, v.section, v.item);
     let at = r.c.pos;
     let (aname, nc, n) = view_header(r, at, v)?;
