@@ -21,6 +21,8 @@ Examples:
   tetvr render assets/bluntfin_tet.vtu --mode raycast-cpu --integrate exact -o fin.png
   tetvr render mesh.vtk --array Pressure --tf my_tf.json --unit-distance 0.05 -o p.png
   tetvr render mesh.msh --eye 10,0,2 --target 0,0,0 --up 0,0,1 --fov 40 -o close.png
+  tetvr render sim.vtu --array velocity:x --warp displacement --scale 10 -o warped.png
+  tetvr render sim.msh --array pressure --cell-data points -o averaged.png
   tetvr animate ../shared/data/kiefer_bracket_tet.vtk --deform twist --frames 24 -o bracket.gif
   tetvr info assets/bluntfin_tet.vtu
   tetvr compare a.png b.png -o diff.png
