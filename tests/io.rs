@@ -954,6 +954,10 @@ const MALFORMED: &[(&str, &str)] = &[
         "cell_data_count.vtk: line 11: CELL_DATA has 2 values, but CELLS has 1 cells",
     ),
     (
+        "nan_cell_vector.vtk",
+        "nan_cell_vector.vtk: line 16: array 'v' has the non-finite value NaN at cell 1",
+    ),
+    (
         "cell_data_count.vtu",
         "cell_data_count.vtu: byte 122: DataArray 'c' has 3 values, expected 1 cells x 1 components",
     ),
