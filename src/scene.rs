@@ -52,7 +52,7 @@ use crate::gpu::{
     CellProjSettings, Integrate, IsoSettings, RaycastSettings, Sampler, ShellSettings, Skip,
 };
 use crate::io::{self, LoadError, Loaded, ReadLimits};
-use crate::mesh::{MeshError, TetMesh};
+use crate::mesh::{CellDataMode, MeshError, TetMesh};
 use crate::mode::{ModeSettings, ReferenceSettings, iso_surfaces};
 use crate::reference::iso::Shading;
 use crate::tf::TransferFunction;
@@ -332,6 +332,13 @@ pub struct Scene {
     /// The scalar array (default: the file's active scalars).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub array: Option<String>,
+    /// How a cell array renders: `constant` per tet (the default) or `points` (averaged to the
+    /// vertices).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub cell_data: CellDataMode,
+    /// Moves the mesh by a vector array times a scale before anything else (Warp By Vector).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub warp: Option<Warp>,
     /// Where the camera is.
     #[serde(default)]
     pub camera: SceneCamera,
@@ -356,6 +363,25 @@ pub struct Scene {
     pub settings: Settings,
 }
 
+/// `warp` of a [`Scene`]: the 3-component point array and its factor.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Warp {
+    /// The vector array's name.
+    pub array: String,
+    /// Its factor (1 moves each vertex by its vector).
+    #[serde(default = "one")]
+    pub scale: f64,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+fn is_default<T: Default + PartialEq>(value: &T) -> bool {
+    *value == T::default()
+}
+
 fn default_tf() -> TfSpec {
     TfSpec::Named("viridis".into())
 }
@@ -374,6 +400,8 @@ impl Scene {
         Self {
             mesh: mesh.into(),
             array: None,
+            cell_data: CellDataMode::default(),
+            warp: None,
             camera: SceneCamera::default(),
             tf: default_tf(),
             unit_distance: None,
@@ -463,9 +491,8 @@ impl Scene {
     /// Loads the scene's mesh within `limits` and makes its array the active one.
     pub fn load_mesh(&self, limits: &ReadLimits) -> Result<Loaded, SceneError> {
         let mut loaded = io::load_with(&self.mesh, limits)?;
-        if let Some(name) = &self.array {
-            loaded.mesh.set_active_array(name)?;
-        }
+        let warp = self.warp.as_ref().map(|w| (w.array.as_str(), w.scale));
+        (loaded.mesh).prepare(self.array.as_deref(), self.cell_data, warp)?;
         Ok(loaded)
     }
 

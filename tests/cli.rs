@@ -352,7 +352,7 @@ fn info_obeys_max_memory_and_prints_file_names_escaped() {
     let (stdout, stderr) = text(&o);
     assert!(o.status.success(), "{stderr}");
     assert!(
-        stdout.contains("ignored: \\u{1b}[2J") && !stdout.contains('\u{1b}'),
+        stdout.contains("* \\u{1b}[2J  1: 7 .. 7") && !stdout.contains('\u{1b}'),
         "{stdout}"
     );
     let o = tetvr(&["info", path, "--max-memory", "lots"]);
@@ -361,6 +361,122 @@ fn info_obeys_max_memory_and_prints_file_names_escaped() {
         "{}",
         text(&o).1
     );
+}
+
+fn corpus(name: &str) -> String {
+    format!("{}/tests/corpus/valid/{name}", env!("CARGO_MANIFEST_DIR"))
+}
+
+/// `info` lists point scalars, point vectors and cell arrays with their components and ranges,
+/// and how the active cell array is rendered; `--array` picks components, with a clear error
+/// for one the array lacks.
+#[test]
+fn info_lists_point_and_cell_arrays_and_selections() {
+    let views = corpus("views41.msh");
+    let (stdout, stderr) = text(&tetvr(&["info", &views]));
+    // temperature = x + 2y + 3z and displacement = p / 10 on the unit cube; pressure is the
+    // element tag (45 .. 68 for Gmsh's numbering of this mesh's 24 tets).
+    for needle in [
+        "  * temperature             0 .. 6\n",
+        "    displacement magnitude  0 .. 0.1732\n",
+        "point vectors:        (* = active; components: ranges)\n",
+        "    displacement  3: x 0 .. 0.1, y 0 .. 0.1, z 0 .. 0.1\n",
+        "    pressure  1: 45 .. 68\n",
+    ] {
+        assert!(
+            stdout.contains(needle),
+            "no '{needle}' in\n{stdout}{stderr}"
+        );
+    }
+    let (stdout, _) = text(&tetvr(&["info", &views, "--array", "displacement:z"]));
+    assert!(
+        stdout.contains("  * displacement:z          0 .. 0.1\n"),
+        "{stdout}"
+    );
+    let (stdout, _) = text(&tetvr(&["info", &views, "--array", "pressure"]));
+    assert!(
+        stdout.contains("  * pressure  1: 45 .. 68 (rendered constant per tet)"),
+        "{stdout}"
+    );
+    let o = tetvr(&[
+        "info",
+        &views,
+        "--array",
+        "pressure",
+        "--cell-data",
+        "points",
+    ]);
+    assert!(
+        text(&o).0.contains("(averaged to the vertices)"),
+        "{}",
+        text(&o).0
+    );
+    let o = tetvr(&["info", &views, "--array", "displacement:w"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(
+        text(&o).1.trim(),
+        "error: array 'displacement' has no component 'w': it has 3 (write NAME:x, NAME:y, \
+         NAME:z or NAME:0 to NAME:2, or NAME alone for the magnitude)"
+    );
+    let o = tetvr(&["info", &views, "--warp", "temperature"]);
+    assert!(
+        text(&o)
+            .1
+            .contains("warping needs a point vector array of 3"),
+        "{}",
+        text(&o).1
+    );
+}
+
+/// `render --warp d --scale s` draws the mesh whose vertices were moved by `s d` by hand.
+#[test]
+fn warped_render_is_the_render_of_the_mesh_moved_by_hand() {
+    let dir = out_dir("warp");
+    let views = corpus("views41.msh");
+    let mut m = tetvr::io::load(Path::new(&views)).unwrap().mesh;
+    let d = m.point_vector("displacement").unwrap().values.clone();
+    let moved: Vec<glam::DVec3> = (m.positions().iter().enumerate())
+        .map(|(i, p)| *p + 4.0 * glam::DVec3::new(d[3 * i], d[3 * i + 1], d[3 * i + 2]))
+        .collect();
+    m.set_positions(moved).unwrap();
+    let by_hand = dir.join("moved.vtu");
+    tetvr::io::write_vtu(&m, &by_hand).unwrap();
+    let out = |n: &str| dir.join(n).to_str().unwrap().to_owned();
+    // A fixed camera and unit distance: framed to the bounds, a uniformly grown cube (this
+    // displacement is p / 10) would look the same.
+    let common = [
+        "--mode",
+        "reference",
+        "--size",
+        "48x40",
+        "--eye",
+        "4,-3,3",
+        "--target",
+        "0.5,0.5,0.5",
+        "--unit-distance",
+        "0.05",
+    ];
+    for (mesh, png, warp) in [
+        (
+            views.as_str(),
+            "warped.png",
+            &["--warp", "displacement", "--scale", "4"][..],
+        ),
+        (by_hand.to_str().unwrap(), "moved.png", &[][..]),
+        (views.as_str(), "still.png", &[][..]),
+    ] {
+        let mut args = vec!["render", mesh, "-o"];
+        let png = out(png);
+        args.push(&png);
+        args.extend(common.iter().chain(warp));
+        let o = tetvr(&args);
+        assert!(o.status.success(), "{}", text(&o).1);
+    }
+    let load = |n: &str| Image::load_png(Path::new(&out(n))).unwrap().pixels;
+    // The same positions, bit for bit, and the same exact renderer: identical pixels; and
+    // not the unwarped picture (the warp grows the cube by 40 %).
+    assert!(load("warped.png") == load("moved.png"));
+    assert!(load("warped.png") != load("still.png"));
 }
 
 #[test]

@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use tetvr::io::{Format, load, load_bytes};
+use tetvr::mesh::{CellDataMode, DataArray};
 
 mod common;
 
@@ -159,7 +160,8 @@ fn corpus(rel: &str) -> PathBuf {
 }
 
 /// The mixed-cell fixture: a unit-cube hexahedron, a wedge on its x = 1 face, a pyramid on its
-/// top face, a tet on one pyramid side, and one triangle (skipped), with s = x + 2y + 3z.
+/// top face, a tet on one pyramid side, and one triangle (skipped), with s = x + 2y + 3z and
+/// the cell array cellid = the cell's index (every encoding carries it).
 struct Fixture {
     points: Vec<[f64; 3]>,
     /// (VTK cell type, vertex indices)
@@ -256,6 +258,15 @@ mod encode {
         for c in &f.cells {
             b.extend((c.0 as i32).to_be_bytes());
         }
+        let n = f.cells.len();
+        write!(
+            b,
+            "\nCELL_DATA {n}\nSCALARS cellid int\nLOOKUP_TABLE default\n"
+        )
+        .unwrap();
+        for k in 0..n as i32 {
+            b.extend(k.to_be_bytes());
+        }
         write!(
             b,
             "\nPOINT_DATA {}\nSCALARS s float\nLOOKUP_TABLE default\n",
@@ -335,8 +346,10 @@ mod encode {
         }
         let flat: Vec<f64> = f.points.iter().flatten().copied().collect();
         let types: Vec<f64> = f.cells.iter().map(|c| c.0 as f64).collect();
-        let arrays: [(&str, &str, &str, &[f64]); 5] = [
+        let cellid: Vec<f64> = (0..f.cells.len()).map(|k| k as f64).collect();
+        let arrays: [(&str, &str, &str, &[f64]); 6] = [
             ("PointData", "s", "Float64", &f.s),
+            ("CellData", "cellid", "Int32", &cellid),
             ("Points", "", "Float64", &flat),
             ("Cells", "connectivity", "Int32", &conn),
             ("Cells", "offsets", "Int32", &offs),
@@ -484,7 +497,16 @@ mod encode {
             b.extend((tag(i) as i32).to_le_bytes());
             b.extend(s.to_le_bytes());
         }
-        b.extend(b"\n$EndNodeData\n");
+        write!(
+            b,
+            "\n$EndNodeData\n$ElementData\n1\n\"cellid\"\n1\n0.0\n3\n0\n1\n{n}\n"
+        )
+        .unwrap();
+        for k in 0..n {
+            b.extend((k as i32 + 1).to_le_bytes());
+            b.extend((k as f64).to_le_bytes());
+        }
+        b.extend(b"\n$EndElementData\n");
         b
     }
 }
@@ -603,6 +625,13 @@ fn mixed_cells_load_identically_from_every_format_and_encoding() {
         assert_eq!(pts, f.points, "{label}");
         // The legacy binary writes s as float32; the values are exact in float32.
         assert_eq!(a.values, f.s, "{label}");
+        // Each tet takes its cell's cellid: hex 6 tets, wedge 3, pyramid 2, tet 1 (in cell
+        // order); the triangle's value goes nowhere.
+        let c = m
+            .cell_array("cellid")
+            .unwrap_or_else(|| panic!("{label}: no cellid"));
+        let want = [[0.0; 6].as_slice(), &[1.0; 3], &[2.0; 2], &[3.0]].concat();
+        assert_eq!(c.values, want, "{label}");
         match &reference {
             None => reference = Some(m.clone()),
             Some(r) => assert_eq!(r.tets(), m.tets(), "{label}"),
@@ -690,6 +719,61 @@ fn vtu_vector_point_arrays_and_cell_arrays_are_read_across_pieces() {
     assert!(l.report.skipped_arrays.is_empty());
 }
 
+/// The views of scripts/gmsh_fixtures.py: temperature = x + 2y + 3z, displacement = p / 10
+/// (node data), pressure = the tet's element tag (element data).
+fn check_gmsh_views(m: &tetvr::TetMesh, label: &str) {
+    // Gmsh writes 16 significant digits: values agree to a few ulps of their scale (6).
+    let close = |a: f64, b: f64| (a - b).abs() < 1e-14;
+    let t = m.active_array().unwrap();
+    assert_eq!(t.name, "temperature", "{label}");
+    let d = m.point_vector("displacement").unwrap();
+    for ((p, &t), d) in m.positions().iter().zip(&t.values).zip(d.tuples()) {
+        assert!(close(t, p.x + 2.0 * p.y + 3.0 * p.z), "{label}: {t} at {p}");
+        assert!(
+            (0..3).all(|k| close(d[k], p[k] / 10.0)),
+            "{label}: {d:?} at {p}"
+        );
+    }
+    let names: Vec<&str> = m.arrays().iter().map(|a| a.name.as_str()).collect();
+    assert_eq!(names, ["temperature", "displacement magnitude"], "{label}");
+    // One value per tet, each tet its own element's tag: all distinct integers.
+    let p = m.cell_array("pressure").unwrap();
+    let mut v = p.values.clone();
+    v.sort_by(f64::total_cmp);
+    v.dedup();
+    assert_eq!(v.len(), m.tet_count(), "{label}");
+    assert!(v.iter().all(|x| x.fract() == 0.0 && *x > 0.0), "{label}");
+    assert_eq!(m.cell_scalars(), None, "{label}");
+}
+
+#[test]
+fn gmsh_files_with_appended_views_load_with_the_first_view_active() {
+    let l22 = load(&corpus("valid/views22.msh")).unwrap_or_else(|e| panic!("{e}"));
+    let l41 = load(&corpus("valid/views41.msh")).unwrap_or_else(|e| panic!("{e}"));
+    check_gmsh_views(&l22.mesh, "views22.msh");
+    check_gmsh_views(&l41.mesh, "views41.msh");
+    // Same mesh and views in both versions, ASCII and binary.
+    assert_eq!(l22.mesh.tets(), l41.mesh.tets());
+    assert_eq!(l22.mesh.cell_arrays(), l41.mesh.cell_arrays());
+    for f in ["views22b.msh", "views41b.msh"] {
+        let b = load(&corpus(&format!("valid/{f}"))).unwrap_or_else(|e| panic!("{e}"));
+        check_gmsh_views(&b.mesh, f);
+        assert_eq!(b.mesh.tets(), l41.mesh.tets(), "{f}");
+        assert_eq!(b.mesh.cell_arrays(), l41.mesh.cell_arrays(), "{f}");
+        assert_eq!(b.mesh.point_vectors(), l41.mesh.point_vectors(), "{f}");
+    }
+    // The boundary triangles, lines and points of the repeated $Elements are skipped once.
+    assert_eq!(l22.report.skipped_cells, l41.report.skipped_cells);
+    assert!(l22.report.skipped_arrays.is_empty());
+    // A file whose first view is element data renders it constant per tet.
+    let c = load(&corpus("valid/cellfirst41.msh")).unwrap().mesh;
+    assert_eq!(c.active_cell_array(), Some("pressure"));
+    assert_eq!(c.active_array().unwrap().name, "pressure (cells)");
+    let p = c.cell_array("pressure").unwrap();
+    assert_eq!(c.cell_scalars(), Some(p.values.as_slice()));
+    assert_eq!(p, l41.mesh.cell_array("pressure").unwrap());
+}
+
 #[test]
 fn hex_grid_vtu_is_split_conformingly() {
     let l = load(&corpus("valid/hexgrid.vtu")).unwrap();
@@ -739,6 +823,16 @@ fn write_vtu_round_trips_exactly() {
             .collect(),
     ))
     .unwrap();
+    let v = m
+        .positions()
+        .iter()
+        .flat_map(|p| [p.x, -p.y, p.z * 1e-3])
+        .collect();
+    m.add_point_vectors(DataArray::new("v", 3, v)).unwrap();
+    // The reader gives a vector its magnitude: so does the mesh written.
+    m.select("v", CellDataMode::Constant).unwrap();
+    let c = (0..m.tet_count()).flat_map(|t| [t as f64, 0.5]).collect();
+    m.add_cell_array(DataArray::new("c", 2, c)).unwrap();
     m.set_active_array("f").unwrap();
     let path = std::env::temp_dir().join(format!("tetvr-io-roundtrip-{}.vtu", std::process::id()));
     tetvr::io::write_vtu(&m, &path).unwrap();
@@ -752,6 +846,8 @@ fn write_vtu_round_trips_exactly() {
     a.sort_by(|x, y| x.name.cmp(&y.name));
     b.sort_by(|x, y| x.name.cmp(&y.name));
     assert_eq!(a, b);
+    assert_eq!(l.mesh.point_vectors(), m.point_vectors());
+    assert_eq!(l.mesh.cell_arrays(), m.cell_arrays());
 }
 
 /// Each malformed corpus file and the start of the message its load must give.
@@ -844,6 +940,26 @@ const MALFORMED: &[(&str, &str)] = &[
     (
         "huge_points.vtu",
         "huge_points.vtu: byte 163: Piece announces 18446744073709551615 points, more than any file holds",
+    ),
+    (
+        "repeated_nodes.msh",
+        "repeated_nodes.msh: line 22: $Nodes at line 18 differs here from the one at line 4; tetvr reads a repeated mesh block",
+    ),
+    (
+        "element_data_missing.msh",
+        "element_data_missing.msh: $ElementData 'p' gives no value for element 1",
+    ),
+    (
+        "cell_data_count.vtk",
+        "cell_data_count.vtk: line 11: CELL_DATA has 2 values, but CELLS has 1 cells",
+    ),
+    (
+        "nan_cell_vector.vtk",
+        "nan_cell_vector.vtk: line 16: array 'v' has the non-finite value NaN at cell 1",
+    ),
+    (
+        "cell_data_count.vtu",
+        "cell_data_count.vtu: byte 122: DataArray 'c' has 3 values, expected 1 cells x 1 components",
     ),
     (
         "bad_index.ele",

@@ -43,10 +43,7 @@ pub(super) fn animate(args: AnimateArgs) -> Result<(), CliError> {
 
 /// One mesh under `--deform`, one period in `--frames` frames.
 fn deform(args: &AnimateArgs) -> Result<(), CliError> {
-    let mut mesh = load_mesh(&args.render.mesh)?.mesh;
-    if let Some(name) = &args.warp {
-        mesh.warp(name, args.scale)?;
-    }
+    let mesh = load_mesh(&args.render.mesh)?.mesh;
     let frames = args.frames.unwrap_or(24);
     let (deformation, amplitude) = (
         args.deform.unwrap_or(Deformation::Twist),
@@ -71,17 +68,11 @@ fn deform(args: &AnimateArgs) -> Result<(), CliError> {
 fn play_series(args: &AnimateArgs) -> Result<(), CliError> {
     let series = Series::open(&args.render.mesh.mesh)?;
     let limits = read_limits(&args.render.mesh);
+    let m = &args.render.mesh;
+    let warp = m.warp.as_deref().map(|name| (name, m.scale));
     let prepare = |mesh: &mut TetMesh| {
-        if let Some(spec) = &args.render.mesh.array {
-            mesh.select(spec, CellDataMode::Points)?;
-        }
-        // A cell array the file made active plays averaged to the vertices too: its active
-        // vertex array already holds that average.
-        mesh.set_cell_scalars(None)?;
-        match &args.warp {
-            Some(name) => mesh.warp(name, args.scale),
-            None => Ok(()),
-        }
+        // Each step warped by its own array; a cell array plays averaged to the vertices.
+        mesh.prepare(m.array.as_deref(), CellDataMode::Points, warp)
     };
     let first = series.load_prepared(0, &limits, prepare)?;
     let mut play = Playback::open(args, &first, series.steps().len() as u64)?;

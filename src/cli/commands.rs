@@ -93,9 +93,8 @@ pub fn run(cli: Cli, matches: &ArgMatches) -> Result<(), CliError> {
 
 pub(super) fn load_mesh(args: &MeshArgs) -> Result<Loaded, CliError> {
     let mut loaded = io::load_with(&args.mesh, &read_limits(args))?;
-    if let Some(name) = &args.array {
-        loaded.mesh.set_active_array(name)?;
-    }
+    let warp = args.warp.as_deref().map(|name| (name, args.scale));
+    (loaded.mesh).prepare(args.array.as_deref(), args.cell_data, warp)?;
     Ok(loaded)
 }
 
@@ -205,7 +204,11 @@ fn open_scene_mode(
 ) -> Result<(ModeSettings, Option<GpuContext>), CliError> {
     let mode = scene.mode_settings(mesh, tf)?;
     let gpu = mode.open_gpu(AdapterChoice::from_env())?;
-    if let Some(note) = mode.note(gpu.as_ref()) {
+    let notes = [
+        mode.note(gpu.as_ref()),
+        mode.mesh_note(mesh).map(str::to_owned),
+    ];
+    for note in notes.into_iter().flatten() {
         eprintln!("note: {note}");
     }
     Ok((mode, gpu))
@@ -299,7 +302,7 @@ fn info(args: InfoArgs) -> Result<(), CliError> {
     }
     if !report.skipped_arrays.is_empty() {
         println!(
-            "  arrays not usable as point scalars, ignored: {}",
+            "  arrays not read (field data, strings, missing from a piece), ignored: {}",
             shown_list(report.skipped_arrays.iter().map(String::as_str))
         );
     }

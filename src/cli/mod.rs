@@ -9,6 +9,7 @@ mod scene;
 use std::path::PathBuf;
 
 use clap::{Parser, Subcommand};
+use tetvr::mesh::CellDataMode;
 use tetvr::scene::{EntryChoice, Integration, Mode, SamplerChoice, ShadingChoice};
 
 pub use commands::run;
@@ -26,6 +27,8 @@ Examples:
   tetvr render mesh.msh --eye 10,0,2 --target 0,0,0 --up 0,0,1 --fov 40 -o close.png
   tetvr render mesh.vtu --view -y --tf shock --save-scene fin.json -o fin.png
   tetvr render --scene examples/lox-scene.json --mode shells --frames 5 -o lox.png
+  tetvr render sim.vtu --array velocity:x --warp displacement --scale 10 -o warped.png
+  tetvr render sim.msh --array pressure --cell-data points -o averaged.png
   tetvr animate ../shared/data/kiefer_bracket_tet.vtk --deform twist --frames 24 -o bracket.gif
   tetvr animate run/result.pvd --array T --warp displacement --scale 10 -o run.gif
   tetvr animate 'run/step_*.vtu' --size 256x256 -o frames/run.png
@@ -73,9 +76,26 @@ pub enum Command {
 pub struct MeshArgs {
     /// Mesh file: legacy VTK (.vtk), VTK XML (.vtu), Gmsh (.msh v2/v4) or TetGen (.node/.ele).
     pub mesh: PathBuf,
-    /// Point scalar array to use (default: the file's active scalars).
+    /// Array to render (default: the file's active scalars): a scalar, a vector (its
+    /// magnitude), NAME:x|y|z|N (one component), or a cell array (see --cell-data).
     #[arg(long)]
     pub array: Option<String>,
+    /// Cell arrays: constant per tet (exact), or averaged to the vertices volume-weighted
+    /// (ParaView's Cell Data to Point Data) and rendered as point data.
+    #[arg(long, value_enum, default_value_t = CellDataMode::Constant)]
+    pub cell_data: CellDataMode,
+    /// Move each vertex by this 3-component point array times --scale (ParaView's Warp By
+    /// Vector); in a time series, each step by its own array.
+    #[arg(long)]
+    pub warp: Option<String>,
+    /// Factor of --warp.
+    #[arg(
+        long,
+        default_value_t = 1.0,
+        allow_hyphen_values = true,
+        requires = "warp"
+    )]
+    pub scale: f64,
     /// Most memory reading the mesh may take, e.g. 8G, 512M (default 8G): files whose declared
     /// mesh needs more are refused with what they need.
     #[arg(long, value_parser = tetvr::io::parse_size)]
@@ -186,18 +206,6 @@ pub struct AnimateArgs {
     /// Frames per second of the GIF.
     #[arg(long, default_value_t = 12)]
     pub fps: u32,
-    /// Move each vertex by this 3-component point array times --scale (ParaView's Warp By
-    /// Vector); in a series, each step by its own array.
-    #[arg(long)]
-    pub warp: Option<String>,
-    /// Multiplier of the --warp vectors.
-    #[arg(
-        long,
-        default_value_t = 1.0,
-        requires = "warp",
-        allow_hyphen_values = true
-    )]
-    pub scale: f64,
 }
 
 #[derive(clap::Args, Debug)]

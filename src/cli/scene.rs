@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use clap::ArgMatches;
 use clap::parser::ValueSource;
-use tetvr::scene::{Mode, Scene, TfSpec};
+use tetvr::scene::{Mode, Scene, TfSpec, Warp};
 use tetvr::{Camera, Renderer, TransferFunction};
 
 use super::commands::{CliError, median};
@@ -45,6 +45,8 @@ fn overlay(scene: &mut Scene, a: &RenderArgs, given: &dyn Fn(&str) -> bool) {
     set! {
         "mesh": scene.mesh => a.mesh.mesh.clone();
         "array": scene.array => a.mesh.array.clone();
+        "cell_data": scene.cell_data => a.mesh.cell_data;
+        "warp": scene.warp => a.mesh.warp.clone().map(|array| Warp { array, scale: a.mesh.scale });
         "view": c.view => a.view.clone();
         "distance": c.distance => a.distance;
         "fov": c.fov => a.fov;

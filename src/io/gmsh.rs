@@ -7,11 +7,18 @@
 //! (listed first by both Gmsh and VTK); points, lines, triangles and quads of any order are
 //! skipped and counted; any other 3D element is an error.
 //!
-//! `$NodeData` blocks become scalar arrays named by their first string tag (vector and tensor
-//! data become `"<name> magnitude"`). Blocks with the same name fill the same array: partitions
-//! add their nodes, and a later time step overwrites an earlier one (the last step wins). Every
-//! node must have a value in the end. Binary `$NodeData` stores node tags as 4-byte ints (as
-//! Gmsh writes them). Other sections are skipped.
+//! Views: `$NodeData` blocks become point arrays and `$ElementData` blocks cell arrays, named by
+//! their first string tag (the view's name); vector and tensor data are kept whole, with a
+//! `"<name> magnitude"` scalar for node data. Blocks with the same name fill the same array:
+//! partitions add their nodes or elements, and a later time step overwrites an earlier one (the
+//! last step wins). Every node must have a value in the end, and every element that makes tets;
+//! elements tetvr skips (boundary triangles) need none. The first view is the active field.
+//! Binary views store node and element tags as 4-byte ints (as Gmsh writes them).
+//!
+//! Mesh blocks may repeat: a view appended to a mesh file (`gmsh.view.write(view, file,
+//! append=True)`, File > Export with "append") writes `$MeshFormat`, `$Entities`, `$Nodes` and
+//! `$Elements` again before its data. A repeat identical to the first is skipped; one that
+//! differs is an error naming both places. Other sections are skipped.
 //!
 //! A block's values are kept as (node, values) entries until the end, when each array is laid
 //! out per node: memory follows the values in the file, not blocks x nodes (a file of many
@@ -23,6 +30,7 @@ use super::text::Cursor;
 use super::{
     Assembler, Budget, Fields, Format, LoadError, LoadErrorKind, Loaded, Location, Scalar, shown,
 };
+use crate::mesh::DataArray;
 use crate::mesh::name::shown_name;
 use crate::mesh::split::CellKind;
 use glam::DVec3;
@@ -172,64 +180,78 @@ impl<'a> Reader<'a> {
     }
 }
 
-/// The values of one array as read: node indices and `nc` values for each, in file order.
-struct NodeArray {
+/// The values of one view as read: node (or element) indices and `nc` values for each, in
+/// file order.
+struct ViewArray {
     name: String,
     nc: usize,
+    /// Node or element indices.
     nodes: Vec<u32>,
     values: Vec<f64>,
 }
 
 /// The arrays so far, found by name in constant time (files may hold many thousand blocks).
 #[derive(Default)]
-struct NodeArrays {
-    list: Vec<NodeArray>,
+struct ViewArrays {
+    list: Vec<ViewArray>,
     slots: HashMap<String, usize>,
 }
 
-impl NodeArray {
-    /// The values laid out per node (the last value given for a node wins); an error names
-    /// the first node without one.
-    fn dense(self, tags: &[u64], budget: &Budget, file: &str) -> Result<Vec<f64>, LoadError> {
+impl ViewArray {
+    /// The values laid out per node or element, `n` of them (the last value given for one
+    /// wins); NaN where none was given (values read are finite).
+    fn dense(self, n: usize, budget: &Budget) -> Result<Vec<f64>, LoadError> {
         let nc = self.nc;
         let shown_n = shown_name(&self.name);
-        budget.charge_items(tags.len().saturating_mul(nc), 8, || {
-            format!("$NodeData '{shown_n}' for {} nodes", tags.len())
+        budget.charge_items(n.saturating_mul(nc), 8, || {
+            format!("view '{shown_n}' for {n} nodes or elements")
         })?;
-        let mut out = vec![f64::NAN; tags.len() * nc];
+        let mut out = vec![f64::NAN; n * nc];
         for (k, &i) in self.nodes.iter().enumerate() {
             let i = i as usize;
             out[i * nc..(i + 1) * nc].copy_from_slice(&self.values[k * nc..(k + 1) * nc]);
         }
-        // Values read are finite: NaN marks a node without one.
-        match out.iter().step_by(nc).position(|v| v.is_nan()) {
-            Some(i) => Err(LoadError::new(
-                file,
-                None,
-                LoadErrorKind::Malformed(format!(
-                    "$NodeData '{shown_n}' gives no value for node {}",
-                    tags[i]
-                )),
-            )),
-            None => Ok(out),
-        }
+        Ok(out)
     }
 }
+
+/// Sections that describe the mesh: a repeat of one must be identical to the first.
+const MESH_SECTIONS: [&[u8]; 9] = [
+    b"$MeshFormat",
+    b"$PhysicalNames",
+    b"$Entities",
+    b"$PartitionedEntities",
+    b"$Nodes",
+    b"$Elements",
+    b"$Periodic",
+    b"$GhostElements",
+    b"$Parametrizations",
+];
 
 /// What the sections read so far hold.
 #[derive(Default)]
 struct Sections<'b> {
     /// Positions, node tags in file order, and tags to indices.
     nodes: Option<(Vec<DVec3>, Vec<u64>, NodeMap)>,
-    asm: Option<Assembler<'b>>,
-    arrays: NodeArrays,
+    /// The cells, with the element tags in file order.
+    elements: Option<(Assembler<'b>, Vec<u64>)>,
+    /// Element tags to indices, built at the first `$ElementData`.
+    element_map: Option<NodeMap>,
+    arrays: ViewArrays,
+    cell_arrays: ViewArrays,
+    /// Whether the first view read is element data.
+    first_view_cells: Option<bool>,
+    /// Each mesh section's first byte range, for comparing repeats.
+    spans: HashMap<&'static [u8], (usize, usize)>,
     skipped: Vec<String>,
 }
 
 pub(super) fn read(data: &[u8], name: &str, budget: &Budget) -> Result<Loaded, LoadError> {
+    let start = data.iter().take_while(|b| b.is_ascii_whitespace()).count();
     let mut r = mesh_format(Cursor::new(data, name, None, budget))?;
     r.expect_end("$EndMeshFormat")?;
     let mut s = Sections::default();
+    s.spans.insert(MESH_SECTIONS[0], (start, r.c.pos));
     while let Some((at, t)) = r.c.token() {
         r.section(&mut s, at, t)?;
     }
@@ -237,18 +259,56 @@ pub(super) fn read(data: &[u8], name: &str, budget: &Budget) -> Result<Loaded, L
     let (positions, tags, _) = s
         .nodes
         .ok_or_else(|| r.c.err(end, "the file has no $Nodes section"))?;
-    let asm = s
-        .asm
+    let (asm, elem_tags) = s
+        .elements
         .ok_or_else(|| r.c.err(end, "the file has no $Elements section"))?;
     let mut fields = Fields {
         skipped: s.skipped,
+        cell_first: s.first_view_cells == Some(true),
         ..Fields::default()
     };
     for a in s.arrays.list {
         let (aname, nc) = (a.name.clone(), a.nc);
-        fields.point(&aname, a.dense(&tags, budget, name)?, nc);
+        let v = a.dense(tags.len(), budget)?;
+        missing_value(&v, nc, |_| true).map_or(Ok(()), |i| {
+            Err(no_value(name, "$NodeData", &aname, "node", tags[i]))
+        })?;
+        fields.point(&aname, v, nc);
+    }
+    for a in s.cell_arrays.list {
+        let (aname, nc) = (a.name.clone(), a.nc);
+        let v = a.dense(elem_tags.len(), budget)?;
+        missing_value(&v, nc, |i| asm.makes_tets(i)).map_or(Ok(()), |i| {
+            Err(no_value(
+                name,
+                "$ElementData",
+                &aname,
+                "element",
+                elem_tags[i],
+            ))
+        })?;
+        fields.cells.push(DataArray::new(aname, nc, v));
     }
     asm.finish(name, Format::Gmsh, positions, fields)
+}
+
+/// The first tuple of `values` (`nc` per item) without a value (NaN marks those: values read
+/// are finite) among the items `needed`.
+fn missing_value(values: &[f64], nc: usize, needed: impl Fn(usize) -> bool) -> Option<usize> {
+    (values.iter().step_by(nc).enumerate())
+        .find_map(|(i, v)| (v.is_nan() && needed(i)).then_some(i))
+}
+
+/// The error for view `aname` of `section` without a value for the `item` of tag `tag`.
+fn no_value(file: &str, section: &str, aname: &str, item: &str, tag: u64) -> LoadError {
+    LoadError::new(
+        file,
+        None,
+        LoadErrorKind::Malformed(format!(
+            "{section} '{}' gives no value for {item} {tag}",
+            shown_name(aname)
+        )),
+    )
 }
 
 /// `$MeshFormat`'s line: the version, ASCII or binary (with binary's endianness marker) and
@@ -328,49 +388,113 @@ fn endianness(c: &mut Cursor, version: Version, vat: usize) -> Result<bool, Load
 }
 
 impl<'a> Reader<'a> {
-    /// One section, its keyword `t` at `at` read.
+    /// One section, its keyword `t` at `at` read. A mesh section seen before must repeat the
+    /// first exactly.
     fn section(&mut self, s: &mut Sections<'a>, at: usize, t: &[u8]) -> Result<(), LoadError> {
+        if let Some(&first) = s.spans.get(t) {
+            return self.repeat(at, t, first);
+        }
         match t {
             b"$Nodes" => {
-                if s.nodes.is_some() {
-                    return Err(self.c.err(at, "a second $Nodes section"));
-                }
                 s.nodes = Some(read_nodes(self)?);
-                self.expect_end("$EndNodes")
+                self.expect_end("$EndNodes")?;
             }
             b"$Elements" => {
                 let (p, _, map) = s
                     .nodes
                     .as_ref()
                     .ok_or_else(|| self.c.err(at, "$Elements before $Nodes"))?;
-                if s.asm.is_some() {
-                    return Err(self.c.err(at, "a second $Elements section"));
-                }
                 let mut a = Assembler::new(p.len(), self.c.budget);
-                read_elements(self, map, &mut a)?;
-                s.asm = Some(a);
-                self.expect_end("$EndElements")
+                let tags = read_elements(self, map, &mut a)?;
+                s.elements = Some((a, tags));
+                self.expect_end("$EndElements")?;
             }
-            b"$NodeData" => {
-                let (_, _, map) = s
-                    .nodes
-                    .as_ref()
-                    .ok_or_else(|| self.c.err(at, "$NodeData before $Nodes"))?;
-                read_node_data(self, map, &mut s.arrays)?;
-                self.expect_end("$EndNodeData")
-            }
+            b"$NodeData" | b"$ElementData" => self.view(s, at, t)?,
             _ if t.starts_with(b"$") && !t.starts_with(b"$End") => {
-                self.skip_section(at, t, &mut s.skipped)
+                self.skip_section(at, t, &mut s.skipped)?
             }
-            _ => Err(self.c.err(
-                at,
-                format!("expected a section such as $Nodes, found '{}'", shown(t)),
-            )),
+            _ => {
+                return Err(self.c.err(
+                    at,
+                    format!("expected a section such as $Nodes, found '{}'", shown(t)),
+                ));
+            }
         }
+        if let Some(k) = MESH_SECTIONS.iter().find(|k| **k == t) {
+            s.spans.insert(k, (at, self.c.pos));
+        }
+        Ok(())
     }
 
-    /// Skips section `t` up to its `$End` line; element data are named in `skipped` by their
-    /// first string tag.
+    /// A `$NodeData` or `$ElementData` block (`t`, at `at`) into its arrays.
+    fn view(&mut self, s: &mut Sections<'a>, at: usize, t: &[u8]) -> Result<(), LoadError> {
+        let cells = t == b"$ElementData";
+        let (section, item) = if cells {
+            ("$ElementData", "element")
+        } else {
+            ("$NodeData", "node")
+        };
+        if cells
+            && s.element_map.is_none()
+            && let Some((_, tags)) = &s.elements
+        {
+            s.element_map = Some(tag_map(self, tags, "element")?);
+        }
+        let map = if cells {
+            s.element_map.as_ref()
+        } else {
+            s.nodes.as_ref().map(|n| &n.2)
+        };
+        let map = map.ok_or_else(|| {
+            let before = if cells { "$Elements" } else { "$Nodes" };
+            self.c.err(at, format!("{section} before {before}"))
+        })?;
+        let arrays = if cells {
+            &mut s.cell_arrays
+        } else {
+            &mut s.arrays
+        };
+        read_view(self, &View { map, section, item }, arrays)?;
+        s.first_view_cells.get_or_insert(cells);
+        self.expect_end(&format!("$End{}", &section[1..]))
+    }
+
+    /// A repeat at `at` of mesh section `t`, whose first copy spans `first`: skipped when
+    /// identical, an error naming both places otherwise.
+    fn repeat(
+        &mut self,
+        at: usize,
+        t: &[u8],
+        (start, end): (usize, usize),
+    ) -> Result<(), LoadError> {
+        let data = self.c.data;
+        let (old, new) = (&data[start..end], &data[at..]);
+        let same = old.iter().zip(new).take_while(|(a, b)| a == b).count();
+        if same == old.len() {
+            self.c.pos = at + old.len();
+            return Ok(());
+        }
+        let place = |o: usize| {
+            if self.c.by_byte {
+                format!("byte {o}")
+            } else {
+                format!("line {}", self.c.line_of(o))
+            }
+        };
+        Err(self.c.err(
+            at + same,
+            format!(
+                "{} at {} differs here from the one at {}; tetvr reads a repeated mesh block \
+                 (as Gmsh writes before an appended view) only when it is identical",
+                shown(t),
+                place(at),
+                place(start)
+            ),
+        ))
+    }
+
+    /// Skips section `t` up to its `$End` line; element-node data are named in `skipped` by
+    /// their first string tag.
     fn skip_section(
         &mut self,
         at: usize,
@@ -378,7 +502,7 @@ impl<'a> Reader<'a> {
         skipped: &mut Vec<String>,
     ) -> Result<(), LoadError> {
         let section = &t[1..];
-        if section == b"ElementData" || section == b"ElementNodeData" {
+        if section == b"ElementNodeData" {
             let save = self.c.pos;
             if self.c.parse::<usize>("").is_ok_and(|n| n > 0) {
                 self.c.skip_ws();
@@ -459,7 +583,7 @@ fn read_nodes(r: &mut Reader) -> Result<(Vec<DVec3>, Vec<u64>, NodeMap), LoadErr
             ),
         ));
     }
-    let map = node_map(r, &tags)?;
+    let map = tag_map(r, &tags, "node")?;
     Ok((positions, tags, map))
 }
 
@@ -515,13 +639,13 @@ fn node_block(
     Ok(())
 }
 
-/// Node tags to indices: a table where the tags are dense enough, a hash map otherwise. A tag
-/// given twice is an error.
-fn node_map(r: &Reader, tags: &[u64]) -> Result<NodeMap, LoadError> {
+/// Node or element (`item`) tags to indices: a table where the tags are dense enough, a hash
+/// map otherwise. A tag given twice is an error.
+fn tag_map(r: &Reader, tags: &[u64], item: &str) -> Result<NodeMap, LoadError> {
     let max = tags.iter().copied().max().unwrap_or(0);
-    let dup = |t: u64| r.c.err(r.c.pos, format!("node tag {t} is defined twice"));
+    let dup = |t: u64| r.c.err(r.c.pos, format!("{item} tag {t} is defined twice"));
     r.c.budget.charge_items(tags.len(), 16, || {
-        format!("the index of {} node tags", tags.len())
+        format!("the index of {} {item} tags", tags.len())
     })?;
     if max <= 2 * tags.len() as u64 + 1024 {
         let mut v = vec![u32::MAX; max as usize + 1];
@@ -543,7 +667,12 @@ fn node_map(r: &Reader, tags: &[u64]) -> Result<NodeMap, LoadError> {
     }
 }
 
-fn read_elements(r: &mut Reader, map: &NodeMap, asm: &mut Assembler) -> Result<(), LoadError> {
+/// The `$Elements` section into `asm`; returns the element tags in file order.
+fn read_elements(
+    r: &mut Reader,
+    map: &NodeMap,
+    asm: &mut Assembler,
+) -> Result<Vec<u64>, LoadError> {
     let (blocks, total) = match r.version {
         Version::V2 => (usize::MAX, r.c.count("the number of elements")?),
         Version::V40 | Version::V41 => r.block_counts("element", "$Elements")?,
@@ -551,6 +680,11 @@ fn read_elements(r: &mut Reader, map: &NodeMap, asm: &mut Assembler) -> Result<(
     if r.binary.is_some() && r.version == Version::V2 {
         r.c.finish_line();
     }
+    // Each element takes at least 4 bytes in any encoding: cap the reservation by the file.
+    let cap = total.min(r.c.remaining() / 4);
+    r.c.budget
+        .charge_items(cap, 8, || format!("the tags of {cap} elements"))?;
+    let mut tags: Vec<u64> = Vec::with_capacity(cap);
     let mut index = 0usize;
     let mut nodes: Vec<u64> = Vec::with_capacity(125);
     let mut block = 0;
@@ -565,7 +699,7 @@ fn read_elements(r: &mut Reader, map: &NodeMap, asm: &mut Assembler) -> Result<(
             ));
         }
         for _ in 0..n {
-            element(r, map, asm, (index, ty, ntags), &mut nodes)?;
+            tags.push(element(r, map, asm, (index, ty, ntags), &mut nodes)?);
             index += 1;
         }
     }
@@ -575,7 +709,7 @@ fn read_elements(r: &mut Reader, map: &NodeMap, asm: &mut Assembler) -> Result<(
             format!("the element blocks hold {index} elements, the header says {total}"),
         ));
     }
-    Ok(())
+    Ok(tags)
 }
 
 /// Per block: element type, count, and (2.2) number of tags; 2.2 ASCII has one element per
@@ -613,15 +747,15 @@ fn element_block_header(r: &mut Reader) -> Result<(i64, usize, usize), LoadError
 }
 
 /// One element, the `index`th of the file, of the block's type `ty` with `ntags` tags (2.2
-/// ASCII gives both per element): a 3D one goes to `asm`, a lower one is counted. `nodes` is
-/// scratch space.
+/// ASCII gives both per element): a 3D one goes to `asm`, a lower one is counted; returns its
+/// tag. `nodes` is scratch space.
 fn element(
     r: &mut Reader,
     map: &NodeMap,
     asm: &mut Assembler,
     (index, ty, ntags): (usize, i64, usize),
     nodes: &mut Vec<u64>,
-) -> Result<(), LoadError> {
+) -> Result<u64, LoadError> {
     let wide = r.version == Version::V41;
     let tag = r.count(wide, "an element tag", "$Elements")? as u64;
     let (ty, ntags) = if r.version == Version::V2 && r.binary.is_none() {
@@ -647,7 +781,8 @@ fn element(
         nodes.push(t);
     }
     if dim < 3 {
-        return asm.skip();
+        asm.skip()?;
+        return Ok(tag);
     }
     let Some(kind) = solid_kind(ty) else {
         return Err(LoadError::unsupported(
@@ -667,10 +802,11 @@ fn element(
     }
     asm.cell(kind, &ids[..nn], |m| {
         LoadError::malformed(r.c.name, loc.clone(), m)
-    })
+    })?;
+    Ok(tag)
 }
 
-impl NodeArrays {
+impl ViewArrays {
     /// The index of array `name` with `nc` components, a new one if the name is new; `None`
     /// if an array of that name has another number of components.
     fn slot(&mut self, name: &str, nc: usize) -> Option<usize> {
@@ -679,7 +815,7 @@ impl NodeArrays {
             Some(_) => None,
             None => {
                 self.slots.insert(name.to_owned(), self.list.len());
-                self.list.push(NodeArray {
+                self.list.push(ViewArray {
                     name: name.to_owned(),
                     nc,
                     nodes: Vec::new(),
@@ -691,9 +827,31 @@ impl NodeArrays {
     }
 }
 
-fn read_node_data(r: &mut Reader, map: &NodeMap, arrays: &mut NodeArrays) -> Result<(), LoadError> {
+/// What a view block is read into: the node or element tag map, and words for messages.
+struct View<'m> {
+    map: &'m NodeMap,
+    /// `$NodeData` or `$ElementData`.
+    section: &'static str,
+    /// "node" or "element".
+    item: &'static str,
+}
+
+impl View<'_> {
+    /// "a node tag" or "an element tag".
+    fn tag_word(&self) -> &'static str {
+        if self.item == "node" {
+            "a node tag"
+        } else {
+            "an element tag"
+        }
+    }
+}
+
+/// A `$NodeData` or `$ElementData` block's values into `arrays` (by the view's name).
+fn read_view(r: &mut Reader, v: &View, arrays: &mut ViewArrays) -> Result<(), LoadError> {
+    let (map, section, item) = (v.map, v.section, v.item);
     let at = r.c.pos;
-    let (aname, nc, n) = node_data_header(r, at)?;
+    let (aname, nc, n) = view_header(r, at, v)?;
     let shown_n = shown_name(&aname);
     if r.binary.is_some() {
         r.c.finish_line();
@@ -709,7 +867,7 @@ fn read_node_data(r: &mut Reader, map: &NodeMap, arrays: &mut NodeArrays) -> Res
         return Err(r.c.err(
             at,
             format!(
-                "$NodeData '{shown_n}' announces {n} nodes, more than the {} bytes left can hold",
+                "{section} '{shown_n}' announces {n} {item}s, more than the {} bytes left can hold",
                 r.c.remaining()
             ),
         ));
@@ -717,50 +875,52 @@ fn read_node_data(r: &mut Reader, map: &NodeMap, arrays: &mut NodeArrays) -> Res
     let slot = arrays.slot(&aname, nc).ok_or_else(|| {
         r.c.err(
             at,
-            format!("$NodeData '{shown_n}' changes its number of components"),
+            format!("{section} '{shown_n}' changes its number of components"),
         )
     })?;
     r.c.budget.charge_items(n, 4 + 8 * nc, || {
-        format!("$NodeData '{shown_n}' ({n} nodes)")
+        format!("{section} '{shown_n}' ({n} {item}s)")
     })?;
     let a = &mut arrays.list[slot];
     a.nodes.reserve(n);
     a.values.reserve(n * nc);
     for _ in 0..n {
         let tat = r.c.pos;
-        let tag = r.count(false, "a node tag", "$NodeData")? as u64;
+        let tag = r.count(false, v.tag_word(), section)? as u64;
         let i = map.get(tag).ok_or_else(|| {
             r.c.err(
                 tat,
-                format!("$NodeData '{shown_n}': node {tag} is not defined"),
+                format!("{section} '{shown_n}': {item} {tag} is not defined"),
             )
         })?;
         let describe = |_: usize, x: f64| {
-            format!("$NodeData '{shown_n}' has the non-finite value {x} at node {tag}")
+            format!("{section} '{shown_n}' has the non-finite value {x} at {item} {tag}")
         };
         let v =
-            r.c.values(nc, Scalar::F64, r.binary, "$NodeData", Some(&describe))?;
+            r.c.values(nc, Scalar::F64, r.binary, section, Some(&describe))?;
         a.nodes.push(i);
         a.values.extend_from_slice(&v);
     }
     Ok(())
 }
 
-/// A `$NodeData` block's tags, the block starting at `at`: the array's name (the first string
-/// tag), its number of components (1 to 9) and of nodes (integer tags 2 and 3).
-fn node_data_header(r: &mut Reader, at: usize) -> Result<(String, usize, usize), LoadError> {
+/// A view block's tags, the block starting at `at`: the array's name (the first string tag),
+/// its number of components (1 to 9) and of nodes or elements (integer tags 2 and 3).
+fn view_header(r: &mut Reader, at: usize, v: &View) -> Result<(String, usize, usize), LoadError> {
+    let (section, item) = (v.section, v.item);
     let nstr = r.c.count("the number of string tags")?;
     let mut aname = None;
     for _ in 0..nstr {
         if r.c.at_end() {
-            return Err(r
-                .c
-                .err(r.c.pos, "file ends inside the $NodeData string tags"));
+            return Err(r.c.err(
+                r.c.pos,
+                format!("file ends inside the {section} string tags"),
+            ));
         }
         let s = r.c.rest_of_line().trim_ascii();
         aname.get_or_insert_with(|| String::from_utf8_lossy(s).trim_matches('"').to_owned());
     }
-    let aname = aname.unwrap_or_else(|| "NodeData".to_owned());
+    let aname = aname.unwrap_or_else(|| section[1..].to_owned());
     let shown_n = shown_name(&aname);
     let nreal = r.c.count("the number of real tags")?;
     for _ in 0..nreal {
@@ -775,7 +935,7 @@ fn node_data_header(r: &mut Reader, at: usize) -> Result<(String, usize, usize),
         return Err(r.c.err(
             at,
             format!(
-                "$NodeData '{shown_n}' lacks the component and node counts (integer tags 2 and 3)"
+                "{section} '{shown_n}' lacks the component and {item} counts (integer tags 2 and 3)"
             ),
         ));
     };
@@ -785,13 +945,13 @@ fn node_data_header(r: &mut Reader, at: usize) -> Result<(String, usize, usize),
         .ok_or_else(|| {
             r.c.err(
                 at,
-                format!("$NodeData '{shown_n}' has {nc} components (expected 1 to 9)"),
+                format!("{section} '{shown_n}' has {nc} components (expected 1 to 9)"),
             )
         })?;
     let n = usize::try_from(n).map_err(|_| {
         r.c.err(
             at,
-            format!("$NodeData '{shown_n}' has a negative node count"),
+            format!("{section} '{shown_n}' has a negative {item} count"),
         )
     })?;
     Ok((aname, nc, n))

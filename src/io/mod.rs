@@ -406,6 +406,11 @@ impl<'a> Assembler<'a> {
         Ok(())
     }
 
+    /// Whether cell `i` of the file (0-based, skipped cells included) made tets.
+    pub(crate) fn makes_tets(&self, i: usize) -> bool {
+        self.cell_tets.get(i).is_some_and(|&k| k > 0)
+    }
+
     /// Cells of the file seen so far (skipped ones included).
     pub(crate) fn cells_seen(&self) -> usize {
         self.cell_tets.len()
@@ -516,8 +521,11 @@ impl<'a> Assembler<'a> {
         let cells: Vec<DataArray> = (fields.cells.into_iter())
             .map(|c| self.per_tet(path, c))
             .collect::<Result<_, _>>()?;
-        let (mut mesh, build) =
-            TetMesh::new(positions, self.tets, fields.scalars).map_err(mesh_err)?;
+        // A name read twice (a file's own "<v> magnitude" beside vector v) keeps its first.
+        let mut seen = std::collections::HashSet::new();
+        let mut scalars = fields.scalars;
+        scalars.retain(|a| seen.insert(a.name.clone()));
+        let (mut mesh, build) = TetMesh::new(positions, self.tets, scalars).map_err(mesh_err)?;
         mesh.set_data_arrays(fields.vectors, cells)
             .map_err(mesh_err)?;
         if let Some(name) = first_cell

@@ -497,6 +497,10 @@ impl File<'_> {
             v
         };
         match want {
+            // ASCII reading stops one value past the count: count them all for the message.
+            Some(w) if v.len() > w.count && self.format(a)? == "ascii" => {
+                Err(self.err(a.at, (w.wrong)(tokens(&a.text).count())))
+            }
             Some(w) if v.len() != w.count => Err(self.err(a.at, (w.wrong)(v.len()))),
             _ => Ok(v),
         }
@@ -1194,7 +1198,8 @@ fn in_piece(list: &[i64], points: usize, base: usize, ids: &mut Vec<i64>) -> Res
 
 /// Writes `mesh` as a `.vtu`: appended raw binary, UInt64 headers, little endian; Float64
 /// points and point arrays, Int64 connectivity and offsets, UInt8 cell types; the active array
-/// named in `Scalars`. Reading it back gives the same mesh exactly.
+/// named in `Scalars`; point vectors and cell arrays (one tuple per tet) as Float64 arrays of
+/// their components. Reading it back gives the same mesh exactly.
 pub fn write_vtu(mesh: &TetMesh, path: &Path) -> Result<(), WriteError> {
     let werr = |source| WriteError {
         path: path.display().to_string(),
@@ -1203,6 +1208,15 @@ pub fn write_vtu(mesh: &TetMesh, path: &Path) -> Result<(), WriteError> {
     let f = std::fs::File::create(path).map_err(werr)?;
     let mut w = std::io::BufWriter::new(f);
     write_to(mesh, &mut w).and_then(|_| w.flush()).map_err(werr)
+}
+
+/// An appended Float64 `DataArray` element of `nc` components at `offset`.
+fn xml_array(name: &str, nc: usize, offset: usize) -> String {
+    format!(
+        "        <DataArray type=\"Float64\" Name=\"{}\" NumberOfComponents=\"{nc}\" \
+         format=\"appended\" offset=\"{offset}\"/>\n",
+        quick_xml::escape::escape(name)
+    )
 }
 
 fn write_to(mesh: &TetMesh, w: &mut impl Write) -> std::io::Result<()> {
@@ -1226,14 +1240,21 @@ fn write_to(mesh: &TetMesh, w: &mut impl Write) -> std::io::Result<()> {
         )),
         None => xml.push_str("      <PointData>\n"),
     }
+    let mut array =
+        |name: &str, nc: usize, tuples: usize| xml_array(name, nc, next(tuples * nc * 8));
+    let mut data = String::new();
     for a in mesh.arrays() {
-        xml.push_str(&format!(
-            "        <DataArray type=\"Float64\" Name=\"{}\" format=\"appended\" offset=\"{}\"/>\n",
-            escape(a.name.as_str()),
-            next(np * 8)
-        ));
+        data.push_str(&array(&a.name, 1, np));
     }
-    xml.push_str("      </PointData>\n      <Points>\n");
+    for a in mesh.point_vectors() {
+        data.push_str(&array(&a.name, a.components, np));
+    }
+    data.push_str("      </PointData>\n      <CellData>\n");
+    for a in mesh.cell_arrays() {
+        data.push_str(&array(&a.name, a.components, nt));
+    }
+    xml.push_str(&data);
+    xml.push_str("      </CellData>\n      <Points>\n");
     xml.push_str(&format!("        <DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"appended\" offset=\"{}\"/>\n", next(np * 24)));
     xml.push_str("      </Points>\n      <Cells>\n");
     for (n, ty, bytes) in [
@@ -1249,10 +1270,15 @@ fn write_to(mesh: &TetMesh, w: &mut impl Write) -> std::io::Result<()> {
     xml.push_str("      </Cells>\n    </Piece>\n  </UnstructuredGrid>\n  <AppendedData encoding=\"raw\">\n   _");
     w.write_all(xml.as_bytes())?;
     let header = |w: &mut dyn Write, n: usize| w.write_all(&(n as u64).to_le_bytes());
-    for a in mesh.arrays() {
-        header(w, np * 8)?;
-        for v in &a.values {
-            w.write_all(&v.to_le_bytes())?;
+    let values = mesh.arrays().iter().map(|a| &a.values);
+    let vectors = mesh.point_vectors().iter().map(|a| &a.values);
+    for v in values
+        .chain(vectors)
+        .chain(mesh.cell_arrays().iter().map(|a| &a.values))
+    {
+        header(w, v.len() * 8)?;
+        for x in v {
+            w.write_all(&x.to_le_bytes())?;
         }
     }
     header(w, np * 24)?;

@@ -34,7 +34,9 @@ pub enum Component {
 }
 
 /// How a cell array is rendered (`--cell-data`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum CellDataMode {
     /// Constant per tet, exactly as the file gives it ([`TetMesh::cell_scalars`]); the vertices
     /// get the volume-weighted average for what needs vertex values.
@@ -360,6 +362,27 @@ impl TetMesh {
         }
         self.active_cell = Some(spec.to_owned());
         Ok(())
+    }
+
+    /// Readies a loaded mesh for rendering as `render`'s flags and scene files ask: moves it by
+    /// `warp` (a vector array and its scale, [`TetMesh::warp`]), then selects `array` in `mode`
+    /// ([`TetMesh::select`]); without `array`, a file's own cell field is selected again in
+    /// `mode` (readers make it active constant per tet). Warping first makes the volume weights
+    /// of an average to the vertices the warped tets'.
+    pub fn prepare(
+        &mut self,
+        array: Option<&str>,
+        mode: CellDataMode,
+        warp: Option<(&str, f64)>,
+    ) -> Result<(), MeshError> {
+        if let Some((name, scale)) = warp {
+            self.warp(name, scale)?;
+        }
+        let own = self.active_cell_array().map(str::to_owned);
+        match array.or(own.as_deref()) {
+            Some(spec) => self.select(spec, mode),
+            None => Ok(()),
+        }
     }
 
     /// Moves every vertex by `scale` times the 3-component point array `name` (ParaView's Warp

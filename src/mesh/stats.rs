@@ -32,7 +32,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::name::shown_name;
-use super::{TetMesh, pow2, scaled};
+use super::{DataArray, TetMesh, pow2, scaled};
 
 /// Quality below which a (nonzero-volume) tet counts as near-degenerate; see the module docs.
 pub const NEAR_DEGENERATE_QUALITY: f64 = 1e-6;
@@ -116,6 +116,58 @@ pub struct ArrayStats {
     pub active: bool,
 }
 
+/// The ranges of one point vector or cell array, component by component.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DataStats {
+    /// The array's name.
+    pub name: String,
+    /// Values per tuple.
+    pub components: usize,
+    /// (min, max) of each component; empty for an array without values.
+    pub ranges: Vec<(f64, f64)>,
+    /// For the active cell array ([`TetMesh::active_cell_array`]): whether it is rendered
+    /// constant per tet (`Some(true)`) or averaged to the vertices (`Some(false)`).
+    pub active: Option<bool>,
+}
+
+/// Components of an array `info` shows before counting the rest.
+const SHOWN_COMPONENTS: usize = 9;
+
+impl DataStats {
+    fn of(a: &DataArray, active: Option<bool>) -> Self {
+        Self {
+            name: a.name.clone(),
+            components: a.components,
+            ranges: a.component_ranges(),
+            active,
+        }
+    }
+
+    /// `x 0 .. 1, y ...` (components beyond [`SHOWN_COMPONENTS`] counted), or the one range.
+    fn ranges_text(&self) -> String {
+        let range = |(lo, hi): (f64, f64)| format!("{} .. {}", number(lo, 4), number(hi, 4));
+        if self.components == 1 {
+            return self
+                .ranges
+                .first()
+                .map_or("(no values)".into(), |&r| range(r));
+        }
+        let label = |i: usize| match (self.components, i) {
+            (2 | 3, 0) => "x".to_owned(),
+            (2 | 3, 1) => "y".to_owned(),
+            (3, 2) => "z".to_owned(),
+            _ => i.to_string(),
+        };
+        let mut parts: Vec<String> = (self.ranges.iter().take(SHOWN_COMPONENTS).enumerate())
+            .map(|(i, &r)| format!("{} {}", label(i), range(r)))
+            .collect();
+        if self.components > SHOWN_COMPONENTS {
+            parts.push(format!("and {} more", self.components - SHOWN_COMPONENTS));
+        }
+        parts.join(", ")
+    }
+}
+
 /// Everything `tetvr info` reports about a mesh. See the module docs for the definitions.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MeshStats {
@@ -129,6 +181,10 @@ pub struct MeshStats {
     pub diagonal: f64,
     /// Each scalar array's range.
     pub arrays: Vec<ArrayStats>,
+    /// Each point array of several components, with its components' ranges.
+    pub point_vectors: Vec<DataStats>,
+    /// Each cell array, with its components' ranges.
+    pub cell_arrays: Vec<DataStats>,
     /// Sum of the tets' absolute volumes, and their min, mean and max; infinite where the value
     /// is beyond f64's range (shown as "out of range"), e.g. for coordinates near 1e308.
     pub total_volume: f64,
@@ -340,6 +396,15 @@ impl MeshStats {
             bounds: (lo, hi),
             diagonal: diagonal(lo, hi),
             arrays: array_stats(mesh),
+            point_vectors: (mesh.point_vectors().iter())
+                .map(|a| DataStats::of(a, None))
+                .collect(),
+            cell_arrays: (mesh.cell_arrays().iter())
+                .map(|a| {
+                    let active = mesh.active_cell_array() == Some(a.name.as_str());
+                    DataStats::of(a, active.then_some(mesh.cell_scalars().is_some()))
+                })
+                .collect(),
             total_volume: totals.scaled_abs_volume * pow2(top),
             min_volume: totals.min_volume,
             mean_volume: scaled_mean * pow2(top),
@@ -507,6 +572,31 @@ fn write_histogram(f: &mut fmt::Formatter<'_>, h: &Histogram, edge: fn(f64) -> f
     Ok(())
 }
 
+/// A list of point vectors or cell arrays under `label`: name, components, ranges; the active
+/// cell array marked `*` with how it is rendered. Nothing for an empty list.
+fn data_arrays(f: &mut fmt::Formatter<'_>, label: &str, list: &[DataStats]) -> fmt::Result {
+    if list.is_empty() {
+        return Ok(());
+    }
+    writeln!(
+        f,
+        "{:<22}(* = active; components: ranges)",
+        format!("{label}:")
+    )?;
+    let names: Vec<String> = list.iter().map(|a| shown_name(&a.name)).collect();
+    let width = names.iter().map(|n| n.chars().count()).max().unwrap_or(0);
+    for (a, name) in list.iter().zip(&names) {
+        let (mark, how) = match a.active {
+            Some(true) => ('*', " (rendered constant per tet)"),
+            Some(false) => ('*', " (averaged to the vertices)"),
+            None => (' ', ""),
+        };
+        let text = a.ranges_text();
+        writeln!(f, "  {mark} {name:<width$}  {}: {text}{how}", a.components)?;
+    }
+    Ok(())
+}
+
 impl fmt::Display for MeshStats {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         fn line(f: &mut fmt::Formatter<'_>, label: &str, value: impl fmt::Display) -> fmt::Result {
@@ -533,6 +623,8 @@ impl fmt::Display for MeshStats {
                 writeln!(f, "  {mark} {name:<width$}  {range}")?;
             }
         }
+        data_arrays(f, "point vectors", &self.point_vectors)?;
+        data_arrays(f, "cell arrays", &self.cell_arrays)?;
         line(
             f,
             "volume",
