@@ -10,8 +10,9 @@ use tetvr::gpu::raycast::{Entry, Segments};
 use tetvr::gpu::{
     CellProjSettings, Integrate, IsoSettings, RaycastSettings, Sampler, ShellSettings, Skip, Skips,
 };
+use tetvr::mesh::CellDataMode;
 use tetvr::reference::iso::Shading;
-use tetvr::scene::{Integration, Mode, Scene, SceneError, TfSpec};
+use tetvr::scene::{Integration, Mode, Scene, SceneError, TfSpec, Warp};
 use tetvr::{Camera, ModeSettings};
 
 fn out_dir(name: &str) -> PathBuf {
@@ -73,6 +74,11 @@ fn a_saved_scene_loads_back_the_same() {
         ..ShellSettings::default()
     }));
     scene.settings.iso = vec![0.1, 0.2];
+    scene.cell_data = CellDataMode::Points;
+    scene.warp = Some(Warp {
+        array: "displacement".into(),
+        scale: -2.5,
+    });
     let path = dir.join("nested/s.json");
     std::fs::create_dir_all(path.parent().unwrap()).unwrap();
     scene.save(&path).unwrap();
