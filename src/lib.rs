@@ -24,6 +24,8 @@ pub mod mode;
 pub mod reference;
 pub mod render;
 pub mod tf;
+#[cfg(feature = "viewer")]
+pub mod viewer;
 
 pub use camera::{Camera, View};
 pub use image::{ErrorMetrics, Image};

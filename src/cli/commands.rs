@@ -65,6 +65,9 @@ pub enum CliError {
     Export(#[from] tetvr::export::ExportError),
     #[error(transparent)]
     Bench(Box<crate::bench::BenchError>),
+    #[cfg(feature = "viewer")]
+    #[error(transparent)]
+    Viewer(#[from] tetvr::viewer::ViewerError),
 }
 
 pub fn run(cli: Cli) -> Result<(), CliError> {
@@ -80,10 +83,12 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Compare(args) => compare(args),
         Command::Generate(args) => generate(args),
         Command::Bench(args) => super::bench::bench(args),
+        #[cfg(feature = "viewer")]
+        Command::View(args) => super::view::view(*args),
     }
 }
 
-fn load_mesh(args: &MeshArgs) -> Result<Loaded, CliError> {
+pub(super) fn load_mesh(args: &MeshArgs) -> Result<Loaded, CliError> {
     let mut limits = io::ReadLimits::default();
     if let Some(bytes) = args.max_memory {
         limits.max_memory = bytes;
@@ -142,7 +147,10 @@ fn render(args: RenderArgs) -> Result<(), CliError> {
 }
 
 /// `--tf` over the active scalars' range, with `--unit-distance` if given.
-fn transfer_function(args: &RenderArgs, mesh: &TetMesh) -> Result<TransferFunction, CliError> {
+pub(super) fn transfer_function(
+    args: &RenderArgs,
+    mesh: &TetMesh,
+) -> Result<TransferFunction, CliError> {
     let range = mesh
         .active_array()
         .and_then(|a| a.range())
@@ -154,7 +162,7 @@ fn transfer_function(args: &RenderArgs, mesh: &TetMesh) -> Result<TransferFuncti
     })
 }
 
-fn camera(args: &RenderArgs, mesh: &TetMesh) -> Result<Camera, CliError> {
+pub(super) fn camera(args: &RenderArgs, mesh: &TetMesh) -> Result<Camera, CliError> {
     let (lo, hi) = mesh.bounds();
     let view = View::parse(&args.view)?;
     let mut c = Camera::framing(
@@ -208,7 +216,7 @@ fn with_row_bar(mode: ModeSettings, rows: u32) -> (ModeSettings, Option<Progress
 }
 
 /// The settings of `args.mode` from the command line.
-fn mode_settings(
+pub(super) fn mode_settings(
     args: &RenderArgs,
     mesh: &TetMesh,
     tf: &TransferFunction,
