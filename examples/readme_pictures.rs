@@ -1,8 +1,10 @@
 //! Renders the README's pictures: a mesh in `shells` mode beside the exact reference and their
-//! difference (x10), with the error figures printed. Needs a GPU adapter (lavapipe will do).
+//! difference (x10), with the error figures printed and written as the README's row of the
+//! shells table (`target/test-output/readme/shells/`, which `scripts/test-tables.py` puts in
+//! the README). Needs a GPU adapter (lavapipe will do).
 //!
 //! ```sh
-//! cargo run --example readme_pictures -- ../shared/data/bluntfin_tet.vtk shock 0.8 docs/images/bluntfin-shells-reference-diff.png
+//! cargo run --example readme_pictures -- assets/bluntfin_tet.vtu shock 0.8 docs/images/bluntfin-shells-reference-diff.png
 //! ```
 
 use std::path::PathBuf;
@@ -11,7 +13,7 @@ use std::time::Instant;
 use tetvr::gpu::{AdapterChoice, GpuContext, ShellSettings};
 use tetvr::reference::ReferenceRenderer;
 use tetvr::tf::file::load_tf;
-use tetvr::{Camera, Image, ModeSettings, View, io};
+use tetvr::{Camera, ErrorMetrics, Image, ModeSettings, View, io};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -45,6 +47,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ctx.summary()
     );
     println!("shells vs reference: {metrics}");
+    readme_row(mesh_path, tf_spec, distance, size, &metrics)?;
 
     // Side by side over white: shells | reference | difference scaled so 0.1 is white.
     let diff = frame.image.difference(&reference, 0.1)?;
@@ -66,4 +69,27 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     strip.save_png(out.as_ref(), None)?;
     println!("wrote {out}");
     Ok(())
+}
+
+/// Writes the README's row of this picture (mesh, TF, distance; size and error figures).
+fn readme_row(
+    mesh: &str,
+    tf: &str,
+    distance: &str,
+    size: u32,
+    m: &ErrorMetrics,
+) -> std::io::Result<()> {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/test-output/readme/shells");
+    std::fs::create_dir_all(&dir)?;
+    let name = PathBuf::from(mesh);
+    let stem = name
+        .file_stem()
+        .map_or(mesh.into(), |s| s.to_string_lossy());
+    let case = format!("{stem}, `{tf}` TF, distance {distance}");
+    let row = format!(
+        "| {case} | {size}x{size} | {:.1} dB | {:.1e} | {:.1e} | {} |\n",
+        m.psnr, m.rmse, m.max_abs, m.holes
+    );
+    let file = case.replace(|c: char| !c.is_ascii_alphanumeric(), "_");
+    std::fs::write(dir.join(format!("{file}.md")), row)
 }

@@ -14,6 +14,10 @@ then, with `bytes=mode:setting`, that row's GPU bytes per tet (its `bytes_per_te
 the mode reports one, else GPU memory over tets). A caption line under the table names the adapter,
 machine, date, runs and image sizes, all read from the CSVs. Fails when a CSV is missing or a
 column matches no row at all; a scene without a row for a column shows "–".
+
+With `skips=shells:samples 512` instead of `cols=`, the table has a row per skip turned off (each
+`samples 512, no SKIP` bench row): its time and PSNR beside those of the row with every skip on
+(`shells:samples 512`) of the same scene and view, and the speedup the skip gives.
 """
 import csv
 import pathlib
@@ -30,7 +34,8 @@ def spec_of(text):
     spaces: "raycast:partial lists")."""
     text = " ".join(text.split())
     spec = dict(re.findall(r"(\w+)=(.*?)(?= \w+=|$)", text))
-    spec["cols"] = [c.split(":", 1) for c in spec["cols"].split("|")]
+    if "cols" in spec:
+        spec["cols"] = [c.split(":", 1) for c in spec["cols"].split("|")]
     return spec
 
 
@@ -59,7 +64,41 @@ def bytes_per_tet(row, tets):
     return f"{int(row['gpu_bytes']) / int(tets):.0f}" if row["gpu_bytes"] else "–"
 
 
+def caption(rows, spec):
+    first = rows[0]
+    runs = sorted({r["runs"] for r in rows})
+    dates = sorted({r["date"] for r in rows})
+    sizes = sorted({f"{r['width']}x{r['height']}" for r in rows})
+    return (
+        f"Medians of {'/'.join(runs)} runs at {', '.join(sizes)}; {first['adapter']}; "
+        f"{first['machine']}; {', '.join(dates)}; from `{spec['csv']}`."
+    )
+
+
+def skips_table(spec):
+    """Each skip's row beside the all-skips-on row of the same scene and view."""
+    rows = rows_of(spec["csv"])
+    mode, setting = spec["skips"].split(":", 1)
+    on = {(r["scene"], r["view"]): r for r in rows if (r["mode"], r["setting"]) == (mode, setting)}
+    prefix = f"{setting}, no "
+    offs = [r for r in rows if r["mode"] == mode and r["setting"].startswith(prefix)]
+    if not offs:
+        sys.exit(f"bench-table: no '{prefix}...' rows in {spec['csv']}")
+    head = ["skip turned off", "scene", "view", "all skips on", "skip off", "speedup"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for off in offs:
+        base = on.get((off["scene"], off["view"]))
+        if base is None:
+            continue
+        speedup = float(off["median_ms"]) / float(base["median_ms"])
+        cells = [off["setting"][len(prefix):], off["scene"], off["view"], cell(base), cell(off)]
+        lines.append("| " + " | ".join(cells + [f"{speedup:.2f}x"]) + " |")
+    return "\n".join(lines + ["", caption(rows, spec)]) + "\n"
+
+
 def table(spec):
+    if "skips" in spec:
+        return skips_table(spec)
     rows = rows_of(spec["csv"])
     view = spec.get("view")
     if view:
@@ -84,14 +123,7 @@ def table(spec):
         if per_tet_of:
             cells.append(bytes_per_tet(found.get((scene, v, *per_tet_of)), tets))
         lines.append("| " + " | ".join(cells) + " |")
-    first = rows[0]
-    runs = sorted({r["runs"] for r in rows})
-    dates = sorted({r["date"] for r in rows})
-    lines.append("")
-    lines.append(
-        f"Medians of {'/'.join(runs)} runs; {first['adapter']}; {first['machine']}; "
-        f"{', '.join(dates)}; from `{spec['csv']}`."
-    )
+    lines += ["", caption(rows, spec)]
     return "\n".join(lines) + "\n"
 
 

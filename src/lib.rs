@@ -23,6 +23,7 @@ pub mod mesh;
 pub mod mode;
 pub mod reference;
 pub mod render;
+pub mod scene;
 pub mod tf;
 #[cfg(feature = "viewer")]
 pub mod viewer;
@@ -32,4 +33,5 @@ pub use image::{ErrorMetrics, Image};
 pub use mesh::{ScalarArray, TetMesh};
 pub use mode::ModeSettings;
 pub use render::{Frame, Progress, RenderError, Renderer, Timings};
+pub use scene::Scene;
 pub use tf::TransferFunction;

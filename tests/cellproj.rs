@@ -17,7 +17,7 @@ use tetvr::gpu::cellproj::sort::sort_check;
 use tetvr::gpu::{AdapterChoice, CellProjRenderer, CellProjSettings, GpuContext, Integrate};
 use tetvr::reference::ReferenceRenderer;
 use tetvr::tf::ControlPoint;
-use tetvr::{Camera, Image, Renderer, TetMesh, TransferFunction, View};
+use tetvr::{Camera, ErrorMetrics, Image, Renderer, TetMesh, TransferFunction, View};
 
 use common::{Bounds, assert_images_close, default_view, load_asset, lox, reference_image};
 
@@ -49,9 +49,11 @@ fn render(mesh: &TetMesh, integrate: Integrate, camera: &Camera, tf: &TransferFu
 }
 
 /// Renders with both integrators and checks each against the reference, then the table
-/// against the exact integrator; returns (exact, table) metrics.
+/// against the exact integrator; the README's row `what` gets both against the reference.
+#[allow(clippy::too_many_arguments)]
 fn check_both(
     name: &str,
+    what: &str,
     mesh: &TetMesh,
     camera: &Camera,
     tf: &TransferFunction,
@@ -62,14 +64,25 @@ fn check_both(
     let expected = reference_image(mesh, camera, tf);
     let e = render(mesh, Integrate::Exact, camera, tf);
     let t = render(mesh, Integrate::Table, camera, tf);
-    assert_images_close(&format!("cellproj-{name}-exact"), &e, &expected, exact);
-    assert_images_close(&format!("cellproj-{name}-table"), &t, &expected, table);
+    let me = assert_images_close(&format!("cellproj-{name}-exact"), &e, &expected, exact);
+    let mt = assert_images_close(&format!("cellproj-{name}-table"), &t, &expected, table);
+    row(what, Some(&me), Some(&mt));
     assert_images_close(
         &format!("cellproj-{name}-table-vs-exact"),
         &t,
         &e,
         table_vs_exact,
     );
+}
+
+/// The README's row `what`: rmse / max_abs against the reference of each integrator measured.
+fn row(what: &str, exact: Option<&ErrorMetrics>, table: Option<&ErrorMetrics>) {
+    let cell = |m: Option<&ErrorMetrics>| {
+        m.map_or(String::new(), |m| {
+            format!("{:.1e} / {:.1e}", m.rmse, m.max_abs)
+        })
+    };
+    common::readme_row("cellproj", &[what.to_string(), cell(exact), cell(table)]);
 }
 
 const fn bounds(max_rmse: f64, max_abs: f64) -> Bounds {
@@ -92,6 +105,7 @@ fn gaussians_grid_matches_reference() {
     let (tf, camera) = default_view(&mesh, 128);
     check_both(
         "gaussians",
+        "Gaussians, 16³ cells",
         &mesh,
         &camera,
         &tf,
@@ -110,6 +124,7 @@ fn lox_subset_matches_reference() {
     let (tf, camera) = default_view(&mesh, 128);
     check_both(
         "lox",
+        "lox subset",
         &mesh,
         &camera,
         &tf,
@@ -129,6 +144,7 @@ fn bluntfin_matches_reference() {
     let (tf, camera) = default_view(&mesh, 128);
     check_both(
         "bluntfin",
+        "blunt fin (77 flat tets skipped, no NaN)",
         &mesh,
         &camera,
         &tf,
@@ -191,7 +207,7 @@ fn tf_change_rebuilds_the_table() {
     // across the step costs 10x more than with the default; measured rmse 3.5e-4, max 2.3e-3;
     // bounds about 3x.
     let expected = reference_image(&mesh, &camera, &sharp);
-    assert_images_close(
+    let table = assert_images_close(
         "cellproj-sharp-tf-table",
         &changed.image,
         &expected,
@@ -199,11 +215,16 @@ fn tf_change_rebuilds_the_table() {
     );
     // The exact integrator has no interpolation: f32 only (measured rmse 9.2e-6, max 5.7e-4).
     let exact = render(&mesh, Integrate::Exact, &camera, &sharp);
-    assert_images_close(
+    let exact = assert_images_close(
         "cellproj-sharp-tf-exact",
         &exact,
         &expected,
         bounds(3e-5, 2e-3),
+    );
+    row(
+        "step TF, opacity up to 0.8 (96x96)",
+        Some(&exact),
+        Some(&table),
     );
 }
 
@@ -272,11 +293,16 @@ fn flat_tets_and_eye_inside() {
         let expected = reference_image(&mesh, &camera, &tf);
         // A grid (right order): f32 only; measured rmse 4.0e-7 (outside) and 1.5e-7 (inside,
         // the near-plane tets' segments start at the eye), max 1.2e-5; bounds about 5x.
-        assert_images_close(
+        let m = assert_images_close(
             &format!("cellproj-flat-{name}"),
             &frame.image,
             &expected,
             bounds(2e-6, 1e-4),
+        );
+        row(
+            &format!("flat tets added to a grid, eye {name}"),
+            Some(&m),
+            None,
         );
     }
 }
@@ -316,7 +342,8 @@ fn box_with_hole_matches_reference() {
     let expected = reference_image(&mesh, &camera, &tf);
     let got = render(&mesh, Integrate::Exact, &camera, &tf);
     // As the gaussians grid (f32 only): about 2x and 5x the measured figures.
-    assert_images_close("cellproj-hole", &got, &expected, bounds(1e-5, 2e-3));
+    let m = assert_images_close("cellproj-hole", &got, &expected, bounds(1e-5, 2e-3));
+    row("box with a hole (non-convex)", Some(&m), None);
 }
 
 #[test]

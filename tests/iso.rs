@@ -115,6 +115,13 @@ fn run(
         .expect("reference frame");
     let e = compare(&image, &expected, depth_tol, angle_tol_deg);
     eprintln!("{name}: {e:?}\n{timings}");
+    let row = [
+        name.to_string(),
+        format!("{} of {} hits", e.mismatches, e.matched),
+        format!("{:.1e} / {:.1e}", e.depth_mean, e.depth_max),
+        format!("{} ({angle_tol_deg}°)", e.angle_outliers),
+    ];
+    common::readme_row("iso", &row);
     let dir = common::test_output_dir();
     image
         .color

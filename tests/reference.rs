@@ -136,6 +136,18 @@ fn max_pixel_diff(a: &[[f64; 4]], b: &[[f64; 4]]) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// The README's row of a check: what it measures, the worst difference found, the bound.
+fn row(check: &str, worst: f64, bound: f64) {
+    common::readme_row(
+        "reference",
+        &[
+            check.to_string(),
+            format!("{worst:.1e}"),
+            format!("{bound:.0e}"),
+        ],
+    );
+}
+
 // ---------------------------------------------------------------------------------------------
 // 1. Beer-Lambert
 
@@ -169,6 +181,7 @@ fn beer_lambert_in_a_single_tet() {
     // L comes from a few roundings (~1e-16 relative) and alpha = 1 - exp(-tau L) with
     // tau L < 2: anything above 1e-12 is a real error, not rounding.
     eprintln!("single tet: worst difference {worst:.1e}");
+    row("Beer-Lambert: constant field, a single tet", worst, 1e-12);
     assert!(worst < 1e-12, "single tet: {worst:e}");
 }
 
@@ -233,6 +246,11 @@ fn constant_extinction_with_colour_linear_in_s() {
     // Closed form vs the exact integrator in f64: only rounding (~1e-15) differs; the brief's
     // 1e-8 is far above it, 1e-12 still catches any modelling error.
     eprintln!("colour linear in s: worst difference {worst:.1e}");
+    row(
+        "Linear field: colour linear in s, closed form",
+        worst,
+        1e-12,
+    );
     assert!(worst < 1e-12, "{worst:e}");
 }
 
@@ -262,6 +280,11 @@ fn extinction_linear_in_s_with_constant_colour() {
     }
     // As above: only rounding separates the two.
     eprintln!("tau linear in s: worst difference {worst:.1e}");
+    row(
+        "Linear field: extinction linear in s, closed form",
+        worst,
+        1e-12,
+    );
     assert!(worst < 1e-12, "{worst:e}");
 }
 
@@ -348,6 +371,8 @@ fn converges_to_brute_force_stepping_on_random_meshes() {
         }
     }
     eprintln!("brute force: 1e5 steps {worst_coarse:.2e}, 2e5 steps {worst_fine:.2e}");
+    let what = "Several control points crossed inside one tet, vs brute-force stepping (1e5 steps)";
+    row(what, worst_coarse, 1e-7);
     // Midpoint stepping is second order here (extinction is continuous, see jittered_grid):
     // error = K dt^2 with dt = t_max / steps ~ 3e-5 at 1e5 steps. A priori K <= ~3000 (about
     // 30 kinks per ray at tet faces and isovalues, each costing dt^2 / 8 times a jump in
@@ -395,6 +420,11 @@ fn translation_far_from_the_origin_changes_nothing() {
         let got = trace_pixels(&r, &cam, &tf);
         let diff = max_pixel_diff(&got, &base);
         eprintln!("offset {offset:e}: max difference {diff:.2e}");
+        row(
+            &format!("Mesh and camera translated by {offset:.1e}"),
+            diff,
+            bound,
+        );
         assert!(diff < bound, "offset {offset:e}: {diff:e}");
         // The rendered image is the f32 rounding of the same rays (6e-8 relative).
         let image = r.render_image(&cam, &tf, None).unwrap();
@@ -439,6 +469,7 @@ fn refining_a_linear_field_changes_nothing() {
     assert!(a.iter().any(|p| p[3] > 0.5), "the view must see the mesh");
     let diff = max_pixel_diff(&a, &b);
     eprintln!("refinement: max difference {diff:.2e}");
+    row("Same linear field on a 2x refined mesh", diff, 1e-9);
     // Both meshes represent the same field exactly and each segment is integrated exactly, so
     // only rounding differs (~1e-15 per segment, ~40 segments): 1e-9 leaves a wide margin.
     assert!(diff < 1e-9, "{diff:e}");
@@ -510,6 +541,11 @@ fn rays_leave_and_reenter_non_convex_meshes() {
     }
     // As for the slab: lengths are sums of a few dozen rounded parameters.
     eprintln!("non-convex: worst difference {worst:.1e}");
+    row(
+        "Non-convex shapes (gap, hole): rays leave and re-enter",
+        worst,
+        1e-12,
+    );
     assert!(worst < 1e-12, "{worst:e}");
 }
 
@@ -557,6 +593,18 @@ fn eye_inside_sees_the_distance_to_the_wall() {
             }
         }
         eprintln!("eye {eye}: worst difference {worst_f64:.1e} (f64), {worst_f32:.1e} (image)");
+        let place = if cells == 4 {
+            "at a grid vertex"
+        } else if eye.x == -1.0 {
+            "on a boundary face"
+        } else {
+            "inside a tet"
+        };
+        row(
+            &format!("Eye {place}, distance to the wall"),
+            worst_f64,
+            1e-12,
+        );
         // f64: rounding only (see Beer-Lambert). The image is f32: 6e-8 relative, < 1e-7.
         assert!(worst_f64 < 1e-12, "cells {cells}, eye {eye}: {worst_f64:e}");
         assert!(worst_f32 < 1e-7, "cells {cells}, eye {eye}: {worst_f32:e}");
@@ -614,6 +662,11 @@ fn head_on_rays_through_grid_edges_and_vertices_leave_no_gap() {
     }
     // A gap at a shared face would lose a whole cell (alpha error ~0.1); rounding gives 1e-15.
     eprintln!("head-on grid: worst difference {worst:.1e}");
+    row(
+        "Rays through shared edges and vertices (grid head-on)",
+        worst,
+        1e-12,
+    );
     assert!(worst < 1e-12, "{worst:e}");
 }
 

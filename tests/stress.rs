@@ -448,15 +448,14 @@ fn readme_cell(m: &tetvr::ErrorMetrics, max_rmse: f64) -> String {
     format!("{rmse} ({max_rmse:.0e}){holes}")
 }
 
-/// Writes the README's row for `case` (a cell per mode of [`MODES`], then the NaN pixels) to
-/// `target/test-output/stress/`, where `scripts/stress-table.py` collects the rows into the
-/// README's table: the table is what this suite measured, never typed by hand.
+/// Writes the README's row for `case`: a cell per mode of [`MODES`], then the NaN pixels
+/// ([`common::readme_row`]).
 fn write_readme_row(case: &str, cells: &[String], nan: usize) {
-    let dir = common::test_output_dir().join("stress");
-    std::fs::create_dir_all(&dir).unwrap();
-    let row = format!("| {case} | {} | {nan} |\n", cells.join(" | "));
-    let file = case.replace(|c: char| !c.is_ascii_alphanumeric(), "_");
-    std::fs::write(dir.join(format!("{file}.md")), row).unwrap();
+    let row: Vec<String> = std::iter::once(case.to_string())
+        .chain(cells.iter().cloned())
+        .chain([nan.to_string()])
+        .collect();
+    common::readme_row("stress", &row);
 }
 
 /// The grid with grid lines along the axes in `axes` moved so that cell layer 2 (of 0..6) is

@@ -3,17 +3,16 @@
 
 mod common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
-use glam::DVec3;
-use tetvr::gpu::{AdapterChoice, GpuContext, ShellSettings};
-use tetvr::tf::file::load_tf;
+use tetvr::gpu::{AdapterChoice, GpuContext};
+use tetvr::scene::{Mode, Scene};
 use tetvr::viewer::egui::{self, Event, PointerButton, Pos2, Vec2};
 use tetvr::viewer::{
     DEGREES_PER_POINT, NUMBERS_HEIGHT, PANEL_WIDTH, SETTLE, ViewMode, Viewer, ViewerSetup,
 };
-use tetvr::{Camera, Image, ModeSettings, View};
+use tetvr::{Camera, Image};
 
 const MESH: &str = "lox_post_subset_tet.vtk";
 
@@ -30,21 +29,24 @@ struct Harness {
 }
 
 impl Harness {
-    /// The lox subset as `tetvr render` sets it up by default: viridis over the data's range,
-    /// unit distance 1/100 of the diagonal, the iso view, on the software adapter.
-    fn new(mode: ModeSettings) -> Self {
-        let mesh = common::lox();
-        let (lo, hi) = mesh.bounds();
-        let range = mesh.active_array().and_then(|a| a.range()).unwrap();
-        let tf = load_tf("viridis", range, mesh.diagonal() / 100.0).unwrap();
-        let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 160, 136);
+    /// The lox subset in `mode`, set up as `tetvr view` sets up its scene (every other
+    /// setting `tetvr render`'s default: viridis, the iso view, a white background), with a
+    /// 160 x 136 view, on the software adapter.
+    fn new(mode: Mode) -> Self {
+        let mut scene = Scene::new(common::asset(MESH));
+        (scene.mode, scene.size) = (mode, [160, 136]);
+        let mesh = scene.load_mesh(&Default::default()).unwrap().mesh;
+        let tf = scene.transfer_function(&mesh).unwrap();
+        let camera = scene.camera(&mesh).unwrap();
+        let mode = scene.mode_settings(&mesh, &tf).unwrap();
         let gpu = GpuContext::new(AdapterChoice::Software).expect("lavapipe");
         let setup = ViewerSetup {
             mesh,
             tf,
             camera,
             mode,
-            background: [1.0; 3],
+            background: scene.background.expect("white"),
+            scene,
         };
         let mut h = Self {
             ctx: egui::Context::default(),
@@ -122,7 +124,7 @@ fn azimuth(c: &Camera) -> f64 {
 /// its elevation and distance, and the settled frame is rendered from there.
 #[test]
 fn a_drag_orbits_by_the_expected_angle() {
-    let mut h = Harness::new(ModeSettings::Shells(ShellSettings::default()));
+    let mut h = Harness::new(Mode::Shells);
     let before = h.viewer.controller.camera;
     let centre = h.view_centre();
     h.drag(PointerButton::Primary, centre, Vec2::new(100.0, 0.0), 10);
@@ -146,7 +148,7 @@ fn a_drag_orbits_by_the_expected_angle() {
 /// A right drag pans: eye and target move by the same vector, across the view.
 #[test]
 fn a_right_drag_pans() {
-    let mut h = Harness::new(ModeSettings::Shells(ShellSettings::default()));
+    let mut h = Harness::new(Mode::Shells);
     let before = h.viewer.controller.camera;
     let centre = h.view_centre();
     h.drag(PointerButton::Secondary, centre, Vec2::new(30.0, 20.0), 3);
@@ -164,7 +166,7 @@ fn a_right_drag_pans() {
 /// different picture of the same view (every mode differs from shells somewhere).
 #[test]
 fn mode_switches_keep_the_camera() {
-    let mut h = Harness::new(ModeSettings::Shells(ShellSettings::default()));
+    let mut h = Harness::new(Mode::Shells);
     let centre = h.view_centre();
     h.drag(PointerButton::Primary, centre, Vec2::new(-40.0, 25.0), 4);
     h.settle();
@@ -187,7 +189,7 @@ fn mode_switches_keep_the_camera() {
 /// spans that point's scalars, so its tets gain opacity).
 #[test]
 fn editing_a_control_point_through_the_ui_changes_the_tf_and_the_picture() {
-    let mut h = Harness::new(ModeSettings::Shells(ShellSettings::default()));
+    let mut h = Harness::new(Mode::Shells);
     let before_tf = h.viewer.tf.clone();
     let (_, before) = h.shown();
     let i = 1;
@@ -210,22 +212,35 @@ fn editing_a_control_point_through_the_ui_changes_the_tf_and_the_picture() {
     assert!(rmse > 1e-3, "the picture barely changed: RMSE {rmse}");
 }
 
-/// The 3D view's pixels equal `tetvr render`'s, byte for byte, for the same camera, mode and
-/// TF: the viewer renders through the same renderers and composites the same way. Checked
-/// after an orbit (so the camera is not a default one) for shells, iso and raycast.
+/// The 3D view's pixels equal `tetvr render`'s, byte for byte, for the scene file the viewer
+/// saves: the viewer renders through the same renderers and composites the same way, and the
+/// scene holds its camera, view size, TF, mode and settings exactly. Checked after an orbit
+/// and a TF edit (so neither is a default) for shells, raycast and iso.
 #[test]
-fn the_views_pixels_equal_tetvr_renders() {
-    for (mode, settings) in [
-        ("shells", ModeSettings::Shells(ShellSettings::default())),
-        ("raycast", ModeSettings::Raycast(Default::default())),
-        ("iso", iso_mode()),
-    ] {
-        let mut h = Harness::new(settings);
+fn the_views_pixels_equal_tetvr_renders_for_the_same_scene_file() {
+    for mode in [Mode::Shells, Mode::Raycast, Mode::Iso] {
+        let mut h = Harness::new(mode);
         let centre = h.view_centre();
         h.drag(PointerButton::Primary, centre, Vec2::new(23.0, -11.0), 2);
+        let handle = h.viewer.tf_editor.handle_position(&h.viewer.tf, 1).unwrap();
+        h.drag(PointerButton::Primary, handle, Vec2::new(0.0, -20.0), 2);
         h.settle();
         let (camera, image) = h.shown();
-        let png = render_with_the_cli(&camera, mode, &format!("view-{mode}.png"));
+        let name = format!("view-{mode:?}");
+        let dir = common::test_output_dir();
+        let scene = dir.join(format!("{name}.json"));
+        h.viewer.save_scene(&scene).unwrap();
+        let png = dir.join(format!("{name}.png"));
+        let status = Command::new(env!("CARGO_BIN_EXE_tetvr"))
+            .env("TETVR_ADAPTER", "software")
+            .arg("render")
+            .arg("--scene")
+            .arg(&scene)
+            .arg("-o")
+            .arg(&png)
+            .status()
+            .expect("tetvr runs");
+        assert!(status.success());
         let cli = image::open(&png).unwrap().to_rgba8();
         assert_eq!((cli.width(), cli.height()), (camera.width, camera.height));
         let differing = cli
@@ -237,46 +252,36 @@ fn the_views_pixels_equal_tetvr_renders() {
         assert_eq!(
             differing,
             0,
-            "{mode}: {differing} bytes differ from {}",
+            "{name}: {differing} bytes differ from {}",
             png.display()
         );
     }
 }
 
-/// Iso at the CLI's default isovalue (the middle of the range), flat shading.
-fn iso_mode() -> ModeSettings {
-    let range = common::lox()
-        .active_array()
-        .and_then(|a| a.range())
+/// A scene saved and loaded back gives the same camera and TF, and a scene of another mesh
+/// is refused with the file and what to do named.
+#[test]
+fn scenes_load_back_and_another_mesh_is_refused() {
+    let mut h = Harness::new(Mode::Shells);
+    let centre = h.view_centre();
+    h.drag(PointerButton::Primary, centre, Vec2::new(50.0, 10.0), 2);
+    let dir = common::test_output_dir();
+    let path = dir.join("view-load-back.json");
+    h.viewer.save_scene(&path).unwrap();
+    let (camera, tf) = (h.viewer.controller.camera, h.viewer.tf.clone());
+    h.viewer.controller.reset();
+    h.viewer.load_scene(&path).unwrap();
+    assert_eq!(h.viewer.controller.camera.eye, camera.eye);
+    assert_eq!(h.viewer.tf, tf);
+    let other = dir.join("view-other-mesh.json");
+    Scene::new(common::asset("bluntfin_tet.vtu"))
+        .save(&other)
         .unwrap();
-    ModeSettings::Iso(tetvr::gpu::IsoSettings {
-        isovalues: vec![(0.5 * (range.0 + range.1), [0.0; 3])],
-        ..Default::default()
-    })
-}
-
-fn vec3(v: DVec3) -> String {
-    format!("{},{},{}", v.x, v.y, v.z)
-}
-
-/// `tetvr render` of the lox subset with `camera` (Rust prints f64 so it parses back
-/// exactly) in `mode`, on the software adapter; returns the PNG.
-fn render_with_the_cli(camera: &Camera, mode: &str, name: &str) -> PathBuf {
-    let out = common::test_output_dir().join(name);
-    let status = Command::new(env!("CARGO_BIN_EXE_tetvr"))
-        .env("TETVR_ADAPTER", "software")
-        .arg("render")
-        .arg(common::asset(MESH))
-        .args(["--mode", mode, "--eye", &vec3(camera.eye)])
-        .args(["--target", &vec3(camera.target), "--up", &vec3(camera.up)])
-        .args(["--fov", &camera.fov_y_deg.to_string()])
-        .args(["--size", &format!("{}x{}", camera.width, camera.height)])
-        .arg("-o")
-        .arg(&out)
-        .status()
-        .expect("tetvr runs");
-    assert!(status.success());
-    out
+    let message = h.viewer.load_scene(&other).unwrap_err().to_string();
+    assert!(
+        message.contains("view-other-mesh.json") && message.contains("tetvr view --scene"),
+        "{message}"
+    );
 }
 
 /// The program `name` on the PATH, if any.

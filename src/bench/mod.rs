@@ -93,6 +93,8 @@ pub enum ViewKind {
     /// The outside view with the eye at 0.3 of its distance: much of the mesh is out of view
     /// (where frustum culling matters).
     Zoomed,
+    /// The camera of a user's scene file (`tetvr bench --scene`).
+    Scene,
 }
 
 impl ViewKind {
@@ -102,12 +104,15 @@ impl ViewKind {
             Self::Grazing => "grazing",
             Self::Inside => "inside",
             Self::Zoomed => "zoomed",
+            Self::Scene => "scene",
         }
     }
 
-    /// The camera of this view on the box `[lo, hi]`.
-    pub fn camera(self, lo: DVec3, hi: DVec3, width: u32, height: u32) -> Camera {
-        match self {
+    /// The camera of this view on the box `[lo, hi]`; `None` for [`Self::Scene`], whose camera
+    /// the scene file gives.
+    pub fn camera(self, lo: DVec3, hi: DVec3, width: u32, height: u32) -> Option<Camera> {
+        Some(match self {
+            Self::Scene => return None,
             Self::Outside => Camera::framing(lo, hi, View::ISO, 1.0, 30.0, width, height),
             Self::Zoomed => Camera::framing(lo, hi, View::ISO, 0.3, 30.0, width, height),
             Self::Grazing => {
@@ -128,12 +133,12 @@ impl ViewKind {
                     height,
                 }
             }
-        }
+        })
     }
 }
 
 /// Where a scene's mesh comes from.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum Source {
     /// A file of the data folder (`--data`); `assets/` is tried too, for the bundled mesh.
     Data(&'static str),
@@ -144,6 +149,9 @@ pub enum Source {
     /// A data file rendered after [`Renderer::update_positions`] moved it by a deformation
     /// (amplitude, phase), against the reference of the deformed mesh.
     Deformed(&'static str, Deformation, f64, f64),
+    /// A user's scene file: its mesh, array, transfer function and camera (one view,
+    /// [`ViewKind::Scene`]) at its size; the iso configurations take its first isovalue.
+    User(Box<tetvr::Scene>),
 }
 
 /// The transfer function of a scene, over its mesh's scalar range.
@@ -207,20 +215,32 @@ impl Look {
 }
 
 /// A scene of the catalogue: a name, where its mesh comes from, its transfer function and its
-/// views.
+/// views (a user's scene has its own transfer function and camera: [`Source::User`]).
 #[derive(Clone, Debug)]
 pub struct SceneSpec {
-    pub name: &'static str,
+    pub name: String,
     pub source: Source,
     pub look: Look,
     pub views: &'static [ViewKind],
 }
 
+impl SceneSpec {
+    /// The scene of a user's scene file, named `name`.
+    pub fn user(name: String, scene: tetvr::Scene) -> Self {
+        Self {
+            name,
+            source: Source::User(Box::new(scene)),
+            look: Look::Viridis,
+            views: &[ViewKind::Scene],
+        }
+    }
+}
+
 /// The scenes of the full bench, in order of size within each group.
 pub fn catalogue() -> Vec<SceneSpec> {
     use ViewKind::*;
-    let spec = |name, source, views| SceneSpec {
-        name,
+    let spec = |name: &str, source, views| SceneSpec {
+        name: name.into(),
         source,
         look: Look::Viridis,
         views,
@@ -310,52 +330,14 @@ pub struct Scene {
 }
 
 impl Scene {
-    /// Loads or generates the mesh of `spec`, with the `viridis` TF over its range and the
-    /// cameras of its views at `size`.
+    /// Loads or generates the mesh of `spec`, with its look's TF over its range and the
+    /// cameras of its views at `size` (a user's scene: its own TF, camera and size).
     pub fn load(spec: &SceneSpec, data: &Path, size: (u32, u32)) -> Result<Self, BenchError> {
         let scene_err = |message: String| BenchError::Scene {
-            scene: spec.name.into(),
+            scene: spec.name.clone(),
             message,
         };
-        let file =
-            |name: &str| -> Result<TetMesh, BenchError> {
-                let candidates = [data.join(name), Path::new("assets").join(name)];
-                let path = candidates.iter().find(|p| p.exists()).ok_or_else(|| {
-                    BenchError::MissingData {
-                        scene: spec.name.into(),
-                        path: candidates[0].display().to_string(),
-                    }
-                })?;
-                io::load(path)
-                    .map(|l| l.mesh)
-                    .map_err(|source| BenchError::Load {
-                        scene: spec.name.into(),
-                        source,
-                    })
-            };
-        let generated =
-            |r: Result<TetMesh, generate::GenerateError>| r.map_err(|e| scene_err(e.to_string()));
-        let (mesh, deformed) = match spec.source {
-            Source::Data(name) => (file(name)?, None),
-            Source::Grid(tets) => (
-                generated(generate::grid(
-                    Field::Gaussians,
-                    generate::cells_for_tet_count(tets),
-                    "gaussians",
-                ))?,
-                None,
-            ),
-            Source::Hole(tets) => (
-                generated(generate::shapes::box_with_hole(tets, Field::Gaussians))?,
-                None,
-            ),
-            Source::Deformed(name, deformation, amplitude, phase) => {
-                let mesh = file(name)?;
-                let (lo, hi) = mesh.bounds();
-                let moved = deformation.apply(mesh.positions(), lo, hi, amplitude, phase);
-                (mesh, Some(moved))
-            }
-        };
+        let (mesh, deformed) = load_mesh(spec, data)?;
         let deformed_mesh = match &deformed {
             Some(p) => {
                 let mut m = mesh.clone();
@@ -370,17 +352,28 @@ impl Scene {
             .active_array()
             .and_then(|a| a.range())
             .ok_or_else(|| scene_err("the mesh has no scalar array".into()))?;
-        let tf = spec.look.transfer_function(&mesh).map_err(scene_err)?;
+        let mut isovalue = 0.5 * (range.0 + range.1);
         let (lo, hi) = truth_mesh.bounds();
-        let views = spec
-            .views
-            .iter()
-            .map(|&v| (v, v.camera(lo, hi, size.0, size.1)))
-            .collect();
+        let (tf, views) = match &spec.source {
+            Source::User(user) => {
+                let user_err = |e: tetvr::scene::SceneError| scene_err(e.to_string());
+                isovalue = user.settings.iso.first().copied().unwrap_or(isovalue);
+                let camera = user.camera(truth_mesh).map_err(user_err)?;
+                let tf = user.transfer_function(&mesh).map_err(user_err)?;
+                (tf, vec![(ViewKind::Scene, camera)])
+            }
+            _ => {
+                let tf = spec.look.transfer_function(&mesh).map_err(scene_err)?;
+                let views = (spec.views.iter())
+                    .filter_map(|&v| Some((v, v.camera(lo, hi, size.0, size.1)?)))
+                    .collect();
+                (tf, views)
+            }
+        };
         Ok(Self {
-            name: spec.name.into(),
+            name: spec.name.clone(),
             hash: mesh_hash(truth_mesh),
-            isovalue: 0.5 * (range.0 + range.1),
+            isovalue,
             mesh,
             deformed,
             deformed_mesh,
@@ -398,6 +391,60 @@ impl Scene {
     pub fn iso_color(&self) -> [f32; 3] {
         self.tf.eval(self.isovalue).color.map(|c| c as f32)
     }
+}
+
+/// The mesh of `spec`, and for a deforming scene the positions each frame moves it to. Data
+/// files are looked for in `data`, then in the bundled `assets/` (of the source tree the
+/// binary was built from, so that `tetvr bench --quick` runs from any folder).
+fn load_mesh(spec: &SceneSpec, data: &Path) -> Result<(TetMesh, Option<Vec<DVec3>>), BenchError> {
+    let scene_err = |message: String| BenchError::Scene {
+        scene: spec.name.clone(),
+        message,
+    };
+    let load_err = |source| BenchError::Load {
+        scene: spec.name.clone(),
+        source,
+    };
+    let file = |name: &str| -> Result<TetMesh, BenchError> {
+        let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets");
+        let candidates = [data.join(name), assets.join(name)];
+        let path =
+            candidates
+                .iter()
+                .find(|p| p.exists())
+                .ok_or_else(|| BenchError::MissingData {
+                    scene: spec.name.clone(),
+                    path: candidates[0].display().to_string(),
+                })?;
+        io::load(path).map(|l| l.mesh).map_err(load_err)
+    };
+    let generated =
+        |r: Result<TetMesh, generate::GenerateError>| r.map_err(|e| scene_err(e.to_string()));
+    Ok(match &spec.source {
+        Source::Data(name) => (file(name)?, None),
+        Source::Grid(tets) => (
+            generated(generate::grid(
+                Field::Gaussians,
+                generate::cells_for_tet_count(*tets),
+                "gaussians",
+            ))?,
+            None,
+        ),
+        Source::Hole(tets) => (
+            generated(generate::shapes::box_with_hole(*tets, Field::Gaussians))?,
+            None,
+        ),
+        Source::Deformed(name, deformation, amplitude, phase) => {
+            let mesh = file(name)?;
+            let (lo, hi) = mesh.bounds();
+            let moved = deformation.apply(mesh.positions(), lo, hi, *amplitude, *phase);
+            (mesh, Some(moved))
+        }
+        Source::User(user) => {
+            let loaded = user.load_mesh(&io::ReadLimits::default());
+            (loaded.map_err(|e| scene_err(e.to_string()))?.mesh, None)
+        }
+    })
 }
 
 /// FNV-1a of a mesh's positions, tets and active scalars.
@@ -878,7 +925,7 @@ impl Plan {
         self.scenes
             .iter()
             .map(|s| {
-                let configs = self.configs.iter().filter(|c| c.runs_on(s.name)).count();
+                let configs = self.configs.iter().filter(|c| c.runs_on(&s.name)).count();
                 (s.views.len() * configs) as u64
             })
             .sum()
@@ -906,7 +953,7 @@ pub fn run(
     for spec in &plan.scenes {
         let skip = |report: &mut Report, config: &Config, view: &str, reason: &str| {
             report.skipped.push(Skipped {
-                scene: spec.name.into(),
+                scene: spec.name.clone(),
                 view: view.into(),
                 mode: config.mode.into(),
                 setting: config.setting.clone(),
@@ -916,7 +963,7 @@ pub fn run(
         // GPU configurations first: the reference runs only if one of them could render.
         let mut runnable: Vec<&Config> = Vec::new();
         for c in &plan.configs {
-            if !c.runs_on(spec.name) {
+            if !c.runs_on(&spec.name) {
                 continue;
             }
             if c.gpu && ctx.is_none() {
@@ -1206,7 +1253,7 @@ mod tests {
     #[test]
     fn catalogue_names_are_unique_and_quick_scenes_exist() {
         let c = catalogue();
-        let mut names: Vec<_> = c.iter().map(|s| s.name).collect();
+        let mut names: Vec<_> = c.iter().map(|s| s.name.as_str()).collect();
         names.sort();
         names.dedup();
         assert_eq!(names.len(), c.len());

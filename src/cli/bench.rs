@@ -10,6 +10,7 @@ use crate::bench::{
 };
 use indicatif::{ProgressBar, ProgressStyle};
 use tetvr::gpu::{AdapterChoice, GpuContext, GpuError};
+use tetvr::scene::Scene;
 
 use super::BenchArgs;
 use super::commands::CliError;
@@ -100,13 +101,19 @@ fn selected_configs(args: &BenchArgs) -> Result<Vec<bench::Config>, CliError> {
 /// The scenes `--scenes` names; without it, the quick ones with `--quick`, else every scene
 /// but those run only on request. An unknown scene lists the known ones.
 fn selected_scenes(args: &BenchArgs) -> Result<Vec<bench::SceneSpec>, CliError> {
+    if let Some(path) = &args.scene {
+        return Ok(vec![user_scene(path, args.size)?]);
+    }
     let catalogue = bench::catalogue();
     if let Some(s) = args
         .scenes
         .iter()
         .find(|s| !catalogue.iter().any(|c| c.name == s.as_str()))
     {
-        let names = catalogue.iter().map(|s| s.name).collect::<Vec<_>>();
+        let names = catalogue
+            .iter()
+            .map(|s| s.name.as_str())
+            .collect::<Vec<_>>();
         return Err(BenchError::UnknownScene(s.clone(), names.join(", ")).into());
     }
     let wanted = |name: &str| {
@@ -118,7 +125,19 @@ fn selected_scenes(args: &BenchArgs) -> Result<Vec<bench::SceneSpec>, CliError> 
             !ON_REQUEST_SCENES.contains(&name)
         }
     };
-    Ok(catalogue.into_iter().filter(|s| wanted(s.name)).collect())
+    Ok(catalogue.into_iter().filter(|s| wanted(&s.name)).collect())
+}
+
+/// The scene of the file at `path` at `size` (its own without), named as the file.
+fn user_scene(path: &Path, size: Option<(u32, u32)>) -> Result<bench::SceneSpec, CliError> {
+    let mut scene = Scene::load(path)?;
+    if let Some((w, h)) = size {
+        scene.size = [w, h];
+    }
+    let name = path
+        .file_stem()
+        .map_or("scene".into(), |s| s.to_string_lossy());
+    Ok(bench::SceneSpec::user(name.into_owned(), scene))
 }
 
 /// The GPU the bench measures on, or `None` (said on stderr) without an adapter.

@@ -3,31 +3,28 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use clap::ArgMatches;
 use indicatif::{ProgressBar, ProgressStyle};
-use tetvr::camera::{Camera, CameraError, View};
-use tetvr::cpu::raycast::{self as cpu_raycast, CpuRaycastSettings};
+use tetvr::camera::{Camera, CameraError};
 use tetvr::gpu::cellproj::sort::sort_check;
-use tetvr::gpu::raycast::{Entry, Segments};
-use tetvr::gpu::{
-    AdapterChoice, CellProjSettings, GpuContext, GpuError, Integrate, IsoSettings, RaycastSettings,
-    Sampler, ShellSettings, Skip,
-};
+use tetvr::gpu::{AdapterChoice, GpuContext, GpuError};
 use tetvr::image::{Image, ImageError};
 use tetvr::io::{self, LoadError, Loaded};
 use tetvr::mesh::MeshError;
 use tetvr::mesh::name::shown_list;
 use tetvr::mesh::stats::MeshStats;
-use tetvr::mode::{ModeSettings, ReferenceSettings, iso_surfaces};
+use tetvr::mode::{ModeSettings, ReferenceSettings};
 use tetvr::reference::ReferenceRenderer;
-use tetvr::reference::iso::Shading;
 use tetvr::render::{Progress, RenderError};
+use tetvr::scene::{Scene, SceneError};
 use tetvr::tf::TransferFunction;
 use tetvr::tf::file::{TfFileError, load_tf};
 use tetvr::{TetMesh, generate};
 
+use super::scene::{of_flags, resolve, warm_frames};
 use super::{
-    AnimateArgs, Cli, Command, CompareArgs, EntryArg, GenerateArgs, GenerateShape, InfoArgs,
-    IntegrateArg, IsoExportArgs, MeshArgs, Mode, RenderArgs, SamplerArg, ShadingArg,
+    AnimateArgs, Cli, Command, CompareArgs, GenerateArgs, GenerateShape, InfoArgs, IsoExportArgs,
+    MeshArgs, RenderArgs, RenderCommand,
 };
 
 /// Everything a command can fail with; each message says what to fix.
@@ -65,14 +62,23 @@ pub enum CliError {
     Export(#[from] tetvr::export::ExportError),
     #[error(transparent)]
     Bench(Box<crate::bench::BenchError>),
+    #[error(transparent)]
+    Scene(#[from] SceneError),
     #[cfg(feature = "viewer")]
     #[error(transparent)]
     Viewer(#[from] tetvr::viewer::ViewerError),
 }
 
-pub fn run(cli: Cli) -> Result<(), CliError> {
+/// Runs `cli`; `matches` are what clap parsed it from (they tell a flag given on the command
+/// line from its default).
+pub fn run(cli: Cli, matches: &ArgMatches) -> Result<(), CliError> {
     match cli.command {
-        Command::Render(args) => render(*args),
+        Command::Render(cmd) => match matches.subcommand_matches("render") {
+            Some(m) => render(*cmd, m),
+            None => Err(CliError::Usage(
+                "the render command's arguments are missing".into(),
+            )),
+        },
         Command::Animate(args) => animate(*args),
         Command::Info(args) => info(args),
         Command::IsoExport(args) => iso_export(args),
@@ -84,36 +90,49 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Generate(args) => generate(args),
         Command::Bench(args) => super::bench::bench(args),
         #[cfg(feature = "viewer")]
-        Command::View(args) => super::view::view(*args),
+        Command::View(cmd) => match matches.subcommand_matches("view") {
+            Some(m) => super::view::view(*cmd, m),
+            None => Err(CliError::Usage(
+                "the view command's arguments are missing".into(),
+            )),
+        },
     }
 }
 
-pub(super) fn load_mesh(args: &MeshArgs) -> Result<Loaded, CliError> {
-    let mut limits = io::ReadLimits::default();
-    if let Some(bytes) = args.max_memory {
-        limits.max_memory = bytes;
-    }
-    let mut loaded = io::load_with(&args.mesh, &limits)?;
+fn load_mesh(args: &MeshArgs) -> Result<Loaded, CliError> {
+    let mut loaded = io::load_with(&args.mesh, &limits(args))?;
     if let Some(name) = &args.array {
         loaded.mesh.set_active_array(name)?;
     }
     Ok(loaded)
 }
 
-fn render(args: RenderArgs) -> Result<(), CliError> {
-    if args.cellproj.sort_check && args.mode != Mode::Cellproj {
-        return Err(CliError::Usage(
-            "--sort-check checks the cell projection's order: use it with --mode cellproj".into(),
-        ));
+/// The reading limits of `--max-memory`.
+pub(super) fn limits(args: &MeshArgs) -> io::ReadLimits {
+    let mut limits = io::ReadLimits::default();
+    if let Some(bytes) = args.max_memory {
+        limits.max_memory = bytes;
     }
-    let Loaded { mesh, .. } = load_mesh(&args.mesh)?;
-    let tf = transfer_function(&args, &mesh)?;
-    let camera = camera(&args, &mesh)?;
+    limits
+}
+
+fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
+    let scene = resolve(&cmd, matches)?;
+    let args = &cmd.render;
+    let Loaded { mesh, .. } = scene.load_mesh(&limits(&args.mesh))?;
+    let tf = scene.transfer_function(&mesh)?;
+    let camera = scene.camera(&mesh)?;
 
     let start = Instant::now();
-    let (mode, gpu) = open_mode(&args, &mesh, &tf)?;
-    let (mode, bar) = with_row_bar(mode.resolve(gpu.as_ref()), camera.height);
-    let frame = mode.build(gpu.as_ref(), &mesh)?.render(&camera, &tf)?;
+    let (mode, gpu) = open_scene_mode(&scene, &mesh, &tf)?;
+    let (mode, bar) = match cmd.frames {
+        Some(_) => (mode.resolve(gpu.as_ref()), None),
+        None => with_row_bar(mode.resolve(gpu.as_ref()), camera.height),
+    };
+    let mut renderer = mode.build(gpu.as_ref(), &mesh)?;
+    let cold = Instant::now();
+    let frame = renderer.render(&camera, &tf)?;
+    let cold_ms = ms(cold);
     if let Some(bar) = bar {
         bar.finish_and_clear();
     }
@@ -123,19 +142,9 @@ fn render(args: RenderArgs) -> Result<(), CliError> {
         print!("{}", frame.timings);
     }
     let output = args.output.clone().unwrap_or_else(|| "tetvr.png".into());
-    image.save_png(&output, args.background.color())?;
+    image.save_png(&output, scene.background)?;
     if args.cellproj.sort_check {
-        let check = sort_check(&ReferenceRenderer::new(&mesh)?, &camera, 4);
-        let stem = output
-            .file_stem()
-            .and_then(|s| s.to_str())
-            .unwrap_or("tetvr");
-        let mask = output.with_file_name(format!("{stem}-sort-check.png"));
-        check.mask.save_png(&mask, Some([1.0; 3]))?;
-        println!(
-            "{check}\nwrote {} (red: a wrong pair, yellow: a wrong tie)",
-            mask.display()
-        );
+        write_sort_check(&mesh, &camera, &output)?;
     }
     println!(
         "wrote {} ({}x{}, {what}, {seconds:.2} s)",
@@ -143,55 +152,63 @@ fn render(args: RenderArgs) -> Result<(), CliError> {
         image.width,
         image.height
     );
+    if let Some(frames) = cmd.frames {
+        print!(
+            "{}",
+            warm_frames(renderer.as_mut(), &camera, &tf, frames, cold_ms)?
+        );
+    }
+    if let Some(path) = &cmd.save_scene {
+        scene.save(path)?;
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+/// Checks the cell projection's order along every 4th pixel's ray, prints the result and
+/// writes the mask of wrong pairs beside `output` (NAME-sort-check.png).
+fn write_sort_check(mesh: &TetMesh, camera: &Camera, output: &Path) -> Result<(), CliError> {
+    let check = sort_check(&ReferenceRenderer::new(mesh)?, camera, 4);
+    let stem = output
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .unwrap_or("tetvr");
+    let mask = output.with_file_name(format!("{stem}-sort-check.png"));
+    check.mask.save_png(&mask, Some([1.0; 3]))?;
+    println!(
+        "{check}\nwrote {} (red: a wrong pair, yellow: a wrong tie)",
+        mask.display()
+    );
     Ok(())
 }
 
 /// `--tf` over the active scalars' range, with `--unit-distance` if given.
-pub(super) fn transfer_function(
-    args: &RenderArgs,
-    mesh: &TetMesh,
-) -> Result<TransferFunction, CliError> {
-    let range = mesh
-        .active_array()
-        .and_then(|a| a.range())
-        .ok_or(MeshError::NoScalars)?;
-    let tf = load_tf(&args.tf, range, mesh.diagonal() / 100.0)?;
-    Ok(match args.unit_distance {
-        Some(u) => tf.with_unit_distance(u)?,
-        None => tf,
-    })
+fn transfer_function(args: &RenderArgs, mesh: &TetMesh) -> Result<TransferFunction, CliError> {
+    Ok(of_flags(args)?.transfer_function(mesh)?)
 }
 
-pub(super) fn camera(args: &RenderArgs, mesh: &TetMesh) -> Result<Camera, CliError> {
-    let (lo, hi) = mesh.bounds();
-    let view = View::parse(&args.view)?;
-    let mut c = Camera::framing(
-        lo,
-        hi,
-        view,
-        args.distance,
-        args.fov,
-        args.size.0,
-        args.size.1,
-    );
-    if let Some(target) = args.target {
-        c.eye += target - c.target;
-        c.target = target;
-    }
-    c.eye = args.eye.unwrap_or(c.eye);
-    c.up = args.up.unwrap_or(c.up);
-    c.validate()?;
-    Ok(c)
+/// The camera of `--view`, `--distance`, `--fov`, `--size`, `--eye`, `--target`, `--up`.
+fn camera(args: &RenderArgs, mesh: &TetMesh) -> Result<Camera, CliError> {
+    Ok(of_flags(args)?.camera(mesh)?)
 }
 
-/// The mode `args` ask for and the GPU it renders on, opened; `auto` off the GPU says in one
-/// line which path it took and why, a GPU mode by name without an adapter is an error.
+/// The mode `args` ask for and the GPU it renders on, opened (see [`open_scene_mode`]).
 fn open_mode(
     args: &RenderArgs,
     mesh: &TetMesh,
     tf: &TransferFunction,
 ) -> Result<(ModeSettings, Option<GpuContext>), CliError> {
-    let mode = mode_settings(args, mesh, tf)?;
+    open_scene_mode(&of_flags(args)?, mesh, tf)
+}
+
+/// The mode `scene` asks for and the GPU it renders on, opened; `auto` off the GPU says in one
+/// line which path it took and why, a GPU mode by name without an adapter is an error.
+fn open_scene_mode(
+    scene: &Scene,
+    mesh: &TetMesh,
+    tf: &TransferFunction,
+) -> Result<(ModeSettings, Option<GpuContext>), CliError> {
+    let mode = scene.mode_settings(mesh, tf)?;
     let gpu = mode.open_gpu(AdapterChoice::from_env())?;
     if let Some(note) = mode.note(gpu.as_ref()) {
         eprintln!("note: {note}");
@@ -213,114 +230,6 @@ fn with_row_bar(mode: ModeSettings, rows: u32) -> (ModeSettings, Option<Progress
         progress: Some(Progress::new(move |done, _| rows_done.set_position(done))),
     };
     (ModeSettings::Reference(settings), Some(bar))
-}
-
-/// The settings of `args.mode` from the command line.
-pub(super) fn mode_settings(
-    args: &RenderArgs,
-    mesh: &TetMesh,
-    tf: &TransferFunction,
-) -> Result<ModeSettings, CliError> {
-    let frustum = !args.shells.no_skip.contains(&Skip::Frustum);
-    if args.cellproj.entry.is_some() && args.mode != Mode::Raycast {
-        return Err(CliError::Usage(
-            "--entry belongs to --mode raycast (how its rays find where they enter the mesh)"
-                .into(),
-        ));
-    }
-    Ok(match args.mode {
-        Mode::Auto => ModeSettings::Auto(shell_settings(args)),
-        Mode::Reference => ModeSettings::Reference(ReferenceSettings::default()),
-        Mode::Shells => ModeSettings::Shells(shell_settings(args)),
-        Mode::Cellproj => ModeSettings::CellProj(CellProjSettings {
-            integrate: match args.cellproj.integrate {
-                None | Some(IntegrateArg::Table) => Integrate::Table,
-                Some(IntegrateArg::Exact) => Integrate::Exact,
-                Some(IntegrateArg::Partial) => {
-                    return Err(CliError::Usage(
-                        "--integrate partial belongs to --mode raycast; cellproj integrates \
-                         with table or exact"
-                            .into(),
-                    ));
-                }
-            },
-            table_size: args.cellproj.table_size,
-            table_lengths: (args.cellproj.table_size / 2).max(2),
-            frustum,
-        }),
-        Mode::Raycast => ModeSettings::Raycast(RaycastSettings {
-            segments: match args.cellproj.integrate {
-                None | Some(IntegrateArg::Partial) => Segments::Partial,
-                Some(IntegrateArg::Exact) => Segments::Exact,
-                Some(IntegrateArg::Table) => Segments::Table,
-            },
-            entry: match args.cellproj.entry {
-                None => Entry::default(),
-                Some(EntryArg::Lists) => Entry::Lists,
-                Some(EntryArg::Peel) => Entry::Peel,
-            },
-            table_size: args.cellproj.table_size,
-            table_lengths: (args.cellproj.table_size / 2).max(2),
-            ..RaycastSettings::default()
-        }),
-        Mode::RaycastCpu => ModeSettings::RaycastCpu(CpuRaycastSettings {
-            segments: cpu_ray_segments(args)?,
-            ..CpuRaycastSettings::default()
-        }),
-        Mode::Iso => {
-            let isovalues = if args.iso.is_empty() {
-                let (lo, hi) = mesh
-                    .active_array()
-                    .and_then(|a| a.range())
-                    .ok_or(MeshError::NoScalars)?;
-                vec![0.5 * (lo + hi)]
-            } else {
-                args.iso.clone()
-            };
-            ModeSettings::Iso(IsoSettings {
-                isovalues: iso_surfaces(tf, &isovalues),
-                shading: match args.shading {
-                    ShadingArg::Flat => Shading::Flat,
-                    ShadingArg::Smooth => Shading::Smooth,
-                },
-                frustum,
-                ..Default::default()
-            })
-        }
-    })
-}
-
-/// The CPU ray caster's `--integrate`: partial (the default) or exact.
-fn cpu_ray_segments(args: &RenderArgs) -> Result<cpu_raycast::Segments, CliError> {
-    match args.cellproj.integrate {
-        None | Some(IntegrateArg::Partial) => Ok(cpu_raycast::Segments::Partial),
-        Some(IntegrateArg::Exact) => Ok(cpu_raycast::Segments::Exact),
-        Some(IntegrateArg::Table) => Err(CliError::Usage(
-            "--mode raycast-cpu integrates with partial (the default) or exact; the 3D table \
-             belongs to --mode raycast and --mode cellproj"
-                .into(),
-        )),
-    }
-}
-
-fn shell_settings(args: &RenderArgs) -> ShellSettings {
-    let mut settings = ShellSettings::default();
-    if let Some(samples) = args.shells.samples {
-        settings.samples = samples;
-    }
-    settings.dz = args.shells.dz;
-    settings.slices_per_shell = args.shells.slices_per_shell;
-    for &skip in &args.shells.no_skip {
-        settings.skips.set(skip, false);
-    }
-    if let Some(t) = args.shells.ert_threshold {
-        settings.skips.ert_threshold = t;
-    }
-    settings.sampler = match args.shells.sampler {
-        SamplerArg::Raster => Sampler::Raster,
-        SamplerArg::Compute => Sampler::Compute,
-    };
-    settings
 }
 
 fn animate(args: AnimateArgs) -> Result<(), CliError> {
@@ -417,7 +326,7 @@ fn write_animation(
     Ok(output.display().to_string())
 }
 
-fn median(v: &mut [f64]) -> f64 {
+pub(super) fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
 }

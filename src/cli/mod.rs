@@ -3,12 +3,14 @@
 mod args;
 mod bench;
 mod commands;
+mod scene;
 #[cfg(feature = "viewer")]
 mod view;
 
 use std::path::PathBuf;
 
-use clap::{Parser, Subcommand, ValueEnum};
+use clap::{Parser, Subcommand};
+use tetvr::scene::{EntryChoice, Integration, Mode, SamplerChoice, ShadingChoice};
 
 pub use commands::run;
 
@@ -23,6 +25,8 @@ Examples:
   tetvr render assets/bluntfin_tet.vtu --mode raycast-cpu --integrate exact -o fin.png
   tetvr render mesh.vtk --array Pressure --tf my_tf.json --unit-distance 0.05 -o p.png
   tetvr render mesh.msh --eye 10,0,2 --target 0,0,0 --up 0,0,1 --fov 40 -o close.png
+  tetvr render mesh.vtu --view -y --tf shock --save-scene fin.json -o fin.png
+  tetvr render --scene examples/lox-scene.json --mode shells --frames 5 -o lox.png
   tetvr animate ../shared/data/kiefer_bracket_tet.vtk --deform twist --frames 24 -o bracket.gif
   tetvr info assets/bluntfin_tet.vtu
   tetvr compare a.png b.png -o diff.png
@@ -43,7 +47,7 @@ pub struct Cli {
 pub enum Command {
     /// Render a mesh to a PNG.
     #[command(after_help = EXAMPLES)]
-    Render(Box<RenderArgs>),
+    Render(Box<RenderCommand>),
     /// Render a mesh under an analytic deformation over time, to an animated GIF or PNGs.
     #[command(after_help = EXAMPLES)]
     Animate(Box<AnimateArgs>),
@@ -65,80 +69,24 @@ pub enum Command {
     /// deformation and watch the error against the exact reference (keys: see the README).
     #[cfg(feature = "viewer")]
     #[command(after_help = EXAMPLES)]
-    View(Box<ViewArgs>),
+    View(Box<ViewCommand>),
 }
 
+/// `view`: the render's flags (or a scene file) to open the window with.
 #[cfg(feature = "viewer")]
 #[derive(clap::Args, Debug)]
-pub struct ViewArgs {
+#[command(mut_arg("mesh", mesh_or_scene))]
+pub struct ViewCommand {
     /// The render options: mesh, mode and its settings, TF, camera; --size is the 3D view's
     /// size at start (the panels come beside and below it).
     #[command(flatten)]
     pub render: RenderArgs,
+    /// Scene file to open (as `tetvr render --scene`); flags given override what it says.
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
     /// Write the window's first full-quality frame, panels included, to this PNG and exit.
     #[arg(long)]
     pub screenshot: Option<PathBuf>,
-}
-
-/// Rendering modes.
-#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Mode {
-    /// The fastest path the machine has: `shells` on a hardware GPU, else `raycast-cpu` (which
-    /// measured faster than a software adapter); says which it took.
-    Auto,
-    /// Exact f64 CPU ray caster (the ground truth).
-    Reference,
-    /// Barycentric shell sampling on the GPU (Georgii & Westermann 2006).
-    Shells,
-    /// Per-pixel isosurfaces on the GPU (--iso values, coloured by --tf; --shading).
-    Iso,
-    /// Cell projection on the GPU in a power-sort order (--integrate, --table-size, --sort-check).
-    Cellproj,
-    /// Ray casting on compute shaders through face adjacency (Weiler et al. 2003; --integrate
-    /// partial, exact or table; --entry lists or peel); rays re-enter non-convex meshes, the eye
-    /// may be inside.
-    Raycast,
-    /// The same ray casting on the CPU (f32, every core), no adapter needed (--integrate).
-    RaycastCpu,
-}
-
-/// How cell projection integrates each tet's segment.
-#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum IntegrateArg {
-    /// cellproj, raycast: trilinear lookup in a 3D pre-integration table (front scalar, back
-    /// scalar, length).
-    Table,
-    /// Exactly for the piecewise-linear TF, per fragment or per ray segment.
-    Exact,
-    /// raycast: partial pre-integration (Espinha & Celes 2005), a TF-independent psi table.
-    Partial,
-}
-
-/// How the ray caster finds where rays enter the mesh.
-#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum EntryArg {
-    /// Per-pixel lists of every boundary-face hit, built in one pass.
-    Lists,
-    /// Depth peeling of the boundary faces (Bernardon et al. 2004), one layer per pass.
-    Peel,
-}
-
-/// Isosurface shading.
-#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ShadingArg {
-    /// One normal per tet (the gradient of the linear field): faceted, exact.
-    Flat,
-    /// Per-vertex gradients interpolated: smooth.
-    Smooth,
-}
-
-/// What samples the shells' slices.
-#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum SamplerArg {
-    /// The rasterizer: front faces per shell, slices blended into colour targets.
-    Raster,
-    /// Compute workgroups on 8 x 8 pixel tiles (meshes of one storage binding of records).
-    Compute,
 }
 
 #[derive(clap::Args, Debug)]
@@ -207,8 +155,37 @@ pub struct RenderArgs {
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub iso: Vec<f64>,
     /// iso: shading of the surfaces.
-    #[arg(long, value_enum, default_value_t = ShadingArg::Flat)]
-    pub shading: ShadingArg,
+    #[arg(long, value_enum, default_value_t = ShadingChoice::Flat)]
+    pub shading: ShadingChoice,
+}
+
+/// `render`: the render's flags, and a scene file to take them from or to save them to.
+#[derive(clap::Args, Debug)]
+#[command(mut_arg("mesh", mesh_or_scene))]
+pub struct RenderCommand {
+    #[command(flatten)]
+    pub render: RenderArgs,
+    /// Scene file (JSON: mesh, array, camera, transfer function, size, background, mode and
+    /// settings); flags given on the command line override what it says.
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    /// Write the scene of this render to a JSON file (paths relative to its folder).
+    #[arg(long)]
+    pub save_scene: Option<PathBuf>,
+    /// Render this many warm frames after the first (cold) one and print their median time and
+    /// the median of each stage.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    pub frames: Option<u32>,
+}
+
+/// `render`'s mesh argument: required unless `--scene` names the mesh (then it is empty).
+fn mesh_or_scene(arg: clap::Arg) -> clap::Arg {
+    arg.required(false)
+        .required_unless_present("scene")
+        .value_parser(|s: &str| Ok::<_, std::convert::Infallible>(PathBuf::from(s)))
+        .default_value("")
+        .hide_default_value(true)
+        .help("Mesh file (default: the scene's); see `tetvr info --help` for the formats")
 }
 
 #[derive(clap::Args, Debug)]
@@ -250,8 +227,8 @@ pub struct ShellArgs {
     #[arg(long)]
     pub ert_threshold: Option<f32>,
     /// shells: what samples the slices; both give the same picture to rounding.
-    #[arg(long, value_enum, default_value_t = SamplerArg::Raster)]
-    pub sampler: SamplerArg,
+    #[arg(long, value_enum, default_value_t = SamplerChoice::Raster)]
+    pub sampler: SamplerChoice,
 }
 
 #[derive(clap::Args, Debug)]
@@ -274,11 +251,11 @@ pub struct CellProjArgs {
     /// cellproj and raycast(-cpu): segment integration (default: table for cellproj, partial
     /// for the ray casters).
     #[arg(long, value_enum)]
-    pub integrate: Option<IntegrateArg>,
+    pub integrate: Option<Integration>,
     /// raycast: how rays find where they enter the mesh (the same picture either way; default
     /// lists).
     #[arg(long, value_enum)]
-    pub entry: Option<EntryArg>,
+    pub entry: Option<EntryChoice>,
     /// cellproj, raycast: pre-integration table samples per scalar axis (and half as many
     /// lengths).
     #[arg(long, default_value_t = 128)]
@@ -314,7 +291,8 @@ pub struct CompareArgs {
 Examples:
   tetvr bench --quick                       # lox subset and a 10k grid at 128x128, 3 runs
   tetvr bench --out docs/bench              # the full bench (8 minutes on lavapipe, 2 cores)
-  tetvr bench --scenes bluntfin,grid-1m --modes shells,reference --runs 5")]
+  tetvr bench --scenes bluntfin,grid-1m --modes shells,reference --runs 5
+  tetvr bench --scene examples/lox-scene.json --quick --out lox-bench")]
 pub struct BenchArgs {
     /// The smoke-test bench: two small scenes, two shells settings, iso and the reference.
     #[arg(long)]
@@ -325,13 +303,18 @@ pub struct BenchArgs {
     /// Timed frames per measurement (default 3 with --quick, else 5).
     #[arg(long)]
     pub runs: Option<usize>,
-    /// Image size (default 128x128 with --quick, else 256x256).
+    /// Image size (default 128x128 with --quick, else 256x256; with --scene, the scene's).
     #[arg(long, value_parser = args::parse_size)]
     pub size: Option<(u32, u32)>,
     /// Scenes to run, comma separated (default: all but grid-35m, which runs when named; or
     /// the quick ones with --quick); an unknown name lists them.
     #[arg(long, value_delimiter = ',')]
     pub scenes: Vec<String>,
+    /// Bench your own scene file instead of the catalogue (see `tetvr render --scene`): every
+    /// mode and setting of the bench (the quick ones with --quick) on its mesh, transfer
+    /// function, camera and size (--size overrides it).
+    #[arg(long, conflicts_with = "scenes")]
+    pub scene: Option<PathBuf>,
     /// Modes to run, comma separated (default: all).
     #[arg(long, value_delimiter = ',')]
     pub modes: Vec<String>,

@@ -1,36 +1,40 @@
-//! `tetvr view`: the render options turned into the viewer's start.
+//! `tetvr view`: the render options (or a scene file) turned into the viewer's start.
 
+use clap::ArgMatches;
 use tetvr::io::Loaded;
 use tetvr::viewer::{ViewerSetup, WindowOptions};
 
-use super::ViewArgs;
-use super::commands::{CliError, camera, load_mesh, mode_settings, transfer_function};
+use super::ViewCommand;
+use super::commands::{CliError, limits};
+use super::scene::resolve_flags;
 
-pub fn view(args: ViewArgs) -> Result<(), CliError> {
-    let r = &args.render;
+pub fn view(cmd: ViewCommand, matches: &ArgMatches) -> Result<(), CliError> {
+    let r = &cmd.render;
     if r.output.is_some() || r.timings || r.cellproj.sort_check {
         return Err(CliError::Usage(
             "tetvr view shows its timings on screen and writes pictures with --screenshot (or \
-             from the Save picture panel); -o, --timings and --sort-check belong to tetvr render"
+             from the Save panel); -o, --timings and --sort-check belong to tetvr render"
                 .into(),
         ));
     }
-    let Loaded { mesh, .. } = load_mesh(&r.mesh)?;
-    let tf = transfer_function(r, &mesh)?;
-    let camera = camera(r, &mesh)?;
-    let mode = mode_settings(r, &mesh, &tf)?;
+    let scene = resolve_flags(cmd.scene.as_deref(), r, matches)?;
+    let Loaded { mesh, .. } = scene.load_mesh(&limits(&r.mesh))?;
+    let tf = scene.transfer_function(&mesh)?;
+    let camera = scene.camera(&mesh)?;
+    let mode = scene.mode_settings(&mesh, &tf)?;
+    let title = format!("tetvr view {}", scene.mesh.display());
     let setup = ViewerSetup {
         mesh,
         tf,
         camera,
         mode,
-        background: r.background.color().unwrap_or([0.0; 3]),
+        background: scene.background.unwrap_or([0.0; 3]),
+        scene,
     };
-    let title = format!("tetvr view {}", r.mesh.mesh.display());
     tetvr::viewer::run(
         setup,
         WindowOptions {
-            screenshot: args.screenshot,
+            screenshot: cmd.screenshot,
             title,
         },
     )?;

@@ -21,6 +21,7 @@ use crate::image::Image;
 use crate::mesh::{MeshError, TetMesh};
 use crate::mode::ModeSettings;
 use crate::render::{RenderError, Renderer, Timings};
+use crate::scene::{Scene, SceneError};
 use crate::tf::TransferFunction;
 
 /// What the viewer opens with: the mesh, its transfer function, the camera (its size is the
@@ -36,6 +37,8 @@ pub struct ViewerSetup {
     pub mode: ModeSettings,
     /// Linear RGB in [0, 1].
     pub background: [f32; 3],
+    /// The scene these came from (its mesh path and array are what a saved scene names).
+    pub scene: Scene,
 }
 
 /// The frame on screen.
@@ -98,6 +101,10 @@ pub struct Viewer {
     /// Where the 3D view was laid out last, screen points.
     pub view_rect: Option<Rect>,
     last_frame: Option<Instant>,
+    /// The scene the viewer opened (mesh path, array).
+    scene: Scene,
+    /// The 3D view's size in pixels at full quality, as laid out last.
+    view_size: (u32, u32),
 }
 
 impl Viewer {
@@ -110,6 +117,7 @@ impl Viewer {
             camera,
             mode,
             background,
+            scene,
         } = setup;
         let range = mesh
             .active_array()
@@ -142,6 +150,8 @@ impl Viewer {
             error: None,
             view_rect: None,
             last_frame: None,
+            view_size: (camera.width, camera.height),
+            scene,
             mesh,
         })
     }
@@ -280,6 +290,7 @@ impl Viewer {
         let ppp = ui.ctx().pixels_per_point();
         let size = (rect.size() * ppp).round();
         let size = (size.x.max(1.0) as u32, size.y.max(1.0) as u32);
+        self.view_size = size;
         self.render_if_needed(size, now);
         if self.quality.moving(now) || self.playback.playing {
             ui.ctx().request_repaint_after(SETTLE);
@@ -406,6 +417,66 @@ impl Viewer {
             let uv = Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
             ui.painter().image(t.id(), rect, uv, egui::Color32::WHITE);
         }
+    }
+
+    /// The scene of what is shown: the mesh and array opened, the camera at the view's full
+    /// size, the transfer function (inline), the mode and its settings, the background.
+    pub fn scene(&self) -> Scene {
+        let mut scene = self.scene.clone();
+        let (width, height) = self.view_size;
+        scene.set_camera(&Camera {
+            width,
+            height,
+            ..self.controller.camera
+        });
+        scene.set_transfer_function(&self.tf);
+        scene.set_mode(&self.modes.settings(&self.tf));
+        scene.background = Some(self.background);
+        scene
+    }
+
+    /// Writes [`Self::scene`] to `path`, which `tetvr render --scene` renders the same.
+    pub fn save_scene(&self, path: &std::path::Path) -> Result<(), SceneError> {
+        self.scene().save(path)
+    }
+
+    /// Takes the camera, transfer function, mode and settings and background of the scene file
+    /// `path`; its mesh and array must be the ones shown (another mesh needs
+    /// `tetvr view --scene`).
+    pub fn load_scene(&mut self, path: &std::path::Path) -> Result<(), SceneError> {
+        let scene = Scene::load(path)?;
+        let in_file = |source| SceneError::InFile {
+            file: path.display().to_string(),
+            source: Box::new(source),
+        };
+        let same =
+            |a: &std::path::Path, b: &std::path::Path| match (a.canonicalize(), b.canonicalize()) {
+                (Ok(a), Ok(b)) => a == b,
+                _ => a == b,
+            };
+        if !same(&scene.mesh, &self.scene.mesh) || scene.array != self.scene.array {
+            return Err(in_file(SceneError::Setting {
+                field: "mesh".into(),
+                message: format!(
+                    "the scene shows {} (array {:?}) and the viewer {}; open it with \
+                     `tetvr view --scene {}`",
+                    scene.mesh.display(),
+                    scene.array,
+                    self.scene.mesh.display(),
+                    path.display()
+                ),
+            }));
+        }
+        let tf = scene.transfer_function(&self.mesh).map_err(in_file)?;
+        let camera = scene.camera(&self.mesh).map_err(in_file)?;
+        let mode = scene.mode_settings(&self.mesh, &tf).map_err(in_file)?;
+        let range = self.mesh.active_array().and_then(|a| a.range());
+        self.modes = ModeBook::new(&mode, range.unwrap_or((0.0, 1.0)));
+        self.controller.camera = camera;
+        self.tf = tf;
+        self.background = scene.background.unwrap_or([0.0; 3]);
+        self.settings_changed();
+        Ok(())
     }
 
     /// Hands a settled frame to the reference thread and takes its answer.

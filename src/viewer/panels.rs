@@ -41,7 +41,7 @@ pub fn controls(v: &mut Viewer, ui: &mut egui::Ui) {
         egui::CollapsingHeader::new("Quality and error")
             .default_open(true)
             .show(ui, |ui| quality_ui(v, ui));
-        egui::CollapsingHeader::new("Save picture").show(ui, |ui| save_ui(v, ui));
+        egui::CollapsingHeader::new("Save picture, scene").show(ui, |ui| save_ui(v, ui));
     });
 }
 
@@ -270,6 +270,7 @@ fn quality_ui(v: &mut Viewer, ui: &mut egui::Ui) {
 #[derive(Clone)]
 struct SaveFields {
     path: String,
+    scene: String,
     size: (u32, u32),
     message: String,
 }
@@ -283,6 +284,7 @@ fn save_ui(v: &mut Viewer, ui: &mut egui::Ui) {
         .data(|d| d.get_temp::<SaveFields>(id))
         .unwrap_or(SaveFields {
             path: "view.png".into(),
+            scene: "scene.json".into(),
             size: view,
             message: String::new(),
         });
@@ -298,6 +300,22 @@ fn save_ui(v: &mut Viewer, ui: &mut egui::Ui) {
     {
         f.message = save_picture(v, &f.path, f.size);
     }
+    ui.horizontal(|ui| {
+        ui.add(egui::TextEdit::singleline(&mut f.scene).desired_width(120.0));
+        let path = std::path::Path::new(&f.scene);
+        if ui.button("save scene").clicked() {
+            f.message = match v.save_scene(path) {
+                Ok(()) => format!("wrote {} (tetvr render --scene renders it)", f.scene),
+                Err(e) => e.to_string(),
+            };
+        }
+        if ui.button("load scene").clicked() {
+            f.message = match v.load_scene(path) {
+                Ok(()) => format!("loaded {}", f.scene),
+                Err(e) => e.to_string(),
+            };
+        }
+    });
     ui.label(&f.message);
     ui.data_mut(|d| d.insert_temp(id, f));
 }

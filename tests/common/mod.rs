@@ -73,6 +73,18 @@ pub fn test_output_dir() -> PathBuf {
         .join("test-output")
 }
 
+/// Writes one row of a README table that the tests measure (`cells[0]` names the case) to
+/// `target/test-output/readme/<table>/`, where `scripts/test-tables.py` puts the rows between
+/// the README's `test-table <table>` markers: those tables are what the tests measured, never
+/// typed by hand.
+pub fn readme_row(table: &str, cells: &[String]) {
+    let dir = test_output_dir().join("readme").join(table);
+    std::fs::create_dir_all(&dir).expect("create the README rows folder");
+    let file = cells[0].replace(|c: char| !c.is_ascii_alphanumeric(), "_");
+    let row = format!("| {} |\n", cells.join(" | "));
+    std::fs::write(dir.join(format!("{file}.md")), row).expect("write a README row");
+}
+
 /// The bounds an image comparison must meet; each test states (and comments) its numbers.
 #[derive(Clone, Copy, Debug)]
 pub struct Bounds {

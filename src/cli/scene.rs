@@ -1,0 +1,136 @@
+//! `render`'s scenes and warm timings: the scene a render does (a scene file with the flags
+//! given on the command line over it), and the table `--frames` prints.
+
+use std::path::Path;
+use std::time::Instant;
+
+use clap::ArgMatches;
+use clap::parser::ValueSource;
+use tetvr::scene::{Mode, Scene, TfSpec};
+use tetvr::{Camera, Renderer, TransferFunction};
+
+use super::commands::{CliError, median};
+use super::{RenderArgs, RenderCommand};
+
+/// The scene `cmd` renders: `--scene`'s file with every flag given on the command line over
+/// it (a flag's default does not override the file), or the flags alone.
+pub fn resolve(cmd: &RenderCommand, matches: &ArgMatches) -> Result<Scene, CliError> {
+    resolve_flags(cmd.scene.as_deref(), &cmd.render, matches)
+}
+
+/// The scene of the file `scene` (if any) with the flags `args` given on the command line
+/// (as `matches` tell) over it; `render` and `view` share it.
+pub fn resolve_flags(
+    scene: Option<&Path>,
+    args: &RenderArgs,
+    matches: &ArgMatches,
+) -> Result<Scene, CliError> {
+    let Some(path) = scene else {
+        return of_flags(args);
+    };
+    let given = |id: &str| matches.value_source(id) == Some(ValueSource::CommandLine);
+    let mut scene = Scene::load(path)?;
+    overlay(&mut scene, args, &given);
+    check(args, &scene, given("entry"))?;
+    Ok(scene)
+}
+
+/// The scene of `args`' flags, their defaults included.
+pub fn of_flags(args: &RenderArgs) -> Result<Scene, CliError> {
+    let mut scene = Scene::new(&args.mesh.mesh);
+    overlay(&mut scene, args, &|_| true);
+    check(args, &scene, args.cellproj.entry.is_some())?;
+    Ok(scene)
+}
+
+/// Sets the fields of `scene` whose flags are `given` (by clap id) to the flags' values.
+fn overlay(scene: &mut Scene, a: &RenderArgs, given: &dyn Fn(&str) -> bool) {
+    macro_rules! set {
+        ($($id:literal: $field:expr => $value:expr;)*) => {
+            $(if given($id) {
+                $field = $value;
+            })*
+        };
+    }
+    let (c, s) = (&mut scene.camera, &mut scene.settings);
+    set! {
+        "mesh": scene.mesh => a.mesh.mesh.clone();
+        "array": scene.array => a.mesh.array.clone();
+        "view": c.view => a.view.clone();
+        "distance": c.distance => a.distance;
+        "fov": c.fov => a.fov;
+        "eye": c.eye => a.eye.map(|v| v.to_array());
+        "target": c.target => a.target.map(|v| v.to_array());
+        "up": c.up => a.up.map(|v| v.to_array());
+        "tf": scene.tf => TfSpec::Named(a.tf.clone());
+        "unit_distance": scene.unit_distance => a.unit_distance;
+        "size": scene.size => [a.size.0, a.size.1];
+        "background": scene.background => a.background.color();
+        "mode": scene.mode => a.mode;
+        "samples": s.samples => a.shells.samples;
+        "dz": s.dz => a.shells.dz;
+        "slices_per_shell": s.slices_per_shell => a.shells.slices_per_shell;
+        "no_skip": s.no_skip => a.shells.no_skip.clone();
+        "ert_threshold": s.ert_threshold => a.shells.ert_threshold;
+        "sampler": s.sampler => a.shells.sampler;
+        "integrate": s.integrate => a.cellproj.integrate;
+        "entry": s.entry => a.cellproj.entry;
+        "table_size": s.table_size => a.cellproj.table_size;
+        "iso": s.iso => a.iso.clone();
+        "shading": s.shading => a.shading;
+    }
+}
+
+/// Flags that belong to one mode, given with another.
+fn check(args: &RenderArgs, scene: &Scene, entry_given: bool) -> Result<(), CliError> {
+    if args.cellproj.sort_check && scene.mode != Mode::Cellproj {
+        return Err(CliError::Usage(
+            "--sort-check checks the cell projection's order: use it with --mode cellproj".into(),
+        ));
+    }
+    if entry_given && scene.mode != Mode::Raycast {
+        return Err(CliError::Usage(
+            "--entry belongs to --mode raycast (how its rays find where they enter the mesh)"
+                .into(),
+        ));
+    }
+    Ok(())
+}
+
+/// Renders `frames` warm frames with `renderer` and returns a table of their median time and
+/// each stage's median, after the cold frame's time `cold_ms`.
+pub fn warm_frames(
+    renderer: &mut dyn Renderer,
+    camera: &Camera,
+    tf: &TransferFunction,
+    frames: u32,
+    cold_ms: f64,
+) -> Result<String, CliError> {
+    let mut frame_ms = Vec::new();
+    let mut stages: Vec<(&'static str, Vec<f64>)> = Vec::new();
+    let mut clock = "";
+    for _ in 0..frames {
+        let t = Instant::now();
+        let frame = renderer.render(camera, tf)?;
+        frame_ms.push(t.elapsed().as_secs_f64() * 1e3);
+        clock = frame.timings.clock;
+        for &(name, ms) in &frame.timings.stages {
+            match stages.iter_mut().find(|s| s.0 == name) {
+                Some(s) => s.1.push(ms),
+                None => stages.push((name, vec![ms])),
+            }
+        }
+    }
+    let (min, max) = (frame_ms.iter().copied()).fold((f64::INFINITY, 0.0f64), |(lo, hi), t| {
+        (lo.min(t), hi.max(t))
+    });
+    let mut out = format!(
+        "warm frames: {frames}, median {:.2} ms (min {min:.2}, max {max:.2}); cold frame {cold_ms:.2} ms\n",
+        median(&mut frame_ms)
+    );
+    out += &format!("stage medians ({clock}):\n");
+    for (name, mut times) in stages {
+        out += &format!("  {name:<18} {:>10.2}\n", median(&mut times));
+    }
+    Ok(out)
+}
