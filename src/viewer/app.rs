@@ -67,6 +67,8 @@ pub struct Viewer {
     /// The mode shown and every mode's settings.
     pub modes: ModeBook,
     renderer: Option<Box<dyn Renderer>>,
+    /// The renderer has rendered a frame since it was built.
+    warm: bool,
     /// The camera controller.
     pub controller: CameraController,
     /// The transfer function every mode renders with.
@@ -133,6 +135,7 @@ impl Viewer {
             bounds,
             modes,
             renderer: Some(renderer),
+            warm: false,
             controller: CameraController::new(camera, bounds.0, bounds.1),
             tf,
             playback: Playback::default(),
@@ -340,9 +343,16 @@ impl Viewer {
         }
         match self.render(camera) {
             Ok((image, timings, render_ms)) => {
-                if scale == 1 {
+                // A new renderer's first frame (pipelines, targets) says nothing of the next.
+                if scale == 1 && self.warm {
                     self.quality.record_full(render_ms);
                 }
+                // The still frame waits for a pause after this frame, not after its start:
+                // a slow interactive frame is no pause.
+                if scale > 1 && !self.playback.playing {
+                    self.quality.moved(Instant::now());
+                }
+                self.warm = true;
                 self.serial += 1;
                 self.shown = Some(Shown {
                     serial: self.serial,
@@ -372,6 +382,7 @@ impl Viewer {
                 r.update_positions(p)?;
             }
             self.renderer = Some(r);
+            self.warm = false;
         }
         let renderer = self.renderer.as_mut().expect("built above");
         let start = Instant::now();

@@ -71,10 +71,10 @@ impl TfEditor {
     /// Where control point `i` of `tf` was drawn in the last frame.
     pub fn handle_position(&self, tf: &TransferFunction, i: usize) -> Option<Pos2> {
         let p = tf.points().get(i)?;
-        Some(self.to_screen(self.curve?, p.s, p.opacity))
+        Some(self.screen_pos(self.curve?, p.s, p.opacity))
     }
 
-    fn to_screen(&self, rect: Rect, s: f64, opacity: f64) -> Pos2 {
+    fn screen_pos(&self, rect: Rect, s: f64, opacity: f64) -> Pos2 {
         let u = ((s - self.range.0) / (self.range.1 - self.range.0)).clamp(0.0, 1.0);
         Pos2::new(
             rect.left() + u as f32 * rect.width(),
@@ -82,7 +82,7 @@ impl TfEditor {
         )
     }
 
-    fn from_screen(&self, rect: Rect, p: Pos2) -> (f64, f64) {
+    fn value_at(&self, rect: Rect, p: Pos2) -> (f64, f64) {
         let u = ((p.x - rect.left()) / rect.width()).clamp(0.0, 1.0) as f64;
         let a = ((rect.bottom() - p.y) / rect.height()).clamp(0.0, 1.0) as f64;
         (self.range.0 + u * (self.range.1 - self.range.0), a)
@@ -130,7 +130,7 @@ impl TfEditor {
         if background.double_clicked()
             && let Some(p) = background.interact_pointer_pos()
         {
-            let (s, opacity) = self.from_screen(rect, p);
+            let (s, opacity) = self.value_at(rect, p);
             let color = tf.eval(s).color;
             points.push(ControlPoint { s, color, opacity });
             self.selected = None;
@@ -138,7 +138,7 @@ impl TfEditor {
         }
         let mut delete = None;
         for i in 0..points.len() {
-            let centre = self.to_screen(rect, points[i].s, points[i].opacity);
+            let centre = self.screen_pos(rect, points[i].s, points[i].opacity);
             let hit = Rect::from_center_size(centre, Vec2::splat(3.0 * HANDLE_RADIUS));
             let r = ui.interact(
                 hit,
@@ -170,7 +170,7 @@ impl TfEditor {
 
     /// Moves point `i` to the pointer, between its neighbours so the order stays.
     fn drag_point(&self, rect: Rect, points: &mut [ControlPoint], i: usize, p: Pos2) -> bool {
-        let (mut s, opacity) = self.from_screen(rect, p);
+        let (mut s, opacity) = self.value_at(rect, p);
         if i > 0 {
             s = s.max(points[i - 1].s);
         }
@@ -202,7 +202,7 @@ impl TfEditor {
         let line: Vec<Pos2> = tf
             .points()
             .iter()
-            .map(|p| self.to_screen(rect, p.s, p.opacity))
+            .map(|p| self.screen_pos(rect, p.s, p.opacity))
             .collect();
         painter.line(line.clone(), Stroke::new(1.5, Color32::WHITE));
         for (i, (p, c)) in line.iter().zip(tf.points()).enumerate() {
