@@ -312,9 +312,10 @@ fn xvfb() -> Option<()> {
 }
 
 /// A real window under Xvfb: `tetvr view --screenshot` writes the window (panels and view),
-/// then a second run is driven with xdotool (a left drag on the view, then F12) and its
-/// screenshot is checked too. Both pictures are the window's size and not blank: many
-/// colours, and the view's part holds the mesh (pixels off the white background).
+/// then a second run is driven with xdotool (a left drag of 70 points down the view, which
+/// tilts the eye by 28 degrees, then F12) and its screenshot is checked too. Both pictures
+/// are the window's size and not blank: many colours, and the view's part holds the mesh
+/// (pixels off the white background); and their views differ (the drag turned the mesh).
 #[test]
 fn the_viewer_opens_a_window_under_xvfb() {
     if xvfb().is_none() {
@@ -330,8 +331,10 @@ tetvr="{bin}"; mesh="{mesh}"
 "$tetvr" view "$mesh" --size 200x150 & pid=$!
 wid=$(xdotool search --sync --onlyvisible --name "tetvr view")
 sleep 3
-xdotool windowfocus --sync "$wid" mousemove --window "$wid" 450 80 mousedown 1 \
-  mousemove --window "$wid" 470 85 mousemove --window "$wid" 500 90 mouseup 1
+# Pauses between the steps: egui sees a drag across frames, not a press, moves and a release
+# in one frame (a software adapter's frame takes a few hundred ms).
+xdotool windowfocus --sync "$wid" mousemove --window "$wid" 430 30 mousedown 1 sleep 1 \
+  mousemove --window "$wid" 435 60 sleep 0.5 mousemove --window "$wid" 440 100 sleep 0.5 mouseup 1
 sleep 1
 xdotool key --window "$wid" F12
 for _ in $(seq 60); do [ -s tetvr-view-001.png ] && break; sleep 0.5; done
@@ -358,9 +361,20 @@ kill "$pid"
         .expect("xvfb-run runs");
     let log = String::from_utf8_lossy(&output.stderr);
     assert!(output.status.success(), "xvfb run failed: {log}");
-    for name in ["first.png", "tetvr-view-001.png"] {
-        check_window_picture(&dir.join(name), &log);
-    }
+    let [first, driven] = ["first.png", "tetvr-view-001.png"].map(|n| {
+        let path = dir.join(n);
+        check_window_picture(&path, &log);
+        image::open(&path).unwrap().to_rgba8()
+    });
+    let view_height = first.height() - NUMBERS_HEIGHT as u32;
+    let moved = (PANEL_WIDTH as u32..first.width())
+        .flat_map(|x| (0..view_height).map(move |y| (x, y)))
+        .filter(|&(x, y)| first.get_pixel(x, y) != driven.get_pixel(x, y))
+        .count();
+    assert!(
+        moved > 500,
+        "the drag changed {moved} pixels of the view\n{log}"
+    );
 }
 
 /// The window's picture: panels plus a 200 x 150 view, many colours, mesh in the view.
