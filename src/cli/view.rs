@@ -13,7 +13,7 @@ pub fn view(cmd: ViewCommand, matches: &ArgMatches) -> Result<(), CliError> {
     if r.output.is_some() || r.timings || r.cellproj.sort_check {
         return Err(CliError::Usage(
             "tetvr view shows its timings on screen and writes pictures with --screenshot (or \
-             from the Save panel); -o, --timings and --sort-check belong to tetvr render"
+             from the Save picture panel); -o, --timings and --sort-check belong to tetvr render"
                 .into(),
         ));
     }
