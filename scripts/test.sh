@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The project's one test command: makes sure a Vulkan driver is present (the GPU tests run on
-# Mesa's software rasterizer, lavapipe, where there is no GPU), then runs the whole suite.
+# Mesa's software rasterizer, lavapipe, where there is no GPU) and Xvfb for the viewer's window
+# test, then runs the whole suite.
 # Arguments go to `cargo test`, e.g. `scripts/test.sh --test stats`.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -11,17 +12,30 @@ have_vulkan() {
     compgen -G '/usr/share/vulkan/icd.d/lvp_icd*.json' >/dev/null &&
         [[ $(PATH="$PATH:/sbin:/usr/sbin" ldconfig -p 2>/dev/null) == *'libvulkan.so.1 '* ]]
 }
-if ! have_vulkan; then
-    packages=(mesa-vulkan-drivers libvulkan1)
+# The viewer's window test (tests/viewer.rs) runs under Xvfb and drives the window with
+# xdotool; winit loads the X11 client libraries at run time.
+have_x_test_tools() {
+    command -v xvfb-run >/dev/null && command -v xdotool >/dev/null
+}
+packages=()
+have_vulkan || packages+=(mesa-vulkan-drivers libvulkan1)
+have_x_test_tools ||
+    packages+=(xvfb xauth xdotool libxkbcommon-x11-0 libx11-xcb1 libxcursor1 libxrandr2 libxi6)
+if [[ ${#packages[@]} -gt 0 ]]; then
     if [[ $(id -u) -eq 0 ]]; then
         as_root=()
     elif command -v sudo >/dev/null; then
         as_root=(sudo)
-    else
+    elif ! have_vulkan; then
         echo "error: no software Vulkan driver found; install as root: apt-get install ${packages[*]}" >&2
         exit 1
+    else
+        echo "note: the viewer's window test will skip; install as root: apt-get install ${packages[*]}" >&2
+        packages=()
     fi
-    echo "installing the Vulkan loader and Mesa's software driver: ${packages[*]}" >&2
+fi
+if [[ ${#packages[@]} -gt 0 ]]; then
+    echo "installing what the tests need: ${packages[*]}" >&2
     "${as_root[@]}" apt-get update
     "${as_root[@]}" env DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends "${packages[@]}"
 fi

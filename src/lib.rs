@@ -25,6 +25,8 @@ pub mod reference;
 pub mod render;
 pub mod scene;
 pub mod tf;
+#[cfg(feature = "viewer")]
+pub mod viewer;
 
 pub use camera::{Camera, View};
 pub use image::{ErrorMetrics, Image};

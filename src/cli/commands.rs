@@ -66,6 +66,9 @@ pub enum CliError {
     Bench(Box<crate::bench::BenchError>),
     #[error(transparent)]
     Scene(#[from] SceneError),
+    #[cfg(feature = "viewer")]
+    #[error(transparent)]
+    Viewer(#[from] tetvr::viewer::ViewerError),
 }
 
 /// Runs `cli`; `matches` are what clap parsed it from (they tell a flag given on the command
@@ -88,6 +91,13 @@ pub fn run(cli: Cli, matches: &ArgMatches) -> Result<(), CliError> {
         Command::Compare(args) => compare(args),
         Command::Generate(args) => generate(args),
         Command::Bench(args) => super::bench::bench(args),
+        #[cfg(feature = "viewer")]
+        Command::View(cmd) => match matches.subcommand_matches("view") {
+            Some(m) => super::view::view(*cmd, m),
+            None => Err(CliError::Usage(
+                "the view command's arguments are missing".into(),
+            )),
+        },
     }
 }
 

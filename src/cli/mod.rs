@@ -5,6 +5,8 @@ mod args;
 mod bench;
 mod commands;
 mod scene;
+#[cfg(feature = "viewer")]
+mod view;
 
 use std::path::PathBuf;
 
@@ -36,6 +38,7 @@ Examples:
   tetvr compare a.png b.png -o diff.png
   tetvr generate grid --tets 100000 --field marschner-lobb -o ml.vtu
   tetvr bench --quick --out bench-out
+  tetvr view assets/bluntfin_tet.vtu --mode raycast
   tetvr gpu-info";
 
 /// Render tetrahedral meshes (a scalar per vertex) on the GPU, or exactly on the CPU.
@@ -70,6 +73,28 @@ pub enum Command {
     /// Measure frame time, stage split, GPU memory and error against the exact reference for
     /// every scene x view x mode x setting; write a CSV and SVG plots.
     Bench(BenchArgs),
+    /// Open a window to turn the mesh, switch modes, edit the transfer function, play a
+    /// deformation and watch the error against the exact reference (keys: see the README).
+    #[cfg(feature = "viewer")]
+    #[command(after_help = EXAMPLES)]
+    View(Box<ViewCommand>),
+}
+
+/// `view`: the render's flags (or a scene file) to open the window with.
+#[cfg(feature = "viewer")]
+#[derive(clap::Args, Debug)]
+#[command(mut_arg("mesh", mesh_or_scene))]
+pub struct ViewCommand {
+    /// The render options: mesh, mode and its settings, TF, camera; --size is the 3D view's
+    /// size at start (the panels come beside and below it).
+    #[command(flatten)]
+    pub render: RenderArgs,
+    /// Scene file to open (as `tetvr render --scene`); flags given override what it says.
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    /// Write the window's first full-quality frame, panels included, to this PNG and exit.
+    #[arg(long)]
+    pub screenshot: Option<PathBuf>,
 }
 
 #[derive(clap::Args, Debug)]

@@ -1,6 +1,7 @@
 //! `render`'s scenes and warm timings: the scene a render does (a scene file with the flags
 //! given on the command line over it), and the table `--frames` prints.
 
+use std::path::Path;
 use std::time::Instant;
 
 use clap::ArgMatches;
@@ -14,13 +15,23 @@ use super::{RenderArgs, RenderCommand};
 /// The scene `cmd` renders: `--scene`'s file with every flag given on the command line over
 /// it (a flag's default does not override the file), or the flags alone.
 pub fn resolve(cmd: &RenderCommand, matches: &ArgMatches) -> Result<Scene, CliError> {
-    let Some(path) = &cmd.scene else {
-        return of_flags(&cmd.render);
+    resolve_flags(cmd.scene.as_deref(), &cmd.render, matches)
+}
+
+/// The scene of the file `scene` (if any) with the flags `args` given on the command line
+/// (as `matches` tell) over it; `render` and `view` share it.
+pub fn resolve_flags(
+    scene: Option<&Path>,
+    args: &RenderArgs,
+    matches: &ArgMatches,
+) -> Result<Scene, CliError> {
+    let Some(path) = scene else {
+        return of_flags(args);
     };
     let given = |id: &str| matches.value_source(id) == Some(ValueSource::CommandLine);
     let mut scene = Scene::load(path)?;
-    overlay(&mut scene, &cmd.render, &given);
-    check(&cmd.render, &scene, given("entry"))?;
+    overlay(&mut scene, args, &given);
+    check(args, &scene, given("entry"))?;
     Ok(scene)
 }
 

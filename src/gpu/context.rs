@@ -78,6 +78,12 @@ pub enum GpuError {
     Map(#[from] wgpu::BufferAsyncError),
 }
 
+/// The optional features tetvr uses where the adapter has them: blendable 32-bit float targets
+/// (shells) and timestamps (stage timings).
+const WANTED_FEATURES: wgpu::Features = wgpu::Features::FLOAT32_BLENDABLE
+    .union(wgpu::Features::TIMESTAMP_QUERY)
+    .union(wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS);
+
 /// A device and queue with the adapter's full limits, plus what tetvr needs to know of it.
 ///
 /// The fields are public so that a caller can share its own device with tetvr, or declare
@@ -102,9 +108,8 @@ pub struct GpuContext {
 }
 
 impl GpuContext {
-    /// Opens a headless device. Takes the adapter's own limits (software adapters offer 8
-    /// colour targets and 128 bytes per sample, more than the WebGPU defaults) and the optional
-    /// features tetvr uses where present: blendable 32-bit float targets and timestamps.
+    /// Opens a headless device on [`Self::pick_adapter`]'s adapter, as
+    /// [`Self::device_descriptor`] asks.
     pub fn new(choice: AdapterChoice) -> Result<Self, GpuError> {
         let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
         if std::env::var_os("WGPU_BACKEND").is_none() {
@@ -112,6 +117,23 @@ impl GpuContext {
         }
         let instance = wgpu::Instance::new(desc);
         let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
+        let adapter = Self::pick_adapter(adapters, choice)?;
+        let info = adapter.get_info();
+        let (device, queue) =
+            pollster::block_on(adapter.request_device(&Self::device_descriptor(&adapter)))
+                .map_err(|source| GpuError::Device {
+                    adapter: info.name.clone(),
+                    source,
+                })?;
+        Ok(Self::from_device(adapter, device, queue))
+    }
+
+    /// The adapter tetvr prefers among `adapters`: discrete, then integrated, then virtual or
+    /// other GPUs, then software ones; only software ones for [`AdapterChoice::Software`].
+    pub fn pick_adapter(
+        adapters: impl IntoIterator<Item = wgpu::Adapter>,
+        choice: AdapterChoice,
+    ) -> Result<wgpu::Adapter, GpuError> {
         let is_software = |a: &wgpu::Adapter| a.get_info().device_type == wgpu::DeviceType::Cpu;
         let rank = |a: &wgpu::Adapter| match a.get_info().device_type {
             wgpu::DeviceType::DiscreteGpu => 0,
@@ -119,7 +141,7 @@ impl GpuContext {
             wgpu::DeviceType::VirtualGpu | wgpu::DeviceType::Other => 2,
             wgpu::DeviceType::Cpu => 3,
         };
-        let adapter = adapters
+        adapters
             .into_iter()
             .filter(|a| choice == AdapterChoice::Auto || is_software(a))
             .min_by_key(rank)
@@ -130,37 +152,39 @@ impl GpuContext {
                         " (a software adapter was asked for: TETVR_ADAPTER=software)".into()
                     }
                 },
-            })?;
-        let info = adapter.get_info();
-        let limits = adapter.limits();
-        let wanted = wgpu::Features::FLOAT32_BLENDABLE
-            | wgpu::Features::TIMESTAMP_QUERY
-            | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS;
-        let features = adapter.features() & wanted;
-        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            })
+    }
+
+    /// The device tetvr asks `adapter` for: its own limits (software adapters offer 8 colour
+    /// targets and 128 bytes per sample, more than the WebGPU defaults) and the optional
+    /// features tetvr uses where present. A front end that opens the device itself (the
+    /// viewer, whose window surface shares it) asks with this, then calls [`Self::from_device`].
+    pub fn device_descriptor(adapter: &wgpu::Adapter) -> wgpu::DeviceDescriptor<'static> {
+        wgpu::DeviceDescriptor {
             label: Some("tetvr"),
-            required_features: features,
-            required_limits: limits.clone(),
+            required_features: adapter.features() & WANTED_FEATURES,
+            required_limits: adapter.limits(),
             experimental_features: wgpu::ExperimentalFeatures::disabled(),
             memory_hints: wgpu::MemoryHints::Performance,
             trace: wgpu::Trace::Off,
-        }))
-        .map_err(|source| GpuError::Device {
-            adapter: info.name.clone(),
-            source,
-        })?;
-        Ok(Self {
+        }
+    }
+
+    /// Wraps a device opened elsewhere (e.g. by a window's surface setup), planning for the
+    /// limits and the tetvr features it was opened with.
+    pub fn from_device(adapter: wgpu::Adapter, device: wgpu::Device, queue: wgpu::Queue) -> Self {
+        Self {
+            info: adapter.get_info(),
+            limits: device.limits(),
+            features: device.features() & WANTED_FEATURES,
             adapter,
             device,
             queue,
-            info,
-            limits,
-            features,
-        })
+        }
     }
 
     /// Whether this is a software rasterizer (lavapipe and the like).
-    pub(crate) fn is_software(&self) -> bool {
+    pub fn is_software(&self) -> bool {
         self.info.device_type == wgpu::DeviceType::Cpu
     }
 

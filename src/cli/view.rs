@@ -1,0 +1,42 @@
+//! `tetvr view`: the render options (or a scene file) turned into the viewer's start.
+
+use clap::ArgMatches;
+use tetvr::io::Loaded;
+use tetvr::viewer::{ViewerSetup, WindowOptions};
+
+use super::ViewCommand;
+use super::commands::{CliError, read_limits};
+use super::scene::resolve_flags;
+
+pub fn view(cmd: ViewCommand, matches: &ArgMatches) -> Result<(), CliError> {
+    let r = &cmd.render;
+    if r.output.is_some() || r.timings || r.cellproj.sort_check {
+        return Err(CliError::Usage(
+            "tetvr view shows its timings on screen and writes pictures with --screenshot (or \
+             from the Save picture panel); -o, --timings and --sort-check belong to tetvr render"
+                .into(),
+        ));
+    }
+    let scene = resolve_flags(cmd.scene.as_deref(), r, matches)?;
+    let Loaded { mesh, .. } = scene.load_mesh(&read_limits(&r.mesh))?;
+    let tf = scene.transfer_function(&mesh)?;
+    let camera = scene.camera(&mesh)?;
+    let mode = scene.mode_settings(&mesh, &tf)?;
+    let title = format!("tetvr view {}", scene.mesh.display());
+    let setup = ViewerSetup {
+        mesh,
+        tf,
+        camera,
+        mode,
+        background: scene.background.unwrap_or([0.0; 3]),
+        scene,
+    };
+    tetvr::viewer::run(
+        setup,
+        WindowOptions {
+            screenshot: cmd.screenshot,
+            title,
+        },
+    )?;
+    Ok(())
+}
