@@ -63,6 +63,7 @@ pub mod skips;
 mod targets;
 mod termination;
 mod tiles;
+pub mod tune;
 pub mod twin;
 mod upload;
 
@@ -145,6 +146,10 @@ pub struct ShellSettings {
     pub skips: Skips,
     /// What samples the slices (default [`Sampler::Raster`]).
     pub sampler: Sampler,
+    /// Whether the sampler, slices per shell and skips are chosen from timings taken on the
+    /// adapter in the first frames ([`tune::TunedShells`], built by
+    /// [`crate::ModeSettings::build`]); off by default, for the reasons in [`tune`]'s docs.
+    pub tune: bool,
 }
 
 impl Default for ShellSettings {
@@ -159,6 +164,7 @@ impl Default for ShellSettings {
             format: SliceFormat::Auto,
             skips: Skips::ALL,
             sampler: Sampler::Raster,
+            tune: false,
         }
     }
 }
