@@ -401,18 +401,20 @@ impl TunedShells {
         &self.tuner
     }
 
-    /// The renderer of `s`, built (and given one untimed frame) when not there yet.
+    /// The renderer of `s`, built when not there yet (and then, to be `timed`, given one
+    /// untimed frame: pipelines and targets are made on the first).
     fn renderer(
         &mut self,
         s: &ShellSettings,
-        camera: &Camera,
-        tf: &TransferFunction,
+        timed: Option<(&Camera, &TransferFunction)>,
     ) -> Result<&mut ShellsRenderer, RenderError> {
         let i = match self.renderers.iter().position(|(c, _)| c == s) {
             Some(i) => i,
             None => {
                 let mut r = ShellsRenderer::with_mesh(&self.ctx, Arc::clone(&self.mesh), *s)?;
-                r.render(camera, tf)?;
+                if let Some((camera, tf)) = timed {
+                    r.render(camera, tf)?;
+                }
                 self.renderers.push((*s, r));
                 self.renderers.len() - 1
             }
@@ -448,7 +450,7 @@ impl TunedShells {
         let mut times = Vec::with_capacity(list.len());
         let mut shown = None;
         for s in list {
-            let timed = self.renderer(s, camera, tf).and_then(|r| {
+            let timed = self.renderer(s, Some((camera, tf))).and_then(|r| {
                 let start = Instant::now();
                 let frame = r.render(camera, tf)?;
                 Ok((frame, start.elapsed().as_secs_f64() * 1e3))
@@ -484,15 +486,20 @@ impl Renderer for TunedShells {
         self.key_for(camera);
         let Some(list) = self.tuner.next_frame() else {
             let choice = self.tuner.choice().unwrap_or(self.default);
-            return self.renderer(&choice, camera, tf)?.render(camera, tf);
+            return self.renderer(&choice, None)?.render(camera, tf);
         };
         let frame = self.tuning_frame(&list, camera, tf)?;
         if let (Some(choice), Some(key)) = (self.tuner.choice(), &self.key) {
             self.cache.put(key.clone(), choice);
             self.renderers.retain(|(c, _)| *c == choice);
         } else {
-            let keep = [self.default, self.tuner.incumbent];
-            self.renderers.retain(|(c, _)| keep.contains(c));
+            let t = &self.tuner;
+            let keep = [
+                Some(self.default),
+                Some(t.incumbent),
+                t.queue.front().copied(),
+            ];
+            self.renderers.retain(|(c, _)| keep.contains(&Some(*c)));
         }
         Ok(frame)
     }
