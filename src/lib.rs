@@ -32,6 +32,6 @@ pub use camera::{Camera, View};
 pub use image::{ErrorMetrics, Image};
 pub use mesh::{ScalarArray, TetMesh};
 pub use mode::ModeSettings;
-pub use render::{Frame, Progress, RenderError, Renderer, Timings};
+pub use render::{Frame, Progress, RenderError, Renderer, Timings, Tuning};
 pub use scene::Scene;
 pub use tf::TransferFunction;

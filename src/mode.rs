@@ -28,6 +28,7 @@ use crate::gpu::raycast::{Entry, Segments};
 use crate::gpu::{
     AdapterChoice, CellProjRenderer, CellProjSettings, GpuContext, GpuError, Integrate,
     IsoRenderer, IsoSettings, RaycastRenderer, RaycastSettings, ShellSettings, ShellsRenderer,
+    TunedShells,
 };
 use crate::mesh::TetMesh;
 use crate::reference::ReferenceRenderer;
@@ -185,6 +186,7 @@ impl ModeSettings {
             Self::Reference(s) => {
                 Box::new(ReferenceRenderer::new(mesh)?.with_progress(s.progress.clone()))
             }
+            Self::Shells(s) if s.tune => Box::new(TunedShells::new(needs_gpu()?, mesh, *s)?),
             Self::Shells(s) => Box::new(ShellsRenderer::new(needs_gpu()?, mesh, *s)?),
             Self::Iso(s) => Box::new(IsoRenderer::new(needs_gpu()?, mesh, s.clone())?),
             Self::CellProj(s) => Box::new(CellProjRenderer::new(needs_gpu()?, mesh, *s)?),

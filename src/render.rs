@@ -129,4 +129,19 @@ pub trait Renderer {
     fn gpu_memory(&self) -> u64 {
         0
     }
+
+    /// Where a renderer that chooses its configuration from timings on the adapter stands
+    /// (the shells' `tune`); `None` for renderers that tune nothing.
+    fn tuning(&self) -> Option<Tuning> {
+        None
+    }
+}
+
+/// The state of a configuration chosen from timings ([`Renderer::tuning`]).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Tuning {
+    /// The first frames still time candidate configurations.
+    Measuring,
+    /// The configuration chosen, described (e.g. `compute, 8 per shell, no frustum`).
+    Chose(String),
 }

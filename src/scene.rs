@@ -50,6 +50,7 @@ use crate::cpu::raycast::{self as cpu_raycast, CpuRaycastSettings};
 use crate::gpu::raycast::{Entry, Segments};
 use crate::gpu::{
     CellProjSettings, Integrate, IsoSettings, RaycastSettings, Sampler, ShellSettings, Skip,
+    SliceFormat,
 };
 use crate::io::{self, LoadError, Loaded, ReadLimits};
 use crate::mesh::{CellDataMode, MeshError, TetMesh};
@@ -204,6 +205,33 @@ pub enum SamplerChoice {
     Compute,
 }
 
+/// The float format of the shells' slice targets (`--slice-format`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum SliceFormatChoice {
+    /// 32-bit floats where the adapter blends them, else 16-bit.
+    #[default]
+    Auto,
+    /// 16-bit floats: half the target memory, about 20 dB less accuracy (README).
+    F16,
+    /// 32-bit floats; an error on adapters that cannot blend them.
+    F32,
+}
+
+/// Whether the shells' sampler, slices per shell and skips are chosen from timings taken on
+/// the adapter in the first frames (`--tune`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum TuneChoice {
+    /// The settings as given, every frame.
+    #[default]
+    Off,
+    /// Chosen from timings in the first frames (each a few renders), then fixed.
+    On,
+}
+
 /// Where the camera is: framed from a named view, then any of eye, target, up given.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -271,6 +299,12 @@ pub struct Settings {
     pub ert_threshold: Option<f32>,
     /// shells: what samples the slices.
     pub sampler: SamplerChoice,
+    /// shells: the float format of the raster sampler's slice targets.
+    #[serde(skip_serializing_if = "is_default")]
+    pub slice_format: SliceFormatChoice,
+    /// shells: sampler, slices per shell and skips chosen from timings on the adapter.
+    #[serde(skip_serializing_if = "is_default")]
+    pub tune: TuneChoice,
     /// cellproj, raycast, raycast-cpu: segment integration (default table for cellproj,
     /// partial for the ray casters).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -296,6 +330,8 @@ impl Default for Settings {
             no_skip: Vec::new(),
             ert_threshold: None,
             sampler: SamplerChoice::Raster,
+            slice_format: SliceFormatChoice::Auto,
+            tune: TuneChoice::Off,
             integrate: None,
             entry: None,
             table_size: 128,
@@ -656,6 +692,12 @@ impl Scene {
             SamplerChoice::Raster => Sampler::Raster,
             SamplerChoice::Compute => Sampler::Compute,
         };
+        shells.format = match s.slice_format {
+            SliceFormatChoice::Auto => SliceFormat::Auto,
+            SliceFormatChoice::F16 => SliceFormat::Float16,
+            SliceFormatChoice::F32 => SliceFormat::Float32,
+        };
+        shells.tune = s.tune == TuneChoice::On;
         shells
     }
 
@@ -677,6 +719,16 @@ impl Scene {
                 s.sampler = match shells.sampler {
                     Sampler::Raster => SamplerChoice::Raster,
                     Sampler::Compute => SamplerChoice::Compute,
+                };
+                s.slice_format = match shells.format {
+                    SliceFormat::Auto => SliceFormatChoice::Auto,
+                    SliceFormat::Float16 => SliceFormatChoice::F16,
+                    SliceFormat::Float32 => SliceFormatChoice::F32,
+                };
+                s.tune = if shells.tune {
+                    TuneChoice::On
+                } else {
+                    TuneChoice::Off
                 };
                 match mode {
                     ModeSettings::Auto(_) => Mode::Auto,

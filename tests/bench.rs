@@ -14,6 +14,7 @@ const CSV_COLUMNS: &[&str] = &[
     "height",
     "mode",
     "setting",
+    "chosen",
     "runs",
     "median_ms",
     "min_ms",
@@ -43,6 +44,7 @@ const QUICK_CONFIGS: &[(&str, &str)] = &[
     ("shells", "samples 128"),
     ("shells", "samples 512"),
     ("shells", "samples 512, compute"),
+    ("shells", "samples 512, tuned"),
     ("iso", "flat"),
     ("cellproj", "table 128"),
     ("raycast", "partial lists"),
@@ -125,6 +127,17 @@ fn quick_bench_writes_the_csv_and_the_plots() {
 
     for r in &rows {
         assert_eq!(r.len(), CSV_COLUMNS.len(), "{r:?}");
+        // Only the tuned row names a chosen configuration, and it finished choosing: its
+        // sampler first (tune.rs' `describe`).
+        let chosen = &r[col("chosen")];
+        if r[col("setting")].ends_with("tuned") {
+            assert!(
+                chosen.starts_with("raster") || chosen.starts_with("compute"),
+                "{r:?}"
+            );
+        } else {
+            assert!(chosen.is_empty(), "{r:?}");
+        }
         let num = |name: &str| -> f64 { r[col(name)].parse().unwrap() };
         for name in [
             "median_ms",

@@ -761,3 +761,31 @@ fn sampler_compute_renders_the_raster_samplers_picture_and_bad_samplers_are_name
         "{stderr}"
     );
 }
+
+#[test]
+fn tune_and_slice_format_render_and_say_what_was_chosen() {
+    // The tuner needs at most 19 frames (9 candidates, 2 frames each, and a confirming one,
+    // tune.rs): 24 warm frames end with the choice made, which `--frames` prints. The choice
+    // itself depends on timings, so only its form is checked.
+    let dir = out_dir("tune");
+    let png = dir.join("tuned.png");
+    let args = [
+        "render", LOX, "--mode", "shells", "--size", "48x40", "--tune", "on",
+    ];
+    let more = [
+        "--slice-format",
+        "f16",
+        "--frames",
+        "24",
+        "-o",
+        png.to_str().unwrap(),
+    ];
+    let o = tetvr(&[&args[..], &more[..]].concat());
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stderr}");
+    assert!(stdout.contains("tuned on this adapter: "), "{stdout}");
+    let bad = tetvr(&["render", LOX, "--slice-format", "f8"]);
+    let (_, stderr) = text(&bad);
+    assert!(!bad.status.success());
+    assert!(stderr.contains("f8") && stderr.contains("f16"), "{stderr}");
+}

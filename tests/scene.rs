@@ -111,6 +111,11 @@ fn mode_settings_survive_a_scene() {
             skips: Skips::ALL.without(Skip::EarlyTermination),
             ..ShellSettings::default()
         }),
+        ModeSettings::Shells(ShellSettings {
+            format: tetvr::gpu::SliceFormat::Float16,
+            tune: true,
+            ..ShellSettings::default()
+        }),
         ModeSettings::Iso(IsoSettings {
             isovalues: tetvr::mode::iso_surfaces(&tf, &[0.2, 0.4]),
             shading: Shading::Smooth,

@@ -43,7 +43,7 @@ use tetvr::mesh::TetMesh;
 use tetvr::mode::{ModeSettings, ReferenceSettings};
 use tetvr::reference::ReferenceRenderer;
 use tetvr::reference::iso::{IsoReference, Shading};
-use tetvr::render::{RenderError, Renderer};
+use tetvr::render::{RenderError, Renderer, Tuning};
 use tetvr::tf::file::load_tf;
 use tetvr::tf::{ControlPoint, TransferFunction};
 
@@ -521,6 +521,18 @@ fn shells_compute(samples: u32) -> Config {
     shells_with(format!("samples {samples}, compute"), &[], settings)
 }
 
+/// The shells mode at `samples` with `tune` on: sampler, slices per shell and skips chosen
+/// from timings on the adapter (its row's `chosen` column says what was chosen; the tuning
+/// frames are warm-up).
+fn shells_tuned(samples: u32) -> Config {
+    let settings = ShellSettings {
+        samples,
+        tune: true,
+        ..ShellSettings::default()
+    };
+    shells_with(format!("samples {samples}, tuned"), &[], settings)
+}
+
 /// The shells mode with `settings`, on the scenes named by the prefixes `scenes` (all when
 /// empty).
 fn shells_with(
@@ -651,8 +663,8 @@ fn raycast_cpu(segments: cpu_raycast::Segments) -> Config {
     }
 }
 
-/// The configurations of the bench: `quick` keeps two shells settings and the compute sampler's
-/// row, flat iso, the default cell projection, the ray casters (GPU and CPU) and the reference.
+/// The configurations of the bench: `quick` keeps two shells settings, the compute sampler's
+/// and the tuned row, flat iso, the default cell projection, the ray casters (GPU and CPU) and the reference.
 /// Modes and settings join here.
 pub fn configurations(quick: bool) -> Vec<Config> {
     let mut c = if quick {
@@ -660,6 +672,7 @@ pub fn configurations(quick: bool) -> Vec<Config> {
             shells(128, None),
             shells(512, None),
             shells_compute(512),
+            shells_tuned(512),
             iso(Shading::Flat),
             cellproj(Integrate::Table, 128),
             raycast(Segments::Partial, Entry::default()),
@@ -674,6 +687,7 @@ pub fn configurations(quick: bool) -> Vec<Config> {
             shells(512, Some(32)),
             shells_compute(128),
             shells_compute(512),
+            shells_tuned(512),
         ];
         c.extend(Skip::ALL.map(shells_without));
         c.extend([
@@ -746,6 +760,8 @@ pub struct Row {
     pub height: u32,
     pub mode: &'static str,
     pub setting: String,
+    /// The configuration a tuned renderer chose ([`Renderer::tuning`]); empty for the others.
+    pub chosen: String,
     pub runs: usize,
     /// Median, fastest and slowest frame, milliseconds.
     pub median_ms: f64,
@@ -855,6 +871,7 @@ pub fn measure(
     let mut stages: BTreeMap<&'static str, (usize, Vec<f64>)> = BTreeMap::new();
     let mut last = None;
     let mut bytes_per_tet = None;
+    tune(renderer, scene, camera)?;
     for i in 0..warmup + runs {
         let start = Instant::now();
         let mut update_ms = None;
@@ -897,6 +914,11 @@ pub fn measure(
         height: camera.height,
         mode: config.mode,
         setting: config.setting.clone(),
+        chosen: match renderer.tuning() {
+            Some(Tuning::Chose(c)) => c,
+            Some(Tuning::Measuring) => "still measuring".into(),
+            None => String::new(),
+        },
         runs,
         median_ms,
         min_ms: frame_ms.iter().copied().fold(f64::INFINITY, f64::min),
@@ -907,6 +929,25 @@ pub fn measure(
         error,
         stages: stages.into_iter().map(|(_, n, t)| (n, t)).collect(),
     })
+}
+
+/// The most frames a tuned renderer gets to time its candidates before the measurement (it
+/// needs about 10).
+const MAX_TUNING_FRAMES: usize = 32;
+
+/// Renders untimed frames while `renderer` times candidate configurations ([`Tuning`]), so that
+/// the measurement sees the chosen configuration only.
+fn tune(renderer: &mut dyn Renderer, scene: &Scene, camera: &Camera) -> Result<(), RenderError> {
+    for _ in 0..MAX_TUNING_FRAMES {
+        if renderer.tuning() != Some(Tuning::Measuring) {
+            break;
+        }
+        if let Some(p) = &scene.deformed {
+            renderer.update_positions(p)?;
+        }
+        renderer.render(camera, &scene.tf)?;
+    }
+    Ok(())
 }
 
 /// What to run: scenes, configurations, image size, where the data lives, how to measure.
@@ -1057,6 +1098,7 @@ pub const CSV_COLUMNS: &[&str] = &[
     "height",
     "mode",
     "setting",
+    "chosen",
     "runs",
     "median_ms",
     "min_ms",
@@ -1161,6 +1203,7 @@ pub fn write_csv(path: &Path, rows: &[Row], env: &Environment) -> Result<(), Ben
             r.height.to_string(),
             r.mode.to_string(),
             field(&r.setting),
+            field(&r.chosen),
             r.runs.to_string(),
             format!("{:.3}", r.median_ms),
             format!("{:.3}", r.min_ms),

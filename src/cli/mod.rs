@@ -12,7 +12,9 @@ use std::path::PathBuf;
 
 use clap::{Parser, Subcommand};
 use tetvr::mesh::CellDataMode;
-use tetvr::scene::{EntryChoice, Integration, Mode, SamplerChoice, ShadingChoice};
+use tetvr::scene::{
+    EntryChoice, Integration, Mode, SamplerChoice, ShadingChoice, SliceFormatChoice, TuneChoice,
+};
 
 pub use commands::run;
 
@@ -255,6 +257,15 @@ pub struct ShellArgs {
     /// shells: what samples the slices; both give the same picture to rounding.
     #[arg(long, value_enum, default_value_t = SamplerChoice::Raster)]
     pub sampler: SamplerChoice,
+    /// shells: float format of the raster sampler's slice targets; auto is 32-bit where the
+    /// adapter blends it (f16 halves target memory and costs about 20 dB of accuracy).
+    #[arg(long, value_enum, default_value_t = SliceFormatChoice::Auto)]
+    pub slice_format: SliceFormatChoice,
+    /// shells: choose the sampler, slices per shell and skips from timings taken on this
+    /// adapter in the first frames (each then costs a few renders), then keep the fastest;
+    /// pays over many frames (--frames, animate). Off: the settings as given.
+    #[arg(long, value_enum, default_value_t = TuneChoice::Off)]
+    pub tune: TuneChoice,
 }
 
 #[derive(clap::Args, Debug)]

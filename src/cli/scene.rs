@@ -7,7 +7,7 @@ use std::time::Instant;
 use clap::ArgMatches;
 use clap::parser::ValueSource;
 use tetvr::scene::{Mode, Scene, TfSpec, Warp};
-use tetvr::{Camera, Renderer, TransferFunction};
+use tetvr::{Camera, Renderer, TransferFunction, Tuning};
 
 use super::commands::{CliError, median};
 use super::{RenderArgs, RenderCommand};
@@ -75,6 +75,8 @@ fn overlay(scene: &mut Scene, a: &RenderArgs, given: &dyn Fn(&str) -> bool) {
         "no_skip": s.no_skip => a.shells.no_skip.clone();
         "ert_threshold": s.ert_threshold => a.shells.ert_threshold;
         "sampler": s.sampler => a.shells.sampler;
+        "slice_format": s.slice_format => a.shells.slice_format;
+        "tune": s.tune => a.shells.tune;
         "integrate": s.integrate => a.cellproj.integrate;
         "entry": s.entry => a.cellproj.entry;
         "table_size": s.table_size => a.cellproj.table_size;
@@ -130,6 +132,13 @@ pub fn warm_frames(
         "warm frames: {frames}, median {:.2} ms (min {min:.2}, max {max:.2}); cold frame {cold_ms:.2} ms\n",
         median(&mut frame_ms)
     );
+    match renderer.tuning() {
+        Some(Tuning::Chose(c)) => out += &format!("tuned on this adapter: {c}\n"),
+        Some(Tuning::Measuring) => {
+            out += "tuning: still timing candidates (the frames above include them)\n"
+        }
+        None => {}
+    }
     out += &format!("stage medians ({clock}):\n");
     for (name, mut times) in stages {
         out += &format!("  {name:<18} {:>10.2}\n", median(&mut times));

@@ -35,5 +35,6 @@ pub use iso::{IsoRenderer, IsoSettings};
 pub use mesh::GpuTetMesh;
 pub use raycast::{RaycastRenderer, RaycastSettings};
 pub use shells::skips::{Skip, Skips};
+pub use shells::tune::{TimingSource, TuneCache, TunedShells, WallClock, describe};
 pub use shells::{Sampler, ShellSettings, ShellsRenderer, SliceFormat};
 pub use tf::tf_points;

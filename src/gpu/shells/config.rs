@@ -11,6 +11,10 @@ use super::{SOFTWARE_SLICES_PER_SHELL, ShellSettings, SliceFormat, adaptive};
 /// The slice configuration of a renderer.
 pub(super) struct SliceConfig {
     pub(super) format: wgpu::TextureFormat,
+    /// The accumulation target's format: 32-bit floats wherever the adapter blends them, even
+    /// under 16-bit slices (the rounding of every blend into it would cost more than the
+    /// slices' quantization, README).
+    pub(super) accum: wgpu::TextureFormat,
     /// The fixed slices per shell, or `None` when chosen per frame among `candidates`.
     pub(super) fixed: Option<u32>,
     /// The count used without adaptive slices, and kept by them unless another is predicted
@@ -51,6 +55,11 @@ pub(super) fn slices(
 ) -> Result<SliceConfig, RenderError> {
     let limits = &ctx.limits;
     let (format, bytes) = format(ctx, settings.format)?;
+    let accum = if ctx.features.contains(wgpu::Features::FLOAT32_BLENDABLE) {
+        wgpu::TextureFormat::Rgba32Float
+    } else {
+        format
+    };
     let max_targets = shaders::MAX_TARGETS
         .min(limits.max_color_attachments)
         .min(limits.max_color_attachment_bytes_per_sample / bytes);
@@ -86,6 +95,7 @@ pub(super) fn slices(
     };
     Ok(SliceConfig {
         format,
+        accum,
         fixed,
         default,
         candidates,

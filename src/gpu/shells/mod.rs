@@ -48,7 +48,8 @@
 //! Scalars are normalized to `u = (s - s_min) / (s_max - s_min)` in f64 and encoded as `1 + u`
 //! in the slices, so 0 means "no sample". With 16-bit float slices ([`SliceFormat::Float16`],
 //! or adapters without blendable 32-bit float targets) `1 + u` keeps 10 mantissa bits: `u` is
-//! quantized to 1/1024 of the scalar range, and the accumulation keeps about 3 decimal digits.
+//! quantized to 1/1024 of the scalar range. The accumulation target stays 32-bit wherever the
+//! adapter blends it; where it does not, it is 16-bit too and keeps about 3 decimal digits.
 
 pub(crate) mod adaptive;
 pub(crate) mod binning;
@@ -63,6 +64,7 @@ pub mod skips;
 mod targets;
 mod termination;
 mod tiles;
+pub mod tune;
 pub mod twin;
 mod upload;
 
@@ -92,7 +94,8 @@ use targets::Targets;
 use termination::{Cut, Termination};
 use upload::{DrawnShell, InstanceLayout, chunk_local};
 
-/// The float format of the slice and accumulation targets.
+/// The float format of the slice targets (the accumulation target is 32-bit wherever the
+/// adapter blends it).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum SliceFormat {
     /// 32-bit floats where the adapter blends them (FLOAT32_BLENDABLE), else 16-bit.
@@ -138,13 +141,17 @@ pub struct ShellSettings {
     pub epsilon: f32,
     /// The float format of the slice targets (default [`SliceFormat::Auto`]): 32-bit slices
     /// keep the normalized scalar to f32, 16-bit ones quantize it to 1/1024 of the scalar
-    /// range and take half the target memory. `Float32` is an error on adapters without
+    /// range and take half the slice memory. `Float32` is an error on adapters without
     /// `FLOAT32_BLENDABLE`.
     pub format: SliceFormat,
     /// Work the renderer skips where a scene does not need it (all on by default).
     pub skips: Skips,
     /// What samples the slices (default [`Sampler::Raster`]).
     pub sampler: Sampler,
+    /// Whether the sampler, slices per shell and skips are chosen from timings taken on the
+    /// adapter in the first frames ([`tune::TunedShells`], built by
+    /// [`crate::ModeSettings::build`]); off by default, for the reasons in [`tune`]'s docs.
+    pub tune: bool,
 }
 
 impl Default for ShellSettings {
@@ -159,6 +166,7 @@ impl Default for ShellSettings {
             format: SliceFormat::Auto,
             skips: Skips::ALL,
             sampler: Sampler::Raster,
+            tune: false,
         }
     }
 }
@@ -186,6 +194,8 @@ pub struct ShellsRenderer {
     limits: wgpu::Limits,
     settings: ShellSettings,
     format: wgpu::TextureFormat,
+    /// The accumulation target's format (32-bit where the adapter blends it).
+    accum_format: wgpu::TextureFormat,
     /// The fixed slices per shell, or `None` when chosen per frame among `candidates`.
     fixed_slices: Option<u32>,
     /// The count used without adaptive slices, and kept by them unless another is predicted to
@@ -243,7 +253,7 @@ impl ShellsRenderer {
         let tet_count = mesh.tet_count() as u64;
         let records = mesh.tet_array("shells tet records", chunking, tet_count, RECORD_BYTES)?;
         let ert = (settings.skips.early_termination).then_some(settings.skips.ert_threshold);
-        let pipelines = Pipelines::new(&device, config.format, ert);
+        let pipelines = Pipelines::new(&device, (config.format, config.accum), ert);
         let compute = (settings.sampler == Sampler::Compute)
             .then(|| compute::ComputeSampler::new(&device, ert));
         let view_buf = uniform_buffer(&device, "shells view", size_of::<ViewUniforms>());
@@ -279,6 +289,7 @@ impl ShellsRenderer {
             limits,
             settings,
             format: config.format,
+            accum_format: config.accum,
             fixed_slices: config.fixed,
             default_slices: config.default,
             slices_per_shell: config.fixed.unwrap_or(config.default),
@@ -316,7 +327,7 @@ impl ShellsRenderer {
         self.slices_per_shell
     }
 
-    /// The slice and accumulation target format in use.
+    /// The slice target format in use.
     pub fn format(&self) -> wgpu::TextureFormat {
         self.format
     }
@@ -346,7 +357,7 @@ impl ShellsRenderer {
             return Ok(());
         }
         check_image_size(&self.limits, width, height)?;
-        let layers = (self.format, self.slice_layers);
+        let layers = (self.format, self.slice_layers, self.accum_format);
         let ert = self.pipelines.ert.as_ref();
         self.targets = Some(Targets::new(&self.device, (width, height), layers, ert));
         Ok(())
@@ -773,8 +784,9 @@ impl Renderer for ShellsRenderer {
         .iter()
         .map(|b| b.size())
         .sum::<u64>();
-        let texel = self.format.block_copy_size(None).unwrap_or(16) as u64;
-        let targets = (self.targets.as_ref()).map_or(0, |t| t.size(self.slice_layers, texel))
+        let texel = |f: wgpu::TextureFormat| f.block_copy_size(None).unwrap_or(16) as u64;
+        let texels = (texel(self.format), texel(self.accum_format));
+        let targets = (self.targets.as_ref()).map_or(0, |t| t.size(self.slice_layers, texels))
             + self
                 .compute
                 .as_ref()

@@ -25,7 +25,10 @@ pub(super) struct Pipelines {
     /// Composite variants by colour target count, TF point count (0: the looping variant for
     /// large TFs) and whether they test the early-termination mask.
     composite: HashMap<(u32, u32, bool), wgpu::RenderPipeline>,
+    /// The slice targets' format.
     format: wgpu::TextureFormat,
+    /// The accumulation target's format.
+    accum: wgpu::TextureFormat,
     /// Early ray termination: the mark and tile pipelines.
     pub(super) ert: Option<ErtPipelines>,
 }
@@ -139,7 +142,7 @@ impl ErtPipelines {
 impl Pipelines {
     pub(super) fn new(
         device: &wgpu::Device,
-        format: wgpu::TextureFormat,
+        (format, accum): (wgpu::TextureFormat, wgpu::TextureFormat),
         ert: Option<f32>,
     ) -> Self {
         use wgpu::ShaderStages as S;
@@ -198,6 +201,7 @@ impl Pipelines {
             composite_pipeline_layout,
             composite: HashMap::new(),
             format,
+            accum,
             ert: ert.map(|threshold| ErtPipelines::new(device, threshold)),
         }
     }
@@ -293,7 +297,7 @@ impl Pipelines {
         } else {
             0
         };
-        let (layout, format) = (&self.composite_pipeline_layout, self.format);
+        let (layout, format) = (&self.composite_pipeline_layout, self.accum);
         let depth_stencil = ert_depth_test(depth);
         self.composite
             .entry((targets, key, depth))

@@ -35,11 +35,12 @@ pub(super) struct ErtTargets {
 }
 
 impl Targets {
-    /// The targets of a `width` x `height` image with `layers` slice layers of `format`.
+    /// The targets of a `width` x `height` image with `layers` slice layers of `format` and
+    /// an accumulation target of `accum`.
     pub(super) fn new(
         device: &wgpu::Device,
         (width, height): (u32, u32),
-        (format, layers): (wgpu::TextureFormat, u32),
+        (format, layers, accum_format): (wgpu::TextureFormat, u32, wgpu::TextureFormat),
         ert: Option<&ErtPipelines>,
     ) -> Self {
         use wgpu::TextureUsages as U;
@@ -71,7 +72,7 @@ impl Targets {
             device,
             "shells accumulation",
             (width, height, 1),
-            format,
+            accum_format,
             accum_usage,
         );
         let accum_view = accum.create_view(&Default::default());
@@ -83,16 +84,16 @@ impl Targets {
             slices_view,
             accum,
             accum_view,
-            readback: ImageReadback::new(device, "shells readback", width, height, format),
+            readback: ImageReadback::new(device, "shells readback", width, height, accum_format),
             ert,
         }
     }
 
     /// Bytes of the targets: `layers` slice layers of `texel` bytes, the accumulation target
-    /// and the readback buffer.
-    pub(super) fn size(&self, layers: u32, texel: u64) -> u64 {
-        let layer = self.width as u64 * self.height as u64 * texel;
-        layer * (layers as u64 + 1) + self.readback.size()
+    /// of `accum_texel` bytes a pixel, and the readback buffer.
+    pub(super) fn size(&self, layers: u32, (texel, accum_texel): (u64, u64)) -> u64 {
+        let pixels = self.width as u64 * self.height as u64;
+        pixels * (texel * layers as u64 + accum_texel) + self.readback.size()
     }
 }
 
