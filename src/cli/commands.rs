@@ -63,6 +63,8 @@ pub enum CliError {
     #[error(transparent)]
     Export(#[from] tetvr::export::ExportError),
     #[error(transparent)]
+    Cage(#[from] tetvr::texture::CageError),
+    #[error(transparent)]
     Bench(Box<crate::bench::BenchError>),
     #[error(transparent)]
     Scene(#[from] SceneError),
@@ -345,6 +347,18 @@ fn generate(args: GenerateArgs) -> Result<(), CliError> {
                 threshold: *threshold,
             },
         )?,
+        GenerateShape::Cage {
+            input,
+            tets,
+            threshold,
+        } => {
+            let volume = tetvr::texture::Volume::load(input, 1)?;
+            let opts = tetvr::texture::CageOptions {
+                tets: *tets,
+                threshold: *threshold,
+            };
+            tetvr::texture::cage(&volume, &opts)?
+        }
     };
     write(&mesh, &args.output)?;
     println!(

@@ -35,6 +35,7 @@ Examples:
   tetvr info assets/bluntfin_tet.vtu
   tetvr compare a.png b.png -o diff.png
   tetvr generate grid --tets 100000 --field marschner-lobb -o ml.vtu
+  tetvr generate cage brain.nii.gz --tets 2000 --threshold 10 -o cage.vtu
   tetvr bench --quick --out bench-out
   tetvr gpu-info";
 
@@ -367,6 +368,20 @@ pub enum GenerateShape {
         #[arg(long, default_value_t = 1)]
         downsample: u32,
         /// Drop cells whose eight corner values are all below this.
+        #[arg(long)]
+        threshold: Option<f64>,
+    },
+    /// A coarse tet cage over a NIfTI volume (.nii or .nii.gz) for textured rendering
+    /// (`render --texture`): the box of its voxel centres, placed as `generate nifti` places
+    /// them, with the point array `texcoords` (normalized 3D texture coordinates) and the
+    /// volume sampled at the vertices as `intensity`.
+    Cage {
+        /// The volume file.
+        input: PathBuf,
+        /// About this many tets over the volume's box (6 per cell, cells near cubic).
+        #[arg(long, default_value_t = 2000)]
+        tets: u64,
+        /// Keep only cells where some voxel the trilinear field reads inside reaches this.
         #[arg(long)]
         threshold: Option<f64>,
     },

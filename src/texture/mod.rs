@@ -15,11 +15,16 @@ pub mod cage;
 pub mod reference;
 
 use std::path::Path;
+use std::sync::Arc;
 
 use glam::DVec3;
 
 use crate::generate::volume::{VolumeError, VolumeToTets, read_samples_file};
+use crate::gpu::raycast::{RaycastRenderer, RaycastSettings};
+use crate::gpu::{GpuContext, GpuError};
 use crate::mesh::TetMesh;
+use crate::mode::ModeSettings;
+use crate::render::{RenderError, Renderer};
 
 pub use cage::{CageError, CageOptions, cage};
 pub use reference::TexturedReference;
@@ -220,9 +225,68 @@ impl Volume {
     }
 }
 
+impl Volume {
+    /// This volume, box-averaged by the smallest factor that brings every axis to at most
+    /// `max` samples (a GPU's 3D texture size), and the factor (1: unchanged). Normalized
+    /// texture coordinates keep their meaning exactly where the factor divides each axis, and
+    /// shift by less than a sample of the result otherwise (the dropped remainder).
+    pub fn fit_within(self, max: usize) -> (Self, usize) {
+        let largest = self.dims.iter().copied().max().unwrap_or(0);
+        if largest <= max {
+            return (self, 1);
+        }
+        let factor = largest.div_ceil(max.max(1));
+        match self.downsampled(factor) {
+            Some(v) => (v, factor),
+            None => (self, 1),
+        }
+    }
+}
+
 /// The offsets of an `f^3` block.
 fn block(f: usize) -> impl Iterator<Item = (usize, usize, usize)> {
     (0..f).flat_map(move |c| (0..f).flat_map(move |b| (0..f).map(move |a| (a, b, c))))
+}
+
+/// The renderer of a textured cage in `mode`: `raycast` (GPU, [`RaycastRenderer::textured`])
+/// or `reference` ([`TexturedReference`]); `auto` takes `raycast` when there is an adapter,
+/// else the reference. Other modes do not read textures yet (issue 12), which the error says.
+/// `volume` must fit the adapter's 3D texture size ([`Volume::fit_within`]).
+pub fn textured_renderer(
+    mode: &ModeSettings,
+    gpu: Option<&GpuContext>,
+    cage: &TetMesh,
+    volume: &Arc<Volume>,
+    texcoords: &[DVec3],
+) -> Result<Box<dyn Renderer>, RenderError> {
+    let tc = texcoords.to_vec();
+    match (mode, gpu) {
+        (ModeSettings::Raycast(s), Some(gpu)) => Ok(Box::new(RaycastRenderer::textured(
+            gpu, cage, texcoords, volume, None, *s,
+        )?)),
+        (ModeSettings::Auto(_), Some(gpu)) => Ok(Box::new(RaycastRenderer::textured(
+            gpu,
+            cage,
+            texcoords,
+            volume,
+            None,
+            RaycastSettings::default(),
+        )?)),
+        (ModeSettings::Reference(_) | ModeSettings::Auto(_), _) => Ok(Box::new(
+            TexturedReference::new(cage, tc, volume.clone(), None)?,
+        )),
+        (ModeSettings::Raycast(_), None) => Err(GpuError::NoAdapter {
+            detail: " (--mode raycast with --texture needs one; --mode reference renders the \
+                     textured cage on the CPU)"
+                .into(),
+        }
+        .into()),
+        (other, _) => Err(RenderError::Settings(format!(
+            "--texture renders with --mode raycast (GPU) or reference (CPU); --mode {} does \
+             not read volume textures yet",
+            other.name()
+        ))),
+    }
 }
 
 /// The texture coordinates of `mesh`'s vertices: its 3-component point array `name`.

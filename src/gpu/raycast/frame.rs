@@ -150,7 +150,12 @@ impl RaycastRenderer {
         let frame = view.uniforms(m.origin, 0.0, near_tol(m.radius), nt);
         self.queue
             .write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&frame));
-        let points = tf_points(tf, m.scalar_min, m.scalar_span)?;
+        // A textured cage's TF applies to its volume's values, normalized like its texels.
+        let (lo, span) = match &self.texture {
+            Some(t) => (t.lo, t.span),
+            None => (m.scalar_min, m.scalar_span),
+        };
+        let points = tf_points(tf, lo, span)?;
         self.queue
             .write_buffer(&self.tf_buf, 0, bytemuck::bytes_of(&points));
         self.eye_tol = near_tol(m.radius);
@@ -404,6 +409,13 @@ impl RaycastRenderer {
             Some(cells) => cells.window(16, 0, nt),
             None => entry(16, &self.psi),
         });
+        if let Some(texture) = &self.texture {
+            traverse.push(entry(17, &texture.texcoords));
+            traverse.push(wgpu::BindGroupEntry {
+                binding: 18,
+                resource: wgpu::BindingResource::TextureView(&texture.view),
+            });
+        }
         let stage = p.traverse(self.settings.entry, self.settings.segments);
         BindGroups {
             vertices: self.group(&p.vertices.layout, &vertices),

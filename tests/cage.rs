@@ -1,0 +1,262 @@
+//! Deforming volumes (issue 12): cages over a NIfTI volume, the textured field's f64 reference,
+//! and the textured ray caster against it. Every volume is a small synthetic NIfTI written here,
+//! so no shared data is needed.
+
+mod common;
+
+use std::path::PathBuf;
+use std::sync::{Arc, OnceLock};
+
+use glam::DVec3;
+use tetvr::generate::volume::{VolumeToTets, nifti_to_tets};
+use tetvr::gpu::raycast::Entry;
+use tetvr::gpu::{AdapterChoice, GpuContext, RaycastRenderer, RaycastSettings};
+use tetvr::reference::ReferenceRenderer;
+use tetvr::texture::{
+    CageError, CageOptions, DEFAULT_TEXCOORDS, TexturedReference, Volume, cage, texcoords,
+};
+use tetvr::{Camera, Image, Renderer, TetMesh, TransferFunction, View};
+
+/// Voxels per axis of the synthetic volume, and its spacing.
+const N: usize = 16;
+const SPACING: [f32; 3] = [1.0, 1.25, 0.75];
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("cage");
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+/// Two Gaussian blobs (peaks 100 and 60, widths 3 and 2 voxels) on an `N^3` grid.
+fn blob(x: usize, y: usize, z: usize) -> f32 {
+    let p = DVec3::new(x as f64, y as f64, z as f64);
+    let g = |c: DVec3, w: f64, a: f64| a * (-(p - c).length_squared() / (2.0 * w * w)).exp();
+    (g(DVec3::new(6.0, 7.0, 8.0), 3.0, 100.0) + g(DVec3::new(11.0, 9.0, 5.0), 2.0, 60.0)) as f32
+}
+
+/// Writes the blob volume as NIfTI-1 float32 and returns its path.
+fn blob_nifti() -> PathBuf {
+    let path = scratch("blob.nii.gz");
+    let data = ndarray::Array3::from_shape_fn((N, N, N), |(x, y, z)| blob(x, y, z));
+    let header = nifti::NiftiHeader {
+        pixdim: [1.0, SPACING[0], SPACING[1], SPACING[2], 1.0, 1.0, 1.0, 1.0],
+        ..Default::default()
+    };
+    nifti::writer::WriterOptions::new(&path)
+        .reference_header(&header)
+        .write_nifti(&data)
+        .unwrap();
+    path
+}
+
+/// The blob volume and its undeformed cage of about 162 tets (144: 3 x 4 x 2 cells).
+fn blob_cage() -> (Arc<Volume>, TetMesh) {
+    let volume = Volume::load(blob_nifti(), 1).unwrap();
+    let opts = CageOptions {
+        tets: 162,
+        threshold: None,
+    };
+    let mesh = cage(&volume, &opts).unwrap();
+    (Arc::new(volume), mesh)
+}
+
+/// A TF over the volume's range (default ramp, opacity gathered over 1/100 of the diagonal
+/// times 4, so rays through the blobs reach alpha ~0.9) and an oblique view.
+fn view(volume: &Volume, mesh: &TetMesh, size: u32) -> (TransferFunction, Camera) {
+    let (lo, hi) = volume.range();
+    let tf = TransferFunction::default_for_range(lo, hi, mesh.diagonal() / 400.0).unwrap();
+    let (b_lo, b_hi) = mesh.bounds();
+    let view = View::parse("30,20").unwrap();
+    (tf, Camera::framing(b_lo, b_hi, view, 1.0, 30.0, size, size))
+}
+
+fn textured_image(
+    mesh: &TetMesh,
+    volume: &Arc<Volume>,
+    step: Option<f64>,
+    tf: &TransferFunction,
+    camera: &Camera,
+) -> Image {
+    let tc = texcoords(mesh, DEFAULT_TEXCOORDS).unwrap();
+    let mut r = TexturedReference::new(mesh, tc, volume.clone(), step).unwrap();
+    r.render(camera, tf).unwrap().image
+}
+
+#[test]
+fn cage_of_a_nifti_volume_round_trips_through_vtu() {
+    let (volume, mesh) = blob_cage();
+    // Near-cubic cells over a 15 x 18.75 x 11.25 box: 3 x 4 x 2 cells for about 27 asked.
+    assert_eq!(mesh.tet_count(), 6 * 3 * 4 * 2);
+    // The box of the voxel centres, as `generate nifti` places them (spacing only).
+    let extent = DVec3::from(SPACING.map(|s| s as f64)) * (N - 1) as f64;
+    assert_eq!(mesh.bounds(), (DVec3::ZERO, extent));
+    let path = scratch("blob-cage.vtu");
+    tetvr::io::write_vtu(&mesh, &path).unwrap();
+    let back = tetvr::io::load(&path).unwrap().mesh;
+    let (a, b) = (
+        texcoords(&mesh, DEFAULT_TEXCOORDS).unwrap(),
+        texcoords(&back, DEFAULT_TEXCOORDS).unwrap(),
+    );
+    assert_eq!(a, b);
+    // The corners' texture coordinates are the first and last voxel centres.
+    let corner = volume.texcoord(extent);
+    assert!((corner - DVec3::splat((N as f64 - 0.5) / N as f64)).abs().max_element() < 1e-15);
+    let missing = texcoords(&mesh, "uvw").unwrap_err();
+    assert!(matches!(missing, CageError::NoTexcoords { .. }), "{missing}");
+    assert!(missing.to_string().contains("--texcoords"));
+}
+
+#[test]
+fn threshold_drops_the_empty_corner_cells() {
+    let volume = Volume::load(blob_nifti(), 1).unwrap();
+    let opts = CageOptions {
+        tets: 6 * 64,
+        threshold: Some(20.0),
+    };
+    let mesh = cage(&volume, &opts).unwrap();
+    // 4^3 cells; the blobs' 20-level sets miss some of them (a kept cell needs a voxel >= 20).
+    assert!(mesh.tet_count() < 6 * 64 && mesh.tet_count() >= 6 * 8);
+    let all = CageOptions {
+        threshold: Some(1e6),
+        ..opts
+    };
+    assert!(matches!(
+        cage(&volume, &all),
+        Err(CageError::AllBelowThreshold { .. })
+    ));
+}
+
+/// The reference at its default step (a quarter of the smallest spacing, 0.1875) against half
+/// that step: the midpoint rule's error falls as step^2, so the change bounds the default's own
+/// error (about a third of it). Bound: max 2e-3 per channel, rmse 2e-4 (measured on lavapipe
+/// at 48 x 48: max 1.6e-4, rmse 9.9e-6).
+#[test]
+fn textured_reference_is_converged_at_its_step() {
+    let (volume, mesh) = blob_cage();
+    let (tf, camera) = view(&volume, &mesh, 48);
+    let coarse = textured_image(&mesh, &volume, None, &tf, &camera);
+    let step = 0.25 * volume.spacing().min_element();
+    let fine = textured_image(&mesh, &volume, Some(step / 2.0), &tf, &camera);
+    let m = coarse.compare(&fine).unwrap();
+    let max_alpha = fine.pixels.iter().map(|p| p[3]).fold(0.0, f32::max);
+    eprintln!("step {step} vs {}: {m}; max alpha {max_alpha}", step / 2.0);
+    assert!(max_alpha > 0.5, "the view must show the blobs");
+    assert!(m.max_abs < 2e-3 && m.rmse < 2e-4, "{m}");
+}
+
+/// An undeformed cage textured with the volume against the volume's own tet mesh (`generate
+/// nifti`: a vertex per voxel, the field linear in each of 6 tets per voxel cell). Both fields
+/// agree at every voxel centre; inside a cell they differ by the trilinear terms (xy, yz, xz,
+/// xyz) the 6-tet split drops, at most (h^2 / 4) |mixed second derivative| per cell, which for
+/// blobs of width 2-3 voxels and peak 100 is a few data units, a few percent of the TF range.
+/// Bound: rmse 3e-3 and max 3e-2 per channel (measured: rmse 1.4e-3, max 1.3e-2).
+#[test]
+fn undeformed_cage_matches_the_volumes_tet_mesh() {
+    let (volume, mesh) = blob_cage();
+    let (tf, camera) = view(&volume, &mesh, 48);
+    let textured = textured_image(&mesh, &volume, None, &tf, &camera);
+    let tets = nifti_to_tets(blob_nifti(), &VolumeToTets::default()).unwrap();
+    let linear = ReferenceRenderer::new(&tets)
+        .unwrap()
+        .render_image(&camera, &tf, None)
+        .unwrap();
+    let m = textured.compare(&linear).unwrap();
+    eprintln!("textured cage vs linear tets: {m}");
+    assert_eq!((m.holes, m.spill), (0, 0), "{m}");
+    assert!(m.rmse < 3e-3 && m.max_abs < 3e-2, "{m}");
+}
+
+/// A bent cage: the reference moves with it, and bending changes the picture (the deformation
+/// is seen), while an update back to the rest positions gives the undeformed picture exactly.
+#[test]
+fn bent_cage_moves_the_volume_in_the_reference() {
+    let (volume, mesh) = blob_cage();
+    let (tf, camera) = view(&volume, &mesh, 40);
+    let tc = texcoords(&mesh, DEFAULT_TEXCOORDS).unwrap();
+    let mut r = TexturedReference::new(&mesh, tc, volume.clone(), None).unwrap();
+    let rest = r.render(&camera, &tf).unwrap().image;
+    let (lo, hi) = mesh.bounds();
+    let bent = tetvr::deform::Deformation::Bend.apply(mesh.positions(), lo, hi, 0.2, 0.25);
+    r.update_positions(&bent).unwrap();
+    let moved = r.render(&camera, &tf).unwrap().image;
+    let m = moved.compare(&rest).unwrap();
+    assert!(m.max_abs > 0.1, "bending must move the volume: {m}");
+    r.update_positions(mesh.positions()).unwrap();
+    let back = r.render(&camera, &tf).unwrap().image;
+    assert_eq!(back.pixels, rest.pixels);
+}
+
+fn ctx() -> &'static GpuContext {
+    static CTX: OnceLock<GpuContext> = OnceLock::new();
+    CTX.get_or_init(|| {
+        GpuContext::new(AdapterChoice::Auto).unwrap_or_else(|e| {
+            panic!("the textured ray caster's tests need a GPU adapter (Mesa's lavapipe will do): {e}")
+        })
+    })
+}
+
+fn textured_raycast(mesh: &TetMesh, volume: &Volume, entry: Entry) -> RaycastRenderer {
+    let tc = texcoords(mesh, DEFAULT_TEXCOORDS).unwrap();
+    let settings = RaycastSettings {
+        entry,
+        ..RaycastSettings::default()
+    };
+    RaycastRenderer::textured(ctx(), mesh, &tc, volume, None, settings).unwrap()
+}
+
+/// The GPU ray caster of a textured cage against the f64 reference with the same step: the
+/// same samples, so they differ only by f32 arithmetic (texture coordinates through the tet
+/// planes, trilinear weights, exp) and where a segment's sample count rounds the other way
+/// (ceil(L / step) at a near-integer ratio moves its samples by up to half a step). Bound:
+/// rmse 1e-4, max 2e-3 per channel, no holes or spill (measured on lavapipe: rmse 2.7e-7, max
+/// 2.6e-6; the margin is for other adapters' exp and a sample count rounding the other way).
+/// Both entry methods give the same picture bit for bit.
+#[test]
+fn textured_raycast_matches_the_textured_reference() {
+    let (volume, mesh) = blob_cage();
+    let (tf, camera) = view(&volume, &mesh, 48);
+    let reference = textured_image(&mesh, &volume, None, &tf, &camera);
+    let mut gpu = textured_raycast(&mesh, &volume, Entry::Lists);
+    let image = gpu.render(&camera, &tf).unwrap().image;
+    let m = image.compare(&reference).unwrap();
+    eprintln!("textured raycast vs reference: {m}");
+    assert_eq!((m.holes, m.spill), (0, 0), "{m}");
+    assert!(m.rmse < 1e-4 && m.max_abs < 2e-3, "{m}");
+    let mut peel = textured_raycast(&mesh, &volume, Entry::Peel);
+    assert_eq!(peel.render(&camera, &tf).unwrap().image.pixels, image.pixels);
+}
+
+/// A bent cage on the GPU (one upload of the cage's positions) against the reference bent the
+/// same way; bound as for the undeformed cage (measured: rmse 2.7e-7, max 3.5e-6). Also reports the memory of the textured cage
+/// against the volume's full tet mesh on the same ray caster.
+#[test]
+fn bent_textured_cage_matches_the_reference() {
+    let (volume, mesh) = blob_cage();
+    let (tf, camera) = view(&volume, &mesh, 48);
+    let (lo, hi) = mesh.bounds();
+    let bent = tetvr::deform::Deformation::Bend.apply(mesh.positions(), lo, hi, 0.2, 0.25);
+    let mut gpu = textured_raycast(&mesh, &volume, Entry::Lists);
+    gpu.render(&camera, &tf).unwrap();
+    gpu.update_positions(&bent).unwrap();
+    let image = gpu.render(&camera, &tf).unwrap().image;
+    let tc = texcoords(&mesh, DEFAULT_TEXCOORDS).unwrap();
+    let mut r = TexturedReference::new(&mesh, tc, volume.clone(), None).unwrap();
+    r.update_positions(&bent).unwrap();
+    let reference = r.render(&camera, &tf).unwrap().image;
+    let m = image.compare(&reference).unwrap();
+    eprintln!("bent textured raycast vs reference: {m}");
+    assert_eq!((m.holes, m.spill), (0, 0), "{m}");
+    assert!(m.rmse < 1e-4 && m.max_abs < 2e-3, "{m}");
+    assert!(gpu.update_scalars(&vec![0.0; mesh.vertex_count()]).is_err());
+    let tets = nifti_to_tets(blob_nifti(), &VolumeToTets::default()).unwrap();
+    let mut full = RaycastRenderer::new(ctx(), &tets, RaycastSettings::default()).unwrap();
+    full.render(&camera, &tf).unwrap();
+    eprintln!(
+        "GPU bytes: textured cage {} ({} tets, {} samples), full tet mesh {} ({} tets)",
+        gpu.gpu_memory(),
+        mesh.tet_count(),
+        volume.values().len(),
+        full.gpu_memory(),
+        tets.tet_count()
+    );
+}
