@@ -529,7 +529,17 @@ impl Scene {
             .active_array()
             .and_then(|a| a.range())
             .ok_or(MeshError::NoScalars)?;
-        let default_unit = mesh.diagonal() / 100.0;
+        self.transfer_function_over(range, mesh.diagonal() / 100.0)
+    }
+
+    /// [`Self::transfer_function`] for scalars spanning `range` (a preset's control points),
+    /// with `default_unit` unless the scene or the TF file says otherwise: for a textured
+    /// cage, its volume's range ([`crate::texture`]).
+    pub fn transfer_function_over(
+        &self,
+        range: (f64, f64),
+        default_unit: f64,
+    ) -> Result<TransferFunction, SceneError> {
         let tf = match &self.tf {
             TfSpec::Named(spec) => load_tf(spec, range, default_unit)?,
             TfSpec::Inline(value) => parse_tf_json(&value.to_string(), "tf", range, default_unit)?,

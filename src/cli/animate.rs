@@ -18,7 +18,8 @@ use tetvr::tf::TransferFunction;
 use tetvr::{Image, TetMesh};
 
 use super::commands::{
-    CliError, camera, load_mesh, median, ms, open_mode, read_limits, transfer_function,
+    CliError, Textured, camera, load_mesh, median, ms, open_mode, read_limits,
+    transfer_function_for,
 };
 use super::{AnimateArgs, RenderArgs};
 
@@ -103,10 +104,14 @@ struct Playback {
 impl Playback {
     fn open(args: &AnimateArgs, mesh: &TetMesh, frames: u64) -> Result<Self, CliError> {
         let r: &RenderArgs = &args.render;
-        let tf = transfer_function(r, mesh)?;
+        let textured = Textured::load(r, mesh)?;
+        let tf = transfer_function_for(r, mesh, textured.as_ref())?;
         let camera = camera(r, mesh)?;
         let (mode, gpu) = open_mode(r, mesh, &tf)?;
-        let renderer = mode.build(gpu.as_ref(), mesh)?;
+        let renderer = match &textured {
+            Some(t) => t.renderer(&mode, gpu.as_ref(), mesh)?,
+            None => mode.build(gpu.as_ref(), mesh)?,
+        };
         let output = r.output.clone().unwrap_or_else(|| "tetvr.gif".into());
         let sink = FrameSink::create(&output, r.background.color(), args.fps)?;
         let bar = ProgressBar::new(frames).with_style(

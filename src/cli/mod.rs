@@ -36,6 +36,8 @@ Examples:
   tetvr compare a.png b.png -o diff.png
   tetvr generate grid --tets 100000 --field marschner-lobb -o ml.vtu
   tetvr generate cage brain.nii.gz --tets 2000 --threshold 10 -o cage.vtu
+  tetvr render cage.vtu --texture brain.nii.gz --mode raycast -o brain.png
+  tetvr animate cage.vtu --texture brain.nii.gz --mode raycast --deform bend -o brain.gif
   tetvr bench --quick --out bench-out
   tetvr gpu-info";
 
@@ -158,6 +160,14 @@ pub struct RenderArgs {
     /// iso: shading of the surfaces.
     #[arg(long, value_enum, default_value_t = ShadingChoice::Flat)]
     pub shading: ShadingChoice,
+    /// Render the mesh as a cage textured with this NIfTI volume (.nii, .nii.gz; see
+    /// `generate cage`): the scalar is the volume sampled (trilinear) at each point's texture
+    /// coordinate, and the TF spans the volume's range. --mode raycast (GPU) or reference.
+    #[arg(long)]
+    pub texture: Option<PathBuf>,
+    /// The cage's 3-component point array of normalized texture coordinates.
+    #[arg(long, default_value = tetvr::texture::DEFAULT_TEXCOORDS)]
+    pub texcoords: String,
 }
 
 /// `render`: the render's flags, and a scene file to take them from or to save them to.

@@ -285,10 +285,7 @@ fn convert(
 
 /// The box-averaged samples of the NIfTI-1 volume at `path` (checked as [`nifti_to_tets`]
 /// checks it; `opts.threshold` is not used), for the 3D textures of [`crate::texture`].
-pub(crate) fn read_samples_file(
-    path: &Path,
-    opts: &VolumeToTets,
-) -> Result<Samples, VolumeError> {
+pub(crate) fn read_samples_file(path: &Path, opts: &VolumeToTets) -> Result<Samples, VolumeError> {
     let name = path.display().to_string();
     check_options(&name, opts)?;
     let io_error = |e: io::Error| read_error(&name, e);

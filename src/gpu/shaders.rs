@@ -105,8 +105,16 @@ pub fn raycast_stages() -> [(&'static str, String); 15] {
         traverse("raycast_traverse (peel, exact)", RAYCAST_LAYERS, &exact),
         traverse("raycast_traverse (peel, partial)", RAYCAST_LAYERS, &partial),
         traverse("raycast_traverse (peel, table)", RAYCAST_LAYERS, &table),
-        traverse("raycast_traverse (lists, textured)", RAYCAST_LISTS, &textured),
-        traverse("raycast_traverse (peel, textured)", RAYCAST_LAYERS, &textured),
+        traverse(
+            "raycast_traverse (lists, textured)",
+            RAYCAST_LISTS,
+            &textured,
+        ),
+        traverse(
+            "raycast_traverse (peel, textured)",
+            RAYCAST_LAYERS,
+            &textured,
+        ),
     ]
 }
 

@@ -91,16 +91,15 @@ pub fn cage(volume: &Volume, opts: &CageOptions) -> Result<TetMesh, CageError> {
         Some(t) => cell_max(volume, position(c), position(c + UVec3::ONE)) >= t,
     };
     let value = |v: UVec3| volume.sample(volume.texcoord(position(v)));
-    let mut mesh = hex_grid_mesh(cells, false, keep, position, value, "intensity").map_err(
-        |e| match e {
+    let mut mesh =
+        hex_grid_mesh(cells, false, keep, position, value, "intensity").map_err(|e| match e {
             GenerateError::Mesh(MeshError::NoTets) => {
                 let (lo, hi) = volume.range();
                 let threshold = opts.threshold.unwrap_or(f64::NEG_INFINITY);
                 CageError::AllBelowThreshold { threshold, lo, hi }
             }
             e => CageError::Generate(e),
-        },
-    )?;
+        })?;
     let coords: Vec<f64> = mesh
         .positions()
         .iter()
@@ -154,7 +153,14 @@ mod tests {
     #[test]
     fn cage_covers_the_sample_box_with_matching_texcoords() {
         let v = blob();
-        let m = cage(&v, &CageOptions { tets: 48, threshold: None }).unwrap();
+        let m = cage(
+            &v,
+            &CageOptions {
+                tets: 48,
+                threshold: None,
+            },
+        )
+        .unwrap();
         assert_eq!(m.tet_count(), 48);
         assert_eq!(m.bounds(), (DVec3::ZERO, DVec3::splat(16.0)));
         let tc = texcoords(&m, DEFAULT_TEXCOORDS).unwrap();

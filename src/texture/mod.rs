@@ -148,7 +148,11 @@ impl Volume {
 
     /// The box of the sample centres: where the trilinear field is defined without clamping.
     pub fn bounds(&self) -> (DVec3, DVec3) {
-        let n = DVec3::new(self.dims[0] as f64, self.dims[1] as f64, self.dims[2] as f64);
+        let n = DVec3::new(
+            self.dims[0] as f64,
+            self.dims[1] as f64,
+            self.dims[2] as f64,
+        );
         (self.origin, self.origin + (n - 1.0) * self.spacing)
     }
 
@@ -169,7 +173,11 @@ impl Volume {
     }
 
     fn dims_f64(&self) -> DVec3 {
-        DVec3::new(self.dims[0] as f64, self.dims[1] as f64, self.dims[2] as f64)
+        DVec3::new(
+            self.dims[0] as f64,
+            self.dims[1] as f64,
+            self.dims[2] as f64,
+        )
     }
 
     fn at(&self, i: usize, j: usize, k: usize) -> f64 {
@@ -307,7 +315,10 @@ pub fn texcoords(mesh: &TetMesh, name: &str) -> Result<Vec<DVec3>, CageError> {
             components: array.components,
         });
     }
-    Ok(array.tuples().map(|t| DVec3::new(t[0], t[1], t[2])).collect())
+    Ok(array
+        .tuples()
+        .map(|t| DVec3::new(t[0], t[1], t[2]))
+        .collect())
 }
 
 #[cfg(test)]
@@ -325,7 +336,11 @@ mod tests {
     #[test]
     fn trilinear_is_exact_on_a_linear_field_and_clamps_outside() {
         let v = ramp();
-        for p in [DVec3::ZERO, DVec3::new(1.5, 1.0, 1.5), DVec3::new(2.0, 2.0, 3.0)] {
+        for p in [
+            DVec3::ZERO,
+            DVec3::new(1.5, 1.0, 1.5),
+            DVec3::new(2.0, 2.0, 3.0),
+        ] {
             let expected = p.x + 10.0 * p.y / 2.0 + 100.0 * p.z / 3.0;
             assert!((v.sample(v.texcoord(p)) - expected).abs() < 1e-12, "{p}");
         }

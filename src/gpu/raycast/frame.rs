@@ -159,12 +159,17 @@ impl RaycastRenderer {
         self.queue
             .write_buffer(&self.tf_buf, 0, bytemuck::bytes_of(&points));
         self.eye_tol = near_tol(m.radius);
-        let rebuilt = match self.settings.segments {
+        // A textured cage steps through its texture: no integrator table.
+        let segments = match self.texture {
+            Some(_) => Segments::Exact,
+            None => self.settings.segments,
+        };
+        let rebuilt = match segments {
             Segments::Table => self.ensure_table(&m, tf)?,
             _ => false,
         };
         drop(m);
-        if self.settings.segments == Segments::Partial && self.psi.size() == 16 {
+        if segments == Segments::Partial && self.psi.size() == 16 {
             let table = psi::table();
             self.psi = storage(&self.device, "raycast psi table", 4 * table.len());
             (self.queue).write_buffer(&self.psi, 0, bytemuck::cast_slice(table));
