@@ -304,3 +304,57 @@ fn brain_cage_memory() {
     );
     assert!(bytes > texture && bytes < 36_000_000, "{bytes}");
 }
+
+/// The commands as a user runs them: `generate cage`, then `render --texture` with the
+/// reference (the picture equals the library's reference of the same cage to 8-bit rounding,
+/// 1/255), and the errors that name the fix: a missing texcoords array, a mode without
+/// textures.
+#[cfg(feature = "cli")]
+#[test]
+fn generate_cage_and_render_textured_from_the_command_line() {
+    use std::process::Command;
+    let run = |args: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_tetvr"))
+            .args(args)
+            .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+            .output()
+            .unwrap();
+        let text = |b: &[u8]| String::from_utf8_lossy(b).into_owned();
+        (out.status.success(), text(&out.stdout), text(&out.stderr))
+    };
+    let volume = blob_nifti();
+    let (volume, cage_path, png) = (
+        volume.to_str().unwrap(),
+        scratch("cli-cage.vtu"),
+        scratch("cli-cage.png"),
+    );
+    let (cage_path, png) = (cage_path.to_str().unwrap(), png.to_str().unwrap());
+    let (ok, out, err) = run(&["generate", "cage", volume, "--tets", "162", "-o", cage_path]);
+    assert!(ok && out.contains("144 tets"), "{out}{err}");
+    let render = ["render", cage_path, "--texture", volume, "--size", "24x24"];
+    let (ok, out, err) = run(&[
+        &render[..],
+        &["--mode", "reference", "--background", "none", "-o", png],
+    ]
+    .concat());
+    assert!(ok && out.contains("textured with"), "{out}{err}");
+    let mesh = tetvr::io::load(std::path::Path::new(cage_path)).unwrap().mesh;
+    let volume_lib = Arc::new(Volume::load(volume, 1).unwrap());
+    let (lo, hi) = volume_lib.range();
+    let tf = TransferFunction::default_for_range(lo, hi, mesh.diagonal() / 100.0).unwrap();
+    let (b_lo, b_hi) = mesh.bounds();
+    let camera = Camera::framing(b_lo, b_hi, View::ISO, 1.0, 30.0, 24, 24);
+    let expected = textured_image(&mesh, &volume_lib, None, &tf, &camera);
+    let m = Image::load_png(std::path::Path::new(png))
+        .unwrap()
+        .compare(&expected)
+        .unwrap();
+    assert!(m.max_abs <= 1.0 / 255.0 + 1e-6, "{m}");
+    let (ok, _, err) = run(&[&render[..], &["--texcoords", "uvw", "-o", png]].concat());
+    assert!(
+        !ok && err.contains("'uvw'") && err.contains("--texcoords"),
+        "{err}"
+    );
+    let (ok, _, err) = run(&[&render[..], &["--mode", "shells", "-o", png]].concat());
+    assert!(!ok && err.contains("--mode raycast"), "{err}");
+}

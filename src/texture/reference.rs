@@ -72,43 +72,42 @@ impl TexturedReference {
 
     /// Premultiplied RGBA of the ray `origin + t dir`, `t >= 0` (`dir` normalized).
     pub fn trace(&self, origin: DVec3, dir: DVec3, tf: &TransferFunction) -> [f64; 4] {
-        let mut color = [0.0; 3];
-        let mut trans = 1.0;
+        let mut acc = Acc {
+            color: [0.0; 3],
+            trans: 1.0,
+        };
         for seg in self.traversal.segments(origin, dir) {
             let Some(map) = self.texcoord_map(seg.tet) else {
                 continue;
             };
-            if self.integrate(&seg, &map, origin, dir, tf, &mut color, &mut trans) {
+            let at = |t: f64| self.volume.sample(map.at(origin + t * dir));
+            if self.integrate(&seg, at, tf, &mut acc) {
                 break;
             }
         }
-        [color[0], color[1], color[2], 1.0 - trans]
+        let [r, g, b] = acc.color;
+        [r, g, b, 1.0 - acc.trans]
     }
 
-    /// Composites segment `seg` onto (`color`, `trans`); true when the ray is done.
-    #[allow(clippy::too_many_arguments)]
+    /// Composites segment `seg`, whose scalar at ray parameter t is `at(t)`, onto `acc`; true
+    /// when the ray is done.
     fn integrate(
         &self,
         seg: &Segment,
-        map: &TexcoordMap,
-        origin: DVec3,
-        dir: DVec3,
+        at: impl Fn(f64) -> f64,
         tf: &TransferFunction,
-        color: &mut [f64; 3],
-        trans: &mut f64,
+        acc: &mut Acc,
     ) -> bool {
         let n = (seg.length() / self.step).ceil().max(1.0);
         let dz = seg.length() / n;
         for k in 0..n as u64 {
-            let t = seg.t_in + (k as f64 + 0.5) * dz;
-            let s = self.volume.sample(map.at(origin + t * dir));
-            let sample = tf.eval(s);
+            let sample = tf.eval(at(seg.t_in + (k as f64 + 0.5) * dz));
             let alpha = 1.0 - (-sample.tau * dz).exp();
-            for (acc, c) in color.iter_mut().zip(sample.color) {
-                *acc += *trans * c * alpha;
+            for (c, s) in acc.color.iter_mut().zip(sample.color) {
+                *c += acc.trans * s * alpha;
             }
-            *trans *= 1.0 - alpha;
-            if *trans < MIN_TRANSMITTANCE {
+            acc.trans *= 1.0 - alpha;
+            if acc.trans < MIN_TRANSMITTANCE {
                 return true;
             }
         }
@@ -133,6 +132,12 @@ impl TexturedReference {
             jacobian: j,
         })
     }
+}
+
+/// Premultiplied colour and transmittance gathered along a ray.
+struct Acc {
+    color: [f64; 3],
+    trans: f64,
 }
 
 /// `tc(x) = at_origin + jacobian (x - origin)` inside one tet.
