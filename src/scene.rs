@@ -339,6 +339,9 @@ pub struct Scene {
     /// Moves the mesh by a vector array times a scale before anything else (Warp By Vector).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub warp: Option<Warp>,
+    /// Renders the mesh as a cage textured with a volume ([`crate::texture`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub texture: Option<SceneTexture>,
     /// Where the camera is.
     #[serde(default)]
     pub camera: SceneCamera,
@@ -374,6 +377,21 @@ pub struct Warp {
     pub scale: f64,
 }
 
+/// `texture` of a [`Scene`]: the volume file and the cage's texture-coordinate array.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneTexture {
+    /// The NIfTI volume (relative to the scene file's folder in a file).
+    pub volume: PathBuf,
+    /// The cage's 3-component point array of texture coordinates.
+    #[serde(default = "default_texcoords")]
+    pub texcoords: String,
+}
+
+fn default_texcoords() -> String {
+    crate::texture::DEFAULT_TEXCOORDS.to_owned()
+}
+
 fn one() -> f64 {
     1.0
 }
@@ -402,6 +420,7 @@ impl Scene {
             array: None,
             cell_data: CellDataMode::default(),
             warp: None,
+            texture: None,
             camera: SceneCamera::default(),
             tf: default_tf(),
             unit_distance: None,
@@ -454,9 +473,13 @@ impl Scene {
         })
     }
 
-    /// Applies `f` to the paths in the scene: the mesh and a transfer function file.
+    /// Applies `f` to the paths in the scene: the mesh, a texture volume and a transfer
+    /// function file.
     fn map_paths(&mut self, f: impl Fn(&Path) -> PathBuf) {
         self.mesh = f(&self.mesh);
+        if let Some(t) = &mut self.texture {
+            t.volume = f(&t.volume);
+        }
         if let TfSpec::Named(name) = &self.tf
             && !preset_names().contains(&name.as_str())
         {

@@ -307,8 +307,8 @@ fn brain_cage_memory() {
 
 /// The commands as a user runs them: `generate cage`, then `render --texture` with the
 /// reference (the picture equals the library's reference of the same cage to 8-bit rounding,
-/// 1/255), and the errors that name the fix: a missing texcoords array, a mode without
-/// textures.
+/// 1/255), saved as a scene file and rendered from it (the same picture), and the errors that
+/// name the fix: a missing texcoords array, a mode without textures.
 #[cfg(feature = "cli")]
 #[test]
 fn generate_cage_and_render_textured_from_the_command_line() {
@@ -338,7 +338,9 @@ fn generate_cage_and_render_textured_from_the_command_line() {
     ]
     .concat());
     assert!(ok && out.contains("textured with"), "{out}{err}");
-    let mesh = tetvr::io::load(std::path::Path::new(cage_path)).unwrap().mesh;
+    let mesh = tetvr::io::load(std::path::Path::new(cage_path))
+        .unwrap()
+        .mesh;
     let volume_lib = Arc::new(Volume::load(volume, 1).unwrap());
     let (lo, hi) = volume_lib.range();
     let tf = TransferFunction::default_for_range(lo, hi, mesh.diagonal() / 100.0).unwrap();
@@ -350,6 +352,20 @@ fn generate_cage_and_render_textured_from_the_command_line() {
         .compare(&expected)
         .unwrap();
     assert!(m.max_abs <= 1.0 / 255.0 + 1e-6, "{m}");
+    // The scene file keeps the texture: rendered from it, the same picture.
+    let (scene, again) = (scratch("cli-cage.json"), scratch("cli-cage-scene.png"));
+    let (scene, again) = (scene.to_str().unwrap(), again.to_str().unwrap());
+    let save = ["--mode", "reference", "--background", "none", "-o", again];
+    let (ok, out, err) = run(&[&render[..], &save, &["--save-scene", scene]].concat());
+    assert!(ok, "{out}{err}");
+    assert!(
+        std::fs::read_to_string(scene)
+            .unwrap()
+            .contains("\"texture\"")
+    );
+    let (ok, out, err) = run(&["render", "--scene", scene, "-o", again]);
+    assert!(ok, "{out}{err}");
+    assert_eq!(std::fs::read(again).unwrap(), std::fs::read(png).unwrap());
     let (ok, _, err) = run(&[&render[..], &["--texcoords", "uvw", "-o", png]].concat());
     assert!(
         !ok && err.contains("'uvw'") && err.contains("--texcoords"),

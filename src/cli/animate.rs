@@ -21,6 +21,7 @@ use super::commands::{
     CliError, Textured, camera, load_mesh, median, ms, open_mode, read_limits,
     transfer_function_for,
 };
+use super::scene::of_flags;
 use super::{AnimateArgs, RenderArgs};
 
 pub(super) fn animate(args: AnimateArgs) -> Result<(), CliError> {
@@ -104,7 +105,7 @@ struct Playback {
 impl Playback {
     fn open(args: &AnimateArgs, mesh: &TetMesh, frames: u64) -> Result<Self, CliError> {
         let r: &RenderArgs = &args.render;
-        let textured = Textured::load(r, mesh)?;
+        let textured = Textured::load(of_flags(r)?.texture.as_ref(), mesh)?;
         let tf = transfer_function_for(r, mesh, textured.as_ref())?;
         let camera = camera(r, mesh)?;
         let (mode, gpu) = open_mode(r, mesh, &tf)?;

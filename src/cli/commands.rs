@@ -20,7 +20,7 @@ use tetvr::mesh::stats::MeshStats;
 use tetvr::mode::{ModeSettings, ReferenceSettings};
 use tetvr::reference::ReferenceRenderer;
 use tetvr::render::{Progress, RenderError};
-use tetvr::scene::{Scene, SceneError};
+use tetvr::scene::{Scene, SceneError, SceneTexture};
 use tetvr::texture::{Volume, textured_renderer};
 use tetvr::tf::TransferFunction;
 use tetvr::tf::file::{TfFileError, load_tf};
@@ -121,7 +121,7 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
     let camera = scene.camera(&mesh)?;
 
     let start = Instant::now();
-    let textured = Textured::load(args, &mesh)?;
+    let textured = Textured::load(scene.texture.as_ref(), &mesh)?;
     let tf = match &textured {
         Some(t) => scene.transfer_function_over(t.volume.range(), mesh.diagonal() / 100.0)?,
         None => scene.transfer_function(&mesh)?,
@@ -182,14 +182,18 @@ pub(super) struct Textured {
 }
 
 impl Textured {
-    /// The volume of `--texture` and `mesh`'s `--texcoords`; `None` without `--texture`.
-    pub(super) fn load(args: &RenderArgs, mesh: &TetMesh) -> Result<Option<Self>, CliError> {
-        let Some(path) = &args.texture else {
+    /// The volume of `--texture` (or the scene's `texture`) and `mesh`'s texture
+    /// coordinates; `None` without a texture.
+    pub(super) fn load(
+        texture: Option<&SceneTexture>,
+        mesh: &TetMesh,
+    ) -> Result<Option<Self>, CliError> {
+        let Some(texture) = texture else {
             return Ok(None);
         };
-        let texcoords = tetvr::texture::texcoords(mesh, &args.texcoords)?;
-        let volume = Arc::new(Volume::load(path, 1)?);
-        let path = path.clone();
+        let texcoords = tetvr::texture::texcoords(mesh, &texture.texcoords)?;
+        let volume = Arc::new(Volume::load(&texture.volume, 1)?);
+        let path = texture.volume.clone();
         Ok(Some(Self {
             volume,
             texcoords,
