@@ -366,4 +366,23 @@ mod tests {
         assert_eq!(half.origin(), DVec3::splat(0.5));
         assert!(v.downsampled(3).is_none());
     }
+
+    #[test]
+    fn fit_within_downsamples_by_the_smallest_factor_that_fits() {
+        let values: Vec<f32> = (0..6 * 4 * 2).map(|n| n as f32).collect();
+        let v = Volume::new([6, 4, 2], DVec3::ZERO, DVec3::ONE, values).unwrap();
+        let (same, factor) = v.clone().fit_within(6);
+        assert_eq!((same.dims(), factor), ([6, 4, 2], 1));
+        // 6 > 5: factor 2 gives 3 x 2 x 1, but an axis of 1 sample is no volume, so it stays.
+        assert_eq!(v.clone().fit_within(5).1, 1);
+        let big = Volume::new([8, 8, 8], DVec3::ZERO, DVec3::ONE, vec![1.0; 512]).unwrap();
+        let (fitted, factor) = big.fit_within(3);
+        assert_eq!((fitted.dims(), factor), ([2, 2, 2], 3));
+        // Normalized coordinates keep their meaning where the factor divides the axis: the
+        // texture coordinate of a world point is the same in both (8 = 2 x 4 with factor 4).
+        let big = Volume::new([8, 8, 8], DVec3::ZERO, DVec3::ONE, vec![1.0; 512]).unwrap();
+        let (four, _) = big.clone().fit_within(2);
+        let p = DVec3::new(1.0, 2.5, 6.0);
+        assert!((four.texcoord(p) - big.texcoord(p)).abs().max_element() < 1e-15);
+    }
 }
