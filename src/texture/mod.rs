@@ -19,6 +19,7 @@ use std::sync::Arc;
 
 use glam::DVec3;
 
+use crate::cpu::raycast::CpuRaycastRenderer;
 use crate::generate::volume::{VolumeError, VolumeToTets, read_samples_file};
 use crate::gpu::raycast::{RaycastRenderer, RaycastSettings};
 use crate::gpu::{GpuContext, GpuError};
@@ -256,8 +257,8 @@ fn block(f: usize) -> impl Iterator<Item = (usize, usize, usize)> {
     (0..f).flat_map(move |c| (0..f).flat_map(move |b| (0..f).map(move |a| (a, b, c))))
 }
 
-/// The renderer of a textured cage in `mode`: `raycast` (GPU, [`RaycastRenderer::textured`])
-/// or `reference` ([`TexturedReference`]); `auto` takes `raycast` when there is an adapter,
+/// The renderer of a textured cage in `mode`: `raycast` (GPU, [`RaycastRenderer::textured`]),
+/// `raycast-cpu` ([`CpuRaycastRenderer::textured`]) or `reference` ([`TexturedReference`]); `auto` takes `raycast` when there is an adapter,
 /// else the reference. Other modes do not read textures yet (issue 12), which the error says.
 /// `volume` must fit the adapter's 3D texture size ([`Volume::fit_within`]).
 pub fn textured_renderer(
@@ -280,6 +281,13 @@ pub fn textured_renderer(
             None,
             RaycastSettings::default(),
         )?)),
+        (ModeSettings::RaycastCpu(s), _) => Ok(Box::new(CpuRaycastRenderer::textured(
+            cage,
+            texcoords,
+            volume.clone(),
+            None,
+            *s,
+        )?)),
         (ModeSettings::Reference(_) | ModeSettings::Auto(_), _) => Ok(Box::new(
             TexturedReference::new(cage, tc, volume.clone(), None)?,
         )),
@@ -290,8 +298,8 @@ pub fn textured_renderer(
         }
         .into()),
         (other, _) => Err(RenderError::Settings(format!(
-            "--texture renders with --mode raycast (GPU) or reference (CPU); --mode {} does \
-             not read volume textures yet",
+            "--texture renders with --mode raycast (GPU), raycast-cpu or reference; --mode {} \
+             does not read volume textures yet",
             other.name()
         ))),
     }
