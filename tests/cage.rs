@@ -366,6 +366,9 @@ fn generate_cage_and_render_textured_from_the_command_line() {
     let (ok, out, err) = run(&["render", "--scene", scene, "-o", again]);
     assert!(ok, "{out}{err}");
     assert_eq!(std::fs::read(again).unwrap(), std::fs::read(png).unwrap());
+    // `auto` renders a textured cage with a ray caster (GPU on hardware, else CPU).
+    let (ok, out, err) = run(&[&render[..], &["-o", again]].concat());
+    assert!(ok && out.contains("mode raycast"), "{out}{err}");
     let (ok, _, err) = run(&[&render[..], &["--texcoords", "uvw", "-o", png]].concat());
     assert!(
         !ok && err.contains("'uvw'") && err.contains("--texcoords"),

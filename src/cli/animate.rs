@@ -113,6 +113,14 @@ impl Playback {
             Some(t) => t.renderer(&mode, gpu.as_ref(), mesh)?,
             None => mode.build(gpu.as_ref(), mesh)?,
         };
+        let what = match &textured {
+            Some(t) => format!(
+                "mode {}, textured with {}",
+                renderer.name(),
+                t.path.display()
+            ),
+            None => mode.describe(gpu.as_ref()),
+        };
         let output = r.output.clone().unwrap_or_else(|| "tetvr.gif".into());
         let sink = FrameSink::create(&output, r.background.color(), args.fps)?;
         let bar = ProgressBar::new(frames).with_style(
@@ -124,7 +132,7 @@ impl Playback {
             camera,
             tf,
             sink,
-            what: mode.describe(gpu.as_ref()),
+            what,
             bar,
             update_ms: Vec::new(),
             render_ms: Vec::new(),

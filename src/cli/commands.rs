@@ -127,8 +127,10 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
         None => scene.transfer_function(&mesh)?,
     };
     let (mode, gpu) = open_scene_mode(&scene, &mesh, &tf)?;
+    // A textured cage keeps `auto` for its own rule (texture::textured_renderer).
     let (mode, bar) = match (cmd.frames, &textured) {
-        (Some(_), _) | (_, Some(_)) => (mode.resolve(gpu.as_ref()), None),
+        (_, Some(_)) => (mode, None),
+        (Some(_), None) => (mode.resolve(gpu.as_ref()), None),
         (None, None) => with_row_bar(mode.resolve(gpu.as_ref()), camera.height),
     };
     let mut renderer = match &textured {
@@ -141,10 +143,14 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
     if let Some(bar) = bar {
         bar.finish_and_clear();
     }
-    let mut what = mode.describe(gpu.as_ref());
-    if let Some(t) = &textured {
-        what = format!("{what}, textured with {}", t.path.display());
-    }
+    let what = match &textured {
+        Some(t) => format!(
+            "mode {}, textured with {}",
+            renderer.name(),
+            t.path.display()
+        ),
+        None => mode.describe(gpu.as_ref()),
+    };
     let image = frame.image;
     let seconds = start.elapsed().as_secs_f64();
     if args.timings {
@@ -178,7 +184,7 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
 pub(super) struct Textured {
     pub(super) volume: Arc<Volume>,
     texcoords: Vec<DVec3>,
-    path: PathBuf,
+    pub(super) path: PathBuf,
 }
 
 impl Textured {

@@ -19,12 +19,12 @@ use std::sync::Arc;
 
 use glam::DVec3;
 
-use crate::cpu::raycast::CpuRaycastRenderer;
+use crate::cpu::raycast::{CpuRaycastRenderer, CpuRaycastSettings};
 use crate::generate::volume::{VolumeError, VolumeToTets, read_samples_file};
 use crate::gpu::raycast::{RaycastRenderer, RaycastSettings};
 use crate::gpu::{GpuContext, GpuError};
 use crate::mesh::TetMesh;
-use crate::mode::ModeSettings;
+use crate::mode::{AutoPath, ModeSettings};
 use crate::render::{RenderError, Renderer};
 
 pub use cage::{CageError, CageOptions, cage};
@@ -258,8 +258,9 @@ fn block(f: usize) -> impl Iterator<Item = (usize, usize, usize)> {
 }
 
 /// The renderer of a textured cage in `mode`: `raycast` (GPU, [`RaycastRenderer::textured`]),
-/// `raycast-cpu` ([`CpuRaycastRenderer::textured`]) or `reference` ([`TexturedReference`]); `auto` takes `raycast` when there is an adapter,
-/// else the reference. Other modes do not read textures yet (issue 12), which the error says.
+/// `raycast-cpu` ([`CpuRaycastRenderer::textured`]) or `reference` ([`TexturedReference`]);
+/// `auto` takes the GPU ray caster on a hardware adapter, else the CPU one (the rule of
+/// [`AutoPath`]). Other modes do not read textures yet (issue 12), which the error says.
 /// `volume` must fit the adapter's 3D texture size ([`Volume::fit_within`]).
 pub fn textured_renderer(
     mode: &ModeSettings,
@@ -268,31 +269,36 @@ pub fn textured_renderer(
     volume: &Arc<Volume>,
     texcoords: &[DVec3],
 ) -> Result<Box<dyn Renderer>, RenderError> {
-    let tc = texcoords.to_vec();
-    match (mode, gpu) {
-        (ModeSettings::Raycast(s), Some(gpu)) => Ok(Box::new(RaycastRenderer::textured(
-            gpu, cage, texcoords, volume, None, *s,
-        )?)),
-        (ModeSettings::Auto(_), Some(gpu)) => Ok(Box::new(RaycastRenderer::textured(
-            gpu,
+    let gpu_raycast = |gpu: &GpuContext, s: RaycastSettings| -> Result<Box<dyn Renderer>, _> {
+        Ok(Box::new(RaycastRenderer::textured(
+            gpu, cage, texcoords, volume, None, s,
+        )?))
+    };
+    let cpu_raycast = |s: CpuRaycastSettings| -> Result<Box<dyn Renderer>, RenderError> {
+        let tc = texcoords;
+        Ok(Box::new(CpuRaycastRenderer::textured(
             cage,
-            texcoords,
-            volume,
-            None,
-            RaycastSettings::default(),
-        )?)),
-        (ModeSettings::RaycastCpu(s), _) => Ok(Box::new(CpuRaycastRenderer::textured(
-            cage,
-            texcoords,
+            tc,
             volume.clone(),
             None,
-            *s,
+            s,
+        )?))
+    };
+    match (mode, gpu) {
+        (ModeSettings::Raycast(s), Some(gpu)) => gpu_raycast(gpu, *s),
+        (ModeSettings::Auto(_), Some(gpu)) if AutoPath::for_gpu(Some(gpu)) == AutoPath::Gpu => {
+            gpu_raycast(gpu, RaycastSettings::default())
+        }
+        (ModeSettings::Auto(_), _) => cpu_raycast(CpuRaycastSettings::default()),
+        (ModeSettings::RaycastCpu(s), _) => cpu_raycast(*s),
+        (ModeSettings::Reference(_), _) => Ok(Box::new(TexturedReference::new(
+            cage,
+            texcoords.to_vec(),
+            volume.clone(),
+            None,
         )?)),
-        (ModeSettings::Reference(_) | ModeSettings::Auto(_), _) => Ok(Box::new(
-            TexturedReference::new(cage, tc, volume.clone(), None)?,
-        )),
         (ModeSettings::Raycast(_), None) => Err(GpuError::NoAdapter {
-            detail: " (--mode raycast with --texture needs one; --mode reference renders the \
+            detail: " (--mode raycast with --texture needs one; --mode raycast-cpu renders the \
                      textured cage on the CPU)"
                 .into(),
         }
