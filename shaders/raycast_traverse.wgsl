@@ -3,8 +3,10 @@
 // is inside the mesh) or at its first entry, steps from tet to tet through the face it leaves by
 // (the nearest face plane it crosses moving outward; the face it came in by never; the planes
 // computed from the tet's vertices, `tet_planes`), integrates each segment front to back
-// (`segment`, from the integrator composed in front of this file: exact or partial with
-// integrate_segment.wgsl, or the 3D table, raycast_table.wgsl), and at the boundary resumes at
+// (`tet_segment`, from the integrator composed in front of this file: the tet's linear scalar
+// into `segment`, exact or partial with integrate_segment.wgsl, or the 3D table,
+// raycast_table.wgsl; or, for a textured cage, stepping through the volume texture,
+// raycast_texture.wgsl), and at the boundary resumes at
 // its next entry beyond where it left (non-convex meshes). It stops when its transmittance
 // falls below TERMINATE (early ray termination) or after params.max_steps tets (counted).
 // Where entries come from (ray_start, start_tet, next_entry, ray_end, with their bindings 7-8
@@ -166,8 +168,7 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
             out = exit(pl, entry, d, t);
         }
         let f = u32(out.x);
-        let u = segment_scalars(tet, pl, d, t, out.y);
-        let seg = segment(u.x, u.y, out.y - t);
+        let seg = tet_segment(tet, l.tet, pl, d, t, out.y);
         acc = Acc(acc.color + acc.trans * seg.color, acc.trans * seg.trans);
         if acc.trans < TERMINATE {
             break;

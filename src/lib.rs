@@ -24,6 +24,7 @@ pub mod mode;
 pub mod reference;
 pub mod render;
 pub mod scene;
+pub mod texture;
 pub mod tf;
 #[cfg(feature = "viewer")]
 pub mod viewer;

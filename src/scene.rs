@@ -375,6 +375,9 @@ pub struct Scene {
     /// Moves the mesh by a vector array times a scale before anything else (Warp By Vector).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub warp: Option<Warp>,
+    /// Renders the mesh as a cage textured with a volume ([`crate::texture`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub texture: Option<SceneTexture>,
     /// Where the camera is.
     #[serde(default)]
     pub camera: SceneCamera,
@@ -410,6 +413,21 @@ pub struct Warp {
     pub scale: f64,
 }
 
+/// `texture` of a [`Scene`]: the volume file and the cage's texture-coordinate array.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneTexture {
+    /// The NIfTI volume (relative to the scene file's folder in a file).
+    pub volume: PathBuf,
+    /// The cage's 3-component point array of texture coordinates.
+    #[serde(default = "default_texcoords")]
+    pub texcoords: String,
+}
+
+fn default_texcoords() -> String {
+    crate::texture::DEFAULT_TEXCOORDS.to_owned()
+}
+
 fn one() -> f64 {
     1.0
 }
@@ -438,6 +456,7 @@ impl Scene {
             array: None,
             cell_data: CellDataMode::default(),
             warp: None,
+            texture: None,
             camera: SceneCamera::default(),
             tf: default_tf(),
             unit_distance: None,
@@ -490,9 +509,13 @@ impl Scene {
         })
     }
 
-    /// Applies `f` to the paths in the scene: the mesh and a transfer function file.
+    /// Applies `f` to the paths in the scene: the mesh, a texture volume and a transfer
+    /// function file.
     fn map_paths(&mut self, f: impl Fn(&Path) -> PathBuf) {
         self.mesh = f(&self.mesh);
+        if let Some(t) = &mut self.texture {
+            t.volume = f(&t.volume);
+        }
         if let TfSpec::Named(name) = &self.tf
             && !preset_names().contains(&name.as_str())
         {
@@ -565,7 +588,17 @@ impl Scene {
             .active_array()
             .and_then(|a| a.range())
             .ok_or(MeshError::NoScalars)?;
-        let default_unit = mesh.diagonal() / 100.0;
+        self.transfer_function_over(range, mesh.diagonal() / 100.0)
+    }
+
+    /// [`Self::transfer_function`] for scalars spanning `range` (a preset's control points),
+    /// with `default_unit` unless the scene or the TF file says otherwise: for a textured
+    /// cage, its volume's range ([`crate::texture`]).
+    pub fn transfer_function_over(
+        &self,
+        range: (f64, f64),
+        default_unit: f64,
+    ) -> Result<TransferFunction, SceneError> {
         let tf = match &self.tf {
             TfSpec::Named(spec) => load_tf(spec, range, default_unit)?,
             TfSpec::Inline(value) => parse_tf_json(&value.to_string(), "tf", range, default_unit)?,

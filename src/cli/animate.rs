@@ -18,8 +18,10 @@ use tetvr::tf::TransferFunction;
 use tetvr::{Image, TetMesh};
 
 use super::commands::{
-    CliError, camera, load_mesh, median, ms, open_mode, read_limits, transfer_function,
+    CliError, Textured, camera, load_mesh, median, ms, open_mode, read_limits,
+    transfer_function_for,
 };
+use super::scene::of_flags;
 use super::{AnimateArgs, RenderArgs};
 
 pub(super) fn animate(args: AnimateArgs) -> Result<(), CliError> {
@@ -103,10 +105,22 @@ struct Playback {
 impl Playback {
     fn open(args: &AnimateArgs, mesh: &TetMesh, frames: u64) -> Result<Self, CliError> {
         let r: &RenderArgs = &args.render;
-        let tf = transfer_function(r, mesh)?;
+        let textured = Textured::load(of_flags(r)?.texture.as_ref(), mesh)?;
+        let tf = transfer_function_for(r, mesh, textured.as_ref())?;
         let camera = camera(r, mesh)?;
         let (mode, gpu) = open_mode(r, mesh, &tf)?;
-        let renderer = mode.build(gpu.as_ref(), mesh)?;
+        let renderer = match &textured {
+            Some(t) => t.renderer(&mode, gpu.as_ref(), mesh)?,
+            None => mode.build(gpu.as_ref(), mesh)?,
+        };
+        let what = match &textured {
+            Some(t) => format!(
+                "mode {}, textured with {}",
+                renderer.name(),
+                t.path.display()
+            ),
+            None => mode.describe(gpu.as_ref()),
+        };
         let output = r.output.clone().unwrap_or_else(|| "tetvr.gif".into());
         let sink = FrameSink::create(&output, r.background.color(), args.fps)?;
         let bar = ProgressBar::new(frames).with_style(
@@ -118,7 +132,7 @@ impl Playback {
             camera,
             tf,
             sink,
-            what: mode.describe(gpu.as_ref()),
+            what,
             bar,
             update_ms: Vec::new(),
             render_ms: Vec::new(),

@@ -1,10 +1,14 @@
 //! What each subcommand does.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::Instant;
+
+use glam::DVec3;
 
 use clap::ArgMatches;
 use indicatif::{ProgressBar, ProgressStyle};
+use tetvr::Renderer;
 use tetvr::camera::{Camera, CameraError};
 use tetvr::gpu::cellproj::sort::sort_check;
 use tetvr::gpu::{AdapterChoice, GpuContext, GpuError};
@@ -16,7 +20,8 @@ use tetvr::mesh::stats::MeshStats;
 use tetvr::mode::{ModeSettings, ReferenceSettings};
 use tetvr::reference::ReferenceRenderer;
 use tetvr::render::{Progress, RenderError};
-use tetvr::scene::{Scene, SceneError};
+use tetvr::scene::{Scene, SceneError, SceneTexture};
+use tetvr::texture::{Volume, textured_renderer};
 use tetvr::tf::TransferFunction;
 use tetvr::tf::file::{TfFileError, load_tf};
 use tetvr::{TetMesh, generate};
@@ -62,6 +67,8 @@ pub enum CliError {
     Volume(#[from] generate::volume::VolumeError),
     #[error(transparent)]
     Export(#[from] tetvr::export::ExportError),
+    #[error(transparent)]
+    Cage(#[from] tetvr::texture::CageError),
     #[error(transparent)]
     Bench(Box<crate::bench::BenchError>),
     #[error(transparent)]
@@ -121,23 +128,40 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
     let scene = resolve(&cmd, matches)?;
     let args = &cmd.render;
     let Loaded { mesh, .. } = scene.load_mesh(&read_limits(&args.mesh))?;
-    let tf = scene.transfer_function(&mesh)?;
     let camera = scene.camera(&mesh)?;
 
     let start = Instant::now();
-    let (mode, gpu) = open_scene_mode(&scene, &mesh, &tf)?;
-    let (mode, bar) = match cmd.frames {
-        Some(_) => (mode.resolve(gpu.as_ref()), None),
-        None => with_row_bar(mode.resolve(gpu.as_ref()), camera.height),
+    let textured = Textured::load(scene.texture.as_ref(), &mesh)?;
+    let tf = match &textured {
+        Some(t) => scene.transfer_function_over(t.volume.range(), mesh.diagonal() / 100.0)?,
+        None => scene.transfer_function(&mesh)?,
     };
-    let mut renderer = mode.build(gpu.as_ref(), &mesh)?;
+    let (mode, gpu) = open_scene_mode(&scene, &mesh, &tf)?;
+    // A textured cage keeps `auto` for its own rule (texture::textured_renderer).
+    let (mode, bar) = match (cmd.frames, &textured) {
+        (_, Some(_)) => (mode, None),
+        (Some(_), None) => (mode.resolve(gpu.as_ref()), None),
+        (None, None) => with_row_bar(mode.resolve(gpu.as_ref()), camera.height),
+    };
+    let mut renderer = match &textured {
+        Some(t) => t.renderer(&mode, gpu.as_ref(), &mesh)?,
+        None => mode.build(gpu.as_ref(), &mesh)?,
+    };
     let cold = Instant::now();
     let frame = renderer.render(&camera, &tf)?;
     let cold_ms = ms(cold);
     if let Some(bar) = bar {
         bar.finish_and_clear();
     }
-    let (image, what) = (frame.image, mode.describe(gpu.as_ref()));
+    let what = match &textured {
+        Some(t) => format!(
+            "mode {}, textured with {}",
+            renderer.name(),
+            t.path.display()
+        ),
+        None => mode.describe(gpu.as_ref()),
+    };
+    let image = frame.image;
     let seconds = start.elapsed().as_secs_f64();
     if args.timings {
         print!("{}", frame.timings);
@@ -166,6 +190,62 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
     Ok(())
 }
 
+/// `--texture`: the volume a cage is textured with, and the cage's texture coordinates.
+pub(super) struct Textured {
+    pub(super) volume: Arc<Volume>,
+    texcoords: Vec<DVec3>,
+    pub(super) path: PathBuf,
+}
+
+impl Textured {
+    /// The volume of `--texture` (or the scene's `texture`) and `mesh`'s texture
+    /// coordinates; `None` without a texture.
+    pub(super) fn load(
+        texture: Option<&SceneTexture>,
+        mesh: &TetMesh,
+    ) -> Result<Option<Self>, CliError> {
+        let Some(texture) = texture else {
+            return Ok(None);
+        };
+        let texcoords = tetvr::texture::texcoords(mesh, &texture.texcoords)?;
+        let volume = Arc::new(Volume::load(&texture.volume, 1)?);
+        let path = texture.volume.clone();
+        Ok(Some(Self {
+            volume,
+            texcoords,
+            path,
+        }))
+    }
+
+    /// The textured renderer of `mode`; on a GPU whose 3D textures are smaller than the
+    /// volume, the volume downsampled to fit, said in one line.
+    pub(super) fn renderer(
+        &self,
+        mode: &ModeSettings,
+        gpu: Option<&GpuContext>,
+        mesh: &TetMesh,
+    ) -> Result<Box<dyn Renderer>, CliError> {
+        let max = gpu.map_or(usize::MAX, |g| g.limits.max_texture_dimension_3d as usize);
+        let (fitted, factor) = (*self.volume).clone().fit_within(max);
+        if factor > 1 {
+            eprintln!(
+                "note: {}: {:?} voxels exceed the adapter's 3D texture size {max}; rendering it downsampled by {factor} to {:?}",
+                self.path.display(),
+                self.volume.dims(),
+                fitted.dims()
+            );
+        }
+        let volume = Arc::new(fitted);
+        Ok(textured_renderer(
+            mode,
+            gpu,
+            mesh,
+            &volume,
+            &self.texcoords,
+        )?)
+    }
+}
+
 /// Checks the cell projection's order along every 4th pixel's ray, prints the result and
 /// writes the mask of wrong pairs beside `output` (NAME-sort-check.png).
 fn write_sort_check(mesh: &TetMesh, camera: &Camera, output: &Path) -> Result<(), CliError> {
@@ -189,6 +269,19 @@ pub(super) fn transfer_function(
     mesh: &TetMesh,
 ) -> Result<TransferFunction, CliError> {
     Ok(of_flags(args)?.transfer_function(mesh)?)
+}
+
+/// [`transfer_function`], over a textured cage's volume range when there is one.
+pub(super) fn transfer_function_for(
+    args: &RenderArgs,
+    mesh: &TetMesh,
+    textured: Option<&Textured>,
+) -> Result<TransferFunction, CliError> {
+    let Some(t) = textured else {
+        return transfer_function(args, mesh);
+    };
+    let scene = of_flags(args)?;
+    Ok(scene.transfer_function_over(t.volume.range(), mesh.diagonal() / 100.0)?)
 }
 
 /// The camera of `--view`, `--distance`, `--fov`, `--size`, `--eye`, `--target`, `--up`.
@@ -355,6 +448,18 @@ fn generate(args: GenerateArgs) -> Result<(), CliError> {
                 threshold: *threshold,
             },
         )?,
+        GenerateShape::Cage {
+            input,
+            tets,
+            threshold,
+        } => {
+            let volume = tetvr::texture::Volume::load(input, 1)?;
+            let opts = tetvr::texture::CageOptions {
+                tets: *tets,
+                threshold: *threshold,
+            };
+            tetvr::texture::cage(&volume, &opts)?
+        }
     };
     write(&mesh, &args.output)?;
     println!(

@@ -39,6 +39,9 @@ Examples:
   tetvr info assets/bluntfin_tet.vtu
   tetvr compare a.png b.png -o diff.png
   tetvr generate grid --tets 100000 --field marschner-lobb -o ml.vtu
+  tetvr generate cage brain.nii.gz --tets 2000 --threshold 10 -o cage.vtu
+  tetvr render cage.vtu --texture brain.nii.gz --mode raycast -o brain.png
+  tetvr animate cage.vtu --texture brain.nii.gz --mode raycast --deform bend -o brain.gif
   tetvr bench --quick --out bench-out
   tetvr view assets/bluntfin_tet.vtu --mode raycast
   tetvr gpu-info";
@@ -184,6 +187,15 @@ pub struct RenderArgs {
     /// iso: shading of the surfaces.
     #[arg(long, value_enum, default_value_t = ShadingChoice::Flat)]
     pub shading: ShadingChoice,
+    /// Render the mesh as a cage textured with this NIfTI volume (.nii, .nii.gz; see
+    /// `generate cage`): the scalar is the volume sampled (trilinear) at each point's texture
+    /// coordinate, and the TF spans the volume's range. --mode raycast (GPU), raycast-cpu or
+    /// reference.
+    #[arg(long)]
+    pub texture: Option<PathBuf>,
+    /// The cage's 3-component point array of normalized texture coordinates.
+    #[arg(long, default_value = tetvr::texture::DEFAULT_TEXCOORDS)]
+    pub texcoords: String,
 }
 
 /// `render`: the render's flags, and a scene file to take them from or to save them to.
@@ -403,6 +415,20 @@ pub enum GenerateShape {
         #[arg(long, default_value_t = 1)]
         downsample: u32,
         /// Drop cells whose eight corner values are all below this.
+        #[arg(long)]
+        threshold: Option<f64>,
+    },
+    /// A coarse tet cage over a NIfTI volume (.nii or .nii.gz) for textured rendering
+    /// (`render --texture`): the box of its voxel centres, placed as `generate nifti` places
+    /// them, with the point array `texcoords` (normalized 3D texture coordinates) and the
+    /// volume sampled at the vertices as `intensity`.
+    Cage {
+        /// The volume file.
+        input: PathBuf,
+        /// About this many tets over the volume's box (6 per cell, cells near cubic).
+        #[arg(long, default_value_t = 2000)]
+        tets: u64,
+        /// Keep only cells where some voxel the trilinear field reads inside reaches this.
         #[arg(long)]
         threshold: Option<f64>,
     },

@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use clap::ArgMatches;
 use clap::parser::ValueSource;
-use tetvr::scene::{Mode, Scene, TfSpec, Warp};
+use tetvr::scene::{Mode, Scene, SceneTexture, TfSpec, Warp};
 use tetvr::{Camera, Renderer, TransferFunction, Tuning};
 
 use super::commands::{CliError, median};
@@ -58,6 +58,7 @@ fn overlay(scene: &mut Scene, a: &RenderArgs, given: &dyn Fn(&str) -> bool) {
         "array": scene.array => a.mesh.array.clone();
         "cell_data": scene.cell_data => a.mesh.cell_data;
         "warp": scene.warp => a.mesh.warp.clone().map(|array| Warp { array, scale: a.mesh.scale });
+        "texture": scene.texture => a.texture.clone().map(|volume| SceneTexture { volume, texcoords: a.texcoords.clone() });
         "view": c.view => a.view.clone();
         "distance": c.distance => a.distance;
         "fov": c.fov => a.fov;

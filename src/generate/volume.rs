@@ -274,23 +274,44 @@ fn check_options(name: &str, opts: &VolumeToTets) -> Result<(), VolumeError> {
 
 /// Reads a volume from `source` (`len` bytes, gzip told by its magic bytes) and meshes it.
 fn convert(
-    mut source: impl BufRead,
+    source: impl BufRead,
     len: u64,
     name: &str,
     opts: &VolumeToTets,
 ) -> Result<TetMesh, VolumeError> {
+    let volume = read_any(source, len, name, opts)?;
+    mesh_volume(volume, name, opts)
+}
+
+/// The box-averaged samples of the NIfTI-1 volume at `path` (checked as [`nifti_to_tets`]
+/// checks it; `opts.threshold` is not used), for the 3D textures of [`crate::texture`].
+pub(crate) fn read_samples_file(path: &Path, opts: &VolumeToTets) -> Result<Samples, VolumeError> {
+    let name = path.display().to_string();
+    check_options(&name, opts)?;
+    let io_error = |e: io::Error| read_error(&name, e);
+    let file = File::open(path).map_err(io_error)?;
+    let len = file.metadata().map_err(io_error)?.len();
+    read_any(BufReader::new(file), len, &name, opts)
+}
+
+/// Reads a volume from `source` (`len` bytes, gzip told by its magic bytes).
+fn read_any(
+    mut source: impl BufRead,
+    len: u64,
+    name: &str,
+    opts: &VolumeToTets,
+) -> Result<Samples, VolumeError> {
     let start = source.fill_buf().map_err(|e| read_error(name, e))?;
-    let volume = if start.starts_with(&[0x1f, 0x8b]) {
+    if start.starts_with(&[0x1f, 0x8b]) {
         read_volume(
             &mut Stream::new(MultiGzDecoder::new(source)),
             None,
             name,
             opts,
-        )?
+        )
     } else {
-        read_volume(&mut Stream::new(source), Some(len), name, opts)?
-    };
-    mesh_volume(volume, name, opts)
+        read_volume(&mut Stream::new(source), Some(len), name, opts)
+    }
 }
 
 fn read_error(name: &str, e: io::Error) -> VolumeError {
@@ -376,10 +397,10 @@ impl Layout {
 }
 
 /// The box-averaged samples (x fastest) of a volume, their dimensions and the voxel spacing.
-struct Samples {
-    values: Vec<f64>,
-    dims: [usize; 3],
-    spacing: DVec3,
+pub(crate) struct Samples {
+    pub(crate) values: Vec<f64>,
+    pub(crate) dims: [usize; 3],
+    pub(crate) spacing: DVec3,
 }
 
 /// Reads and checks the header, skips (and checks) the extensions, then reads the voxels.

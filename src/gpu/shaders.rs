@@ -52,19 +52,28 @@ const RAYCAST_TABLE: &str = include_str!("../../shaders/raycast_table.wgsl");
 const SEGMENT_PIECEWISE: &str = "fn segment(u_front: f32, u_back: f32, len: f32) -> Acc {\n    \
     return integrate_segment(u_front, u_back, len);\n}\n";
 
+/// The traversal's `tet_segment` for a linear field: the tet's scalars at the segment's ends
+/// into the integrator's `segment`.
+const TET_SEGMENT_LINEAR: &str = "fn tet_segment(tet: u32, ids: vec4<u32>, pl: TetPlanes, d: vec3<f32>, t0: f32, t1: f32) -> Acc {\n    \
+    let u = segment_scalars(tet, pl, d, t0, t1);\n    \
+    return segment(u.x, u.y, t1 - t0);\n}\n";
+const RAYCAST_TEXTURE: &str = include_str!("../../shaders/raycast_texture.wgsl");
+
 /// The ray caster's stages as it loads them (entry point `main` in each): vertices; planes;
 /// entries; the two depth-peeling passes (least t, then least face code); the tile list from
 /// entry lists and from peeled hits; the traversal with entry lists and with depth peeling,
-/// each with every integrator (`Segments`: exact, partial, table).
-pub fn raycast_stages() -> [(&'static str, String); 13] {
+/// each with every integrator (`Segments`: exact, partial, table); then both traversals for a
+/// textured cage (the volume texture stepped through, `raycast_texture.wgsl`).
+pub fn raycast_stages() -> [(&'static str, String); 15] {
     let common = format!("{SHARED}\n{RAYCAST_SHARED}\n{RAYCAST_RAYS}");
     let psi = format!(
         "// Generated: samples per psi table axis.\nconst PSI_SIZE: u32 = {}u;\n{RAYCAST_PSI}",
         crate::gpu::raycast::psi::PSI_SIZE
     );
-    let exact = format!("{PSI_EXACT}\n{SEGMENT_PIECEWISE}");
-    let partial = format!("{psi}\n{SEGMENT_PIECEWISE}");
-    let table = format!("{PSI_EXACT}\n{RAYCAST_TABLE}");
+    let exact = format!("{PSI_EXACT}\n{SEGMENT_PIECEWISE}\n{TET_SEGMENT_LINEAR}");
+    let partial = format!("{psi}\n{SEGMENT_PIECEWISE}\n{TET_SEGMENT_LINEAR}");
+    let table = format!("{PSI_EXACT}\n{RAYCAST_TABLE}\n{TET_SEGMENT_LINEAR}");
+    let textured = format!("{PSI_EXACT}\n{RAYCAST_TEXTURE}");
     // Every traversal has integrate_segment.wgsl (its `Acc`); the integrator gives `segment`.
     let traverse = |name, entries: &str, integrator: &str| {
         let integrate = INTEGRATE_SEGMENT;
@@ -96,6 +105,16 @@ pub fn raycast_stages() -> [(&'static str, String); 13] {
         traverse("raycast_traverse (peel, exact)", RAYCAST_LAYERS, &exact),
         traverse("raycast_traverse (peel, partial)", RAYCAST_LAYERS, &partial),
         traverse("raycast_traverse (peel, table)", RAYCAST_LAYERS, &table),
+        traverse(
+            "raycast_traverse (lists, textured)",
+            RAYCAST_LISTS,
+            &textured,
+        ),
+        traverse(
+            "raycast_traverse (peel, textured)",
+            RAYCAST_LAYERS,
+            &textured,
+        ),
     ]
 }
 

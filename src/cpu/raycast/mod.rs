@@ -25,8 +25,10 @@
 
 mod integrate;
 mod scene;
+mod texture;
 mod trace;
 
+use std::sync::Arc;
 use std::time::Instant;
 
 use glam::{DVec3, Vec3};
@@ -40,10 +42,13 @@ use crate::gpu::view::ViewFrame;
 use crate::image::Image;
 use crate::mesh::{TetMesh, check_new_positions, check_values};
 use crate::render::{Frame, RenderError, Renderer, Timings};
+use crate::texture::Volume;
+use crate::texture::reference::DEFAULT_STEP_FRACTION;
 use crate::tf::TransferFunction;
 
 use integrate::SegmentTf;
 use scene::{TILE, Tet};
+use texture::{CpuTexture, TexturedField};
 
 /// How the CPU ray caster integrates each segment (both split it at the TF's control points,
 /// as the GPU's [`crate::gpu::raycast::Segments`]; the 3D table is the GPU's alone).
@@ -88,6 +93,8 @@ pub struct CpuRaycastRenderer {
     /// Per frame, kept to reuse their memory: eye-space positions, per-tet records.
     eye: Vec<Vec3>,
     tets: Vec<Tet>,
+    /// A textured cage's volume and texture coordinates ([`CpuRaycastRenderer::textured`]).
+    texture: Option<CpuTexture>,
 }
 
 impl CpuRaycastRenderer {
@@ -119,9 +126,46 @@ impl CpuRaycastRenderer {
             boundary,
             eye: Vec::new(),
             tets: Vec::new(),
+            texture: None,
         };
         r.set_positions(mesh.positions());
         r.normalize_scalars();
+        Ok(r)
+    }
+
+    /// The CPU ray caster of a textured cage (issue 12): `cage`'s vertices carry `texcoords`,
+    /// and each tet segment is stepped through `volume` every `step` world units (`None`: the
+    /// textured reference's default), as the GPU's [`RaycastRenderer::textured`] does; the TF
+    /// applies to the volume's values.
+    ///
+    /// [`RaycastRenderer::textured`]: crate::gpu::RaycastRenderer::textured
+    pub fn textured(
+        cage: &TetMesh,
+        texcoords: &[DVec3],
+        volume: Arc<Volume>,
+        step: Option<f64>,
+        settings: CpuRaycastSettings,
+    ) -> Result<Self, RenderError> {
+        if texcoords.len() != cage.vertex_count() || cage.cell_scalars().is_some() {
+            return Err(RenderError::Settings(format!(
+                "a textured cage needs one texture coordinate per vertex ({} for {} vertices) \
+                 and point data, not cell data",
+                texcoords.len(),
+                cage.vertex_count()
+            )));
+        }
+        let step = step.unwrap_or(DEFAULT_STEP_FRACTION * volume.spacing().min_element());
+        if !(step.is_finite() && step > 0.0) {
+            return Err(RenderError::Settings(format!(
+                "texture step {step} must be a positive number of world units"
+            )));
+        }
+        let mut r = Self::new(cage, settings)?;
+        r.texture = Some(CpuTexture {
+            volume,
+            texcoords: texcoords.iter().map(|t| t.as_vec3()).collect(),
+            step: step as f32,
+        });
         Ok(r)
     }
 
@@ -178,6 +222,11 @@ impl CpuRaycastRenderer {
         );
         timings.stage("tf", ms_since(t));
         let t = Instant::now();
+        let field = self.texture.as_ref().map(|texture| TexturedField {
+            texture,
+            tf,
+            eye: &self.eye,
+        });
         let sc = trace::Scene {
             frame: &f,
             tets: &self.tets,
@@ -189,6 +238,7 @@ impl CpuRaycastRenderer {
             eye_tol,
             max_steps: (self.settings.max_steps)
                 .unwrap_or_else(|| default_max_steps(self.links.len())),
+            texture: field.as_ref(),
         };
         let (image, work) = render_tiles(&sc, &seg, camera.width, camera.height);
         timings.stage("traverse", ms_since(t));
@@ -260,6 +310,12 @@ impl Renderer for CpuRaycastRenderer {
     fn update_scalars(&mut self, scalars: &[f64]) -> Result<(), RenderError> {
         if self.cells.is_some() {
             return Err(cell_update_error());
+        }
+        if self.texture.is_some() {
+            return Err(RenderError::Settings(
+                "a textured cage renders its volume texture; vertex scalars cannot be updated"
+                    .into(),
+            ));
         }
         check_values("scalars", scalars, self.raw_scalars.len())?;
         self.raw_scalars.copy_from_slice(scalars);

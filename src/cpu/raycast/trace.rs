@@ -12,6 +12,7 @@ use crate::mesh::topology::NO_NEIGHBOR;
 
 use super::integrate::SegmentTf;
 use super::scene::{Bins, TILE, Tet, face_corners};
+use super::texture::TexturedField;
 
 /// What the rays read: the frame, the per-tet data, the entry bins.
 pub struct Scene<'a> {
@@ -26,6 +27,8 @@ pub struct Scene<'a> {
     pub eye_tet: u32,
     pub eye_tol: f32,
     pub max_steps: u32,
+    /// A textured cage: its segments step through the volume instead.
+    pub texture: Option<&'a TexturedField<'a>>,
 }
 
 /// What a tile's rays did: tets stepped through, rays the step limit stopped.
@@ -102,8 +105,13 @@ fn walk(sc: &Scene, tf: &SegmentTf, d: Vec3, hits: &[(f32, u32)]) -> ([f32; 4], 
         steps += 1;
         let here = &sc.tets[tet as usize];
         let (f, t_out) = exit(sc, here, tet, entry, d, t);
-        let (u_in, u_out) = segment_scalars(sc, here, tet, d, t, t_out);
-        let (c, tr) = tf.segment(u_in, u_out, t_out - t);
+        let (c, tr) = match sc.texture {
+            Some(field) => field.segment(here, sc.ids[tet as usize], d, t, t_out),
+            None => {
+                let (u_in, u_out) = segment_scalars(sc, here, tet, d, t, t_out);
+                tf.segment(u_in, u_out, t_out - t)
+            }
+        };
         color += trans * c;
         trans *= tr;
         if trans < twin::TERMINATE {

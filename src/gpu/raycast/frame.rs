@@ -150,16 +150,26 @@ impl RaycastRenderer {
         let frame = view.uniforms(m.origin, 0.0, near_tol(m.radius), nt);
         self.queue
             .write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&frame));
-        let points = tf_points(tf, m.scalar_min, m.scalar_span)?;
+        // A textured cage's TF applies to its volume's values, normalized like its texels.
+        let (lo, span) = match &self.texture {
+            Some(t) => (t.lo, t.span),
+            None => (m.scalar_min, m.scalar_span),
+        };
+        let points = tf_points(tf, lo, span)?;
         self.queue
             .write_buffer(&self.tf_buf, 0, bytemuck::bytes_of(&points));
         self.eye_tol = near_tol(m.radius);
-        let rebuilt = match self.settings.segments {
+        // A textured cage steps through its texture: no integrator table.
+        let segments = match self.texture {
+            Some(_) => Segments::Exact,
+            None => self.settings.segments,
+        };
+        let rebuilt = match segments {
             Segments::Table => self.ensure_table(&m, tf)?,
             _ => false,
         };
         drop(m);
-        if self.settings.segments == Segments::Partial && self.psi.size() == 16 {
+        if segments == Segments::Partial && self.psi.size() == 16 {
             let table = psi::table();
             self.psi = storage(&self.device, "raycast psi table", 4 * table.len());
             (self.queue).write_buffer(&self.psi, 0, bytemuck::cast_slice(table));
@@ -404,6 +414,13 @@ impl RaycastRenderer {
             Some(cells) => cells.window(16, 0, nt),
             None => entry(16, &self.psi),
         });
+        if let Some(texture) = &self.texture {
+            traverse.push(entry(17, &texture.texcoords));
+            traverse.push(wgpu::BindGroupEntry {
+                binding: 18,
+                resource: wgpu::BindingResource::TextureView(&texture.view),
+            });
+        }
         let stage = p.traverse(self.settings.entry, self.settings.segments);
         BindGroups {
             vertices: self.group(&p.vertices.layout, &vertices),

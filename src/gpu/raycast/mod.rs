@@ -60,6 +60,7 @@ mod frame;
 pub mod links;
 mod pipelines;
 pub mod psi;
+pub mod texture;
 pub mod twin;
 
 use std::sync::Arc;
@@ -78,6 +79,7 @@ use crate::render::{Frame, RenderError, Renderer};
 use crate::tf::TransferFunction;
 
 use pipelines::Pipelines;
+use texture::GpuTexture;
 
 /// How the traversal integrates each segment (both split it at the TF's control points).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -205,6 +207,8 @@ pub struct RaycastRenderer {
     /// The eye-in-tet tolerance of the current frame ([`near_tol`]).
     eye_tol: f32,
     targets: Option<Targets>,
+    /// A textured cage's volume and texture coordinates ([`RaycastRenderer::textured`]).
+    texture: Option<GpuTexture>,
 }
 
 /// Per image size and entry method: the output, its readback, the per-pixel entry buffers,
@@ -253,6 +257,40 @@ impl RaycastRenderer {
         mesh: Arc<GpuTetMesh>,
         settings: RaycastSettings,
     ) -> Result<Self, RenderError> {
+        Self::build(ctx, mesh, settings, None)
+    }
+
+    /// The ray caster of a textured cage (issue 12): `cage`'s vertices carry `texcoords`, and
+    /// each tet segment is stepped through `volume` every `step` world units (`None`: the
+    /// textured reference's default) instead of integrating the cage's own scalars
+    /// (`shaders/raycast_texture.wgsl`); [`Renderer::update_positions`] moves the volume with
+    /// the cage. The TF applies to the volume's values; `settings.segments` is not used.
+    pub fn textured(
+        ctx: &GpuContext,
+        cage: &TetMesh,
+        texcoords: &[DVec3],
+        volume: &crate::texture::Volume,
+        step: Option<f64>,
+        settings: RaycastSettings,
+    ) -> Result<Self, RenderError> {
+        if texcoords.len() != cage.vertex_count() || cage.cell_scalars().is_some() {
+            return Err(settings_error(format!(
+                "a textured cage needs one texture coordinate per vertex ({} for {} vertices) \
+                 and point data, not cell data",
+                texcoords.len(),
+                cage.vertex_count()
+            )));
+        }
+        let texture = GpuTexture::new(ctx, volume, texcoords, step)?;
+        Self::build(ctx, GpuTetMesh::new(ctx, cage)?, settings, Some(texture))
+    }
+
+    fn build(
+        ctx: &GpuContext,
+        mesh: Arc<GpuTetMesh>,
+        settings: RaycastSettings,
+        texture: Option<GpuTexture>,
+    ) -> Result<Self, RenderError> {
         let nt = mesh.tet_count() as u64;
         let nv = mesh.read().positions.len() as u64;
         check_fits(&ctx.limits, nt, nv, &settings)?;
@@ -271,6 +309,7 @@ impl RaycastRenderer {
                 &device,
                 nt.div_ceil(chunking.chunk).max(1),
                 mesh.has_cells(),
+                texture.as_ref().map(|t| t.step),
             ),
             frame: FrameResources::new(ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY)),
             frame_buf: uniform("raycast frame", size_of::<ViewUniforms>()),
@@ -297,6 +336,7 @@ impl RaycastRenderer {
             settings,
             mesh,
             targets: None,
+            texture,
         })
     }
 
@@ -392,7 +432,13 @@ impl Renderer for RaycastRenderer {
         self.mesh.update_positions(positions)
     }
 
+    /// Refused for a textured cage, whose field is its texture.
     fn update_scalars(&mut self, scalars: &[f64]) -> Result<(), RenderError> {
+        if self.texture.is_some() {
+            return Err(settings_error(
+                "a textured cage renders its volume texture; vertex scalars cannot be updated",
+            ));
+        }
         self.mesh.update_scalars(scalars)
     }
 
@@ -419,6 +465,7 @@ impl Renderer for RaycastRenderer {
                 + t.readback.size()
                 + 16 * t.width as u64 * t.height as u64
         });
-        self.mesh.gpu_memory() + buffers + self.links.size() + self.frame.size() + targets
+        let texture = self.texture.as_ref().map_or(0, GpuTexture::bytes);
+        self.mesh.gpu_memory() + buffers + self.links.size() + self.frame.size() + targets + texture
     }
 }

@@ -27,6 +27,9 @@ pub struct Pipelines {
     tiles: [Stage; 2],
     /// Indexed by [`Entry`], then [`Segments`] (exact, partial, table).
     traverse: [[Stage; 3]; 2],
+    /// For a textured cage: the traversal per [`Entry`] that steps through the volume texture
+    /// (whatever the [`Segments`]).
+    textured: Option<[Stage; 2]>,
 }
 
 const RO: B = B::Storage { read_only: true };
@@ -77,14 +80,38 @@ fn traverse_entries(entry: Entry) -> Vec<wgpu::BindGroupLayoutEntry> {
     entries
 }
 
+/// The textured traversal's bindings: [`traverse_entries`], then 17 the vertices' texture
+/// coordinates and 18 the volume (R32Float, read with textureLoad: not filtered).
+fn textured_entries(entry: Entry) -> Vec<wgpu::BindGroupLayoutEntry> {
+    let mut entries = traverse_entries(entry);
+    entries.push(buffer_entry(17, S::COMPUTE, RO));
+    entries.push(wgpu::BindGroupLayoutEntry {
+        binding: 18,
+        visibility: S::COMPUTE,
+        ty: wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable: false },
+            view_dimension: wgpu::TextureViewDimension::D3,
+            multisampled: false,
+        },
+        count: None,
+    });
+    entries
+}
+
 impl Pipelines {
     /// Compiles the stages for a mesh whose links take `windows` windows (WGSL
-    /// `LINK_WINDOWS`) and whose field is constant per tet when `cells` (WGSL `CELLS`).
-    pub fn new(device: &wgpu::Device, windows: u64, cells: bool) -> Self {
+    /// `LINK_WINDOWS`) and whose field is constant per tet when `cells` (WGSL `CELLS`); with
+    /// `texture_step`, also the textured traversals sampling every that many world units.
+    pub fn new(
+        device: &wgpu::Device,
+        windows: u64,
+        cells: bool,
+        texture_step: Option<f32>,
+    ) -> Self {
         let cells = if cells { 1.0 } else { 0.0 };
         let constants = [("LINK_WINDOWS", windows as f64), ("CELLS", cells)];
         let stage = |shader, entries: &[wgpu::BindGroupLayoutEntry]| {
-            stage(device, shader, entries, &constants)
+            stage_with(device, shader, entries, &constants)
         };
         let [
             vertices,
@@ -100,6 +127,8 @@ impl Pipelines {
             peel_exact,
             peel_partial,
             peel_table,
+            lists_textured,
+            peel_textured,
         ] = shaders::raycast_stages();
         // Peeling: the boundary, the hits, the ray states, the counters, the layer, progress.
         let u = B::Uniform;
@@ -121,6 +150,14 @@ impl Pipelines {
                 [lists_exact, lists_partial, lists_table].map(|s| stage(s, &lists)),
                 [peel_exact, peel_partial, peel_table].map(|s| stage(s, &layers)),
             ],
+            textured: texture_step.map(|step| {
+                let constants = [constants[0], constants[1], ("STEP", step as f64)];
+                let textured = |s, e| stage_with(device, s, &textured_entries(e), &constants);
+                [
+                    textured(lists_textured, Entry::Lists),
+                    textured(peel_textured, Entry::Peel),
+                ]
+            }),
         }
     }
 
@@ -129,8 +166,12 @@ impl Pipelines {
         &self.tiles[entry as usize]
     }
 
-    /// The traversal stage of `entry` and `segments`.
+    /// The traversal stage of `entry` and `segments`; for a textured cage, its textured
+    /// traversal of `entry`.
     pub fn traverse(&self, entry: Entry, segments: Segments) -> &Stage {
+        if let Some(textured) = &self.textured {
+            return &textured[entry as usize];
+        }
         let [exact, partial, table] = &self.traverse[entry as usize];
         match segments {
             Segments::Exact => exact,
@@ -146,7 +187,7 @@ fn buffers(types: &[B]) -> Vec<wgpu::BindGroupLayoutEntry> {
         .collect()
 }
 
-fn stage(
+fn stage_with(
     device: &wgpu::Device,
     (name, source): (&str, String),
     entries: &[wgpu::BindGroupLayoutEntry],
