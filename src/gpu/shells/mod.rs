@@ -114,9 +114,9 @@ pub enum Sampler {
     #[default]
     Raster,
     /// Per shell, its tets binned to 8 x 8 pixel tiles and one workgroup per tile sampling
-    /// and compositing its pixels (`tiles.rs`, `fine.rs`). Meshes of one record chunk only
-    /// (about 932k tets on lavapipe); larger ones are an error naming the raster sampler. Its
-    /// slices and accumulation stay in f32 whatever [`ShellSettings::format`] says.
+    /// and compositing its pixels (`tiles.rs`, `fine.rs`); records of several chunks run one
+    /// pass per chunk, carrying the slices between them (`compute.rs`). Its slices and
+    /// accumulation stay in f32 whatever [`ShellSettings::format`] says.
     Compute,
 }
 

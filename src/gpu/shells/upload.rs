@@ -76,13 +76,7 @@ impl ShellsRenderer {
         let stride = self.shell_stride as usize;
         let mut shell_data = vec![0u8; stride * drawn.len().max(1)];
         for (i, (s, r)) in drawn.iter().enumerate() {
-            let u = ShellUniforms {
-                first_slice: s * n,
-                faces: [r.faces.start, r.faces.len() as u32],
-                near: [r.near.start, r.near.len() as u32],
-                tiles: tile_rect(plan.scissor(r.screen)),
-                ..Zeroable::zeroed()
-            };
+            let u = shell_uniforms((*s, r), n, plan);
             shell_data[i * stride..i * stride + size_of::<ShellUniforms>()]
                 .copy_from_slice(bytemuck::bytes_of(&u));
         }
@@ -125,6 +119,22 @@ impl ShellsRenderer {
     }
 }
 
+/// The constants of drawn shell `s` with `n` slices per shell: its first slice, its ranges of
+/// the active list and the tiles of its rectangle.
+pub(super) fn shell_uniforms(
+    (s, r): (u32, &ShellRange),
+    n: u32,
+    plan: &FramePlan,
+) -> ShellUniforms {
+    ShellUniforms {
+        first_slice: s * n,
+        faces: [r.faces.start, r.faces.len() as u32],
+        near: [r.near.start, r.near.len() as u32],
+        tiles: tile_rect(plan.scissor(r.screen)),
+        ..Zeroable::zeroed()
+    }
+}
+
 /// The active list as the raster shaders index it: tet ids relative to their chunk's first.
 pub(super) fn chunk_local(ids: &[u32], chunk_tets: u32, tets: u32) -> std::borrow::Cow<'_, [u32]> {
     if tets <= chunk_tets {
@@ -139,7 +149,7 @@ pub(super) fn chunk_local(ids: &[u32], chunk_tets: u32, tets: u32) -> std::borro
 
 /// Writes `data` to `*buf`, first growing it (to a power of two, at most the adapter's largest
 /// buffer) when it is too small.
-fn write_grown(
+pub(super) fn write_grown(
     (device, queue, limits): (&wgpu::Device, &wgpu::Queue, &wgpu::Limits),
     buf: &mut wgpu::Buffer,
     data: &[u8],
