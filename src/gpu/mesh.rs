@@ -86,23 +86,29 @@ impl MeshData {
 
     /// The vertex positions as the GPU stages read them: relative to `origin`, f32, `w = 1`.
     pub(crate) fn gpu_positions(&self) -> Vec<[f32; 4]> {
-        let o = self.origin;
-        self.positions
-            .par_iter()
-            .map(|&p| {
-                let q = (p - o).as_vec3();
-                [q.x, q.y, q.z, 1.0]
-            })
+        (0..self.positions.len())
+            .into_par_iter()
+            .map(|v| self.gpu_position(v))
             .collect()
+    }
+
+    /// Vertex `v`'s position as [`Self::gpu_positions`] has it.
+    fn gpu_position(&self, v: usize) -> [f32; 4] {
+        let q = (self.positions[v] - self.origin).as_vec3();
+        [q.x, q.y, q.z, 1.0]
     }
 
     /// The scalars as the GPU stages read them: `(s - scalar_min) / scalar_span`, f32.
     pub(crate) fn gpu_scalars(&self) -> Vec<f32> {
-        let (lo, span) = (self.scalar_min, self.scalar_span);
-        self.scalars
-            .par_iter()
-            .map(|&s| ((s - lo) / span) as f32)
+        (0..self.scalars.len())
+            .into_par_iter()
+            .map(|v| self.gpu_scalar(v))
             .collect()
+    }
+
+    /// Vertex `v`'s scalar as [`Self::gpu_scalars`] has it.
+    fn gpu_scalar(&self, v: usize) -> f32 {
+        ((self.scalars[v] - self.scalar_min) / self.scalar_span) as f32
     }
 
     /// The per-tet values of a cell-data mesh, normalized as [`Self::gpu_scalars`]; `None` for
@@ -318,15 +324,15 @@ impl GpuTetMesh {
     }
 
     fn upload_positions(&self, data: &MeshData) {
-        let gpu = data.gpu_positions();
-        self.queue
-            .write_buffer(&self.positions, 0, bytemuck::cast_slice(&gpu));
+        let count = data.positions.len();
+        write_parallel(&self.queue, &self.positions, count, |v| {
+            data.gpu_position(v)
+        });
     }
 
     fn upload_scalars(&self, data: &MeshData) {
-        let gpu = data.gpu_scalars();
-        self.queue
-            .write_buffer(&self.scalars, 0, bytemuck::cast_slice(&gpu));
+        let count = data.scalars.len();
+        write_parallel(&self.queue, &self.scalars, count, |v| data.gpu_scalar(v));
     }
 
     /// Bytes of the mesh's GPU buffers (vertices, and the per-tet arrays uploaded so far).
@@ -466,6 +472,41 @@ impl TetArray {
     pub(crate) fn size(&self) -> u64 {
         self.buffers.iter().map(wgpu::Buffer::size).sum()
     }
+}
+
+/// Writes `count` entries to the start of `buffer`, entry `i` being `entry(i)`, converted in
+/// parallel straight into the queue's staging memory: no whole intermediate array and no
+/// second copy of it, which is what a per-frame position update of a large mesh costs
+/// (measured in tests/shells_large.rs). A write wgpu refuses is reported by wgpu's error
+/// handler, as [`wgpu::Queue::write_buffer`]'s would be.
+fn write_parallel<T: bytemuck::Pod + Send>(
+    queue: &wgpu::Queue,
+    buffer: &wgpu::Buffer,
+    count: usize,
+    entry: impl Fn(usize) -> T + Sync,
+) {
+    /// Bytes converted per task: whole entries of every type written here (16 or 4 bytes).
+    const CHUNK: usize = 1 << 18;
+    const { assert!(CHUNK.is_multiple_of(size_of::<T>())) };
+    let per_chunk = CHUNK / size_of::<T>();
+    let Some(size) = wgpu::BufferSize::new((count * size_of::<T>()) as u64) else {
+        return;
+    };
+    let Some(mut view) = queue.write_buffer_with(buffer, 0, size) else {
+        return;
+    };
+    let fill = |mut part: wgpu::WriteOnly<'_, [u8]>, first: usize| {
+        let n = part.len() / size_of::<T>();
+        let entries: Vec<T> = (first..first + n).map(&entry).collect();
+        part.copy_from_slice(bytemuck::cast_slice(&entries));
+    };
+    let (chunks, tail) = view.slice(..).into_chunks::<CHUNK>();
+    let chunks: Vec<_> = chunks.into_iter().enumerate().collect();
+    let whole = chunks.len() * per_chunk;
+    chunks
+        .into_par_iter()
+        .for_each(|(c, chunk)| fill(chunk.into(), c * per_chunk));
+    fill(tail, whole);
 }
 
 /// A storage buffer of `bytes` (at least 16) that is also a copy destination and source.
