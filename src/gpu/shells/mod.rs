@@ -41,7 +41,9 @@
 //! 128 MiB) are assembled and drawn in chunks: the records live in a tet array
 //! (`gpu/mesh.rs`, as many buffers as the adapter's largest buffer needs),
 //! each chunk binds its window of it, and a shell's active list (tet ids ascending, as binning
-//! leaves them) is drawn chunk by chunk with chunk-local ids.
+//! leaves them) is drawn chunk by chunk with chunk-local ids. The compute sampler runs a
+//! shell's tiles and fine stages once per chunk, carrying the pixels' slices from one pass to
+//! the next (`compute.rs`).
 //!
 //! Precision: positions are uploaded relative to the mesh's bounding-box centre (subtracted in
 //! f64), and so is the eye, so a mesh far from the origin renders as it does at the origin.
