@@ -831,6 +831,27 @@ fn a_mesh_beyond_one_storage_binding_is_drawn_in_chunks() {
 }
 
 #[test]
+fn bytes_per_tet_count_the_records_tets_vertices_and_active_list() {
+    // Per tet: a 144-byte record and 16 bytes of vertex indices; lox has fewer vertices than
+    // tets (20 bytes each: position and scalar) and a tet spans one or two shells at 256
+    // samples (4 bytes per instance, the buffer grown to a power of two: at most 16 bytes per
+    // tet more). So between 160 and 200 bytes, and the frame reports the same figure.
+    let mesh = lox();
+    let (tf, camera) = common::default_view(&mesh, 64);
+    let settings = ShellSettings {
+        samples: 256,
+        ..Default::default()
+    };
+    let (_, r, timings) = render(&mesh, settings, &camera, &tf);
+    let per_tet = r.bytes_per_tet();
+    assert!(
+        (160.0..=200.0).contains(&per_tet),
+        "{per_tet} bytes per tet"
+    );
+    assert_eq!(counter(&timings, "bytes per tet"), per_tet.round() as u64);
+}
+
+#[test]
 fn the_compute_sampler_draws_a_chunked_mesh_as_it_draws_it_whole() {
     // The same adapter told it may bind only 256 KiB per storage binding: lox's 8,750 records
     // (1.26 MB) become 5 chunks of 1,792 tets (a multiple of the 256-byte offset alignment).

@@ -617,6 +617,7 @@ impl ShellsRenderer {
         timings.count("tets", tets);
         timings.count("record chunks", chunks as u64);
         timings.count("record buffers", self.records.buffer_count() as u64);
+        timings.count("bytes per tet", self.bytes_per_tet().round() as u64);
         let bin = &f.bin;
         timings.count("tets culled", bin.culled);
         timings.count("tets transparent", bin.transparent);
@@ -626,6 +627,16 @@ impl ShellsRenderer {
         timings.count("shells drawn", f.drawn.len() as u64);
         timings.count("near-plane tets", bin.near);
         timings.count("degenerate tets", stats.degenerate as u64);
+    }
+}
+
+impl ShellsRenderer {
+    /// GPU bytes per tet of what scales with the mesh: its vertices and per-tet arrays (tets,
+    /// cell values), the records (144 bytes a tet) and the active list (4 bytes per tet-shell
+    /// instance, in a buffer grown to a power of two).
+    pub fn bytes_per_tet(&self) -> f64 {
+        let bytes = self.mesh.gpu_memory() + self.records.size() + self.active_buf.size();
+        bytes as f64 / self.mesh.tet_count().max(1) as f64
     }
 }
 
