@@ -230,8 +230,8 @@ impl GpuTetMesh {
 
     /// The tets' vertex indices (`vec4<u32>` per tet), in chunks of [`Self::chunking`].
     pub(crate) fn tets(&self) -> Result<&TetArray, RenderError> {
-        self.lazy(&self.tets, "mesh tets", 16, |d| {
-            bytemuck::cast_slice(&d.tets).to_vec()
+        self.lazy(&self.tets, "mesh tets", 16, |d, write| {
+            write(bytemuck::cast_slice(&d.tets));
         })
     }
 
@@ -246,8 +246,8 @@ impl GpuTetMesh {
         if !self.has_cells() {
             return Ok(None);
         }
-        let array = self.lazy(&self.cells, "mesh cell values", 4, |d| {
-            bytemuck::cast_slice(&d.gpu_cells().unwrap_or_default()).to_vec()
+        let array = self.lazy(&self.cells, "mesh cell values", 4, |d, write| {
+            write(bytemuck::cast_slice(&d.gpu_cells().unwrap_or_default()));
         })?;
         Ok(Some(array))
     }
@@ -262,20 +262,22 @@ impl GpuTetMesh {
         Chunking::new(self.tet_count() as u64, &self.limits)
     }
 
+    /// The per-tet array in `cell`, made and filled on first use: `fill` hands the mesh's
+    /// bytes for it (one entry of `stride` bytes per tet) to the writer it is given, which
+    /// uploads them without a copy of its own (on a 10M-tet mesh a copy of the tets alone is
+    /// 160 MB).
     fn lazy<'a>(
         &'a self,
         cell: &'a OnceLock<TetArray>,
         label: &str,
         stride: u64,
-        bytes: impl FnOnce(&MeshData) -> Vec<u8>,
+        fill: impl FnOnce(&MeshData, &mut dyn FnMut(&[u8])),
     ) -> Result<&'a TetArray, RenderError> {
         if let Some(array) = cell.get() {
             return Ok(array);
         }
-        let data = bytes(&self.read());
-        let count = data.len() as u64 / stride;
-        let array = self.tet_array(label, self.chunking()?, count, stride)?;
-        array.write(&self.queue, &data);
+        let array = self.tet_array(label, self.chunking()?, self.tet_count as u64, stride)?;
+        fill(&self.read(), &mut |bytes| array.write(&self.queue, bytes));
         Ok(cell.get_or_init(|| array))
     }
 
