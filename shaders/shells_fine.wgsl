@@ -6,6 +6,11 @@
 // A pixel whose alpha reached `threshold` is finished; a tile whose pixels are all finished
 // is flagged and skipped by the later shells. The generated prelude defines TILE, TARGETS and
 // tf_eval().
+//
+// Meshes whose records span several chunks (bindings) run one pass per chunk holding some of
+// the shell's tets (shell.chunk_pass): every pass but the last stores the pixel's slices in
+// `slices`, every pass but the first starts from them. MAX does not care how the tets are
+// split, so the last pass composites exactly the samples one pass over all tets would.
 
 // Accumulated alpha at which a pixel is finished (pipeline-overridable; above 1: never).
 override threshold: f32 = 0.99999;
@@ -19,6 +24,12 @@ override threshold: f32 = 0.99999;
 @group(0) @binding(10) var<storage, read_write> accum: array<vec4<f32>>;
 // Per tile, nonzero once all its pixels are finished.
 @group(0) @binding(11) var<storage, read_write> finished: array<u32>;
+
+// Per pixel, TARGETS vec4s of slices carried between the chunk passes of a shell.
+@group(0) @binding(12) var<storage, read_write> slices: array<vec4<f32>>;
+
+const CHUNK_LOAD: u32 = 1u;
+const CHUNK_STORE: u32 = 2u;
 
 var<workgroup> tile_finished: u32;
 var<workgroup> live: atomic<u32>;
@@ -74,16 +85,28 @@ fn main(
         let capacity = arrayLength(&lists);
         let start = min(offsets[tile], capacity);
         let end = min(offsets[tile + 1u], capacity);
-        let src = composite_shell(sample_tets(vec2<f32>(pixel) + 0.5, local.xy, start, end));
-        // The raster sampler's "under" blend: dst = src (1 - dst.a) + dst.
-        dst += src * (1.0 - dst.a);
-        accum[p] = dst;
-        if dst.a < threshold {
-            atomicAdd(&live, 1u);
+        var v = sample_tets(vec2<f32>(pixel) + 0.5, local.xy, start, end);
+        if (shell.chunk_pass & CHUNK_LOAD) != 0u {
+            for (var k = 0u; k < TARGETS; k++) {
+                v[k] = max(v[k], slices[p * TARGETS + k]);
+            }
+        }
+        if (shell.chunk_pass & CHUNK_STORE) != 0u {
+            for (var k = 0u; k < TARGETS; k++) {
+                slices[p * TARGETS + k] = v[k];
+            }
+        } else {
+            let src = composite_shell(v);
+            // The raster sampler's "under" blend: dst = src (1 - dst.a) + dst.
+            dst += src * (1.0 - dst.a);
+            accum[p] = dst;
+            if dst.a < threshold {
+                atomicAdd(&live, 1u);
+            }
         }
     }
     workgroupBarrier();
-    if index == 0u && atomicLoad(&live) == 0u {
+    if index == 0u && (shell.chunk_pass & CHUNK_STORE) == 0u && atomicLoad(&live) == 0u {
         finished[tile] = 1u;
     }
 }

@@ -11,7 +11,10 @@ struct Slicing {
 // Per-shell constants (dynamic uniform offset).
 struct Shell {
     first_slice: u32,
-    _pad0: u32,
+    // The compute sampler's, for meshes of several record chunks: bit 1 (CHUNK_LOAD), start
+    // from the slices an earlier chunk pass of the shell stored; bit 2 (CHUNK_STORE), store
+    // the slices for a later one instead of compositing (gpu_data::ShellUniforms).
+    chunk_pass: u32,
     // The compute sampler's: the shell's tets in the active list, (start, count), drawn by
     // their faces and near-plane ones, and the tiles of its rectangle, [x0, y0, x1, y1).
     faces: vec2<u32>,

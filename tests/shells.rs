@@ -831,18 +831,72 @@ fn a_mesh_beyond_one_storage_binding_is_drawn_in_chunks() {
 }
 
 #[test]
-fn the_compute_sampler_refuses_a_chunked_mesh_by_name() {
-    // Records beyond one storage binding (as above) are an error that names the raster
-    // sampler, not a wrong picture.
-    let small = common::with_storage_binding_limit(ctx(), 64 << 10);
+fn bytes_per_tet_count_the_records_tets_vertices_and_active_list() {
+    // Per tet: a 144-byte record and 16 bytes of vertex indices; lox has fewer vertices than
+    // tets (20 bytes each: position and scalar) and a tet spans one or two shells at 256
+    // samples (4 bytes per instance, the buffer grown to a power of two: at most 16 bytes per
+    // tet more). So between 160 and 200 bytes, and the frame reports the same figure.
+    let mesh = lox();
+    let (tf, camera) = common::default_view(&mesh, 64);
+    let settings = ShellSettings {
+        samples: 256,
+        ..Default::default()
+    };
+    let (_, r, timings) = render(&mesh, settings, &camera, &tf);
+    let per_tet = r.bytes_per_tet();
+    assert!(
+        (160.0..=200.0).contains(&per_tet),
+        "{per_tet} bytes per tet"
+    );
+    assert_eq!(counter(&timings, "bytes per tet"), per_tet.round() as u64);
+}
+
+#[test]
+fn the_compute_sampler_draws_a_chunked_mesh_as_it_draws_it_whole() {
+    // The same adapter told it may bind only 256 KiB per storage binding: lox's 8,750 records
+    // (1.26 MB) become 5 chunks of 1,792 tets (a multiple of the 256-byte offset alignment).
+    // Each shell then runs one coarse and fine pass per chunk holding some of its tets, the
+    // slices carried between passes under MAX, so the picture must be bit-identical to the
+    // unchunked one (bound 0), with the eye outside and inside. 16 slices per shell at 64x64
+    // carry 64 x 64 x 4 x 16 bytes = 256 KiB of slices, exactly one binding.
+    let base = ctx();
+    let small = common::with_storage_binding_limit(base, 256 << 10);
     let mesh = lox();
     let (lo, hi) = mesh.bounds();
-    let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 32, 32);
-    let mut r =
-        ShellsRenderer::new(&small, &mesh, with_sampler(Sampler::Compute)).expect("renderer");
-    let err = r
-        .render(&camera, &default_tf(&mesh))
-        .expect_err("chunked mesh")
+    let tf = default_tf(&mesh);
+    let outside = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 64, 64);
+    let inside = Camera {
+        eye: outside.target + 0.1 * (outside.eye - outside.target),
+        ..outside
+    };
+    let settings = ShellSettings {
+        samples: 256,
+        slices_per_shell: Some(16),
+        ..with_sampler(Sampler::Compute)
+    };
+    let mut whole = ShellsRenderer::new(base, &mesh, settings).expect("unchunked renderer");
+    let mut chunked = ShellsRenderer::new(&small, &mesh, settings).expect("chunked renderer");
+    for camera in [&outside, &inside] {
+        let a = whole.render(camera, &tf).expect("unchunked frame").image;
+        let frame = chunked.render(camera, &tf).expect("chunked frame");
+        assert_eq!(
+            counter(&frame.timings, "record chunks"),
+            5,
+            "{}",
+            frame.timings
+        );
+        let m = frame.image.compare(&a).expect("same size");
+        assert_eq!(m.max_abs, 0.0, "chunked differs from unchunked: {m:?}");
+        assert!(
+            a.pixels.iter().any(|p| p[3] > 0.01),
+            "the scene is not empty"
+        );
+    }
+    // At 128x128 the carried slices (1 MiB) exceed the binding: an error naming the way out,
+    // not a wrong picture.
+    let large = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 128, 128);
+    let err = (chunked.render(&large, &tf))
+        .expect_err("slices beyond one binding")
         .to_string();
     assert!(err.contains("--sampler raster"), "{err}");
 }

@@ -70,8 +70,10 @@ const _: () = assert!(size_of::<SlicingUniforms>() == 16);
 pub struct ShellUniforms {
     /// Global index of the shell's first slice.
     pub first_slice: u32,
-    /// Zero: aligns `faces`.
-    pub _pad: u32,
+    /// Compute sampler, meshes of several record chunks: how this pass continues the shell's
+    /// slices across chunk passes, bits [`CHUNK_LOAD`] and [`CHUNK_STORE`] (0: the shell's
+    /// only pass).
+    pub chunk_pass: u32,
     /// Compute sampler: the shell's tets drawn by their faces, `(start, count)` in the active
     /// list.
     pub faces: [u32; 2],
@@ -83,6 +85,13 @@ pub struct ShellUniforms {
     pub tiles: [u32; 4],
 }
 const _: () = assert!(size_of::<ShellUniforms>() == 48);
+
+/// [`ShellUniforms::chunk_pass`] bit: the pass starts from the slices an earlier chunk pass of
+/// the shell stored (else from no sample).
+pub const CHUNK_LOAD: u32 = 1;
+/// [`ShellUniforms::chunk_pass`] bit: the pass stores its slices for a later chunk pass of the
+/// shell (else it composites them and accumulates the shell).
+pub const CHUNK_STORE: u32 = 2;
 
 /// What the assembly stage writes once per tet and frame and the raster stage reads (WGSL
 /// `TetRecord`, 144 bytes).

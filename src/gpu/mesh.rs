@@ -86,23 +86,29 @@ impl MeshData {
 
     /// The vertex positions as the GPU stages read them: relative to `origin`, f32, `w = 1`.
     pub(crate) fn gpu_positions(&self) -> Vec<[f32; 4]> {
-        let o = self.origin;
-        self.positions
-            .par_iter()
-            .map(|&p| {
-                let q = (p - o).as_vec3();
-                [q.x, q.y, q.z, 1.0]
-            })
+        (0..self.positions.len())
+            .into_par_iter()
+            .map(|v| self.gpu_position(v))
             .collect()
+    }
+
+    /// Vertex `v`'s position as [`Self::gpu_positions`] has it.
+    fn gpu_position(&self, v: usize) -> [f32; 4] {
+        let q = (self.positions[v] - self.origin).as_vec3();
+        [q.x, q.y, q.z, 1.0]
     }
 
     /// The scalars as the GPU stages read them: `(s - scalar_min) / scalar_span`, f32.
     pub(crate) fn gpu_scalars(&self) -> Vec<f32> {
-        let (lo, span) = (self.scalar_min, self.scalar_span);
-        self.scalars
-            .par_iter()
-            .map(|&s| ((s - lo) / span) as f32)
+        (0..self.scalars.len())
+            .into_par_iter()
+            .map(|v| self.gpu_scalar(v))
             .collect()
+    }
+
+    /// Vertex `v`'s scalar as [`Self::gpu_scalars`] has it.
+    fn gpu_scalar(&self, v: usize) -> f32 {
+        ((self.scalars[v] - self.scalar_min) / self.scalar_span) as f32
     }
 
     /// The per-tet values of a cell-data mesh, normalized as [`Self::gpu_scalars`]; `None` for
@@ -224,8 +230,8 @@ impl GpuTetMesh {
 
     /// The tets' vertex indices (`vec4<u32>` per tet), in chunks of [`Self::chunking`].
     pub(crate) fn tets(&self) -> Result<&TetArray, RenderError> {
-        self.lazy(&self.tets, "mesh tets", 16, |d| {
-            bytemuck::cast_slice(&d.tets).to_vec()
+        self.lazy(&self.tets, "mesh tets", 16, |d, write| {
+            write(bytemuck::cast_slice(&d.tets));
         })
     }
 
@@ -240,8 +246,8 @@ impl GpuTetMesh {
         if !self.has_cells() {
             return Ok(None);
         }
-        let array = self.lazy(&self.cells, "mesh cell values", 4, |d| {
-            bytemuck::cast_slice(&d.gpu_cells().unwrap_or_default()).to_vec()
+        let array = self.lazy(&self.cells, "mesh cell values", 4, |d, write| {
+            write(bytemuck::cast_slice(&d.gpu_cells().unwrap_or_default()));
         })?;
         Ok(Some(array))
     }
@@ -256,20 +262,22 @@ impl GpuTetMesh {
         Chunking::new(self.tet_count() as u64, &self.limits)
     }
 
+    /// The per-tet array in `cell`, made and filled on first use: `fill` hands the mesh's
+    /// bytes for it (one entry of `stride` bytes per tet) to the writer it is given, which
+    /// uploads them without a copy of its own (on a 10M-tet mesh a copy of the tets alone is
+    /// 160 MB).
     fn lazy<'a>(
         &'a self,
         cell: &'a OnceLock<TetArray>,
         label: &str,
         stride: u64,
-        bytes: impl FnOnce(&MeshData) -> Vec<u8>,
+        fill: impl FnOnce(&MeshData, &mut dyn FnMut(&[u8])),
     ) -> Result<&'a TetArray, RenderError> {
         if let Some(array) = cell.get() {
             return Ok(array);
         }
-        let data = bytes(&self.read());
-        let count = data.len() as u64 / stride;
-        let array = self.tet_array(label, self.chunking()?, count, stride)?;
-        array.write(&self.queue, &data);
+        let array = self.tet_array(label, self.chunking()?, self.tet_count as u64, stride)?;
+        fill(&self.read(), &mut |bytes| array.write(&self.queue, bytes));
         Ok(cell.get_or_init(|| array))
     }
 
@@ -318,15 +326,15 @@ impl GpuTetMesh {
     }
 
     fn upload_positions(&self, data: &MeshData) {
-        let gpu = data.gpu_positions();
-        self.queue
-            .write_buffer(&self.positions, 0, bytemuck::cast_slice(&gpu));
+        let count = data.positions.len();
+        write_parallel(&self.queue, &self.positions, count, |v| {
+            data.gpu_position(v)
+        });
     }
 
     fn upload_scalars(&self, data: &MeshData) {
-        let gpu = data.gpu_scalars();
-        self.queue
-            .write_buffer(&self.scalars, 0, bytemuck::cast_slice(&gpu));
+        let count = data.scalars.len();
+        write_parallel(&self.queue, &self.scalars, count, |v| data.gpu_scalar(v));
     }
 
     /// Bytes of the mesh's GPU buffers (vertices, and the per-tet arrays uploaded so far).
@@ -466,6 +474,41 @@ impl TetArray {
     pub(crate) fn size(&self) -> u64 {
         self.buffers.iter().map(wgpu::Buffer::size).sum()
     }
+}
+
+/// Writes `count` entries to the start of `buffer`, entry `i` being `entry(i)`, converted in
+/// parallel straight into the queue's staging memory: no whole intermediate array and no
+/// second copy of it, which is what a per-frame position update of a large mesh costs
+/// (measured in tests/shells_large.rs). A write wgpu refuses is reported by wgpu's error
+/// handler, as [`wgpu::Queue::write_buffer`]'s would be.
+fn write_parallel<T: bytemuck::Pod + Send>(
+    queue: &wgpu::Queue,
+    buffer: &wgpu::Buffer,
+    count: usize,
+    entry: impl Fn(usize) -> T + Sync,
+) {
+    /// Bytes converted per task: whole entries of every type written here (16 or 4 bytes).
+    const CHUNK: usize = 1 << 18;
+    const { assert!(CHUNK.is_multiple_of(size_of::<T>())) };
+    let per_chunk = CHUNK / size_of::<T>();
+    let Some(size) = wgpu::BufferSize::new((count * size_of::<T>()) as u64) else {
+        return;
+    };
+    let Some(mut view) = queue.write_buffer_with(buffer, 0, size) else {
+        return;
+    };
+    let fill = |mut part: wgpu::WriteOnly<'_, [u8]>, first: usize| {
+        let n = part.len() / size_of::<T>();
+        let entries: Vec<T> = (first..first + n).map(&entry).collect();
+        part.copy_from_slice(bytemuck::cast_slice(&entries));
+    };
+    let (chunks, tail) = view.slice(..).into_chunks::<CHUNK>();
+    let chunks: Vec<_> = chunks.into_iter().enumerate().collect();
+    let whole = chunks.len() * per_chunk;
+    chunks
+        .into_par_iter()
+        .for_each(|(c, chunk)| fill(chunk.into(), c * per_chunk));
+    fill(tail, whole);
 }
 
 /// A storage buffer of `bytes` (at least 16) that is also a copy destination and source.

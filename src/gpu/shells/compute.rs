@@ -7,19 +7,28 @@
 //! A frame whose tile lists outgrow their buffer is run again with a larger one (the coarse
 //! stage never writes past the end; it records the size it needed).
 //!
+//! Meshes whose records span several chunks (one storage binding each, `gpu/mesh.rs`) run
+//! a shell as one coarse and fine pass per chunk holding some of its tets, each binding that
+//! chunk's records ([`chunk_passes`]); the fine passes carry the pixels' slices from one to
+//! the next and only the last composites them, so the picture is bit-identical to one pass
+//! over all the shell's tets (MAX of the same samples).
+//!
 //! [`Sampler::Compute`]: super::Sampler::Compute
 
+use std::ops::Range;
 use std::time::Instant;
 
 use crate::gpu::frame::FrameStats;
-use crate::gpu::gpu_data::ShellUniforms;
+use crate::gpu::gpu_data::{CHUNK_LOAD, CHUNK_STORE, ShellUniforms};
 use crate::gpu::util::{entry, map_read, ms_since, settings_error};
 use crate::image::Image;
 use crate::render::RenderError;
 use crate::tf::TransferFunction;
 
 use super::fine::FinePipelines;
-use super::tiles::{TileBuffers, TilePipelines, tile_rect};
+use super::raster::by_chunk;
+use super::tiles::{TileBuffers, TilePipelines};
+use super::upload::{DrawnShell, shell_uniforms, write_grown};
 use super::{ShellFrame, ShellsRenderer};
 
 /// Tile-list entries of the first frame at least (grown per frame as needed).
@@ -65,14 +74,18 @@ impl ShellsRenderer {
         f: &ShellFrame,
         tf: &TransferFunction,
     ) -> Result<ComputeFrame, RenderError> {
-        self.check_one_chunk()?;
+        self.check_one_window()?;
         let [width, height] = f.plan.view.size;
         self.ensure_tile_buffers(f, (width, height), 0)?;
-        let (mut stats, needed) = self.run_compute(f, tf)?;
+        let chunk_tets = self.chunking.chunk as u32;
+        let whole = |(s, r): &DrawnShell| shell_uniforms((*s, r), f.n, &f.plan);
+        let passes = chunk_passes(&f.drawn, &f.bin.indices, chunk_tets, whole);
+        self.upload_passes(&passes);
+        let (mut stats, needed) = self.run_compute(f, tf, &passes)?;
         if let Some(n) = needed {
             self.ensure_tile_buffers(f, (width, height), n)?;
             let again;
-            (stats, again) = self.run_compute(f, tf)?;
+            (stats, again) = self.run_compute(f, tf, &passes)?;
             if let Some(n) = again {
                 return Err(settings_error(format!(
                     "internal: the tile lists needed {n} entries after growing to it"
@@ -89,19 +102,39 @@ impl ShellsRenderer {
         })
     }
 
-    /// The compute sampler binds the records as one window: meshes of one record chunk only.
-    fn check_one_chunk(&self) -> Result<(), RenderError> {
-        let chunks = self.chunking.ranges(self.mesh.tet_count() as u64).len();
-        if chunks > 1 || self.instances.windows > 1 {
+    /// The compute sampler binds the active list as one window: an error when it exceeds one
+    /// storage binding.
+    fn check_one_window(&self) -> Result<(), RenderError> {
+        if self.instances.windows > 1 {
             return Err(settings_error(format!(
-                "the compute sampler draws meshes whose tet records fit one storage binding \
-                 (up to {} tets on this adapter) and active lists of one binding; this mesh \
-                 has {} tets: use the raster sampler (--sampler raster)",
-                self.chunking.chunk,
-                self.mesh.tet_count()
+                "the compute sampler binds the frame's active list as one storage binding (up \
+                 to {} tet-shell instances on this adapter), and this view draws more: use \
+                 the raster sampler (--sampler raster), more slices per shell or a larger dz",
+                self.instances.window
             )));
         }
         Ok(())
+    }
+
+    /// Bytes of the slices carried between chunk passes: none for a mesh of one chunk, else
+    /// the most slices per shell in use for every pixel.
+    fn slice_bytes(&self, (width, height): (u32, u32)) -> u64 {
+        let chunks = self.chunking.ranges(self.mesh.tet_count() as u64).len();
+        if chunks <= 1 {
+            return 0;
+        }
+        width as u64 * height as u64 * self.slice_layers as u64 * 16
+    }
+
+    /// Writes the passes' constants, one slot each at the dynamic-offset stride.
+    fn upload_passes(&mut self, passes: &[ChunkPass]) {
+        let stride = self.shell_stride as usize;
+        let mut data = vec![0u8; stride * passes.len().max(1)];
+        for (slot, p) in data.chunks_mut(stride).zip(passes) {
+            slot[..size_of::<ShellUniforms>()].copy_from_slice(bytemuck::bytes_of(&p.uniforms));
+        }
+        let gpu = (&self.device, &self.queue, &self.limits);
+        write_grown(gpu, &mut self.shell_buf, &data, wgpu::BufferUsages::UNIFORM);
     }
 
     /// Buffers for the image size and at least `needed` list entries (and at least 4 per
@@ -117,16 +150,25 @@ impl ShellsRenderer {
             .max()
             .unwrap_or(0);
         let want = needed.max(4 * most).max(MIN_CAPACITY);
-        let max = self
-            .limits
-            .max_storage_buffer_binding_size
-            .min(self.limits.max_buffer_size)
-            / 4;
+        let binding =
+            (self.limits.max_storage_buffer_binding_size).min(self.limits.max_buffer_size);
+        // List entries are 8 bytes (a tet id and its pixel box in the tile).
+        let max = binding / 8;
         if needed > max {
             return Err(settings_error(format!(
                 "the compute sampler's tile lists need {needed} entries, more than one storage \
                  binding holds ({max}) on this adapter: use the raster sampler (--sampler \
                  raster), fewer slices per shell or a smaller image"
+            )));
+        }
+        let slice_bytes = self.slice_bytes(size);
+        if slice_bytes > binding {
+            return Err(settings_error(format!(
+                "the compute sampler carries {slice_bytes} bytes of slices between the record \
+                 chunks of this mesh at {}x{} pixels, more than one storage binding holds \
+                 ({binding}) on this adapter: use a smaller image, fewer slices per shell or \
+                 the raster sampler (--sampler raster)",
+                size.0, size.1
             )));
         }
         let device = self.device.clone();
@@ -135,7 +177,7 @@ impl ShellsRenderer {
             .is_some_and(|b| (b.width, b.height) == size && b.capacity >= want.min(max));
         if !fits {
             let capacity = want.next_power_of_two().min(max);
-            sampler.buffers = Some(TileBuffers::new(&device, size, capacity));
+            sampler.buffers = Some(TileBuffers::new(&device, size, capacity, slice_bytes));
         }
         Ok(())
     }
@@ -145,12 +187,13 @@ impl ShellsRenderer {
             .ok_or_else(|| settings_error("internal: the compute sampler was not built"))
     }
 
-    /// Runs the frame once: its statistics, and the list entries it needed when they exceeded
-    /// the buffer.
+    /// Runs the frame's `passes` once: its statistics, and the list entries it needed when
+    /// they exceeded the buffer.
     fn run_compute(
         &mut self,
         f: &ShellFrame,
         tf: &TransferFunction,
+        passes: &[ChunkPass],
     ) -> Result<(FrameStats, Option<u64>), RenderError> {
         let targets = f.n.div_ceil(4);
         let points = tf.points().len() as u32;
@@ -158,25 +201,23 @@ impl ShellsRenderer {
         let sampler = self.sampler()?;
         let layout = &sampler.tiles.pipeline_layout;
         let fine = (sampler.fine.get(&device, layout, targets, points)).clone();
-        let group = self.compute_group()?;
+        let groups = self.compute_groups()?;
         let sampler =
             (self.compute.as_ref()).ok_or_else(|| settings_error("internal: no sampler"))?;
         let b = (sampler.buffers.as_ref())
             .ok_or_else(|| settings_error("internal: no tile buffers"))?;
-        let passes = 1 + 2 * f.drawn.len() as u32;
-        let mut rec = (self.frame).recorder(&self.device, &self.queue, passes, 0);
+        let stages = 1 + 2 * passes.len() as u32;
+        let mut rec = (self.frame).recorder(&self.device, &self.queue, stages, 0);
         let enc = rec.encoder();
         for buf in [&b.accum, &b.finished, &b.needed] {
             enc.clear_buffer(buf, 0, None);
         }
         let max_groups = self.limits.max_compute_workgroups_per_dimension;
         (self.assembly).record(&mut rec, &self.assembly_groups, max_groups)?;
-        for (i, (_, range)) in f.drawn.iter().enumerate() {
-            let tets = (range.faces.len() + range.near.len()) as u32;
-            if tets == 0 {
-                continue;
-            }
-            let offset = (i as u64 * self.shell_stride) as u32;
+        for (i, p) in passes.iter().enumerate() {
+            let u = &p.uniforms;
+            let tets = u.faces[1] + u.near[1];
+            let (offset, group) = ((i as u64 * self.shell_stride) as u32, &groups[p.chunk]);
             let ts = rec.timestamps("tiles");
             let mut pass = rec
                 .encoder()
@@ -184,11 +225,11 @@ impl ShellsRenderer {
                     label: Some("shells tiles"),
                     timestamp_writes: ts.as_ref().map(|t| t.compute()),
                 });
-            pass.set_bind_group(0, &group, &[offset]);
+            pass.set_bind_group(0, group, &[offset]);
             sampler.tiles.encode(&mut pass, tets, max_groups);
             drop(pass);
             rec.end_stage("tiles")?;
-            let [x0, y0, x1, y1] = tile_rect(f.plan.scissor(range.screen));
+            let [x0, y0, x1, y1] = u.tiles;
             let ts = rec.timestamps("fine");
             let mut pass = rec
                 .encoder()
@@ -197,7 +238,7 @@ impl ShellsRenderer {
                     timestamp_writes: ts.as_ref().map(|t| t.compute()),
                 });
             pass.set_pipeline(&fine);
-            pass.set_bind_group(0, &group, &[offset]);
+            pass.set_bind_group(0, group, &[offset]);
             pass.dispatch_workgroups(x1 - x0, y1 - y0, 1);
             drop(pass);
             rec.end_stage("fine")?;
@@ -210,14 +251,14 @@ impl ShellsRenderer {
         Ok((stats, (needed > b.capacity).then_some(needed)))
     }
 
-    /// The bind group both compute stages use (the per-frame buffers may have been regrown).
-    fn compute_group(&self) -> Result<wgpu::BindGroup, RenderError> {
+    /// The bind groups both compute stages use, one per record chunk (the per-frame buffers
+    /// may have been regrown).
+    fn compute_groups(&self) -> Result<Vec<wgpu::BindGroup>, RenderError> {
         let sampler =
             (self.compute.as_ref()).ok_or_else(|| settings_error("internal: no sampler"))?;
         let b = (sampler.buffers.as_ref())
             .ok_or_else(|| settings_error("internal: no tile buffers"))?;
-        let tets = self.mesh.tet_count() as u64;
-        let shell = wgpu::BindGroupEntry {
+        let shell = || wgpu::BindGroupEntry {
             binding: 1,
             resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
                 buffer: &self.shell_buf,
@@ -225,25 +266,30 @@ impl ShellsRenderer {
                 size: wgpu::BufferSize::new(size_of::<ShellUniforms>() as u64),
             }),
         };
-        let entries = [
-            entry(0, &self.view_buf),
-            shell,
-            entry(2, &self.tf_buf),
-            self.records.window(3, 0, tets),
-            entry(4, &self.slicing_buf),
-            entry(5, &self.active_buf),
-            entry(6, &b.counts),
-            entry(7, &b.offsets),
-            entry(8, &b.lists),
-            entry(9, &b.needed),
-            entry(10, &b.accum),
-            entry(11, &b.finished),
-        ];
-        Ok(self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("shells compute sampler"),
-            layout: &sampler.tiles.layout,
-            entries: &entries,
-        }))
+        let chunks = self.chunking.ranges(self.mesh.tet_count() as u64);
+        let groups = chunks.iter().map(|&(first, count)| {
+            let entries = [
+                entry(0, &self.view_buf),
+                shell(),
+                entry(2, &self.tf_buf),
+                self.records.window(3, first, count),
+                entry(4, &self.slicing_buf),
+                entry(5, &self.active_buf),
+                entry(6, &b.counts),
+                entry(7, &b.offsets),
+                entry(8, &b.lists),
+                entry(9, &b.needed),
+                entry(10, &b.accum),
+                entry(11, &b.finished),
+                entry(12, &b.slices),
+            ];
+            self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("shells compute sampler"),
+                layout: &sampler.tiles.layout,
+                entries: &entries,
+            })
+        });
+        Ok(groups.collect())
     }
 
     /// The accumulation buffer as an image (after the frame ran).
@@ -274,4 +320,102 @@ fn read_u32(device: &wgpu::Device, buf: &wgpu::Buffer) -> Result<u32, RenderErro
     };
     buf.unmap();
     Ok(value)
+}
+
+/// One coarse and fine pass of the compute sampler: a drawn shell's tets in one record chunk.
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct ChunkPass {
+    /// The record chunk whose window the pass binds.
+    pub(super) chunk: usize,
+    /// The shell's constants, its ranges of the active list cut to the chunk's tets.
+    pub(super) uniforms: ShellUniforms,
+}
+
+/// The passes of the drawn shells, shell by shell: one per record chunk of `chunk_tets` tets
+/// that holds some of the shell's tets (`ids`: the active list, global tet ids ascending
+/// within each range), in chunk order, the first starting from no sample, the last
+/// compositing; a shell with no tet has none. `whole` gives a shell's constants for all its
+/// tets.
+pub(super) fn chunk_passes(
+    drawn: &[DrawnShell],
+    ids: &[u32],
+    chunk_tets: u32,
+    whole: impl Fn(&DrawnShell) -> ShellUniforms,
+) -> Vec<ChunkPass> {
+    let mut passes = Vec::new();
+    for shell in drawn {
+        let (whole, range) = (whole(shell), &shell.1);
+        let faces = by_chunk(ids, range.faces.clone(), chunk_tets);
+        let near = by_chunk(ids, range.near.clone(), chunk_tets);
+        let mut chunks: Vec<usize> = faces.iter().chain(&near).map(|p| p.0).collect();
+        chunks.sort_unstable();
+        chunks.dedup();
+        // A chunk's part of a range, or an empty range when it has none.
+        let part = |parts: &[(usize, Range<u32>)], c: usize| {
+            let found = parts.iter().find(|p| p.0 == c).map(|p| p.1.clone());
+            found.unwrap_or(0..0)
+        };
+        let last = chunks.len().saturating_sub(1);
+        for (k, &c) in chunks.iter().enumerate() {
+            let (f, m) = (part(&faces, c), part(&near, c));
+            let load = if k > 0 { CHUNK_LOAD } else { 0 };
+            let store = if k < last { CHUNK_STORE } else { 0 };
+            let uniforms = ShellUniforms {
+                chunk_pass: load | store,
+                faces: [f.start, f.len() as u32],
+                near: [m.start, m.len() as u32],
+                ..whole
+            };
+            passes.push(ChunkPass { chunk: c, uniforms });
+        }
+    }
+    passes
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gpu::shells::binning::{EVERYWHERE, ShellRange};
+
+    #[test]
+    fn chunk_passes_cut_each_shell_at_chunk_boundaries() {
+        // Chunks of 10 tets. Shell 0: faces 1, 2, 15 and near 31 (chunks 0, 1, 3): three
+        // passes, the first storing, the middle loading and storing, the last loading. Shell
+        // 1: face 5 only, one pass of all in chunk 0. Shell 2: nothing, no pass.
+        let ids = [1, 2, 15, 31, 5];
+        let shell = |s: u32, faces, near| {
+            let range = ShellRange {
+                faces,
+                near,
+                screen: EVERYWHERE,
+            };
+            (s, range)
+        };
+        let drawn = [
+            shell(0, 0..3, 3..4),
+            shell(1, 4..5, 5..5),
+            shell(2, 5..5, 5..5),
+        ];
+        let whole = |(s, _): &DrawnShell| ShellUniforms {
+            first_slice: 8 * s,
+            ..Default::default()
+        };
+        let passes = chunk_passes(&drawn, &ids, 10, whole);
+        let summary: Vec<_> = passes
+            .iter()
+            .map(|p| {
+                let u = &p.uniforms;
+                (p.chunk, u.first_slice, u.chunk_pass, u.faces, u.near)
+            })
+            .collect();
+        assert_eq!(
+            summary,
+            vec![
+                (0, 0, CHUNK_STORE, [0, 2], [0, 0]),
+                (1, 0, CHUNK_LOAD | CHUNK_STORE, [2, 1], [0, 0]),
+                (3, 0, CHUNK_LOAD, [0, 0], [3, 1]),
+                (0, 8, 0, [4, 1], [0, 0]),
+            ]
+        );
+    }
 }

@@ -41,7 +41,9 @@
 //! 128 MiB) are assembled and drawn in chunks: the records live in a tet array
 //! (`gpu/mesh.rs`, as many buffers as the adapter's largest buffer needs),
 //! each chunk binds its window of it, and a shell's active list (tet ids ascending, as binning
-//! leaves them) is drawn chunk by chunk with chunk-local ids.
+//! leaves them) is drawn chunk by chunk with chunk-local ids. The compute sampler runs a
+//! shell's tiles and fine stages once per chunk, carrying the pixels' slices from one pass to
+//! the next (`compute.rs`).
 //!
 //! Precision: positions are uploaded relative to the mesh's bounding-box centre (subtracted in
 //! f64), and so is the eye, so a mesh far from the origin renders as it does at the origin.
@@ -117,9 +119,9 @@ pub enum Sampler {
     #[default]
     Raster,
     /// Per shell, its tets binned to 8 x 8 pixel tiles and one workgroup per tile sampling
-    /// and compositing its pixels (`tiles.rs`, `fine.rs`). Meshes of one record chunk only
-    /// (about 932k tets on lavapipe); larger ones are an error naming the raster sampler. Its
-    /// slices and accumulation stay in f32 whatever [`ShellSettings::format`] says.
+    /// and compositing its pixels (`tiles.rs`, `fine.rs`); records of several chunks run one
+    /// pass per chunk, carrying the slices between them (`compute.rs`). Its slices and
+    /// accumulation stay in f32 whatever [`ShellSettings::format`] says.
     Compute,
 }
 
@@ -626,6 +628,7 @@ impl ShellsRenderer {
         timings.count("tets", tets);
         timings.count("record chunks", chunks as u64);
         timings.count("record buffers", self.records.buffer_count() as u64);
+        timings.count("bytes per tet", self.bytes_per_tet().round() as u64);
         let bin = &f.bin;
         timings.count("tets culled", bin.culled);
         timings.count("tets transparent", bin.transparent);
@@ -635,6 +638,16 @@ impl ShellsRenderer {
         timings.count("shells drawn", f.drawn.len() as u64);
         timings.count("near-plane tets", bin.near);
         timings.count("degenerate tets", stats.degenerate as u64);
+    }
+}
+
+impl ShellsRenderer {
+    /// GPU bytes per tet of what scales with the mesh: its vertices and per-tet arrays (tets,
+    /// cell values), the records (144 bytes a tet) and the active list (4 bytes per tet-shell
+    /// instance, in a buffer grown to a power of two).
+    pub fn bytes_per_tet(&self) -> f64 {
+        let bytes = self.mesh.gpu_memory() + self.records.size() + self.active_buf.size();
+        bytes as f64 / self.mesh.tet_count().max(1) as f64
     }
 }
 

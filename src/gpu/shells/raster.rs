@@ -107,7 +107,11 @@ pub(super) fn scissor(r: ScreenRect, slope: [f64; 2], width: u32, height: u32) -
 
 /// The parts of `range` (positions in `ids`, whose tet ids ascend within it, as binning leaves
 /// them) that fall in each chunk of `chunk_tets` tets, as (chunk, part).
-fn by_chunk(ids: &[u32], range: Range<u32>, chunk_tets: u32) -> Vec<(usize, Range<u32>)> {
+pub(super) fn by_chunk(
+    ids: &[u32],
+    range: Range<u32>,
+    chunk_tets: u32,
+) -> Vec<(usize, Range<u32>)> {
     let mut parts = Vec::new();
     let mut start = range.start;
     while start < range.end {

@@ -42,7 +42,7 @@ impl TilePipelines {
         entries.extend(
             [(2, uniform), (3, ro), (4, uniform), (5, ro)].map(|(b, t)| buffer_entry(b, cs, t)),
         );
-        entries.extend([6, 7, 8, 9, 10, 11].map(|b| buffer_entry(b, cs, rw)));
+        entries.extend([6, 7, 8, 9, 10, 11, 12].map(|b| buffer_entry(b, cs, rw)));
         let layout = bind_group_layout(device, "shells compute sampler", &entries);
         let pipeline_layout = pipeline_layout_for(device, &layout);
         let module = wgsl_module(device, "shells_tiles", shaders::shells_tiles());
@@ -109,10 +109,20 @@ pub(super) struct TileBuffers {
     pub(super) accum_readback: wgpu::Buffer,
     /// Per tile, nonzero once all its pixels are finished.
     pub(super) finished: wgpu::Buffer,
+    /// Per pixel, the slices carried between a shell's chunk passes (meshes of several record
+    /// chunks; 16 bytes otherwise).
+    pub(super) slices: wgpu::Buffer,
 }
 
 impl TileBuffers {
-    pub(super) fn new(device: &wgpu::Device, (width, height): (u32, u32), capacity: u64) -> Self {
+    /// Buffers for an image of `width x height`, `capacity` list entries and `slice_bytes` of
+    /// carried slices.
+    pub(super) fn new(
+        device: &wgpu::Device,
+        (width, height): (u32, u32),
+        capacity: u64,
+        slice_bytes: u64,
+    ) -> Self {
         use wgpu::BufferUsages as B;
         let t = SHELLS_TILE;
         let tiles = width.div_ceil(t) as u64 * height.div_ceil(t) as u64;
@@ -146,6 +156,7 @@ impl TileBuffers {
             ),
             accum_readback: buffer("shells compute readback", 16 * pixels, read),
             finished: buffer("shells finished tiles", 4 * tiles, B::STORAGE | B::COPY_DST),
+            slices: buffer("shells chunk-pass slices", slice_bytes.max(16), B::STORAGE),
         }
     }
 
@@ -160,6 +171,7 @@ impl TileBuffers {
             &self.accum,
             &self.accum_readback,
             &self.finished,
+            &self.slices,
         ]
         .iter()
         .map(|b| b.size())
