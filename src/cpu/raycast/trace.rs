@@ -114,7 +114,7 @@ pub fn tile(sc: &Scene, tf: &SegmentTf, k: usize, out: &mut [[f32; 4]], s: &mut 
 
 /// One ray along unit `d` with its sorted entries `hits`: premultiplied RGBA, and its work.
 fn walk(sc: &Scene, tf: &SegmentTf, d: Vec3, hits: &[Hit]) -> ([f32; 4], Work) {
-    let (mut color, mut trans) = (Vec3::ZERO, 1.0f32);
+    let (mut color, mut trans) = (Vec4::ZERO, 1.0f32);
     let (mut t, mut tet, mut entry) = (0.0f32, sc.eye_tet, 4usize);
     let (mut next_hit, mut steps) = (0, 0);
     let at_limit = loop {
