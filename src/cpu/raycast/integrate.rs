@@ -121,7 +121,9 @@ impl SegmentTf {
         let mut next = self.crossed(j, up, u_back);
         if next.is_none() {
             // One piece, the common case.
-            return self.piece(j, u_front, u_back, len).unwrap_or((Vec4::ZERO, 1.0));
+            return self
+                .piece(j, u_front, u_back, len)
+                .unwrap_or((Vec4::ZERO, 1.0));
         }
         // Length per unit of u (a piece is never longer than the segment, whatever rounding
         // does when the change of u is tiny).
