@@ -7,7 +7,7 @@
 //! the transmittance; optically thin pieces (depth at most 1/32) take both from Taylor series
 //! exact to f32 ([`thin`]), which is faster than either.
 
-use glam::Vec3;
+use glam::Vec4;
 
 use super::Segments;
 use crate::gpu::raycast::psi;
@@ -24,25 +24,22 @@ const STOP_DEPTH: f32 = 16.0;
 /// Buckets of [`SegmentTf::first`] over `u` in `[0, 1]`.
 const BUCKETS: usize = 256;
 
-/// The TF between two control points (or beyond the ends), linear in `u`: its values at both
-/// ends, `lo` and `1 / width` (0 beyond the ends and across a step, where it is constant).
+/// The TF between two control points (or beyond the ends), linear in `u`: colour and
+/// extinction `(r, g, b, tau)` at both ends in one vector each (so both are interpolated at
+/// once), `lo` and `1 / width` (0 beyond the ends and across a step, where it is constant).
 #[derive(Clone, Copy, Debug)]
 struct Interval {
     lo: f32,
     inv_width: f32,
-    tau: [f32; 2],
-    rgb: [Vec3; 2],
+    ends: [Vec4; 2],
 }
 
 impl Interval {
-    /// Extinction and colour at `u`, clamped to the interval (f32 rounding of `u` never
-    /// reaches beyond its ends' values, so extinction stays at least 0).
-    fn at(&self, u: f32) -> (f32, Vec3) {
+    /// Colour and extinction `(r, g, b, tau)` at `u`, clamped to the interval (f32 rounding of
+    /// `u` never reaches beyond its ends' values, so extinction stays at least 0).
+    fn at(&self, u: f32) -> Vec4 {
         let w = ((u - self.lo) * self.inv_width).clamp(0.0, 1.0);
-        (
-            self.tau[0] * (1.0 - w) + self.tau[1] * w,
-            self.rgb[0] * (1.0 - w) + self.rgb[1] * w,
-        )
+        self.ends[0] * (1.0 - w) + self.ends[1] * w
     }
 }
 
@@ -67,16 +64,14 @@ impl SegmentTf {
         let p = tf.points();
         let u: Vec<f64> = p.iter().map(|q| (q.s - lo) / span).collect();
         let point = |k: usize| {
-            (
-                tf.taus()[k] as f32,
-                Vec3::from_array(p[k].color.map(|c| c as f32)),
-            )
+            let [r, g, b] = p[k].color.map(|c| c as f32);
+            Vec4::new(r, g, b, tf.taus()[k] as f32)
         };
         let n = p.len();
         let intervals = (0..=n)
             .map(|j| {
                 let (a, b) = (j.max(1) - 1, j.min(n - 1));
-                let ((ta, ca), (tb, cb)) = (point(a), point(b));
+
                 Interval {
                     lo: u[a] as f32,
                     inv_width: if u[b] > u[a] {
@@ -84,8 +79,7 @@ impl SegmentTf {
                     } else {
                         0.0
                     },
-                    tau: [ta, tb],
-                    rgb: [ca, cb],
+                    ends: [point(a), point(b)],
                 }
             })
             .collect();
@@ -118,55 +112,59 @@ impl SegmentTf {
         j
     }
 
-    /// Premultiplied colour and transmittance of a segment of length `len` along which the
-    /// normalized scalar goes linearly from `u_front` to `u_back`: split where it crosses
-    /// control points, each piece composited behind the ones before.
-    pub fn segment(&self, u_front: f32, u_back: f32, len: f32) -> (Vec3, f32) {
-        let du = u_back - u_front;
-        let up = du >= 0.0;
-        // Length per unit of u (a piece is never longer than the segment, whatever rounding
-        // does when du is tiny).
-        let per_u = len / du;
-        let n = self.u.len();
+    /// Premultiplied colour (in `xyz`) and transmittance of a segment of length `len` along
+    /// which the normalized scalar goes linearly from `u_front` to `u_back`: split where it
+    /// crosses control points, each piece composited behind the ones before.
+    pub fn segment(&self, u_front: f32, u_back: f32, len: f32) -> (Vec4, f32) {
+        let up = u_back >= u_front;
         let mut j = self.below(u_front, up);
-        let (mut color, mut trans) = (Vec3::ZERO, 1.0f32);
+        let mut next = self.crossed(j, up, u_back);
+        if next.is_none() {
+            // One piece, the common case.
+            return self
+                .piece(j, u_front, u_back, len)
+                .unwrap_or((Vec4::ZERO, 1.0));
+        }
+        // Length per unit of u (a piece is never longer than the segment, whatever rounding
+        // does when the change of u is tiny).
+        let per_u = len / (u_back - u_front);
+        let (mut color, mut trans) = (Vec4::ZERO, 1.0f32);
         let mut s0 = u_front;
         loop {
-            let next = if up {
-                (j < n && self.u[j] < u_back).then(|| self.u[j])
-            } else {
-                (j > 0 && self.u[j - 1] > u_back).then(|| self.u[j - 1])
-            };
             let s1 = next.unwrap_or(u_back);
-            let l = if du == 0.0 {
-                len
-            } else {
-                ((s1 - s0) * per_u).min(len)
-            };
+            let l = ((s1 - s0) * per_u).min(len);
             if let Some((c, t)) = self.piece(j, s0, s1, l) {
                 color += trans * c;
                 trans *= t;
             }
-            match next {
-                Some(s) => {
-                    s0 = s;
-                    j = if up { j + 1 } else { j - 1 };
-                }
-                None => return (color, trans),
-            }
+            let Some(s) = next else {
+                return (color, trans);
+            };
+            s0 = s;
+            j = if up { j + 1 } else { j - 1 };
+            next = self.crossed(j, up, u_back);
         }
     }
 
-    /// Colour and transmittance of the piece from `u0` to `u1` of length `l` on interval `j`;
-    /// `None` when it has no length or no extinction.
-    fn piece(&self, j: usize, u0: f32, u1: f32, l: f32) -> Option<(Vec3, f32)> {
+    /// The control point that ends interval `j` in the direction of travel (`up`: increasing
+    /// u), when the segment crosses it before reaching `u_back`.
+    fn crossed(&self, j: usize, up: bool, u_back: f32) -> Option<f32> {
+        if up {
+            self.u.get(j).copied().filter(|&v| v < u_back)
+        } else {
+            j.checked_sub(1).map(|i| self.u[i]).filter(|&v| v > u_back)
+        }
+    }
+
+    /// Colour (in `xyz`) and transmittance of the piece from `u0` to `u1` of length `l` on
+    /// interval `j`; `None` when it has no length or no extinction.
+    fn piece(&self, j: usize, u0: f32, u1: f32, l: f32) -> Option<(Vec4, f32)> {
         if l.is_nan() || l <= 0.0 {
             return None;
         }
         let interval = &self.intervals[j];
-        let (ta, ca) = interval.at(u0);
-        let (tb, cb) = interval.at(u1);
-        let (a, b) = (ta * l, tb * l);
+        let (ca, cb) = (interval.at(u0), interval.at(u1));
+        let (a, b) = (ca.w * l, cb.w * l);
         if a + b == 0.0 {
             return None;
         }

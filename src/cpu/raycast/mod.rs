@@ -278,7 +278,9 @@ fn render_tiles(
     let area = (TILE * TILE) as usize;
     let mut buf = vec![[0.0f32; 4]; (tiles.x * tiles.y) as usize * area];
     let work = (buf.par_chunks_mut(area).enumerate())
-        .map_init(Vec::new, |hits, (k, out)| trace::tile(sc, tf, k, out, hits))
+        .map_init(trace::Scratch::default, |s, (k, out)| {
+            trace::tile(sc, tf, k, out, s)
+        })
         .sum();
     let mut image = Image::new(width, height);
     let tile = TILE as usize;

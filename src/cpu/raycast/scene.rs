@@ -14,12 +14,49 @@ use crate::mesh::topology::{FACES, NO_NEIGHBOR};
 /// Tiles are `TILE` x `TILE` pixels: the unit of parallel work and of entry binning.
 pub const TILE: u32 = 16;
 
-/// One tet as the traversal reads it (96 bytes, one fetch per step): its planes and scalar,
-/// and across each face the neighbour's face code (`4 * tet + face`).
+/// One tet as the traversal reads it (96 bytes, one fetch per step): its face planes
+/// transposed, `n[axis]` and `w` holding that component of faces 0 to 3 (so a step crosses the
+/// ray with all four planes in a few vector operations), its linear scalar (gradient, value
+/// at the eye), and across each face the neighbour's face code (`4 * tet + face`).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Tet {
-    pub planes: TetPlanes,
+    pub n: [Vec4; 3],
+    pub w: Vec4,
+    pub scalar: Vec4,
     pub next: [u32; 4],
+}
+
+impl Tet {
+    fn new(p: &TetPlanes, next: [u32; 4]) -> Self {
+        let lane = |c: usize| Vec4::from_array(p.face.map(|q| q[c]));
+        Self {
+            n: [lane(0), lane(1), lane(2)],
+            w: lane(3),
+            scalar: Vec4::from(p.scalar),
+            next,
+        }
+    }
+
+    /// Face `f`'s outward plane `(n, w)`.
+    pub fn plane(&self, f: usize) -> Vec4 {
+        Vec4::new(self.n[0][f], self.n[1][f], self.n[2][f], self.w[f])
+    }
+
+    /// `n . d` of each face plane, with the operations of `Vec3::dot` (so bit for bit the
+    /// twin's).
+    pub fn crossings(&self, d: Vec3) -> Vec4 {
+        self.n[0] * d.x + self.n[1] * d.y + self.n[2] * d.z
+    }
+
+    /// `|n|` of each face plane, as `Vec3::length`.
+    pub fn norms(&self) -> Vec4 {
+        (self.n[0] * self.n[0] + self.n[1] * self.n[1] + self.n[2] * self.n[2]).sqrt()
+    }
+
+    /// Whether the tet is thin ([`twin::planes`]: a constant scalar).
+    pub fn thin(&self) -> bool {
+        self.scalar.truncate() == Vec3::ZERO
+    }
 }
 
 /// The corners of face `f` of a tet with vertex indices `ids`, in eye space, in global index
@@ -65,10 +102,7 @@ pub fn tets(
                 ids,
                 ids.map(|v| scalars[v as usize]),
             );
-            *tet = Tet {
-                planes,
-                next: l.next,
-            };
+            *tet = Tet::new(&planes, l.next);
             let holds_eye = !thin
                 && (planes.face.iter()).all(|q| q[3] <= eye_tol * Vec3::from_slice(q).length());
             TetPass {
@@ -99,15 +133,18 @@ pub struct EntryFace {
     edge: [Vec3; 3],
     /// `4 * tet + face`.
     pub code: u32,
+    /// The first and last pixel (inclusive) whose rays may pass it ([`tile_rect`]).
+    pub rect: [UVec2; 2],
 }
 
 impl EntryFace {
-    fn new(code: u32, plane: Vec4, c: [Vec3; 3]) -> Self {
+    fn new(code: u32, plane: Vec4, c: [Vec3; 3], rect: [UVec2; 2]) -> Self {
         Self {
             plane,
             norm: plane.truncate().length(),
             edge: [c[0].cross(c[1]), c[1].cross(c[2]), c[0].cross(c[2])],
             code,
+            rect,
         }
     }
 
@@ -162,17 +199,17 @@ pub fn bins(
 ) -> Bins {
     let size = UVec2::new(f.size[0] as u32, f.size[1] as u32);
     let tiles = (size + UVec2::splat(TILE - 1)) / TILE;
-    let placed: Vec<(EntryFace, [UVec2; 2])> = (boundary.par_iter())
+    let placed: Vec<EntryFace> = (boundary.par_iter())
         .filter_map(|&code| {
             let (tet, face) = ((code / 4) as usize, (code % 4) as usize);
-            let plane = Vec4::from(tets[tet].planes.face[face]);
+            let plane = tets[tet].plane(face);
             // A ray meets the plane at t > 0 moving inward only if the eye is outside it.
             if plane.w.is_nan() || plane.w <= 0.0 {
                 return None;
             }
             let c = face_corners(eye, links[tet].tet, face);
             let rect = tile_rect(f, size, c)?;
-            Some((EntryFace::new(code, plane, c), rect.map(|p| p / TILE)))
+            Some(EntryFace::new(code, plane, c, rect))
         })
         .collect();
     let covered = |[lo, hi]: [UVec2; 2]| {
@@ -180,10 +217,10 @@ pub fn bins(
     };
     // (tile, face) pairs grouped by tile.
     let mut pairs: Vec<(u32, u32)> = (placed.iter().enumerate())
-        .flat_map(|(i, &(_, rect))| covered(rect).map(move |k| (k, i as u32)))
+        .flat_map(|(i, face)| covered(face.rect.map(|p| p / TILE)).map(move |k| (k, i as u32)))
         .collect();
     pairs.par_sort_unstable();
-    let faces = pairs.iter().map(|&(_, i)| placed[i as usize].0).collect();
+    let faces = pairs.iter().map(|&(_, i)| placed[i as usize]).collect();
     let mut start = vec![0u32; (tiles.x * tiles.y) as usize + 1];
     for &(k, _) in &pairs {
         start[k as usize + 1] += 1;

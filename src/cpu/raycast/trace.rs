@@ -54,29 +54,61 @@ impl std::iter::Sum for Work {
     }
 }
 
+/// A boundary face a tile's pixel enters through: the pixel (index in the tile), the t.
+#[derive(Clone, Copy, Debug)]
+pub struct Hit {
+    pixel: u32,
+    t: f32,
+    code: u32,
+}
+
+/// Scratch space of one worker, reused from tile to tile.
+#[derive(Default)]
+pub struct Scratch {
+    rays: Vec<Vec3>,
+    hits: Vec<Hit>,
+}
+
 /// Renders tile `k` into `out` (its pixels row by row, `TILE` per row; those beyond the image
-/// untouched); returns what its rays did. `hits` is scratch space.
-pub fn tile(
-    sc: &Scene,
-    tf: &SegmentTf,
-    k: usize,
-    out: &mut [[f32; 4]],
-    hits: &mut Vec<(f32, u32)>,
-) -> Work {
+/// untouched); returns what its rays did. Each of the tile's faces is tested against the rays
+/// of the pixels its rectangle covers, and each pixel's hits sorted by t then face code.
+pub fn tile(sc: &Scene, tf: &SegmentTf, k: usize, out: &mut [[f32; 4]], s: &mut Scratch) -> Work {
     let size = UVec2::new(sc.frame.size[0] as u32, sc.frame.size[1] as u32);
     let origin = UVec2::new(k as u32 % sc.bins.tiles.x, k as u32 / sc.bins.tiles.x) * TILE;
-    let faces = sc.bins.of(k);
+    let last = (origin + UVec2::splat(TILE)).min(size) - UVec2::ONE;
+    let pixel = |i: usize| origin + UVec2::new(i as u32 % TILE, i as u32 / TILE);
+    s.rays.clear();
+    s.rays
+        .extend((0..out.len()).map(|i| twin::ray_of(sc.frame, pixel(i))));
+    s.hits.clear();
+    for f in sc.bins.of(k) {
+        let (lo, hi) = (f.rect[0].max(origin), f.rect[1].min(last));
+        for y in lo.y..=hi.y {
+            for x in lo.x..=hi.x {
+                let i = (y - origin.y) * TILE + x - origin.x;
+                if let Some(t) = f.hit(s.rays[i as usize]) {
+                    s.hits.push(Hit {
+                        pixel: i,
+                        t,
+                        code: f.code,
+                    });
+                }
+            }
+        }
+    }
+    // t > 0 (never NaN): its bits order as its values.
+    (s.hits).sort_unstable_by_key(|h| (h.pixel, h.t.to_bits(), h.code));
     let mut work = Work::default();
+    let mut rest = s.hits.as_slice();
     for (i, px) in out.iter_mut().enumerate() {
-        let p = origin + UVec2::new(i as u32 % TILE, i as u32 / TILE);
-        if p.x >= size.x || p.y >= size.y {
+        let p = pixel(i);
+        if p.x > last.x || p.y > last.y {
             continue;
         }
-        let d = twin::ray_of(sc.frame, p);
-        hits.clear();
-        hits.extend(faces.iter().filter_map(|f| f.hit(d).map(|t| (t, f.code))));
-        hits.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        let (rgba, ray) = walk(sc, tf, d, hits);
+        let n = rest.iter().take_while(|h| h.pixel == i as u32).count();
+        let (hits, after) = rest.split_at(n);
+        rest = after;
+        let (rgba, ray) = walk(sc, tf, s.rays[i], hits);
         *px = rgba;
         work = work + ray;
     }
@@ -84,20 +116,20 @@ pub fn tile(
 }
 
 /// One ray along unit `d` with its sorted entries `hits`: premultiplied RGBA, and its work.
-fn walk(sc: &Scene, tf: &SegmentTf, d: Vec3, hits: &[(f32, u32)]) -> ([f32; 4], Work) {
-    let (mut color, mut trans) = (Vec3::ZERO, 1.0f32);
+fn walk(sc: &Scene, tf: &SegmentTf, d: Vec3, hits: &[Hit]) -> ([f32; 4], Work) {
+    let (mut color, mut trans) = (Vec4::ZERO, 1.0f32);
     let (mut t, mut tet, mut entry) = (0.0f32, sc.eye_tet, 4usize);
     let (mut next_hit, mut steps) = (0, 0);
     let at_limit = loop {
         if tet == NO_NEIGHBOR {
             // The next entry at or beyond where the ray left, less the re-entry slack.
             let t_min = t - twin::REENTRY * t - sc.eye_tol;
-            next_hit += hits[next_hit..].iter().take_while(|h| h.0 < t_min).count();
-            let Some(&(te, code)) = hits.get(next_hit) else {
+            next_hit += hits[next_hit..].iter().take_while(|h| h.t < t_min).count();
+            let Some(h) = hits.get(next_hit) else {
                 break false;
             };
             next_hit += 1;
-            (tet, entry, t) = (code / 4, (code % 4) as usize, te);
+            (tet, entry, t) = (h.code / 4, (h.code % 4) as usize, h.t);
         }
         if steps == sc.max_steps {
             break true;
@@ -143,7 +175,7 @@ fn segment_scalars(sc: &Scene, here: &Tet, tet: u32, d: Vec3, t0: f32, t1: f32) 
         let c = cells[tet as usize].clamp(0.0, 1.0);
         return (c, c);
     }
-    let g = Vec4::from(here.planes.scalar);
+    let g = here.scalar;
     let u = |t: f32| (g.w + t * g.truncate().dot(d)).clamp(0.0, 1.0);
     (u(t0), u(t1))
 }
@@ -152,13 +184,42 @@ fn segment_scalars(sc: &Scene, here: &Tet, tet: u32, d: Vec3, t0: f32, t1: f32) 
 /// exactly 0) or folded behind the face the ray came in by ([`twin::folded`]), else (or when
 /// no face passes) by its planes.
 fn exit(sc: &Scene, here: &Tet, tet: u32, entry: usize, d: Vec3, t: f32) -> (usize, f32) {
-    let thin = here.planes.scalar[..3] == [0.0; 3];
-    let by_edges = (thin || twin::folded(&here.planes, entry, d))
-        .then(|| {
-            let ids = sc.ids[tet as usize];
-            let faces = std::array::from_fn(|f| face_corners(sc.eye, ids, f));
-            twin::exit_by_edges(faces, entry, d, t)
-        })
-        .flatten();
-    by_edges.unwrap_or_else(|| twin::exit(&here.planes, entry, d, t))
+    let den = here.crossings(d);
+    let folded = entry < 4 && den[entry] > 0.0;
+    if here.thin() || folded {
+        let ids = sc.ids[tet as usize];
+        let faces = std::array::from_fn(|f| face_corners(sc.eye, ids, f));
+        if let Some(found) = twin::exit_by_edges(faces, entry, d, t) {
+            return found;
+        }
+    }
+    exit_by_planes(here, den, entry, t)
+}
+
+/// Lane `i` holds `i`, to compare lanes with a face index.
+const LANES: Vec4 = Vec4::new(0.0, 1.0, 2.0, 3.0);
+/// [`twin::exit`]'s t before any face is found.
+const FAR: f32 = 3.0e38;
+
+/// [`twin::exit`] on the ray's crossings `den` with `here`'s four planes, computed at once:
+/// the nearest face other than `entry` the ray moves out through and does not run along (the
+/// first on a tie), at its t (at least `t_in`); when there is none, the steepest other face at
+/// `t_in`.
+fn exit_by_planes(here: &Tet, den: Vec4, entry: usize, t_in: f32) -> (usize, f32) {
+    let others = LANES.cmpne(Vec4::splat(entry as f32));
+    let along = den.abs().cmple(twin::PARALLEL * here.norms());
+    let t = -here.w / den;
+    let ahead = others & den.cmpgt(Vec4::ZERO) & !along & t.cmplt(Vec4::splat(FAR));
+    let t = Vec4::select(ahead, t, Vec4::splat(FAR));
+    let best = t.min_position();
+    if t[best] < FAR {
+        return (best, t_in.max(t[best]));
+    }
+    let mut steep = (4, -FAR);
+    for f in (0..4).filter(|&f| f != entry) {
+        if den[f] > steep.1 {
+            steep = (f, den[f]);
+        }
+    }
+    (steep.0, t_in)
 }
