@@ -57,7 +57,7 @@ impl TexturedField<'_> {
     /// not clearly negative (a thin tet, whose planes are rounding).
     fn ends(&self, here: &Tet, ids: [u32; 4], d: Vec3, t0: f32, t1: f32) -> [Vec3; 2] {
         let tc = ids.map(|v| self.texture.texcoords[v as usize]);
-        let planes = here.planes.face.map(Vec4::from);
+        let planes: [Vec4; 4] = std::array::from_fn(|f| here.plane(f));
         let heights: [f32; 4] = std::array::from_fn(|f| {
             planes[f].truncate().dot(self.eye[ids[f] as usize]) + planes[f].w
         });

@@ -138,7 +138,10 @@ fn walk(sc: &Scene, tf: &SegmentTf, d: Vec3, hits: &[Hit]) -> ([f32; 4], Work) {
         let here = &sc.tets[tet as usize];
         let (f, t_out) = exit(sc, here, tet, entry, d, t);
         let (c, tr) = match sc.texture {
-            Some(field) => field.segment(here, sc.ids[tet as usize], d, t, t_out),
+            Some(field) => {
+                let (c, tr) = field.segment(here, sc.ids[tet as usize], d, t, t_out);
+                (c.extend(0.0), tr)
+            }
             None => {
                 let (u_in, u_out) = segment_scalars(sc, here, tet, d, t, t_out);
                 tf.segment(u_in, u_out, t_out - t)
