@@ -18,7 +18,7 @@ use tetvr::tf::TransferFunction;
 use tetvr::{Image, TetMesh};
 
 use super::commands::{
-    CliError, Textured, camera, load_mesh, median, ms, open_mode, read_limits,
+    CliError, Textured, build_renderer, camera, load_mesh, median, ms, open_mode, read_limits,
     transfer_function_for,
 };
 use super::scene::of_flags;
@@ -109,18 +109,7 @@ impl Playback {
         let tf = transfer_function_for(r, mesh, textured.as_ref())?;
         let camera = camera(r, mesh)?;
         let (mode, gpu) = open_mode(r, mesh, &tf)?;
-        let renderer = match &textured {
-            Some(t) => t.renderer(&mode, gpu.as_ref(), mesh)?,
-            None => mode.build(gpu.as_ref(), mesh)?,
-        };
-        let what = match &textured {
-            Some(t) => format!(
-                "mode {}, textured with {}",
-                renderer.name(),
-                t.path.display()
-            ),
-            None => mode.describe(gpu.as_ref()),
-        };
+        let (renderer, what) = build_renderer(textured.as_ref(), &mode, gpu.as_ref(), mesh)?;
         let output = r.output.clone().unwrap_or_else(|| "tetvr.gif".into());
         let sink = FrameSink::create(&output, r.background.color(), args.fps)?;
         let bar = ProgressBar::new(frames).with_style(

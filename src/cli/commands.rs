@@ -143,24 +143,13 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
         (Some(_), None) => (mode.resolve(gpu.as_ref()), None),
         (None, None) => with_row_bar(mode.resolve(gpu.as_ref()), camera.height),
     };
-    let mut renderer = match &textured {
-        Some(t) => t.renderer(&mode, gpu.as_ref(), &mesh)?,
-        None => mode.build(gpu.as_ref(), &mesh)?,
-    };
+    let (mut renderer, what) = build_renderer(textured.as_ref(), &mode, gpu.as_ref(), &mesh)?;
     let cold = Instant::now();
     let frame = renderer.render(&camera, &tf)?;
     let cold_ms = ms(cold);
     if let Some(bar) = bar {
         bar.finish_and_clear();
     }
-    let what = match &textured {
-        Some(t) => format!(
-            "mode {}, textured with {}",
-            renderer.name(),
-            t.path.display()
-        ),
-        None => mode.describe(gpu.as_ref()),
-    };
     let image = frame.image;
     let seconds = start.elapsed().as_secs_f64();
     if args.timings {
@@ -188,6 +177,28 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
         println!("wrote {}", path.display());
     }
     Ok(())
+}
+
+/// The renderer of `mode` for `mesh`, textured when `textured` is given, and how the lines
+/// the commands print name it.
+pub(super) fn build_renderer(
+    textured: Option<&Textured>,
+    mode: &ModeSettings,
+    gpu: Option<&GpuContext>,
+    mesh: &TetMesh,
+) -> Result<(Box<dyn Renderer>, String), CliError> {
+    Ok(match textured {
+        Some(t) => {
+            let renderer = t.renderer(mode, gpu, mesh)?;
+            let what = format!(
+                "mode {}, textured with {}",
+                renderer.name(),
+                t.path.display()
+            );
+            (renderer, what)
+        }
+        None => (mode.build(gpu, mesh)?, mode.describe(gpu)),
+    })
 }
 
 /// `--texture`: the volume a cage is textured with, and the cage's texture coordinates.
