@@ -2,7 +2,7 @@
 //!
 //! - **Scenes** ([`catalogue`]): the real meshes of `../shared/data`, generated grids from 10k
 //!   to 10M tets, a non-convex box with a hole, and a deforming mesh; each with its views
-//!   ([`ViewKind`]: outside, grazing, eye inside).
+//!   ([`ViewKind`]: outside, grazing, eye inside, zoomed, side).
 //! - **Configurations** ([`configurations`]): a mode name, a setting label and the mode's
 //!   [`ModeSettings`] for a scene, which build its [`Renderer`] as every front end does. A new
 //!   mode or setting joins the bench by adding one entry there.
@@ -93,6 +93,9 @@ pub enum ViewKind {
     /// The outside view with the eye at 0.3 of its distance: much of the mesh is out of view
     /// (where frustum culling matters).
     Zoomed,
+    /// From the side (-y), level: the blunt fin's plate edge-on and the fin in profile, as in
+    /// the issues' comparison with VTK 9.7.
+    Side,
     /// The camera of a user's scene file (`tetvr bench --scene`).
     Scene,
 }
@@ -104,6 +107,7 @@ impl ViewKind {
             Self::Grazing => "grazing",
             Self::Inside => "inside",
             Self::Zoomed => "zoomed",
+            Self::Side => "side",
             Self::Scene => "scene",
         }
     }
@@ -115,6 +119,13 @@ impl ViewKind {
             Self::Scene => return None,
             Self::Outside => Camera::framing(lo, hi, View::ISO, 1.0, 30.0, width, height),
             Self::Zoomed => Camera::framing(lo, hi, View::ISO, 0.3, 30.0, width, height),
+            Self::Side => {
+                let view = View {
+                    azimuth_deg: -90.0,
+                    elevation_deg: 0.0,
+                };
+                Camera::framing(lo, hi, view, 1.0, 30.0, width, height)
+            }
             Self::Grazing => {
                 let view = View {
                     azimuth_deg: 30.0,
@@ -165,6 +176,10 @@ pub enum Look {
     /// Opaque (0.99 per unit distance) above the scalar that 70% of the tets reach: an
     /// isosurface-like picture where most rays end early (where early ray termination matters).
     Opaque,
+    /// Five control points evenly over the range, opacity rising from 0 to 0.9 per unit distance
+    /// and colour from blue to red: the kind of transfer function the issues' VTK 9.7
+    /// comparison used on the blunt fin's Density.
+    Five,
 }
 
 impl Look {
@@ -208,6 +223,19 @@ impl Look {
                     cp(s, c, 0.99),
                     cp(hi, c, 0.99),
                 ]
+            }
+            Look::Five => {
+                let colors = [
+                    [0.23, 0.30, 0.75],
+                    [0.55, 0.69, 1.0],
+                    [0.87, 0.87, 0.87],
+                    [0.96, 0.60, 0.48],
+                    [0.71, 0.02, 0.15],
+                ];
+                let opacities = [0.0, 0.05, 0.2, 0.5, 0.9];
+                (0..5)
+                    .map(|i| cp(lo + (hi - lo) * i as f64 / 4.0, colors[i], opacities[i]))
+                    .collect()
             }
         };
         TransferFunction::new(points, d_u).map_err(|e| e.to_string())
@@ -264,6 +292,10 @@ pub fn catalogue() -> Vec<SceneSpec> {
                 Source::Data("bluntfin_tet.vtk"),
                 &[Outside],
             ),
+        ),
+        look(
+            Look::Five,
+            spec("bluntfin-side", Source::Data("bluntfin_tet.vtk"), &[Side]),
         ),
         look(
             Look::Opaque,
