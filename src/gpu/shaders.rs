@@ -4,7 +4,10 @@
 //! `shells_span.wgsl` (the slice sampling) and `shells_tf.wgsl` (the TF and the composite) in
 //! front of the stages of both shells samplers that use them, `raster.wgsl` (the volume raster
 //! stages' varyings) in front of the shells and cellproj raster stages, plus a small generated
-//! prelude where a stage depends on a pipeline variant. [`registry`] lists every module and
+//! prelude where a stage depends on a pipeline variant. A textured cage's stages (issue 12)
+//! add `texture_sample.wgsl` (trilinear reads of the volume, shared by the ray caster and
+//! shells) and, in shells, `shells_texture.wgsl` (and `shells_raster_texture.wgsl`'s varyings
+//! in place of `raster.wgsl`'s). [`registry`] lists every module and
 //! variant the renderers load; `tests/shaders.rs` parses and validates each with naga.
 
 /// Structs mirroring [`crate::gpu::gpu_data`], the view uniform binding, the pixel ray.

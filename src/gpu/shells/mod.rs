@@ -34,6 +34,10 @@
 //! Pipelines (`pipelines.rs`), targets (`targets.rs`) and the slice configuration
 //! (`config.rs`) have files of their own.
 //!
+//! A textured cage ([`ShellsRenderer::textured`], issue 12) runs the same stages; only a
+//! slice sample's value changes: the volume texture read at the barycentric interpolation of
+//! its tet's corners' texture coordinates (`texture.rs`, `shaders/shells_texture.wgsl`).
+//!
 //! What a scene does not need is skipped: transparent tets, empty shells, finished pixels,
 //! tets outside the frustum ([`skips`], each skip switched by [`ShellSettings::skips`]).
 //!
