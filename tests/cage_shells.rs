@@ -183,8 +183,9 @@ fn textured_shells_in_record_chunks_draw_the_same_picture() {
 
 /// Transfer-function culling with a textured cage uses each tet's range of the volume (the
 /// texels its samples can read), not its vertices' values: with a TF transparent below 70% of
-/// the range, the tets away from the big blob's peak are culled and the picture is the one
-/// without culling, bit for bit (the ranges are conservative).
+/// the range, the tets away from the big blob's peak are culled (48 of 144) and the picture is
+/// the one without culling, bit for bit (the ranges are conservative). Culling by the cage's
+/// vertex values instead drops 120 tets and most of the blobs (tried: this test fails).
 #[test]
 fn tf_culling_of_a_textured_cage_keeps_the_picture() {
     let (volume, mesh) = blob_cage();
@@ -218,7 +219,8 @@ fn tf_culling_of_a_textured_cage_keeps_the_picture() {
         eprintln!("{sampler:?}: {dropped} of 144 tets culled");
         assert!(dropped > 0 && dropped < 144, "{dropped}");
         assert!(with.image.pixels.iter().any(|p| p[3] > 0.1));
-        assert_eq!(with.image.pixels, without.image.pixels, "{sampler:?}");
+        let m = with.image.compare(&without.image).unwrap();
+        assert_eq!(m.max_abs, 0.0, "{sampler:?}: {m}");
     }
 }
 
