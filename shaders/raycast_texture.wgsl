@@ -10,31 +10,14 @@
 // The texture is R32Float, read with textureLoad and interpolated here: R32Float is filterable
 // only with an optional feature, and a hardware filter's fixed-point weights (8 bits on most
 // GPUs) would be the largest error against the reference. Its values are normalized by the
-// volume's range like the mesh scalars (texture::gpu).
+// volume's range like the mesh scalars (texture::gpu). `trilinear` is texture_sample.wgsl's,
+// composed after this file.
 
 @group(0) @binding(17) var<storage, read> texcoords: array<vec4<f32>>;
 @group(0) @binding(18) var volume: texture_3d<f32>;
 
 // World units between samples along the ray (texture::gpu::GpuTexture::step).
 override STEP: f32 = 1.0;
-
-fn texel(i: vec3<i32>) -> f32 {
-    return textureLoad(volume, i, 0).x;
-}
-
-// The trilinear interpolation at normalized texture coordinate tc, clamp to edge
-// (texture::Volume::sample).
-fn trilinear(tc: vec3<f32>) -> f32 {
-    let n = vec3<i32>(textureDimensions(volume));
-    let x = clamp(tc * vec3<f32>(n) - 0.5, vec3<f32>(0.0), vec3<f32>(n - 1));
-    let i = min(vec3<i32>(floor(x)), n - 2);
-    let f = x - vec3<f32>(i);
-    let c00 = mix(texel(i), texel(i + vec3<i32>(1, 0, 0)), f.x);
-    let c10 = mix(texel(i + vec3<i32>(0, 1, 0)), texel(i + vec3<i32>(1, 1, 0)), f.x);
-    let c01 = mix(texel(i + vec3<i32>(0, 0, 1)), texel(i + vec3<i32>(1, 0, 1)), f.x);
-    let c11 = mix(texel(i + vec3<i32>(0, 1, 1)), texel(i + vec3<i32>(1, 1, 1)), f.x);
-    return mix(mix(c00, c10, f.y), mix(c01, c11, f.y), f.z);
-}
 
 // The texture coordinates at the ends t0, t1 of the segment in the tet with vertices `ids`:
 // sum_f tc_f lambda_f, lambda_f = plane_f(x) / plane_f(p_f) as `tet_planes` builds the scalar;

@@ -5,7 +5,8 @@
 // does), composites them (shells_tf.wgsl) and blends the result under its accumulated colour.
 // A pixel whose alpha reached `threshold` is finished; a tile whose pixels are all finished
 // is flagged and skipped by the later shells. The generated prelude defines TILE, TARGETS and
-// tf_eval().
+// tf_eval(); the variant's sampling defines tet_values(): the linear field's (shaders.rs) or
+// a textured cage's (shells_texture.wgsl).
 //
 // Meshes whose records span several chunks (bindings) run one pass per chunk holding some of
 // the shell's tets (shell.chunk_pass): every pass but the last stores the pixel's slices in
@@ -47,9 +48,10 @@ fn sample_tets(xy: vec2<f32>, local: vec2<u32>, start: u32, end: u32) -> array<v
             continue;
         }
         let r = records[item.x];
-        let span = tet_span(SpanTet(r.grad_x, r.grad_y, r.grad_z, r.lambda_eye, r.scalar), d);
+        let shape = SpanTet(r.grad_x, r.grad_y, r.grad_z, r.lambda_eye, r.scalar);
+        let span = tet_span(shape, d);
         if span.x <= span.y {
-            let values = slice_values(span);
+            let values = tet_values(item.x, shape, d, span);
             for (var k = 0u; k < TARGETS; k++) {
                 v[k] = max(v[k], values[k]);
             }

@@ -4,7 +4,9 @@
 // exact pixel-centre ray into the tet's barycentric space and writes, for each of the shell's
 // slices, the encoded scalar where the sample lies in the tet and 0 elsewhere, into TARGETS
 // colour targets blended with MAX. The generated prelude defines TARGETS, SliceOut and
-// slice_out(). The CPU twin is gpu::shells::twin::sample_slices.
+// slice_out(); the variant's sampling defines shell_varyings() and fragment_values(): the
+// linear field's (shaders.rs) or a textured cage's (shells_raster_texture.wgsl). The CPU twin
+// is gpu::shells::twin::sample_slices.
 
 @group(0) @binding(1) var<uniform> shell: Shell;
 @group(0) @binding(2) var<storage, read> records: array<TetRecord>;
@@ -14,20 +16,22 @@
 fn vs_faces(@builtin(vertex_index) index: u32) -> Varyings {
     // Vertex index 4 k + i is corner i of the shell's k-th tet; the index buffer draws its
     // faces from these 4 vertices, so each corner is shaded once, not three times.
-    let rec = records[active_tets[index / 4u]];
+    let tet = active_tets[index / 4u];
+    let rec = records[tet];
     let p = rec.pos[index % 4u];
     let position = select(
         vec4<f32>(p.x * view.proj.x, p.y * view.proj.y, 0.0, p.z),
         NOWHERE,
         p.w == 0.0,
     );
-    return varyings(position, rec);
+    return shell_varyings(position, rec, tet);
 }
 
 @vertex
 fn vs_near(@builtin(vertex_index) index: u32) -> Varyings {
-    let rec = records[active_tets[index / 6u]];
-    return varyings(near_quad(rec, index % 6u), rec);
+    let tet = active_tets[index / 6u];
+    let rec = records[tet];
+    return shell_varyings(near_quad(rec, index % 6u), rec, tet);
 }
 
 // The fragment's slice span (see tet_span in shells_span.wgsl) in the tet of its varyings.
@@ -38,12 +42,13 @@ fn slice_span(rec: Varyings, d: vec3<f32>) -> vec4<f32> {
 
 @fragment
 fn fs_slices(in: Varyings) -> SliceOut {
-    let span = slice_span(in, pixel_ray(in.position.xy));
+    let d = pixel_ray(in.position.xy);
+    let span = slice_span(in, d);
     // The ray misses this shell's part of the tet: nothing to write (MAX with 0 is a no-op).
     if span.x > span.y {
         discard;
     }
-    return slice_out(slice_values(span));
+    return slice_out(fragment_values(in, d, span));
 }
 
 // Clearing the shell's slices within its scissor rectangle only (a full-screen triangle, cut

@@ -12,6 +12,18 @@ struct SpanTet {
     scalar: vec4<f32>,
 }
 
+// The distance from the eye of the shell's first slice.
+fn shell_t0() -> f32 {
+    return slicing.t_first + f32(shell.first_slice) * slicing.dz;
+}
+
+// The barycentric coordinates of slice j of this shell along the ray `d` in the tet are
+// A + j B; returns (A, B).
+fn slice_lambdas(rec: SpanTet, d: vec3<f32>) -> array<vec4<f32>, 2> {
+    let gd = rec.grad_x * d.x + rec.grad_y * d.y + rec.grad_z * d.z;
+    return array<vec4<f32>, 2>(rec.lambda_eye + shell_t0() * gd, gd * slicing.dz);
+}
+
 // Along the fragment's ray, slice j of this shell (0 <= j < slices_per_shell) lies at
 // t_j = t0 + j dz with t0 = t_first + first_slice dz, so every barycentric coordinate is linear
 // in j: lambda(j) = A + j B. The sample is inside when min(lambda) >= -epsilon, i.e. when j lies
@@ -19,10 +31,10 @@ struct SpanTet {
 // (lo, hi, s0, s1): the slice index range and the encoded scalar s(j) = s0 + j s1.
 // The CPU twin is gpu::shells::twin::slice_span.
 fn tet_span(rec: SpanTet, d: vec3<f32>) -> vec4<f32> {
-    let gd = rec.grad_x * d.x + rec.grad_y * d.y + rec.grad_z * d.z;
-    let t0 = slicing.t_first + f32(shell.first_slice) * slicing.dz;
-    let a = rec.lambda_eye + t0 * gd;
-    let b = gd * slicing.dz;
+    let ab = slice_lambdas(rec, d);
+    let t0 = shell_t0();
+    let a = ab[0];
+    let b = ab[1];
     let r = (-view.epsilon - a) / b;
     // Rising coordinates bound j from below, falling ones from above; a constant one admits
     // every j or none.

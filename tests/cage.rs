@@ -374,7 +374,7 @@ fn generate_cage_and_render_textured_from_the_command_line() {
         !ok && err.contains("'uvw'") && err.contains("--texcoords"),
         "{err}"
     );
-    let (ok, _, err) = run(&[&render[..], &["--mode", "shells", "-o", png]].concat());
+    let (ok, _, err) = run(&[&render[..], &["--mode", "cellproj", "-o", png]].concat());
     assert!(!ok && err.contains("--mode raycast"), "{err}");
 }
 

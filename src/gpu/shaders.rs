@@ -4,7 +4,10 @@
 //! `shells_span.wgsl` (the slice sampling) and `shells_tf.wgsl` (the TF and the composite) in
 //! front of the stages of both shells samplers that use them, `raster.wgsl` (the volume raster
 //! stages' varyings) in front of the shells and cellproj raster stages, plus a small generated
-//! prelude where a stage depends on a pipeline variant. [`registry`] lists every module and
+//! prelude where a stage depends on a pipeline variant. A textured cage's stages (issue 12)
+//! add `texture_sample.wgsl` (trilinear reads of the volume, shared by the ray caster and
+//! shells) and, in shells, `shells_texture.wgsl` (and `shells_raster_texture.wgsl`'s varyings
+//! in place of `raster.wgsl`'s). [`registry`] lists every module and
 //! variant the renderers load; `tests/shaders.rs` parses and validates each with naga.
 
 /// Structs mirroring [`crate::gpu::gpu_data`], the view uniform binding, the pixel ray.
@@ -58,6 +61,35 @@ const TET_SEGMENT_LINEAR: &str = "fn tet_segment(tet: u32, ids: vec4<u32>, pl: T
     let u = segment_scalars(tet, pl, d, t0, t1);\n    \
     return segment(u.x, u.y, t1 - t0);\n}\n";
 const RAYCAST_TEXTURE: &str = include_str!("../../shaders/raycast_texture.wgsl");
+/// Trilinear sampling of a cage's volume texture (`fn trilinear`), shared by the textured ray
+/// caster and the textured shells stages; the stage declares `volume`.
+const TEXTURE_SAMPLE: &str = include_str!("../../shaders/texture_sample.wgsl");
+/// The textured shells sampling (`textured_values`, `tet_values`) and its bindings.
+const SHELLS_TEXTURE: &str = include_str!("../../shaders/shells_texture.wgsl");
+/// The textured shells raster stage's varyings (`shell_varyings`, `fragment_values`).
+const SHELLS_RASTER_TEXTURE: &str = include_str!("../../shaders/shells_raster_texture.wgsl");
+
+/// The shells raster stage's `shell_varyings` and `fragment_values` for the linear field of
+/// the vertex scalars: raster.wgsl's varyings, shells_span.wgsl's `slice_values`.
+const SHELLS_RASTER_LINEAR: &str = "fn shell_varyings(position: vec4<f32>, rec: TetRecord, tet: u32) -> Varyings {\n    \
+    return varyings(position, rec);\n}\n\
+    fn fragment_values(in: Varyings, d: vec3<f32>, span: vec4<f32>) -> array<vec4<f32>, TARGETS> {\n    \
+    return slice_values(span);\n}\n";
+
+/// The fine stage's `tet_values` for the linear field of the vertex scalars.
+const SHELLS_FINE_LINEAR: &str = "fn tet_values(tet: u32, rec: SpanTet, d: vec3<f32>, span: vec4<f32>) -> array<vec4<f32>, TARGETS> {\n    \
+    return slice_values(span);\n}\n";
+
+/// How the shells stages read a sample's scalar: the linear field of the vertex scalars, or a
+/// textured cage's volume (`shells_texture.wgsl`).
+fn shells_sampling(textured: bool, raster: bool) -> String {
+    match (textured, raster) {
+        (false, false) => SHELLS_FINE_LINEAR.to_owned(),
+        (false, true) => format!("{RASTER}\n{SHELLS_RASTER_LINEAR}"),
+        (true, false) => format!("{TEXTURE_SAMPLE}\n{SHELLS_TEXTURE}"),
+        (true, true) => format!("{TEXTURE_SAMPLE}\n{SHELLS_TEXTURE}\n{SHELLS_RASTER_TEXTURE}"),
+    }
+}
 
 /// The ray caster's stages as it loads them (entry point `main` in each): vertices; planes;
 /// entries; the two depth-peeling passes (least t, then least face code); the tile list from
@@ -73,7 +105,7 @@ pub fn raycast_stages() -> [(&'static str, String); 15] {
     let exact = format!("{PSI_EXACT}\n{SEGMENT_PIECEWISE}\n{TET_SEGMENT_LINEAR}");
     let partial = format!("{psi}\n{SEGMENT_PIECEWISE}\n{TET_SEGMENT_LINEAR}");
     let table = format!("{PSI_EXACT}\n{RAYCAST_TABLE}\n{TET_SEGMENT_LINEAR}");
-    let textured = format!("{PSI_EXACT}\n{RAYCAST_TEXTURE}");
+    let textured = format!("{PSI_EXACT}\n{RAYCAST_TEXTURE}\n{TEXTURE_SAMPLE}");
     // Every traversal has integrate_segment.wgsl (its `Acc`); the integrator gives `segment`.
     let traverse = |name, entries: &str, integrator: &str| {
         let integrate = INTEGRATE_SEGMENT;
@@ -131,13 +163,24 @@ pub fn assemble() -> String {
 /// `4 * targets` slices (entry points `vs_faces`, `vs_near`, `fs_slices`, and `vs_clear`,
 /// `fs_clear`, which zero the slices within the shell's scissor rectangle).
 pub fn shells_raster(targets: u32) -> String {
+    shells_raster_variant(targets, false)
+}
+
+/// [`shells_raster`] for a textured cage: each sample reads the volume texture at its texture
+/// coordinate (`shells_texture.wgsl`, bindings 13-15).
+pub fn shells_raster_textured(targets: u32) -> String {
+    shells_raster_variant(targets, true)
+}
+
+fn shells_raster_variant(targets: u32, textured: bool) -> String {
     let targets = targets.clamp(1, MAX_TARGETS);
+    let sampling = shells_sampling(textured, true);
     let fields: String = (0..targets)
         .map(|i| format!("    @location({i}) t{i}: vec4<f32>,\n"))
         .collect();
     let values: Vec<String> = (0..targets).map(|i| format!("v[{i}]")).collect();
     format!(
-        "{SHARED}\n{SHELLS_SHARED}\n{RASTER}\n// Generated: the raster variant with {targets} colour targets.\n\
+        "{SHARED}\n{SHELLS_SHARED}\n{sampling}\n// Generated: the raster variant with {targets} colour targets.\n\
          const TARGETS: u32 = {targets}u;\n\
          struct SliceOut {{\n{fields}}}\n\
          fn slice_out(v: array<vec4<f32>, TARGETS>) -> SliceOut {{\n    return SliceOut({});\n}}\n\
@@ -213,13 +256,24 @@ pub fn shells_tiles() -> String {
 /// shell (`targets` in 1..=[`MAX_TARGETS`]), compositing with a transfer function of
 /// `tf_points` control points as [`shells_composite`] does.
 pub fn shells_fine(targets: u32, tf_points: u32) -> String {
+    shells_fine_variant(targets, tf_points, false)
+}
+
+/// [`shells_fine`] for a textured cage: each sample reads the volume texture at its texture
+/// coordinate (`shells_texture.wgsl`, bindings 13-15).
+pub fn shells_fine_textured(targets: u32, tf_points: u32) -> String {
+    shells_fine_variant(targets, tf_points, true)
+}
+
+fn shells_fine_variant(targets: u32, tf_points: u32, textured: bool) -> String {
     let targets = targets.clamp(1, MAX_TARGETS);
     format!(
         "{SHARED}\n{SHELLS_SHARED}\n// Generated: the fine variant sampling {targets} vec4 of \
          slices, TF of {tf_points} points, tiles of {SHELLS_TILE} pixels.\n\
          const TILE: u32 = {SHELLS_TILE}u;\nconst TARGETS: u32 = {targets}u;\n{}\
-         {SHELLS_SPAN}\n{SHELLS_TF}\n{SHELLS_FINE}",
-        tf_eval(tf_points)
+         {SHELLS_SPAN}\n{}\n{SHELLS_TF}\n{SHELLS_FINE}",
+        tf_eval(tf_points),
+        shells_sampling(textured, false)
     )
 }
 
@@ -278,6 +332,8 @@ pub fn registry() -> Vec<(String, String, &'static [&'static str])> {
         let raster = ["vs_faces", "vs_near", "fs_slices", "vs_clear", "fs_clear"].as_slice();
         let name = format!("shells_raster ({targets} targets)");
         out.push((name, shells_raster(targets), raster));
+        let name = format!("shells_raster ({targets} targets, textured)");
+        out.push((name, shells_raster_textured(targets), raster));
         // Every unrolled TF variant, and the looping one (0).
         for tf_points in 0..=UNROLLED_TF_POINTS {
             let name = format!("shells_composite ({targets} layers, {tf_points} TF points)");
@@ -285,6 +341,10 @@ pub fn registry() -> Vec<(String, String, &'static [&'static str])> {
             out.push((name, shells_composite(targets, tf_points), entries));
             let name = format!("shells_fine ({targets} vec4 of slices, {tf_points} TF points)");
             out.push((name, shells_fine(targets, tf_points), ["main"].as_slice()));
+            let name =
+                format!("shells_fine ({targets} vec4 of slices, {tf_points} TF points, textured)");
+            let source = shells_fine_textured(targets, tf_points);
+            out.push((name, source, ["main"].as_slice()));
         }
     }
     out

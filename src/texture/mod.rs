@@ -21,6 +21,7 @@ use glam::DVec3;
 
 use crate::cpu::raycast::{CpuRaycastRenderer, CpuRaycastSettings};
 use crate::generate::volume::{VolumeError, VolumeToTets, read_samples_file};
+use crate::gpu::ShellsRenderer;
 use crate::gpu::raycast::{RaycastRenderer, RaycastSettings};
 use crate::gpu::{GpuContext, GpuError};
 use crate::mesh::TetMesh;
@@ -258,7 +259,8 @@ fn block(f: usize) -> impl Iterator<Item = (usize, usize, usize)> {
 }
 
 /// The renderer of a textured cage in `mode`: `raycast` (GPU, [`RaycastRenderer::textured`]),
-/// `raycast-cpu` ([`CpuRaycastRenderer::textured`]) or `reference` ([`TexturedReference`]);
+/// `shells` (GPU, either sampler, [`ShellsRenderer::textured`]), `raycast-cpu`
+/// ([`CpuRaycastRenderer::textured`]) or `reference` ([`TexturedReference`]);
 /// `auto` takes the GPU ray caster on a hardware adapter, else the CPU one (the rule of
 /// [`AutoPath`]). Other modes do not read textures yet (issue 12), which the error says.
 /// `volume` must fit the adapter's 3D texture size ([`Volume::fit_within`]).
@@ -291,12 +293,21 @@ pub fn textured_renderer(
         }
         (ModeSettings::Auto(_), _) => cpu_raycast(CpuRaycastSettings::default()),
         (ModeSettings::RaycastCpu(s), _) => cpu_raycast(*s),
+        (ModeSettings::Shells(s), Some(gpu)) => Ok(Box::new(ShellsRenderer::textured(
+            gpu, cage, texcoords, volume, *s,
+        )?)),
         (ModeSettings::Reference(_), _) => Ok(Box::new(TexturedReference::new(
             cage,
             texcoords.to_vec(),
             volume.clone(),
             None,
         )?)),
+        (ModeSettings::Shells(_), None) => Err(GpuError::NoAdapter {
+            detail: " (--mode shells with --texture needs one; --mode raycast-cpu renders the \
+                     textured cage on the CPU)"
+                .into(),
+        }
+        .into()),
         (ModeSettings::Raycast(_), None) => Err(GpuError::NoAdapter {
             detail: " (--mode raycast with --texture needs one; --mode raycast-cpu renders the \
                      textured cage on the CPU)"
@@ -304,8 +315,8 @@ pub fn textured_renderer(
         }
         .into()),
         (other, _) => Err(RenderError::Settings(format!(
-            "--texture renders with --mode raycast (GPU), raycast-cpu or reference; --mode {} \
-             does not read volume textures yet",
+            "--texture renders with --mode raycast (GPU), shells (GPU), raycast-cpu or \
+             reference; --mode {} does not read volume textures yet",
             other.name()
         ))),
     }

@@ -19,11 +19,11 @@ use super::frame::storage;
 /// texture coordinates (vec4 per vertex, w unused) and the sampling step.
 pub struct GpuTexture {
     texture: wgpu::Texture,
-    pub(super) view: wgpu::TextureView,
-    pub(super) texcoords: wgpu::Buffer,
+    pub(crate) view: wgpu::TextureView,
+    pub(crate) texcoords: wgpu::Buffer,
     /// The volume's smallest sample and range: texels are `(v - lo) / span`.
-    pub(super) lo: f64,
-    pub(super) span: f64,
+    pub(crate) lo: f64,
+    pub(crate) span: f64,
     /// World units between samples along a ray (WGSL `STEP`).
     pub(super) step: f32,
 }

@@ -52,11 +52,12 @@ pub(super) struct ComputeSampler {
 }
 
 impl ComputeSampler {
-    /// Pipelines whose pixels finish at `threshold` (`None`: no early termination).
-    pub(super) fn new(device: &wgpu::Device, threshold: Option<f32>) -> Self {
+    /// Pipelines whose pixels finish at `threshold` (`None`: no early termination), for a
+    /// textured cage when `textured`.
+    pub(super) fn new(device: &wgpu::Device, threshold: Option<f32>, textured: bool) -> Self {
         Self {
-            tiles: TilePipelines::new(device),
-            fine: FinePipelines::new(threshold),
+            tiles: TilePipelines::new(device, textured),
+            fine: FinePipelines::new(threshold, textured),
             buffers: None,
         }
     }
@@ -267,8 +268,13 @@ impl ShellsRenderer {
             }),
         };
         let chunks = self.chunking.ranges(self.mesh.tet_count() as u64);
+        let tets = self
+            .texture
+            .as_ref()
+            .map(|_| self.mesh.tets())
+            .transpose()?;
         let groups = chunks.iter().map(|&(first, count)| {
-            let entries = [
+            let mut entries = vec![
                 entry(0, &self.view_buf),
                 shell(),
                 entry(2, &self.tf_buf),
@@ -283,6 +289,9 @@ impl ShellsRenderer {
                 entry(11, &b.finished),
                 entry(12, &b.slices),
             ];
+            if let (Some(t), Some(tets)) = (&self.texture, tets) {
+                entries.extend(t.entries(tets.window(13, first, count)));
+            }
             self.device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("shells compute sampler"),
                 layout: &sampler.tiles.layout,

@@ -13,14 +13,18 @@ pub(super) struct FinePipelines {
     variants: HashMap<(u32, u32), wgpu::ComputePipeline>,
     /// The accumulated alpha at which a pixel is finished (above 1 without early termination).
     threshold: f32,
+    /// Whether the variants sample a textured cage's volume (`shaders/shells_texture.wgsl`).
+    textured: bool,
 }
 
 impl FinePipelines {
-    /// No variant built yet; pixels finish at `threshold` (`None`: never).
-    pub(super) fn new(threshold: Option<f32>) -> Self {
+    /// No variant built yet; pixels finish at `threshold` (`None`: never); `textured`: the
+    /// variants of a textured cage.
+    pub(super) fn new(threshold: Option<f32>, textured: bool) -> Self {
         Self {
             variants: HashMap::new(),
             threshold: threshold.unwrap_or(2.0),
+            textured,
         }
     }
 
@@ -39,8 +43,13 @@ impl FinePipelines {
             0
         };
         let threshold = self.threshold as f64;
+        let source = if self.textured {
+            shaders::shells_fine_textured
+        } else {
+            shaders::shells_fine
+        };
         self.variants.entry((targets, key)).or_insert_with(|| {
-            let module = wgsl_module(device, "shells_fine", shaders::shells_fine(targets, key));
+            let module = wgsl_module(device, "shells_fine", source(targets, key));
             let constants = [("threshold", threshold)];
             device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some("shells fine"),

@@ -34,6 +34,10 @@
 //! Pipelines (`pipelines.rs`), targets (`targets.rs`) and the slice configuration
 //! (`config.rs`) have files of their own.
 //!
+//! A textured cage ([`ShellsRenderer::textured`], issue 12) runs the same stages; only a
+//! slice sample's value changes: the volume texture read at the barycentric interpolation of
+//! its tet's corners' texture coordinates (`texture.rs`, `shaders/shells_texture.wgsl`).
+//!
 //! What a scene does not need is skipped: transparent tets, empty shells, finished pixels,
 //! tets outside the frustum ([`skips`], each skip switched by [`ShellSettings::skips`]).
 //!
@@ -65,6 +69,7 @@ mod raster;
 pub mod skips;
 mod targets;
 mod termination;
+mod texture;
 mod tiles;
 pub mod tune;
 pub mod twin;
@@ -94,6 +99,7 @@ use plan::FramePlan;
 use skips::Skips;
 use targets::Targets;
 use termination::{Cut, Termination};
+use texture::ShellTexture;
 use upload::{DrawnShell, InstanceLayout, chunk_local};
 
 /// The float format of the slice targets (the accumulation target is 32-bit wherever the
@@ -237,6 +243,8 @@ pub struct ShellsRenderer {
     /// The transfer function of the last frame, the scalars' version, and its transparent
     /// tets.
     transparent: Option<(TransferFunction, u64, Vec<bool>)>,
+    /// A textured cage's volume and texture coordinates ([`ShellsRenderer::textured`]).
+    texture: Option<ShellTexture>,
 }
 
 impl ShellsRenderer {
@@ -245,6 +253,38 @@ impl ShellsRenderer {
         ctx: &GpuContext,
         mesh: Arc<GpuTetMesh>,
         settings: ShellSettings,
+    ) -> Result<Self, RenderError> {
+        Self::build(ctx, mesh, settings, None)
+    }
+
+    /// The shells renderer of a textured cage (issue 12): `cage`'s vertices carry `texcoords`,
+    /// and every slice sample reads `volume` (trilinear) at its texture coordinate instead of
+    /// the cage's own scalars (`shaders/shells_texture.wgsl`), with either sampler;
+    /// [`Renderer::update_positions`] moves the volume with the cage. The TF applies to the
+    /// volume's values. Transfer-function culling uses each tet's range of the volume
+    /// (`texture.rs`); `settings.tune` is refused.
+    pub fn textured(
+        ctx: &GpuContext,
+        cage: &TetMesh,
+        texcoords: &[DVec3],
+        volume: &crate::texture::Volume,
+        settings: ShellSettings,
+    ) -> Result<Self, RenderError> {
+        if settings.tune {
+            return Err(settings_error(
+                "--tune is not available for a textured cage: choose --sampler, the slices \
+                 per shell and the skips yourself",
+            ));
+        }
+        let texture = ShellTexture::new(ctx, cage, texcoords, volume)?;
+        Self::build(ctx, GpuTetMesh::new(ctx, cage)?, settings, Some(texture))
+    }
+
+    fn build(
+        ctx: &GpuContext,
+        mesh: Arc<GpuTetMesh>,
+        settings: ShellSettings,
+        texture: Option<ShellTexture>,
     ) -> Result<Self, RenderError> {
         let config = config::slices(ctx, &settings)?;
         config::check(&settings)?;
@@ -255,9 +295,10 @@ impl ShellsRenderer {
         let tet_count = mesh.tet_count() as u64;
         let records = mesh.tet_array("shells tet records", chunking, tet_count, RECORD_BYTES)?;
         let ert = (settings.skips.early_termination).then_some(settings.skips.ert_threshold);
-        let pipelines = Pipelines::new(&device, (config.format, config.accum), ert);
+        let textured = texture.is_some();
+        let pipelines = Pipelines::new(&device, (config.format, config.accum), ert, textured);
         let compute = (settings.sampler == Sampler::Compute)
-            .then(|| compute::ComputeSampler::new(&device, ert));
+            .then(|| compute::ComputeSampler::new(&device, ert, textured));
         let view_buf = uniform_buffer(&device, "shells view", size_of::<ViewUniforms>());
         let slicing_buf = uniform_buffer(&device, "shells slicing", size_of::<SlicingUniforms>());
         let assembly = AssemblyStage::new(&device, mesh.has_cells());
@@ -320,6 +361,7 @@ impl ShellsRenderer {
             targets: None,
             compute,
             transparent: None,
+            texture,
         })
     }
 
@@ -479,7 +521,7 @@ impl ShellsRenderer {
         let composite = (composite(false), ert.then(|| composite(true)));
         let mut raster = |d| self.pipelines.raster(&self.device, layers, d).clone();
         let raster = (raster(false), ert.then(|| raster(true)));
-        let raster_groups = self.raster_groups();
+        let raster_groups = self.raster_groups()?;
         let targets = (self.targets.as_ref())
             .ok_or_else(|| settings_error("internal: targets missing after ensure_targets"))?;
         let passes = Passes {
@@ -522,11 +564,16 @@ impl ShellsRenderer {
 
     /// One raster bind group per window of the active list and chunk of records, window by
     /// window; a chunk's active ids are chunk-local.
-    fn raster_groups(&self) -> Vec<wgpu::BindGroup> {
+    fn raster_groups(&self) -> Result<Vec<wgpu::BindGroup>, RenderError> {
         let chunks = self.chunking.ranges(self.mesh.tet_count() as u64);
+        let tets = self
+            .texture
+            .as_ref()
+            .map(|_| self.mesh.tets())
+            .transpose()?;
         let layout = self.instances;
         let windows = (0..layout.windows as u64).flat_map(|w| chunks.iter().map(move |&c| (w, c)));
-        windows
+        Ok(windows
             .map(|(w, (first, count))| {
                 let window = layout.window as u64 * 4;
                 let active = if layout.windows == 1 {
@@ -542,26 +589,30 @@ impl ShellsRenderer {
                         }),
                     }
                 };
+                let mut entries = vec![
+                    entry(0, &self.view_buf),
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                            buffer: &self.shell_buf,
+                            offset: 0,
+                            size: wgpu::BufferSize::new(size_of::<ShellUniforms>() as u64),
+                        }),
+                    },
+                    self.records.window(2, first, count),
+                    active,
+                    entry(4, &self.slicing_buf),
+                ];
+                if let (Some(t), Some(tets)) = (&self.texture, tets) {
+                    entries.extend(t.entries(tets.window(13, first, count)));
+                }
                 self.device.create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some("shells raster"),
                     layout: &self.pipelines.raster_layout,
-                    entries: &[
-                        entry(0, &self.view_buf),
-                        wgpu::BindGroupEntry {
-                            binding: 1,
-                            resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                                buffer: &self.shell_buf,
-                                offset: 0,
-                                size: wgpu::BufferSize::new(size_of::<ShellUniforms>() as u64),
-                            }),
-                        },
-                        self.records.window(2, first, count),
-                        active,
-                        entry(4, &self.slicing_buf),
-                    ],
+                    entries: &entries,
                 })
             })
-            .collect()
+            .collect())
     }
 
     /// The composite bind group: the slice layers, the transfer function, the slicing.
@@ -781,6 +832,11 @@ impl Renderer for ShellsRenderer {
     }
 
     fn update_scalars(&mut self, scalars: &[f64]) -> Result<(), RenderError> {
+        if self.texture.is_some() {
+            return Err(settings_error(
+                "a textured cage renders its volume texture; vertex scalars cannot be updated",
+            ));
+        }
         self.mesh.update_scalars(scalars)
     }
 
@@ -805,6 +861,7 @@ impl Renderer for ShellsRenderer {
                 .as_ref()
                 .map_or(0, compute::ComputeSampler::size);
         let frame = self.frame.size() + self.records.size();
-        self.mesh.gpu_memory() + frame + buffers + targets
+        let texture = self.texture.as_ref().map_or(0, |t| t.gpu.bytes());
+        self.mesh.gpu_memory() + frame + buffers + targets + texture
     }
 }

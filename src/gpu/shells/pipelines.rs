@@ -10,7 +10,7 @@ use crate::gpu::util::{
     bind_group_layout, buffer_entry, pipeline_layout_for, tet_faces, vertex_state, wgsl_module,
 };
 
-use super::ERT_DEPTH;
+use super::{ERT_DEPTH, texture};
 
 /// Layouts and the pipelines that do not depend on the slices per shell, built once; raster
 /// and composite variants, built on first use and kept.
@@ -31,6 +31,8 @@ pub(super) struct Pipelines {
     accum: wgpu::TextureFormat,
     /// Early ray termination: the mark and tile pipelines.
     pub(super) ert: Option<ErtPipelines>,
+    /// Whether the raster samples a textured cage's volume (`shaders/shells_texture.wgsl`).
+    textured: bool,
 }
 
 /// The pipelines of one raster pass.
@@ -144,6 +146,7 @@ impl Pipelines {
         device: &wgpu::Device,
         (format, accum): (wgpu::TextureFormat, wgpu::TextureFormat),
         ert: Option<f32>,
+        textured: bool,
     ) -> Self {
         use wgpu::ShaderStages as S;
         let buffer = buffer_entry;
@@ -154,25 +157,26 @@ impl Pipelines {
         };
         let pipeline_layout = |bgl: &wgpu::BindGroupLayout| pipeline_layout_for(device, bgl);
 
-        let raster_layout = layout(
-            "shells raster",
-            &[
-                buffer(0, S::VERTEX_FRAGMENT, uniform),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: S::FRAGMENT,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: uniform,
-                        has_dynamic_offset: true,
-                        min_binding_size: wgpu::BufferSize::new(size_of::<ShellUniforms>() as u64),
-                    },
-                    count: None,
+        let mut raster_entries = vec![
+            buffer(0, S::VERTEX_FRAGMENT, uniform),
+            wgpu::BindGroupLayoutEntry {
+                binding: 1,
+                visibility: S::FRAGMENT,
+                ty: wgpu::BindingType::Buffer {
+                    ty: uniform,
+                    has_dynamic_offset: true,
+                    min_binding_size: wgpu::BufferSize::new(size_of::<ShellUniforms>() as u64),
                 },
-                buffer(2, S::VERTEX, ro),
-                buffer(3, S::VERTEX, ro),
-                buffer(4, S::FRAGMENT, uniform),
-            ],
-        );
+                count: None,
+            },
+            buffer(2, S::VERTEX, ro),
+            buffer(3, S::VERTEX, ro),
+            buffer(4, S::FRAGMENT, uniform),
+        ];
+        if textured {
+            raster_entries.extend(texture::layout_entries(S::VERTEX, S::FRAGMENT));
+        }
+        let raster_layout = layout("shells raster", &raster_entries);
         let raster_pipeline_layout = pipeline_layout(&raster_layout);
 
         let composite_layout = layout(
@@ -203,6 +207,7 @@ impl Pipelines {
             format,
             accum,
             ert: ert.map(|threshold| ErtPipelines::new(device, threshold)),
+            textured,
         }
     }
 
@@ -215,9 +220,13 @@ impl Pipelines {
         depth: bool,
     ) -> &RasterSet {
         let (format, raster_pipeline_layout) = (self.format, &self.raster_pipeline_layout);
+        let source = if self.textured {
+            shaders::shells_raster_textured
+        } else {
+            shaders::shells_raster
+        };
         self.raster.entry((targets, depth)).or_insert_with(|| {
-            let raster_module =
-                wgsl_module(device, "shells_raster", shaders::shells_raster(targets));
+            let raster_module = wgsl_module(device, "shells_raster", source(targets));
             let max_blend = wgpu::BlendComponent {
                 src_factor: wgpu::BlendFactor::One,
                 dst_factor: wgpu::BlendFactor::One,

@@ -109,7 +109,8 @@ impl ShellsRenderer {
     }
 
     /// Each tet's shells (or why it has none): transparent tets from the per-tet scalar
-    /// ranges, computed once per transfer function and scalars.
+    /// ranges (a textured cage's: of the volume over each tet), computed once per transfer
+    /// function and scalars.
     pub(super) fn classify(
         &mut self,
         m: &MeshData,
@@ -120,7 +121,9 @@ impl ShellsRenderer {
         let version = m.scalars_version;
         let stale = |(t, v, _): &(TransferFunction, u64, Vec<bool>)| t != tf || *v != version;
         if skips.tf_cull && self.transparent.as_ref().is_none_or(stale) {
-            let mask = (m.ranges.par_iter())
+            // A textured cage's tets span the volume's values over them, not their vertices'.
+            let ranges = self.texture.as_ref().map_or(&m.ranges, |t| &t.ranges);
+            let mask = (ranges.par_iter())
                 .map(|&(lo, hi)| tf.is_transparent_on(lo, hi))
                 .collect();
             self.transparent = Some((tf.clone(), version, mask));

@@ -20,7 +20,9 @@ pub(super) struct TilePipelines {
 }
 
 impl TilePipelines {
-    pub(super) fn new(device: &wgpu::Device) -> Self {
+    /// With `textured`, the layout also binds a textured cage's tets, texture coordinates and
+    /// volume (`texture.rs`).
+    pub(super) fn new(device: &wgpu::Device, textured: bool) -> Self {
         use wgpu::BufferBindingType as T;
         let cs = wgpu::ShaderStages::COMPUTE;
         let (uniform, ro, rw) = (
@@ -43,6 +45,9 @@ impl TilePipelines {
             [(2, uniform), (3, ro), (4, uniform), (5, ro)].map(|(b, t)| buffer_entry(b, cs, t)),
         );
         entries.extend([6, 7, 8, 9, 10, 11, 12].map(|b| buffer_entry(b, cs, rw)));
+        if textured {
+            entries.extend(super::texture::layout_entries(cs, cs));
+        }
         let layout = bind_group_layout(device, "shells compute sampler", &entries);
         let pipeline_layout = pipeline_layout_for(device, &layout);
         let module = wgsl_module(device, "shells_tiles", shaders::shells_tiles());

@@ -46,7 +46,10 @@ impl ShellsRenderer {
         };
         self.queue
             .write_buffer(&self.slicing_buf, 0, bytemuck::bytes_of(&slicing));
-        let points = tf_points(tf, m.scalar_min, m.scalar_span)?;
+        // A textured cage's TF applies to the volume's texels, normalized by its range.
+        let (lo, span) = (self.texture.as_ref())
+            .map_or((m.scalar_min, m.scalar_span), |t| (t.gpu.lo, t.gpu.span));
+        let points = tf_points(tf, lo, span)?;
         self.queue
             .write_buffer(&self.tf_buf, 0, bytemuck::bytes_of(&points));
         let drawn = self.drawn_shells(bin);
