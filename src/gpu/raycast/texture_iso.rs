@@ -1,0 +1,163 @@
+//! Isosurfaces of a textured cage on the GPU (`--mode iso --texture`, issue 12; Georgii &
+//! Westermann 2006, figure 9): the ray caster's traversal (entries, tet to tet through face
+//! adjacency, re-entry) with the isosurface integrator `shaders/raycast_texture_iso.wgsl` in
+//! place of the volume integrator. Each tet segment is searched at the textured ray caster's
+//! step for the first sign change of `field - isovalue`, refined to the crossing, and shaded
+//! with the normal of the texture's gradient as iso mode shades
+//! ([`crate::reference::iso::shade`]); the per-pixel hit (world normal, distance) comes back
+//! with the picture. The f64 reference is [`crate::texture::iso`].
+
+use std::sync::Arc;
+
+use bytemuck::Zeroable;
+use glam::DVec3;
+
+use crate::camera::Camera;
+use crate::gpu::GpuContext;
+use crate::gpu::gpu_data::IsoUniforms;
+use crate::gpu::iso::{DEFAULT_COLOR, IsoSettings, check_isovalues};
+use crate::gpu::mesh::GpuTetMesh;
+use crate::gpu::util::{map_read, settings_error, uniform_buffer};
+use crate::mesh::TetMesh;
+use crate::reference::iso::IsoImage;
+use crate::render::{RenderError, Timings};
+use crate::texture::Volume;
+
+use super::frame::{mappable, storage};
+use super::texture::{GpuTexture, TextureUse};
+use super::{RaycastRenderer, RaycastSettings};
+
+/// A textured cage's isovalues (data units of the volume, with their colours) and their
+/// uniform block (WGSL `Iso`, normalized like the texels).
+pub(super) struct TexturedIso {
+    pub(super) isovalues: Vec<(f64, [f32; 3])>,
+    pub(super) uniforms: wgpu::Buffer,
+}
+
+impl TexturedIso {
+    /// `isovalues` (empty: the middle of the volume's range, light grey) uploaded for
+    /// `texture`.
+    fn new(
+        ctx: &GpuContext,
+        isovalues: &[(f64, [f32; 3])],
+        texture: &GpuTexture,
+    ) -> Result<Self, RenderError> {
+        check_isovalues(isovalues)?;
+        let isovalues = match isovalues {
+            [] => vec![(texture.lo + 0.5 * texture.span, DEFAULT_COLOR)],
+            given => given.to_vec(),
+        };
+        let mut iso = IsoUniforms::zeroed();
+        for (k, &(v, c)) in isovalues.iter().enumerate() {
+            iso.values[k / 4][k % 4] = ((v - texture.lo) / texture.span) as f32;
+            iso.colors[k] = [c[0], c[1], c[2], 1.0];
+        }
+        iso.count = isovalues.len() as u32;
+        let uniforms = uniform_buffer(&ctx.device, "textured iso", size_of::<IsoUniforms>());
+        ctx.queue
+            .write_buffer(&uniforms, 0, bytemuck::bytes_of(&iso));
+        Ok(Self {
+            isovalues,
+            uniforms,
+        })
+    }
+}
+
+/// Per pixel the hit's world normal and distance (`[nx, ny, nz, t]`, `t = 0`: no hit),
+/// written by the traversal, and its mappable copy.
+pub(super) struct HitBuffers {
+    pub(super) hits: wgpu::Buffer,
+    readback: wgpu::Buffer,
+}
+
+impl HitBuffers {
+    pub(super) fn new(device: &wgpu::Device, pixels: usize) -> Self {
+        Self {
+            hits: storage(device, "textured iso hits", 16 * pixels),
+            readback: mappable(device, "textured iso hits readback", 16 * pixels.max(1)),
+        }
+    }
+
+    /// Copies the hits to their readback.
+    pub(super) fn copy(&self, enc: &mut wgpu::CommandEncoder) {
+        enc.copy_buffer_to_buffer(&self.hits, 0, &self.readback, 0, self.readback.size());
+    }
+
+    pub(super) fn size(&self) -> u64 {
+        self.hits.size() + self.readback.size()
+    }
+
+    /// Each pixel's distance (infinite on a miss) and unit world normal (zero on a miss), from
+    /// the last copy.
+    fn read(&self, device: &wgpu::Device) -> Result<(Vec<f32>, Vec<[f32; 3]>), RenderError> {
+        map_read(device, &self.readback)?;
+        let out = {
+            let data = (self.readback.get_mapped_range(..))
+                .map_err(|e| settings_error(format!("mapping the iso hits failed: {e}")))?;
+            let hits: &[[f32; 4]] = bytemuck::cast_slice(&data);
+            hits.iter()
+                .map(|h| match h[3] > 0.0 {
+                    true => (h[3], [h[0], h[1], h[2]]),
+                    false => (f32::INFINITY, [0.0; 3]),
+                })
+                .unzip()
+        };
+        self.readback.unmap();
+        Ok(out)
+    }
+}
+
+impl RaycastRenderer {
+    /// The isosurfaces of a textured cage (issue 12; see the module docs): `cage`'s vertices
+    /// carry `texcoords` into `volume`, each tet segment is searched every `step` world units
+    /// (`None`: the textured ray caster's default); `iso.isovalues` are in the volume's units
+    /// (empty: the middle of its range). `iso.shading` is not used: the normals are always the
+    /// texture's gradient. [`crate::render::Renderer::update_positions`] bends the surfaces,
+    /// normals included, with the cage.
+    pub fn textured_iso(
+        ctx: &GpuContext,
+        cage: &TetMesh,
+        texcoords: &[DVec3],
+        volume: &Volume,
+        step: Option<f64>,
+        settings: RaycastSettings,
+        iso: &IsoSettings,
+    ) -> Result<Self, RenderError> {
+        let texture = GpuTexture::for_cage(ctx, cage, volume, texcoords, step)?;
+        let surfaces = TexturedIso::new(ctx, &iso.isovalues, &texture)?;
+        let mesh: Arc<GpuTetMesh> = GpuTetMesh::new(ctx, cage)?;
+        let textured = Some((texture, TextureUse::Isosurfaces));
+        let mut renderer = Self::build(ctx, mesh, settings, textured)?;
+        renderer.iso = Some(surfaces);
+        Ok(renderer)
+    }
+
+    /// The isovalues (volume units) and colours drawn; `None` unless built by
+    /// [`RaycastRenderer::textured_iso`].
+    pub fn textured_isovalues(&self) -> Option<&[(f64, [f32; 3])]> {
+        self.iso.as_ref().map(|i| i.isovalues.as_slice())
+    }
+
+    /// Renders `camera`'s view of a textured cage's isosurfaces: the shaded colour and each
+    /// pixel's hit distance and world normal (the conventions of [`IsoImage`]), and the
+    /// frame's timings. An error unless built by [`RaycastRenderer::textured_iso`].
+    pub fn render_surface(&mut self, camera: &Camera) -> Result<(IsoImage, Timings), RenderError> {
+        camera.validate()?;
+        if self.iso.is_none() {
+            return Err(settings_error(
+                "render_surface draws a textured cage's isosurfaces: build the renderer with \
+                 RaycastRenderer::textured_iso",
+            ));
+        }
+        let frame = self.frame(camera, None)?;
+        let hits = (self.targets.as_ref()).and_then(|t| t.hits.as_ref());
+        let hits = hits.ok_or_else(|| settings_error("internal: iso hit buffers missing"))?;
+        let (depth, normal) = hits.read(&self.device)?;
+        let surface = IsoImage {
+            color: frame.image,
+            depth,
+            normal,
+        };
+        Ok((surface, frame.timings))
+    }
+}
