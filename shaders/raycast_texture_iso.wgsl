@@ -8,6 +8,8 @@
 // the final bracket: within L / n / 2^BISECTIONS of the field's crossing. The smallest crossing
 // over the isovalues ends the ray: the segment returns the shaded colour with transmittance 0,
 // and the hit (world normal, t) waits in `hit` for ray_end, which stores it (`store_hit`).
+// A tet whose range of texels (`ranges`, once per cage: texture coordinates never change)
+// holds no isovalue is not searched, as iso mode draws only the tets whose range holds one.
 //
 // The normal is the texture's gradient: central differences of the trilinear texture one
 // texel apart in texture space, g_t, mapped to eye space through the tet's texture-coordinate
@@ -32,6 +34,9 @@ struct Iso {
 // the frame).
 @group(0) @binding(19) var<storage, read_write> geometry: array<vec4<f32>>;
 @group(0) @binding(20) var<uniform> iso: Iso;
+// Per tet the least and greatest texel its field reads (gpu::raycast::texture_iso::tet_ranges,
+// normalized): a tet whose range holds no isovalue has no crossing and is not searched.
+@group(0) @binding(21) var<storage, read> ranges: array<vec2<f32>>;
 
 // Headlight Blinn-Phong, the constants of reference::iso::shade.
 const AMBIENT: f32 = 0.15;
@@ -54,6 +59,17 @@ fn store_hit(pixel: u32) {
 
 fn iso_value(k: u32) -> f32 {
     return iso.values[k / 4u][k % 4u];
+}
+
+// Whether some isovalue lies in the range r (ends included).
+fn holds_isovalue(r: vec2<f32>) -> bool {
+    for (var k = 0u; k < iso.count; k++) {
+        let v = iso_value(k);
+        if r.x <= v && v <= r.y {
+            return true;
+        }
+    }
+    return false;
 }
 
 // Bit k set where the value u lies below isovalue k.
@@ -136,7 +152,7 @@ fn tet_segment(tet: u32, ids: vec4<u32>, pl: TetPlanes, d: vec3<f32>, t0: f32, t
     let len = t1 - t0;
     let none = Acc(vec3<f32>(0.0), 1.0);
     // A thin tet's texture coordinate is its corners' mean: constant, no crossing of its own.
-    if !(len > 0.0) || pl.thin {
+    if !(len > 0.0) || pl.thin || !holds_isovalue(ranges[tet]) {
         return none;
     }
     let tc = segment_texcoords(ids, pl, d, t0, t1);

@@ -433,6 +433,7 @@ impl RaycastRenderer {
         if let (Some(iso), Some(hits)) = (&self.iso, &t.hits) {
             traverse.push(entry(19, &hits.hits));
             traverse.push(entry(20, &iso.uniforms));
+            traverse.push(entry(21, &iso.ranges));
         }
         let stage = p.traverse(self.settings.entry, self.settings.segments);
         BindGroups {

@@ -473,7 +473,10 @@ impl Renderer for RaycastRenderer {
                 + t.hits.as_ref().map_or(0, HitBuffers::size)
         });
         let texture = self.texture.as_ref().map_or(0, GpuTexture::bytes)
-            + self.iso.as_ref().map_or(0, |i| i.uniforms.size());
+            + self
+                .iso
+                .as_ref()
+                .map_or(0, |i| i.uniforms.size() + i.ranges.size());
         self.mesh.gpu_memory() + buffers + self.links.size() + self.frame.size() + targets + texture
     }
 }

@@ -100,11 +100,13 @@ fn textured_entries(entry: Entry) -> Vec<wgpu::BindGroupLayoutEntry> {
 }
 
 /// The textured isosurface traversal's bindings: [`textured_entries`], then 19 the per-pixel
-/// hits (written) and 20 the isovalues (`shaders/raycast_texture_iso.wgsl`).
+/// hits (written), 20 the isovalues and 21 the tets' ranges of the field
+/// (`shaders/raycast_texture_iso.wgsl`).
 fn textured_iso_entries(entry: Entry) -> Vec<wgpu::BindGroupLayoutEntry> {
     let mut entries = textured_entries(entry);
     entries.push(buffer_entry(19, S::COMPUTE, RW));
     entries.push(buffer_entry(20, S::COMPUTE, B::Uniform));
+    entries.push(buffer_entry(21, S::COMPUTE, RO));
     entries
 }
 

@@ -11,6 +11,7 @@ use std::sync::Arc;
 
 use bytemuck::Zeroable;
 use glam::DVec3;
+use rayon::prelude::*;
 
 use crate::camera::Camera;
 use crate::gpu::GpuContext;
@@ -27,20 +28,65 @@ use super::frame::{mappable, storage};
 use super::texture::{GpuTexture, TextureUse};
 use super::{RaycastRenderer, RaycastSettings};
 
-/// A textured cage's isovalues (data units of the volume, with their colours) and their
-/// uniform block (WGSL `Iso`, normalized like the texels).
+/// A textured cage's isovalues (data units of the volume, with their colours), their uniform
+/// block (WGSL `Iso`, normalized like the texels) and each tet's range of the field.
 pub(super) struct TexturedIso {
     pub(super) isovalues: Vec<(f64, [f32; 3])>,
     pub(super) uniforms: wgpu::Buffer,
+    /// Per tet the least and greatest texel its trilinear field can read ([`tet_ranges`]),
+    /// normalized: the traversal skips a tet whose range holds no isovalue.
+    pub(super) ranges: wgpu::Buffer,
+}
+
+/// Per tet of `cage` (vertices at `texcoords`), the least and greatest texel the trilinear
+/// field reads inside it, normalized as the texels (`(v - lo) / span`): over the texels of the
+/// box of its corners' texture coordinates, widened by one texel on every side (the eight
+/// texels around each point, and a margin for the GPU's f32 coordinates). Texture coordinates
+/// never change, so neither do the ranges when the cage deforms. A tet whose range holds no
+/// isovalue has all its samples on one side of each: skipping it changes no hit.
+fn tet_ranges(cage: &TetMesh, texcoords: &[DVec3], volume: &Volume) -> Vec<[f32; 2]> {
+    let (lo, hi) = volume.range();
+    let span = if hi > lo { hi - lo } else { 1.0 };
+    let dims = volume.dims();
+    let values = volume.values();
+    let texels = |tc: f64, a: usize, round: fn(f64) -> f64, margin: f64| {
+        let i = round(tc * dims[a] as f64 - 0.5) + margin;
+        i.clamp(0.0, (dims[a] - 1) as f64) as usize
+    };
+    cage.tets()
+        .par_iter()
+        .map(|t| {
+            let tc = t.map(|v| texcoords[v as usize]);
+            let (a, b) = (
+                tc.iter().fold(tc[0], |m, c| m.min(*c)),
+                tc.iter().fold(tc[0], |m, c| m.max(*c)),
+            );
+            let from: [usize; 3] = std::array::from_fn(|k| texels(a[k], k, f64::floor, -1.0));
+            let to: [usize; 3] = std::array::from_fn(|k| texels(b[k], k, f64::ceil, 1.0));
+            let (mut least, mut most) = (f32::INFINITY, f32::NEG_INFINITY);
+            for z in from[2]..=to[2] {
+                for y in from[1]..=to[1] {
+                    let row = dims[0] * (y + dims[1] * z);
+                    for &v in &values[row + from[0]..=row + to[0]] {
+                        least = least.min(v);
+                        most = most.max(v);
+                    }
+                }
+            }
+            let norm = |v: f32| ((v as f64 - lo) / span) as f32;
+            [norm(least), norm(most)]
+        })
+        .collect()
 }
 
 impl TexturedIso {
     /// `isovalues` (empty: the middle of the volume's range, light grey) uploaded for
-    /// `texture`.
+    /// `texture`, and the tets' ranges of `cage` (vertices at `texcoords` into `volume`).
     fn new(
         ctx: &GpuContext,
         isovalues: &[(f64, [f32; 3])],
         texture: &GpuTexture,
+        (cage, texcoords, volume): (&TetMesh, &[DVec3], &Volume),
     ) -> Result<Self, RenderError> {
         check_isovalues(isovalues)?;
         let isovalues = match isovalues {
@@ -56,9 +102,14 @@ impl TexturedIso {
         let uniforms = uniform_buffer(&ctx.device, "textured iso", size_of::<IsoUniforms>());
         ctx.queue
             .write_buffer(&uniforms, 0, bytemuck::bytes_of(&iso));
+        let cpu = tet_ranges(cage, texcoords, volume);
+        let ranges = storage(&ctx.device, "textured iso tet ranges", 8 * cpu.len());
+        ctx.queue
+            .write_buffer(&ranges, 0, bytemuck::cast_slice(&cpu));
         Ok(Self {
             isovalues,
             uniforms,
+            ranges,
         })
     }
 }
@@ -124,7 +175,8 @@ impl RaycastRenderer {
         iso: &IsoSettings,
     ) -> Result<Self, RenderError> {
         let texture = GpuTexture::for_cage(ctx, cage, volume, texcoords, step)?;
-        let surfaces = TexturedIso::new(ctx, &iso.isovalues, &texture)?;
+        let field = (cage, texcoords, volume);
+        let surfaces = TexturedIso::new(ctx, &iso.isovalues, &texture, field)?;
         let mesh: Arc<GpuTetMesh> = GpuTetMesh::new(ctx, cage)?;
         let textured = Some((texture, TextureUse::Isosurfaces));
         let mut renderer = Self::build(ctx, mesh, settings, textured)?;
