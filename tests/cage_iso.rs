@@ -213,3 +213,90 @@ fn bending_moves_the_textured_isosurfaces() {
     assert_eq!(gpu.name(), "iso");
     assert!(gpu.update_scalars(&vec![0.0; mesh.vertex_count()]).is_err());
 }
+
+/// The command as a user runs it: `render --texture --mode iso --iso V` on a cage written by
+/// `generate cage` draws the library's GPU picture (to 8-bit rounding, 1/255).
+#[cfg(feature = "cli")]
+#[test]
+fn render_textured_iso_from_the_command_line() {
+    use std::process::Command;
+    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("cage_iso");
+    std::fs::create_dir_all(&dir).unwrap();
+    let volume = blob_volume();
+    let data =
+        ndarray::Array3::from_shape_fn((N, N, N), |(x, y, z)| volume.values()[x + N * (y + N * z)]);
+    let header = nifti::NiftiHeader {
+        pixdim: [1.0, 1.0, 1.25, 0.75, 1.0, 1.0, 1.0, 1.0],
+        ..Default::default()
+    };
+    let nii = dir.join("blob.nii.gz");
+    nifti::writer::WriterOptions::new(&nii)
+        .reference_header(&header)
+        .write_nifti(&data)
+        .unwrap();
+    let (cage_path, png) = (dir.join("cage.vtu"), dir.join("iso.png"));
+    let run = |args: &[&std::ffi::OsStr]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_tetvr"))
+            .args(args)
+            .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+            .output()
+            .unwrap();
+        let text = |b: &[u8]| String::from_utf8_lossy(b).into_owned();
+        assert!(
+            out.status.success(),
+            "{}{}",
+            text(&out.stdout),
+            text(&out.stderr)
+        );
+        text(&out.stdout)
+    };
+    let os = |s: &'static str| std::ffi::OsStr::new(s);
+    run(&[
+        os("generate"),
+        os("cage"),
+        nii.as_os_str(),
+        os("--tets"),
+        os("162"),
+        os("-o"),
+        cage_path.as_os_str(),
+    ]);
+    let out = run(&[
+        os("render"),
+        cage_path.as_os_str(),
+        os("--texture"),
+        nii.as_os_str(),
+        os("--mode"),
+        os("iso"),
+        os("--iso"),
+        os("10"),
+        os("--size"),
+        os("32x32"),
+        os("--background"),
+        os("none"),
+        os("-o"),
+        png.as_os_str(),
+    ]);
+    assert!(out.contains("mode iso, textured with"), "{out}");
+    let mesh = tetvr::io::load(&cage_path).unwrap().mesh;
+    let loaded = Volume::load(&nii, 1).unwrap();
+    let (lo, hi) = loaded.range();
+    let tf = tetvr::TransferFunction::default_for_range(lo, hi, mesh.diagonal() / 100.0).unwrap();
+    let color = tf.eval(10.0).color.map(|c| c as f32);
+    let tc = texcoords(&mesh, DEFAULT_TEXCOORDS).unwrap();
+    let iso = IsoSettings {
+        isovalues: vec![(10.0, color)],
+        ..IsoSettings::default()
+    };
+    let settings = RaycastSettings::default();
+    let mut gpu =
+        RaycastRenderer::textured_iso(ctx(), &mesh, &tc, &loaded, None, settings, &iso).unwrap();
+    let (b_lo, b_hi) = mesh.bounds();
+    let camera = Camera::framing(b_lo, b_hi, View::ISO, 1.0, 30.0, 32, 32);
+    let (expected, _) = gpu.render_surface(&camera).unwrap();
+    assert!(expected.depth.iter().filter(|d| d.is_finite()).count() > 100);
+    let m = tetvr::Image::load_png(&png)
+        .unwrap()
+        .compare(&expected.color)
+        .unwrap();
+    assert!(m.max_abs <= 1.0 / 255.0 + 1e-6, "{m}");
+}
