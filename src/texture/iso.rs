@@ -37,14 +37,13 @@ pub const MAX_BISECTIONS: u32 = 60;
 pub const BISECTIONS: u32 = 6;
 
 /// A first hit: distance, unit world normal, isovalue index.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct TexturedHit {
+struct TexturedHit {
     /// Distance from the eye along the unit ray.
-    pub t: f64,
+    t: f64,
     /// Unit world-space normal (the texture gradient's direction, or towards the eye).
-    pub normal: DVec3,
+    normal: DVec3,
     /// Which isovalue.
-    pub iso: usize,
+    iso: usize,
 }
 
 /// The ray's field at `t`, and the isovalues' "below" bits there.
@@ -106,12 +105,7 @@ fn below(u: f64, isovalues: &[f64]) -> u32 {
 impl TexturedReference {
     /// The first crossing of one of `isovalues` (at most 32, volume units) along the ray
     /// `origin + t dir`, `dir` unit; see the module docs.
-    pub fn first_iso_hit(
-        &self,
-        origin: DVec3,
-        dir: DVec3,
-        isovalues: &[f64],
-    ) -> Option<TexturedHit> {
+    fn first_iso_hit(&self, origin: DVec3, dir: DVec3, isovalues: &[f64]) -> Option<TexturedHit> {
         for seg in self.traversal().segments(origin, dir) {
             let Some(map) = self.texcoord_map(seg.tet) else {
                 continue;
