@@ -157,28 +157,34 @@ fn tet_segment(tet: u32, ids: vec4<u32>, pl: TetPlanes, d: vec3<f32>, t0: f32, t
     }
     let tc = segment_texcoords(ids, pl, d, t0, t1);
     let n = max(ceil(len / STEP), 1.0);
+    // The first piece (k - 1, k] with a crossing; the refinement after the loop keeps the
+    // loop small (a software adapter pays for every live value in it).
     var prev = below(trilinear(tc[0]));
-    for (var k = 1.0; k <= n; k += 1.0) {
+    var crossed = 0u;
+    var k = 1.0;
+    for (; k <= n; k += 1.0) {
         let now = below(trilinear(mix(tc[0], tc[1], k / n)));
-        let crossed = prev ^ now;
-        prev = now;
-        if crossed == 0u {
-            continue;
+        crossed = prev ^ now;
+        if crossed != 0u {
+            break;
         }
-        var best = 2.0;
-        var best_k = 0u;
-        for (var j = 0u; j < iso.count; j++) {
-            if (crossed & (1u << j)) != 0u {
-                let s = refine(tc, iso_value(j), (k - 1.0) / n, k / n);
-                if s < best {
-                    best = s;
-                    best_k = j;
-                }
+        prev = now;
+    }
+    if crossed == 0u {
+        return none;
+    }
+    var best = 2.0;
+    var best_k = 0u;
+    for (var j = 0u; j < iso.count; j++) {
+        if (crossed & (1u << j)) != 0u {
+            let s = refine(tc, iso_value(j), (k - 1.0) / n, k / n);
+            if s < best {
+                best = s;
+                best_k = j;
             }
         }
-        let at = mix(tc[0], tc[1], best);
-        let grad = eye_gradient(ids, pl, texture_gradient(at));
-        return shade_hit(best_k, grad, d, t0 + best * len);
     }
-    return none;
+    let at = mix(tc[0], tc[1], best);
+    let grad = eye_gradient(ids, pl, texture_gradient(at));
+    return shade_hit(best_k, grad, d, t0 + best * len);
 }
