@@ -35,13 +35,15 @@ fn next_entry(pixel: u32, t: f32, last: vec2<u32>) -> vec2<u32> {
 // The ray stops for this layer; `waits`: it left the mesh and may enter a later layer, else it
 // is done (kept with transmittance 0). A ray that entered neither by a peeled hit nor in the
 // eye's tet leaves its pixel and state as earlier layers wrote them (in layer 0 the pixel is
-// written: nothing else clears it). progress[0] counts the rays that wait.
+// written: nothing else clears it). progress[0] counts the rays that wait. An isosurface
+// integrator's hit is stored with the pixel (`store_hit`).
 fn ray_end(px: vec2<u32>, pixel: u32, s: RayState, waits: bool) {
     let entered = hits[2u * pixel] != 0u || start_tet() != NO_NEIGHBOR;
     if layer.index > 0u && !entered {
         return;
     }
     textureStore(image, vec2<i32>(px), vec4<f32>(s.color, 1.0 - s.trans));
+    store_hit(pixel);
     rays[pixel] = RayState(s.color, select(0.0, s.trans, waits), s.t, s.steps, s.last);
     if waits && entered {
         atomicAdd(&progress[0], 1u);

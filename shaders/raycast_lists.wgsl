@@ -34,7 +34,9 @@ fn next_entry(pixel: u32, t: f32, last: vec2<u32>) -> vec2<u32> {
     return best;
 }
 
-// The ray is done: its pixel shows what it gathered.
+// The ray is done: its pixel shows what it gathered (and, for isosurfaces, keeps its hit:
+// the integrator's `store_hit`).
 fn ray_end(px: vec2<u32>, pixel: u32, s: RayState, waits: bool) {
     textureStore(image, vec2<i32>(px), vec4<f32>(s.color, 1.0 - s.trans));
+    store_hit(pixel);
 }

@@ -1,6 +1,6 @@
 // Trilinear sampling of a textured cage's volume (issue 12), shared by the textured ray caster
-// (raycast_texture.wgsl) and the textured shells stages (shells_texture.wgsl). The stage
-// declares `volume: texture_3d<f32>` (R32Float, read with textureLoad: see
+// (raycast_texture.wgsl, raycast_texture_iso.wgsl; bindings in raycast_texture_sample.wgsl) and
+// the textured shells stages (shells_texture.wgsl). The stage declares `volume: texture_3d<f32>` (R32Float, read with textureLoad: see
 // raycast_texture.wgsl for why it is not filtered by a sampler).
 
 fn texel(i: vec3<i32>) -> f32 {

@@ -20,12 +20,12 @@ fn validate(name: &str, src: &str) -> Vec<String> {
 #[test]
 fn every_registered_shader_validates() {
     let registry = shaders::registry();
-    // assemble, shells_mark, shells_tiles, iso_raster, iso_gradients, cellproj_raster, 15
+    // assemble, shells_mark, shells_tiles, iso_raster, iso_gradients, cellproj_raster, 17
     // raycast stages (vertices, planes, entries, two peeling passes, tiles per entry method,
-    // traversal per entry method and integrator: exact, partial, table, textured), and per
-    // target count two shells raster variants (the linear field, a textured cage), 33
-    // composite and 66 fine (compute sampler; linear and textured) variants.
-    assert_eq!(registry.len(), 21 + shaders::MAX_TARGETS as usize * 101);
+    // traversal per entry method and integrator: exact, partial, table, textured, textured
+    // isosurfaces), and per target count two shells raster variants (the linear field, a
+    // textured cage), 33 composite and 66 fine (compute sampler; linear and textured) variants.
+    assert_eq!(registry.len(), 23 + shaders::MAX_TARGETS as usize * 101);
     for (name, src, entries) in registry {
         assert_eq!(validate(&name, &src), entries, "{name}");
     }

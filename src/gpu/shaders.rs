@@ -60,6 +60,7 @@ const SEGMENT_PIECEWISE: &str = "fn segment(u_front: f32, u_back: f32, len: f32)
 const TET_SEGMENT_LINEAR: &str = "fn tet_segment(tet: u32, ids: vec4<u32>, pl: TetPlanes, d: vec3<f32>, t0: f32, t1: f32) -> Acc {\n    \
     let u = segment_scalars(tet, pl, d, t0, t1);\n    \
     return segment(u.x, u.y, t1 - t0);\n}\n";
+const RAYCAST_TEXTURE_SAMPLE: &str = include_str!("../../shaders/raycast_texture_sample.wgsl");
 const RAYCAST_TEXTURE: &str = include_str!("../../shaders/raycast_texture.wgsl");
 /// Trilinear sampling of a cage's volume texture (`fn trilinear`), shared by the textured ray
 /// caster and the textured shells stages; the stage declares `volume`.
@@ -91,21 +92,30 @@ fn shells_sampling(textured: bool, raster: bool) -> String {
     }
 }
 
+const RAYCAST_TEXTURE_ISO: &str = include_str!("../../shaders/raycast_texture_iso.wgsl");
+
+/// The entry methods' `ray_end` hook for the integrators that find no surface hits (every one
+/// but the textured isosurfaces', which stores the pixel's hit).
+const NO_HITS: &str = "fn store_hit(pixel: u32) {}\n";
+
 /// The ray caster's stages as it loads them (entry point `main` in each): vertices; planes;
 /// entries; the two depth-peeling passes (least t, then least face code); the tile list from
 /// entry lists and from peeled hits; the traversal with entry lists and with depth peeling,
 /// each with every integrator (`Segments`: exact, partial, table); then both traversals for a
-/// textured cage (the volume texture stepped through, `raycast_texture.wgsl`).
-pub fn raycast_stages() -> [(&'static str, String); 15] {
+/// textured cage (the volume texture stepped through, `raycast_texture.wgsl`), and both for
+/// its isosurfaces (`raycast_texture_iso.wgsl`).
+pub fn raycast_stages() -> [(&'static str, String); 17] {
     let common = format!("{SHARED}\n{RAYCAST_SHARED}\n{RAYCAST_RAYS}");
     let psi = format!(
         "// Generated: samples per psi table axis.\nconst PSI_SIZE: u32 = {}u;\n{RAYCAST_PSI}",
         crate::gpu::raycast::psi::PSI_SIZE
     );
-    let exact = format!("{PSI_EXACT}\n{SEGMENT_PIECEWISE}\n{TET_SEGMENT_LINEAR}");
-    let partial = format!("{psi}\n{SEGMENT_PIECEWISE}\n{TET_SEGMENT_LINEAR}");
-    let table = format!("{PSI_EXACT}\n{RAYCAST_TABLE}\n{TET_SEGMENT_LINEAR}");
-    let textured = format!("{PSI_EXACT}\n{RAYCAST_TEXTURE}\n{TEXTURE_SAMPLE}");
+    let exact = format!("{PSI_EXACT}\n{SEGMENT_PIECEWISE}\n{TET_SEGMENT_LINEAR}\n{NO_HITS}");
+    let partial = format!("{psi}\n{SEGMENT_PIECEWISE}\n{TET_SEGMENT_LINEAR}\n{NO_HITS}");
+    let table = format!("{PSI_EXACT}\n{RAYCAST_TABLE}\n{TET_SEGMENT_LINEAR}\n{NO_HITS}");
+    let sample = format!("{PSI_EXACT}\n{RAYCAST_TEXTURE_SAMPLE}\n{TEXTURE_SAMPLE}");
+    let textured = format!("{sample}\n{RAYCAST_TEXTURE}\n{NO_HITS}");
+    let textured_iso = format!("{sample}\n{RAYCAST_TEXTURE_ISO}");
     // Every traversal has integrate_segment.wgsl (its `Acc`); the integrator gives `segment`.
     let traverse = |name, entries: &str, integrator: &str| {
         let integrate = INTEGRATE_SEGMENT;
@@ -146,6 +156,16 @@ pub fn raycast_stages() -> [(&'static str, String); 15] {
             "raycast_traverse (peel, textured)",
             RAYCAST_LAYERS,
             &textured,
+        ),
+        traverse(
+            "raycast_traverse (lists, textured iso)",
+            RAYCAST_LISTS,
+            &textured_iso,
+        ),
+        traverse(
+            "raycast_traverse (peel, textured iso)",
+            RAYCAST_LAYERS,
+            &textured_iso,
         ),
     ]
 }

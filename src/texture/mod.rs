@@ -12,6 +12,7 @@
 //! volume's tet mesh from [`crate::generate::volume::nifti_to_tets`].
 
 pub mod cage;
+pub mod iso;
 pub mod reference;
 
 use std::path::Path;
@@ -260,8 +261,9 @@ fn block(f: usize) -> impl Iterator<Item = (usize, usize, usize)> {
 
 /// The renderer of a textured cage in `mode`: `raycast` (GPU, [`RaycastRenderer::textured`]),
 /// `shells` (GPU, either sampler, [`ShellsRenderer::textured`]), `raycast-cpu`
-/// ([`CpuRaycastRenderer::textured`]) or `reference` ([`TexturedReference`]);
-/// `auto` takes the GPU ray caster on a hardware adapter, else the CPU one (the rule of
+/// ([`CpuRaycastRenderer::textured`]), `reference` ([`TexturedReference`]) or `iso` (GPU, the
+/// textured field's isosurfaces, [`RaycastRenderer::textured_iso`]); `auto`
+/// takes the GPU ray caster on a hardware adapter, else the CPU one (the rule of
 /// [`AutoPath`]). Other modes do not read textures yet (issue 12), which the error says.
 /// `volume` must fit the adapter's 3D texture size ([`Volume::fit_within`]).
 pub fn textured_renderer(
@@ -296,6 +298,15 @@ pub fn textured_renderer(
         (ModeSettings::Shells(s), Some(gpu)) => Ok(Box::new(ShellsRenderer::textured(
             gpu, cage, texcoords, volume, *s,
         )?)),
+        (ModeSettings::Iso(s), Some(gpu)) => Ok(Box::new(RaycastRenderer::textured_iso(
+            gpu,
+            cage,
+            texcoords,
+            volume,
+            None,
+            RaycastSettings::default(),
+            s,
+        )?)),
         (ModeSettings::Reference(_), _) => Ok(Box::new(TexturedReference::new(
             cage,
             texcoords.to_vec(),
@@ -308,6 +319,10 @@ pub fn textured_renderer(
                 .into(),
         }
         .into()),
+        (ModeSettings::Iso(_), None) => Err(GpuError::NoAdapter {
+            detail: " (--mode iso with --texture needs one)".into(),
+        }
+        .into()),
         (ModeSettings::Raycast(_), None) => Err(GpuError::NoAdapter {
             detail: " (--mode raycast with --texture needs one; --mode raycast-cpu renders the \
                      textured cage on the CPU)"
@@ -315,7 +330,7 @@ pub fn textured_renderer(
         }
         .into()),
         (other, _) => Err(RenderError::Settings(format!(
-            "--texture renders with --mode raycast (GPU), shells (GPU), raycast-cpu or \
+            "--texture renders with --mode raycast (GPU), shells (GPU), iso (GPU), raycast-cpu or \
              reference; --mode {} does not read volume textures yet",
             other.name()
         ))),

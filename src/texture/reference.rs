@@ -70,6 +70,16 @@ impl TexturedReference {
         self.step
     }
 
+    /// The volume sampled.
+    pub fn volume(&self) -> &Volume {
+        &self.volume
+    }
+
+    /// The exact traversal of the cage.
+    pub(super) fn traversal(&self) -> &ReferenceRenderer {
+        &self.traversal
+    }
+
     /// Premultiplied RGBA of the ray `origin + t dir`, `t >= 0` (`dir` normalized).
     pub fn trace(&self, origin: DVec3, dir: DVec3, tf: &TransferFunction) -> [f64; 4] {
         let mut acc = Acc {
@@ -116,7 +126,7 @@ impl TexturedReference {
 
     /// The affine map from world position to texture coordinate inside tet `t`; `None` for a
     /// tet of zero volume (which no ray segment crosses).
-    fn texcoord_map(&self, t: u32) -> Option<TexcoordMap> {
+    pub(super) fn texcoord_map(&self, t: u32) -> Option<TexcoordMap> {
         let mesh = self.traversal.mesh();
         let ids = mesh.tets()[t as usize].map(|v| v as usize);
         let p = ids.map(|v| mesh.positions()[v]);
@@ -141,14 +151,15 @@ struct Acc {
 }
 
 /// `tc(x) = at_origin + jacobian (x - origin)` inside one tet.
-struct TexcoordMap {
+pub(super) struct TexcoordMap {
     origin: DVec3,
     at_origin: DVec3,
-    jacobian: DMat3,
+    /// `d tc / dx`, constant in the tet.
+    pub(super) jacobian: DMat3,
 }
 
 impl TexcoordMap {
-    fn at(&self, x: DVec3) -> DVec3 {
+    pub(super) fn at(&self, x: DVec3) -> DVec3 {
         self.at_origin + self.jacobian * (x - self.origin)
     }
 }

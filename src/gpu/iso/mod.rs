@@ -159,7 +159,7 @@ struct Targets {
 const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
-fn check_isovalues(isovalues: &[(f64, [f32; 3])]) -> Result<(), RenderError> {
+pub(crate) fn check_isovalues(isovalues: &[(f64, [f32; 3])]) -> Result<(), RenderError> {
     if isovalues.len() > MAX_ISOVALUES {
         return Err(settings_error(format!(
             "{} isovalues given; the iso mode draws at most {MAX_ISOVALUES} in one pass",

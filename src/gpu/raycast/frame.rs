@@ -18,6 +18,7 @@ use crate::tf::TransferFunction;
 
 use super::links::LINK_BINDINGS;
 use super::pipelines::{Groups, encode, linear};
+use super::texture_iso::HitBuffers;
 use super::{
     COUNTERS, Entry, PixelBuffers, RAY_STATE_BYTES, RaycastRenderer, RaycastUniforms, Segments,
     TILE, Targets, default_max_steps, near_tol, psi,
@@ -78,11 +79,12 @@ struct BindGroups {
 }
 
 impl RaycastRenderer {
-    /// Renders one frame; see the module docs.
+    /// Renders one frame; see the module docs. `tf`: `None` only for a textured cage's
+    /// isosurfaces, which do not read it.
     pub(super) fn frame(
         &mut self,
         camera: &Camera,
-        tf: &TransferFunction,
+        tf: Option<&TransferFunction>,
     ) -> Result<Frame, RenderError> {
         let start = Instant::now();
         let mut timings = Timings::default();
@@ -140,9 +142,13 @@ impl RaycastRenderer {
         timings.count("record buffers", self.links.buffer_count() as u64);
     }
 
-    /// Writes the frame constants, the TF, the integrator's table and the ray caster's
-    /// constants; returns whether the 3D table was rebuilt.
-    fn upload(&mut self, camera: &Camera, tf: &TransferFunction) -> Result<bool, RenderError> {
+    /// Writes the frame constants, the TF (when given), the integrator's table and the ray
+    /// caster's constants; returns whether the 3D table was rebuilt.
+    fn upload(
+        &mut self,
+        camera: &Camera,
+        tf: Option<&TransferFunction>,
+    ) -> Result<bool, RenderError> {
         let mesh = self.mesh.clone();
         let m = mesh.read();
         let view = ViewFrame::new(camera);
@@ -155,17 +161,18 @@ impl RaycastRenderer {
             Some(t) => (t.lo, t.span),
             None => (m.scalar_min, m.scalar_span),
         };
-        let points = tf_points(tf, lo, span)?;
-        self.queue
-            .write_buffer(&self.tf_buf, 0, bytemuck::bytes_of(&points));
+        if let Some(tf) = tf {
+            let points = tf_points(tf, lo, span)?;
+            (self.queue).write_buffer(&self.tf_buf, 0, bytemuck::bytes_of(&points));
+        }
         self.eye_tol = near_tol(m.radius);
         // A textured cage steps through its texture: no integrator table.
         let segments = match self.texture {
             Some(_) => Segments::Exact,
             None => self.settings.segments,
         };
-        let rebuilt = match segments {
-            Segments::Table => self.ensure_table(&m, tf)?,
+        let rebuilt = match (segments, tf) {
+            (Segments::Table, Some(tf)) => self.ensure_table(&m, tf)?,
             _ => false,
         };
         drop(m);
@@ -277,6 +284,7 @@ impl RaycastRenderer {
             },
         };
         let tiles = width.div_ceil(TILE) as usize * height.div_ceil(TILE) as usize;
+        let hits = (self.iso.as_ref()).map(|_| HitBuffers::new(device, px));
         self.targets = Some(Targets {
             width,
             height,
@@ -292,6 +300,7 @@ impl RaycastRenderer {
                     | wgpu::BufferUsages::COPY_SRC,
                 mapped_at_creation: false,
             }),
+            hits,
         });
         Ok(())
     }
@@ -421,6 +430,11 @@ impl RaycastRenderer {
                 resource: wgpu::BindingResource::TextureView(&texture.view),
             });
         }
+        if let (Some(iso), Some(hits)) = (&self.iso, &t.hits) {
+            traverse.push(entry(19, &hits.hits));
+            traverse.push(entry(20, &iso.uniforms));
+            traverse.push(entry(21, &iso.ranges));
+        }
         let stage = p.traverse(self.settings.entry, self.settings.segments);
         BindGroups {
             vertices: self.group(&p.vertices.layout, &vertices),
@@ -494,6 +508,9 @@ impl RaycastRenderer {
             }
         }
         rec.encoder().clear_buffer(&t.tiles, 0, Some(16));
+        if let (Some(hits), true) = (&t.hits, first) {
+            rec.encoder().clear_buffer(&hits.hits, 0, None);
+        }
         let tiles = (t.width.div_ceil(TILE) * t.height.div_ceil(TILE)) as u64;
         passes.push(("tiles", p.tiles(entry), &groups.tiles, linear(tiles, max)));
         let traverse = p.traverse(entry, self.settings.segments);
@@ -513,6 +530,9 @@ impl RaycastRenderer {
         // The image travels with the counters: the frame's last layer (or its run without an
         // overflow) then needs no second submission and wait to be read.
         t.readback.copy(enc, &t.image);
+        if let Some(hits) = &t.hits {
+            hits.copy(enc);
+        }
         let stats = rec.finish(&[], &self.counters, 0)?;
         for (stage, ms) in stats.stages {
             match run.stages.iter_mut().find(|(s, _)| *s == stage) {

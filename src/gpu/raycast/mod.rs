@@ -61,6 +61,7 @@ pub mod links;
 mod pipelines;
 pub mod psi;
 pub mod texture;
+pub mod texture_iso;
 pub mod twin;
 
 use std::sync::Arc;
@@ -79,7 +80,8 @@ use crate::render::{Frame, RenderError, Renderer};
 use crate::tf::TransferFunction;
 
 use pipelines::Pipelines;
-use texture::GpuTexture;
+use texture::{GpuTexture, TextureUse};
+use texture_iso::{HitBuffers, TexturedIso};
 
 /// How the traversal integrates each segment (both split it at the TF's control points).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -209,6 +211,8 @@ pub struct RaycastRenderer {
     targets: Option<Targets>,
     /// A textured cage's volume and texture coordinates ([`RaycastRenderer::textured`]).
     texture: Option<GpuTexture>,
+    /// A textured cage's isovalues ([`RaycastRenderer::textured_iso`]).
+    iso: Option<TexturedIso>,
 }
 
 /// Per image size and entry method: the output, its readback, the per-pixel entry buffers,
@@ -222,6 +226,8 @@ struct Targets {
     /// The traversal's indirect dispatch, the list's length, and the tiles listed
     /// (`shaders/raycast_tiles.wgsl`).
     tiles: wgpu::Buffer,
+    /// A textured cage's isosurface hits per pixel ([`RaycastRenderer::textured_iso`]).
+    hits: Option<HitBuffers>,
 }
 
 /// The per-pixel buffers of an entry method.
@@ -273,23 +279,16 @@ impl RaycastRenderer {
         step: Option<f64>,
         settings: RaycastSettings,
     ) -> Result<Self, RenderError> {
-        if texcoords.len() != cage.vertex_count() || cage.cell_scalars().is_some() {
-            return Err(settings_error(format!(
-                "a textured cage needs one texture coordinate per vertex ({} for {} vertices) \
-                 and point data, not cell data",
-                texcoords.len(),
-                cage.vertex_count()
-            )));
-        }
-        let texture = GpuTexture::new(ctx, volume, texcoords, step)?;
-        Self::build(ctx, GpuTetMesh::new(ctx, cage)?, settings, Some(texture))
+        let texture = GpuTexture::for_cage(ctx, cage, volume, texcoords, step)?;
+        let textured = Some((texture, TextureUse::Volume));
+        Self::build(ctx, GpuTetMesh::new(ctx, cage)?, settings, textured)
     }
 
     fn build(
         ctx: &GpuContext,
         mesh: Arc<GpuTetMesh>,
         settings: RaycastSettings,
-        texture: Option<GpuTexture>,
+        textured: Option<(GpuTexture, TextureUse)>,
     ) -> Result<Self, RenderError> {
         let nt = mesh.tet_count() as u64;
         let nv = mesh.read().positions.len() as u64;
@@ -309,7 +308,7 @@ impl RaycastRenderer {
                 &device,
                 nt.div_ceil(chunking.chunk).max(1),
                 mesh.has_cells(),
-                texture.as_ref().map(|t| t.step),
+                textured.as_ref().map(|(t, used)| (t.step, *used)),
             ),
             frame: FrameResources::new(ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY)),
             frame_buf: uniform("raycast frame", size_of::<ViewUniforms>()),
@@ -336,7 +335,8 @@ impl RaycastRenderer {
             settings,
             mesh,
             targets: None,
-            texture,
+            texture: textured.map(|(t, _)| t),
+            iso: None,
         })
     }
 
@@ -419,13 +419,19 @@ fn check_fits(
 }
 
 impl Renderer for RaycastRenderer {
+    /// `iso` for a textured cage's isosurfaces, else `raycast`.
     fn name(&self) -> &'static str {
-        "raycast"
+        match self.iso {
+            Some(_) => "iso",
+            None => "raycast",
+        }
     }
 
+    /// The picture; for a textured cage's isosurfaces the shaded surfaces, `tf` unused (the
+    /// colours come with the isovalues).
     fn render(&mut self, camera: &Camera, tf: &TransferFunction) -> Result<Frame, RenderError> {
         camera.validate()?;
-        self.frame(camera, tf)
+        self.frame(camera, Some(tf))
     }
 
     fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {
@@ -464,8 +470,13 @@ impl Renderer for RaycastRenderer {
                 + t.tiles.size()
                 + t.readback.size()
                 + 16 * t.width as u64 * t.height as u64
+                + t.hits.as_ref().map_or(0, HitBuffers::size)
         });
-        let texture = self.texture.as_ref().map_or(0, GpuTexture::bytes);
+        let texture = self.texture.as_ref().map_or(0, GpuTexture::bytes)
+            + self
+                .iso
+                .as_ref()
+                .map_or(0, |i| i.uniforms.size() + i.ranges.size());
         self.mesh.gpu_memory() + buffers + self.links.size() + self.frame.size() + targets + texture
     }
 }

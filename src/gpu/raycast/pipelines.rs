@@ -8,6 +8,7 @@ use crate::gpu::shaders;
 use crate::gpu::util::{bind_group_layout, buffer_entry, pipeline_layout_for, wgsl_module};
 
 use super::links::LINK_BINDINGS;
+use super::texture::TextureUse;
 use super::{Entry, Segments};
 
 /// One compute stage: its layout and pipeline.
@@ -28,7 +29,7 @@ pub struct Pipelines {
     /// Indexed by [`Entry`], then [`Segments`] (exact, partial, table).
     traverse: [[Stage; 3]; 2],
     /// For a textured cage: the traversal per [`Entry`] that steps through the volume texture
-    /// (whatever the [`Segments`]).
+    /// (whatever the [`Segments`]), integrating it or finding its isosurfaces ([`TextureUse`]).
     textured: Option<[Stage; 2]>,
 }
 
@@ -98,15 +99,26 @@ fn textured_entries(entry: Entry) -> Vec<wgpu::BindGroupLayoutEntry> {
     entries
 }
 
+/// The textured isosurface traversal's bindings: [`textured_entries`], then 19 the per-pixel
+/// hits (written), 20 the isovalues and 21 the tets' ranges of the field
+/// (`shaders/raycast_texture_iso.wgsl`).
+fn textured_iso_entries(entry: Entry) -> Vec<wgpu::BindGroupLayoutEntry> {
+    let mut entries = textured_entries(entry);
+    entries.push(buffer_entry(19, S::COMPUTE, RW));
+    entries.push(buffer_entry(20, S::COMPUTE, B::Uniform));
+    entries.push(buffer_entry(21, S::COMPUTE, RO));
+    entries
+}
+
 impl Pipelines {
     /// Compiles the stages for a mesh whose links take `windows` windows (WGSL
     /// `LINK_WINDOWS`) and whose field is constant per tet when `cells` (WGSL `CELLS`); with
-    /// `texture_step`, also the textured traversals sampling every that many world units.
+    /// `texture`, also the textured traversals of that use sampling every that many world units.
     pub fn new(
         device: &wgpu::Device,
         windows: u64,
         cells: bool,
-        texture_step: Option<f32>,
+        texture: Option<(f32, TextureUse)>,
     ) -> Self {
         let cells = if cells { 1.0 } else { 0.0 };
         let constants = [("LINK_WINDOWS", windows as f64), ("CELLS", cells)];
@@ -129,6 +141,8 @@ impl Pipelines {
             peel_table,
             lists_textured,
             peel_textured,
+            lists_textured_iso,
+            peel_textured_iso,
         ] = shaders::raycast_stages();
         // Peeling: the boundary, the hits, the ray states, the counters, the layer, progress.
         let u = B::Uniform;
@@ -150,13 +164,20 @@ impl Pipelines {
                 [lists_exact, lists_partial, lists_table].map(|s| stage(s, &lists)),
                 [peel_exact, peel_partial, peel_table].map(|s| stage(s, &layers)),
             ],
-            textured: texture_step.map(|step| {
+            textured: texture.map(|(step, used)| {
                 let constants = [constants[0], constants[1], ("STEP", step as f64)];
                 let textured = |s, e| stage_with(device, s, &textured_entries(e), &constants);
-                [
-                    textured(lists_textured, Entry::Lists),
-                    textured(peel_textured, Entry::Peel),
-                ]
+                let iso = |s, e| stage_with(device, s, &textured_iso_entries(e), &constants);
+                match used {
+                    TextureUse::Volume => [
+                        textured(lists_textured, Entry::Lists),
+                        textured(peel_textured, Entry::Peel),
+                    ],
+                    TextureUse::Isosurfaces => [
+                        iso(lists_textured_iso, Entry::Lists),
+                        iso(peel_textured_iso, Entry::Peel),
+                    ],
+                }
             }),
         }
     }

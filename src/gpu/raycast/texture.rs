@@ -9,11 +9,21 @@ use glam::DVec3;
 
 use crate::gpu::GpuContext;
 use crate::gpu::util::settings_error;
+use crate::mesh::TetMesh;
 use crate::render::RenderError;
 use crate::texture::Volume;
 use crate::texture::reference::DEFAULT_STEP_FRACTION;
 
 use super::frame::storage;
+
+/// What the traversal does with a textured cage's field.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TextureUse {
+    /// Direct volume rendering: the TF integrated by stepping (`shaders/raycast_texture.wgsl`).
+    Volume,
+    /// The first isosurface hit (`shaders/raycast_texture_iso.wgsl`, [`super::texture_iso`]).
+    Isosurfaces,
+}
 
 /// The volume texture (R32Float, values normalized to [0, 1] by the volume's range), the
 /// texture coordinates (vec4 per vertex, w unused) and the sampling step.
@@ -29,6 +39,26 @@ pub struct GpuTexture {
 }
 
 impl GpuTexture {
+    /// [`GpuTexture::new`] for `cage`, after checking that it has one texture coordinate per
+    /// vertex and point data.
+    pub(super) fn for_cage(
+        ctx: &GpuContext,
+        cage: &TetMesh,
+        volume: &Volume,
+        texcoords: &[DVec3],
+        step: Option<f64>,
+    ) -> Result<Self, RenderError> {
+        if texcoords.len() != cage.vertex_count() || cage.cell_scalars().is_some() {
+            return Err(settings_error(format!(
+                "a textured cage needs one texture coordinate per vertex ({} for {} vertices) \
+                 and point data, not cell data",
+                texcoords.len(),
+                cage.vertex_count()
+            )));
+        }
+        Self::new(ctx, volume, texcoords, step)
+    }
+
     /// Uploads `volume` and the cage's `texcoords` (one per vertex), sampled along rays every
     /// `step` world units (`None`: the reference's default, [`DEFAULT_STEP_FRACTION`] of the
     /// smallest sample spacing). An error when the volume exceeds the adapter's 3D texture

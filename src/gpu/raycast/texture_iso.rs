@@ -1,0 +1,215 @@
+//! Isosurfaces of a textured cage on the GPU (`--mode iso --texture`, issue 12; Georgii &
+//! Westermann 2006, figure 9): the ray caster's traversal (entries, tet to tet through face
+//! adjacency, re-entry) with the isosurface integrator `shaders/raycast_texture_iso.wgsl` in
+//! place of the volume integrator. Each tet segment is searched at the textured ray caster's
+//! step for the first sign change of `field - isovalue`, refined to the crossing, and shaded
+//! with the normal of the texture's gradient as iso mode shades
+//! ([`crate::reference::iso::shade`]); the per-pixel hit (world normal, distance) comes back
+//! with the picture. The f64 reference is [`crate::texture::iso`].
+
+use std::sync::Arc;
+
+use bytemuck::Zeroable;
+use glam::DVec3;
+use rayon::prelude::*;
+
+use crate::camera::Camera;
+use crate::gpu::GpuContext;
+use crate::gpu::gpu_data::IsoUniforms;
+use crate::gpu::iso::{DEFAULT_COLOR, IsoSettings, check_isovalues};
+use crate::gpu::mesh::GpuTetMesh;
+use crate::gpu::util::{map_read, settings_error, uniform_buffer};
+use crate::mesh::TetMesh;
+use crate::reference::iso::IsoImage;
+use crate::render::{RenderError, Timings};
+use crate::texture::Volume;
+
+use super::frame::{mappable, storage};
+use super::texture::{GpuTexture, TextureUse};
+use super::{RaycastRenderer, RaycastSettings};
+
+/// A textured cage's isovalues (data units of the volume, with their colours), their uniform
+/// block (WGSL `Iso`, normalized like the texels) and each tet's range of the field.
+pub(super) struct TexturedIso {
+    pub(super) isovalues: Vec<(f64, [f32; 3])>,
+    pub(super) uniforms: wgpu::Buffer,
+    /// Per tet the least and greatest texel its trilinear field can read ([`tet_ranges`]),
+    /// normalized: the traversal skips a tet whose range holds no isovalue.
+    pub(super) ranges: wgpu::Buffer,
+}
+
+/// Per tet of `cage` (vertices at `texcoords`), the least and greatest texel the trilinear
+/// field reads inside it, normalized as the texels (`(v - lo) / span`): over the texels of the
+/// box of its corners' texture coordinates, widened by one texel on every side (the eight
+/// texels around each point, and a margin for the GPU's f32 coordinates). Texture coordinates
+/// never change, so neither do the ranges when the cage deforms. A tet whose range holds no
+/// isovalue has all its samples on one side of each: skipping it changes no hit.
+fn tet_ranges(cage: &TetMesh, texcoords: &[DVec3], volume: &Volume) -> Vec<[f32; 2]> {
+    let (lo, hi) = volume.range();
+    let span = if hi > lo { hi - lo } else { 1.0 };
+    let dims = volume.dims();
+    let values = volume.values();
+    let texels = |tc: f64, a: usize, round: fn(f64) -> f64, margin: f64| {
+        let i = round(tc * dims[a] as f64 - 0.5) + margin;
+        i.clamp(0.0, (dims[a] - 1) as f64) as usize
+    };
+    cage.tets()
+        .par_iter()
+        .map(|t| {
+            let tc = t.map(|v| texcoords[v as usize]);
+            let (a, b) = (
+                tc.iter().fold(tc[0], |m, c| m.min(*c)),
+                tc.iter().fold(tc[0], |m, c| m.max(*c)),
+            );
+            let from: [usize; 3] = std::array::from_fn(|k| texels(a[k], k, f64::floor, -1.0));
+            let to: [usize; 3] = std::array::from_fn(|k| texels(b[k], k, f64::ceil, 1.0));
+            let (mut least, mut most) = (f32::INFINITY, f32::NEG_INFINITY);
+            for z in from[2]..=to[2] {
+                for y in from[1]..=to[1] {
+                    let row = dims[0] * (y + dims[1] * z);
+                    for &v in &values[row + from[0]..=row + to[0]] {
+                        least = least.min(v);
+                        most = most.max(v);
+                    }
+                }
+            }
+            let norm = |v: f32| ((v as f64 - lo) / span) as f32;
+            [norm(least), norm(most)]
+        })
+        .collect()
+}
+
+impl TexturedIso {
+    /// `isovalues` (empty: the middle of the volume's range, light grey) uploaded for
+    /// `texture`, and the tets' ranges of `cage` (vertices at `texcoords` into `volume`).
+    fn new(
+        ctx: &GpuContext,
+        isovalues: &[(f64, [f32; 3])],
+        texture: &GpuTexture,
+        (cage, texcoords, volume): (&TetMesh, &[DVec3], &Volume),
+    ) -> Result<Self, RenderError> {
+        check_isovalues(isovalues)?;
+        let isovalues = match isovalues {
+            [] => vec![(texture.lo + 0.5 * texture.span, DEFAULT_COLOR)],
+            given => given.to_vec(),
+        };
+        let mut iso = IsoUniforms::zeroed();
+        for (k, &(v, c)) in isovalues.iter().enumerate() {
+            iso.values[k / 4][k % 4] = ((v - texture.lo) / texture.span) as f32;
+            iso.colors[k] = [c[0], c[1], c[2], 1.0];
+        }
+        iso.count = isovalues.len() as u32;
+        let uniforms = uniform_buffer(&ctx.device, "textured iso", size_of::<IsoUniforms>());
+        ctx.queue
+            .write_buffer(&uniforms, 0, bytemuck::bytes_of(&iso));
+        let cpu = tet_ranges(cage, texcoords, volume);
+        let ranges = storage(&ctx.device, "textured iso tet ranges", 8 * cpu.len());
+        ctx.queue
+            .write_buffer(&ranges, 0, bytemuck::cast_slice(&cpu));
+        Ok(Self {
+            isovalues,
+            uniforms,
+            ranges,
+        })
+    }
+}
+
+/// Per pixel the hit's world normal and distance (`[nx, ny, nz, t]`, `t = 0`: no hit),
+/// written by the traversal, and its mappable copy.
+pub(super) struct HitBuffers {
+    pub(super) hits: wgpu::Buffer,
+    readback: wgpu::Buffer,
+}
+
+impl HitBuffers {
+    pub(super) fn new(device: &wgpu::Device, pixels: usize) -> Self {
+        Self {
+            hits: storage(device, "textured iso hits", 16 * pixels),
+            readback: mappable(device, "textured iso hits readback", 16 * pixels.max(1)),
+        }
+    }
+
+    /// Copies the hits to their readback.
+    pub(super) fn copy(&self, enc: &mut wgpu::CommandEncoder) {
+        enc.copy_buffer_to_buffer(&self.hits, 0, &self.readback, 0, self.readback.size());
+    }
+
+    pub(super) fn size(&self) -> u64 {
+        self.hits.size() + self.readback.size()
+    }
+
+    /// Each pixel's distance (infinite on a miss) and unit world normal (zero on a miss), from
+    /// the last copy.
+    fn read(&self, device: &wgpu::Device) -> Result<(Vec<f32>, Vec<[f32; 3]>), RenderError> {
+        map_read(device, &self.readback)?;
+        let out = {
+            let data = (self.readback.get_mapped_range(..))
+                .map_err(|e| settings_error(format!("mapping the iso hits failed: {e}")))?;
+            let hits: &[[f32; 4]] = bytemuck::cast_slice(&data);
+            hits.iter()
+                .map(|h| match h[3] > 0.0 {
+                    true => (h[3], [h[0], h[1], h[2]]),
+                    false => (f32::INFINITY, [0.0; 3]),
+                })
+                .unzip()
+        };
+        self.readback.unmap();
+        Ok(out)
+    }
+}
+
+impl RaycastRenderer {
+    /// The isosurfaces of a textured cage (issue 12; see the module docs): `cage`'s vertices
+    /// carry `texcoords` into `volume`, each tet segment is searched every `step` world units
+    /// (`None`: the textured ray caster's default); `iso.isovalues` are in the volume's units
+    /// (empty: the middle of its range). `iso.shading` is not used: the normals are always the
+    /// texture's gradient. [`crate::render::Renderer::update_positions`] bends the surfaces,
+    /// normals included, with the cage.
+    pub fn textured_iso(
+        ctx: &GpuContext,
+        cage: &TetMesh,
+        texcoords: &[DVec3],
+        volume: &Volume,
+        step: Option<f64>,
+        settings: RaycastSettings,
+        iso: &IsoSettings,
+    ) -> Result<Self, RenderError> {
+        let texture = GpuTexture::for_cage(ctx, cage, volume, texcoords, step)?;
+        let field = (cage, texcoords, volume);
+        let surfaces = TexturedIso::new(ctx, &iso.isovalues, &texture, field)?;
+        let mesh: Arc<GpuTetMesh> = GpuTetMesh::new(ctx, cage)?;
+        let textured = Some((texture, TextureUse::Isosurfaces));
+        let mut renderer = Self::build(ctx, mesh, settings, textured)?;
+        renderer.iso = Some(surfaces);
+        Ok(renderer)
+    }
+
+    /// The isovalues (volume units) and colours drawn; `None` unless built by
+    /// [`RaycastRenderer::textured_iso`].
+    pub fn textured_isovalues(&self) -> Option<&[(f64, [f32; 3])]> {
+        self.iso.as_ref().map(|i| i.isovalues.as_slice())
+    }
+
+    /// Renders `camera`'s view of a textured cage's isosurfaces: the shaded colour and each
+    /// pixel's hit distance and world normal (the conventions of [`IsoImage`]), and the
+    /// frame's timings. An error unless built by [`RaycastRenderer::textured_iso`].
+    pub fn render_surface(&mut self, camera: &Camera) -> Result<(IsoImage, Timings), RenderError> {
+        camera.validate()?;
+        if self.iso.is_none() {
+            return Err(settings_error(
+                "render_surface draws a textured cage's isosurfaces: build the renderer with \
+                 RaycastRenderer::textured_iso",
+            ));
+        }
+        let frame = self.frame(camera, None)?;
+        let hits = (self.targets.as_ref()).and_then(|t| t.hits.as_ref());
+        let hits = hits.ok_or_else(|| settings_error("internal: iso hit buffers missing"))?;
+        let (depth, normal) = hits.read(&self.device)?;
+        let surface = IsoImage {
+            color: frame.image,
+            depth,
+            normal,
+        };
+        Ok((surface, frame.timings))
+    }
+}
