@@ -68,6 +68,7 @@ fn orbit(
         background: scene.background.unwrap_or([1.0; 3]),
         mode,
         scene,
+        series: None,
     };
     let mut viewer = Viewer::new(GpuContext::new(AdapterChoice::from_env())?, setup)?;
     // The reference behind the view would share the CPU with a software adapter's frames.

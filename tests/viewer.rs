@@ -47,6 +47,7 @@ impl Harness {
             mode,
             background: scene.background.expect("white"),
             scene,
+            series: None,
         };
         let mut h = Self {
             ctx: egui::Context::default(),
