@@ -16,6 +16,7 @@ use super::playback::Playback;
 use super::quality::{Quality, SETTLE};
 use super::readout::ErrorReadout;
 use super::series::{Preparation, SeriesPlayer, same_topology};
+use super::still::{Rendered, StillRender};
 use super::tf_editor::TfEditor;
 use crate::camera::{Camera, View};
 use crate::gpu::GpuContext;
@@ -27,6 +28,9 @@ use crate::mode::ModeSettings;
 use crate::render::{RenderError, Renderer, Timings};
 use crate::scene::{Scene, SceneError};
 use crate::tf::TransferFunction;
+
+/// How often the UI polls for the full-quality frame in flight.
+const STILL_POLL: std::time::Duration = std::time::Duration::from_millis(10);
 
 /// What the viewer opens with: the mesh, its transfer function, the camera (its size is the
 /// window's 3D view at start), the mode, and the background the picture is shown over.
@@ -119,8 +123,10 @@ pub struct Viewer {
     pub array_buttons: Vec<(String, Rect)>,
     /// The time series played, when the viewer opened one.
     pub series: Option<SeriesPlayer>,
-    /// What the last array switch or series step did (shown in the numbers panel).
+    /// What the last array switch or series step did (shown in the Data panel).
     pub status: String,
+    /// The full-quality frame's render thread.
+    still: StillRender,
 }
 
 impl Viewer {
@@ -173,12 +179,19 @@ impl Viewer {
             array_buttons: Vec::new(),
             series: series.map(|(s, limits)| SeriesPlayer::start(s, limits)),
             status: String::new(),
+            still: StillRender::start(),
             scene: Scene {
                 array: Some(active_spec(&mesh, scene.array.as_deref())),
                 ..scene
             },
             mesh,
         })
+    }
+
+    /// UI frames that polled for the full-quality frame in flight while it was not done (none
+    /// of them waiting for it); `None` when none is in flight.
+    pub fn still_in_flight(&self) -> Option<u32> {
+        self.still.in_flight().map(|_| self.still.polls)
     }
 
     /// The frame on screen, if one was rendered.
@@ -221,6 +234,7 @@ impl Viewer {
                 .series
                 .as_ref()
                 .is_some_and(|s| s.playing || s.loading())
+            && self.still.in_flight().is_none()
             && self
                 .shown
                 .as_ref()
@@ -303,6 +317,7 @@ impl Viewer {
 
     /// The deformation's phase or settings changed: new positions for the renderer.
     pub fn deformation_changed(&mut self) {
+        self.reclaim();
         let (lo, hi) = self.bounds;
         let positions = Arc::new(self.playback.positions(self.mesh.positions(), lo, hi));
         if let Some(r) = &mut self.renderer
@@ -362,6 +377,7 @@ impl Viewer {
     /// neither has per-tet values, else the renderer rebuilt; the histogram and the
     /// reference follow. Says what it did, `what` naming the change.
     fn new_field(&mut self, mesh: TetMesh, what: &str) -> String {
+        self.reclaim();
         let cells = self.mesh.cell_scalars().is_some() || mesh.cell_scalars().is_some();
         let update = |r: &mut Box<dyn Renderer>| {
             r.update_positions(mesh.positions())?;
@@ -457,6 +473,9 @@ impl Viewer {
         if self.quality.moving(now) || self.playback.playing || series {
             ui.ctx().request_repaint_after(SETTLE);
         }
+        if self.still.in_flight().is_some() {
+            ui.ctx().request_repaint_after(STILL_POLL);
+        }
         self.paint(ui, rect);
     }
 
@@ -482,8 +501,13 @@ impl Viewer {
         }
     }
 
-    /// Renders when the camera, size, quality or settings differ from the frame on screen.
+    /// Renders when the camera, size, quality or settings differ from the frame on screen: a
+    /// moving view's frame here, the full-quality one on the render thread (the picture on
+    /// screen stays until it is done; nothing renders while it is in flight).
     fn render_if_needed(&mut self, size: (u32, u32), now: Instant) {
+        if self.take_still(size) {
+            return;
+        }
         let scale = match self.playback.playing {
             true => self.quality.scale(now).max(2).min(size.0.min(size.1)),
             false => self.quality.scale(now),
@@ -500,16 +524,61 @@ impl Viewer {
         if same && !self.dirty {
             return;
         }
-        match self.render(camera) {
+        self.dirty = false;
+        if scale == 1 {
+            match self.ready_renderer() {
+                Ok(r) => self.still.submit(r, camera, self.tf.clone()),
+                Err(e) => self.error = Some(e.to_string()),
+            }
+            return;
+        }
+        let rendered = self.render(camera);
+        // The still frame waits for a pause after this frame, not after its start: a slow
+        // interactive frame is no pause.
+        if !self.playback.playing {
+            self.quality.moved(Instant::now());
+        }
+        self.show(camera, scale, rendered);
+    }
+
+    /// Takes the full-quality frame if the render thread finished it (its picture only if the
+    /// view is still where it was); true while it is still in flight.
+    fn take_still(&mut self, size: (u32, u32)) -> bool {
+        let Some(done) = self.still.poll() else {
+            return self.still.in_flight().is_some();
+        };
+        if self.renderer.is_none() {
+            self.renderer = Some(done.renderer);
+        }
+        let wanted = Camera {
+            width: size.0,
+            height: size.1,
+            ..self.controller.camera
+        };
+        if !self.dirty && done.camera == wanted {
+            self.show(done.camera, 1, done.result);
+        }
+        false
+    }
+
+    /// Waits for the full-quality frame in flight to take the renderer back (its picture is
+    /// dropped and rendered again).
+    fn reclaim(&mut self) {
+        if let Some(done) = self.still.wait() {
+            if self.renderer.is_none() {
+                self.renderer = Some(done.renderer);
+            }
+            self.dirty = true;
+        }
+    }
+
+    /// Puts a frame rendered at 1/`scale` of the resolution on screen, or its error.
+    fn show(&mut self, camera: Camera, scale: u32, rendered: Rendered) {
+        match rendered {
             Ok((image, timings, render_ms)) => {
                 // A new renderer's first frame (pipelines, targets) says nothing of the next.
                 if scale == 1 && self.warm {
                     self.quality.record_full(render_ms);
-                }
-                // The still frame waits for a pause after this frame, not after its start:
-                // a slow interactive frame is no pause.
-                if scale > 1 && !self.playback.playing {
-                    self.quality.moved(Instant::now());
                 }
                 self.warm = true;
                 self.serial += 1;
@@ -525,27 +594,37 @@ impl Viewer {
             }
             Err(e) => self.error = Some(e.to_string()),
         }
-        self.dirty = false;
     }
 
-    /// Renders `camera`'s picture with the shown mode, building its renderer first if needed.
-    pub fn render(&mut self, camera: Camera) -> Result<(Image, Timings, f64), RenderError> {
-        if self.rebuild || self.renderer.is_none() {
-            self.rebuild = false;
-            self.renderer = None;
-            let mut r = self
-                .modes
-                .settings(&self.tf)
-                .build(Some(&self.gpu), &self.mesh)?;
-            if let Some(p) = &self.positions {
-                r.update_positions(p)?;
+    /// The renderer of the shown mode, taken out (built first if the mode or its settings
+    /// changed, or it was lost).
+    fn ready_renderer(&mut self) -> Result<Box<dyn Renderer>, RenderError> {
+        self.reclaim();
+        match self.renderer.take() {
+            Some(r) if !self.rebuild => Ok(r),
+            _ => {
+                self.rebuild = false;
+                let mut r = self
+                    .modes
+                    .settings(&self.tf)
+                    .build(Some(&self.gpu), &self.mesh)?;
+                if let Some(p) = &self.positions {
+                    r.update_positions(p)?;
+                }
+                self.warm = false;
+                Ok(r)
             }
-            self.renderer = Some(r);
-            self.warm = false;
         }
-        let renderer = self.renderer.as_mut().expect("built above");
+    }
+
+    /// Renders `camera`'s picture with the shown mode, building its renderer first if needed
+    /// (after the full-quality frame in flight, if any).
+    pub fn render(&mut self, camera: Camera) -> Rendered {
+        let mut renderer = self.ready_renderer()?;
         let start = Instant::now();
-        let frame = renderer.render(&camera, &self.tf)?;
+        let frame = renderer.render(&camera, &self.tf);
+        self.renderer = Some(renderer);
+        let frame = frame?;
         Ok((
             frame.image,
             frame.timings,

@@ -17,6 +17,7 @@ mod playback;
 mod quality;
 mod readout;
 mod series;
+mod still;
 mod tf_editor;
 mod window;
 
