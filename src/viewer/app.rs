@@ -549,6 +549,11 @@ impl Viewer {
         };
         if self.renderer.is_none() {
             self.renderer = Some(done.renderer);
+            // A new renderer's first frame (pipelines, targets) says nothing of the next.
+            if let (true, Ok((_, _, ms))) = (self.warm, &done.result) {
+                self.quality.record_full(*ms);
+            }
+            self.warm = true;
         }
         let wanted = Camera {
             width: size.0,
@@ -576,10 +581,6 @@ impl Viewer {
     fn show(&mut self, camera: Camera, scale: u32, rendered: Rendered) {
         match rendered {
             Ok((image, timings, render_ms)) => {
-                // A new renderer's first frame (pipelines, targets) says nothing of the next.
-                if scale == 1 && self.warm {
-                    self.quality.record_full(render_ms);
-                }
                 self.warm = true;
                 self.serial += 1;
                 self.shown = Some(Shown {
