@@ -2,8 +2,10 @@
 //! headless (egui input only, no window) through a second left drag of 2 points per frame
 //! (the first one's still frame times the full quality the interactive one is fitted to),
 //! every frame timed whole (input, render at the interactive resolution, texture upload, panels),
-//! then the full-quality frame's render when the drag stops. The error readout is off: its
-//! reference would share the CPU with a software adapter's frames.
+//! then the full-quality frame's render when the drag stops. It also prints the longest UI
+//! frame from the release until the full-quality picture is on screen (UI frames every 5 ms
+//! once the drag stops): the hitch a user sees when the camera stops. The error readout is off: its reference would share the CPU with a software
+//! adapter's frames.
 //!
 //! ```sh
 //! cargo run --release --example viewer_orbit -- assets/bluntfin_tet.vtu 512x512 shells,raycast
@@ -14,7 +16,7 @@ use std::time::Instant;
 use tetvr::gpu::{AdapterChoice, GpuContext};
 use tetvr::scene::{Mode, Scene};
 use tetvr::viewer::egui::{self, Event, PointerButton, Pos2, Vec2};
-use tetvr::viewer::{NUMBERS_HEIGHT, PANEL_WIDTH, SETTLE, Viewer, ViewerSetup};
+use tetvr::viewer::{NUMBERS_HEIGHT, PANEL_WIDTH, Viewer, ViewerSetup};
 
 /// Frames timed while dragging.
 const FRAMES: usize = 30;
@@ -39,22 +41,32 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     drop(gpu);
     for mode in modes.split(',') {
         let mode: Mode = serde_json::from_value(serde_json::json!(mode))?;
-        let (moving, still, scale) = orbit(mesh, size, mode)?;
+        let o = orbit(mesh, size, mode)?;
         println!(
-            "{mode:?}: orbiting {moving:.1} ms per frame (median of {FRAMES}, 1/{scale} \
-             resolution), still frame {still:.1} ms"
+            "{mode:?}: orbiting {:.1} ms per frame (median of {FRAMES}, 1/{} resolution), \
+             still frame {:.1} ms; after the stop: longest UI frame {:.1} ms, full quality on \
+             screen after {:.1} ms",
+            o.moving, o.scale, o.still, o.longest, o.arrival
         );
     }
     Ok(())
 }
 
-/// Median frame time while dragging, the full-quality frame's time, and the resolution
-/// divisor used while moving.
-fn orbit(
-    mesh: &str,
-    size: [u32; 2],
-    mode: Mode,
-) -> Result<(f64, f64, u32), Box<dyn std::error::Error>> {
+/// What one mode's orbit measured, ms (but the divisor).
+struct Orbit {
+    /// Median UI frame while dragging.
+    moving: f64,
+    /// The full-quality frame's render.
+    still: f64,
+    /// The resolution divisor while moving.
+    scale: u32,
+    /// The longest UI frame from the release until the full-quality picture shows.
+    longest: f64,
+    /// From the release until the full-quality picture shows.
+    arrival: f64,
+}
+
+fn orbit(mesh: &str, size: [u32; 2], mode: Mode) -> Result<Orbit, Box<dyn std::error::Error>> {
     let mut scene = Scene::new(mesh);
     (scene.mode, scene.size) = (mode, size);
     let loaded = scene.load_mesh(&Default::default())?.mesh;
@@ -68,6 +80,7 @@ fn orbit(
         background: scene.background.unwrap_or([1.0; 3]),
         mode,
         scene,
+        series: None,
     };
     let mut viewer = Viewer::new(GpuContext::new(AdapterChoice::from_env())?, setup)?;
     // The reference behind the view would share the CPU with a software adapter's frames.
@@ -101,7 +114,7 @@ fn orbit(
     // Twice: the first drag's still frame is the first warm full-quality one, which sets the
     // interactive resolution of the second (the one timed).
     let mut times = Vec::new();
-    let mut scale = 1;
+    let (mut scale, mut longest, mut arrival) = (1, 0.0f64, 0.0);
     for _ in 0..2 {
         frame(&mut viewer, vec![Event::PointerMoved(at)]);
         frame(&mut viewer, vec![button(true)]);
@@ -112,9 +125,14 @@ fn orbit(
             })
             .collect();
         scale = viewer.shown().map_or(1, |s| s.scale);
-        frame(&mut viewer, vec![button(false)]);
-        std::thread::sleep(SETTLE);
-        frame(&mut viewer, vec![]);
+        let release = Instant::now();
+        longest = frame(&mut viewer, vec![button(false)]);
+        // Frames every 5 ms until the full-quality picture shows (or 60 s went by).
+        while !viewer.settled() && release.elapsed() < std::time::Duration::from_secs(60) {
+            std::thread::sleep(std::time::Duration::from_millis(5));
+            longest = longest.max(frame(&mut viewer, vec![]));
+        }
+        arrival = release.elapsed().as_secs_f64() * 1e3;
     }
     if let Some(e) = &viewer.error {
         return Err(e.clone().into());
@@ -125,5 +143,11 @@ fn orbit(
         .ok_or("no still frame")?;
     let still = still.render_ms;
     times.sort_by(f64::total_cmp);
-    Ok((times[FRAMES / 2], still, scale))
+    Ok(Orbit {
+        moving: times[FRAMES / 2],
+        still,
+        scale,
+        longest,
+        arrival,
+    })
 }

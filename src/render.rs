@@ -111,7 +111,7 @@ pub struct Frame {
 }
 
 /// One renderer per mode; long-lived, reused across frames.
-pub trait Renderer {
+pub trait Renderer: Send {
     /// The mode's name as the CLI spells it (`reference`, `shells`, ...).
     fn name(&self) -> &'static str;
 

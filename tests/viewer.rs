@@ -3,22 +3,30 @@
 
 mod common;
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use tetvr::generate::{self, Field};
 use tetvr::gpu::{AdapterChoice, GpuContext};
+use tetvr::io::ReadLimits;
+use tetvr::io::series::Series;
+use tetvr::mesh::DataArray;
 use tetvr::scene::{Mode, Scene};
 use tetvr::viewer::egui::{self, Event, PointerButton, Pos2, Vec2};
 use tetvr::viewer::{
     DEGREES_PER_POINT, NUMBERS_HEIGHT, PANEL_WIDTH, SETTLE, ViewMode, Viewer, ViewerSetup,
 };
-use tetvr::{Camera, Image};
+use tetvr::{Camera, Image, ScalarArray, TetMesh};
 
 const MESH: &str = "lox_post_subset_tet.vtk";
 
 /// The window's size in points: the panels and a 3D view of 160 x 136 pixels. Tall, so the
 /// transfer-function editor is in sight without scrolling.
 const SCREEN: Vec2 = Vec2::new(PANEL_WIDTH + 160.0, 200.0 + NUMBERS_HEIGHT + 500.0);
+
+/// Frames (10 ms apart) the tests wait at most for a full-quality frame or a series step:
+/// 60 s, far over the seconds either takes on lavapipe; a guard against a hang, not a timing.
+const POLLS: u32 = 6000;
 
 /// A viewer in an egui context with no window: each `frame` is one egui pass with the given
 /// input events, at 60 frames a second of egui time.
@@ -33,7 +41,12 @@ impl Harness {
     /// setting `tetvr render`'s default: viridis, the iso view, a white background), with a
     /// 160 x 136 view, on the software adapter.
     fn new(mode: Mode) -> Self {
-        let mut scene = Scene::new(common::asset(MESH));
+        Self::open(common::asset(MESH), mode, None)
+    }
+
+    /// As [`Harness::new`], on the mesh file `mesh`, the first step of `series` if given.
+    fn open(mesh: PathBuf, mode: Mode, series: Option<Series>) -> Self {
+        let mut scene = Scene::new(mesh);
         (scene.mode, scene.size) = (mode, [160, 136]);
         let mesh = scene.load_mesh(&Default::default()).unwrap().mesh;
         let tf = scene.transfer_function(&mesh).unwrap();
@@ -47,6 +60,7 @@ impl Harness {
             mode,
             background: scene.background.expect("white"),
             scene,
+            series: series.map(|s| (s, ReadLimits::default())),
         };
         let mut h = Self {
             ctx: egui::Context::default(),
@@ -71,14 +85,19 @@ impl Harness {
         output.textures_delta.clear();
     }
 
-    /// Waits out the interactive-quality period and renders until the frame on screen is a
-    /// full-quality one.
+    /// Waits out the interactive-quality period and runs frames (10 ms apart, [`POLLS`] at
+    /// most) until the full-quality frame, rendered on the viewer's render thread, is on
+    /// screen.
     fn settle(&mut self) {
         std::thread::sleep(SETTLE);
-        for _ in 0..3 {
+        for _ in 0..POLLS {
             self.frame(vec![]);
+            if self.viewer.settled() {
+                return;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(10));
         }
-        assert!(self.viewer.settled(), "{:?}", self.viewer.error);
+        panic!("no full-quality frame: {:?}", self.viewer.error);
     }
 
     /// Drags with `button` from `from` by `by` in `steps` equal moves. The press is held for a
@@ -105,6 +124,19 @@ impl Harness {
 
     fn view_centre(&self) -> Pos2 {
         self.viewer.view_rect.expect("a view was laid out").center()
+    }
+
+    /// Clicks at `at` with the left button.
+    fn click(&mut self, at: Pos2) {
+        let press = |pressed| Event::PointerButton {
+            pos: at,
+            button: PointerButton::Primary,
+            pressed,
+            modifiers: egui::Modifiers::NONE,
+        };
+        self.frame(vec![Event::PointerMoved(at)]);
+        self.frame(vec![press(true)]);
+        self.frame(vec![press(false)]);
     }
 
     fn shown(&self) -> (Camera, Image) {
@@ -231,24 +263,9 @@ fn the_views_pixels_equal_tetvr_renders_for_the_same_scene_file() {
         let scene = dir.join(format!("{name}.json"));
         h.viewer.save_scene(&scene).unwrap();
         let png = dir.join(format!("{name}.png"));
-        let status = Command::new(env!("CARGO_BIN_EXE_tetvr"))
-            .env("TETVR_ADAPTER", "software")
-            .arg("render")
-            .arg("--scene")
-            .arg(&scene)
-            .arg("-o")
-            .arg(&png)
-            .status()
-            .expect("tetvr runs");
-        assert!(status.success());
-        let cli = image::open(&png).unwrap().to_rgba8();
+        let cli = cli_render(&scene, &png);
         assert_eq!((cli.width(), cli.height()), (camera.width, camera.height));
-        let differing = cli
-            .as_raw()
-            .iter()
-            .zip(image.to_rgba8(Some([1.0; 3])))
-            .filter(|(a, b)| **a != *b)
-            .count();
+        let differing = differing_bytes(&cli, &image);
         assert_eq!(
             differing,
             0,
@@ -282,6 +299,208 @@ fn scenes_load_back_and_another_mesh_is_refused() {
         message.contains("view-other-mesh.json") && message.contains("tetvr view --scene"),
         "{message}"
     );
+}
+
+/// When the drag stops, the full-quality frame renders on the viewer's render thread: the UI
+/// frame that starts it returns with it in flight and the interactive picture still on
+/// screen, and every frame after only polls for it (none waits) until, at least one poll
+/// later and within [`POLLS`], it is shown. Counted in polls, not time, so a loaded machine
+/// cannot make it flake. A drag while it is in flight drops its picture: the frame that
+/// settles is of the camera where the second drag left it.
+#[test]
+fn the_full_quality_frame_arrives_without_blocking_a_ui_frame() {
+    let mut h = Harness::new(Mode::Shells);
+    let centre = h.view_centre();
+    h.drag(PointerButton::Primary, centre, Vec2::new(30.0, 0.0), 3);
+    assert!(
+        h.shown().1.width < 160,
+        "the drag rendered at full resolution"
+    );
+    std::thread::sleep(SETTLE);
+    h.frame(vec![]);
+    assert_eq!(h.viewer.still_in_flight(), Some(0));
+    assert!(
+        h.viewer.shown().unwrap().scale > 1,
+        "the frame waited for the full render"
+    );
+    let mut polls = 0;
+    while h.viewer.still_in_flight().is_some() && polls < POLLS {
+        h.frame(vec![]);
+        polls += 1;
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    assert!(h.viewer.settled(), "not settled after {polls} polls");
+    assert!(polls >= 1);
+    std::thread::sleep(SETTLE);
+    h.drag(PointerButton::Primary, centre, Vec2::new(-30.0, 0.0), 3);
+    std::thread::sleep(SETTLE);
+    h.frame(vec![]);
+    assert!(h.viewer.still_in_flight().is_some());
+    h.drag(PointerButton::Primary, centre, Vec2::new(0.0, 20.0), 2);
+    h.settle();
+    assert_eq!(h.shown().0.eye, h.viewer.controller.camera.eye);
+}
+
+/// `tetvr render --scene scene -o png` on the software adapter, and the picture it wrote.
+fn cli_render(scene: &Path, png: &Path) -> image::RgbaImage {
+    let status = Command::new(env!("CARGO_BIN_EXE_tetvr"))
+        .env("TETVR_ADAPTER", "software")
+        .arg("render")
+        .arg("--scene")
+        .arg(scene)
+        .arg("-o")
+        .arg(png)
+        .status()
+        .expect("tetvr runs");
+    assert!(status.success());
+    image::open(png).unwrap().to_rgba8()
+}
+
+/// Bytes of `cli` that differ from `shown` over the white background.
+fn differing_bytes(cli: &image::RgbaImage, shown: &Image) -> usize {
+    let ours = shown.to_rgba8(Some([1.0; 3]));
+    cli.as_raw()
+        .iter()
+        .zip(ours)
+        .filter(|(a, b)| **a != *b)
+        .count()
+}
+
+/// A 750-tet grid (field `f`, the Gaussians in about [0, 1]) whose vertices also carry `r`,
+/// their distance from the centre, and `v`, their position as a vector (each component in
+/// [-1, 1]), written to the test output folder as `name`.
+fn arrays_file(name: &str) -> PathBuf {
+    let cells = generate::cells_for_tet_count(750);
+    let mut mesh = generate::grid(Field::Gaussians, cells, "f").unwrap();
+    let p = mesh.positions().to_vec();
+    let v = p.iter().flat_map(|q| q.to_array()).collect();
+    mesh.add_point_vectors(DataArray::new("v", 3, v)).unwrap();
+    let r = p.iter().map(|q| q.length()).collect();
+    mesh.add_array(ScalarArray::new("r", r)).unwrap();
+    mesh.set_active_array("f").unwrap();
+    let path = common::test_output_dir().join(name);
+    tetvr::io::write_vtu(&mesh, &path).unwrap();
+    path
+}
+
+/// Clicking the `v:x` button of the Data panel renders the x component of the vector `v`:
+/// the camera stays, the TF's control points move onto [-1, 1] (to 1e-12: the grid's x
+/// spans exactly that), the picture changes (RMSE over 1e-3: a field of another shape), and
+/// the scene saved names `v:x`, so `tetvr render --scene` renders the view's very bytes.
+#[test]
+fn choosing_another_array_through_the_ui_changes_the_picture_and_the_scene() {
+    let mut h = Harness::open(arrays_file("view-arrays.vtu"), Mode::Shells, None);
+    assert_eq!(h.viewer.array().0, "f");
+    let (camera, before) = h.shown();
+    let button = |h: &Harness, spec: &str| {
+        let found = h.viewer.array_buttons.iter().find(|(s, _)| s == spec);
+        found
+            .unwrap_or_else(|| panic!("no button {spec}"))
+            .1
+            .center()
+    };
+    let at = button(&h, "v:x");
+    h.click(at);
+    assert_eq!(h.viewer.array().0, "v:x", "{}", h.viewer.status);
+    let points = h.viewer.tf.points();
+    let span = (points[0].s, points[points.len() - 1].s);
+    assert!(
+        (span.0 + 1.0).abs() < 1e-12 && (span.1 - 1.0).abs() < 1e-12,
+        "{span:?}"
+    );
+    h.settle();
+    let (after_camera, after) = h.shown();
+    assert_eq!(after_camera, camera);
+    let rmse = after.compare(&before).unwrap().rmse;
+    assert!(rmse > 1e-3, "the picture barely changed: RMSE {rmse}");
+    let dir = common::test_output_dir();
+    let scene = dir.join("view-arrays.json");
+    h.viewer.save_scene(&scene).unwrap();
+    assert_eq!(Scene::load(&scene).unwrap().array.as_deref(), Some("v:x"));
+    let cli = cli_render(&scene, &dir.join("view-arrays.png"));
+    assert_eq!(differing_bytes(&cli, &after), 0);
+}
+
+/// A numbered series of three steps: 0 and 1 the same 750-tet grid, its field the Gaussians
+/// then the distance from the centre; 2 a 3,000-tet grid (other tets). Returns the pattern.
+fn series_files() -> PathBuf {
+    let dir = common::test_output_dir().join("view-series");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let steps = [
+        (Field::Gaussians, 750),
+        (Field::Radial, 750),
+        (Field::Gaussians, 3000),
+    ];
+    for (i, (field, tets)) in steps.into_iter().enumerate() {
+        let cells = generate::cells_for_tet_count(tets);
+        let mesh: TetMesh = generate::grid(field, cells, "field").unwrap();
+        tetvr::io::write_vtu(&mesh, &dir.join(format!("step_{i}.vtu"))).unwrap();
+    }
+    dir.join("step_*.vtu")
+}
+
+/// Space plays the series: step 1 comes (its scalars handed to the renderer, not rebuilt)
+/// and changes the picture; Space pauses; step 2, of other tets, rebuilds the renderer and
+/// says so, and changes the picture again (RMSE over 1e-3 each: another field, another grid).
+#[test]
+fn series_playback_steps_change_the_picture() {
+    let pattern = series_files();
+    let first = pattern.with_file_name("step_0.vtu");
+    let series = Series::open(&pattern).unwrap();
+    let mut h = Harness::open(first, Mode::Shells, Some(series));
+    let (_, step0) = h.shown();
+    let space = Event::Key {
+        key: egui::Key::Space,
+        physical_key: None,
+        pressed: true,
+        repeat: false,
+        modifiers: egui::Modifiers::NONE,
+    };
+    h.frame(vec![space.clone()]);
+    h.wait_for_step(1);
+    h.frame(vec![space]);
+    assert!(
+        h.viewer.status.contains("scalars updated"),
+        "{}",
+        h.viewer.status
+    );
+    h.settle();
+    let (_, step1) = h.shown();
+    let rmse = step1.compare(&step0).unwrap().rmse;
+    assert!(
+        rmse > 1e-3,
+        "step 1 barely changed the picture: RMSE {rmse}"
+    );
+    h.viewer.show_step(2);
+    h.wait_for_step(2);
+    assert!(
+        h.viewer.status.contains("other tets: renderer rebuilt"),
+        "{}",
+        h.viewer.status
+    );
+    h.settle();
+    let (_, step2) = h.shown();
+    let rmse = step2.compare(&step1).unwrap().rmse;
+    assert!(
+        rmse > 1e-3,
+        "step 2 barely changed the picture: RMSE {rmse}"
+    );
+    assert!(h.viewer.scene().mesh.ends_with("step_2.vtu"));
+}
+
+impl Harness {
+    /// Renders frames until the series shows step `index` ([`POLLS`] at most).
+    fn wait_for_step(&mut self, index: usize) {
+        for _ in 0..POLLS {
+            self.frame(vec![]);
+            if self.viewer.series.as_ref().expect("a series").shown == index {
+                return;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+        panic!("step {index} never came: {}", self.viewer.status);
+    }
 }
 
 /// The program `name` on the PATH, if any.

@@ -2,6 +2,7 @@
 
 use clap::ArgMatches;
 use tetvr::io::Loaded;
+use tetvr::io::series::Series;
 use tetvr::viewer::{ViewerSetup, WindowOptions};
 
 use super::ViewCommand;
@@ -17,12 +18,21 @@ pub fn view(cmd: ViewCommand, matches: &ArgMatches) -> Result<(), CliError> {
                 .into(),
         ));
     }
-    let scene = resolve_flags(cmd.scene.as_deref(), r, matches)?;
-    let Loaded { mesh, .. } = scene.load_mesh(&read_limits(&r.mesh))?;
+    let mut scene = resolve_flags(cmd.scene.as_deref(), r, matches)?;
+    let limits = read_limits(&r.mesh);
+    // A series opens on its first step; the viewer loads the others as it plays them.
+    let series = match Series::is_series(&scene.mesh) {
+        true => Some(Series::open(&scene.mesh)?),
+        false => None,
+    };
+    let title = format!("tetvr view {}", scene.mesh.display());
+    if let Some(s) = &series {
+        scene.mesh = s.steps()[0].path.clone();
+    }
+    let Loaded { mesh, .. } = scene.load_mesh(&limits)?;
     let tf = scene.transfer_function(&mesh)?;
     let camera = scene.camera(&mesh)?;
     let mode = scene.mode_settings(&mesh, &tf)?;
-    let title = format!("tetvr view {}", scene.mesh.display());
     let setup = ViewerSetup {
         mesh,
         tf,
@@ -30,6 +40,7 @@ pub fn view(cmd: ViewCommand, matches: &ArgMatches) -> Result<(), CliError> {
         mode,
         background: scene.background.unwrap_or([0.0; 3]),
         scene,
+        series: series.map(|s| (s, limits)),
     };
     tetvr::viewer::run(
         setup,

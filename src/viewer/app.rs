@@ -9,20 +9,28 @@ use std::time::Instant;
 use eframe::egui::{self, ColorImage, Rect, Sense, TextureHandle, TextureOptions};
 use glam::DVec3;
 
+use super::data::{ArrayChoice, active_spec, array_choices, rescale, rescaled_tf};
 use super::modes::{ModeBook, ViewMode};
 use super::orbit::{CameraController, NAMED_VIEWS};
 use super::playback::Playback;
 use super::quality::{Quality, SETTLE};
 use super::readout::ErrorReadout;
+use super::series::{Preparation, SeriesPlayer, same_topology};
+use super::still::{Rendered, StillRender};
 use super::tf_editor::TfEditor;
 use crate::camera::{Camera, View};
 use crate::gpu::GpuContext;
 use crate::image::Image;
-use crate::mesh::{MeshError, TetMesh};
+use crate::io::ReadLimits;
+use crate::io::series::Series;
+use crate::mesh::{CellDataMode, MeshError, TetMesh};
 use crate::mode::ModeSettings;
 use crate::render::{RenderError, Renderer, Timings};
 use crate::scene::{Scene, SceneError};
 use crate::tf::TransferFunction;
+
+/// How often the UI polls for the full-quality frame in flight.
+const STILL_POLL: std::time::Duration = std::time::Duration::from_millis(10);
 
 /// What the viewer opens with: the mesh, its transfer function, the camera (its size is the
 /// window's 3D view at start), the mode, and the background the picture is shown over.
@@ -39,6 +47,8 @@ pub struct ViewerSetup {
     pub background: [f32; 3],
     /// The scene these came from (its mesh path and array are what a saved scene names).
     pub scene: Scene,
+    /// The time series `mesh` is the first step of, and the limits each step is read within.
+    pub series: Option<(Series, ReadLimits)>,
 }
 
 /// The frame on screen.
@@ -107,6 +117,16 @@ pub struct Viewer {
     scene: Scene,
     /// The 3D view's size in pixels at full quality, as laid out last.
     view_size: (u32, u32),
+    /// The arrays the Data panel offers.
+    choices: Vec<ArrayChoice>,
+    /// Where the Data panel drew each array's button in the last frame, screen points.
+    pub array_buttons: Vec<(String, Rect)>,
+    /// The time series played, when the viewer opened one.
+    pub series: Option<SeriesPlayer>,
+    /// What the last array switch or series step did (shown in the Data panel).
+    pub status: String,
+    /// The full-quality frame's render thread.
+    still: StillRender,
 }
 
 impl Viewer {
@@ -120,6 +140,7 @@ impl Viewer {
             mode,
             background,
             scene,
+            series,
         } = setup;
         let range = mesh
             .active_array()
@@ -154,9 +175,23 @@ impl Viewer {
             view_rect: None,
             last_frame: None,
             view_size: (camera.width, camera.height),
-            scene,
+            choices: array_choices(&mesh),
+            array_buttons: Vec::new(),
+            series: series.map(|(s, limits)| SeriesPlayer::start(s, limits)),
+            status: String::new(),
+            still: StillRender::start(),
+            scene: Scene {
+                array: Some(active_spec(&mesh, scene.array.as_deref())),
+                ..scene
+            },
             mesh,
         })
+    }
+
+    /// UI frames that polled for the full-quality frame in flight while it was not done (none
+    /// of them waiting for it); `None` when none is in flight.
+    pub fn still_in_flight(&self) -> Option<u32> {
+        self.still.in_flight().map(|_| self.still.polls)
     }
 
     /// The frame on screen, if one was rendered.
@@ -195,6 +230,11 @@ impl Viewer {
     pub fn settled(&self) -> bool {
         !self.dirty
             && !self.playback.playing
+            && !self
+                .series
+                .as_ref()
+                .is_some_and(|s| s.playing || s.loading())
+            && self.still.in_flight().is_none()
             && self
                 .shown
                 .as_ref()
@@ -210,6 +250,7 @@ impl Viewer {
         self.last_frame = Some(now);
         self.keys(ui.ctx(), now);
         self.play(seconds, now);
+        self.play_series(seconds, now);
         egui::Panel::left("controls")
             .exact_size(super::panels::PANEL_WIDTH)
             .show(ui, |ui| super::panels::controls(self, ui));
@@ -256,7 +297,10 @@ impl Viewer {
             self.quality.moved(now);
         }
         if pressed(Key::Space) {
-            self.playback.playing = !self.playback.playing;
+            match &mut self.series {
+                Some(s) => s.playing = !s.playing,
+                None => self.playback.playing = !self.playback.playing,
+            }
         }
         if pressed(Key::D) {
             self.show_difference = !self.show_difference;
@@ -273,6 +317,7 @@ impl Viewer {
 
     /// The deformation's phase or settings changed: new positions for the renderer.
     pub fn deformation_changed(&mut self) {
+        self.reclaim();
         let (lo, hi) = self.bounds;
         let positions = Arc::new(self.playback.positions(self.mesh.positions(), lo, hi));
         if let Some(r) = &mut self.renderer
@@ -285,6 +330,132 @@ impl Viewer {
         self.dirty = true;
     }
 
+    /// The arrays the Data panel offers.
+    pub fn array_choices(&self) -> &[ArrayChoice] {
+        &self.choices
+    }
+
+    /// The array shown, as `--array` spells it, and how a cell array renders.
+    pub fn array(&self) -> (&str, CellDataMode) {
+        let spec = self.scene.array.as_deref().unwrap_or_default();
+        (spec, self.scene.cell_data)
+    }
+
+    /// Shows array `spec` (as `--array` spells it; a cell array in `cell_data`): hands the
+    /// renderer the new scalars (rebuilding it only where per-tet values come or go), keeps
+    /// the camera, refreshes the histogram, moves the TF and isovalues onto the new range,
+    /// and names the array in the scene saved.
+    pub fn select_array(&mut self, spec: &str, cell_data: CellDataMode) -> Result<(), MeshError> {
+        let old = self.range();
+        let mut mesh = self.mesh.clone();
+        mesh.select(spec, cell_data)?;
+        let range = mesh.active_array().and_then(|a| a.range());
+        let range = range.ok_or(MeshError::NoScalars)?;
+        if let Ok(tf) = rescaled_tf(&self.tf, range) {
+            self.tf = tf;
+        }
+        for v in &mut self.modes.isovalues {
+            *v = rescale(*v, old, range);
+        }
+        (self.scene.array, self.scene.cell_data) = (Some(spec.to_owned()), cell_data);
+        if let Some(s) = &mut self.series {
+            s.forget();
+        }
+        self.status = self.new_field(mesh, "array");
+        self.tf_changed();
+        Ok(())
+    }
+
+    /// The active scalars' range (0 to 1 when there are none).
+    fn range(&self) -> (f64, f64) {
+        let range = self.mesh.active_array().and_then(|a| a.range());
+        range.unwrap_or((0.0, 1.0))
+    }
+
+    /// Shows `mesh` (another array, or another step of the series) in place of the mesh
+    /// shown: its positions and scalars handed to the renderer when it has the same tets and
+    /// neither has per-tet values, else the renderer rebuilt; the histogram and the
+    /// reference follow. Says what it did, `what` naming the change.
+    fn new_field(&mut self, mesh: TetMesh, what: &str) -> String {
+        self.reclaim();
+        let cells = self.mesh.cell_scalars().is_some() || mesh.cell_scalars().is_some();
+        let update = |r: &mut Box<dyn Renderer>| {
+            r.update_positions(mesh.positions())?;
+            r.update_scalars(mesh.scalars()?)
+        };
+        let status = match (&mut self.renderer, cells) {
+            _ if !same_topology(&self.mesh, &mesh) => {
+                self.rebuild = true;
+                format!("{what} has other tets: renderer rebuilt")
+            }
+            (_, true) => {
+                self.rebuild = true;
+                format!("{what} has per-tet values: renderer rebuilt")
+            }
+            (Some(r), false) => match update(r) {
+                Ok(()) => format!("{what}: scalars updated"),
+                Err(e) => {
+                    self.rebuild = true;
+                    format!("{what}: renderer rebuilt ({e})")
+                }
+            },
+            (None, false) => String::new(),
+        };
+        let range = mesh.active_array().and_then(|a| a.range());
+        if let (Ok(values), Some(range)) = (mesh.scalars(), range) {
+            self.tf_editor.set_data(values, range);
+        }
+        self.bounds = mesh.bounds();
+        self.readout = ErrorReadout::start(&mesh);
+        self.positions_unsent = true;
+        self.mesh = mesh;
+        self.choices = array_choices(&self.mesh);
+        if self.positions.is_some() {
+            self.deformation_changed();
+        }
+        self.dirty = true;
+        status
+    }
+
+    /// How the series' steps are readied: the array shown and the scene's warp.
+    fn preparation(&self) -> Preparation {
+        let (array, cell_data) = self.array();
+        let warp = self.scene.warp.as_ref().map(|w| (w.array.clone(), w.scale));
+        Preparation {
+            array: array.to_owned(),
+            cell_data,
+            warp,
+        }
+    }
+
+    /// Asks for step `index` of the series (shown when loaded).
+    pub fn show_step(&mut self, index: usize) {
+        let prepare = self.preparation();
+        if let Some(s) = &mut self.series {
+            s.show(index, &prepare);
+        }
+    }
+
+    /// Takes the series step due now, if any, and shows it.
+    fn play_series(&mut self, seconds: f64, now: Instant) {
+        let prepare = self.preparation();
+        let Some(series) = &mut self.series else {
+            return;
+        };
+        let Some((index, mesh)) = series.poll(seconds, &prepare) else {
+            return;
+        };
+        let path = series.steps()[index].path.clone();
+        match mesh {
+            Ok(mesh) => {
+                self.status = self.new_field(mesh, &format!("step {index}"));
+                self.scene.mesh = path;
+                self.quality.moved(now);
+            }
+            Err(e) => self.status = e,
+        }
+    }
+
     /// The 3D view in `rect`: mouse input, a render when needed, the picture.
     fn view_ui(&mut self, ui: &mut egui::Ui, rect: Rect, now: Instant) {
         self.view_rect = Some(rect);
@@ -295,8 +466,15 @@ impl Viewer {
         let size = (size.x.max(1.0) as u32, size.y.max(1.0) as u32);
         self.view_size = size;
         self.render_if_needed(size, now);
-        if self.quality.moving(now) || self.playback.playing {
+        let series = self
+            .series
+            .as_ref()
+            .is_some_and(|s| s.playing || s.loading());
+        if self.quality.moving(now) || self.playback.playing || series {
             ui.ctx().request_repaint_after(SETTLE);
+        }
+        if self.still.in_flight().is_some() {
+            ui.ctx().request_repaint_after(STILL_POLL);
         }
         self.paint(ui, rect);
     }
@@ -323,8 +501,13 @@ impl Viewer {
         }
     }
 
-    /// Renders when the camera, size, quality or settings differ from the frame on screen.
+    /// Renders when the camera, size, quality or settings differ from the frame on screen: a
+    /// moving view's frame here, the full-quality one on the render thread (the picture on
+    /// screen stays until it is done; nothing renders while it is in flight).
     fn render_if_needed(&mut self, size: (u32, u32), now: Instant) {
+        if self.take_still(size) {
+            return;
+        }
         let scale = match self.playback.playing {
             true => self.quality.scale(now).max(2).min(size.0.min(size.1)),
             false => self.quality.scale(now),
@@ -341,17 +524,63 @@ impl Viewer {
         if same && !self.dirty {
             return;
         }
-        match self.render(camera) {
+        self.dirty = false;
+        if scale == 1 {
+            match self.ready_renderer() {
+                Ok(r) => self.still.submit(r, camera, self.tf.clone()),
+                Err(e) => self.error = Some(e.to_string()),
+            }
+            return;
+        }
+        let rendered = self.render(camera);
+        // The still frame waits for a pause after this frame, not after its start: a slow
+        // interactive frame is no pause.
+        if !self.playback.playing {
+            self.quality.moved(Instant::now());
+        }
+        self.show(camera, scale, rendered);
+    }
+
+    /// Takes the full-quality frame if the render thread finished it (its picture only if the
+    /// view is still where it was); true while it is still in flight.
+    fn take_still(&mut self, size: (u32, u32)) -> bool {
+        let Some(done) = self.still.poll() else {
+            return self.still.in_flight().is_some();
+        };
+        if self.renderer.is_none() {
+            self.renderer = Some(done.renderer);
+            // A new renderer's first frame (pipelines, targets) says nothing of the next.
+            if let (true, Ok((_, _, ms))) = (self.warm, &done.result) {
+                self.quality.record_full(*ms);
+            }
+            self.warm = true;
+        }
+        let wanted = Camera {
+            width: size.0,
+            height: size.1,
+            ..self.controller.camera
+        };
+        if !self.dirty && done.camera == wanted {
+            self.show(done.camera, 1, done.result);
+        }
+        false
+    }
+
+    /// Waits for the full-quality frame in flight to take the renderer back (its picture is
+    /// dropped and rendered again).
+    fn reclaim(&mut self) {
+        if let Some(done) = self.still.wait() {
+            if self.renderer.is_none() {
+                self.renderer = Some(done.renderer);
+            }
+            self.dirty = true;
+        }
+    }
+
+    /// Puts a frame rendered at 1/`scale` of the resolution on screen, or its error.
+    fn show(&mut self, camera: Camera, scale: u32, rendered: Rendered) {
+        match rendered {
             Ok((image, timings, render_ms)) => {
-                // A new renderer's first frame (pipelines, targets) says nothing of the next.
-                if scale == 1 && self.warm {
-                    self.quality.record_full(render_ms);
-                }
-                // The still frame waits for a pause after this frame, not after its start:
-                // a slow interactive frame is no pause.
-                if scale > 1 && !self.playback.playing {
-                    self.quality.moved(Instant::now());
-                }
                 self.warm = true;
                 self.serial += 1;
                 self.shown = Some(Shown {
@@ -366,27 +595,37 @@ impl Viewer {
             }
             Err(e) => self.error = Some(e.to_string()),
         }
-        self.dirty = false;
     }
 
-    /// Renders `camera`'s picture with the shown mode, building its renderer first if needed.
-    pub fn render(&mut self, camera: Camera) -> Result<(Image, Timings, f64), RenderError> {
-        if self.rebuild || self.renderer.is_none() {
-            self.rebuild = false;
-            self.renderer = None;
-            let mut r = self
-                .modes
-                .settings(&self.tf)
-                .build(Some(&self.gpu), &self.mesh)?;
-            if let Some(p) = &self.positions {
-                r.update_positions(p)?;
+    /// The renderer of the shown mode, taken out (built first if the mode or its settings
+    /// changed, or it was lost).
+    fn ready_renderer(&mut self) -> Result<Box<dyn Renderer>, RenderError> {
+        self.reclaim();
+        match self.renderer.take() {
+            Some(r) if !self.rebuild => Ok(r),
+            _ => {
+                self.rebuild = false;
+                let mut r = self
+                    .modes
+                    .settings(&self.tf)
+                    .build(Some(&self.gpu), &self.mesh)?;
+                if let Some(p) = &self.positions {
+                    r.update_positions(p)?;
+                }
+                self.warm = false;
+                Ok(r)
             }
-            self.renderer = Some(r);
-            self.warm = false;
         }
-        let renderer = self.renderer.as_mut().expect("built above");
+    }
+
+    /// Renders `camera`'s picture with the shown mode, building its renderer first if needed
+    /// (after the full-quality frame in flight, if any).
+    pub fn render(&mut self, camera: Camera) -> Rendered {
+        let mut renderer = self.ready_renderer()?;
         let start = Instant::now();
-        let frame = renderer.render(&camera, &self.tf)?;
+        let frame = renderer.render(&camera, &self.tf);
+        self.renderer = Some(renderer);
+        let frame = frame?;
         Ok((
             frame.image,
             frame.timings,
@@ -451,8 +690,8 @@ impl Viewer {
         self.scene().save(path)
     }
 
-    /// Takes the camera, transfer function, mode and settings and background of the scene file
-    /// `path`; its mesh and array must be the ones shown (another mesh needs
+    /// Takes the array, camera, transfer function, mode and settings and background of the
+    /// scene file `path`; its mesh must be the one shown (another mesh needs
     /// `tetvr view --scene`).
     pub fn load_scene(&mut self, path: &std::path::Path) -> Result<(), SceneError> {
         let scene = Scene::load(path)?;
@@ -465,18 +704,22 @@ impl Viewer {
                 (Ok(a), Ok(b)) => a == b,
                 _ => a == b,
             };
-        if !same(&scene.mesh, &self.scene.mesh) || scene.array != self.scene.array {
+        if !same(&scene.mesh, &self.scene.mesh) {
             return Err(in_file(SceneError::Setting {
                 field: "mesh".into(),
                 message: format!(
-                    "the scene shows {} (array {:?}) and the viewer {}; open it with \
-                     `tetvr view --scene {}`",
+                    "the scene shows {} and the viewer {}; open it with `tetvr view --scene {}`",
                     scene.mesh.display(),
-                    scene.array,
                     self.scene.mesh.display(),
                     path.display()
                 ),
             }));
+        }
+        if let Some(array) = &scene.array
+            && (array.as_str(), scene.cell_data) != self.array()
+        {
+            (self.select_array(array, scene.cell_data))
+                .map_err(|e| in_file(SceneError::Mesh(e)))?;
         }
         let tf = scene.transfer_function(&self.mesh).map_err(in_file)?;
         let camera = scene.camera(&self.mesh).map_err(in_file)?;

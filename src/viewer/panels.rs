@@ -12,6 +12,7 @@ use crate::camera::{Camera, View};
 use crate::cpu::raycast as cpu_raycast;
 use crate::gpu::raycast::{Entry, Segments};
 use crate::gpu::{Integrate, Sampler, Skip};
+use crate::mesh::CellDataMode;
 use crate::reference::iso::Shading;
 
 /// Width of the controls panel, points.
@@ -30,6 +31,9 @@ pub fn controls(v: &mut Viewer, ui: &mut egui::Ui) {
         egui::CollapsingHeader::new("Mode")
             .default_open(true)
             .show(ui, |ui| mode_ui(v, ui));
+        egui::CollapsingHeader::new("Data")
+            .default_open(true)
+            .show(ui, |ui| data_ui(v, ui));
         egui::CollapsingHeader::new("Transfer function")
             .default_open(true)
             .show(ui, |ui| {
@@ -229,6 +233,86 @@ fn table_size(ui: &mut egui::Ui, size: &mut u32, lengths: &mut u32) -> bool {
     changed
 }
 
+/// The array selector (a cell array with its constant or points choice) and, for a series,
+/// its playback.
+fn data_ui(v: &mut Viewer, ui: &mut egui::Ui) {
+    let (shown, mut cell_data) = v.array();
+    let shown = shown.to_owned();
+    let mut chosen = None;
+    let mut buttons = Vec::new();
+    ui.horizontal_wrapped(|ui| {
+        for c in v.array_choices() {
+            let r = ui.selectable_label(c.spec == shown, &c.spec);
+            if r.clicked() {
+                chosen = Some(c.spec.clone());
+            }
+            buttons.push((c.spec.clone(), r.rect));
+        }
+    });
+    v.array_buttons = buttons;
+    let cells = v.array_choices().iter().any(|c| c.cells && c.spec == shown);
+    if cells {
+        let options = [
+            (CellDataMode::Constant, "constant per tet"),
+            (CellDataMode::Points, "averaged to points"),
+        ];
+        if choice(ui, &mut cell_data, &options) {
+            chosen = Some(shown);
+        }
+    }
+    if let Some(spec) = chosen
+        && let Err(e) = v.select_array(&spec, cell_data)
+    {
+        v.status = e.to_string();
+    }
+    if v.series.is_some() {
+        series_ui(v, ui);
+    }
+    if !v.status.is_empty() {
+        ui.label(&v.status);
+    }
+}
+
+/// A series' step and time, play and pause, step back and on, a step slider and the speed.
+fn series_ui(v: &mut Viewer, ui: &mut egui::Ui) {
+    let Some(s) = &mut v.series else { return };
+    let last = s.steps().len() - 1;
+    let (shown, time) = (s.shown, s.steps()[s.shown].time);
+    ui.label(format!("step {shown} of 0..={last}, time {time}"));
+    let mut wanted = None;
+    ui.horizontal(|ui| {
+        if ui.button("<").clicked() {
+            wanted = Some(shown + last);
+        }
+        let label = if s.playing {
+            "pause (Space)"
+        } else {
+            "play (Space)"
+        };
+        if ui.button(label).clicked() {
+            s.playing = !s.playing;
+        }
+        if ui.button(">").clicked() {
+            wanted = Some(shown + 1);
+        }
+    });
+    let mut at = shown;
+    if ui
+        .add(egui::Slider::new(&mut at, 0..=last).text("step"))
+        .changed()
+    {
+        wanted = Some(at);
+    }
+    ui.add(
+        egui::Slider::new(&mut s.speed, 0.25..=30.0)
+            .logarithmic(true)
+            .text("steps per second"),
+    );
+    if let Some(i) = wanted {
+        v.show_step(i);
+    }
+}
+
 fn deformation_ui(v: &mut Viewer, ui: &mut egui::Ui) {
     let p = &mut v.playback;
     let mut changed = choice(ui, &mut p.deformation, &DEFORMATIONS);
@@ -342,6 +426,7 @@ pub fn numbers(v: &Viewer, ui: &mut egui::Ui) {
     if let Some(e) = &v.error {
         ui.colored_label(egui::Color32::LIGHT_RED, e);
     }
+
     let Some(s) = v.shown() else { return };
     let tets_per_s = v.mesh().tet_count() as f64 / (s.render_ms / 1e3);
     let quality = match s.scale {

@@ -68,6 +68,13 @@ impl TfEditor {
         }
     }
 
+    /// Another array or step: the histogram of `values` over `range` behind the curve, the
+    /// editor's other settings kept.
+    pub fn set_data(&mut self, values: &[f64], range: (f64, f64)) {
+        let fresh = Self::new(values, range);
+        (self.histogram, self.range) = (fresh.histogram, fresh.range);
+    }
+
     /// Where control point `i` of `tf` was drawn in the last frame.
     pub fn handle_position(&self, tf: &TransferFunction, i: usize) -> Option<Pos2> {
         let p = tf.points().get(i)?;

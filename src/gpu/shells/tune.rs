@@ -45,7 +45,7 @@ use super::skips::Skip;
 use super::{Sampler, ShellSettings, ShellsRenderer};
 
 /// Where the tuner gets a frame's time from.
-pub trait TimingSource {
+pub trait TimingSource: Send {
     /// The time, in milliseconds, to compare `frame` by: it was rendered with `settings`, and its
     /// render call took `wall_ms` of wall clock with the GPU drained.
     fn frame_ms(&mut self, settings: &ShellSettings, frame: &Frame, wall_ms: f64) -> f64;
