@@ -14,10 +14,10 @@
 //! 2. entries (`scene.rs`): the boundary faces that face the eye, each set up once (plane,
 //!    edge Pluecker normals) and binned to the tiles its projection covers;
 //! 3. traverse (`trace.rs`): per pixel, the tile's faces its ray enters through (watertight edge
-//!    tests, sorted by t then face code in the file's numbering), then the walk through face adjacency from the eye's
-//!    tet or the first entry, each segment integrated by `integrate.rs` (partial
-//!    pre-integration or exact), re-entering non-convex meshes at the next entry, with early
-//!    ray termination and a counted step limit.
+//!    tests, sorted by t then face code in the file's numbering), then the walk through face
+//!    adjacency from the eye's tet or the first entry, each segment integrated by
+//!    `integrate.rs` (partial pre-integration or exact), re-entering non-convex meshes at the
+//!    next entry, with early ray termination and a counted step limit.
 //!
 //! Cell data ([`TetMesh::cell_scalars`]): each segment takes its tet's normalized value at both
 //! ends (the GPU traversal's `CELLS`); the planes, and so the walk, are those of the per-vertex

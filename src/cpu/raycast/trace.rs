@@ -1,7 +1,7 @@
 //! The rays of one tile: per pixel, its entries (the tile's boundary faces it passes, sorted
-//! by t then face code in the file's numbering), then the walk from tet to tet through the face it leaves by, each
-//! segment integrated front to back, re-entering at the next entry after it leaves a
-//! non-convex mesh; the rules of the GPU's traversal (`shaders/raycast_traverse.wgsl`) with its
+//! by t then face code in the file's numbering), then the walk from tet to tet through the
+//! face it leaves by, each segment integrated front to back, re-entering at the next entry
+//! after it leaves a non-convex mesh; the rules of the GPU's traversal (`shaders/raycast_traverse.wgsl`) with its
 //! exit arithmetic ([`twin::exit`], [`twin::exit_by_edges`]).
 
 use glam::{UVec2, Vec3, Vec4};
