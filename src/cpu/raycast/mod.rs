@@ -2,6 +2,10 @@
 //! core (rayon over 16 x 16 pixel tiles), needing no adapter: what `auto` renders with when
 //! the machine has no GPU or only a software one (see [`crate::mode`]).
 //!
+//! Once per mesh, the tets are renumbered along a Morton curve of their centroids
+//! (`order.rs`), so that a ray's next tet is usually in cache; the pictures are those of the
+//! file's numbering.
+//!
 //! Per frame:
 //! 1. planes (`scene.rs`): every vertex in eye space, then every tet's outward face planes and
 //!    linear scalar from the current positions (the GPU's arithmetic, [`twin::planes`](crate::gpu::raycast::twin::planes): shared
@@ -10,10 +14,10 @@
 //! 2. entries (`scene.rs`): the boundary faces that face the eye, each set up once (plane,
 //!    edge Pluecker normals) and binned to the tiles its projection covers;
 //! 3. traverse (`trace.rs`): per pixel, the tile's faces its ray enters through (watertight edge
-//!    tests, sorted by t then face code), then the walk through face adjacency from the eye's
-//!    tet or the first entry, each segment integrated by `integrate.rs` (partial
-//!    pre-integration or exact), re-entering non-convex meshes at the next entry, with early
-//!    ray termination and a counted step limit.
+//!    tests, sorted by t then face code in the file's numbering), then the walk through face
+//!    adjacency from the eye's tet or the first entry, each segment integrated by
+//!    `integrate.rs` (partial pre-integration or exact), re-entering non-convex meshes at the
+//!    next entry, with early ray termination and a counted step limit.
 //!
 //! Cell data ([`TetMesh::cell_scalars`]): each segment takes its tet's normalized value at both
 //! ends (the GPU traversal's `CELLS`); the planes, and so the walk, are those of the per-vertex
@@ -24,6 +28,7 @@
 //! arithmetic is its CPU twin's ([`crate::gpu::raycast::twin`]), so both paths walk the same tets.
 
 mod integrate;
+mod order;
 mod scene;
 mod texture;
 mod trace;
@@ -81,12 +86,16 @@ pub struct CpuRaycastRenderer {
     /// Scalars normalized as `(s - scalar_min) / scalar_span`, f32.
     scalars: Vec<f32>,
     raw_scalars: Vec<f64>,
-    /// Cell data: the value per tet, normalized as `scalars`; `None` for point data.
+    /// Cell data: the value per tet (in Morton order), normalized as `scalars`; `None` for
+    /// point data.
     cells: Option<Vec<f32>>,
     raw_cells: Option<Vec<f64>>,
     scalar_min: f64,
     scalar_span: f64,
+    /// The tets' vertices in Morton order ([`order::Renumbering`]), and each one's index in
+    /// the file.
     tet_ids: Vec<[u32; 4]>,
+    original: Vec<u32>,
     links: Vec<TetLinks>,
     /// Boundary face codes (`4 * tet + face`).
     boundary: Vec<u32>,
@@ -101,14 +110,15 @@ impl CpuRaycastRenderer {
     /// Copies `mesh` (its active scalars) and builds its links; errors when it has no scalars
     /// or too many tets for face codes in a u32.
     pub fn new(mesh: &TetMesh, settings: CpuRaycastSettings) -> Result<Self, RenderError> {
-        let tet_ids = mesh.tets().to_vec();
-        if tet_ids.len() >= 1 << 30 {
+        if mesh.tets().len() >= 1 << 30 {
             return Err(RenderError::Settings(format!(
                 "--mode raycast-cpu numbers faces as 4 x tet in 32 bits, so at most 2^30 tets; \
                  this mesh has {}",
-                tet_ids.len()
+                mesh.tets().len()
             )));
         }
+        let order = order::Renumbering::morton(mesh.positions(), mesh.tets());
+        let tet_ids = order.apply(mesh.tets());
         let (links, boundary) = links::build(&tet_ids);
         let mut r = Self {
             settings,
@@ -118,10 +128,11 @@ impl CpuRaycastRenderer {
             scalars: Vec::new(),
             raw_scalars: mesh.scalars()?.to_vec(),
             cells: None,
-            raw_cells: mesh.cell_scalars().map(<[f64]>::to_vec),
+            raw_cells: mesh.cell_scalars().map(|c| order.apply(c)),
             scalar_min: 0.0,
             scalar_span: 1.0,
             tet_ids,
+            original: order.original,
             links,
             boundary,
             eye: Vec::new(),
@@ -205,13 +216,19 @@ impl CpuRaycastRenderer {
         let pass = scene::tets(
             &self.eye,
             &self.scalars,
-            &self.links,
+            (&self.links, &self.original),
             eye_tol,
             &mut self.tets,
         );
         timings.stage("planes", ms_since(t));
         let t = Instant::now();
-        let bins = scene::bins(&f, &self.boundary, &self.tets, &self.links, &self.eye);
+        let bins = scene::bins(
+            &f,
+            &self.boundary,
+            &self.tets,
+            (&self.links, &self.original),
+            &self.eye,
+        );
         timings.stage("entries", ms_since(t));
         let t = Instant::now();
         let seg = SegmentTf::new(

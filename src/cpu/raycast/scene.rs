@@ -39,7 +39,8 @@ impl Tet {
 
     /// Face `f`'s outward plane `(n, w)`.
     pub fn plane(&self, f: usize) -> Vec4 {
-        Vec4::new(self.n[0][f], self.n[1][f], self.n[2][f], self.w[f])
+        let [x, y, z, w] = [self.n[0], self.n[1], self.n[2], self.w].map(|v| v.to_array()[f]);
+        Vec4::new(x, y, z, w)
     }
 
     /// `n . d` of each face plane, with the operations of `Vec3::dot` (so bit for bit the
@@ -76,8 +77,8 @@ pub fn eye_positions(f: &ViewUniforms, positions: &[Vec3], out: &mut Vec<Vec3>) 
         .collect_into_vec(out);
 }
 
-/// What the per-tet pass found: tets too thin for their planes, and the smallest index of a
-/// tet holding the eye (`NO_NEIGHBOR`: none).
+/// What the per-tet pass found: tets too thin for their planes, and the tet holding the eye
+/// with the smallest original index (`NO_NEIGHBOR`: none).
 #[derive(Clone, Copy, Debug)]
 pub struct TetPass {
     pub thin: u64,
@@ -86,15 +87,17 @@ pub struct TetPass {
 
 /// Fills `out` with each tet's planes and links, from eye-space `eye` and normalized
 /// `scalars`; the eye is in a (not thin) tet when it lies at most `eye_tol` outside each face.
+/// `original[k]` is tet `k`'s index in the file ([`super::order`]), which picks the eye's tet
+/// among several as the file's order would.
 pub fn tets(
     eye: &[Vec3],
     scalars: &[f32],
-    links: &[TetLinks],
+    (links, original): (&[TetLinks], &[u32]),
     eye_tol: f32,
     out: &mut Vec<Tet>,
 ) -> TetPass {
     out.resize(links.len(), Tet::default());
-    (out.par_iter_mut().zip(links).enumerate())
+    let (thin, eye_key) = (out.par_iter_mut().zip(links).enumerate())
         .map(|(k, (tet, l))| {
             let ids = l.tet;
             let (planes, thin) = twin::planes(
@@ -105,21 +108,19 @@ pub fn tets(
             *tet = Tet::new(&planes, l.next);
             let holds_eye = !thin
                 && (planes.face.iter()).all(|q| q[3] <= eye_tol * Vec3::from_slice(q).length());
-            TetPass {
-                thin: thin as u64,
-                eye_tet: if holds_eye { k as u32 } else { NO_NEIGHBOR },
-            }
+            // Original index above, ours below: the smallest key is the file's first.
+            let key = (original[k] as u64) << 32 | k as u64;
+            (thin as u64, if holds_eye { key } else { u64::MAX })
         })
-        .reduce(
-            || TetPass {
-                thin: 0,
-                eye_tet: NO_NEIGHBOR,
-            },
-            |a, b| TetPass {
-                thin: a.thin + b.thin,
-                eye_tet: a.eye_tet.min(b.eye_tet),
-            },
-        )
+        .reduce(|| (0, u64::MAX), |a, b| (a.0 + b.0, a.1.min(b.1)));
+    TetPass {
+        thin,
+        eye_tet: if eye_key == u64::MAX {
+            NO_NEIGHBOR
+        } else {
+            eye_key as u32
+        },
+    }
 }
 
 /// A boundary face a ray may enter through, set up for the per-pixel test: its outward plane
@@ -133,17 +134,20 @@ pub struct EntryFace {
     edge: [Vec3; 3],
     /// `4 * tet + face`.
     pub code: u32,
+    /// The code in the file's numbering, which orders entries at the same t.
+    pub key: u32,
     /// The first and last pixel (inclusive) whose rays may pass it ([`tile_rect`]).
     pub rect: [UVec2; 2],
 }
 
 impl EntryFace {
-    fn new(code: u32, plane: Vec4, c: [Vec3; 3], rect: [UVec2; 2]) -> Self {
+    fn new([code, key]: [u32; 2], plane: Vec4, c: [Vec3; 3], rect: [UVec2; 2]) -> Self {
         Self {
             plane,
             norm: plane.truncate().length(),
             edge: [c[0].cross(c[1]), c[1].cross(c[2]), c[0].cross(c[2])],
             code,
+            key,
             rect,
         }
     }
@@ -189,12 +193,12 @@ impl Bins {
 
 /// Bins the `boundary` faces (codes) that face the eye into the tiles of the image that their
 /// projection's pixel box, one pixel wider on each side, covers (every tile where a face
-/// reaches behind the eye plane).
+/// reaches behind the eye plane). `original[k]` is tet `k`'s index in the file.
 pub fn bins(
     f: &ViewUniforms,
     boundary: &[u32],
     tets: &[Tet],
-    links: &[TetLinks],
+    (links, original): (&[TetLinks], &[u32]),
     eye: &[Vec3],
 ) -> Bins {
     let size = UVec2::new(f.size[0] as u32, f.size[1] as u32);
@@ -209,7 +213,8 @@ pub fn bins(
             }
             let c = face_corners(eye, links[tet].tet, face);
             let rect = tile_rect(f, size, c)?;
-            Some(EntryFace::new(code, plane, c, rect))
+            let key = 4 * original[tet] + face as u32;
+            Some(EntryFace::new([code, key], plane, c, rect))
         })
         .collect();
     let covered = |[lo, hi]: [UVec2; 2]| {

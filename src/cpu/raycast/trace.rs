@@ -1,7 +1,7 @@
 //! The rays of one tile: per pixel, its entries (the tile's boundary faces it passes, sorted
-//! by t then face code), then the walk from tet to tet through the face it leaves by, each
-//! segment integrated front to back, re-entering at the next entry after it leaves a
-//! non-convex mesh; the rules of the GPU's traversal (`shaders/raycast_traverse.wgsl`) with its
+//! by t then face code in the file's numbering), then the walk from tet to tet through the
+//! face it leaves by, each segment integrated front to back, re-entering at the next entry
+//! after it leaves a non-convex mesh; the rules of the GPU's traversal (`shaders/raycast_traverse.wgsl`) with its
 //! exit arithmetic ([`twin::exit`], [`twin::exit_by_edges`]).
 
 use glam::{UVec2, Vec3, Vec4};
@@ -54,12 +54,14 @@ impl std::iter::Sum for Work {
     }
 }
 
-/// A boundary face a tile's pixel enters through: the pixel (index in the tile), the t.
+/// A boundary face a tile's pixel enters through: the pixel (index in the tile), the t, the
+/// face's code and its code in the file's numbering (which orders hits at the same t).
 #[derive(Clone, Copy, Debug)]
 pub struct Hit {
     pixel: u32,
     t: f32,
     code: u32,
+    key: u32,
 }
 
 /// Scratch space of one worker, reused from tile to tile.
@@ -91,13 +93,14 @@ pub fn tile(sc: &Scene, tf: &SegmentTf, k: usize, out: &mut [[f32; 4]], s: &mut 
                         pixel: i,
                         t,
                         code: f.code,
+                        key: f.key,
                     });
                 }
             }
         }
     }
     // t > 0 (never NaN): its bits order as its values.
-    (s.hits).sort_unstable_by_key(|h| (h.pixel, h.t.to_bits(), h.code));
+    (s.hits).sort_unstable_by_key(|h| (h.pixel, h.t.to_bits(), h.key));
     let mut work = Work::default();
     let mut rest = s.hits.as_slice();
     for (i, px) in out.iter_mut().enumerate() {
@@ -188,7 +191,9 @@ fn segment_scalars(sc: &Scene, here: &Tet, tet: u32, d: Vec3, t0: f32, t1: f32) 
 /// no face passes) by its planes.
 fn exit(sc: &Scene, here: &Tet, tet: u32, entry: usize, d: Vec3, t: f32) -> (usize, f32) {
     let den = here.crossings(d);
-    let folded = entry < 4 && den[entry] > 0.0;
+    // Lanes by `to_array`, not `Vec4`'s `Index` (a `match`: a jump table taken on the face
+    // index, mispredicted about every other step).
+    let folded = den.to_array().get(entry).is_some_and(|&c| c > 0.0);
     if here.thin() || folded {
         let ids = sc.ids[tet as usize];
         let faces = std::array::from_fn(|f| face_corners(sc.eye, ids, f));
@@ -215,9 +220,11 @@ fn exit_by_planes(here: &Tet, den: Vec4, entry: usize, t_in: f32) -> (usize, f32
     let ahead = others & den.cmpgt(Vec4::ZERO) & !along & t.cmplt(Vec4::splat(FAR));
     let t = Vec4::select(ahead, t, Vec4::splat(FAR));
     let best = t.min_position();
-    if t[best] < FAR {
-        return (best, t_in.max(t[best]));
+    let t_best = t.to_array()[best];
+    if t_best < FAR {
+        return (best, t_in.max(t_best));
     }
+    let den = den.to_array();
     let mut steep = (4, -FAR);
     for f in (0..4).filter(|&f| f != entry) {
         if den[f] > steep.1 {
