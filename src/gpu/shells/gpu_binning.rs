@@ -13,8 +13,6 @@
 //! the CPU). Meshes of several record chunks are binned on the CPU (their lists must be grouped
 //! by chunk, see [`super::raster::by_chunk`]).
 
-use bytemuck::Zeroable;
-
 use crate::gpu::gpu_data::BinUniforms;
 use crate::gpu::mesh::MeshData;
 use crate::gpu::shaders;
@@ -290,7 +288,6 @@ impl ShellsRenderer {
             tet_count: m.tets.len() as u32,
             frustum: self.settings.skips.frustum as u32,
             capacity: self.active_capacity().min(u32::MAX as u64) as u32,
-            ..Zeroable::zeroed()
         };
         let binner = (self.binner.as_ref())
             .ok_or_else(|| settings_error("internal: GPU binning without its binner"))?;
