@@ -5,7 +5,8 @@
 //   conservative distance range from the eye, its slice range, its shells; one atomic count per
 //   (shell, near) bucket, the shell's screen rectangle grown atomically, the skip counters;
 // - scan: one workgroup turns the bucket counts into offsets (and scatter cursors);
-// - scatter: per tet again, its id into each of its buckets at an atomic cursor.
+// - scatter: per tet, its id into each of its buckets (as count left them in `spans`) at an
+//   atomic cursor.
 // f32 rounding is absorbed by `bin.margin` (world units) so that the GPU never drops a tet
 // the exact rule keeps: it culls only beyond the margin and widens distance ranges by it. The
 // order within a bucket is arbitrary; the samplers take the same samples in any order (MAX
@@ -51,12 +52,17 @@ struct Bin {
 // Tets culled, transparent, between slices, near-plane.
 @group(0) @binding(7) var<storage, read_write> stats: array<atomic<u32>>;
 @group(0) @binding(8) var<storage, read_write> ids: array<u32>;
+// Per tet, from count to scatter: its first shell (bit 31: near-plane tet; NOT_DRAWN: none)
+// and its last.
+@group(0) @binding(9) var<storage, read_write> spans: array<vec2<u32>>;
 
 const CULLED: u32 = 0u;
 const TRANSPARENT: u32 = 1u;
 const NO_SAMPLE: u32 = 2u;
 const DRAWN: u32 = 3u;
 const NEAR: u32 = 3u;
+const NOT_DRAWN: u32 = 0xffffffffu;
+const NEAR_BIT: u32 = 0x80000000u;
 // The CPU rule's widening of slice ranges, in slices.
 const SLICE_MARGIN: f32 = 1e-3;
 
@@ -171,9 +177,11 @@ fn count(
     }
     let c = classify(t);
     if c.kind != DRAWN {
+        spans[t] = vec2<u32>(NOT_DRAWN, 0u);
         atomicAdd(&stats[c.kind], 1u);
         return;
     }
+    spans[t] = vec2<u32>(c.first | select(0u, NEAR_BIT, c.near), c.last);
     if c.near {
         atomicAdd(&stats[NEAR], 1u);
     }
@@ -231,12 +239,13 @@ fn scatter(
     if t >= bin.tet_count {
         return;
     }
-    let c = classify(t);
-    if c.kind != DRAWN {
+    let span = spans[t];
+    if span.x == NOT_DRAWN {
         return;
     }
-    for (var s = c.first; s <= c.last; s++) {
-        let k = atomicAdd(&cursors[2u * s + u32(c.near)], 1u);
+    let near = u32((span.x & NEAR_BIT) != 0u);
+    for (var s = span.x & ~NEAR_BIT; s <= span.y; s++) {
+        let k = atomicAdd(&cursors[2u * s + near], 1u);
         if k < bin.capacity {
             ids[k] = t;
         }

@@ -45,6 +45,9 @@ pub(super) struct GpuBinner {
     readback: wgpu::Buffer,
     /// One bit per tet: transparent under the last transfer function uploaded.
     mask: wgpu::Buffer,
+    /// 8 bytes per tet: its shells, from the count pass to the scatter pass (which then reads
+    /// 8 bytes a tet instead of its corners and indices, 80).
+    spans: wgpu::Buffer,
     /// The transfer function and scalars' version `mask` was built for (`None`: none yet, or
     /// all clear without transfer-function culling).
     mask_key: Option<Option<(TransferFunction, u64)>>,
@@ -71,7 +74,7 @@ impl GpuBinner {
         let rw = wgpu::BufferBindingType::Storage { read_only: false };
         let mut entries = vec![buffer_entry(0, cs, wgpu::BufferBindingType::Uniform)];
         entries.extend([1, 2, 3].map(|b| buffer_entry(b, cs, ro)));
-        entries.extend([4, 5, 6, 7, 8].map(|b| buffer_entry(b, cs, rw)));
+        entries.extend([4, 5, 6, 7, 8, 9].map(|b| buffer_entry(b, cs, rw)));
         let layout = bind_group_layout(device, "shells gpu binning", &entries);
         let pipeline_layout = pipeline_layout_for(device, &layout);
         let module = wgsl_module(device, "shells_bin", shaders::shells_bin());
@@ -104,6 +107,12 @@ impl GpuBinner {
             }),
             mask: storage(device, "shells bin mask", tets.div_ceil(32) * 4, copy),
             mask_key: None,
+            spans: storage(
+                device,
+                "shells bin spans",
+                8 * tets,
+                wgpu::BufferUsages::empty(),
+            ),
         }
     }
 
@@ -116,6 +125,7 @@ impl GpuBinner {
             &self.stats,
             &self.readback,
             &self.mask,
+            &self.spans,
         ]
         .iter()
         .map(|b| b.size())
@@ -372,6 +382,7 @@ impl ShellsRenderer {
                 entry(6, &binner.rects),
                 entry(7, &binner.stats),
                 ids,
+                entry(9, &binner.spans),
             ],
         }))
     }
