@@ -196,6 +196,11 @@ impl ShellsRenderer {
         self.transparent_mask(m, tf);
         self.upload_mask();
         let max_entries = self.max_active_entries();
+        // A first guess of one entry per tet, so that a first frame seldom runs twice.
+        let tets = m.tets.len() as u64;
+        if self.active_capacity() < tets.min(max_entries) {
+            self.grow_active(tets.min(max_entries));
+        }
         for _ in 0..2 {
             let r = self.run_binning(m, plan, n, shells)?;
             let total = r.offsets.last().copied().unwrap_or(0) as u64;

@@ -6,7 +6,8 @@
 //! 1. plan and binning (CPU, rayon; `plan.rs`, `binning.rs`): where the slices lie, each tet's
 //!    conservative distance range, frustum and transfer-function culling, the frame's `n`
 //!    chosen from the tets' slice ranges (`adaptive.rs`), every shell's active list in one
-//!    counting sort;
+//!    counting sort; or, with [`BinningMode::Gpu`], the same on the GPU (`gpu_binning.rs`,
+//!    `shaders/shells_bin.wgsl`), the lists left in the active buffer;
 //! 2. upload (`upload.rs`): view and slicing constants, transfer function, per-shell constants, active
 //!    lists (chunk-local tet ids), the face index pattern;
 //! 3. assembly (compute, `gpu/assembly.rs`, shared by every mode): once per tet,
