@@ -135,19 +135,34 @@ impl GpuBinner {
     /// Grows the per-shell buffers for `shells` shells.
     fn ensure(&mut self, device: &wgpu::Device, shells: u64) {
         let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
-        let bytes = |n: u64| n * 4;
-        if self.cursors.size() < bytes(2 * shells) {
-            self.cursors = storage(device, "shells bin cursors", bytes(2 * shells), copy);
-            self.offsets = storage(device, "shells bin offsets", bytes(2 * shells + 1), copy);
-            self.rects = storage(device, "shells bin rects", bytes(4 * shells), copy);
-            self.readback = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("shells bin readback"),
-                size: bytes(2 * shells + 1 + 4 * shells + 4),
-                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
-        }
+        let grow = |buf: &mut wgpu::Buffer, label, words: u64, usage| {
+            if buf.size() < 4 * words {
+                *buf = device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(label),
+                    size: 4 * words,
+                    usage,
+                    mapped_at_creation: false,
+                });
+            }
+        };
+        let storage = copy | wgpu::BufferUsages::STORAGE;
+        grow(&mut self.cursors, "shells bin cursors", 2 * shells, storage);
+        grow(
+            &mut self.offsets,
+            "shells bin offsets",
+            2 * shells + 1,
+            storage,
+        );
+        grow(&mut self.rects, "shells bin rects", 4 * shells, storage);
+        let read = wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST;
+        let words = readback_words(shells);
+        grow(&mut self.readback, "shells bin readback", words, read);
     }
+}
+
+/// Words read back for `shells` shells: the offsets, the rectangles, the 4 counters.
+fn readback_words(shells: u64) -> u64 {
+    2 * shells + 1 + 4 * shells + 4
 }
 
 /// Whether `mode` bins a mesh of `tets` tets on the GPU; an error for
@@ -506,12 +521,18 @@ mod tests {
     #[test]
     fn gpu_lists_hold_the_cpu_lists_shell_by_shell() {
         let ctx = GpuContext::new(AdapterChoice::Auto).expect("a GPU adapter (lavapipe will do)");
-        for (name, mesh, camera) in scenes() {
+        // 512 samples in shells of 8 slices, and 24 in shells of 32: one shell (the per-shell
+        // buffers at their smallest).
+        let slicings = scenes()
+            .into_iter()
+            .flat_map(|s| [(s.clone(), 512, 8), (s, 24, 32)]);
+        for ((name, mesh, camera), samples, per_shell) in slicings {
             let (lo, hi) = mesh.active_array().and_then(|a| a.range()).unwrap();
             let tf = TransferFunction::default_for_range(lo, hi, mesh.diagonal() / 100.0).unwrap();
             let settings = ShellSettings {
                 binning: BinningMode::Gpu,
-                slices_per_shell: Some(8),
+                samples,
+                slices_per_shell: Some(per_shell),
                 ..ShellSettings::default()
             };
             let mut r = ShellsRenderer::new(&ctx, &mesh, settings).expect("renderer");
@@ -519,9 +540,9 @@ mod tests {
             let m = gpu_mesh.read();
             let plan = r.plan(&m, &camera).expect("plan");
             let bins = r.classify(&m, &plan, &tf);
-            let cpu = sort_into_shells(&bins, 8, plan.shells(8) as u32);
+            let cpu = sort_into_shells(&bins, per_shell, plan.shells(per_shell) as u32);
             let (n, gpu) = r.bin_on_gpu(&m, &plan, &tf).expect("gpu binning");
-            assert_eq!(n, 8);
+            assert_eq!(n, per_shell);
             let total = gpu.shells.last().map_or(0, |s| s.near.end) as u64;
             let (cpu_lists, gpu_lists) = (
                 shells(&cpu, &cpu.indices),
@@ -539,7 +560,7 @@ mod tests {
                 extra += g.len() - c.len();
             }
             let entries = cpu.indices.len();
-            eprintln!("{name}: {entries} CPU entries, {extra} more on the GPU");
+            eprintln!("{name}, {samples} samples: {entries} CPU entries, {extra} more on the GPU");
             assert!(extra * 50 <= entries, "{name}: {extra} extra of {entries}");
             assert_eq!(gpu.transparent, cpu.transparent, "{name}");
             assert!(
