@@ -10,8 +10,8 @@
 //! The slices per shell are not profiled ([`super::adaptive`] needs every tet's slice range on
 //! the CPU): the fixed count, else the default. Early ray termination still skips finished
 //! tiles and shells but does not drop finished tets from later lists (that reads the lists on
-//! the CPU). Meshes of several record chunks are binned on the CPU (their lists must be grouped
-//! by chunk, see [`super::raster::by_chunk`]).
+//! the CPU). Meshes of several record chunks are refused ([`BinningMode::Auto`] bins them on
+//! the CPU): their lists would have to be grouped by chunk (see [`super::raster::by_chunk`]).
 
 use crate::gpu::gpu_data::BinUniforms;
 use crate::gpu::mesh::MeshData;
