@@ -49,8 +49,8 @@ use crate::camera::{Camera, CameraError, View};
 use crate::cpu::raycast::{self as cpu_raycast, CpuRaycastSettings};
 use crate::gpu::raycast::{Entry, Segments};
 use crate::gpu::{
-    CellProjSettings, Integrate, IsoSettings, RaycastSettings, Sampler, ShellSettings, Skip,
-    SliceFormat,
+    BinningMode, CellProjSettings, Integrate, IsoSettings, RaycastSettings, Sampler, ShellSettings,
+    Skip, SliceFormat,
 };
 use crate::io::{self, LoadError, Loaded, ReadLimits};
 use crate::mesh::{CellDataMode, MeshError, TetMesh};
@@ -205,6 +205,21 @@ pub enum SamplerChoice {
     Compute,
 }
 
+/// Where the shells' tets are binned into the shells' active lists (`--binning`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum BinningChoice {
+    /// On the CPU, with adaptive slices per shell.
+    #[default]
+    Cpu,
+    /// On the GPU from the positions there (meshes of one storage binding of records).
+    Gpu,
+    /// GPU from about a million tets (one binding of records), else CPU; with tuning, the
+    /// faster one measured.
+    Auto,
+}
+
 /// The float format of the shells' slice targets (`--slice-format`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
@@ -302,6 +317,9 @@ pub struct Settings {
     /// shells: the float format of the raster sampler's slice targets.
     #[serde(skip_serializing_if = "is_default")]
     pub slice_format: SliceFormatChoice,
+    /// shells: where the tets are binned into the shells.
+    #[serde(skip_serializing_if = "is_default")]
+    pub binning: BinningChoice,
     /// shells: sampler, slices per shell and skips chosen from timings on the adapter.
     #[serde(skip_serializing_if = "is_default")]
     pub tune: TuneChoice,
@@ -331,6 +349,7 @@ impl Default for Settings {
             ert_threshold: None,
             sampler: SamplerChoice::Raster,
             slice_format: SliceFormatChoice::Auto,
+            binning: BinningChoice::Cpu,
             tune: TuneChoice::Off,
             integrate: None,
             entry: None,
@@ -731,6 +750,11 @@ impl Scene {
             SliceFormatChoice::F32 => SliceFormat::Float32,
         };
         shells.tune = s.tune == TuneChoice::On;
+        shells.binning = match s.binning {
+            BinningChoice::Cpu => BinningMode::Cpu,
+            BinningChoice::Gpu => BinningMode::Gpu,
+            BinningChoice::Auto => BinningMode::Auto,
+        };
         shells
     }
 
@@ -757,6 +781,11 @@ impl Scene {
                     SliceFormat::Auto => SliceFormatChoice::Auto,
                     SliceFormat::Float16 => SliceFormatChoice::F16,
                     SliceFormat::Float32 => SliceFormatChoice::F32,
+                };
+                s.binning = match shells.binning {
+                    BinningMode::Cpu => BinningChoice::Cpu,
+                    BinningMode::Gpu => BinningChoice::Gpu,
+                    BinningMode::Auto => BinningChoice::Auto,
                 };
                 s.tune = if shells.tune {
                     TuneChoice::On

@@ -20,12 +20,13 @@ fn validate(name: &str, src: &str) -> Vec<String> {
 #[test]
 fn every_registered_shader_validates() {
     let registry = shaders::registry();
-    // assemble, shells_mark, shells_tiles, iso_raster, iso_gradients, cellproj_raster, 17
-    // raycast stages (vertices, planes, entries, two peeling passes, tiles per entry method,
-    // traversal per entry method and integrator: exact, partial, table, textured, textured
-    // isosurfaces), and per target count two shells raster variants (the linear field, a
-    // textured cage), 33 composite and 66 fine (compute sampler; linear and textured) variants.
-    assert_eq!(registry.len(), 23 + shaders::MAX_TARGETS as usize * 101);
+    // assemble, shells_mark, shells_tiles, shells_bin, iso_raster, iso_gradients,
+    // cellproj_raster, 17 raycast stages (vertices, planes, entries, two peeling passes, tiles
+    // per entry method, traversal per entry method and integrator: exact, partial, table,
+    // textured, textured isosurfaces), and per target count two shells raster variants (the
+    // linear field, a textured cage), 33 composite and 66 fine (compute sampler; linear and
+    // textured) variants.
+    assert_eq!(registry.len(), 24 + shaders::MAX_TARGETS as usize * 101);
     for (name, src, entries) in registry {
         assert_eq!(validate(&name, &src), entries, "{name}");
     }
@@ -46,6 +47,8 @@ fn shared_struct_layouts_match_gpu_data() {
     let size = |name: &str| wgsl_struct_size(&module, name);
     assert_eq!(size("Slicing"), size_of::<SlicingUniforms>());
     assert_eq!(size("Shell"), size_of::<ShellUniforms>());
+    let module = validated_wgsl("shells_bin", &shaders::shells_bin());
+    assert_eq!(wgsl_struct_size(&module, "Bin"), size_of::<BinUniforms>());
 }
 
 /// The ray caster's structs have the sizes of their Rust twins in every stage.

@@ -34,8 +34,8 @@ use tetvr::deform::Deformation;
 use tetvr::generate::{self, Field};
 use tetvr::gpu::raycast::{Entry, Segments};
 use tetvr::gpu::{
-    CellProjSettings, GpuContext, Integrate, IsoSettings, RaycastSettings, Sampler, ShellSettings,
-    Skip, Skips,
+    BinningMode, CellProjSettings, GpuContext, Integrate, IsoSettings, RaycastSettings, Sampler,
+    ShellSettings, Skip, Skips,
 };
 use tetvr::image::{ErrorMetrics, Image};
 use tetvr::io;
@@ -553,6 +553,23 @@ fn shells_compute(samples: u32) -> Config {
     shells_with(format!("samples {samples}, compute"), &[], settings)
 }
 
+/// The shells mode at `samples` with the tets binned on the GPU (`sampler`'s `samples N` row
+/// otherwise, so the rows compare the binnings; the `binning` stage holds the GPU binning's
+/// wall time, readback of its offsets included).
+fn shells_gpu_binning(samples: u32, sampler: Sampler) -> Config {
+    let settings = ShellSettings {
+        samples,
+        sampler,
+        binning: BinningMode::Gpu,
+        ..ShellSettings::default()
+    };
+    let setting = match sampler {
+        Sampler::Raster => format!("samples {samples}, gpu binning"),
+        Sampler::Compute => format!("samples {samples}, compute, gpu binning"),
+    };
+    shells_with(setting, &[], settings)
+}
+
 /// The shells mode at `samples` with `tune` on: sampler, slices per shell and skips chosen
 /// from timings on the adapter (its row's `chosen` column says what was chosen; the tuning
 /// frames are warm-up).
@@ -720,6 +737,8 @@ pub fn configurations(quick: bool) -> Vec<Config> {
             shells_compute(128),
             shells_compute(512),
             shells_tuned(512),
+            shells_gpu_binning(512, Sampler::Raster),
+            shells_gpu_binning(512, Sampler::Compute),
         ];
         c.extend(Skip::ALL.map(shells_without));
         c.extend([

@@ -13,7 +13,8 @@ use std::path::PathBuf;
 use clap::{Parser, Subcommand};
 use tetvr::mesh::CellDataMode;
 use tetvr::scene::{
-    EntryChoice, Integration, Mode, SamplerChoice, ShadingChoice, SliceFormatChoice, TuneChoice,
+    BinningChoice, EntryChoice, Integration, Mode, SamplerChoice, ShadingChoice, SliceFormatChoice,
+    TuneChoice,
 };
 
 pub use commands::run;
@@ -273,6 +274,11 @@ pub struct ShellArgs {
     /// adapter blends it (f16 halves target memory and costs about 20 dB of accuracy).
     #[arg(long, value_enum, default_value_t = SliceFormatChoice::Auto)]
     pub slice_format: SliceFormatChoice,
+    /// shells: where the tets are binned into the shells: cpu (with adaptive slices), gpu
+    /// (from the positions on the GPU: no CPU pass over the tets per frame, for large or
+    /// deforming meshes), auto (gpu from about a million tets; with --tune on, the faster).
+    #[arg(long, value_enum, default_value_t = BinningChoice::Cpu)]
+    pub binning: BinningChoice,
     /// shells: choose the sampler, slices per shell and skips from timings taken on this
     /// adapter in the first frames (each then costs a few renders), then keep the fastest;
     /// pays over many frames (--frames, animate). Off: the settings as given.

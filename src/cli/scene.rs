@@ -77,6 +77,7 @@ fn overlay(scene: &mut Scene, a: &RenderArgs, given: &dyn Fn(&str) -> bool) {
         "ert_threshold": s.ert_threshold => a.shells.ert_threshold;
         "sampler": s.sampler => a.shells.sampler;
         "slice_format": s.slice_format => a.shells.slice_format;
+        "binning": s.binning => a.shells.binning;
         "tune": s.tune => a.shells.tune;
         "integrate": s.integrate => a.cellproj.integrate;
         "entry": s.entry => a.cellproj.entry;

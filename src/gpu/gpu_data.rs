@@ -86,6 +86,44 @@ pub struct ShellUniforms {
 }
 const _: () = assert!(size_of::<ShellUniforms>() == 48);
 
+/// The shells' GPU binning constants (WGSL `Bin` in `shaders/shells_bin.wgsl`, uniform, 96
+/// bytes): the view in f32 (mesh-origin relative), the slicing, the frame's shells.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct BinUniforms {
+    /// Camera right (world).
+    pub right: [f32; 3],
+    /// World units of slack in every comparison, against f32 rounding.
+    pub margin: f32,
+    /// Camera up (world).
+    pub up: [f32; 3],
+    /// Tets with a corner at eye-space z at most this are near-plane tets.
+    pub near_z: f32,
+    /// Camera forward (world).
+    pub forward: [f32; 3],
+    /// Distance of slice 0 from the eye.
+    pub t_first: f32,
+    /// The eye relative to the mesh origin.
+    pub eye: [f32; 3],
+    /// Slice spacing (world units).
+    pub dz: f32,
+    /// Frustum half-slopes.
+    pub slope: [f32; 2],
+    /// Slices across the mesh.
+    pub slices: u32,
+    /// Slices per shell.
+    pub per_shell: u32,
+    /// Shells across the mesh.
+    pub shells: u32,
+    /// Tets to bin.
+    pub tet_count: u32,
+    /// 1: tets outside a frustum plane are culled.
+    pub frustum: u32,
+    /// Entries the active list holds.
+    pub capacity: u32,
+}
+const _: () = assert!(size_of::<BinUniforms>() == 96);
+
 /// [`ShellUniforms::chunk_pass`] bit: the pass starts from the slices an earlier chunk pass of
 /// the shell stored (else from no sample).
 pub const CHUNK_LOAD: u32 = 1;

@@ -36,5 +36,5 @@ pub use mesh::GpuTetMesh;
 pub use raycast::{RaycastRenderer, RaycastSettings};
 pub use shells::skips::{Skip, Skips};
 pub use shells::tune::{TimingSource, TuneCache, TunedShells, WallClock, describe};
-pub use shells::{Sampler, ShellSettings, ShellsRenderer, SliceFormat};
+pub use shells::{AUTO_GPU_TETS, BinningMode, Sampler, ShellSettings, ShellsRenderer, SliceFormat};
 pub use tf::tf_points;

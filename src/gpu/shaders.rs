@@ -31,6 +31,7 @@ const SHELLS_COMPOSITE: &str = include_str!("../../shaders/shells_composite.wgsl
 const SHELLS_TILES: &str = include_str!("../../shaders/shells_tiles.wgsl");
 const SHELLS_FINE: &str = include_str!("../../shaders/shells_fine.wgsl");
 const SHELLS_MARK: &str = include_str!("../../shaders/shells_mark.wgsl");
+const SHELLS_BIN: &str = include_str!("../../shaders/shells_bin.wgsl");
 /// Declarations the volume raster stages share (shells, cellproj).
 pub(crate) const RASTER: &str = include_str!("../../shaders/raster.wgsl");
 const ISO_RASTER: &str = include_str!("../../shaders/iso_raster.wgsl");
@@ -322,6 +323,12 @@ pub fn cellproj_raster() -> String {
     format!("{SHARED}\n{RASTER}\n{INTEGRATE_SEGMENT}\n{PSI_EXACT}\n{CELLPROJ_RASTER}")
 }
 
+/// The shells' GPU binning (entry points `count`, `scan`, `scatter`): standalone, its uniforms
+/// ([`crate::gpu::gpu_data::BinUniforms`]) declared in it.
+pub fn shells_bin() -> String {
+    SHELLS_BIN.into()
+}
+
 /// Every WGSL module the renderers load, each variant once, with its name and its entry points
 /// in source order.
 pub fn registry() -> Vec<(String, String, &'static [&'static str])> {
@@ -335,6 +342,11 @@ pub fn registry() -> Vec<(String, String, &'static [&'static str])> {
         (
             "shells_tiles".into(),
             shells_tiles(),
+            &["count", "scan", "scatter"],
+        ),
+        (
+            "shells_bin".into(),
+            shells_bin(),
             &["count", "scan", "scatter"],
         ),
         ("iso_raster".into(), iso_raster(), &["vs_faces", "fs_iso"]),

@@ -80,7 +80,8 @@ impl ShellsRenderer {
         self.ensure_tile_buffers(f, (width, height), 0)?;
         let chunk_tets = self.chunking.chunk as u32;
         let whole = |(s, r): &DrawnShell| shell_uniforms((*s, r), f.n, &f.plan);
-        let passes = chunk_passes(&f.drawn, &f.bin.indices, chunk_tets, whole);
+        let chunks = self.chunking.ranges(self.mesh.tet_count() as u64).len();
+        let passes = chunk_passes(&f.drawn, &f.bin.indices, (chunk_tets, chunks), whole);
         self.upload_passes(&passes);
         let (mut stats, needed) = self.run_compute(f, tf, &passes)?;
         if let Some(n) = needed {
@@ -340,22 +341,22 @@ pub(super) struct ChunkPass {
     pub(super) uniforms: ShellUniforms,
 }
 
-/// The passes of the drawn shells, shell by shell: one per record chunk of `chunk_tets` tets
-/// that holds some of the shell's tets (`ids`: the active list, global tet ids ascending
-/// within each range), in chunk order, the first starting from no sample, the last
+/// The passes of the drawn shells, shell by shell: one per record chunk (`chunking`: tets per
+/// chunk, chunks) that holds some of the shell's tets (`ids`: the active list, global tet ids
+/// ascending within each range; not read for one chunk), in chunk order, the first starting from no sample, the last
 /// compositing; a shell with no tet has none. `whole` gives a shell's constants for all its
 /// tets.
 pub(super) fn chunk_passes(
     drawn: &[DrawnShell],
     ids: &[u32],
-    chunk_tets: u32,
+    chunking: (u32, usize),
     whole: impl Fn(&DrawnShell) -> ShellUniforms,
 ) -> Vec<ChunkPass> {
     let mut passes = Vec::new();
     for shell in drawn {
         let (whole, range) = (whole(shell), &shell.1);
-        let faces = by_chunk(ids, range.faces.clone(), chunk_tets);
-        let near = by_chunk(ids, range.near.clone(), chunk_tets);
+        let faces = by_chunk(ids, range.faces.clone(), chunking);
+        let near = by_chunk(ids, range.near.clone(), chunking);
         let mut chunks: Vec<usize> = faces.iter().chain(&near).map(|p| p.0).collect();
         chunks.sort_unstable();
         chunks.dedup();
@@ -409,7 +410,7 @@ mod tests {
             first_slice: 8 * s,
             ..Default::default()
         };
-        let passes = chunk_passes(&drawn, &ids, 10, whole);
+        let passes = chunk_passes(&drawn, &ids, (10, 4), whole);
         let summary: Vec<_> = passes
             .iter()
             .map(|p| {

@@ -118,16 +118,7 @@ impl ShellsRenderer {
         tf: &TransferFunction,
     ) -> Vec<TetBin> {
         let skips = self.settings.skips;
-        let version = m.scalars_version;
-        let stale = |(t, v, _): &(TransferFunction, u64, Vec<bool>)| t != tf || *v != version;
-        if skips.tf_cull && self.transparent.as_ref().is_none_or(stale) {
-            // A textured cage's tets span the volume's values over them, not their vertices'.
-            let ranges = self.texture.as_ref().map_or(&m.ranges, |t| &t.ranges);
-            let mask = (ranges.par_iter())
-                .map(|&(lo, hi)| tf.is_transparent_on(lo, hi))
-                .collect();
-            self.transparent = Some((tf.clone(), version, mask));
-        }
+        self.transparent_mask(m, tf);
         let transparent = match &self.transparent {
             Some((_, _, mask)) if skips.tf_cull => mask.as_slice(),
             _ => &[],
@@ -136,6 +127,21 @@ impl ShellsRenderer {
         binning::classify(&m.positions, &m.tets, &params, |t| {
             transparent.get(t).copied().unwrap_or(false)
         })
+    }
+
+    /// With transfer-function culling, brings the cached transparent-tet mask up to date with
+    /// `tf` and the scalars.
+    pub(super) fn transparent_mask(&mut self, m: &MeshData, tf: &TransferFunction) {
+        let version = m.scalars_version;
+        let stale = |(t, v, _): &(TransferFunction, u64, Vec<bool>)| t != tf || *v != version;
+        if self.settings.skips.tf_cull && self.transparent.as_ref().is_none_or(stale) {
+            // A textured cage's tets span the volume's values over them, not their vertices'.
+            let ranges = self.texture.as_ref().map_or(&m.ranges, |t| &t.ranges);
+            let mask = (ranges.par_iter())
+                .map(|&(lo, hi)| tf.is_transparent_on(lo, hi))
+                .collect();
+            self.transparent = Some((tf.clone(), version, mask));
+        }
     }
 
     /// Slices per shell: fixed, or the least predicted work among the allowed counts (the

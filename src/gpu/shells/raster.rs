@@ -68,7 +68,7 @@ pub(super) fn encode(
     if !range.faces.is_empty() {
         pass.set_pipeline(&set.faces);
         pass.set_index_buffer(p.face_indices.slice(..), wgpu::IndexFormat::Uint32);
-        for (c, part) in by_chunk(ids, range.faces.clone(), p.chunk_tets) {
+        for (c, part) in by_chunk(ids, range.faces.clone(), (p.chunk_tets, p.chunks)) {
             for (w, local, base) in p.instances.pieces(part) {
                 pass.set_bind_group(0, group(w, c), &[offset]);
                 let indices = 12 * (local.start - base)..12 * (local.end - base);
@@ -78,7 +78,7 @@ pub(super) fn encode(
     }
     if !range.near.is_empty() {
         pass.set_pipeline(&set.near);
-        for (c, part) in by_chunk(ids, range.near.clone(), p.chunk_tets) {
+        for (c, part) in by_chunk(ids, range.near.clone(), (p.chunk_tets, p.chunks)) {
             for (w, local, _) in p.instances.pieces(part) {
                 pass.set_bind_group(0, group(w, c), &[offset]);
                 pass.draw(6 * local.start..6 * local.end, 0..1);
@@ -106,12 +106,19 @@ pub(super) fn scissor(r: ScreenRect, slope: [f64; 2], width: u32, height: u32) -
 }
 
 /// The parts of `range` (positions in `ids`, whose tet ids ascend within it, as binning leaves
-/// them) that fall in each chunk of `chunk_tets` tets, as (chunk, part).
+/// them) that fall in each chunk of `chunk_tets` tets, as (chunk, part). A mesh of one chunk
+/// (`chunks`) reads no ids: its lists may be on the GPU only (`gpu_binning.rs`).
 pub(super) fn by_chunk(
     ids: &[u32],
     range: Range<u32>,
-    chunk_tets: u32,
+    (chunk_tets, chunks): (u32, usize),
 ) -> Vec<(usize, Range<u32>)> {
+    if chunks <= 1 {
+        return (!range.is_empty())
+            .then_some((0, range))
+            .into_iter()
+            .collect();
+    }
     let mut parts = Vec::new();
     let mut start = range.start;
     while start < range.end {
@@ -132,11 +139,14 @@ mod tests {
     fn active_ranges_split_at_chunk_boundaries() {
         let ids = [1, 2, 5, 9, 10, 11, 20, 3, 4];
         assert_eq!(
-            by_chunk(&ids, 0..7, 10),
+            by_chunk(&ids, 0..7, (10, 3)),
             vec![(0, 0..4), (1, 4..6), (2, 6..7)]
         );
-        assert_eq!(by_chunk(&ids, 7..9, 10), vec![(0, 7..9)]);
-        assert_eq!(by_chunk(&ids, 3..3, 10), vec![]);
-        assert_eq!(by_chunk(&ids, 4..6, 1000), vec![(0, 4..6)]);
+        assert_eq!(by_chunk(&ids, 7..9, (10, 3)), vec![(0, 7..9)]);
+        assert_eq!(by_chunk(&ids, 3..3, (10, 3)), vec![]);
+        assert_eq!(by_chunk(&ids, 4..6, (1000, 1)), vec![(0, 4..6)]);
+        // One chunk: no ids read (a GPU-binned list is not on the CPU).
+        assert_eq!(by_chunk(&[], 4..6, (1000, 1)), vec![(0, 4..6)]);
+        assert_eq!(by_chunk(&[], 6..6, (1000, 1)), vec![]);
     }
 }

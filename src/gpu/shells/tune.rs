@@ -2,8 +2,9 @@
 //! from cost models fitted elsewhere ([`super::adaptive::CostModel`] was fitted on lavapipe and
 //! picks slower counts on an H200, issue 15).
 //!
-//! What is chosen: the sampler (raster or compute), the slices per shell (adaptive or fixed 4,
-//! 8, 16, 32) and each skip's on/off (early termination, empty space, TF culling, frustum; a
+//! What is chosen: with `--binning auto`, where the tets are binned (CPU or GPU, tried first:
+//! it decides whether slices are profiled), the sampler (raster or compute), the slices per
+//! shell (adaptive or fixed 4, 8, 16, 32) and each skip's on/off (early termination, empty space, TF culling, frustum; a
 //! skip that costs more than it saves on the adapter turns itself off). Every candidate is a
 //! correct render of the same samples: the samplers agree to rounding, the slice count moves no
 //! sample, and the skips drop nothing but early termination's 1e-5 per channel; the slice
@@ -42,7 +43,7 @@ use crate::render::{Frame, RenderError, Renderer, Tuning};
 use crate::tf::TransferFunction;
 
 use super::skips::Skip;
-use super::{Sampler, ShellSettings, ShellsRenderer};
+use super::{BinningMode, Sampler, ShellSettings, ShellsRenderer};
 
 /// Where the tuner gets a frame's time from.
 pub trait TimingSource: Send {
@@ -139,12 +140,18 @@ pub fn describe(s: &ShellSettings) -> String {
     let off = SKIPS.iter().filter(|&&k| !s.skips.is_on(k));
     let mut parts = vec![sampler.to_string(), slices];
     parts.extend(off.map(|k| format!("no {k}")));
+    match s.binning {
+        BinningMode::Cpu => {}
+        BinningMode::Gpu => parts.push("gpu binning".into()),
+        BinningMode::Auto => parts.push("auto binning".into()),
+    }
     parts.join(", ")
 }
 
 /// One kind of change tried on the incumbent.
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Step {
+    Binning,
     Sampler,
     Slices,
     Skip(Skip),
@@ -154,6 +161,11 @@ impl Step {
     /// The configurations that make this change to `s`.
     fn alternatives(self, s: &ShellSettings) -> Vec<ShellSettings> {
         match self {
+            // Only `auto` is tuned: an explicit cpu or gpu is the user's.
+            Step::Binning if s.binning == BinningMode::Auto => [BinningMode::Cpu, BinningMode::Gpu]
+                .map(|binning| ShellSettings { binning, ..*s })
+                .to_vec(),
+            Step::Binning => Vec::new(),
             Step::Sampler => {
                 let sampler = match s.sampler {
                     Sampler::Raster => Sampler::Compute,
@@ -206,7 +218,7 @@ impl Tuner {
         Self {
             default,
             incumbent: default,
-            steps: [Step::Sampler, Step::Slices]
+            steps: [Step::Binning, Step::Sampler, Step::Slices]
                 .into_iter()
                 .chain(skips)
                 .collect(),
@@ -536,7 +548,15 @@ mod tests {
     /// Runs a tuner to its choice with `ms(settings, frame)` as every timing; returns the
     /// choice and every frame's times.
     fn run(ms: impl Fn(&ShellSettings, u64) -> Option<f64>) -> (ShellSettings, Vec<Times>) {
-        let mut t = Tuner::new(ShellSettings::default());
+        run_from(ShellSettings::default(), ms)
+    }
+
+    /// [`run`] from the settings `default`.
+    fn run_from(
+        default: ShellSettings,
+        ms: impl Fn(&ShellSettings, u64) -> Option<f64>,
+    ) -> (ShellSettings, Vec<Times>) {
+        let mut t = Tuner::new(default);
         let mut frames = Vec::new();
         while let Some(list) = t.next_frame() {
             let times: Vec<_> = list.iter().map(|s| (*s, ms(s, t.frames()))).collect();
@@ -597,6 +617,50 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// `--binning auto` with tuning: the binning measured faster is kept, one measured slower
+    /// than the default (auto's own rule) never. Made-up factors on [`model`]'s times: GPU
+    /// binning `gpu`, CPU binning `cpu`, auto 1.
+    #[test]
+    fn auto_binning_is_tuned_to_the_faster_and_never_to_a_slower() {
+        let auto = ShellSettings {
+            binning: BinningMode::Auto,
+            ..ShellSettings::default()
+        };
+        for (gpu, cpu, expect) in [
+            (0.5, 1.0, BinningMode::Gpu),
+            (1.2, 0.8, BinningMode::Cpu),
+            // Neither clearly faster than auto (within MARGIN, or slower): auto stays.
+            (0.97, 1.1, BinningMode::Auto),
+        ] {
+            let ms = |s: &ShellSettings, _| {
+                let f = match s.binning {
+                    BinningMode::Gpu => gpu,
+                    BinningMode::Cpu => cpu,
+                    BinningMode::Auto => 1.0,
+                };
+                Some(model(s) * f)
+            };
+            let (choice, _) = run_from(auto, ms);
+            assert_eq!(choice.binning, expect, "gpu {gpu}, cpu {cpu}");
+        }
+        // An explicit binning is never changed.
+        let gpu = ShellSettings {
+            binning: BinningMode::Gpu,
+            ..ShellSettings::default()
+        };
+        let (choice, _) = run_from(gpu, |s, _| {
+            Some(
+                model(s)
+                    * if s.binning == BinningMode::Gpu {
+                        2.0
+                    } else {
+                        1.0
+                    },
+            )
+        });
+        assert_eq!(choice.binning, BinningMode::Gpu);
     }
 
     #[test]

@@ -88,11 +88,12 @@ impl ShellsRenderer {
         write_grown(gpu, &mut self.shell_buf, &shell_data, uniform);
     }
 
-    /// The active list (in windows of one storage binding) and, grown when needed, the face
+    /// The active list (in windows of one storage binding; left as the GPU binning wrote it)
+    /// and, grown when needed, the face
     /// index pattern: each tet-shell instance is 12 indices of one draw (u32), in an index
     /// buffer grown to a power of two of the instances of a window, at most one buffer.
     fn upload_instances(&mut self, bin: &Binning, tet_count: u32) -> Result<(), RenderError> {
-        let n = bin.indices.len() as u64;
+        let n = bin.shells.last().map_or(0, |r| r.near.end) as u64;
         self.instances = InstanceLayout::new(n, &self.limits).ok_or_else(|| {
             settings_error(format!(
                 "this view draws {n} tet-shell instances, more than one buffer holds on this \
@@ -115,6 +116,10 @@ impl ShellsRenderer {
                 bytemuck::cast_slice(&pattern),
                 index,
             );
+        }
+        if self.binner.is_some() {
+            // Binned on the GPU: the list is already in the active buffer.
+            return Ok(());
         }
         let chunk_tets = self.chunking.chunk as u32;
         let active = chunk_local(&bin.indices, chunk_tets, tet_count);

@@ -1,0 +1,253 @@
+// Shells binning on the GPU (`--binning gpu`, gpu::shells::gpu_binning): a counting sort of the
+// tets into every shell's active list, from the positions already on the GPU. Its CPU twin is
+// gpu::shells::binning (classify + sort_into_shells), whose rules it follows in f32:
+// - count: per tet, frustum cull, transfer-function cull (a bit per tet from the CPU), the
+//   conservative distance range from the eye, its slice range, its shells; one atomic count per
+//   (shell, near) bucket, the shell's screen rectangle grown atomically, the skip counters;
+// - scan: one workgroup turns the bucket counts into offsets (and scatter cursors);
+// - scatter: per tet, its id into each of its buckets (as count left them in `spans`) at an
+//   atomic cursor.
+// f32 rounding is absorbed by `bin.margin` (world units) so that the GPU never drops a tet
+// the exact rule keeps: it culls only beyond the margin and widens distance ranges by it. The
+// order within a bucket is arbitrary; the samplers take the same samples in any order (MAX
+// blending in the raster sampler, one tet per sample in the compute sampler).
+
+struct Bin {
+    right: vec3<f32>,
+    // World units added to every comparison against f32 rounding (see above).
+    margin: f32,
+    up: vec3<f32>,
+    // Tets with a corner at eye-space z <= near_z are near-plane tets.
+    near_z: f32,
+    forward: vec3<f32>,
+    // Slice k lies at distance t_first + k dz from the eye.
+    t_first: f32,
+    // The eye, relative to the mesh origin (as the positions are).
+    eye: vec3<f32>,
+    dz: f32,
+    // Frustum half-slopes (x, y).
+    slope: vec2<f32>,
+    // Slices across the mesh.
+    slices: u32,
+    per_shell: u32,
+    shells: u32,
+    tet_count: u32,
+    // 1: frustum culling on.
+    frustum: u32,
+    // Entries `ids` holds; the scatter writes no further.
+    capacity: u32,
+}
+
+@group(0) @binding(0) var<uniform> bin: Bin;
+@group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> tets: array<vec4<u32>>;
+// Bit t: tet t maps to zero extinction (transfer-function culling).
+@group(0) @binding(3) var<storage, read> transparent: array<u32>;
+// Per bucket (2 shell + near): its count, then (after scan) its scatter cursor.
+@group(0) @binding(4) var<storage, read_write> cursors: array<atomic<u32>>;
+// Per bucket its first entry in `ids`, then the total.
+@group(0) @binding(5) var<storage, read_write> offsets: array<u32>;
+// Per shell: min x / z, min y / z, max x / z, max y / z as order-preserving integers.
+@group(0) @binding(6) var<storage, read_write> rects: array<atomic<i32>>;
+// Tets culled, transparent, between slices, near-plane.
+@group(0) @binding(7) var<storage, read_write> stats: array<atomic<u32>>;
+@group(0) @binding(8) var<storage, read_write> ids: array<u32>;
+// Per tet, from count to scatter: its first shell (bit 31: near-plane tet; NOT_DRAWN: none)
+// and its last.
+@group(0) @binding(9) var<storage, read_write> spans: array<vec2<u32>>;
+
+const CULLED: u32 = 0u;
+const TRANSPARENT: u32 = 1u;
+const NO_SAMPLE: u32 = 2u;
+const DRAWN: u32 = 3u;
+const NEAR: u32 = 3u;
+const NOT_DRAWN: u32 = 0xffffffffu;
+const NEAR_BIT: u32 = 0x80000000u;
+// The CPU rule's widening of slice ranges, in slices.
+const SLICE_MARGIN: f32 = 1e-3;
+
+struct TetShells {
+    kind: u32,
+    first: u32,
+    last: u32,
+    near: bool,
+    // min x, min y, max x, max y of x / z, y / z (the whole plane for near-plane tets).
+    rect: vec4<f32>,
+}
+
+fn to_eye(p: vec3<f32>) -> vec3<f32> {
+    let q = p - bin.eye;
+    return vec3<f32>(dot(bin.right, q), dot(bin.up, q), dot(bin.forward, q));
+}
+
+// One bit per frustum plane the point is outside of by more than the margin.
+fn outcode(q: vec3<f32>) -> u32 {
+    let m = bin.margin;
+    let sx = bin.slope.x * q.z;
+    let sy = bin.slope.y * q.z;
+    return select(0u, 1u, q.x - sx > m) | select(0u, 2u, q.x + sx < -m)
+        | select(0u, 4u, q.y - sy > m) | select(0u, 8u, q.y + sy < -m)
+        | select(0u, 16u, q.z < -m);
+}
+
+fn is_transparent(t: u32) -> bool {
+    let w = t >> 5u;
+    return w < arrayLength(&transparent) && ((transparent[w] >> (t & 31u)) & 1u) != 0u;
+}
+
+fn classify(t: u32) -> TetShells {
+    var out: TetShells;
+    let idx = tets[t];
+    let p = array<vec3<f32>, 4>(
+        to_eye(positions[idx.x].xyz),
+        to_eye(positions[idx.y].xyz),
+        to_eye(positions[idx.z].xyz),
+        to_eye(positions[idx.w].xyz),
+    );
+    let codes = outcode(p[0]) & outcode(p[1]) & outcode(p[2]) & outcode(p[3]);
+    if bin.frustum != 0u && codes != 0u {
+        out.kind = CULLED;
+        return out;
+    }
+    if is_transparent(t) {
+        out.kind = TRANSPARENT;
+        return out;
+    }
+    // Distance range: to the corners' bounding box, to the farthest corner.
+    let lo = min(min(p[0], p[1]), min(p[2], p[3]));
+    let hi = max(max(p[0], p[1]), max(p[2], p[3]));
+    let t_min = length(clamp(vec3<f32>(0.0), lo, hi)) - bin.margin;
+    let t_max = max(max(length(p[0]), length(p[1])), max(length(p[2]), length(p[3]))) + bin.margin;
+    let k_lo = max(ceil((t_min - bin.t_first) / bin.dz - SLICE_MARGIN), 0.0);
+    let k_hi = min(floor((t_max - bin.t_first) / bin.dz + SLICE_MARGIN), f32(bin.slices) - 1.0);
+    if !(k_lo <= k_hi) {
+        out.kind = NO_SAMPLE;
+        return out;
+    }
+    out.kind = DRAWN;
+    out.first = u32(k_lo) / bin.per_shell;
+    out.last = min(u32(k_hi) / bin.per_shell, bin.shells - 1u);
+    out.near = min(min(p[0].z, p[1].z), min(p[2].z, p[3].z)) <= bin.near_z;
+    if out.near {
+        // The largest f32 for infinity (the CPU reads it back as infinity).
+        let big = 3.4028235e38;
+        out.rect = vec4<f32>(-big, -big, big, big);
+    } else {
+        var r = vec4<f32>(p[0].xy / p[0].z, p[0].xy / p[0].z);
+        for (var i = 1; i < 4; i++) {
+            let s = p[i].xy / p[i].z;
+            r = vec4<f32>(min(r.xy, s), max(r.zw, s));
+        }
+        out.rect = r;
+    }
+    return out;
+}
+
+// An integer that orders as the float `f` does (for atomic min and max).
+fn ordered(f: f32) -> i32 {
+    let i = bitcast<i32>(f);
+    return select(i, i ^ 0x7fffffff, i < 0);
+}
+
+fn grow_min(i: u32, v: i32) {
+    if v < atomicLoad(&rects[i]) {
+        atomicMin(&rects[i], v);
+    }
+}
+
+fn grow_max(i: u32, v: i32) {
+    if v > atomicLoad(&rects[i]) {
+        atomicMax(&rects[i], v);
+    }
+}
+
+fn tet_index(wid: vec3<u32>, groups: vec3<u32>, lid: u32) -> u32 {
+    return (wid.y * groups.x + wid.x) * 64u + lid;
+}
+
+@compute @workgroup_size(64)
+fn count(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let t = tet_index(wid, groups, lid);
+    if t >= bin.tet_count {
+        return;
+    }
+    let c = classify(t);
+    if c.kind != DRAWN {
+        spans[t] = vec2<u32>(NOT_DRAWN, 0u);
+        atomicAdd(&stats[c.kind], 1u);
+        return;
+    }
+    spans[t] = vec2<u32>(c.first | select(0u, NEAR_BIT, c.near), c.last);
+    if c.near {
+        atomicAdd(&stats[NEAR], 1u);
+    }
+    for (var s = c.first; s <= c.last; s++) {
+        atomicAdd(&cursors[2u * s + u32(c.near)], 1u);
+        grow_min(4u * s, ordered(c.rect.x));
+        grow_min(4u * s + 1u, ordered(c.rect.y));
+        grow_max(4u * s + 2u, ordered(c.rect.z));
+        grow_max(4u * s + 3u, ordered(c.rect.w));
+    }
+}
+
+const SCAN: u32 = 256u;
+var<workgroup> sums: array<u32, SCAN>;
+
+// One workgroup: each thread owns a run of buckets, the runs' sums are scanned in shared
+// memory, then each thread writes its buckets' offsets and cursors.
+@compute @workgroup_size(256)
+fn scan(@builtin(local_invocation_index) lid: u32) {
+    let buckets = 2u * bin.shells;
+    let per = (buckets + SCAN - 1u) / SCAN;
+    let start = min(lid * per, buckets);
+    let end = min(start + per, buckets);
+    var own = 0u;
+    for (var b = start; b < end; b++) {
+        own += atomicLoad(&cursors[b]);
+    }
+    sums[lid] = own;
+    workgroupBarrier();
+    for (var step = 1u; step < SCAN; step <<= 1u) {
+        let add = select(0u, sums[lid - step], lid >= step);
+        workgroupBarrier();
+        sums[lid] += add;
+        workgroupBarrier();
+    }
+    var at = sums[lid] - own;
+    for (var b = start; b < end; b++) {
+        let c = atomicLoad(&cursors[b]);
+        offsets[b] = at;
+        atomicStore(&cursors[b], at);
+        at += c;
+    }
+    if lid == SCAN - 1u {
+        offsets[buckets] = sums[lid];
+    }
+}
+
+@compute @workgroup_size(64)
+fn scatter(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let t = tet_index(wid, groups, lid);
+    if t >= bin.tet_count {
+        return;
+    }
+    let span = spans[t];
+    if span.x == NOT_DRAWN {
+        return;
+    }
+    let near = u32((span.x & NEAR_BIT) != 0u);
+    for (var s = span.x & ~NEAR_BIT; s <= span.y; s++) {
+        let k = atomicAdd(&cursors[2u * s + near], 1u);
+        if k < bin.capacity {
+            ids[k] = t;
+        }
+    }
+}
