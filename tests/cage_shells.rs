@@ -8,7 +8,9 @@ mod common;
 use std::sync::{Arc, OnceLock};
 
 use glam::DVec3;
-use tetvr::gpu::{AdapterChoice, GpuContext, Sampler, ShellSettings, ShellsRenderer, Skips};
+use tetvr::gpu::{
+    AdapterChoice, BinningMode, GpuContext, Sampler, ShellSettings, ShellsRenderer, Skips,
+};
 use tetvr::texture::{CageOptions, DEFAULT_TEXCOORDS, TexturedReference, Volume, cage, texcoords};
 use tetvr::tf::ControlPoint;
 use tetvr::{Camera, Image, Renderer, TetMesh, TransferFunction, View};
@@ -185,7 +187,8 @@ fn textured_shells_in_record_chunks_draw_the_same_picture() {
 /// texels its samples can read), not its vertices' values: with a TF transparent below 70% of
 /// the range, the tets away from the big blob's peak are culled (48 of 144) and the picture is
 /// the one without culling, bit for bit (the ranges are conservative). Culling by the cage's
-/// vertex values instead drops 120 tets and most of the blobs (tried: this test fails).
+/// vertex values instead drops 120 tets and most of the blobs (tried: this test fails). The
+/// GPU binning culls the same way.
 #[test]
 fn tf_culling_of_a_textured_cage_keeps_the_picture() {
     let (volume, mesh) = blob_cage();
@@ -221,6 +224,17 @@ fn tf_culling_of_a_textured_cage_keeps_the_picture() {
         assert!(with.image.pixels.iter().any(|p| p[3] > 0.1));
         let m = with.image.compare(&without.image).unwrap();
         assert_eq!(m.max_abs, 0.0, "{sampler:?}: {m}");
+        // The GPU binning culls from the same volume ranges (uploaded as its transparency
+        // mask): the same picture to rounding (as tests/shells_binning.rs: 1e-5; measured
+        // bit-identical).
+        let gpu_binned = ShellSettings {
+            binning: BinningMode::Gpu,
+            ..settings(sampler)
+        };
+        let mut gpu = textured_shells(ctx(), &mesh, &volume, gpu_binned);
+        let on_gpu = gpu.render(&camera, &tf).unwrap();
+        let m = on_gpu.image.compare(&with.image).unwrap();
+        assert!(m.max_abs <= 1e-5, "{sampler:?}, GPU binning: {m}");
     }
 }
 
