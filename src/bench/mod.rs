@@ -2,7 +2,10 @@
 //!
 //! - **Scenes** ([`catalogue`]): the real meshes of `../shared/data`, generated grids from 10k
 //!   to 10M tets, a non-convex box with a hole, and a deforming mesh; each with its views
-//!   ([`ViewKind`]: outside, grazing, eye inside, zoomed, side).
+//!   ([`ViewKind`]: outside, grazing, eye inside, zoomed, side). On request
+//!   ([`ON_REQUEST_SCENES`]): 35M tets, and the MNI brain as a cage textured with the volume
+//!   and as the volume's 11.7M tets, static and bent (issue 12; a textured scene runs in the
+//!   [`TEXTURED_MODES`] only, against the [`TexturedReference`]).
 //! - **Configurations** ([`configurations`]): a mode name, a setting label and the mode's
 //!   [`ModeSettings`] for a scene, which build its [`Renderer`] as every front end does. A new
 //!   mode or setting joins the bench by adding one entry there.
