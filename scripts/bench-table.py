@@ -11,7 +11,11 @@ Each table sits between two markers that say where its figures come from:
 One row per scene (and view, where `view=` is not given) in the CSVs' order, one column per
 `mode:setting` of `cols` (separated by `|`), each cell "median ms, PSNR dB" of that bench row,
 then, with `bytes=mode:setting`, that row's GPU bytes per tet (its `bytes_per_tet` column where
-the mode reports one, else GPU memory over tets). A caption line under the table names the adapter,
+the mode reports one, else GPU memory over tets). A column's setting `*` takes the mode's row of
+any setting (the textured cage's reference is not "exact f64"). With `mb=mode:setting`, that
+row's GPU memory in MB (10^6 bytes, textures included); with `deform=mode:setting`, that row's
+`deform` plus `update` stages (a deforming scene's positions computed and uploaded each frame;
+"–" for a static scene). A caption line under the table names the adapter,
 machine, date, runs and image sizes, all read from the CSVs. Fails when a CSV is missing or a
 column matches no row at all; a scene without a row for a column shows "–".
 
@@ -64,6 +68,27 @@ def bytes_per_tet(row, tets):
     return f"{int(row['gpu_bytes']) / int(tets):.0f}" if row["gpu_bytes"] else "–"
 
 
+def mb(row):
+    return "–" if row is None or not row["gpu_bytes"] else f"{int(row['gpu_bytes']) / 1e6:.1f}"
+
+
+def deform_ms(row):
+    if row is None:
+        return "–"
+    stages = dict(kv.split("=") for kv in row["stages_ms"].split(";") if "=" in kv)
+    if "deform" not in stages:
+        return "–"
+    return f"{float(stages['deform']) + float(stages.get('update', 0)):.3g} ms"
+
+
+def find(rows, scene, view, mode, setting):
+    """The row of scene, view, mode and setting (any setting of the mode for `*`)."""
+    for r in rows:
+        if (r["scene"], r["view"], r["mode"]) == (scene, view, mode) and setting in ("*", r["setting"]):
+            return r
+    return None
+
+
 def caption(rows, spec):
     first = rows[0]
     runs = sorted({r["runs"] for r in rows})
@@ -108,20 +133,26 @@ def table(spec):
         key = (r["scene"], r["view"], r["tets"], f"{r['width']}x{r['height']}")
         if key not in keys:
             keys.append(key)
-    found = {(r["scene"], r["view"], r["mode"], r["setting"]): r for r in rows}
     for mode, setting in spec["cols"]:
-        if not any(r["mode"] == mode and r["setting"] == setting for r in rows):
+        if not any(r["mode"] == mode and setting in ("*", r["setting"]) for r in rows):
             sys.exit(f"bench-table: no row for {mode}:{setting} in {spec['csv']}")
-    per_tet_of = spec["bytes"].split(":", 1) if "bytes" in spec else None
+    of = lambda key: spec[key].split(":", 1) if key in spec else None
+    per_tet_of, mb_of, deform_of = of("bytes"), of("mb"), of("deform")
     head = ["scene", "tets", "size"] + ([] if view else ["view"])
-    head += [f"{m} {s}" for m, s in spec["cols"]]
+    head += [f"{m} {s}" if s != "*" else m for m, s in spec["cols"]]
     head += [f"{per_tet_of[0]} {per_tet_of[1]}: bytes per tet"] if per_tet_of else []
+    head += [f"{mb_of[0]} {mb_of[1]}: GPU MB"] if mb_of else []
+    head += [f"{deform_of[0]} {deform_of[1]}: deform + update"] if deform_of else []
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for scene, v, tets, size in keys:
         cells = [scene, f"{int(tets):,}", size] + ([] if view else [v])
-        cells += [cell(found.get((scene, v, m, s))) for m, s in spec["cols"]]
+        cells += [cell(find(rows, scene, v, m, s)) for m, s in spec["cols"]]
         if per_tet_of:
-            cells.append(bytes_per_tet(found.get((scene, v, *per_tet_of)), tets))
+            cells.append(bytes_per_tet(find(rows, scene, v, *per_tet_of), tets))
+        if mb_of:
+            cells.append(mb(find(rows, scene, v, *mb_of)))
+        if deform_of:
+            cells.append(deform_ms(find(rows, scene, v, *deform_of)))
         lines.append("| " + " | ".join(cells) + " |")
     lines += ["", caption(rows, spec)]
     return "\n".join(lines) + "\n"

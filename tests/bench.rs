@@ -254,3 +254,94 @@ fn without_an_adapter_the_bench_runs_the_cpu_modes_only_and_says_so() {
     let skipped = std::fs::read_to_string(out.join("skipped.csv")).unwrap();
     assert!(skipped.contains("no GPU adapter"), "{skipped}");
 }
+
+/// A small synthetic NIfTI volume (one Gaussian blob, peak 100, on 12 x 10 x 8 voxels) written
+/// into a data folder under the brain template's file name, which the `brain-*` scenes read.
+fn synthetic_brain_data() -> PathBuf {
+    let dir = out_dir("bench-brain-data");
+    std::fs::create_dir_all(&dir).unwrap();
+    let blob = |(x, y, z): (usize, usize, usize)| {
+        let d2 = (x as f32 - 5.0).powi(2) + (y as f32 - 4.5).powi(2) + (z as f32 - 3.5).powi(2);
+        100.0 * (-d2 / 8.0).exp()
+    };
+    let data = ndarray::Array3::from_shape_fn((12, 10, 8), blob);
+    let path = dir.join("mni_icbm152_t1_tal_nlin_sym_09a_converted.nii.gz");
+    let header = nifti::NiftiHeader {
+        pixdim: [1.0, 1.0, 1.25, 0.75, 1.0, 1.0, 1.0, 1.0],
+        ..Default::default()
+    };
+    nifti::writer::WriterOptions::new(&path)
+        .reference_header(&header)
+        .write_nifti(&data)
+        .unwrap();
+    dir
+}
+
+#[test]
+fn textured_cage_scene_renders_and_untextured_modes_are_skipped_with_the_reason() {
+    let out = out_dir("bench-brain-cage");
+    let data = synthetic_brain_data();
+    tetvr_bench(&[
+        "--scenes",
+        "brain-cage-bend",
+        "--modes",
+        "raycast,iso,reference",
+        "--size",
+        "24x24",
+        "--runs",
+        "1",
+        "--data",
+        data.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let csv = std::fs::read_to_string(out.join("bench.csv")).unwrap();
+    let col = |name: &str| CSV_COLUMNS.iter().position(|c| *c == name).unwrap();
+    let rows: Vec<Vec<String>> = csv.lines().skip(1).map(split_csv).collect();
+    let row = |mode: &str| {
+        (rows.iter().find(|r| r[col("mode")] == mode)).unwrap_or_else(|| panic!("{mode}: {csv}"))
+    };
+    let num = |r: &[String], name: &str| -> f64 { r[col(name)].parse().unwrap() };
+
+    // The GPU ray caster renders the bent cage: against the textured reference within the
+    // bound tests/cage.rs states for it (rmse 1e-4; measured there 2.7e-7), its GPU memory
+    // holding at least the 12 x 10 x 8 R32Float texture, and each frame's deformation and
+    // upload timed as stages.
+    let raycast = row("raycast");
+    assert!(num(raycast, "rmse") < 1e-4, "{raycast:?}");
+    assert!(
+        num(raycast, "gpu_bytes") >= (12 * 10 * 8 * 4) as f64,
+        "{raycast:?}"
+    );
+    let stages = &raycast[col("stages_ms")];
+    assert!(
+        stages.starts_with("deform=") && stages.contains(";update="),
+        "{stages}"
+    );
+    // The textured reference says its step (it is not exact).
+    assert_eq!(row("reference")[col("setting")], "f64, step 0.25 voxel");
+    // Rows: the ray caster's two entry methods and the reference; the segment integrators
+    // that a textured cage does not use are skipped (below).
+    let runs: Vec<(&str, &str)> = (rows.iter())
+        .map(|r| (r[col("mode")].as_str(), r[col("setting")].as_str()))
+        .collect();
+    assert_eq!(
+        runs,
+        [
+            ("raycast", "partial lists"),
+            ("raycast", "partial peel"),
+            ("reference", "f64, step 0.25 voxel")
+        ],
+        "{csv}"
+    );
+
+    // Iso does not read textures: skipped, with the reason and the modes that do.
+    let skipped = std::fs::read_to_string(out.join("skipped.csv")).unwrap();
+    assert!(
+        skipped.contains("brain-cage-bend,all,iso,flat,")
+            && skipped.contains("does not read volume textures")
+            && skipped.contains("shells, raycast, raycast-cpu, reference")
+            && skipped.contains("raycast,exact lists,a textured cage steps through the volume"),
+        "{skipped}"
+    );
+}

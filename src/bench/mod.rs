@@ -2,7 +2,10 @@
 //!
 //! - **Scenes** ([`catalogue`]): the real meshes of `../shared/data`, generated grids from 10k
 //!   to 10M tets, a non-convex box with a hole, and a deforming mesh; each with its views
-//!   ([`ViewKind`]: outside, grazing, eye inside, zoomed, side).
+//!   ([`ViewKind`]: outside, grazing, eye inside, zoomed, side). On request
+//!   ([`ON_REQUEST_SCENES`]): 35M tets, and the MNI brain as a cage textured with the volume
+//!   and as the volume's 11.7M tets, static and bent (issue 12; a textured scene runs in the
+//!   [`TEXTURED_MODES`] only, against the [`TexturedReference`]).
 //! - **Configurations** ([`configurations`]): a mode name, a setting label and the mode's
 //!   [`ModeSettings`] for a scene, which build its [`Renderer`] as every front end does. A new
 //!   mode or setting joins the bench by adding one entry there.
@@ -24,6 +27,7 @@ pub mod plot;
 use std::collections::BTreeMap;
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::Instant;
 
 use glam::DVec3;
@@ -31,6 +35,7 @@ use glam::DVec3;
 use tetvr::camera::{Camera, View};
 use tetvr::cpu::raycast::{self as cpu_raycast, CpuRaycastSettings};
 use tetvr::deform::Deformation;
+use tetvr::generate::volume::{VolumeToTets, nifti_to_tets};
 use tetvr::generate::{self, Field};
 use tetvr::gpu::raycast::{Entry, Segments};
 use tetvr::gpu::{
@@ -44,6 +49,10 @@ use tetvr::mode::{ModeSettings, ReferenceSettings};
 use tetvr::reference::ReferenceRenderer;
 use tetvr::reference::iso::{IsoReference, Shading};
 use tetvr::render::{RenderError, Renderer, Tuning};
+use tetvr::texture::reference::DEFAULT_STEP_FRACTION;
+use tetvr::texture::{
+    self, CageOptions, DEFAULT_TEXCOORDS, TexturedReference, Volume, cage, textured_renderer,
+};
 use tetvr::tf::file::load_tf;
 use tetvr::tf::{ControlPoint, TransferFunction};
 
@@ -157,13 +166,37 @@ pub enum Source {
     Grid(u64),
     /// A box with a square through-hole (non-convex), about this many tets.
     Hole(u64),
-    /// A data file rendered after [`Renderer::update_positions`] moved it by a deformation
-    /// (amplitude, phase), against the reference of the deformed mesh.
-    Deformed(&'static str, Deformation, f64, f64),
+    /// A scene rendered after [`Renderer::update_positions`] moved it by a deformation
+    /// (amplitude, phase), against the reference of the deformed mesh. Each timed frame
+    /// computes the positions and uploads them: the row's `deform` and `update` stages.
+    Deformed(Box<Source>, Deformation, f64, f64),
+    /// The cage of `tetvr generate cage VOLUME --tets N [--threshold T]` over a NIfTI volume of
+    /// the data folder, textured with that volume: it runs only in the [`TEXTURED_MODES`],
+    /// against the [`TexturedReference`] at its default step.
+    Cage(&'static str, u64, Option<f64>),
+    /// The tets of `tetvr generate nifti VOLUME --threshold T` of a NIfTI volume of the data
+    /// folder (a vertex per voxel, the cells where some voxel reaches `T`).
+    Nifti(&'static str, f64),
     /// A user's scene file: its mesh, array, transfer function and camera (one view,
     /// [`ViewKind::Scene`]) at its size; the iso configurations take its first isovalue.
     User(Box<tetvr::Scene>),
 }
+
+impl Source {
+    /// Whether the scene is a cage textured with a volume.
+    pub fn textured(&self) -> bool {
+        match self {
+            Self::Cage(..) => true,
+            Self::Deformed(inner, ..) => inner.textured(),
+            _ => false,
+        }
+    }
+}
+
+/// The modes that render a textured cage ([`tetvr::texture::textured_renderer`]); the bench
+/// skips the other modes on a textured scene, with the reason. A mode joins here when it reads
+/// volume textures (and, for iso, when [`truth_image`] has its textured truth).
+pub const TEXTURED_MODES: &[&str] = &["shells", "raycast", "raycast-cpu", "reference"];
 
 /// The transfer function of a scene, over its mesh's scalar range.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -183,12 +216,13 @@ pub enum Look {
 }
 
 impl Look {
-    /// This look's transfer function for `mesh`, unit distance 1/100 of its diagonal.
-    pub fn transfer_function(self, mesh: &TetMesh) -> Result<TransferFunction, String> {
-        let (lo, hi) = mesh
-            .active_array()
-            .and_then(|a| a.range())
-            .ok_or("the mesh has no scalar array")?;
+    /// This look's transfer function for `mesh` over the scalar range `(lo, hi)`, unit distance
+    /// 1/100 of its diagonal (the quantile looks read the tets' vertex scalars).
+    pub fn transfer_function(
+        self,
+        mesh: &TetMesh,
+        (lo, hi): (f64, f64),
+    ) -> Result<TransferFunction, String> {
         let d_u = mesh.diagonal() / 100.0;
         // The scalar that a fraction `q` of the tets' maxima stay below.
         let quantile = |q: f64| -> Result<f64, String> {
@@ -331,59 +365,127 @@ pub fn catalogue() -> Vec<SceneSpec> {
         spec("hole-100k", Source::Hole(100_000), &[Outside, Grazing]),
         spec(
             "bracket-twist",
-            Source::Deformed("kiefer_bracket_tet.vtk", Deformation::Twist, 0.4, 0.25),
+            Source::Deformed(
+                Box::new(Source::Data("kiefer_bracket_tet.vtk")),
+                Deformation::Twist,
+                0.4,
+                0.25,
+            ),
+            &[Outside],
+        ),
+        // Issue 12: the MNI brain as a 2,000-tet cage textured with the volume, and as the
+        // volume's 11.7M tets, each static and bent (`animate --deform bend --amplitude 0.3`
+        // at its full swing): run only when named (ON_REQUEST_SCENES).
+        spec("brain-cage", Source::Cage(BRAIN, 2000, None), &[Outside]),
+        spec(
+            "brain-cage-bend",
+            bent(Source::Cage(BRAIN, 2000, None)),
+            &[Outside],
+        ),
+        // The cage over the head only (`--threshold 10`): the empty voxels around it skipped.
+        spec(
+            "brain-cage-10",
+            Source::Cage(BRAIN, 2000, Some(10.0)),
+            &[Outside],
+        ),
+        spec("brain-tets", Source::Nifti(BRAIN, 10.0), &[Outside]),
+        spec(
+            "brain-tets-bend",
+            bent(Source::Nifti(BRAIN, 10.0)),
             &[Outside],
         ),
     ]
 }
 
+/// The MNI brain template of the data folder (197 x 233 x 189 voxels).
+pub const BRAIN: &str = "mni_icbm152_t1_tal_nlin_sym_09a_converted.nii.gz";
+
+/// `source` bent as `tetvr animate --deform bend --amplitude 0.3` at its full swing.
+fn bent(source: Source) -> Source {
+    Source::Deformed(Box::new(source), Deformation::Bend, 0.3, 0.25)
+}
+
 /// Scenes the full bench leaves out unless `--scenes` names them: their meshes and references
-/// need GPU-machine memory and time.
-pub const ON_REQUEST_SCENES: &[&str] = &["grid-35m"];
+/// need GPU-machine memory and time (the brain's 11.7M-tet reference takes minutes).
+pub const ON_REQUEST_SCENES: &[&str] = &[
+    "grid-35m",
+    "brain-cage",
+    "brain-cage-bend",
+    "brain-cage-10",
+    "brain-tets",
+    "brain-tets-bend",
+];
 
 /// The scenes of `tetvr bench --quick`.
 pub const QUICK_SCENES: &[&str] = &["lox", "grid-10k"];
+
+/// A textured scene's volume and its cage's texture coordinates (point array
+/// [`DEFAULT_TEXCOORDS`]).
+pub struct Texture {
+    pub volume: Arc<Volume>,
+    pub texcoords: Vec<DVec3>,
+}
+
+impl Texture {
+    /// The step of the textured reference: [`DEFAULT_STEP_FRACTION`] of the smallest voxel
+    /// spacing, as `render --mode reference --texture` steps.
+    pub fn reference_step(&self) -> f64 {
+        DEFAULT_STEP_FRACTION * self.volume.spacing().min_element()
+    }
+}
+
+/// How a deforming scene moves each frame: deformation, amplitude, phase.
+pub type Deforming = (Deformation, f64, f64);
 
 /// A loaded scene: the mesh renderers are built on, what each frame hands them, and the truth.
 pub struct Scene {
     pub name: String,
     /// The mesh as loaded (renderers are built on it).
     pub mesh: TetMesh,
-    /// For a deforming scene, the positions each frame passes to `update_positions`.
-    pub deformed: Option<Vec<DVec3>>,
+    /// For a deforming scene, how each frame moves the mesh ([`Self::deformed_positions`]).
+    pub deform: Option<Deforming>,
     /// The deformed mesh of a deforming scene (see [`Self::truth_mesh`]).
     deformed_mesh: Option<TetMesh>,
+    /// For a textured cage, its volume and texture coordinates.
+    pub texture: Option<Texture>,
     pub tf: TransferFunction,
     /// The isovalue of the iso configurations: the middle of the scalar range.
     pub isovalue: f64,
-    /// Content hash of `truth_mesh` (positions, tets, active scalars).
+    /// Content hash of `truth_mesh` (positions, tets, active scalars) and of the texture.
     pub hash: u64,
     pub views: Vec<(ViewKind, Camera)>,
 }
 
 impl Scene {
-    /// Loads or generates the mesh of `spec`, with its look's TF over its range and the
-    /// cameras of its views at `size` (a user's scene: its own TF, camera and size).
+    /// Loads or generates the mesh of `spec`, with its look's TF over its range (a textured
+    /// cage's: the volume's, as `render --texture` takes) and the cameras of its views at
+    /// `size` (a user's scene: its own TF, camera and size).
     pub fn load(spec: &SceneSpec, data: &Path, size: (u32, u32)) -> Result<Self, BenchError> {
         let scene_err = |message: String| BenchError::Scene {
             scene: spec.name.clone(),
             message,
         };
-        let (mesh, deformed) = load_mesh(spec, data)?;
-        let deformed_mesh = match &deformed {
-            Some(p) => {
+        let Loaded {
+            mesh,
+            deform,
+            texture,
+        } = load_mesh(spec, &spec.source, data)?;
+        let deformed_mesh = match deform {
+            Some((d, amplitude, phase)) => {
+                let (lo, hi) = mesh.bounds();
                 let mut m = mesh.clone();
-                m.set_positions(p.clone())
+                m.set_positions(d.apply(mesh.positions(), lo, hi, amplitude, phase))
                     .map_err(|e| scene_err(e.to_string()))?;
                 Some(m)
             }
             None => None,
         };
         let truth_mesh = deformed_mesh.as_ref().unwrap_or(&mesh);
-        let range = mesh
-            .active_array()
-            .and_then(|a| a.range())
-            .ok_or_else(|| scene_err("the mesh has no scalar array".into()))?;
+        let range = match &texture {
+            Some(t) => Some(t.volume.range()),
+            None => mesh.active_array().and_then(|a| a.range()),
+        }
+        .ok_or_else(|| scene_err("the mesh has no scalar array".into()))?;
         let mut isovalue = 0.5 * (range.0 + range.1);
         let (lo, hi) = truth_mesh.bounds();
         let (tf, views) = match &spec.source {
@@ -395,7 +497,10 @@ impl Scene {
                 (tf, vec![(ViewKind::Scene, camera)])
             }
             _ => {
-                let tf = spec.look.transfer_function(&mesh).map_err(scene_err)?;
+                let tf = spec
+                    .look
+                    .transfer_function(&mesh, range)
+                    .map_err(scene_err)?;
                 let views = (spec.views.iter())
                     .filter_map(|&v| Some((v, v.camera(lo, hi, size.0, size.1)?)))
                     .collect();
@@ -404,11 +509,12 @@ impl Scene {
         };
         Ok(Self {
             name: spec.name.clone(),
-            hash: mesh_hash(truth_mesh),
+            hash: mesh_hash(truth_mesh) ^ texture.as_ref().map_or(0, texture_hash),
             isovalue,
             mesh,
-            deformed,
+            deform,
             deformed_mesh,
+            texture,
             tf,
             views,
         })
@@ -419,64 +525,148 @@ impl Scene {
         self.deformed_mesh.as_ref().unwrap_or(&self.mesh)
     }
 
+    /// A deforming scene's positions for a frame, computed from the rest positions as each
+    /// frame of `tetvr animate` computes them; `None` for a static scene.
+    pub fn deformed_positions(&self) -> Option<Vec<DVec3>> {
+        let (d, amplitude, phase) = self.deform?;
+        let (lo, hi) = self.mesh.bounds();
+        Some(d.apply(self.mesh.positions(), lo, hi, amplitude, phase))
+    }
+
+    /// The setting label of `config`'s rows on this scene: the reference of a textured cage
+    /// says its step (in voxels of the smallest spacing), since it is not exact.
+    pub fn setting(&self, config: &Config) -> String {
+        match &self.texture {
+            Some(_) if config.mode == "reference" => {
+                format!("f64, step {DEFAULT_STEP_FRACTION} voxel")
+            }
+            _ => config.setting.clone(),
+        }
+    }
+
     /// The colour of the iso configurations' surface: the TF's colour at the isovalue.
     pub fn iso_color(&self) -> [f32; 3] {
         self.tf.eval(self.isovalue).color.map(|c| c as f32)
     }
+
+    /// The renderer of `config` for this scene: textured for a textured cage, with the volume
+    /// box-downsampled where it exceeds the adapter's 3D texture size (as `render --texture`
+    /// does; the error against the full volume's reference then shows it).
+    pub fn renderer(
+        &self,
+        config: &Config,
+        ctx: Option<&GpuContext>,
+    ) -> Result<Box<dyn Renderer>, RenderError> {
+        let settings = (config.settings)(self);
+        let Some(t) = &self.texture else {
+            return settings.build(ctx, &self.mesh);
+        };
+        let max = ctx.map_or(usize::MAX, |g| g.limits.max_texture_dimension_3d as usize);
+        let volume = if t.volume.dims().iter().all(|&d| d <= max) {
+            t.volume.clone()
+        } else {
+            Arc::new((*t.volume).clone().fit_within(max).0)
+        };
+        textured_renderer(&settings, ctx, &self.mesh, &volume, &t.texcoords)
+    }
 }
 
-/// The mesh of `spec`, and for a deforming scene the positions each frame moves it to. Data
+/// What [`load_mesh`] makes of a scene's source.
+struct Loaded {
+    mesh: TetMesh,
+    deform: Option<Deforming>,
+    texture: Option<Texture>,
+}
+
+/// The mesh of `source` (of `spec`), how a deforming scene moves and a cage's texture. Data
 /// files are looked for in `data`, then in the bundled `assets/` (of the source tree the
 /// binary was built from, so that `tetvr bench --quick` runs from any folder).
-fn load_mesh(spec: &SceneSpec, data: &Path) -> Result<(TetMesh, Option<Vec<DVec3>>), BenchError> {
+fn load_mesh(spec: &SceneSpec, source: &Source, data: &Path) -> Result<Loaded, BenchError> {
     let scene_err = |message: String| BenchError::Scene {
         scene: spec.name.clone(),
         message,
     };
-    let load_err = |source| BenchError::Load {
-        scene: spec.name.clone(),
-        source,
-    };
-    let file = |name: &str| -> Result<TetMesh, BenchError> {
+    let path = |name: &str| -> Result<PathBuf, BenchError> {
         let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets");
         let candidates = [data.join(name), assets.join(name)];
-        let path =
-            candidates
-                .iter()
-                .find(|p| p.exists())
-                .ok_or_else(|| BenchError::MissingData {
-                    scene: spec.name.clone(),
-                    path: candidates[0].display().to_string(),
-                })?;
-        io::load(path).map(|l| l.mesh).map_err(load_err)
+        (candidates.iter().find(|p| p.exists()).cloned()).ok_or_else(|| BenchError::MissingData {
+            scene: spec.name.clone(),
+            path: candidates[0].display().to_string(),
+        })
     };
     let generated =
         |r: Result<TetMesh, generate::GenerateError>| r.map_err(|e| scene_err(e.to_string()));
-    Ok(match &spec.source {
-        Source::Data(name) => (file(name)?, None),
-        Source::Grid(tets) => (
-            generated(generate::grid(
-                Field::Gaussians,
-                generate::cells_for_tet_count(*tets),
-                "gaussians",
-            ))?,
-            None,
-        ),
-        Source::Hole(tets) => (
-            generated(generate::shapes::box_with_hole(*tets, Field::Gaussians))?,
-            None,
-        ),
-        Source::Deformed(name, deformation, amplitude, phase) => {
-            let mesh = file(name)?;
-            let (lo, hi) = mesh.bounds();
-            let moved = deformation.apply(mesh.positions(), lo, hi, *amplitude, *phase);
-            (mesh, Some(moved))
+    let mesh = match source {
+        Source::Data(name) => {
+            let loaded = io::load(&path(name)?).map_err(|source| BenchError::Load {
+                scene: spec.name.clone(),
+                source,
+            });
+            loaded?.mesh
+        }
+        Source::Grid(tets) => generated(generate::grid(
+            Field::Gaussians,
+            generate::cells_for_tet_count(*tets),
+            "gaussians",
+        ))?,
+        Source::Hole(tets) => generated(generate::shapes::box_with_hole(*tets, Field::Gaussians))?,
+        Source::Deformed(inner, deformation, amplitude, phase) => {
+            let loaded = load_mesh(spec, inner, data)?;
+            let deform = Some((*deformation, *amplitude, *phase));
+            return Ok(Loaded { deform, ..loaded });
+        }
+        Source::Cage(name, tets, threshold) => {
+            let opts = CageOptions {
+                tets: *tets,
+                threshold: *threshold,
+            };
+            return textured_cage(path(name)?, &opts).map_err(scene_err);
+        }
+        Source::Nifti(name, threshold) => {
+            let opts = VolumeToTets {
+                downsample: 1,
+                threshold: Some(*threshold),
+            };
+            nifti_to_tets(path(name)?, &opts).map_err(|e| scene_err(e.to_string()))?
         }
         Source::User(user) => {
             let loaded = user.load_mesh(&io::ReadLimits::default());
-            (loaded.map_err(|e| scene_err(e.to_string()))?.mesh, None)
+            loaded.map_err(|e| scene_err(e.to_string()))?.mesh
         }
+    };
+    Ok(Loaded {
+        mesh,
+        deform: None,
+        texture: None,
     })
+}
+
+/// The cage of `tetvr generate cage VOLUME` with `opts` over the NIfTI volume at `path`,
+/// textured with it (the library calls that command makes).
+fn textured_cage(path: PathBuf, opts: &CageOptions) -> Result<Loaded, String> {
+    let volume = Volume::load(&path, 1).map_err(|e| e.to_string())?;
+    let mesh = cage(&volume, opts).map_err(|e| format!("{}: {e}", path.display()))?;
+    let texcoords = texture::texcoords(&mesh, DEFAULT_TEXCOORDS).map_err(|e| e.to_string())?;
+    let volume = Arc::new(volume);
+    Ok(Loaded {
+        mesh,
+        deform: None,
+        texture: Some(Texture { volume, texcoords }),
+    })
+}
+
+/// FNV-1a of a texture's volume (dimensions, placement, samples) and texture coordinates.
+fn texture_hash(t: &Texture) -> u64 {
+    let mut h = Fnv1a::default();
+    let v = &t.volume;
+    v.dims().iter().for_each(|&d| {
+        h.u64(d as u64);
+    });
+    for p in [v.origin(), v.spacing()].iter().chain(&t.texcoords) {
+        h.f64(p.x).f64(p.y).f64(p.z);
+    }
+    h.bytes(bytemuck::cast_slice(v.values()));
+    h.finish()
 }
 
 /// FNV-1a of a mesh's positions, tets and active scalars.
@@ -519,6 +709,8 @@ pub struct Config {
     pub single_run: bool,
     /// The scenes it runs on (by name prefix); empty: every scene.
     pub scenes: &'static [&'static str],
+    /// Why a textured cage would ignore this setting (it would repeat another row), if it does.
+    pub untextured_setting: Option<&'static str>,
     pub settings: SettingsFor,
 }
 
@@ -526,6 +718,20 @@ impl Config {
     /// Whether this configuration runs on the scene named `scene`.
     pub fn runs_on(&self, scene: &str) -> bool {
         self.scenes.is_empty() || self.scenes.iter().any(|p| scene.starts_with(p))
+    }
+
+    /// Why this configuration does not run on a textured cage: its mode does not read volume
+    /// textures ([`TEXTURED_MODES`]) or the cage ignores its setting; `None` when it runs.
+    pub fn untextured(&self) -> Option<String> {
+        if !TEXTURED_MODES.contains(&self.mode) {
+            return Some(format!(
+                "mode {} does not read volume textures yet (issue 12); a textured cage renders \
+                 in {}",
+                self.mode,
+                TEXTURED_MODES.join(", ")
+            ));
+        }
+        self.untextured_setting.map(str::to_string)
     }
 }
 
@@ -596,6 +802,7 @@ fn shells_with(
         gpu: true,
         single_run: false,
         scenes,
+        untextured_setting: None,
         settings: Box::new(move |_| ModeSettings::Shells(settings)),
     }
 }
@@ -611,6 +818,7 @@ fn iso(shading: Shading) -> Config {
         gpu: true,
         single_run: false,
         scenes: &[],
+        untextured_setting: None,
         settings: Box::new(move |scene| {
             ModeSettings::Iso(IsoSettings {
                 isovalues: vec![(scene.isovalue, scene.iso_color())],
@@ -629,6 +837,7 @@ fn reference() -> Config {
         gpu: false,
         single_run: true,
         scenes: &[],
+        untextured_setting: None,
         settings: Box::new(|_| ModeSettings::Reference(ReferenceSettings::default())),
     }
 }
@@ -655,6 +864,7 @@ fn cellproj(integrate: Integrate, table_size: u32) -> Config {
         gpu: true,
         single_run: false,
         scenes: &[],
+        untextured_setting: None,
         settings: Box::new(move |_| {
             ModeSettings::CellProj(CellProjSettings {
                 integrate,
@@ -683,6 +893,11 @@ fn raycast(segments: Segments, entry: Entry) -> Config {
         gpu: true,
         single_run: false,
         scenes: &[],
+        // A textured cage steps through the volume instead of integrating segments.
+        untextured_setting: (segments != Segments::Partial).then_some(
+            "a textured cage steps through the volume: the segment integrator is not used \
+             (the partial row measures it)",
+        ),
         settings: Box::new(move |_| {
             ModeSettings::Raycast(RaycastSettings {
                 segments,
@@ -886,6 +1101,10 @@ pub fn truth_image(
         scene: scene.name.clone(),
         source,
     };
+    if let Some(t) = &scene.texture {
+        key.str("textured").f64(t.reference_step());
+        return cache.get_or_render(key.finish(), || textured_truth(scene, t, camera, truth));
+    }
     cache.get_or_render(key.finish(), || {
         let r = ReferenceRenderer::new(scene.truth_mesh()).map_err(reference_err)?;
         match truth {
@@ -900,6 +1119,38 @@ pub fn truth_image(
             }
         }
     })
+}
+
+/// The truth of a textured cage: the [`TexturedReference`] of the cage as rendered, at
+/// [`Texture::reference_step`]. Iso is not among the [`TEXTURED_MODES`] yet, so its textured
+/// truth is not asked for; the error says where it joins.
+fn textured_truth(
+    scene: &Scene,
+    t: &Texture,
+    camera: &Camera,
+    truth: Truth,
+) -> Result<Image, BenchError> {
+    let reference_err = |source| BenchError::Reference {
+        scene: scene.name.clone(),
+        source,
+    };
+    if let Truth::Iso(_) = truth {
+        return Err(BenchError::Scene {
+            scene: scene.name.clone(),
+            message: "the bench has no isosurface truth of a textured cage: add it in \
+                      bench::textured_truth when iso joins TEXTURED_MODES"
+                .into(),
+        });
+    }
+    let step = Some(t.reference_step());
+    let mut r = TexturedReference::new(
+        scene.truth_mesh(),
+        t.texcoords.clone(),
+        t.volume.clone(),
+        step,
+    )
+    .map_err(reference_err)?;
+    Ok(r.render(camera, &scene.tf).map_err(reference_err)?.image)
 }
 
 /// Times `renderer` on `camera` (see the module docs) and compares its last frame with `truth`.
@@ -925,17 +1176,18 @@ pub fn measure(
     tune(renderer, scene, camera)?;
     for i in 0..warmup + runs {
         let start = Instant::now();
-        let mut update_ms = None;
-        if let Some(p) = &scene.deformed {
-            renderer.update_positions(p)?;
-            update_ms = Some(start.elapsed().as_secs_f64() * 1e3);
+        let mut moved = Vec::new();
+        if let Some(p) = scene.deformed_positions() {
+            let deformed = Instant::now();
+            moved.push(("deform", ms_since(start)));
+            renderer.update_positions(&p)?;
+            moved.push(("update", ms_since(deformed)));
         }
         let frame = renderer.render(camera, &scene.tf)?;
-        let ms = start.elapsed().as_secs_f64() * 1e3;
+        let ms = ms_since(start);
         if i >= warmup {
             frame_ms.push(ms);
-            let timed = update_ms.map(|u| ("update", u)).into_iter();
-            for (k, (name, t)) in timed
+            for (k, (name, t)) in (moved.into_iter())
                 .chain(frame.timings.stages.iter().copied())
                 .enumerate()
             {
@@ -964,7 +1216,7 @@ pub fn measure(
         width: camera.width,
         height: camera.height,
         mode: config.mode,
-        setting: config.setting.clone(),
+        setting: scene.setting(config),
         chosen: match renderer.tuning() {
             Some(Tuning::Chose(c)) => c,
             Some(Tuning::Measuring) => "still measuring".into(),
@@ -982,6 +1234,11 @@ pub fn measure(
     })
 }
 
+/// Milliseconds since `start`.
+fn ms_since(start: Instant) -> f64 {
+    start.elapsed().as_secs_f64() * 1e3
+}
+
 /// The most frames a tuned renderer gets to time its candidates before the measurement (it
 /// needs about 10).
 const MAX_TUNING_FRAMES: usize = 32;
@@ -993,8 +1250,8 @@ fn tune(renderer: &mut dyn Renderer, scene: &Scene, camera: &Camera) -> Result<(
         if renderer.tuning() != Some(Tuning::Measuring) {
             break;
         }
-        if let Some(p) = &scene.deformed {
-            renderer.update_positions(p)?;
+        if let Some(p) = scene.deformed_positions() {
+            renderer.update_positions(&p)?;
         }
         renderer.render(camera, &scene.tf)?;
     }
@@ -1058,7 +1315,14 @@ pub fn run(
             if !c.runs_on(&spec.name) {
                 continue;
             }
-            if c.gpu && ctx.is_none() {
+            let untextured = spec.source.textured().then(|| c.untextured()).flatten();
+            if let Some(reason) = untextured {
+                skip(&mut report, c, "all", &reason);
+                progress(
+                    &format!("{} {}: skipped", spec.name, c.mode),
+                    spec.views.len() as u64,
+                );
+            } else if c.gpu && ctx.is_none() {
                 skip(&mut report, c, "all", "no GPU adapter");
                 progress(
                     &format!("{} {}: skipped", spec.name, c.mode),
@@ -1087,7 +1351,7 @@ pub fn run(
                 progress(&what, scene.views.len() as u64);
                 continue;
             }
-            let mut renderer = match (config.settings)(&scene).build(ctx, &scene.mesh) {
+            let mut renderer = match scene.renderer(config, ctx) {
                 Ok(r) => {
                     gpu_built |= config.gpu;
                     r
