@@ -285,7 +285,7 @@ fn textured_cage_scene_renders_and_untextured_modes_are_skipped_with_the_reason(
         "--scenes",
         "brain-cage-bend",
         "--modes",
-        "raycast,iso,reference",
+        "raycast,iso,cellproj,reference",
         "--size",
         "24x24",
         "--runs",
@@ -318,16 +318,23 @@ fn textured_cage_scene_renders_and_untextured_modes_are_skipped_with_the_reason(
         stages.starts_with("deform=") && stages.contains(";update="),
         "{stages}"
     );
+    // Textured iso against the reference's first hits: tests/cage_iso.rs allows 1% of the hit
+    // pixels to differ (a silhouette pixel can differ by a whole colour), so rmse < 0.1 (measured
+    // 3.8e-7: every hit agrees).
+    let iso = row("iso");
+    assert!(num(iso, "rmse") < 0.1, "{iso:?}");
     // The textured reference says its step (it is not exact).
     assert_eq!(row("reference")[col("setting")], "f64, step 0.25 voxel");
-    // Rows: the ray caster's two entry methods and the reference; the segment integrators
-    // that a textured cage does not use are skipped (below).
+    // Rows: the ray caster's two entry methods, iso shaded by the texture's gradient and the
+    // reference; the segment integrators and the iso shading that a textured cage does not use
+    // are skipped (below).
     let runs: Vec<(&str, &str)> = (rows.iter())
         .map(|r| (r[col("mode")].as_str(), r[col("setting")].as_str()))
         .collect();
     assert_eq!(
         runs,
         [
+            ("iso", "smooth"),
             ("raycast", "partial lists"),
             ("raycast", "partial peel"),
             ("reference", "f64, step 0.25 voxel")
@@ -335,12 +342,13 @@ fn textured_cage_scene_renders_and_untextured_modes_are_skipped_with_the_reason(
         "{csv}"
     );
 
-    // Iso does not read textures: skipped, with the reason and the modes that do.
+    // Cellproj does not read textures: skipped, with the reason and the modes that do.
     let skipped = std::fs::read_to_string(out.join("skipped.csv")).unwrap();
     assert!(
-        skipped.contains("brain-cage-bend,all,iso,flat,")
+        skipped.contains("brain-cage-bend,all,cellproj,")
             && skipped.contains("does not read volume textures")
-            && skipped.contains("shells, raycast, raycast-cpu, reference")
+            && skipped.contains("shells, iso, raycast, raycast-cpu, reference")
+            && skipped.contains("iso,flat,a textured cage's isosurface is shaded")
             && skipped.contains("raycast,exact lists,a textured cage steps through the volume"),
         "{skipped}"
     );

@@ -196,7 +196,7 @@ impl Source {
 /// The modes that render a textured cage ([`tetvr::texture::textured_renderer`]); the bench
 /// skips the other modes on a textured scene, with the reason. A mode joins here when it reads
 /// volume textures (and, for iso, when [`truth_image`] has its textured truth).
-pub const TEXTURED_MODES: &[&str] = &["shells", "raycast", "raycast-cpu", "reference"];
+pub const TEXTURED_MODES: &[&str] = &["shells", "iso", "raycast", "raycast-cpu", "reference"];
 
 /// The transfer function of a scene, over its mesh's scalar range.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -818,7 +818,10 @@ fn iso(shading: Shading) -> Config {
         gpu: true,
         single_run: false,
         scenes: &[],
-        untextured_setting: None,
+        // Textured iso shades with the texture's gradient whatever `--shading` says.
+        untextured_setting: (shading == Shading::Flat).then_some(
+            "a textured cage's isosurface is shaded by the texture's gradient: the smooth row",
+        ),
         settings: Box::new(move |scene| {
             ModeSettings::Iso(IsoSettings {
                 isovalues: vec![(scene.isovalue, scene.iso_color())],
@@ -1122,8 +1125,8 @@ pub fn truth_image(
 }
 
 /// The truth of a textured cage: the [`TexturedReference`] of the cage as rendered, at
-/// [`Texture::reference_step`]. Iso is not among the [`TEXTURED_MODES`] yet, so its textured
-/// truth is not asked for; the error says where it joins.
+/// [`Texture::reference_step`]; for iso its first hits of the isovalue (bisected to 1e-10,
+/// shaded with the texture's gradient whatever the shading asked: textured iso has one).
 fn textured_truth(
     scene: &Scene,
     t: &Texture,
@@ -1134,14 +1137,6 @@ fn textured_truth(
         scene: scene.name.clone(),
         source,
     };
-    if let Truth::Iso(_) = truth {
-        return Err(BenchError::Scene {
-            scene: scene.name.clone(),
-            message: "the bench has no isosurface truth of a textured cage: add it in \
-                      bench::textured_truth when iso joins TEXTURED_MODES"
-                .into(),
-        });
-    }
     let step = Some(t.reference_step());
     let mut r = TexturedReference::new(
         scene.truth_mesh(),
@@ -1150,7 +1145,13 @@ fn textured_truth(
         step,
     )
     .map_err(reference_err)?;
-    Ok(r.render(camera, &scene.tf).map_err(reference_err)?.image)
+    match truth {
+        Truth::Volume => Ok(r.render(camera, &scene.tf).map_err(reference_err)?.image),
+        Truth::Iso(_) => Ok(r
+            .iso_surface(camera, &[(scene.isovalue, scene.iso_color())])
+            .map_err(reference_err)?
+            .color),
+    }
 }
 
 /// Times `renderer` on `camera` (see the module docs) and compares its last frame with `truth`.
