@@ -74,6 +74,43 @@ pub struct IsoImage {
     pub normal: Vec<[f32; 3]>,
 }
 
+impl IsoImage {
+    /// Every pixel of `camera` traced in parallel: `hit(dir)` gives the first hit along the
+    /// pixel's ray `dir` as its base colour, distance and unit normal, or `None` for a miss;
+    /// hits are shaded with [`shade`].
+    pub fn trace(
+        camera: &Camera,
+        hit: impl Fn(DVec3) -> Option<([f32; 3], f64, DVec3)> + Sync,
+    ) -> Self {
+        let (right, up, forward) = camera.basis();
+        let (w, h) = (camera.width as usize, camera.height as usize);
+        let pixels: Vec<([f32; 4], f32, [f32; 3])> = (0..w * h)
+            .into_par_iter()
+            .map(|i| {
+                let (x, y) = ((i % w) as u32, (i / w) as u32);
+                let dir = camera.ray_dir_in(right, up, forward, x, y);
+                match hit(dir) {
+                    Some((base, t, normal)) => (
+                        shade(base, normal, dir),
+                        t as f32,
+                        normal.as_vec3().to_array(),
+                    ),
+                    None => ([0.0; 4], f32::INFINITY, [0.0; 3]),
+                }
+            })
+            .collect();
+        let mut color = Image::new(camera.width, camera.height);
+        for (dst, src) in color.pixels.iter_mut().zip(&pixels) {
+            *dst = src.0;
+        }
+        Self {
+            color,
+            depth: pixels.iter().map(|p| p.1).collect(),
+            normal: pixels.iter().map(|p| p.2).collect(),
+        }
+    }
+}
+
 /// The gradient of the linear interpolant of scalars `s` over the tet with corners `p`, times
 /// six times its signed volume (no division, so it is finite for any finite tet), and that
 /// determinant.
@@ -245,34 +282,10 @@ impl<'a> IsoReference<'a> {
         colors: &[[f32; 3]],
     ) -> Result<IsoImage, RenderError> {
         camera.validate()?;
-        let (right, up, forward) = camera.basis();
-        let (w, h) = (camera.width as usize, camera.height as usize);
-        let pixels: Vec<([f32; 4], f32, [f32; 3])> = (0..w * h)
-            .into_par_iter()
-            .map(|i| {
-                let (x, y) = ((i % w) as u32, (i / w) as u32);
-                let dir = camera.ray_dir_in(right, up, forward, x, y);
-                match self.first_hit(camera.eye, dir) {
-                    Some(hit) => {
-                        let base = colors.get(hit.iso).copied().unwrap_or([1.0; 3]);
-                        (
-                            shade(base, hit.normal, dir),
-                            hit.t as f32,
-                            hit.normal.as_vec3().to_array(),
-                        )
-                    }
-                    None => ([0.0; 4], f32::INFINITY, [0.0; 3]),
-                }
-            })
-            .collect();
-        let mut color = Image::new(camera.width, camera.height);
-        for (dst, src) in color.pixels.iter_mut().zip(&pixels) {
-            *dst = src.0;
-        }
-        Ok(IsoImage {
-            color,
-            depth: pixels.iter().map(|p| p.1).collect(),
-            normal: pixels.iter().map(|p| p.2).collect(),
-        })
+        Ok(IsoImage::trace(camera, |dir| {
+            let hit = self.first_hit(camera.eye, dir)?;
+            let base = colors.get(hit.iso).copied().unwrap_or([1.0; 3]);
+            Some((base, hit.t, hit.normal))
+        }))
     }
 }

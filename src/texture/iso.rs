@@ -18,12 +18,10 @@
 //! vanishes the surface faces the viewer. Shading is iso mode's ([`shade`]).
 
 use glam::DVec3;
-use rayon::prelude::*;
 
 use super::reference::{TexcoordMap, TexturedReference};
 use crate::camera::Camera;
-use crate::image::Image;
-use crate::reference::iso::{IsoImage, shade};
+use crate::reference::iso::IsoImage;
 use crate::render::RenderError;
 
 /// Bisection stops when the bracket is below this many world units.
@@ -154,31 +152,9 @@ impl TexturedReference {
             )));
         }
         let values: Vec<f64> = isovalues.iter().map(|(v, _)| *v).collect();
-        let (right, up, forward) = camera.basis();
-        let (w, h) = (camera.width as usize, camera.height as usize);
-        let pixels: Vec<([f32; 4], f32, [f32; 3])> = (0..w * h)
-            .into_par_iter()
-            .map(|i| {
-                let (x, y) = ((i % w) as u32, (i / w) as u32);
-                let dir = camera.ray_dir_in(right, up, forward, x, y);
-                match self.first_iso_hit(camera.eye, dir, &values) {
-                    Some(hit) => (
-                        shade(isovalues[hit.iso].1, hit.normal, dir),
-                        hit.t as f32,
-                        hit.normal.as_vec3().to_array(),
-                    ),
-                    None => ([0.0; 4], f32::INFINITY, [0.0; 3]),
-                }
-            })
-            .collect();
-        let mut color = Image::new(camera.width, camera.height);
-        for (dst, src) in color.pixels.iter_mut().zip(&pixels) {
-            *dst = src.0;
-        }
-        Ok(IsoImage {
-            color,
-            depth: pixels.iter().map(|p| p.1).collect(),
-            normal: pixels.iter().map(|p| p.2).collect(),
-        })
+        Ok(IsoImage::trace(camera, |dir| {
+            let hit = self.first_iso_hit(camera.eye, dir, &values)?;
+            Some((isovalues[hit.iso].1, hit.t, hit.normal))
+        }))
     }
 }
