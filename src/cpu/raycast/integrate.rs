@@ -121,11 +121,14 @@ impl SegmentTf {
     fn below(&self, u: f32, at_too: bool) -> usize {
         if let Some(points) = self.few {
             let v = Vec4::splat(u);
-            let count = |p: Vec4| {
+            let mask = |p: Vec4| {
                 let at = if at_too { p.cmpeq(v).bitmask() } else { 0 };
-                (p.cmplt(v).bitmask() | at).count_ones()
+                p.cmplt(v).bitmask() | at
             };
-            return (count(points[0]) + count(points[1])) as usize;
+            // The points are sorted, so those counted are the first ones: the count is the
+            // mask's trailing ones (`count_ones` has no instruction on baseline x86-64).
+            let below = mask(points[0]) | mask(points[1]) << 4;
+            return (!below).trailing_zeros() as usize;
         }
         let b = ((u * BUCKETS as f32) as usize).min(BUCKETS - 1);
         let mut j = self.first[b] as usize;
