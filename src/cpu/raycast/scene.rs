@@ -14,14 +14,16 @@ use crate::mesh::topology::{FACES, NO_NEIGHBOR};
 /// Tiles are `TILE` x `TILE` pixels: the unit of parallel work and of entry binning.
 pub const TILE: u32 = 16;
 
-/// One tet as the traversal reads it (96 bytes, one fetch per step): its face planes
+/// One tet as the traversal reads it (112 bytes, one fetch per step): its face planes
 /// transposed, `n[axis]` and `w` holding that component of faces 0 to 3 (so a step crosses the
-/// ray with all four planes in a few vector operations), its linear scalar (gradient, value
-/// at the eye), and across each face the neighbour's face code (`4 * tet + face`).
+/// ray with all four planes in a few vector operations), the planes' lengths `|n|` (taken here
+/// once per frame rather than by a square root on every step), its linear scalar (gradient,
+/// value at the eye), and across each face the neighbour's face code (`4 * tet + face`).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Tet {
     pub n: [Vec4; 3],
     pub w: Vec4,
+    pub norms: Vec4,
     pub scalar: Vec4,
     pub next: [u32; 4],
 }
@@ -29,8 +31,11 @@ pub struct Tet {
 impl Tet {
     fn new(p: &TetPlanes, next: [u32; 4]) -> Self {
         let lane = |c: usize| Vec4::from_array(p.face.map(|q| q[c]));
+        let n = [lane(0), lane(1), lane(2)];
         Self {
-            n: [lane(0), lane(1), lane(2)],
+            // `|n|` of each face plane, as `Vec3::length`.
+            norms: (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt(),
+            n,
             w: lane(3),
             scalar: Vec4::from(p.scalar),
             next,
@@ -49,14 +54,10 @@ impl Tet {
         self.n[0] * d.x + self.n[1] * d.y + self.n[2] * d.z
     }
 
-    /// `|n|` of each face plane, as `Vec3::length`.
-    pub fn norms(&self) -> Vec4 {
-        (self.n[0] * self.n[0] + self.n[1] * self.n[1] + self.n[2] * self.n[2]).sqrt()
-    }
-
-    /// Whether the tet is thin ([`twin::planes`]: a constant scalar).
+    /// Whether the tet is thin ([`twin::planes`]: a constant scalar): its gradient's three
+    /// lanes equal to 0, tested at once (`Vec3`'s `==` branches on each).
     pub fn thin(&self) -> bool {
-        self.scalar.truncate() == Vec3::ZERO
+        self.scalar.cmpeq(Vec4::ZERO).bitmask() & 0b111 == 0b111
     }
 }
 

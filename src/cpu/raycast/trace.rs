@@ -215,11 +215,16 @@ const FAR: f32 = 3.0e38;
 /// `t_in`.
 fn exit_by_planes(here: &Tet, den: Vec4, entry: usize, t_in: f32) -> (usize, f32) {
     let others = LANES.cmpne(Vec4::splat(entry as f32));
-    let along = den.abs().cmple(twin::PARALLEL * here.norms());
+    let along = den.abs().cmple(twin::PARALLEL * here.norms);
     let t = -here.w / den;
     let ahead = others & den.cmpgt(Vec4::ZERO) & !along & t.cmplt(Vec4::splat(FAR));
     let t = Vec4::select(ahead, t, Vec4::splat(FAR));
-    let best = t.min_position();
+    // The first lane holding the least t, as `min_position` but without its branch per lane
+    // (mispredicted as the nearest face changes from step to step); no lane is NaN.
+    let best = t
+        .cmpeq(Vec4::splat(t.min_element()))
+        .bitmask()
+        .trailing_zeros() as usize;
     let t_best = t.to_array()[best];
     if t_best < FAR {
         return (best, t_in.max(t_best));
