@@ -7,17 +7,8 @@
 // scalar is linear along the ray, solves for the nearest isovalue crossing inside the tet
 // (t > 0), writes its distance as the depth (the depth test keeps the nearest surface over all
 // tets) and shades it with a headlight.
-// Appended to shared.wgsl. The CPU ground truth is reference::iso.
-
-// Per-frame isosurface constants; see gpu::gpu_data::IsoUniforms.
-struct Iso {
-    colors: array<vec4<f32>, 16>,
-    values: array<vec4<f32>, 4>,
-    count: u32,
-    smooth_shading: u32,
-    inv_depth_range: f32,
-    _pad0: u32,
-}
+// Appended to shared.wgsl and iso_shared.wgsl (`Iso`, `iso_value`, `headlight`). The CPU
+// ground truth is reference::iso.
 
 @group(0) @binding(1) var<storage, read> records: array<TetRecord>;
 // The selected tets' vertex indices, in instance order (also the assembly's tet list).
@@ -27,12 +18,6 @@ struct Iso {
 // Per-vertex world-space gradients for smooth shading (xyz; w unused).
 @group(0) @binding(4) var<storage, read> vertex_gradients: array<vec4<f32>>;
 @group(0) @binding(5) var<uniform> iso: Iso;
-
-// Headlight Blinn-Phong, the constants of reference::iso::shade.
-const AMBIENT: f32 = 0.15;
-const DIFFUSE: f32 = 0.75;
-const SPECULAR: f32 = 0.25;
-const SHININESS: f32 = 32.0;
 
 struct Varyings {
     @builtin(position) position: vec4<f32>,
@@ -105,10 +90,6 @@ fn vs_faces(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instanc
     );
 }
 
-fn iso_value(k: u32) -> f32 {
-    return iso.values[k / 4u][k % 4u];
-}
-
 @fragment
 fn fs_iso(in: Varyings) -> IsoOut {
     let d = pixel_ray(in.position.xy);
@@ -162,9 +143,7 @@ fn fs_iso(in: Varyings) -> IsoOut {
     }
     n = n / len;
     let ndv = min(abs(dot(n, d)), 1.0);
-    let base = iso.colors[best_k].rgb;
-    let c = clamp(base * (AMBIENT + DIFFUSE * ndv) + SPECULAR * pow(ndv, SHININESS), vec3<f32>(0.0),
-        vec3<f32>(1.0));
+    let c = headlight(iso.colors[best_k].rgb, ndv);
     var out: IsoOut;
     out.color = vec4<f32>(c, 1.0);
     out.geometry = vec4<f32>(normalize(to_world_vector(n)), best_t);

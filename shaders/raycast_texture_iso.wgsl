@@ -16,33 +16,18 @@
 // Jacobian J = d tc / dx (constant per tet, from the current vertices' planes, so a deformed
 // cage bends its normals): grad_x = J^T g_t = sum_f (q_f / height_f) (tc_f . g_t). Where that
 // vanishes the surface faces the viewer. Shading is iso mode's headlight Blinn-Phong
-// (iso_raster.wgsl, reference::iso::shade). Composed after raycast_texture_sample.wgsl, in
-// front of raycast_traverse.wgsl. CPU reference: texture::iso (the same search in f64).
-
-// Per-frame isosurface constants: gpu::gpu_data::IsoUniforms, as iso_raster.wgsl's `Iso`;
-// the isovalues normalized like the texels.
-struct Iso {
-    colors: array<vec4<f32>, 16>,
-    values: array<vec4<f32>, 4>,
-    count: u32,
-    smooth_shading: u32,
-    inv_depth_range: f32,
-    _pad0: u32,
-}
+// (iso_shared.wgsl's `headlight`, reference::iso::shade). Composed after
+// raycast_texture_sample.wgsl and iso_shared.wgsl, in front of raycast_traverse.wgsl. CPU
+// reference: texture::iso (the same search in f64).
 
 // Per pixel: the hit's unit world-space normal and its distance t (0: no hit, cleared before
 // the frame).
 @group(0) @binding(19) var<storage, read_write> geometry: array<vec4<f32>>;
+// The isovalues normalized like the texels.
 @group(0) @binding(20) var<uniform> iso: Iso;
 // Per tet the least and greatest texel its field reads (gpu::raycast::texture_iso::tet_ranges,
 // normalized): a tet whose range holds no isovalue has no crossing and is not searched.
 @group(0) @binding(21) var<storage, read> ranges: array<vec2<f32>>;
-
-// Headlight Blinn-Phong, the constants of reference::iso::shade.
-const AMBIENT: f32 = 0.15;
-const DIFFUSE: f32 = 0.75;
-const SPECULAR: f32 = 0.25;
-const SHININESS: f32 = 32.0;
 
 // Bisections of the piece holding a crossing (texture::iso::BISECTIONS).
 const BISECTIONS: u32 = 6u;
@@ -55,10 +40,6 @@ fn store_hit(pixel: u32) {
     if hit.w > 0.0 {
         geometry[pixel] = hit;
     }
-}
-
-fn iso_value(k: u32) -> f32 {
-    return iso.values[k / 4u][k % 4u];
 }
 
 // Whether some isovalue lies in the range r (ends included).
@@ -142,8 +123,7 @@ fn shade_hit(k: u32, grad: vec3<f32>, d: vec3<f32>, t: f32) -> Acc {
         n = grad / len;
     }
     let ndv = min(abs(dot(n, d)), 1.0);
-    let c = clamp(iso.colors[k].rgb * (AMBIENT + DIFFUSE * ndv) + SPECULAR * pow(ndv, SHININESS),
-        vec3<f32>(0.0), vec3<f32>(1.0));
+    let c = headlight(iso.colors[k].rgb, ndv);
     hit = vec4<f32>(normalize(view.right * n.x + view.up * n.y + view.forward * n.z), t);
     return Acc(c, 0.0);
 }

@@ -195,7 +195,7 @@ const _: () = assert!(size_of::<TfPoints>() == 32 * MAX_TF_POINTS + 16);
 /// refused).
 pub const MAX_ISOVALUES: usize = 16;
 
-/// Per-frame isosurface constants (WGSL `Iso` in `shaders/iso_raster.wgsl`, 336 bytes).
+/// Per-frame isosurface constants (WGSL `Iso` in `shaders/iso_shared.wgsl`, 336 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct IsoUniforms {

@@ -7,8 +7,10 @@
 //! prelude where a stage depends on a pipeline variant. A textured cage's stages (issue 12)
 //! add `texture_sample.wgsl` (trilinear reads of the volume, shared by the ray caster and
 //! shells) and, in shells, `shells_texture.wgsl` (and `shells_raster_texture.wgsl`'s varyings
-//! in place of `raster.wgsl`'s). [`registry`] lists every module and
-//! variant the renderers load; `tests/shaders.rs` parses and validates each with naga.
+//! in place of `raster.wgsl`'s). Both isosurface stages (iso mode's raster, a textured cage's
+//! isosurfaces) take `iso_shared.wgsl` (their constants and shading). [`registry`] lists every
+//! module and variant the renderers load; `tests/shaders.rs` parses and validates each with
+//! naga.
 
 /// Structs mirroring [`crate::gpu::gpu_data`], the view uniform binding, the pixel ray.
 pub const SHARED: &str = include_str!("../../shaders/shared.wgsl");
@@ -35,6 +37,9 @@ const SHELLS_BIN: &str = include_str!("../../shaders/shells_bin.wgsl");
 /// Declarations the volume raster stages share (shells, cellproj).
 pub(crate) const RASTER: &str = include_str!("../../shaders/raster.wgsl");
 const ISO_RASTER: &str = include_str!("../../shaders/iso_raster.wgsl");
+/// The isosurface constants, isovalue lookup and shading of both iso stages (`iso_raster`,
+/// the textured cage's `raycast_texture_iso`).
+const ISO_SHARED: &str = include_str!("../../shaders/iso_shared.wgsl");
 const ISO_GRADIENTS: &str = include_str!("../../shaders/iso_gradients.wgsl");
 const CELLPROJ_RASTER: &str = include_str!("../../shaders/cellproj_raster.wgsl");
 
@@ -116,7 +121,7 @@ pub fn raycast_stages() -> [(&'static str, String); 17] {
     let table = format!("{PSI_EXACT}\n{RAYCAST_TABLE}\n{TET_SEGMENT_LINEAR}\n{NO_HITS}");
     let sample = format!("{PSI_EXACT}\n{RAYCAST_TEXTURE_SAMPLE}\n{TEXTURE_SAMPLE}");
     let textured = format!("{sample}\n{RAYCAST_TEXTURE}\n{NO_HITS}");
-    let textured_iso = format!("{sample}\n{RAYCAST_TEXTURE_ISO}");
+    let textured_iso = format!("{sample}\n{ISO_SHARED}\n{RAYCAST_TEXTURE_ISO}");
     // Every traversal has integrate_segment.wgsl (its `Acc`); the integrator gives `segment`.
     let traverse = |name, entries: &str, integrator: &str| {
         let integrate = INTEGRATE_SEGMENT;
@@ -310,7 +315,7 @@ pub(crate) fn shells_mark() -> String {
 
 /// The iso raster stage (entry points `vs_faces`, `fs_iso`).
 pub fn iso_raster() -> String {
-    format!("{SHARED}\n{ISO_RASTER}")
+    format!("{SHARED}\n{ISO_SHARED}\n{ISO_RASTER}")
 }
 
 /// The iso smooth-shading gradient stage (standalone; compute entry point `main`).
