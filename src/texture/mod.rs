@@ -13,6 +13,7 @@
 
 pub mod cage;
 pub mod iso;
+pub(crate) mod ranges;
 pub mod reference;
 
 use std::path::Path;

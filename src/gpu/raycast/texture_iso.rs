@@ -11,7 +11,6 @@ use std::sync::Arc;
 
 use bytemuck::Zeroable;
 use glam::DVec3;
-use rayon::prelude::*;
 
 use crate::camera::Camera;
 use crate::gpu::GpuContext;
@@ -39,43 +38,16 @@ pub(super) struct TexturedIso {
 }
 
 /// Per tet of `cage` (vertices at `texcoords`), the least and greatest texel the trilinear
-/// field reads inside it, normalized as the texels (`(v - lo) / span`): over the texels of the
-/// box of its corners' texture coordinates, widened by one texel on every side (the eight
-/// texels around each point, and a margin for the GPU's f32 coordinates). Texture coordinates
-/// never change, so neither do the ranges when the cage deforms. A tet whose range holds no
-/// isovalue has all its samples on one side of each: skipping it changes no hit.
+/// field can read inside it ([`crate::texture::ranges::tet_ranges`]), normalized as the texels
+/// (`(v - lo) / span`). Texture coordinates never change, so neither do the ranges when the
+/// cage deforms. A tet whose range holds no isovalue has all its samples on one side of each:
+/// skipping it changes no hit.
 fn tet_ranges(cage: &TetMesh, texcoords: &[DVec3], volume: &Volume) -> Vec<[f32; 2]> {
     let (lo, hi) = volume.range();
     let span = if hi > lo { hi - lo } else { 1.0 };
-    let dims = volume.dims();
-    let values = volume.values();
-    let texels = |tc: f64, a: usize, round: fn(f64) -> f64, margin: f64| {
-        let i = round(tc * dims[a] as f64 - 0.5) + margin;
-        i.clamp(0.0, (dims[a] - 1) as f64) as usize
-    };
-    cage.tets()
-        .par_iter()
-        .map(|t| {
-            let tc = t.map(|v| texcoords[v as usize]);
-            let (a, b) = (
-                tc.iter().fold(tc[0], |m, c| m.min(*c)),
-                tc.iter().fold(tc[0], |m, c| m.max(*c)),
-            );
-            let from: [usize; 3] = std::array::from_fn(|k| texels(a[k], k, f64::floor, -1.0));
-            let to: [usize; 3] = std::array::from_fn(|k| texels(b[k], k, f64::ceil, 1.0));
-            let (mut least, mut most) = (f32::INFINITY, f32::NEG_INFINITY);
-            for z in from[2]..=to[2] {
-                for y in from[1]..=to[1] {
-                    let row = dims[0] * (y + dims[1] * z);
-                    for &v in &values[row + from[0]..=row + to[0]] {
-                        least = least.min(v);
-                        most = most.max(v);
-                    }
-                }
-            }
-            let norm = |v: f32| ((v as f64 - lo) / span) as f32;
-            [norm(least), norm(most)]
-        })
+    let norm = |v: f64| ((v - lo) / span) as f32;
+    (crate::texture::ranges::tet_ranges(volume, texcoords, cage.tets()).iter())
+        .map(|&(least, most)| [norm(least), norm(most)])
         .collect()
 }
 
