@@ -184,12 +184,17 @@ pub(crate) fn component_hint(components: usize) -> String {
 fn derived_name(name: &str, c: Component) -> String {
     match c {
         Component::Magnitude => format!("{name} magnitude"),
-        Component::Index(i) => match i {
-            0 => format!("{name}:x"),
-            1 => format!("{name}:y"),
-            2 => format!("{name}:z"),
-            _ => format!("{name}:{i}"),
-        },
+        Component::Index(i) => component_spec(name, i),
+    }
+}
+
+/// How `--array` spells component `i` of the array `name`: `NAME:x|y|z`, then `NAME:N`.
+pub(crate) fn component_spec(name: &str, i: usize) -> String {
+    match i {
+        0 => format!("{name}:x"),
+        1 => format!("{name}:y"),
+        2 => format!("{name}:z"),
+        _ => format!("{name}:{i}"),
     }
 }
 

@@ -3,6 +3,7 @@
 //! isovalues carried over to another array's range.
 
 use crate::mesh::TetMesh;
+use crate::mesh::arrays::component_spec;
 use crate::tf::{ControlPoint, TfError, TransferFunction};
 
 /// One array the selector offers.
@@ -52,12 +53,7 @@ pub fn array_choices(mesh: &TetMesh) -> Vec<ArrayChoice> {
 
 /// `name` and, for several components, `name:x`, `name:y`, `name:z`, `name:3`, ...
 fn with_components(name: &str, components: usize, cells: bool) -> Vec<(String, bool)> {
-    let one = |i: usize| match i {
-        0 => format!("{name}:x"),
-        1 => format!("{name}:y"),
-        2 => format!("{name}:z"),
-        _ => format!("{name}:{i}"),
-    };
+    let one = |i: usize| component_spec(name, i);
     let parts = (components > 1)
         .then_some(0..components)
         .into_iter()
