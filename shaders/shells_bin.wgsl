@@ -3,10 +3,15 @@
 // gpu::shells::binning (classify + sort_into_shells), whose rules it follows in f32:
 // - count: per tet, frustum cull, transfer-function cull (a bit per tet from the CPU), the
 //   conservative distance range from the eye, its slice range, its shells; one atomic count per
-//   (shell, near) bucket, the shell's screen rectangle grown atomically, the skip counters;
+//   (shell, near, record chunk) bucket, the shell's screen rectangle grown atomically, the skip
+//   counters;
 // - scan: one workgroup turns the bucket counts into offsets (and scatter cursors);
-// - scatter: per tet, its id into each of its buckets (as count left them in `spans`) at an
-//   atomic cursor.
+// - scatter: per tet, its chunk-local id into each of its buckets (as count left them in
+//   `spans`) at an atomic cursor.
+// Count and scatter run once per record chunk (`chunk`: its tets, spans and bucket), so a
+// shell's faces (or near-plane) list comes out grouped by chunk in chunk order, each chunk's
+// part a run of chunk-local ids that the samplers' pass for that chunk reads, as the CPU's
+// lists (tet ids ascending, made chunk-local on upload) are read.
 // f32 rounding is absorbed by `bin.margin` (world units) so that the GPU never drops a tet
 // the exact rule keeps: it culls only beyond the margin and widens distance ranges by it. The
 // order within a bucket is arbitrary; the samplers take the same samples in any order (MAX
@@ -31,19 +36,32 @@ struct Bin {
     slices: u32,
     per_shell: u32,
     shells: u32,
-    tet_count: u32,
+    // Record chunks: buckets per (shell, near).
+    chunks: u32,
     // 1: frustum culling on.
     frustum: u32,
     // Entries `ids` holds; the scatter writes no further.
     capacity: u32,
 }
 
+// The record chunk a count or scatter pass bins.
+struct Chunk {
+    // Its first tet (global id).
+    first: u32,
+    // Its tets.
+    count: u32,
+    // Its number, the last index of its buckets.
+    index: u32,
+    pad: u32,
+}
+
 @group(0) @binding(0) var<uniform> bin: Bin;
 @group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
+// The chunk's tets (chunk-local index).
 @group(0) @binding(2) var<storage, read> tets: array<vec4<u32>>;
-// Bit t: tet t maps to zero extinction (transfer-function culling).
+// Bit t: tet t (global id) maps to zero extinction (transfer-function culling).
 @group(0) @binding(3) var<storage, read> transparent: array<u32>;
-// Per bucket (2 shell + near): its count, then (after scan) its scatter cursor.
+// Per bucket ((2 shell + near) chunks + chunk): its count, then (after scan) its scatter cursor.
 @group(0) @binding(4) var<storage, read_write> cursors: array<atomic<u32>>;
 // Per bucket its first entry in `ids`, then the total.
 @group(0) @binding(5) var<storage, read_write> offsets: array<u32>;
@@ -51,10 +69,12 @@ struct Bin {
 @group(0) @binding(6) var<storage, read_write> rects: array<atomic<i32>>;
 // Tets culled, transparent, between slices, near-plane.
 @group(0) @binding(7) var<storage, read_write> stats: array<atomic<u32>>;
+// The active lists: chunk-local tet ids, bucket after bucket.
 @group(0) @binding(8) var<storage, read_write> ids: array<u32>;
-// Per tet, from count to scatter: its first shell (bit 31: near-plane tet; NOT_DRAWN: none)
-// and its last.
+// Per tet of the chunk (chunk-local index), from count to scatter: its first shell (bit 31:
+// near-plane tet; NOT_DRAWN: none) and its last.
 @group(0) @binding(9) var<storage, read_write> spans: array<vec2<u32>>;
+@group(0) @binding(10) var<uniform> chunk: Chunk;
 
 const CULLED: u32 = 0u;
 const TRANSPARENT: u32 = 1u;
@@ -95,6 +115,7 @@ fn is_transparent(t: u32) -> bool {
     return w < arrayLength(&transparent) && ((transparent[w] >> (t & 31u)) & 1u) != 0u;
 }
 
+// Tet `t` of the chunk (chunk-local index).
 fn classify(t: u32) -> TetShells {
     var out: TetShells;
     let idx = tets[t];
@@ -109,7 +130,7 @@ fn classify(t: u32) -> TetShells {
         out.kind = CULLED;
         return out;
     }
-    if is_transparent(t) {
+    if is_transparent(chunk.first + t) {
         out.kind = TRANSPARENT;
         return out;
     }
@@ -165,6 +186,11 @@ fn tet_index(wid: vec3<u32>, groups: vec3<u32>, lid: u32) -> u32 {
     return (wid.y * groups.x + wid.x) * 64u + lid;
 }
 
+// The bucket of shell `s`'s faces (or near-plane) list for the pass's chunk.
+fn bucket(s: u32, near: u32) -> u32 {
+    return (2u * s + near) * bin.chunks + chunk.index;
+}
+
 @compute @workgroup_size(64)
 fn count(
     @builtin(workgroup_id) wid: vec3<u32>,
@@ -172,7 +198,7 @@ fn count(
     @builtin(local_invocation_index) lid: u32,
 ) {
     let t = tet_index(wid, groups, lid);
-    if t >= bin.tet_count {
+    if t >= chunk.count {
         return;
     }
     let c = classify(t);
@@ -186,7 +212,7 @@ fn count(
         atomicAdd(&stats[NEAR], 1u);
     }
     for (var s = c.first; s <= c.last; s++) {
-        atomicAdd(&cursors[2u * s + u32(c.near)], 1u);
+        atomicAdd(&cursors[bucket(s, u32(c.near))], 1u);
         grow_min(4u * s, ordered(c.rect.x));
         grow_min(4u * s + 1u, ordered(c.rect.y));
         grow_max(4u * s + 2u, ordered(c.rect.z));
@@ -201,7 +227,7 @@ var<workgroup> sums: array<u32, SCAN>;
 // memory, then each thread writes its buckets' offsets and cursors.
 @compute @workgroup_size(256)
 fn scan(@builtin(local_invocation_index) lid: u32) {
-    let buckets = 2u * bin.shells;
+    let buckets = 2u * bin.shells * bin.chunks;
     let per = (buckets + SCAN - 1u) / SCAN;
     let start = min(lid * per, buckets);
     let end = min(start + per, buckets);
@@ -236,7 +262,7 @@ fn scatter(
     @builtin(local_invocation_index) lid: u32,
 ) {
     let t = tet_index(wid, groups, lid);
-    if t >= bin.tet_count {
+    if t >= chunk.count {
         return;
     }
     let span = spans[t];
@@ -245,7 +271,7 @@ fn scatter(
     }
     let near = u32((span.x & NEAR_BIT) != 0u);
     for (var s = span.x & ~NEAR_BIT; s <= span.y; s++) {
-        let k = atomicAdd(&cursors[2u * s + near], 1u);
+        let k = atomicAdd(&cursors[bucket(s, near)], 1u);
         if k < bin.capacity {
             ids[k] = t;
         }

@@ -213,9 +213,9 @@ pub enum BinningChoice {
     /// On the CPU, with adaptive slices per shell.
     #[default]
     Cpu,
-    /// On the GPU from the positions there (meshes of one storage binding of records).
+    /// On the GPU from the positions there, with fixed slices per shell.
     Gpu,
-    /// GPU from about a million tets (one binding of records), else CPU; with tuning, the
+    /// GPU from about a million tets, else CPU; with tuning, the
     /// faster one measured.
     Auto,
 }

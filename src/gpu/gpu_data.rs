@@ -115,14 +115,30 @@ pub struct BinUniforms {
     pub per_shell: u32,
     /// Shells across the mesh.
     pub shells: u32,
-    /// Tets to bin.
-    pub tet_count: u32,
+    /// Record chunks: buckets per (shell, near).
+    pub chunks: u32,
     /// 1: tets outside a frustum plane are culled.
     pub frustum: u32,
     /// Entries the active list holds.
     pub capacity: u32,
 }
 const _: () = assert!(size_of::<BinUniforms>() == 96);
+
+/// The record chunk one count or scatter pass of the GPU binning bins (WGSL `Chunk` in
+/// `shaders/shells_bin.wgsl`, uniform, 16 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct BinChunk {
+    /// Its first tet.
+    pub first: u32,
+    /// Its tets.
+    pub count: u32,
+    /// Its number.
+    pub index: u32,
+    /// Zero: pads the struct to the 16 bytes of a uniform binding.
+    pub _pad: u32,
+}
+const _: () = assert!(size_of::<BinChunk>() == 16);
 
 /// [`ShellUniforms::chunk_pass`] bit: the pass starts from the slices an earlier chunk pass of
 /// the shell stored (else from no sample).

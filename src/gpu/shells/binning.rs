@@ -101,6 +101,11 @@ pub(crate) struct Binning {
     pub no_sample: u64,
     /// Tets drawn as near-plane quads (counted once however many shells they span).
     pub near: u64,
+    /// Binned on the GPU (`indices` empty, the lists on the GPU only): per (shell, near,
+    /// record chunk) bucket its first entry in the lists, then the total, so that each
+    /// chunk's part of a list is found without its ids ([`super::raster::by_chunk`]). Empty
+    /// when binned on the CPU.
+    pub buckets: Vec<u32>,
 }
 
 /// Conservative distance range `[t_min, t_max]` from the eye (the eye-space origin) of the tet
@@ -257,6 +262,7 @@ pub(crate) fn sort_into_shells(bins: &[TetBin], n: u32, shells: u32) -> Binning 
         transparent: count(|b| *b == TetBin::Transparent),
         no_sample: count(|b| *b == TetBin::NoSample),
         near: count(|b| matches!(b, TetBin::Drawn { near: true, .. })),
+        buckets: Vec::new(),
     }
 }
 

@@ -25,6 +25,7 @@ use crate::image::Image;
 use crate::render::RenderError;
 use crate::tf::TransferFunction;
 
+use super::binning::Binning;
 use super::fine::FinePipelines;
 use super::raster::by_chunk;
 use super::tiles::{TileBuffers, TilePipelines};
@@ -81,7 +82,7 @@ impl ShellsRenderer {
         let chunk_tets = self.chunking.chunk as u32;
         let whole = |(s, r): &DrawnShell| shell_uniforms((*s, r), f.n, &f.plan);
         let chunks = self.chunking.ranges(self.mesh.tet_count() as u64).len();
-        let passes = chunk_passes(&f.drawn, &f.bin.indices, (chunk_tets, chunks), whole);
+        let passes = chunk_passes(&f.drawn, &f.bin, (chunk_tets, chunks), whole);
         self.upload_passes(&passes);
         let (mut stats, needed) = self.run_compute(f, tf, &passes)?;
         if let Some(n) = needed {
@@ -342,21 +343,20 @@ pub(super) struct ChunkPass {
 }
 
 /// The passes of the drawn shells, shell by shell: one per record chunk (`chunking`: tets per
-/// chunk, chunks) that holds some of the shell's tets (`ids`: the active list, global tet ids
-/// ascending within each range; not read for one chunk), in chunk order, the first starting from no sample, the last
-/// compositing; a shell with no tet has none. `whole` gives a shell's constants for all its
-/// tets.
+/// chunk, chunks) that holds some of the shell's tets (found in `bin`'s lists by
+/// [`by_chunk`]), in chunk order, the first starting from no sample, the last compositing; a
+/// shell with no tet has none. `whole` gives a shell's constants for all its tets.
 pub(super) fn chunk_passes(
     drawn: &[DrawnShell],
-    ids: &[u32],
+    bin: &Binning,
     chunking: (u32, usize),
     whole: impl Fn(&DrawnShell) -> ShellUniforms,
 ) -> Vec<ChunkPass> {
     let mut passes = Vec::new();
     for shell in drawn {
         let (whole, range) = (whole(shell), &shell.1);
-        let faces = by_chunk(ids, range.faces.clone(), chunking);
-        let near = by_chunk(ids, range.near.clone(), chunking);
+        let faces = by_chunk(bin, range.faces.clone(), chunking);
+        let near = by_chunk(bin, range.near.clone(), chunking);
         let mut chunks: Vec<usize> = faces.iter().chain(&near).map(|p| p.0).collect();
         chunks.sort_unstable();
         chunks.dedup();
@@ -392,7 +392,10 @@ mod tests {
         // Chunks of 10 tets. Shell 0: faces 1, 2, 15 and near 31 (chunks 0, 1, 3): three
         // passes, the first storing, the middle loading and storing, the last loading. Shell
         // 1: face 5 only, one pass of all in chunk 0. Shell 2: nothing, no pass.
-        let ids = [1, 2, 15, 31, 5];
+        let bin = Binning {
+            indices: vec![1, 2, 15, 31, 5],
+            ..Binning::default()
+        };
         let shell = |s: u32, faces, near| {
             let range = ShellRange {
                 faces,
@@ -410,7 +413,7 @@ mod tests {
             first_slice: 8 * s,
             ..Default::default()
         };
-        let passes = chunk_passes(&drawn, &ids, (10, 4), whole);
+        let passes = chunk_passes(&drawn, &bin, (10, 4), whole);
         let summary: Vec<_> = passes
             .iter()
             .map(|p| {

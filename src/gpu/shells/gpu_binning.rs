@@ -1,20 +1,26 @@
-//! Stage 1 on the GPU (`--binning gpu`): the tets counted into every shell's (shell, near)
-//! buckets, the bucket counts scanned into offsets by one workgroup, and the tet ids scattered
-//! into the active list in place (`shaders/shells_bin.wgsl`), from the positions already on the
-//! GPU, so a deforming mesh needs no CPU pass over its tets. The CPU reads back only the
-//! per-shell offsets, screen rectangles and skip counters (a few bytes per shell) to plan the
-//! draws. Its CPU twin is [`super::binning`]; the GPU's lists hold every tet the CPU's do (its
-//! f32 rules are widened by a margin, see the shader) and its order within a shell is arbitrary,
-//! which the samplers do not see (MAX blending, one tet per sample).
+//! Stage 1 on the GPU (`--binning gpu`): the tets counted into every shell's (shell, near,
+//! record chunk) buckets, the bucket counts scanned into offsets by one workgroup, and the
+//! chunk-local tet ids scattered into the active list in place (`shaders/shells_bin.wgsl`),
+//! from the positions already on the GPU, so a deforming mesh needs no CPU pass over its tets.
+//! The CPU reads back only the bucket offsets, screen rectangles and skip counters (a few
+//! bytes per shell and chunk) to plan the draws. Its CPU twin is [`super::binning`]; the GPU's
+//! lists hold every tet the CPU's do (its f32 rules are widened by a margin, see the shader)
+//! and its order within a bucket is arbitrary, which the samplers do not see (MAX blending,
+//! one tet per sample).
+//!
+//! Meshes whose records span several chunks (one storage binding each, `gpu/mesh.rs`) run the
+//! count and scatter passes once per chunk, each binding that chunk's tets: a shell's list
+//! comes out grouped by chunk in chunk order, as the CPU's (tet ids ascending) is, and the
+//! offsets read back ([`Binning::buckets`]) tell the samplers where each chunk's part lies
+//! ([`super::raster::by_chunk`]).
 //!
 //! The slices per shell are not profiled ([`super::adaptive`] needs every tet's slice range on
 //! the CPU): the fixed count, else the default. Early ray termination still skips finished
 //! tiles and shells but does not drop finished tets from later lists (that reads the lists on
-//! the CPU). Meshes of several record chunks are refused ([`BinningMode::Auto`] bins them on
-//! the CPU): their lists would have to be grouped by chunk (see [`super::raster::by_chunk`]).
+//! the CPU).
 
-use crate::gpu::gpu_data::BinUniforms;
-use crate::gpu::mesh::MeshData;
+use crate::gpu::gpu_data::{BinChunk, BinUniforms};
+use crate::gpu::mesh::{MeshData, TetArray};
 use crate::gpu::shaders;
 use crate::gpu::util::{
     bind_group_layout, buffer_entry, entry, map_read, pipeline_layout_for, settings_error,
@@ -37,6 +43,11 @@ pub(super) struct GpuBinner {
     scatter: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
     uniforms: wgpu::Buffer,
+    /// The record chunks, (first tet, tets) each.
+    chunks: Vec<(u64, u64)>,
+    /// Each chunk's [`BinChunk`], at the uniform offset alignment.
+    chunk_uniforms: wgpu::Buffer,
+    chunk_stride: u64,
     /// Buckets, offsets, rectangles, counters: grown with the frame's shells.
     cursors: wgpu::Buffer,
     offsets: wgpu::Buffer,
@@ -46,8 +57,8 @@ pub(super) struct GpuBinner {
     /// One bit per tet: transparent under the last transfer function uploaded.
     mask: wgpu::Buffer,
     /// 8 bytes per tet: its shells, from the count pass to the scatter pass (which then reads
-    /// 8 bytes a tet instead of its corners and indices, 80).
-    spans: wgpu::Buffer,
+    /// 8 bytes a tet instead of its corners and indices, 80), in the records' chunks.
+    spans: TetArray,
     /// The transfer function and scalars' version `mask` was built for (`None`: none yet, or
     /// all clear without transfer-function culling).
     mask_key: Option<Option<(TransferFunction, u64)>>,
@@ -68,13 +79,22 @@ fn storage(
 }
 
 impl GpuBinner {
-    pub(super) fn new(device: &wgpu::Device, tets: u64) -> Self {
+    /// The binner of a mesh of `tets` tets in record chunks `chunks` ((first, count) each),
+    /// with `spans` (8 bytes per tet, chunked as the records).
+    pub(super) fn new(
+        (device, queue, limits): (&wgpu::Device, &wgpu::Queue, &wgpu::Limits),
+        tets: u64,
+        chunks: Vec<(u64, u64)>,
+        spans: TetArray,
+    ) -> Self {
         let cs = wgpu::ShaderStages::COMPUTE;
         let ro = wgpu::BufferBindingType::Storage { read_only: true };
         let rw = wgpu::BufferBindingType::Storage { read_only: false };
-        let mut entries = vec![buffer_entry(0, cs, wgpu::BufferBindingType::Uniform)];
+        let uniform = wgpu::BufferBindingType::Uniform;
+        let mut entries = vec![buffer_entry(0, cs, uniform)];
         entries.extend([1, 2, 3].map(|b| buffer_entry(b, cs, ro)));
         entries.extend([4, 5, 6, 7, 8, 9].map(|b| buffer_entry(b, cs, rw)));
+        entries.push(buffer_entry(10, cs, uniform));
         let layout = bind_group_layout(device, "shells gpu binning", &entries);
         let pipeline_layout = pipeline_layout_for(device, &layout);
         let module = wgsl_module(device, "shells_bin", shaders::shells_bin());
@@ -89,12 +109,16 @@ impl GpuBinner {
             })
         };
         let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+        let (chunk_stride, chunk_uniforms) = chunk_uniforms((device, queue, limits), &chunks);
         Self {
             count: pipeline("count"),
             scan: pipeline("scan"),
             scatter: pipeline("scatter"),
             layout,
             uniforms: uniform_buffer(device, "shells bin uniforms", size_of::<BinUniforms>()),
+            chunks,
+            chunk_uniforms,
+            chunk_stride,
             cursors: storage(device, "shells bin cursors", 0, copy),
             offsets: storage(device, "shells bin offsets", 0, copy),
             rects: storage(device, "shells bin rects", 0, copy),
@@ -107,32 +131,30 @@ impl GpuBinner {
             }),
             mask: storage(device, "shells bin mask", tets.div_ceil(32) * 4, copy),
             mask_key: None,
-            spans: storage(
-                device,
-                "shells bin spans",
-                8 * tets,
-                wgpu::BufferUsages::empty(),
-            ),
+            spans,
         }
     }
 
     /// Bytes of its buffers.
     pub(super) fn size(&self) -> u64 {
-        [
+        let buffers = [
             &self.cursors,
             &self.offsets,
             &self.rects,
             &self.stats,
             &self.readback,
             &self.mask,
-            &self.spans,
-        ]
-        .iter()
-        .map(|b| b.size())
-        .sum()
+            &self.chunk_uniforms,
+        ];
+        buffers.iter().map(|b| b.size()).sum::<u64>() + self.spans.size()
     }
 
-    /// Grows the per-shell buffers for `shells` shells.
+    /// Buckets for `shells` shells: (shell, near, chunk).
+    fn buckets(&self, shells: u64) -> u64 {
+        2 * shells * self.chunks.len() as u64
+    }
+
+    /// Grows the per-bucket and per-shell buffers for `shells` shells.
     fn ensure(&mut self, device: &wgpu::Device, shells: u64) {
         let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
         let grow = |buf: &mut wgpu::Buffer, label, words: u64, usage| {
@@ -146,46 +168,56 @@ impl GpuBinner {
             }
         };
         let storage = copy | wgpu::BufferUsages::STORAGE;
-        grow(&mut self.cursors, "shells bin cursors", 2 * shells, storage);
+        let buckets = self.buckets(shells);
+        grow(&mut self.cursors, "shells bin cursors", buckets, storage);
         grow(
             &mut self.offsets,
             "shells bin offsets",
-            2 * shells + 1,
+            buckets + 1,
             storage,
         );
         grow(&mut self.rects, "shells bin rects", 4 * shells, storage);
         let read = wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST;
-        let words = readback_words(shells);
+        let words = buckets + 1 + 4 * shells + 4;
         grow(&mut self.readback, "shells bin readback", words, read);
     }
 }
 
-/// Words read back for `shells` shells: the offsets, the rectangles, the 4 counters.
-fn readback_words(shells: u64) -> u64 {
-    2 * shells + 1 + 4 * shells + 4
+/// Each chunk's [`BinChunk`] in one uniform buffer, at a stride the adapter accepts as a
+/// binding offset: (stride, buffer).
+fn chunk_uniforms(
+    (device, queue, limits): (&wgpu::Device, &wgpu::Queue, &wgpu::Limits),
+    chunks: &[(u64, u64)],
+) -> (u64, wgpu::Buffer) {
+    let size = size_of::<BinChunk>();
+    let stride = size.next_multiple_of(limits.min_uniform_buffer_offset_alignment as usize);
+    let mut data = vec![0u8; stride * chunks.len().max(1)];
+    for (c, (slot, &(first, count))) in data.chunks_mut(stride).zip(chunks).enumerate() {
+        let chunk = BinChunk {
+            first: first as u32,
+            count: count as u32,
+            index: c as u32,
+            _pad: 0,
+        };
+        slot[..size].copy_from_slice(bytemuck::bytes_of(&chunk));
+    }
+    let buffer = uniform_buffer(device, "shells bin chunks", data.len());
+    queue.write_buffer(&buffer, 0, &data);
+    (stride as u64, buffer)
 }
 
-/// Whether `mode` bins a mesh of `tets` tets on the GPU; an error for
-/// [`BinningMode::Gpu`] when its records take several chunks (of `chunk` tets).
-pub(super) fn picked(
-    mode: BinningMode,
-    tets: u64,
-    one_chunk: bool,
-    chunk: u64,
-) -> Result<bool, RenderError> {
+/// Whether `mode` bins a mesh of `tets` tets on the GPU.
+pub(super) fn picked(mode: BinningMode, tets: u64) -> bool {
     match mode {
-        BinningMode::Cpu => Ok(false),
-        BinningMode::Gpu if one_chunk => Ok(true),
-        BinningMode::Gpu => Err(settings_error(format!(
-            "--binning gpu needs the mesh's tet records in one storage binding (at most \
-             {chunk} tets on this adapter, this mesh has {tets}): use --binning cpu or auto"
-        ))),
-        BinningMode::Auto => Ok(one_chunk && tets >= AUTO_GPU_TETS as u64),
+        BinningMode::Cpu => false,
+        BinningMode::Gpu => true,
+        BinningMode::Auto => tets >= AUTO_GPU_TETS as u64,
     }
 }
 
 /// What one binning run read back.
 struct Readback {
+    /// Per (shell, near, chunk) bucket its first entry, then the total.
     offsets: Vec<u32>,
     rects: Vec<ScreenRect>,
     stats: [u32; 4],
@@ -220,7 +252,8 @@ impl ShellsRenderer {
             let r = self.run_binning(m, plan, n, shells)?;
             let total = r.offsets.last().copied().unwrap_or(0) as u64;
             if total <= self.active_capacity() {
-                return Ok((n, binning_of(&r, shells as usize)));
+                let chunks = self.chunking.ranges(tets).len();
+                return Ok((n, binning_of(r, shells as usize, chunks)));
             }
             if total > max_entries {
                 return Err(settings_error(format!(
@@ -295,13 +328,56 @@ impl ShellsRenderer {
         n: u32,
         shells: u64,
     ) -> Result<Readback, RenderError> {
+        let u = self.bin_uniforms(m, plan, n, shells);
         let binner = (self.binner.as_mut())
             .ok_or_else(|| settings_error("internal: GPU binning without its binner"))?;
         binner.ensure(&self.device, shells);
+        let binner = (self.binner.as_ref())
+            .ok_or_else(|| settings_error("internal: GPU binning without its binner"))?;
+        self.queue
+            .write_buffer(&binner.uniforms, 0, bytemuck::bytes_of(&u));
+        let sentinel: Vec<i32> = (0..4 * shells)
+            .map(|i| if i % 4 < 2 { i32::MAX } else { i32::MIN })
+            .collect();
+        self.queue
+            .write_buffer(&binner.rects, 0, bytemuck::cast_slice(&sentinel));
+        let groups = self.bin_groups(binner)?;
+        let mut enc = self.device.create_command_encoder(&Default::default());
+        enc.clear_buffer(&binner.cursors, 0, None);
+        enc.clear_buffer(&binner.stats, 0, None);
+        {
+            // Count every chunk, scan all buckets, scatter every chunk.
+            let sizes: Vec<_> = (binner.chunks.iter())
+                .map(|&(_, count)| self.tet_groups(count as u32))
+                .collect();
+            let per_chunk = |pass: &mut wgpu::ComputePass, pipeline| {
+                pass.set_pipeline(pipeline);
+                for (group, &(x, y)) in groups.iter().zip(&sizes) {
+                    pass.set_bind_group(0, group, &[]);
+                    pass.dispatch_workgroups(x, y, 1);
+                }
+            };
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            per_chunk(&mut pass, &binner.count);
+            pass.set_pipeline(&binner.scan);
+            pass.dispatch_workgroups(1, 1, 1);
+            per_chunk(&mut pass, &binner.scatter);
+        }
+        let words = [binner.buckets(shells) + 1, 4 * shells, 4];
+        let (b_off, b_rect) = (4 * words[0], 4 * words[1]);
+        enc.copy_buffer_to_buffer(&binner.offsets, 0, &binner.readback, 0, b_off);
+        enc.copy_buffer_to_buffer(&binner.rects, 0, &binner.readback, b_off, b_rect);
+        enc.copy_buffer_to_buffer(&binner.stats, 0, &binner.readback, b_off + b_rect, 16);
+        self.queue.submit([enc.finish()]);
+        read_back(&self.device, &binner.readback, words)
+    }
+
+    /// The binning constants of a frame with `n` slices per shell and `shells` shells.
+    fn bin_uniforms(&self, m: &MeshData, plan: &FramePlan, n: u32, shells: u64) -> BinUniforms {
         let f32x3 = |v: glam::DVec3| v.as_vec3().to_array();
         let [right, up, forward] = plan.view.basis;
         let dist = (m.origin - plan.view.eye).length();
-        let u = BinUniforms {
+        BinUniforms {
             right: f32x3(right),
             up: f32x3(up),
             forward: f32x3(forward),
@@ -315,54 +391,10 @@ impl ShellsRenderer {
             slices: plan.slices.min(u32::MAX as u64) as u32,
             per_shell: n,
             shells: shells as u32,
-            tet_count: m.tets.len() as u32,
+            chunks: self.chunking.ranges(m.tets.len() as u64).len() as u32,
             frustum: self.settings.skips.frustum as u32,
             capacity: self.active_capacity().min(u32::MAX as u64) as u32,
-        };
-        let binner = (self.binner.as_ref())
-            .ok_or_else(|| settings_error("internal: GPU binning without its binner"))?;
-        self.queue
-            .write_buffer(&binner.uniforms, 0, bytemuck::bytes_of(&u));
-        let sentinel: Vec<i32> = (0..4 * shells)
-            .map(|i| if i % 4 < 2 { i32::MAX } else { i32::MIN })
-            .collect();
-        self.queue
-            .write_buffer(&binner.rects, 0, bytemuck::cast_slice(&sentinel));
-        let group = self.bin_group(binner)?;
-        let mut enc = self.device.create_command_encoder(&Default::default());
-        enc.clear_buffer(&binner.cursors, 0, None);
-        enc.clear_buffer(&binner.stats, 0, None);
-        {
-            let mut pass = enc.begin_compute_pass(&Default::default());
-            pass.set_bind_group(0, &group, &[]);
-            let (x, y) = self.tet_groups(m.tets.len() as u32);
-            pass.set_pipeline(&binner.count);
-            pass.dispatch_workgroups(x, y, 1);
-            pass.set_pipeline(&binner.scan);
-            pass.dispatch_workgroups(1, 1, 1);
-            pass.set_pipeline(&binner.scatter);
-            pass.dispatch_workgroups(x, y, 1);
         }
-        let (b_off, b_rect) = ((2 * shells + 1) * 4, 16 * shells);
-        enc.copy_buffer_to_buffer(&binner.offsets, 0, &binner.readback, 0, b_off);
-        enc.copy_buffer_to_buffer(&binner.rects, 0, &binner.readback, b_off, b_rect);
-        enc.copy_buffer_to_buffer(&binner.stats, 0, &binner.readback, b_off + b_rect, 16);
-        self.queue.submit([enc.finish()]);
-        map_read(&self.device, &binner.readback)?;
-        let words: Vec<u32> = {
-            let view = (binner.readback.get_mapped_range(..)).map_err(|e| {
-                settings_error(format!("mapping the GPU binning's readback failed: {e}"))
-            })?;
-            bytemuck::cast_slice(&view[..(b_off + b_rect + 16) as usize]).to_vec()
-        };
-        binner.readback.unmap();
-        let (offsets, rest) = words.split_at(2 * shells as usize + 1);
-        let (rects, stats) = rest.split_at(4 * shells as usize);
-        Ok(Readback {
-            offsets: offsets.to_vec(),
-            rects: rects.chunks(4).map(read_rect).collect(),
-            stats: [stats[0], stats[1], stats[2], stats[3]],
-        })
     }
 
     /// Workgroups of [`GROUP`] tets for `tets` tets, across x then y (as the shader numbers
@@ -377,9 +409,9 @@ impl ShellsRenderer {
         }
     }
 
-    fn bin_group(&self, binner: &GpuBinner) -> Result<wgpu::BindGroup, RenderError> {
+    /// One bind group per record chunk: its tets, spans and [`BinChunk`].
+    fn bin_groups(&self, binner: &GpuBinner) -> Result<Vec<wgpu::BindGroup>, RenderError> {
         let tets = self.mesh.tets()?;
-        let count = self.mesh.tet_count() as u64;
         let max = 4 * self.max_active_entries();
         let ids = wgpu::BindGroupEntry {
             binding: 8,
@@ -389,23 +421,61 @@ impl ShellsRenderer {
                 size: wgpu::BufferSize::new(self.active_buf.size().min(max)),
             }),
         };
-        Ok(self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("shells gpu binning"),
-            layout: &binner.layout,
-            entries: &[
-                entry(0, &binner.uniforms),
-                entry(1, self.mesh.positions()),
-                tets.window(2, 0, count),
-                entry(3, &binner.mask),
-                entry(4, &binner.cursors),
-                entry(5, &binner.offsets),
-                entry(6, &binner.rects),
-                entry(7, &binner.stats),
-                ids,
-                entry(9, &binner.spans),
-            ],
-        }))
+        let group = |c: usize, (first, count): (u64, u64)| {
+            let chunk = wgpu::BindGroupEntry {
+                binding: 10,
+                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                    buffer: &binner.chunk_uniforms,
+                    offset: c as u64 * binner.chunk_stride,
+                    size: wgpu::BufferSize::new(size_of::<BinChunk>() as u64),
+                }),
+            };
+            self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("shells gpu binning"),
+                layout: &binner.layout,
+                entries: &[
+                    entry(0, &binner.uniforms),
+                    entry(1, self.mesh.positions()),
+                    tets.window(2, first, count),
+                    entry(3, &binner.mask),
+                    entry(4, &binner.cursors),
+                    entry(5, &binner.offsets),
+                    entry(6, &binner.rects),
+                    entry(7, &binner.stats),
+                    ids.clone(),
+                    binner.spans.window(9, first, count),
+                    chunk,
+                ],
+            })
+        };
+        Ok((binner.chunks.iter().enumerate())
+            .map(|(c, &range)| group(c, range))
+            .collect())
     }
+}
+
+/// The readback of a run: `words` of offsets, of rectangles and of counters.
+fn read_back(
+    device: &wgpu::Device,
+    readback: &wgpu::Buffer,
+    words: [u64; 3],
+) -> Result<Readback, RenderError> {
+    map_read(device, readback)?;
+    let all: Vec<u32> = {
+        let view = (readback.get_mapped_range(..)).map_err(|e| {
+            settings_error(format!("mapping the GPU binning's readback failed: {e}"))
+        })?;
+        let bytes = 4 * words.iter().sum::<u64>() as usize;
+        bytemuck::cast_slice(&view[..bytes]).to_vec()
+    };
+    readback.unmap();
+    let (offsets, rest) = all.split_at(words[0] as usize);
+    let (rects, stats) = rest.split_at(words[1] as usize);
+    Ok(Readback {
+        offsets: offsets.to_vec(),
+        rects: rects.chunks(4).map(read_rect).collect(),
+        stats: [stats[0], stats[1], stats[2], stats[3]],
+    })
 }
 
 /// A shell's rectangle read back as four order-preserving integers: the largest f32, which
@@ -427,21 +497,25 @@ fn read_rect(w: &[u32]) -> ScreenRect {
     [float(w[0]), float(w[1]), float(w[2]), float(w[3])]
 }
 
-/// The frame's [`Binning`] from a run's readback (no indices: they stay on the GPU).
-fn binning_of(r: &Readback, shells: usize) -> Binning {
+/// The frame's [`Binning`] from a run's readback over `chunks` record chunks (no indices:
+/// they stay on the GPU; the bucket offsets say where each chunk's part of a list lies).
+fn binning_of(r: Readback, shells: usize, chunks: usize) -> Binning {
+    let at = |s: usize, near: usize| r.offsets[(2 * s + near) * chunks];
+    let shells = (0..shells)
+        .map(|s| ShellRange {
+            faces: at(s, 0)..at(s, 1),
+            near: at(s, 1)..at(s + 1, 0),
+            screen: r.rects[s],
+        })
+        .collect();
     Binning {
         indices: Vec::new(),
-        shells: (0..shells)
-            .map(|s| ShellRange {
-                faces: r.offsets[2 * s]..r.offsets[2 * s + 1],
-                near: r.offsets[2 * s + 1]..r.offsets[2 * s + 2],
-                screen: r.rects[s],
-            })
-            .collect(),
+        shells,
         culled: r.stats[0] as u64,
         transparent: r.stats[1] as u64,
         no_sample: r.stats[2] as u64,
         near: r.stats[3] as u64,
+        buckets: r.offsets,
     }
 }
 
@@ -474,6 +548,24 @@ mod tests {
         map_read(&r.device, &read).expect("map");
         let ids = bytemuck::cast_slice(&read.get_mapped_range(..).expect("mapped")).to_vec();
         ids[..n as usize].to_vec()
+    }
+
+    /// The GPU's chunk-local `ids` as global tet ids: each bucket's chunk from
+    /// [`Binning::buckets`] (bucket `b` of chunk `b % chunks`, chunks of `chunk_tets`).
+    fn global_ids(bin: &Binning, ids: &[u32], (chunk_tets, chunks): (u32, usize)) -> Vec<u32> {
+        (bin.buckets.windows(2).enumerate())
+            .flat_map(|(b, w)| {
+                let first = (b % chunks) as u32 * chunk_tets;
+                ids[w[0] as usize..w[1] as usize].iter().map(move |&t| {
+                    assert!(
+                        t < chunk_tets,
+                        "entry {t} of chunk {} is not chunk-local",
+                        b % chunks
+                    );
+                    first + t
+                })
+            })
+            .collect()
     }
 
     /// Per shell, its tets (faces and near-plane lists together: the near flag is decided in
@@ -514,20 +606,41 @@ mod tests {
         ]
     }
 
-    /// The GPU's lists hold every tet of the CPU's, shell by shell, each once; the extras (f32
-    /// rounding widened by the margin, at shell and frustum boundaries) stay under 2% of the
-    /// CPU's entries (measured on lavapipe: 36 of 65,476 from the iso view, none from inside
-    /// or zoomed); the counters and rectangles agree. From the iso view at 512 samples the list
-    /// outgrows the first guess of one entry per tet, so the overflow re-run is exercised.
+    /// The same adapter and device as `ctx`, declared to bind at most 512 KiB per storage
+    /// buffer: the grid's 10,368 records (144 bytes each) then take 3 chunks, and its lists
+    /// (under 80,000 entries from every view) still fit one binding of 131,072.
+    fn chunked(ctx: &GpuContext) -> GpuContext {
+        GpuContext {
+            adapter: ctx.adapter.clone(),
+            device: ctx.device.clone(),
+            queue: ctx.queue.clone(),
+            info: ctx.info.clone(),
+            limits: wgpu::Limits {
+                max_storage_buffer_binding_size: 512 << 10,
+                ..ctx.limits.clone()
+            },
+            features: ctx.features,
+        }
+    }
+
+    /// The GPU's lists hold every tet of the CPU's, shell by shell, each once, with the records
+    /// in one chunk and in 3 (each chunk's part of a list read through the bucket offsets,
+    /// its ids chunk-local); the extras (f32 rounding widened by the margin, at shell and
+    /// frustum boundaries) stay under 2% of the CPU's entries (measured on lavapipe: 36 of
+    /// 65,476 from the iso view, none from inside or zoomed); the counters and rectangles
+    /// agree. From the iso view at 512 samples the list outgrows the first guess of one entry
+    /// per tet, so the overflow re-run is exercised.
     #[test]
     fn gpu_lists_hold_the_cpu_lists_shell_by_shell() {
         let ctx = GpuContext::new(AdapterChoice::Auto).expect("a GPU adapter (lavapipe will do)");
+        let small = chunked(&ctx);
         // 512 samples in shells of 8 slices, and 24 in shells of 32: one shell (the per-shell
         // buffers at their smallest).
         let slicings = scenes()
             .into_iter()
             .flat_map(|s| [(s.clone(), 512, 8), (s, 24, 32)]);
-        for ((name, mesh, camera), samples, per_shell) in slicings {
+        let runs = slicings.flat_map(|s| [(s.clone(), &ctx, 1), (s, &small, 3)]);
+        for (((name, mesh, camera), samples, per_shell), ctx, chunks) in runs {
             let (lo, hi) = mesh.active_array().and_then(|a| a.range()).unwrap();
             let tf = TransferFunction::default_for_range(lo, hi, mesh.diagonal() / 100.0).unwrap();
             let settings = ShellSettings {
@@ -536,7 +649,9 @@ mod tests {
                 slices_per_shell: Some(per_shell),
                 ..ShellSettings::default()
             };
-            let mut r = ShellsRenderer::new(&ctx, &mesh, settings).expect("renderer");
+            let mut r = ShellsRenderer::new(ctx, &mesh, settings).expect("renderer");
+            let tets = mesh.tet_count() as u64;
+            assert_eq!(r.chunking.ranges(tets).len(), chunks, "{name}: chunks");
             let gpu_mesh = std::sync::Arc::clone(&r.mesh);
             let m = gpu_mesh.read();
             let plan = r.plan(&m, &camera).expect("plan");
@@ -545,10 +660,9 @@ mod tests {
             let (n, gpu) = r.bin_on_gpu(&m, &plan, &tf).expect("gpu binning");
             assert_eq!(n, per_shell);
             let total = gpu.shells.last().map_or(0, |s| s.near.end) as u64;
-            let (cpu_lists, gpu_lists) = (
-                shells(&cpu, &cpu.indices),
-                shells(&gpu, &active_ids(&r, total)),
-            );
+            let chunking = (r.chunking.chunk as u32, chunks);
+            let ids = global_ids(&gpu, &active_ids(&r, total), chunking);
+            let (cpu_lists, gpu_lists) = (shells(&cpu, &cpu.indices), shells(&gpu, &ids));
             assert_eq!(cpu_lists.len(), gpu_lists.len(), "{name}: shells");
             let mut extra = 0;
             for (s, ((c, _), (g, entries))) in cpu_lists.iter().zip(&gpu_lists).enumerate() {
@@ -565,7 +679,9 @@ mod tests {
                 // More entries than the first guess (one per tet): the overflow re-run ran.
                 assert!(entries > mesh.tet_count(), "{entries} entries");
             }
-            eprintln!("{name}, {samples} samples: {entries} CPU entries, {extra} more on the GPU");
+            eprintln!(
+                "{name}, {samples} samples, {chunks} chunks: {entries} CPU entries, {extra} more on the GPU"
+            );
             assert!(extra * 50 <= entries, "{name}: {extra} extra of {entries}");
             assert_eq!(gpu.transparent, cpu.transparent, "{name}");
             assert!(

@@ -142,10 +142,10 @@ pub enum BinningMode {
     Cpu,
     /// On the GPU (`gpu_binning.rs`), from the positions already there: no CPU pass over the
     /// tets per frame (a deforming mesh's update needs none). Its slices per shell are fixed or
-    /// the default (not profiled). An error for meshes whose records take several chunks.
+    /// the default (not profiled).
     Gpu,
-    /// GPU for meshes of at least [`AUTO_GPU_TETS`] tets whose records take one chunk, else
-    /// CPU; with [`ShellSettings::tune`], the faster of the two measured on the first frames.
+    /// GPU for meshes of at least [`AUTO_GPU_TETS`] tets (in any number of record chunks),
+    /// else CPU; with [`ShellSettings::tune`], the faster of the two measured on the first frames.
     Auto,
 }
 
@@ -155,8 +155,7 @@ pub enum BinningMode {
 /// GPU; below a million tets it costs a few ms there and keeps adaptive slices. On lavapipe
 /// (2 loaded cores, where the GPU binning runs on the same cores) the binning stage measured
 /// 93-105 ms on the GPU against 122-212 ms on the CPU for an 893k-tet grid, with no
-/// measurable change of the whole frame; meshes of more records than one 128 MiB binding
-/// (about 932k tets) are binned on the CPU there anyway. Not yet measured on an NVIDIA GPU.
+/// measurable change of the whole frame. Not yet measured on an NVIDIA GPU.
 pub const AUTO_GPU_TETS: usize = 1 << 20;
 
 /// Settings of the shells renderer.
@@ -332,9 +331,14 @@ impl ShellsRenderer {
         let pipelines = Pipelines::new(&device, (config.format, config.accum), ert, textured);
         let compute = (settings.sampler == Sampler::Compute)
             .then(|| compute::ComputeSampler::new(&device, ert, textured));
-        let one_chunk = chunking.ranges(tet_count).len() == 1;
-        let binner = gpu_binning::picked(settings.binning, tet_count, one_chunk, chunking.chunk)?
-            .then(|| gpu_binning::GpuBinner::new(&device, tet_count));
+        let binner = if gpu_binning::picked(settings.binning, tet_count) {
+            let spans = mesh.tet_array("shells bin spans", chunking, tet_count, 8)?;
+            let gpu = (&device, &queue, &limits);
+            let chunks = chunking.ranges(tet_count);
+            Some(gpu_binning::GpuBinner::new(gpu, tet_count, chunks, spans))
+        } else {
+            None
+        };
         let view_buf = uniform_buffer(&device, "shells view", size_of::<ViewUniforms>());
         let slicing_buf = uniform_buffer(&device, "shells slicing", size_of::<SlicingUniforms>());
         let assembly = AssemblyStage::new(&device, mesh.has_cells());
@@ -781,7 +785,7 @@ fn draw_shells(
             tested: term.tested(i),
         };
         let query = rec.occlusion().map(|_| draws.queries);
-        raster::encode(rec, p, (&s, &range), &f.bin.indices, query);
+        raster::encode(rec, p, (&s, &range), &f.bin, query);
         draws.queries += query.is_some() as u32;
         draws.instances += range.faces.len() as u64 + range.near.len() as u64;
         draws.triangles += 4 * range.faces.len() as u64 + 2 * range.near.len() as u64;

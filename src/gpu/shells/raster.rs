@@ -8,16 +8,16 @@ use std::ops::Range;
 
 use crate::gpu::frame::Recorder;
 
-use super::binning::{ScreenRect, ShellRange};
+use super::binning::{Binning, ScreenRect, ShellRange};
 use super::{Passes, ShellPass};
 
 /// Encodes the raster pass of shell `s` (its index among the drawn shells, its ranges of the
-/// active list `ids`); counts its fragments with occlusion query `query` when given.
+/// active lists `bin`); counts its fragments with occlusion query `query` when given.
 pub(super) fn encode(
     rec: &mut Recorder,
     p: &Passes,
     (s, range): (&ShellPass, &ShellRange),
-    ids: &[u32],
+    bin: &Binning,
     query: Option<u32>,
 ) {
     let ts = rec.timestamps("raster");
@@ -68,7 +68,7 @@ pub(super) fn encode(
     if !range.faces.is_empty() {
         pass.set_pipeline(&set.faces);
         pass.set_index_buffer(p.face_indices.slice(..), wgpu::IndexFormat::Uint32);
-        for (c, part) in by_chunk(ids, range.faces.clone(), (p.chunk_tets, p.chunks)) {
+        for (c, part) in by_chunk(bin, range.faces.clone(), (p.chunk_tets, p.chunks)) {
             for (w, local, base) in p.instances.pieces(part) {
                 pass.set_bind_group(0, group(w, c), &[offset]);
                 let indices = 12 * (local.start - base)..12 * (local.end - base);
@@ -78,7 +78,7 @@ pub(super) fn encode(
     }
     if !range.near.is_empty() {
         pass.set_pipeline(&set.near);
-        for (c, part) in by_chunk(ids, range.near.clone(), (p.chunk_tets, p.chunks)) {
+        for (c, part) in by_chunk(bin, range.near.clone(), (p.chunk_tets, p.chunks)) {
             for (w, local, _) in p.instances.pieces(part) {
                 pass.set_bind_group(0, group(w, c), &[offset]);
                 pass.draw(6 * local.start..6 * local.end, 0..1);
@@ -105,11 +105,14 @@ pub(super) fn scissor(r: ScreenRect, slope: [f64; 2], width: u32, height: u32) -
     [x0, y0, x1.max(x0 + 1) - x0, y1.max(y0 + 1) - y0]
 }
 
-/// The parts of `range` (positions in `ids`, whose tet ids ascend within it, as binning leaves
-/// them) that fall in each chunk of `chunk_tets` tets, as (chunk, part). A mesh of one chunk
-/// (`chunks`) reads no ids: its lists may be on the GPU only (`gpu_binning.rs`).
+/// The parts of `range` (a shell's faces or near-plane range of `bin`'s lists) that fall in
+/// each record chunk of `chunk_tets` tets, as (chunk, part), in chunk order. A mesh of one
+/// chunk (`chunks`) needs neither ids nor buckets. Lists binned on the CPU are cut where their
+/// tet ids (ascending within a range, as binning leaves them) cross a chunk boundary; lists
+/// binned on the GPU, whose ids are not on the CPU, at their buckets' offsets
+/// ([`Binning::buckets`], `gpu_binning.rs`).
 pub(super) fn by_chunk(
-    ids: &[u32],
+    bin: &Binning,
     range: Range<u32>,
     (chunk_tets, chunks): (u32, usize),
 ) -> Vec<(usize, Range<u32>)> {
@@ -119,6 +122,10 @@ pub(super) fn by_chunk(
             .into_iter()
             .collect();
     }
+    if bin.indices.is_empty() && !bin.buckets.is_empty() {
+        return by_bucket(&bin.buckets, range, chunks);
+    }
+    let ids = &bin.indices;
     let mut parts = Vec::new();
     let mut start = range.start;
     while start < range.end {
@@ -131,22 +138,58 @@ pub(super) fn by_chunk(
     parts
 }
 
+/// The non-empty buckets of `range` (a run of whole buckets; `buckets`: each one's first entry,
+/// bucket `b` of chunk `b % chunks`, then the total) as (chunk, part).
+fn by_bucket(buckets: &[u32], range: Range<u32>, chunks: usize) -> Vec<(usize, Range<u32>)> {
+    let first = buckets.partition_point(|&o| o < range.start);
+    (buckets[first..].windows(2).enumerate())
+        .take_while(|(_, w)| w[0] < range.end)
+        .filter(|(_, w)| w[0] < w[1])
+        .map(|(i, w)| ((first + i) % chunks, w[0]..w[1]))
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    /// Lists binned on the CPU: their ids.
+    fn ids(ids: &[u32]) -> Binning {
+        Binning {
+            indices: ids.to_vec(),
+            ..Binning::default()
+        }
+    }
+
     #[test]
     fn active_ranges_split_at_chunk_boundaries() {
-        let ids = [1, 2, 5, 9, 10, 11, 20, 3, 4];
+        let bin = ids(&[1, 2, 5, 9, 10, 11, 20, 3, 4]);
         assert_eq!(
-            by_chunk(&ids, 0..7, (10, 3)),
+            by_chunk(&bin, 0..7, (10, 3)),
             vec![(0, 0..4), (1, 4..6), (2, 6..7)]
         );
-        assert_eq!(by_chunk(&ids, 7..9, (10, 3)), vec![(0, 7..9)]);
-        assert_eq!(by_chunk(&ids, 3..3, (10, 3)), vec![]);
-        assert_eq!(by_chunk(&ids, 4..6, (1000, 1)), vec![(0, 4..6)]);
+        assert_eq!(by_chunk(&bin, 7..9, (10, 3)), vec![(0, 7..9)]);
+        assert_eq!(by_chunk(&bin, 3..3, (10, 3)), vec![]);
+        assert_eq!(by_chunk(&bin, 4..6, (1000, 1)), vec![(0, 4..6)]);
         // One chunk: no ids read (a GPU-binned list is not on the CPU).
-        assert_eq!(by_chunk(&[], 4..6, (1000, 1)), vec![(0, 4..6)]);
-        assert_eq!(by_chunk(&[], 6..6, (1000, 1)), vec![]);
+        assert_eq!(by_chunk(&ids(&[]), 4..6, (1000, 1)), vec![(0, 4..6)]);
+        assert_eq!(by_chunk(&ids(&[]), 6..6, (1000, 1)), vec![]);
+    }
+
+    /// Lists binned on the GPU, 3 chunks: shell 0's faces in buckets 0-2 (entries 0..2 in
+    /// chunk 0, none in chunk 1, 2..5 in chunk 2), its near-plane tets in buckets 3-5 (none),
+    /// shell 1's faces in buckets 6-8 (5..6 in chunk 1), its near-plane tets in 9-11 (6..8 in
+    /// chunk 0).
+    #[test]
+    fn gpu_lists_split_at_their_buckets() {
+        let bin = Binning {
+            buckets: vec![0, 2, 2, 5, 5, 5, 5, 5, 6, 6, 8, 8, 8],
+            ..Binning::default()
+        };
+        let chunking = (10, 3);
+        assert_eq!(by_chunk(&bin, 0..5, chunking), vec![(0, 0..2), (2, 2..5)]);
+        assert_eq!(by_chunk(&bin, 5..5, chunking), vec![]);
+        assert_eq!(by_chunk(&bin, 5..6, chunking), vec![(1, 5..6)]);
+        assert_eq!(by_chunk(&bin, 6..8, chunking), vec![(0, 6..8)]);
     }
 }
