@@ -49,6 +49,7 @@ fn shared_struct_layouts_match_gpu_data() {
     assert_eq!(size("Shell"), size_of::<ShellUniforms>());
     let module = validated_wgsl("shells_bin", &shaders::shells_bin());
     assert_eq!(wgsl_struct_size(&module, "Bin"), size_of::<BinUniforms>());
+    assert_eq!(wgsl_struct_size(&module, "Chunk"), size_of::<BinChunk>());
 }
 
 /// The ray caster's structs have the sizes of their Rust twins in every stage.
