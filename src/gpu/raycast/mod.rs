@@ -310,7 +310,7 @@ impl RaycastRenderer {
                 mesh.has_cells(),
                 textured.as_ref().map(|(t, used)| (t.step, *used)),
             ),
-            frame: FrameResources::new(ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY)),
+            frame: FrameResources::new(ctx),
             frame_buf: uniform("raycast frame", size_of::<ViewUniforms>()),
             tf_buf: uniform("raycast tf", size_of::<TfPoints>()),
             params_buf: uniform("raycast constants", size_of::<RaycastUniforms>()),
