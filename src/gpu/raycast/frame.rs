@@ -498,8 +498,8 @@ impl RaycastRenderer {
         match &t.pixels {
             PixelBuffers::Lists { counts, .. } => {
                 rec.encoder().clear_buffer(counts, 0, None);
-                let one_group_per_face = linear(64 * self.boundary_count as u64, max);
-                passes.push(("entries", &p.entries, &groups.entry, one_group_per_face));
+                let threads = p.entry_lanes.threads() * self.boundary_count as u64;
+                passes.push(("entries", &p.entries, &groups.entry, linear(threads, max)));
             }
             PixelBuffers::Peel { hits, .. } => {
                 rec.encoder().clear_buffer(hits, 0, None);
