@@ -208,6 +208,17 @@ impl GpuContext {
                 "no"
             }
         };
+        let timestamps = match (
+            self.features.contains(wgpu::Features::TIMESTAMP_QUERY),
+            self.is_software(),
+        ) {
+            (true, true) => {
+                "yes, not used for stage timings (they mis-time compute passes on \
+                             this software adapter)"
+            }
+            (true, false) => "yes",
+            (false, _) => "no",
+        };
         format!(
             "adapter: {}\n\
              software adapter: {}\n\
@@ -228,7 +239,7 @@ impl GpuContext {
             l.max_texture_dimension_2d,
             l.max_compute_workgroups_per_dimension,
             yes(wgpu::Features::FLOAT32_BLENDABLE),
-            yes(wgpu::Features::TIMESTAMP_QUERY),
+            timestamps,
         )
     }
 }

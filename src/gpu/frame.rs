@@ -1,23 +1,43 @@
 //! One frame's recording and readback, the same for every mode: a [`Recorder`] encodes the
-//! frame's passes, each timed with a pair of GPU timestamps where the adapter has them (else by
-//! draining the GPU after each stage, wall clock); [`Recorder::finish`] copies the images out,
+//! frame's passes, each timed with a pair of GPU timestamps where the adapter has trustworthy
+//! ones (else by draining the GPU after each stage, wall clock; see [`stage_timestamps`]); [`Recorder::finish`] copies the images out,
 //! resolves the queries, submits, waits once and reads the frame's statistics back. The query
 //! sets and the statistics buffers live in [`FrameResources`], kept from frame to frame and
 //! grown only when a frame needs more; [`ImageReadback`] holds a target's readback buffer.
 
 use std::time::Instant;
 
-use crate::gpu::GpuError;
 use crate::gpu::util::{f16_to_f32, map_read, readback_buffer, settings_error};
+use crate::gpu::{GpuContext, GpuError};
 use crate::render::RenderError;
 
 /// Where the occlusion results start in the statistics buffer (the degenerate count is at 0;
 /// query resolves land on 256-byte boundaries).
 const OCCLUSION_AT: u64 = 256;
 
+/// The wall-clock stage timing's description, on adapters whose timestamps tetvr does not use.
+const WALL_CLOCK: &str = "wall clock, GPU drained after each stage";
+/// The same on a software adapter, which has timestamps that tetvr does not trust.
+const WALL_CLOCK_SOFTWARE: &str = "wall clock, GPU drained after each stage (this software \
+     adapter's GPU timestamps are not used: they measured compute passes at ~0 ms)";
+
+/// Whether the stages of `ctx`'s frames are timed with GPU timestamps: where the device has
+/// them and they time what ran. Not on software adapters: lavapipe (Mesa 22.3) defers a
+/// timestamp into its rasterizer's next scene once a framebuffer is bound, and its compute
+/// passes ran outside their pairs (measured on the blunt fin at 512x512: the shells compute
+/// sampler's stages summed to 25 ms of a 464 ms frame, its fine stage reading 1 ms; the ray
+/// caster's entries stage read 0.04 ms where draining the GPU measures 70-80 ms). There the
+/// stages are timed by draining the GPU after each, as lavapipe already flushed its work at
+/// every timestamp.
+pub(crate) fn stage_timestamps(ctx: &GpuContext) -> bool {
+    ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY) && !ctx.is_software()
+}
+
 /// Query sets and statistics buffers kept across frames.
 pub(crate) struct FrameResources {
     gpu_clock: bool,
+    /// How the stages are timed when not with timestamps ([`WALL_CLOCK`] or its software form).
+    wall_clock: &'static str,
     timestamps: Option<wgpu::QuerySet>,
     occlusion: Option<wgpu::QuerySet>,
     /// Mappable copy of the degenerate count, occlusion results and timestamps.
@@ -27,10 +47,15 @@ pub(crate) struct FrameResources {
 }
 
 impl FrameResources {
-    /// Nothing allocated yet; `gpu_clock`: the adapter has timestamp queries.
-    pub(crate) fn new(gpu_clock: bool) -> Self {
+    /// Nothing allocated yet; stages timed with timestamps where [`stage_timestamps`] says.
+    pub(crate) fn new(ctx: &GpuContext) -> Self {
         Self {
-            gpu_clock,
+            gpu_clock: stage_timestamps(ctx),
+            wall_clock: if ctx.is_software() {
+                WALL_CLOCK_SOFTWARE
+            } else {
+                WALL_CLOCK
+            },
             timestamps: None,
             occlusion: None,
             stats: None,
@@ -49,6 +74,7 @@ impl FrameResources {
     ) -> Recorder<'a> {
         let Self {
             gpu_clock,
+            wall_clock,
             timestamps,
             occlusion: occlusion_set,
             stats,
@@ -78,6 +104,7 @@ impl FrameResources {
             resolve,
             pairs: Vec::new(),
             wall: Vec::new(),
+            wall_clock,
             mark: Instant::now(),
         }
     }
@@ -179,6 +206,7 @@ pub(crate) struct Recorder<'a> {
     pairs: Vec<&'static str>,
     /// Wall-clock stage times (when there are no timestamps).
     wall: Vec<(&'static str, f64)>,
+    wall_clock: &'static str,
     mark: Instant,
 }
 
@@ -192,6 +220,8 @@ pub(crate) struct FrameStats {
     pub stages: Vec<(&'static str, f64)>,
     /// Whether `stages` come from GPU timestamps.
     pub gpu_clock: bool,
+    /// How `stages` were timed when not with timestamps (for [`crate::render::Timings`]).
+    pub wall_clock: &'static str,
 }
 
 impl FrameStats {
@@ -306,6 +336,7 @@ impl<'a> Recorder<'a> {
                 fragments,
                 stages,
                 gpu_clock: self.timestamps.is_some(),
+                wall_clock: self.wall_clock,
             }
         };
         stats.unmap();

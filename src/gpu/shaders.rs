@@ -363,7 +363,13 @@ pub fn registry() -> Vec<(String, String, &'static [&'static str])> {
         ),
     ];
     for (name, source) in raycast_stages() {
-        out.push((name.into(), source, &["main"]));
+        // The entries stage's second entry point: one thread per face (`EntryLanes::Thread`).
+        let entries = if name == "raycast_entries" {
+            ["main", "per_thread"].as_slice()
+        } else {
+            &["main"]
+        };
+        out.push((name.into(), source, entries));
     }
     for targets in 1..=MAX_TARGETS {
         let raster = ["vs_faces", "vs_near", "fs_slices", "vs_clear", "fs_clear"].as_slice();

@@ -185,7 +185,7 @@ impl CellProjRenderer {
         Ok(Self {
             pipelines: Pipelines::new(&device, format),
             assembly: AssemblyStage::new(&device, order_cells.is_some()),
-            frame: FrameResources::new(ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY)),
+            frame: FrameResources::new(ctx),
             no_table: preint::table_texture(&device, 2, 2),
             view_buf: uniform("cellproj view", size_of::<ViewUniforms>()),
             tf_buf: uniform("cellproj tf", size_of::<TfPoints>()),
@@ -330,7 +330,7 @@ impl Renderer for CellProjRenderer {
             "GPU timestamps for assembly, raster; wall clock for sort, preint table, upload, \
              readback (map + convert, after the GPU drained) and total"
         } else {
-            "wall clock, GPU drained after each stage"
+            stats.wall_clock
         };
         timings.count("tets", m.tets.len() as u64);
         timings.count("tets drawn", drawn as u64);

@@ -205,7 +205,7 @@ impl IsoRenderer {
             pipelines: Pipelines::new(&device),
             // Iso renders the per-vertex field: for cell data its vertex average (module docs).
             assembly: AssemblyStage::new(&device, false),
-            frame: FrameResources::new(ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY)),
+            frame: FrameResources::new(ctx),
             view_buf: uniform("iso view", size_of::<ViewUniforms>()),
             iso_buf: uniform("iso isovalues", size_of::<IsoUniforms>()),
             // One gradient per vertex, written by the gradient stage (smooth shading); zeros,
@@ -356,7 +356,7 @@ impl IsoRenderer {
             "GPU timestamps for gradients, assembly, raster; wall clock for select, frustum, \
              upload, readback (map + convert, after the GPU drained) and total"
         } else {
-            "wall clock, GPU drained after each stage"
+            stats.wall_clock
         };
         timings.count("tets", m.tets.len() as u64);
         timings.count("tets selected", all_selected as u64);

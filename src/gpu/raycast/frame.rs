@@ -52,6 +52,8 @@ struct Run {
     /// Milliseconds per stage, summed over the layers.
     stages: Vec<(&'static str, f64)>,
     gpu_clock: bool,
+    /// How the stages were timed without timestamps (`FrameStats::wall_clock`).
+    wall_clock: &'static str,
     /// See [`COUNTERS`] (after the last layer).
     counters: [u32; COUNTERS],
     /// Layers run (1 with entry lists).
@@ -114,7 +116,7 @@ impl RaycastRenderer {
              run, summed over layers); wall clock for upload (with the 3D table's build), \
              readback and total"
         } else {
-            "wall clock, GPU drained after each stage"
+            run.wall_clock
         };
         self.count(&mut timings, &run, reruns);
         if self.settings.segments == Segments::Table {
@@ -496,8 +498,8 @@ impl RaycastRenderer {
         match &t.pixels {
             PixelBuffers::Lists { counts, .. } => {
                 rec.encoder().clear_buffer(counts, 0, None);
-                let one_group_per_face = linear(64 * self.boundary_count as u64, max);
-                passes.push(("entries", &p.entries, &groups.entry, one_group_per_face));
+                let threads = p.entry_lanes.threads() * self.boundary_count as u64;
+                passes.push(("entries", &p.entries, &groups.entry, linear(threads, max)));
             }
             PixelBuffers::Peel { hits, .. } => {
                 rec.encoder().clear_buffer(hits, 0, None);
@@ -541,6 +543,7 @@ impl RaycastRenderer {
             }
         }
         run.gpu_clock = stats.gpu_clock;
+        run.wall_clock = stats.wall_clock;
         let words: [u32; COUNTERS + 3] = read_words(&self.device, &self.counters_read)?;
         run.counters = std::array::from_fn(|i| words[i]);
         let [tiles, waiting, more] = std::array::from_fn(|i| words[COUNTERS + i]);

@@ -109,6 +109,45 @@ pub enum Entry {
     Peel = 1,
 }
 
+/// How the entries stage of [`Entry::Lists`] spreads a boundary face's pixels over threads
+/// (`shaders/raycast_entries.wgsl`): the same hits, the same picture bit for bit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EntryLanes {
+    /// A workgroup of 64 threads per face (`main`): the few faces covering thousands of pixels
+    /// keep no GPU waiting on one thread.
+    Workgroup,
+    /// One thread per face (`per_thread`): on software adapters, where a workgroup per face
+    /// ran 64 invocations and a barrier for the few pixels most faces cover.
+    Thread,
+}
+
+impl EntryLanes {
+    /// [`Self::Thread`] on software adapters, else [`Self::Workgroup`].
+    pub fn for_adapter(ctx: &GpuContext) -> Self {
+        if ctx.is_software() {
+            Self::Thread
+        } else {
+            Self::Workgroup
+        }
+    }
+
+    /// The shader's entry point.
+    pub(crate) fn entry_point(self) -> &'static str {
+        match self {
+            Self::Workgroup => "main",
+            Self::Thread => "per_thread",
+        }
+    }
+
+    /// Threads the stage runs per face.
+    pub(crate) fn threads(self) -> u64 {
+        match self {
+            Self::Workgroup => 64,
+            Self::Thread => 1,
+        }
+    }
+}
+
 /// Pixels along a screen tile's side: the traversal's workgroup is one tile.
 pub const TILE: u32 = 8;
 
@@ -141,6 +180,9 @@ pub struct RaycastSettings {
     pub table_size: u32,
     /// [`Segments::Table`]: length levels (the first of length 0), at least 2.
     pub table_lengths: u32,
+    /// [`Entry::Lists`]: the entries stage's threads per face; `None`:
+    /// [`EntryLanes::for_adapter`].
+    pub entry_lanes: Option<EntryLanes>,
 }
 
 impl Default for RaycastSettings {
@@ -153,6 +195,7 @@ impl Default for RaycastSettings {
             max_steps: None,
             table_size: 128,
             table_lengths: 64,
+            entry_lanes: None,
         }
     }
 }
@@ -309,8 +352,9 @@ impl RaycastRenderer {
                 nt.div_ceil(chunking.chunk).max(1),
                 mesh.has_cells(),
                 textured.as_ref().map(|(t, used)| (t.step, *used)),
+                (settings.entry_lanes).unwrap_or_else(|| EntryLanes::for_adapter(ctx)),
             ),
-            frame: FrameResources::new(ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY)),
+            frame: FrameResources::new(ctx),
             frame_buf: uniform("raycast frame", size_of::<ViewUniforms>()),
             tf_buf: uniform("raycast tf", size_of::<TfPoints>()),
             params_buf: uniform("raycast constants", size_of::<RaycastUniforms>()),

@@ -9,7 +9,7 @@ use crate::gpu::util::{bind_group_layout, buffer_entry, pipeline_layout_for, wgs
 
 use super::links::LINK_BINDINGS;
 use super::texture::TextureUse;
-use super::{Entry, Segments};
+use super::{Entry, EntryLanes, Segments};
 
 /// One compute stage: its layout and pipeline.
 pub struct Stage {
@@ -23,6 +23,8 @@ pub struct Pipelines {
     pub vertices: Stage,
     pub planes: Stage,
     pub entries: Stage,
+    /// The entries stage's threads per face.
+    pub entry_lanes: EntryLanes,
     pub peel: [Stage; 2],
     /// Indexed by [`Entry`].
     tiles: [Stage; 2],
@@ -113,17 +115,19 @@ fn textured_iso_entries(entry: Entry) -> Vec<wgpu::BindGroupLayoutEntry> {
 impl Pipelines {
     /// Compiles the stages for a mesh whose links take `windows` windows (WGSL
     /// `LINK_WINDOWS`) and whose field is constant per tet when `cells` (WGSL `CELLS`); with
-    /// `texture`, also the textured traversals of that use sampling every that many world units.
+    /// `texture`, also the textured traversals of that use sampling every that many world units;
+    /// the entries stage with `entry_lanes`.
     pub fn new(
         device: &wgpu::Device,
         windows: u64,
         cells: bool,
         texture: Option<(f32, TextureUse)>,
+        entry_lanes: EntryLanes,
     ) -> Self {
         let cells = if cells { 1.0 } else { 0.0 };
         let constants = [("LINK_WINDOWS", windows as f64), ("CELLS", cells)];
         let stage = |shader, entries: &[wgpu::BindGroupLayoutEntry]| {
-            stage_with(device, shader, entries, &constants)
+            stage_with(device, shader, entries, (&constants, "main"))
         };
         let [
             vertices,
@@ -157,7 +161,13 @@ impl Pipelines {
         Self {
             vertices: stage(vertices, &layout(RW, &[RO, RO])),
             planes: stage(planes, &layout(RO, &[RW])),
-            entries: stage(entries, &layout(RO, &[RO, RW, RW, RW])),
+            entries: stage_with(
+                device,
+                entries,
+                &layout(RO, &[RO, RW, RW, RW]),
+                (&constants, entry_lanes.entry_point()),
+            ),
+            entry_lanes,
             peel: [least_t, least_face].map(|s| stage(s, &peel)),
             tiles: [tiles_lists, tiles_peel].map(|s| stage(s, &tiles)),
             traverse: [
@@ -166,8 +176,9 @@ impl Pipelines {
             ],
             textured: texture.map(|(step, used)| {
                 let constants = [constants[0], constants[1], ("STEP", step as f64)];
-                let textured = |s, e| stage_with(device, s, &textured_entries(e), &constants);
-                let iso = |s, e| stage_with(device, s, &textured_iso_entries(e), &constants);
+                let with = (&constants[..], "main");
+                let textured = |s, e| stage_with(device, s, &textured_entries(e), with);
+                let iso = |s, e| stage_with(device, s, &textured_iso_entries(e), with);
                 match used {
                     TextureUse::Volume => [
                         textured(lists_textured, Entry::Lists),
@@ -208,11 +219,12 @@ fn buffers(types: &[B]) -> Vec<wgpu::BindGroupLayoutEntry> {
         .collect()
 }
 
+/// A stage running `source`'s entry point `entry` with `constants`.
 fn stage_with(
     device: &wgpu::Device,
     (name, source): (&str, String),
     entries: &[wgpu::BindGroupLayoutEntry],
-    constants: &[(&str, f64)],
+    (constants, entry): (&[(&str, f64)], &str),
 ) -> Stage {
     let layout = bind_group_layout(device, name, entries);
     let module = wgsl_module(device, name, source);
@@ -220,7 +232,7 @@ fn stage_with(
         label: Some(name),
         layout: Some(&pipeline_layout_for(device, &layout)),
         module: &module,
-        entry_point: Some("main"),
+        entry_point: Some(entry),
         compilation_options: wgpu::PipelineCompilationOptions {
             constants,
             ..Default::default()

@@ -381,7 +381,7 @@ impl ShellsRenderer {
             candidates: config.candidates,
             model: config.model,
             slice_layers: config.layers,
-            frame: FrameResources::new(ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY)),
+            frame: FrameResources::new(ctx),
             instances: InstanceLayout {
                 window: 1,
                 windows: 1,
@@ -715,7 +715,7 @@ impl ShellsRenderer {
              or tiles, fine); wall clock for binning, upload, readback (map + convert, after \
              the GPU drained) and total"
         } else {
-            "wall clock, GPU drained after each stage"
+            stats.wall_clock
         };
         let tets = self.mesh.tet_count() as u64;
         let chunks = self.chunking.ranges(tets).len();
