@@ -6,12 +6,13 @@
 //! (`order.rs`), so that a ray's next tet is usually in cache; the pictures are those of the
 //! file's numbering.
 //!
-//! Per view (stages 1 and 2 are kept and reused while the camera, the positions and the scalars
-//! stay the same, as when only the TF changes; the `planes reused` count says so):
+//! Per frame (stages 1 and 2 only for a new view: their results are kept and reused while the
+//! camera, the positions and the scalars stay the same, as when only the TF changes; the
+//! `planes reused` count says so):
 //! 1. planes (`scene.rs`): every vertex in eye space, then every tet's outward face planes and
 //!    linear scalar from the current positions (the GPU's arithmetic, [`twin::planes`](crate::gpu::raycast::twin::planes): shared
 //!    faces get bit-identical negated planes, thin tets a constant scalar), stored beside its
-//!    links in one 96-byte record, and the eye's tet;
+//!    links in one 112-byte record, and the eye's tet;
 //! 2. entries (`scene.rs`): the boundary faces that face the eye, each set up once (plane,
 //!    edge Pluecker normals) and binned to the tiles its projection covers;
 //! 3. traverse (`trace.rs`): per pixel, the tile's faces its ray enters through (watertight edge
