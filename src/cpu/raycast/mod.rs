@@ -6,11 +6,13 @@
 //! (`order.rs`), so that a ray's next tet is usually in cache; the pictures are those of the
 //! file's numbering.
 //!
-//! Per frame:
+//! Per frame (stages 1 and 2 only for a new view: their results are kept and reused while the
+//! camera, the positions and the scalars stay the same, as when only the TF changes; the
+//! `planes reused` count says so):
 //! 1. planes (`scene.rs`): every vertex in eye space, then every tet's outward face planes and
 //!    linear scalar from the current positions (the GPU's arithmetic, [`twin::planes`](crate::gpu::raycast::twin::planes): shared
 //!    faces get bit-identical negated planes, thin tets a constant scalar), stored beside its
-//!    links in one 96-byte record, and the eye's tet;
+//!    links in one 112-byte record, and the eye's tet;
 //! 2. entries (`scene.rs`): the boundary faces that face the eye, each set up once (plane,
 //!    edge Pluecker normals) and binned to the tiles its projection covers;
 //! 3. traverse (`trace.rs`): per pixel, the tile's faces its ray enters through (watertight edge
@@ -36,10 +38,12 @@ mod trace;
 use std::sync::Arc;
 use std::time::Instant;
 
+use bytemuck::bytes_of;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::camera::Camera;
+use crate::gpu::gpu_data::ViewUniforms;
 use crate::gpu::mesh::cell_update_error;
 use crate::gpu::raycast::{TetLinks, default_max_steps, links};
 use crate::gpu::util::{bounding_sphere, ms_since, scalar_frame};
@@ -52,7 +56,7 @@ use crate::texture::reference::DEFAULT_STEP_FRACTION;
 use crate::tf::TransferFunction;
 
 use integrate::SegmentTf;
-use scene::{TILE, Tet};
+use scene::{Bins, TILE, Tet, TetPass};
 use texture::{CpuTexture, TexturedField};
 
 /// How the CPU ray caster integrates each segment (both split it at the TF's control points,
@@ -99,9 +103,12 @@ pub struct CpuRaycastRenderer {
     links: Vec<TetLinks>,
     /// Boundary face codes (`4 * tet + face`).
     boundary: Vec<u32>,
-    /// Per frame, kept to reuse their memory: eye-space positions, per-tet records.
+    /// Per view, kept to reuse their memory: eye-space positions, per-tet records.
     eye: Vec<Vec3>,
     tets: Vec<Tet>,
+    /// The view `eye` and `tets` hold, with what the planes and entries found for it; `None`
+    /// after the positions or scalars change.
+    view: Option<ViewGeometry>,
     /// A textured cage's volume and texture coordinates ([`CpuRaycastRenderer::textured`]).
     texture: Option<CpuTexture>,
 }
@@ -137,6 +144,7 @@ impl CpuRaycastRenderer {
             boundary,
             eye: Vec::new(),
             tets: Vec::new(),
+            view: None,
             texture: None,
         };
         r.set_positions(mesh.positions());
@@ -202,15 +210,14 @@ impl CpuRaycastRenderer {
         self.cells = (self.raw_cells.as_deref()).map(|c| normalized(c, frame));
     }
 
-    fn frame(&mut self, camera: &Camera, tf: &TransferFunction) -> Frame {
-        let start = Instant::now();
-        let mut timings = Timings {
-            clock: "wall clock",
-            ..Timings::default()
-        };
-        // The eye-in-tet tolerance: 1e-5 of the bounding radius (the GPU's).
-        let eye_tol = (1e-5 * self.radius) as f32;
-        let f = ViewFrame::new(camera).uniforms(self.origin, 0.0, eye_tol, self.links.len() as u32);
+    /// Stages 1 and 2 for view `f`: eye-space positions and per-tet records into `self.eye`
+    /// and `self.tets`, then the entry bins; their times into `timings`.
+    fn view_geometry(
+        &mut self,
+        f: ViewUniforms,
+        eye_tol: f32,
+        timings: &mut Timings,
+    ) -> ViewGeometry {
         let t = Instant::now();
         scene::eye_positions(&f, &self.positions, &mut self.eye);
         let pass = scene::tets(
@@ -230,6 +237,28 @@ impl CpuRaycastRenderer {
             &self.eye,
         );
         timings.stage("entries", ms_since(t));
+        ViewGeometry {
+            frame: f,
+            pass,
+            bins,
+        }
+    }
+
+    fn frame(&mut self, camera: &Camera, tf: &TransferFunction) -> Frame {
+        let start = Instant::now();
+        let mut timings = Timings {
+            clock: "wall clock",
+            ..Timings::default()
+        };
+        // The eye-in-tet tolerance: 1e-5 of the bounding radius (the GPU's).
+        let eye_tol = (1e-5 * self.radius) as f32;
+        let f = ViewFrame::new(camera).uniforms(self.origin, 0.0, eye_tol, self.links.len() as u32);
+        let reused = (self.view.as_ref()).is_some_and(|v| bytes_of(&v.frame) == bytes_of(&f));
+        let view = match self.view.take() {
+            Some(v) if reused => v,
+            _ => self.view_geometry(f, eye_tol, &mut timings),
+        };
+        let (pass, bins) = (view.pass, &view.bins);
         let t = Instant::now();
         let seg = SegmentTf::new(
             tf,
@@ -250,7 +279,7 @@ impl CpuRaycastRenderer {
             ids: &self.tet_ids,
             cells: self.cells.as_deref(),
             eye: &self.eye,
-            bins: &bins,
+            bins,
             eye_tet: pass.eye_tet,
             eye_tol,
             max_steps: (self.settings.max_steps)
@@ -264,6 +293,7 @@ impl CpuRaycastRenderer {
         timings.count("boundary faces", self.boundary.len() as u64);
         timings.count("faces in tiles", bins.len() as u64);
         timings.count("thin tets", pass.thin);
+        timings.count("planes reused", reused as u64);
         timings.count(
             "eye in a tet",
             (pass.eye_tet != crate::mesh::topology::NO_NEIGHBOR) as u64,
@@ -271,8 +301,17 @@ impl CpuRaycastRenderer {
         timings.count("tet steps", work.steps);
         timings.count("rays at step limit", work.stopped);
         timings.count("threads", rayon::current_num_threads() as u64);
+        self.view = Some(view);
         Frame { image, timings }
     }
+}
+
+/// What stages 1 and 2 found for one view (`frame`); `eye` and `tets` of the renderer hold the
+/// rest.
+struct ViewGeometry {
+    frame: ViewUniforms,
+    pass: TetPass,
+    bins: Bins,
 }
 
 /// `values` as `(s - lo) / span` in f32, `(lo, span)` the scalar frame.
@@ -323,6 +362,7 @@ impl Renderer for CpuRaycastRenderer {
     fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {
         check_new_positions(positions, self.positions.len())?;
         self.set_positions(positions);
+        self.view = None;
         Ok(())
     }
 
@@ -339,6 +379,53 @@ impl Renderer for CpuRaycastRenderer {
         check_values("scalars", scalars, self.raw_scalars.len())?;
         self.raw_scalars.copy_from_slice(scalars);
         self.normalize_scalars();
+        self.view = None;
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::View;
+    use crate::generate::fields::{Field, grid};
+
+    fn reused(frame: &Frame) -> u64 {
+        (frame.timings.counters.iter())
+            .find(|c| c.0 == "planes reused")
+            .map_or(u64::MAX, |c| c.1)
+    }
+
+    /// A second frame of the same view reuses the planes and entries and draws the same bits;
+    /// a new view, or new scalars, draws what a renderer built for it draws (the same bits).
+    #[test]
+    fn a_view_is_reused_only_while_nothing_changed() {
+        let mut mesh = grid(Field::Gaussians, glam::UVec3::splat(6), "g").unwrap();
+        let (lo, hi) = mesh.bounds();
+        let tf = TransferFunction::default_for_range(0.0, 1.0, mesh.diagonal() / 10.0).unwrap();
+        let view = |azimuth_deg| View {
+            azimuth_deg,
+            elevation_deg: 20.0,
+        };
+        let cams = [30.0, 75.0].map(|a| Camera::framing(lo, hi, view(a), 1.0, 30.0, 40, 40));
+        let fresh = |mesh: &TetMesh, camera: &Camera| {
+            let mut r = CpuRaycastRenderer::new(mesh, Default::default()).unwrap();
+            r.render(camera, &tf).unwrap().image.pixels
+        };
+        let mut r = CpuRaycastRenderer::new(&mesh, Default::default()).unwrap();
+        let first = r.render(&cams[0], &tf).unwrap();
+        let again = r.render(&cams[0], &tf).unwrap();
+        assert_eq!((reused(&first), reused(&again)), (0, 1));
+        assert_eq!(again.image.pixels, first.image.pixels);
+        let turned = r.render(&cams[1], &tf).unwrap();
+        assert_eq!(reused(&turned), 0);
+        assert_eq!(turned.image.pixels, fresh(&mesh, &cams[1]));
+        let scalars: Vec<f64> = mesh.scalars().unwrap().iter().map(|s| s * s).collect();
+        r.update_scalars(&scalars).unwrap();
+        let rescaled = r.render(&cams[1], &tf).unwrap();
+        assert_eq!(reused(&rescaled), 0);
+        mesh.set_scalars(scalars).unwrap();
+        assert_eq!(rescaled.image.pixels, fresh(&mesh, &cams[1]));
+        assert_ne!(rescaled.image.pixels, turned.image.pixels);
     }
 }

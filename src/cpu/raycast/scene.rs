@@ -16,14 +16,16 @@ pub const TILE: u32 = 16;
 
 /// One tet as the traversal reads it (112 bytes, one fetch per step): its face planes
 /// transposed, `n[axis]` and `w` holding that component of faces 0 to 3 (so a step crosses the
-/// ray with all four planes in a few vector operations), the planes' lengths `|n|` (taken here
-/// once per frame rather than by a square root on every step), its linear scalar (gradient,
-/// value at the eye), and across each face the neighbour's face code (`4 * tet + face`).
+/// ray with all four planes in a few vector operations), the planes' runs-along bounds
+/// `PARALLEL |n|` (taken here once per frame rather than by a square root and a product on
+/// every step), its linear scalar (gradient, value at the eye), and across each face the
+/// neighbour's face code (`4 * tet + face`).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Tet {
     pub n: [Vec4; 3],
     pub w: Vec4,
-    pub norms: Vec4,
+    /// `PARALLEL |n|` of each face: the ray runs along face `f` when `|n . d|` is at most this.
+    pub parallel: Vec4,
     pub scalar: Vec4,
     pub next: [u32; 4],
 }
@@ -33,8 +35,9 @@ impl Tet {
         let lane = |c: usize| Vec4::from_array(p.face.map(|q| q[c]));
         let n = [lane(0), lane(1), lane(2)];
         Self {
-            // `|n|` of each face plane, as `Vec3::length`.
-            norms: (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt(),
+            // `|n|` of each face plane, as `Vec3::length`, times PARALLEL as the twin's
+            // `runs_along` takes it.
+            parallel: twin::PARALLEL * (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt(),
             n,
             w: lane(3),
             scalar: Vec4::from(p.scalar),

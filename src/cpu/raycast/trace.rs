@@ -4,7 +4,7 @@
 //! after it leaves a non-convex mesh; the rules of the GPU's traversal (`shaders/raycast_traverse.wgsl`) with its
 //! exit arithmetic ([`twin::exit`], [`twin::exit_by_edges`]).
 
-use glam::{UVec2, Vec3, Vec4};
+use glam::{BVec4A, UVec2, Vec3, Vec4};
 
 use crate::gpu::gpu_data::ViewUniforms;
 use crate::gpu::raycast::twin;
@@ -204,8 +204,15 @@ fn exit(sc: &Scene, here: &Tet, tet: u32, entry: usize, d: Vec3, t: f32) -> (usi
     exit_by_planes(here, den, entry, t)
 }
 
-/// Lane `i` holds `i`, to compare lanes with a face index.
-const LANES: Vec4 = Vec4::new(0.0, 1.0, 2.0, 3.0);
+/// `OTHERS[f]`: every lane but `f` set (all four for 4, no face), the faces a ray entering
+/// by face `f` may leave by.
+const OTHERS: [BVec4A; 5] = [
+    BVec4A::new(false, true, true, true),
+    BVec4A::new(true, false, true, true),
+    BVec4A::new(true, true, false, true),
+    BVec4A::new(true, true, true, false),
+    BVec4A::new(true, true, true, true),
+];
 /// [`twin::exit`]'s t before any face is found.
 const FAR: f32 = 3.0e38;
 
@@ -214,8 +221,9 @@ const FAR: f32 = 3.0e38;
 /// first on a tie), at its t (at least `t_in`); when there is none, the steepest other face at
 /// `t_in`.
 fn exit_by_planes(here: &Tet, den: Vec4, entry: usize, t_in: f32) -> (usize, f32) {
-    let others = LANES.cmpne(Vec4::splat(entry as f32));
-    let along = den.abs().cmple(twin::PARALLEL * here.norms);
+    // `entry` is a face index or 4 (the walk sets nothing else).
+    let others = OTHERS[entry.min(4)];
+    let along = den.abs().cmple(here.parallel);
     let t = -here.w / den;
     let ahead = others & den.cmpgt(Vec4::ZERO) & !along & t.cmplt(Vec4::splat(FAR));
     let t = Vec4::select(ahead, t, Vec4::splat(FAR));
