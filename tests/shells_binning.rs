@@ -138,7 +138,7 @@ fn gpu_binning_follows_updated_positions() {
 #[test]
 fn gpu_binning_refuses_chunked_meshes_and_auto_falls_back() {
     let mesh = common::gaussians(12);
-    // 12^3 x 6 = 10,368 records of 144 bytes: a 256 KiB binding holds 1,820 of them.
+    // 12^3 x 6 = 10,368 records of 80 bytes: a 256 KiB binding holds 3,276 of them.
     let small = common::with_storage_binding_limit(ctx(), 256 << 10);
     let err = ShellsRenderer::new(&small, &mesh, settings(Sampler::Raster, BinningMode::Gpu))
         .err()
