@@ -1,5 +1,6 @@
-// Assembly (a compute pass standing in for a geometry shader): once per tet and frame, fetch
-// the four vertices from the shared vertex buffer, transform them to eye space, and build the
+// Assembly (a compute pass standing in for a geometry shader): once per vertex and frame,
+// `vertices` transforms the vertex to eye space (read by tet_corners.wgsl); then once per tet
+// and frame, `main` fetches the four vertices from the shared vertex buffer and builds the
 // eye-to-barycentric transform and the eye's barycentric coordinates. The CPU twin is
 // gpu::shells::twin::assemble (shared by every mode, gpu::assembly). `main_cells` is the same
 // for a field constant per tet (cell data, gpu::mesh): the record's scalar is the tet's value
@@ -12,9 +13,11 @@
 @group(0) @binding(5) var<storage, read_write> degenerate_count: atomic<u32>;
 // main_cells only: the normalized value of each list entry's tet.
 @group(0) @binding(6) var<storage, read> cells: array<f32>;
+// Per vertex, its eye-space position (w = 1): written by `vertices`.
+@group(0) @binding(7) var<storage, read_write> eye_vertices: array<vec4<f32>>;
 
-// World (mesh-origin relative) point to eye space. Every tet that uses a vertex transforms it
-// with exactly these operations, so shared vertices project to the same bits (no cracks).
+// World (mesh-origin relative) point to eye space, once per vertex, so every tet that uses a
+// vertex projects it to the same bits (no cracks).
 fn to_eye(p: vec3<f32>) -> vec3<f32> {
     let q = p - view.eye;
     return vec3<f32>(dot(view.right, q), dot(view.up, q), dot(view.forward, q));
@@ -23,6 +26,18 @@ fn to_eye(p: vec3<f32>) -> vec3<f32> {
 // A world-space vector's components along the eye axes.
 fn rotate(g: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(dot(view.right, g), dot(view.up, g), dot(view.forward, g));
+}
+
+@compute @workgroup_size(64)
+fn vertices(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let v = (wid.y * groups.x + wid.x) * 64u + lid;
+    if v < arrayLength(&eye_vertices) {
+        eye_vertices[v] = vec4<f32>(to_eye(positions[v].xyz), 1.0);
+    }
 }
 
 @compute @workgroup_size(64)
@@ -80,11 +95,6 @@ fn assemble(t: u32) -> bool {
         records[t] = rec;
         return false;
     }
-    rec.pos[0] = vec4<f32>(to_eye(p0), 1.0);
-    rec.pos[1] = vec4<f32>(to_eye(p1), 1.0);
-    rec.pos[2] = vec4<f32>(to_eye(p2), 1.0);
-    rec.pos[3] = vec4<f32>(to_eye(p3), 1.0);
-
     // Rows of the inverse edge matrix: lambda_i = g_i . (x - p0) for i = 1..3.
     let k = inv_l / det;
     let g1 = c23 * k;

@@ -34,16 +34,17 @@ struct CellProj {
 @vertex
 fn vs_faces(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance: u32) -> Varyings {
     let rec = records[instance];
+    let pos = tet_corners(instance, rec);
     var faces = FACE_VERTICES;
-    let p = rec.pos[faces[vertex]];
-    let zs = vec4<f32>(rec.pos[0].z, rec.pos[1].z, rec.pos[2].z, rec.pos[3].z);
+    let p = pos[faces[vertex]];
+    let zs = vec4<f32>(pos[0].z, pos[1].z, pos[2].z, pos[3].z);
     var position = select(
         vec4<f32>(p.x * view.proj.x, p.y * view.proj.y, 0.0, p.z),
         NOWHERE,
         p.w == 0.0,
     );
     if any(zs <= vec4<f32>(view.near_z)) {
-        position = near_quad(rec, vertex);
+        position = near_quad(pos, vertex);
     }
     return varyings(position, rec);
 }

@@ -11,8 +11,8 @@
 // ground truth is reference::iso.
 
 @group(0) @binding(1) var<storage, read> records: array<TetRecord>;
-// The selected tets' vertex indices, in instance order (also the assembly's tet list).
-@group(0) @binding(2) var<storage, read> tets: array<vec4<u32>>;
+// The selected tets' vertex indices, in instance order (the assembly's tet list), are
+// tet_corners.wgsl's `tet_ids`.
 // Scalars normalized like the isovalues: (s - s_min) / (s_max - s_min).
 @group(0) @binding(3) var<storage, read> scalars: array<f32>;
 // Per-vertex world-space gradients for smooth shading (xyz; w unused).
@@ -59,10 +59,11 @@ fn to_world_vector(g: vec3<f32>) -> vec3<f32> {
 @vertex
 fn vs_faces(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance: u32) -> Varyings {
     let rec = records[instance];
-    let idx = tets[instance];
+    let idx = tet_ids[instance];
+    let pos = tet_corners(instance, rec);
     var faces = FACE_VERTICES;
-    let p = rec.pos[faces[vertex]];
-    let zs = vec4<f32>(rec.pos[0].z, rec.pos[1].z, rec.pos[2].z, rec.pos[3].z);
+    let p = pos[faces[vertex]];
+    let zs = vec4<f32>(pos[0].z, pos[1].z, pos[2].z, pos[3].z);
     let near = any(zs <= vec4<f32>(view.near_z));
     var position = select(
         vec4<f32>(p.x * view.proj.x, p.y * view.proj.y, 0.0, p.z),
@@ -70,7 +71,7 @@ fn vs_faces(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instanc
         p.w == 0.0,
     );
     if near {
-        position = near_quad(rec, vertex);
+        position = near_quad(pos, vertex);
     }
     let values = vec4<f32>(scalars[idx.x], scalars[idx.y], scalars[idx.z], scalars[idx.w]);
     let g0 = to_eye_vector(vertex_gradients[idx.x].xyz);

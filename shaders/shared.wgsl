@@ -20,9 +20,9 @@ struct View {
     _pad1: u32,
 }
 
-// Written by the assembly stage once per tet and frame; see gpu_data::TetRecord.
+// Written by the assembly stage once per tet and frame; see gpu_data::TetRecord. The tet's
+// eye-space corners are not in it: tet_corners.wgsl reads them.
 struct TetRecord {
-    pos: array<vec4<f32>, 4>,
     grad_x: vec4<f32>,
     grad_y: vec4<f32>,
     grad_z: vec4<f32>,
@@ -71,13 +71,14 @@ const QUAD_CORNERS = array<u32, 6>(0u, 1u, 2u, 2u, 1u, 3u);
 // it), grown by two pixels against rounding and clamped to the screen; NOWHERE when empty.
 // Every sample lies in front of the plane (shells: near_z is below the first slice's z on the
 // widest ray; iso: hits need t > 0 well past it), so the bounds hold every fragment needed.
-// Degenerate (zeroed) records and vertices past the quad's 6 give NOWHERE too.
-fn near_quad(rec: TetRecord, vertex: u32) -> vec4<f32> {
+// `pos`: the tet's eye-space corners (tet_corners); a degenerate tet (w = 0) and vertices
+// past the quad's 6 give NOWHERE too.
+fn near_quad(pos: array<vec4<f32>, 4>, vertex: u32) -> vec4<f32> {
     let zc = view.near_z;
     var lo = vec2<f32>(1e30);
     var hi = vec2<f32>(-1e30);
     for (var i = 0u; i < 4u; i++) {
-        let p = rec.pos[i].xyz;
+        let p = pos[i].xyz;
         if p.z >= zc {
             lo = min(lo, p.xy / p.z);
             hi = max(hi, p.xy / p.z);
@@ -86,8 +87,8 @@ fn near_quad(rec: TetRecord, vertex: u32) -> vec4<f32> {
     var ea = EDGE_A;
     var eb = EDGE_B;
     for (var e = 0u; e < 6u; e++) {
-        let a = rec.pos[ea[e]].xyz;
-        let b = rec.pos[eb[e]].xyz;
+        let a = pos[ea[e]].xyz;
+        let b = pos[eb[e]].xyz;
         if (a.z - zc) * (b.z - zc) < 0.0 {
             let q = mix(a.xy, b.xy, (zc - a.z) / (b.z - a.z)) / zc;
             lo = min(lo, q);
@@ -103,7 +104,7 @@ fn near_quad(rec: TetRecord, vertex: u32) -> vec4<f32> {
         select(lo_ndc.x, hi_ndc.x, (c & 1u) != 0u),
         select(lo_ndc.y, hi_ndc.y, (c & 2u) != 0u),
     );
-    let empty = vertex >= 6u || rec.pos[0].w == 0.0 || !all(lo_ndc < hi_ndc);
+    let empty = vertex >= 6u || pos[0].w == 0.0 || !all(lo_ndc < hi_ndc);
     return select(vec4<f32>(xy, 0.0, 1.0), NOWHERE, empty);
 }
 

@@ -1,5 +1,5 @@
 // Raster (one render pass per shell): each active tet's front faces are drawn by vertex pulling
-// from its record, 4 vertices and 12 indices per tet in one draw per shell (no instancing:
+// from its record and corners (tet_corners.wgsl), 4 vertices and 12 indices per tet in one draw per shell (no instancing:
 // lavapipe runs its vertex pipeline once per instance; indexed, each corner is shaded once); near-plane tets draw a screen-space quad instead. Every fragment takes the
 // exact pixel-centre ray into the tet's barycentric space and writes, for each of the shell's
 // slices, the encoded scalar where the sample lies in the tet and 0 elsewhere, into TARGETS
@@ -18,7 +18,7 @@ fn vs_faces(@builtin(vertex_index) index: u32) -> Varyings {
     // faces from these 4 vertices, so each corner is shaded once, not three times.
     let tet = active_tets[index / 4u];
     let rec = records[tet];
-    let p = rec.pos[index % 4u];
+    let p = tet_corners(tet, rec)[index % 4u];
     let position = select(
         vec4<f32>(p.x * view.proj.x, p.y * view.proj.y, 0.0, p.z),
         NOWHERE,
@@ -31,7 +31,7 @@ fn vs_faces(@builtin(vertex_index) index: u32) -> Varyings {
 fn vs_near(@builtin(vertex_index) index: u32) -> Varyings {
     let tet = active_tets[index / 6u];
     let rec = records[tet];
-    return shell_varyings(near_quad(rec, index % 6u), rec, tet);
+    return shell_varyings(near_quad(tet_corners(tet, rec), index % 6u), rec, tet);
 }
 
 // The fragment's slice span (see tet_span in shells_span.wgsl) in the tet of its varyings.

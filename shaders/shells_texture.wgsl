@@ -9,9 +9,8 @@
 // Composed with texture_sample.wgsl (`trilinear`) after shells_span.wgsl. CPU reference:
 // texture::TexturedReference.
 
-// The mesh's tets (vertex ids, the record chunk's window) and the cage vertices' texture
-// coordinates (vec4, w unused).
-@group(0) @binding(13) var<storage, read> tet_ids: array<vec4<u32>>;
+// The cage vertices' texture coordinates (vec4, w unused); the tets' vertex ids are
+// tet_corners.wgsl's `tet_ids` (the record chunk's window).
 @group(0) @binding(14) var<storage, read> texcoords: array<vec4<f32>>;
 @group(0) @binding(15) var volume: texture_3d<f32>;
 

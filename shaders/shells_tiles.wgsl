@@ -46,12 +46,13 @@ const BOX_PAD: f32 = 0.015625;
 // box of its projected corners, or for a tet crossing the near plane, in near_quad's box of
 // its part in front of the plane (two pixels wider); empty for degenerate tets and tets
 // behind the plane.
-fn pixel_box(rec: TetRecord) -> vec4<u32> {
+fn pixel_box(tet: u32) -> vec4<u32> {
+    let pos = tet_corners(tet, records[tet]);
     var lo = vec2<f32>(1e30);
     var hi = vec2<f32>(-1e30);
-    var front = rec.pos[0].w != 0.0;
+    var front = pos[0].w != 0.0;
     for (var i = 0u; i < 4u; i++) {
-        let p = rec.pos[i].xyz;
+        let p = pos[i].xyz;
         front = front && p.z >= view.near_z;
         lo = min(lo, p.xy / p.z * view.proj);
         hi = max(hi, p.xy / p.z * view.proj);
@@ -59,8 +60,8 @@ fn pixel_box(rec: TetRecord) -> vec4<u32> {
     if !front {
         // Quad vertices 0 and 5 are its corners (lo, lo) and (hi, hi); the quad of an
         // empty tet is a point.
-        lo = near_quad(rec, 0u).xy;
-        hi = near_quad(rec, 5u).xy;
+        lo = near_quad(pos, 0u).xy;
+        hi = near_quad(pos, 5u).xy;
         if all(lo == hi) {
             return vec4<u32>(0u);
         }
@@ -93,7 +94,7 @@ fn count(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) 
     if tet.x == shell.faces.y + shell.near.y {
         return;
     }
-    let b = tile_box(pixel_box(records[tet.y]));
+    let b = tile_box(pixel_box(tet.y));
     let across = tiles_x();
     for (var y = b.y; y < b.w; y++) {
         for (var x = b.x; x < b.z; x++) {
@@ -148,7 +149,7 @@ fn scatter(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
     if tet.x == shell.faces.y + shell.near.y {
         return;
     }
-    let pixels = pixel_box(records[tet.y]);
+    let pixels = pixel_box(tet.y);
     let b = tile_box(pixels);
     let across = tiles_x();
     let capacity = arrayLength(&lists);

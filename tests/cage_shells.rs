@@ -8,6 +8,7 @@ mod common;
 use std::sync::{Arc, OnceLock};
 
 use glam::DVec3;
+use tetvr::gpu::gpu_data::TetRecord;
 use tetvr::gpu::{
     AdapterChoice, BinningMode, GpuContext, Sampler, ShellSettings, ShellsRenderer, Skips,
 };
@@ -161,8 +162,7 @@ fn textured_shells_match_the_reference_undeformed_and_bent() {
     assert!(err.is_err_and(|e| e.to_string().contains("volume texture")));
 }
 
-/// Records in chunks (a storage binding of 96 records of 144 bytes: 2 chunks of the 144
-/// tets): each chunk
+/// Records in chunks (a storage binding of 128 records: 2 chunks of the 144 tets): each chunk
 /// binds its window of the tets for the texture coordinates, so both samplers draw the same
 /// picture as with one chunk (the raster's MAX and the compute sampler's carried slices do not
 /// care how the tets are split: bit for bit).
@@ -172,7 +172,7 @@ fn textured_shells_in_record_chunks_draw_the_same_picture() {
     // 8x8 pixels: the compute sampler carries each pixel's slices between chunk passes in one
     // binding too (8 x 8 pixels x 8 vec4s, 8 kB).
     let (tf, camera) = view(&volume, &mesh, 8);
-    let small = common::with_storage_binding_limit(ctx(), 96 * 144);
+    let small = common::with_storage_binding_limit(ctx(), 128 * size_of::<TetRecord>() as u64);
     for sampler in [Sampler::Raster, Sampler::Compute] {
         let whole = textured_shells(ctx(), &mesh, &volume, settings(sampler));
         let chunked = textured_shells(&small, &mesh, &volume, settings(sampler));

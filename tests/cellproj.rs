@@ -389,7 +389,7 @@ fn frustum_culling_drops_tets_out_of_view_and_changes_nothing() {
 #[test]
 fn meshes_beyond_one_storage_binding_are_drawn_in_chunks() {
     // The same adapter told it may bind only 64 KiB per storage binding: lox's 8,750 records
-    // (1.26 MB) are assembled and drawn in about 20 chunks of the sorted order, one after the
+    // (700 KB) are assembled and drawn in about 11 chunks of the sorted order, one after the
     // other, so the blending order is unchanged and the picture must be bit-identical.
     let base = ctx();
     let small = common::with_storage_binding_limit(base, 64 << 10);

@@ -9,6 +9,7 @@
 mod common;
 
 use std::sync::OnceLock;
+use tetvr::gpu::gpu_data::TetRecord;
 use tetvr::gpu::iso::gradients::{VertexTets, vertex_gradients_twin};
 
 use glam::{DVec3, UVec3};
@@ -410,7 +411,7 @@ fn brute_force_selected(mesh: &TetMesh, isovalues: &[f64]) -> u64 {
 }
 
 /// Smooth shading on a mesh whose tets span several storage bindings (the binding lowered to
-/// 1 MiB: the 24,576 tets of the Gaussians grid in 4 chunks): the gradient stage runs once per
+/// 512 KiB: the 24,576 tets of the Gaussians grid in 4 chunks): the gradient stage runs once per
 /// chunk and carries each vertex's sums from one to the next, so the same terms add in the
 /// same order, and gradients, colours, depths and normals are those of one binding to the bit
 /// (bound: 0 differing bits).
@@ -424,9 +425,9 @@ fn smooth_shading_over_several_bindings_is_bit_identical() {
         shading: Shading::Smooth,
         ..Default::default()
     };
-    let binding = 1 << 20;
+    let binding = 1 << 19;
     assert!(
-        mesh.tet_count() as u64 * 144 > 3 * binding,
+        mesh.tet_count() as u64 * size_of::<TetRecord>() as u64 > 3 * binding,
         "4 chunks of tets"
     );
     let run = |c: &GpuContext| {
@@ -645,13 +646,12 @@ fn frustum_culling_drops_tets_out_of_view_and_changes_nothing() {
 
 #[test]
 fn selections_beyond_one_storage_binding_are_drawn_in_chunks() {
-    // The same adapter told it may bind only 512 KiB per storage binding: enough for the
-    // 24,576 tets' 16-byte index list (393 KB), which iso keeps whole, but not for the 4,480
-    // selected tets' records (645 KB), which are assembled and drawn in two chunks, each a
-    // window of one buffer. The depth test keeps the nearest hit whatever the draw order, so
+    // The same adapter told it may bind only 256 KiB per storage binding: not enough for the
+    // 4,480 selected tets' 80-byte records (358 KB), which are assembled and drawn in two
+    // chunks, each a window of one buffer. The depth test keeps the nearest hit whatever the draw order, so
     // the picture must be bit-identical to the unchunked one.
     let base = ctx();
-    let small = common::with_storage_binding_limit(base, 512 << 10);
+    let small = common::with_storage_binding_limit(base, 256 << 10);
     let mesh = gaussians();
     let (lo, hi) = mesh.bounds();
     let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 96, 96);

@@ -792,8 +792,8 @@ fn large_transfer_functions_use_the_looping_variant_and_match() {
 #[test]
 fn a_mesh_beyond_one_storage_binding_is_drawn_in_chunks() {
     // The same adapter told it may bind only 64 KiB per storage binding: lox's 8,750 records
-    // (1.26 MB) become chunks of at most 455 tets (rounded down to a multiple of the offset
-    // alignment), about 20 of them. Chunks only
+    // (700 KB) become chunks of at most 819 tets (rounded down to a multiple of the offset
+    // alignment), 11 or more of them. Chunks only
     // split where records are bound, and MAX blending does not care about draw order, so the
     // picture must be bit-identical to the unchunked one, with the eye outside and inside.
     let base = ctx();
@@ -816,7 +816,7 @@ fn a_mesh_beyond_one_storage_binding_is_drawn_in_chunks() {
         let a = whole.render(camera, &tf).expect("unchunked frame").image;
         let frame = chunked.render(camera, &tf).expect("chunked frame");
         assert!(
-            counter(&frame.timings, "record chunks") >= 19,
+            counter(&frame.timings, "record chunks") >= 11,
             "{}",
             frame.timings
         );
@@ -832,10 +832,11 @@ fn a_mesh_beyond_one_storage_binding_is_drawn_in_chunks() {
 
 #[test]
 fn bytes_per_tet_count_the_records_tets_vertices_and_active_list() {
-    // Per tet: a 144-byte record and 16 bytes of vertex indices; lox has fewer vertices than
-    // tets (20 bytes each: position and scalar) and a tet spans one or two shells at 256
-    // samples (4 bytes per instance, the buffer grown to a power of two: at most 16 bytes per
-    // tet more). So between 160 and 200 bytes, and the frame reports the same figure.
+    // Per tet: an 80-byte record and 16 bytes of vertex indices; lox has fewer vertices than
+    // tets (36 bytes each: position, scalar and eye-space position) and a tet spans one or
+    // two shells at 256 samples (4 bytes per instance, the buffer grown to a power of two: at
+    // most 16 bytes per tet more). So between 96 and 148 bytes, and the frame reports the
+    // same figure.
     let mesh = lox();
     let (tf, camera) = common::default_view(&mesh, 64);
     let settings = ShellSettings {
@@ -844,17 +845,14 @@ fn bytes_per_tet_count_the_records_tets_vertices_and_active_list() {
     };
     let (_, r, timings) = render(&mesh, settings, &camera, &tf);
     let per_tet = r.bytes_per_tet();
-    assert!(
-        (160.0..=200.0).contains(&per_tet),
-        "{per_tet} bytes per tet"
-    );
+    assert!((96.0..=148.0).contains(&per_tet), "{per_tet} bytes per tet");
     assert_eq!(counter(&timings, "bytes per tet"), per_tet.round() as u64);
 }
 
 #[test]
 fn the_compute_sampler_draws_a_chunked_mesh_as_it_draws_it_whole() {
     // The same adapter told it may bind only 256 KiB per storage binding: lox's 8,750 records
-    // (1.26 MB) become 5 chunks of 1,792 tets (a multiple of the 256-byte offset alignment).
+    // (700 KB) become 3 chunks of 3,072 tets (a multiple of the 256-byte offset alignment).
     // Each shell then runs one coarse and fine pass per chunk holding some of its tets, the
     // slices carried between passes under MAX, so the picture must be bit-identical to the
     // unchunked one (bound 0), with the eye outside and inside. 16 slices per shell at 64x64
@@ -881,7 +879,7 @@ fn the_compute_sampler_draws_a_chunked_mesh_as_it_draws_it_whole() {
         let frame = chunked.render(camera, &tf).expect("chunked frame");
         assert_eq!(
             counter(&frame.timings, "record chunks"),
-            5,
+            3,
             "{}",
             frame.timings
         );

@@ -147,10 +147,10 @@ fn gpu_binning_draws_chunked_meshes_as_the_cpu_binning() {
         ("eye-inside", common::eye_inside_a_grid()),
     ];
     for (name, (mesh, tf, camera)) in scenes {
-        // 48 bytes a tet, rounded up to a power of two: between a third and two thirds of the
-        // 144-byte records, so 2 or 3 chunks; the lists and the compute sampler's carried
-        // slices (96 x 96 pixels x 2 layers x 16 bytes) still fit one binding.
-        let binding = (48 * mesh.tet_count() as u64).next_power_of_two();
+        // 512 KiB: lox's 8,750 and the grid's 10,368 records of 80 bytes (700 and 829 KB) take
+        // 2 chunks; the lists and the compute sampler's carried slices (96 x 96 pixels x 2
+        // layers x 16 bytes, 295 KB) still fit one binding.
+        let binding = 512 << 10;
         let small = common::with_storage_binding_limit(ctx(), binding);
         for sampler in [Sampler::Raster, Sampler::Compute] {
             let frame = |binning| {
@@ -167,15 +167,16 @@ fn gpu_binning_draws_chunked_meshes_as_the_cpu_binning() {
     }
 }
 
-/// Bindings declared at 128 KiB and buffers at 160 KiB (the image's 147 KB readback still
-/// fits): the grid's 10,368 records take 12 chunks in 12 buffers, and its tets (16 bytes each,
+/// Bindings declared at 84 KiB and buffers at 160 KiB (the image's 147 KB readback still
+/// fits, two bindings do not): the grid's 10,368 records of 80 bytes take 10 chunks in 10
+/// buffers, and its tets (16 bytes each,
 /// 166 KB) are cut into the same chunks over 2 buffers, so each count and scatter pass binds
 /// its chunk's window of the right buffer. Raster sampler only: the compute sampler's carried slices
 /// (96 x 96 x 2 layers x 16 bytes) exceed such a binding. Same bound as above.
 #[test]
 fn gpu_binning_reads_each_chunks_tets_from_its_buffer() {
     let (mesh, tf, camera) = common::eye_inside_a_grid();
-    let small = common::with_buffer_limits(ctx(), 128 << 10, 160 << 10);
+    let small = common::with_buffer_limits(ctx(), 84 << 10, 160 << 10);
     let frame = |binning| {
         let mut r = ShellsRenderer::new(&small, &mesh, settings(Sampler::Raster, binning))
             .expect("renderer");

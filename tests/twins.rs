@@ -477,7 +477,7 @@ fn assembly_drift(src: String, f: &ViewUniforms, rng: &mut Rng) -> Drift {
     ];
     let out = (&records, (n * size_of::<TetRecord>()) as u64);
     let gpu: Vec<TetRecord> =
-        bytemuck::cast_slice(&dispatch(src, "main", &[&group], n as u32, out)).to_vec();
+        bytemuck::cast_slice(&dispatch(src.clone(), "main", &[&group], n as u32, out)).to_vec();
     let gpu_degenerate = bytemuck::cast_slice::<u8, u32>(&read_back(&degenerate, 4))[0];
     let mut drift = Drift::default();
     let (mut twin_degenerate, mut borderline) = (0, 0);
@@ -487,7 +487,7 @@ fn assembly_drift(src: String, f: &ViewUniforms, rng: &mut Rng) -> Drift {
         let cond = condition(p);
         let rec = twin::assemble(f, p, s);
         twin_degenerate += rec.is_none() as u32;
-        let gpu_degenerate = g.pos[0][3] == 0.0;
+        let gpu_degenerate = *g == TetRecord::default();
         if gpu_degenerate != rec.is_none() {
             // The determinant test of a tet within a factor 2 of the threshold may go either
             // way: its determinant is ~1e-6 of its terms, so fused multiply-adds move it by up
@@ -504,9 +504,10 @@ fn assembly_drift(src: String, f: &ViewUniforms, rng: &mut Rng) -> Drift {
             || format!("tet {k} {p:?}, condition {cond}"),
             bytemuck::cast_slice(&[*g]),
             bytemuck::cast_slice(&[rec]),
-            &record_scales(f, p, &rec, cond),
+            &record_scales(&rec, cond),
         );
     }
+    drift.merge(eye_vertices_drift(src, f, &view_buf, &pos_buf, &positions));
     let gpu_degenerate = gpu_degenerate as i64 - twin_degenerate as i64;
     assert!(
         gpu_degenerate.unsigned_abs() <= borderline,
@@ -520,6 +521,36 @@ fn assembly_drift(src: String, f: &ViewUniforms, rng: &mut Rng) -> Drift {
     drift
 }
 
+/// The assembly's `vertices` entry on `f` and the mesh's `positions`, against
+/// `twin::eye_vertex` per vertex, each coordinate on the scale of its distance from the eye.
+fn eye_vertices_drift(
+    src: String,
+    f: &ViewUniforms,
+    view_buf: &wgpu::Buffer,
+    pos_buf: &wgpu::Buffer,
+    positions: &[[f32; 4]],
+) -> Drift {
+    let bytes = size_of_val(positions);
+    let eye_buf = buffer(&vec![0; bytes], WRITE);
+    let group = [
+        (0, view_buf, UNIFORM),
+        (1, pos_buf, READ),
+        (7, &eye_buf, WRITE),
+    ];
+    let n = positions.len() as u32;
+    let out = dispatch(src, "vertices", &[&group], n, (&eye_buf, bytes as u64));
+    let gpu: &[[f32; 4]] = bytemuck::cast_slice(&out);
+    let eye = Vec3::from(f.eye);
+    let mut drift = Drift::default();
+    for (k, (g, p)) in gpu.iter().zip(positions).enumerate() {
+        let q = Vec3::from_slice(&p[..3]);
+        let twin = twin::eye_vertex(f, q).to_array();
+        let scale = (q - eye).length().max(q.length());
+        drift.check(|| format!("vertex {k} {q:?}"), g, &twin, &[scale; 4]);
+    }
+    drift
+}
+
 /// The condition of a tet's barycentric transform, |n1| |n2| |n3| / |det(n1, n2, n3)| with
 /// n_i its edges from vertex 0 over the longest (the amplification of rounding in its
 /// gradients; infinite for a flat tet).
@@ -530,16 +561,11 @@ fn condition(p: [Vec3; 4]) -> f32 {
     n[0].length() * n[1].length() * n[2].length() / n[0].dot(n[1].cross(n[2])).abs()
 }
 
-/// The scale of each of a record's 36 values (see [`Drift`]): eye-space positions on their
-/// distance from the eye; gradients on the largest gradient times the condition; the eye's
+/// The scale of each of a record's 20 values (see [`Drift`]): gradients on the largest gradient times the condition; the eye's
 /// barycentrics and the encoded scalar (sums of terms up to the largest barycentric times
 /// encoded scalars up to 2, with cancellation against 1) on that times the condition.
-fn record_scales(f: &ViewUniforms, p: [Vec3; 4], rec: &TetRecord, cond: f32) -> Vec<f32> {
-    let eye = Vec3::from(f.eye);
-    let mut scales: Vec<f32> = p
-        .iter()
-        .flat_map(|&q| [(q - eye).length().max(q.length()); 4])
-        .collect();
+fn record_scales(rec: &TetRecord, cond: f32) -> Vec<f32> {
+    let mut scales = Vec::new();
     let grads: Vec<f32> = [rec.grad_x, rec.grad_y, rec.grad_z].concat();
     let grad = max_abs(&grads) * cond;
     let lambda = max_abs(&rec.lambda_eye).max(1.0) * 2.0 * cond;
@@ -586,16 +612,17 @@ fn assembly_all(src: &str) -> Drift {
     drift
 }
 
-/// The assembly stage's records are the twin's for every tet of the sweep (3 cameras x 1,400
-/// tets: slivers around the degenerate threshold, zero-length tets, the eye at a vertex,
-/// vertices shared between tets), and both count the same degenerate tets. Bound: 8 epsilons
+/// The assembly stage's records and eye-space vertices are the twin's for every tet and vertex
+/// of the sweep (3 cameras x 1,400 tets: slivers around the degenerate threshold, zero-length
+/// tets, the eye at a vertex, vertices shared between tets), and both count the same
+/// degenerate tets. Bound: 8 epsilons
 /// of each value's scale (`record_scales`); lavapipe fuses multiplies and adds (about 1 value
 /// in 10 differs in its last bits), which moves a value by about one rounding of its terms
 /// amplified by the tet's condition; measured worst 1.4. A one-ulp change of an operation
 /// is not caught by this bound, a change of 1e-4 (~840 epsilons) is.
 #[test]
 fn assembly_matches_its_twin() {
-    assembly_all(&shaders::assemble()).assert_within("assembly", 4000 * 36, 8.0);
+    assembly_all(&shaders::assemble()).assert_within("assembly", 4000 * 20, 8.0);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -814,7 +841,7 @@ fn segment_drift(module: String) -> (Drift, u32) {
             SEGMENT_CASE,
             &[(0, &view_buf, UNIFORM)],
             bytemuck::cast_slice(&cases),
-            160,
+            size_of::<FragmentCase>(),
             32,
         );
         for (k, (c, gpu)) in cases.iter().zip(out.chunks(8)).enumerate() {
@@ -887,7 +914,7 @@ fn slices_drift(source: &dyn Fn(u32) -> String) -> (Drift, u32) {
             SLICES_CASE,
             &group0,
             bytemuck::cast_slice(&cases),
-            160,
+            size_of::<FragmentCase>(),
             64,
         );
         for (k, (c, gpu)) in cases.iter().zip(out.chunks(16)).enumerate() {

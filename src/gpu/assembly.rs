@@ -1,7 +1,8 @@
 //! The assembly stage, shared by every mode (`shaders/assemble.wgsl`, CPU twin
-//! [`crate::gpu::shells::twin::assemble`]): once per listed tet and frame, a compute pass
-//! fetches its corners, transforms them to eye space and builds its eye-to-barycentric record
-//! ([`TetRecord`]). The list and the records are [`TetArray`]s of one
+//! [`crate::gpu::shells::twin::assemble`]): once per frame, a compute pass transforms every
+//! vertex to eye space ([`AssemblyStage::eye_vertices`], which the stages drawing tets read
+//! their corners from, `shaders/tet_corners.wgsl`), then, once per listed tet, fetches its
+//! corners and builds its eye-to-barycentric record ([`TetRecord`]). The list and the records are [`TetArray`]s of one
 //! [`crate::gpu::mesh::Chunking`]; each chunk is assembled through its own bind group over the
 //! chunk's windows, so records beyond one storage binding or one buffer are fine.
 //!
@@ -25,10 +26,14 @@ pub const DEGENERATE_TOL: f32 = 1e-6;
 /// Bytes of one record.
 pub(crate) const RECORD_BYTES: u64 = size_of::<TetRecord>() as u64;
 
-/// The assembly pipeline and the count of degenerate tets it skipped.
+/// The assembly pipelines, the eye-space vertices and the count of degenerate tets skipped.
 pub(crate) struct AssemblyStage {
     layout: wgpu::BindGroupLayout,
+    vertices: wgpu::ComputePipeline,
     pipeline: wgpu::ComputePipeline,
+    /// Per vertex of the mesh, its eye-space position (`vec4<f32>`, w = 1) of the last
+    /// assembly.
+    eye_vertices: wgpu::Buffer,
     /// One u32: the degenerate tets of the last assembly.
     degenerate: wgpu::Buffer,
 }
@@ -52,9 +57,9 @@ pub(crate) struct AssemblyInputs<'a> {
 }
 
 impl AssemblyStage {
-    /// Builds the pipeline: the one for a field constant per tet when `cells` (its inputs then
-    /// carry [`AssemblyInputs::cells`]).
-    pub(crate) fn new(device: &wgpu::Device, cells: bool) -> Self {
+    /// Builds the pipelines for `mesh`'s vertices: the one for a field constant per tet when
+    /// `cells` (its inputs then carry [`AssemblyInputs::cells`]).
+    pub(crate) fn new(device: &wgpu::Device, mesh: &GpuTetMesh, cells: bool) -> Self {
         use wgpu::ShaderStages as S;
         let ro = wgpu::BufferBindingType::Storage { read_only: true };
         let rw = wgpu::BufferBindingType::Storage { read_only: false };
@@ -65,6 +70,7 @@ impl AssemblyStage {
             buffer_entry(3, S::COMPUTE, ro),
             buffer_entry(4, S::COMPUTE, rw),
             buffer_entry(5, S::COMPUTE, rw),
+            buffer_entry(7, S::COMPUTE, rw),
         ];
         if cells {
             entries.push(buffer_entry(6, S::COMPUTE, ro));
@@ -72,6 +78,14 @@ impl AssemblyStage {
         let layout = bind_group_layout(device, "assemble", &entries);
         let entry = if cells { "main_cells" } else { "main" };
         let pipeline = compute_entry(device, "assemble", &layout, shaders::assemble(), entry);
+        let vertices = compute_entry(device, "assemble", &layout, shaders::assemble(), "vertices");
+        // Same size as the positions: one vec4 per vertex.
+        let eye_vertices = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("eye-space vertices"),
+            size: mesh.positions().size(),
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
         let degenerate = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("degenerate tet count"),
             size: 16,
@@ -82,7 +96,9 @@ impl AssemblyStage {
         });
         Self {
             layout,
+            vertices,
             pipeline,
+            eye_vertices,
             degenerate,
         }
     }
@@ -105,6 +121,7 @@ impl AssemblyStage {
                     inputs.tets.window(3, first, count),
                     inputs.records.window(4, first, count),
                     entry(5, &self.degenerate),
+                    entry(7, &self.eye_vertices),
                 ];
                 if let Some(cells) = inputs.cells {
                     entries.push(cells.window(6, first, count));
@@ -121,7 +138,8 @@ impl AssemblyStage {
     }
 
     /// Records the assembly of `groups` (from [`Self::bind`]) as the frame's "assembly" stage:
-    /// one compute pass, after zeroing the degenerate count. `max_groups`: the adapter's
+    /// one compute pass, after zeroing the degenerate count: the eye-space vertices, then the
+    /// records. `max_groups`: the adapter's
     /// workgroups per dimension.
     pub(crate) fn record(
         &self,
@@ -147,13 +165,28 @@ impl AssemblyStage {
             label: Some("assembly"),
             timestamp_writes: timestamps,
         });
+        let dispatch = |pass: &mut wgpu::ComputePass, count: u64| {
+            let workgroups = (count as u32).div_ceil(64);
+            let x = workgroups.min(max_groups).max(1);
+            pass.dispatch_workgroups(x, workgroups.div_ceil(x), 1);
+        };
+        // Any chunk's group binds every vertex.
+        if let Some((group, _)) = groups.0.first() {
+            pass.set_pipeline(&self.vertices);
+            pass.set_bind_group(0, group, &[]);
+            dispatch(&mut pass, self.eye_vertices.size() / 16);
+        }
         pass.set_pipeline(&self.pipeline);
         for (group, count) in &groups.0 {
             pass.set_bind_group(0, group, &[]);
-            let workgroups = (*count as u32).div_ceil(64);
-            let x = workgroups.min(max_groups).max(1);
-            pass.dispatch_workgroups(x, workgroups.div_ceil(x), 1);
+            dispatch(&mut pass, *count);
         }
+    }
+
+    /// Per vertex of the mesh, its eye-space position of the last assembly (`vec4<f32>`,
+    /// w = 1), for `shaders/tet_corners.wgsl`.
+    pub(crate) fn eye_vertices(&self) -> &wgpu::Buffer {
+        &self.eye_vertices
     }
 
     /// The degenerate count of the last assembly (one u32), for the frame's stats readback.

@@ -148,7 +148,9 @@ pub const CHUNK_LOAD: u32 = 1;
 pub const CHUNK_STORE: u32 = 2;
 
 /// What the assembly stage writes once per tet and frame and the raster stage reads (WGSL
-/// `TetRecord`, 144 bytes).
+/// `TetRecord`, 80 bytes). The tet's eye-space corners are not in it: the stages that draw or
+/// bin tets read them through its vertex ids from the per-frame eye-space vertices
+/// (`shaders/tet_corners.wgsl`); a degenerate tet's record is all zeros.
 ///
 /// Barycentric coordinates along the ray `x = t d` (eye space, `d` unit) are
 /// `lambda(t) = lambda_eye + t (grad_x d.x + grad_y d.y + grad_z d.z)`; the encoded scalar is
@@ -156,8 +158,6 @@ pub const CHUNK_STORE: u32 = 2;
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct TetRecord {
-    /// Eye-space vertex positions; `w` is 1 for a usable tet, 0 for a skipped degenerate one.
-    pub pos: [[f32; 4]; 4],
     /// d lambda_i / d x_eye for i = 0..3.
     pub grad_x: [f32; 4],
     /// d lambda_i / d y_eye.
@@ -170,7 +170,7 @@ pub struct TetRecord {
     /// the eye.
     pub scalar: [f32; 4],
 }
-const _: () = assert!(size_of::<TetRecord>() == 144);
+const _: () = assert!(size_of::<TetRecord>() == 80);
 
 /// One transfer-function control point (WGSL `TfPoint`, 32 bytes), `s` normalized like the
 /// encoded scalars: `u = (s - s_min) / (s_max - s_min)`.

@@ -568,9 +568,9 @@ mod tests {
         // Fits: one chunk of all tets (at least 1, so an empty mesh still binds something).
         assert_eq!(chunk_tets(1000, 1000 * record, 256), Some(1000));
         assert_eq!(chunk_tets(0, 1 << 20, 256), Some(1));
-        // lavapipe: 128 MiB bindings hold 932,067 records; chunks round down to 931,840.
-        let chunk = chunk_tets(2_000_000, 128 << 20, 256).unwrap();
-        assert_eq!(chunk, 931_840);
+        // lavapipe: 128 MiB bindings hold 1,677,721 records; chunks round down to 1,677,568.
+        let chunk = chunk_tets(4_000_000, 128 << 20, 256).unwrap();
+        assert_eq!(chunk, 1_677_568);
         assert_eq!(chunk * record % 256, 0);
         assert_eq!(chunk * 16 % 256, 0);
         // A binding smaller than one aligned group of records cannot be chunked.

@@ -23,6 +23,9 @@ pub const INTEGRATE_SEGMENT: &str = include_str!("../../shaders/integrate_segmen
 pub const PSI_EXACT: &str =
     "fn psi(a: f32, b: f32) -> f32 {\n    return mean_transmittance(a, b);\n}\n";
 const ASSEMBLE: &str = include_str!("../../shaders/assemble.wgsl");
+/// A tet's eye-space corners (`fn tet_corners`, bindings 13 and 16), in front of the stages
+/// that draw or bin tets (shells, iso and cellproj raster).
+const TET_CORNERS: &str = include_str!("../../shaders/tet_corners.wgsl");
 /// The shells mode's own uniforms (slicing, per-shell constants), in front of its raster and
 /// composite stages.
 pub const SHELLS_SHARED: &str = include_str!("../../shaders/shells_shared.wgsl");
@@ -179,8 +182,8 @@ pub fn raycast_stages() -> [(&'static str, String); 17] {
 /// The most colour targets a raster variant may write (WebGPU's cap on colour attachments).
 pub const MAX_TARGETS: u32 = 8;
 
-/// The assembly stage every mode shares (compute entry points `main`, and `main_cells` for a
-/// field constant per tet).
+/// The assembly stage every mode shares (compute entry points `vertices`, `main`, and
+/// `main_cells` for a field constant per tet).
 pub fn assemble() -> String {
     format!("{SHARED}\n{ASSEMBLE}")
 }
@@ -193,7 +196,8 @@ pub fn shells_raster(targets: u32) -> String {
 }
 
 /// [`shells_raster`] for a textured cage: each sample reads the volume texture at its texture
-/// coordinate (`shells_texture.wgsl`, bindings 13-15).
+/// coordinate (`shells_texture.wgsl`, bindings 14-15; the tets' vertex ids are
+/// `tet_corners.wgsl`'s, binding 13).
 pub fn shells_raster_textured(targets: u32) -> String {
     shells_raster_variant(targets, true)
 }
@@ -206,7 +210,7 @@ fn shells_raster_variant(targets: u32, textured: bool) -> String {
         .collect();
     let values: Vec<String> = (0..targets).map(|i| format!("v[{i}]")).collect();
     format!(
-        "{SHARED}\n{SHELLS_SHARED}\n{sampling}\n// Generated: the raster variant with {targets} colour targets.\n\
+        "{SHARED}\n{TET_CORNERS}\n{SHELLS_SHARED}\n{sampling}\n// Generated: the raster variant with {targets} colour targets.\n\
          const TARGETS: u32 = {targets}u;\n\
          struct SliceOut {{\n{fields}}}\n\
          fn slice_out(v: array<vec4<f32>, TARGETS>) -> SliceOut {{\n    return SliceOut({});\n}}\n\
@@ -273,7 +277,7 @@ pub const SHELLS_TILE: u32 = 8;
 /// shell's tets to tiles of [`SHELLS_TILE`] pixels.
 pub fn shells_tiles() -> String {
     format!(
-        "{SHARED}\n{SHELLS_SHARED}\n// Generated: the tile side in pixels.\n\
+        "{SHARED}\n{TET_CORNERS}\n{SHELLS_SHARED}\n// Generated: the tile side in pixels.\n\
          const TILE: u32 = {SHELLS_TILE}u;\n{SHELLS_TILES}"
     )
 }
@@ -286,7 +290,8 @@ pub fn shells_fine(targets: u32, tf_points: u32) -> String {
 }
 
 /// [`shells_fine`] for a textured cage: each sample reads the volume texture at its texture
-/// coordinate (`shells_texture.wgsl`, bindings 13-15).
+/// coordinate (`shells_texture.wgsl`, bindings 14-15; the tets' vertex ids are
+/// `tet_corners.wgsl`'s, binding 13).
 pub fn shells_fine_textured(targets: u32, tf_points: u32) -> String {
     shells_fine_variant(targets, tf_points, true)
 }
@@ -294,7 +299,7 @@ pub fn shells_fine_textured(targets: u32, tf_points: u32) -> String {
 fn shells_fine_variant(targets: u32, tf_points: u32, textured: bool) -> String {
     let targets = targets.clamp(1, MAX_TARGETS);
     format!(
-        "{SHARED}\n{SHELLS_SHARED}\n// Generated: the fine variant sampling {targets} vec4 of \
+        "{SHARED}\n{TET_CORNERS}\n{SHELLS_SHARED}\n// Generated: the fine variant sampling {targets} vec4 of \
          slices, TF of {tf_points} points, tiles of {SHELLS_TILE} pixels.\n\
          const TILE: u32 = {SHELLS_TILE}u;\nconst TARGETS: u32 = {targets}u;\n{}\
          {SHELLS_SPAN}\n{}\n{SHELLS_TF}\n{SHELLS_FINE}",
@@ -315,7 +320,7 @@ pub(crate) fn shells_mark() -> String {
 
 /// The iso raster stage (entry points `vs_faces`, `fs_iso`).
 pub fn iso_raster() -> String {
-    format!("{SHARED}\n{ISO_SHARED}\n{ISO_RASTER}")
+    format!("{SHARED}\n{TET_CORNERS}\n{ISO_SHARED}\n{ISO_RASTER}")
 }
 
 /// The iso smooth-shading gradient stage (standalone; compute entry point `main`).
@@ -325,7 +330,9 @@ pub fn iso_gradients() -> String {
 
 /// The cellproj raster stage (entry points `vs_faces`, `fs_table`, `fs_exact`).
 pub fn cellproj_raster() -> String {
-    format!("{SHARED}\n{RASTER}\n{INTEGRATE_SEGMENT}\n{PSI_EXACT}\n{CELLPROJ_RASTER}")
+    format!(
+        "{SHARED}\n{TET_CORNERS}\n{RASTER}\n{INTEGRATE_SEGMENT}\n{PSI_EXACT}\n{CELLPROJ_RASTER}"
+    )
 }
 
 /// The shells' GPU binning (entry points `count`, `scan`, `scatter`): standalone, its uniforms
@@ -338,7 +345,11 @@ pub fn shells_bin() -> String {
 /// in source order.
 pub fn registry() -> Vec<(String, String, &'static [&'static str])> {
     let mut out: Vec<(String, String, &'static [&'static str])> = vec![
-        ("assemble".into(), assemble(), &["main", "main_cells"]),
+        (
+            "assemble".into(),
+            assemble(),
+            &["vertices", "main", "main_cells"],
+        ),
         (
             "shells_mark".into(),
             shells_mark(),

@@ -184,7 +184,7 @@ impl CellProjRenderer {
         let uniform = |label: &str, bytes: usize| uniform_buffer(&device, label, bytes);
         Ok(Self {
             pipelines: Pipelines::new(&device, format),
-            assembly: AssemblyStage::new(&device, order_cells.is_some()),
+            assembly: AssemblyStage::new(&device, &mesh, order_cells.is_some()),
             frame: FrameResources::new(ctx),
             no_table: preint::table_texture(&device, 2, 2),
             view_buf: uniform("cellproj view", size_of::<ViewUniforms>()),
@@ -256,6 +256,8 @@ impl CellProjRenderer {
                         self.records.window(1, first, count),
                         entry(2, &self.tf_buf),
                         entry(3, &self.cellproj_buf),
+                        self.order_buf.window(13, first, count),
+                        entry(16, self.assembly.eye_vertices()),
                         wgpu::BindGroupEntry {
                             binding: 4,
                             resource: wgpu::BindingResource::TextureView(&table_view),

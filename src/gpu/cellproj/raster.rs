@@ -77,6 +77,8 @@ impl Pipelines {
                 buffer_entry(1, S::VERTEX, ro),
                 buffer_entry(2, S::FRAGMENT, uniform),
                 buffer_entry(3, S::FRAGMENT, uniform),
+                buffer_entry(13, S::VERTEX, ro),
+                buffer_entry(16, S::VERTEX, ro),
                 wgpu::BindGroupLayoutEntry {
                     binding: 4,
                     visibility: S::FRAGMENT,

@@ -204,7 +204,7 @@ impl IsoRenderer {
         Ok(Self {
             pipelines: Pipelines::new(&device),
             // Iso renders the per-vertex field: for cell data its vertex average (module docs).
-            assembly: AssemblyStage::new(&device, false),
+            assembly: AssemblyStage::new(&device, &mesh, false),
             frame: FrameResources::new(ctx),
             view_buf: uniform("iso view", size_of::<ViewUniforms>()),
             iso_buf: uniform("iso isovalues", size_of::<IsoUniforms>()),

@@ -60,10 +60,11 @@ impl IsoRenderer {
                     entries: &[
                         entry(0, &self.view_buf),
                         lists.records.window(1, first, count),
-                        lists.tets.window(2, first, count),
                         entry(3, self.mesh.scalars()),
                         entry(4, &self.gradients_buf),
                         entry(5, &self.iso_buf),
+                        lists.tets.window(13, first, count),
+                        entry(16, self.assembly.eye_vertices()),
                     ],
                 });
                 (group, count)
@@ -126,10 +127,11 @@ impl Pipelines {
             &[
                 buffer(0, S::VERTEX_FRAGMENT, uniform),
                 buffer(1, S::VERTEX, ro),
-                buffer(2, S::VERTEX, ro),
                 buffer(3, S::VERTEX, ro),
                 buffer(4, S::VERTEX, ro),
                 buffer(5, S::FRAGMENT, uniform),
+                buffer(13, S::VERTEX, ro),
+                buffer(16, S::VERTEX, ro),
             ],
         );
         let raster_module = module("iso_raster", shaders::iso_raster());

@@ -270,11 +270,7 @@ impl ShellsRenderer {
             }),
         };
         let chunks = self.chunking.ranges(self.mesh.tet_count() as u64);
-        let tets = self
-            .texture
-            .as_ref()
-            .map(|_| self.mesh.tets())
-            .transpose()?;
+        let tets = self.mesh.tets()?;
         let groups = chunks.iter().map(|&(first, count)| {
             let mut entries = vec![
                 entry(0, &self.view_buf),
@@ -290,9 +286,11 @@ impl ShellsRenderer {
                 entry(10, &b.accum),
                 entry(11, &b.finished),
                 entry(12, &b.slices),
+                tets.window(13, first, count),
+                entry(16, self.assembly.eye_vertices()),
             ];
-            if let (Some(t), Some(tets)) = (&self.texture, tets) {
-                entries.extend(t.entries(tets.window(13, first, count)));
+            if let Some(t) = &self.texture {
+                entries.extend(t.entries());
             }
             self.device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("shells compute sampler"),

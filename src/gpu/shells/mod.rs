@@ -341,7 +341,7 @@ impl ShellsRenderer {
         };
         let view_buf = uniform_buffer(&device, "shells view", size_of::<ViewUniforms>());
         let slicing_buf = uniform_buffer(&device, "shells slicing", size_of::<SlicingUniforms>());
-        let assembly = AssemblyStage::new(&device, mesh.has_cells());
+        let assembly = AssemblyStage::new(&device, &mesh, mesh.has_cells());
         let inputs = AssemblyInputs {
             view: &view_buf,
             mesh: &mesh,
@@ -609,11 +609,7 @@ impl ShellsRenderer {
     /// window; a chunk's active ids are chunk-local.
     fn raster_groups(&self) -> Result<Vec<wgpu::BindGroup>, RenderError> {
         let chunks = self.chunking.ranges(self.mesh.tet_count() as u64);
-        let tets = self
-            .texture
-            .as_ref()
-            .map(|_| self.mesh.tets())
-            .transpose()?;
+        let tets = self.mesh.tets()?;
         let layout = self.instances;
         let windows = (0..layout.windows as u64).flat_map(|w| chunks.iter().map(move |&c| (w, c)));
         Ok(windows
@@ -645,9 +641,11 @@ impl ShellsRenderer {
                     self.records.window(2, first, count),
                     active,
                     entry(4, &self.slicing_buf),
+                    tets.window(13, first, count),
+                    entry(16, self.assembly.eye_vertices()),
                 ];
-                if let (Some(t), Some(tets)) = (&self.texture, tets) {
-                    entries.extend(t.entries(tets.window(13, first, count)));
+                if let Some(t) = &self.texture {
+                    entries.extend(t.entries());
                 }
                 self.device.create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some("shells raster"),
@@ -737,10 +735,12 @@ impl ShellsRenderer {
 
 impl ShellsRenderer {
     /// GPU bytes per tet of what scales with the mesh: its vertices and per-tet arrays (tets,
-    /// cell values), the records (144 bytes a tet) and the active list (4 bytes per tet-shell
-    /// instance, in a buffer grown to a power of two).
+    /// cell values), the records (80 bytes a tet), the eye-space vertices (16 bytes a vertex)
+    /// and the active list (4 bytes per tet-shell instance, in a buffer grown to a power of
+    /// two).
     pub fn bytes_per_tet(&self) -> f64 {
-        let bytes = self.mesh.gpu_memory() + self.records.size() + self.active_buf.size();
+        let eye = self.assembly.eye_vertices().size();
+        let bytes = self.mesh.gpu_memory() + self.records.size() + eye + self.active_buf.size();
         bytes as f64 / self.mesh.tet_count().max(1) as f64
     }
 }

@@ -172,6 +172,8 @@ impl Pipelines {
             buffer(2, S::VERTEX, ro),
             buffer(3, S::VERTEX, ro),
             buffer(4, S::FRAGMENT, uniform),
+            buffer(13, S::VERTEX, ro),
+            buffer(16, S::VERTEX, ro),
         ];
         if textured {
             raster_entries.extend(texture::layout_entries(S::VERTEX, S::FRAGMENT));

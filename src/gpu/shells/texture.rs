@@ -48,16 +48,16 @@ impl ShellTexture {
     }
 }
 
-/// The bindings of the textured stages (`shaders/shells_texture.wgsl`): 13 the tets' vertex
-/// ids and 14 the texture coordinates, read by `coords` (the raster's vertex stage or
-/// compute), 15 the volume, read by `volume` (the raster's fragment stage or compute).
+/// The bindings of the textured stages (`shaders/shells_texture.wgsl`): 14 the texture
+/// coordinates, read by `coords` (the raster's vertex stage or compute), 15 the volume, read
+/// by `volume` (the raster's fragment stage or compute). The tets' vertex ids (13) are bound
+/// for every shells stage (`shaders/tet_corners.wgsl`).
 pub(super) fn layout_entries(
     coords: wgpu::ShaderStages,
     volume: wgpu::ShaderStages,
-) -> [wgpu::BindGroupLayoutEntry; 3] {
+) -> [wgpu::BindGroupLayoutEntry; 2] {
     let ro = wgpu::BufferBindingType::Storage { read_only: true };
     [
-        buffer_entry(13, coords, ro),
         buffer_entry(14, coords, ro),
         wgpu::BindGroupLayoutEntry {
             binding: 15,
@@ -73,14 +73,9 @@ pub(super) fn layout_entries(
 }
 
 impl ShellTexture {
-    /// The entries of [`layout_entries`] for the record chunk whose window of the mesh's tets
-    /// is `tets` (binding 13).
-    pub(super) fn entries<'a>(
-        &'a self,
-        tets: wgpu::BindGroupEntry<'a>,
-    ) -> [wgpu::BindGroupEntry<'a>; 3] {
+    /// The entries of [`layout_entries`].
+    pub(super) fn entries(&self) -> [wgpu::BindGroupEntry<'_>; 2] {
         [
-            tets,
             entry(14, &self.gpu.texcoords),
             wgpu::BindGroupEntry {
                 binding: 15,

@@ -42,7 +42,15 @@ impl TilePipelines {
         };
         let mut entries = vec![buffer_entry(0, cs, uniform), shell];
         entries.extend(
-            [(2, uniform), (3, ro), (4, uniform), (5, ro)].map(|(b, t)| buffer_entry(b, cs, t)),
+            [
+                (2, uniform),
+                (3, ro),
+                (4, uniform),
+                (5, ro),
+                (13, ro),
+                (16, ro),
+            ]
+            .map(|(b, t)| buffer_entry(b, cs, t)),
         );
         entries.extend([6, 7, 8, 9, 10, 11, 12].map(|b| buffer_entry(b, cs, rw)));
         if textured {

@@ -21,6 +21,12 @@ fn rotate(f: &ViewUniforms, g: Vec3) -> Vec3 {
     Vec3::new(v3(f.right).dot(g), v3(f.up).dot(g), v3(f.forward).dot(g))
 }
 
+/// The assembly's `vertices` entry for one vertex `p` (relative to the mesh origin): its
+/// eye-space position, `w` = 1.
+pub fn eye_vertex(f: &ViewUniforms, p: Vec3) -> Vec4 {
+    to_eye(f, p).extend(1.0)
+}
+
 /// The assembly stage for one tet: corners `p` relative to the mesh origin, normalized scalars
 /// `s`. `None` for a degenerate tet (which the GPU counts and skips).
 pub fn assemble(f: &ViewUniforms, p: [Vec3; 4], s: [f32; 4]) -> Option<TetRecord> {
@@ -36,7 +42,6 @@ pub fn assemble(f: &ViewUniforms, p: [Vec3; 4], s: [f32; 4]) -> Option<TetRecord
     if !well_conditioned {
         return None;
     }
-    let pos = p.map(|q| to_eye(f, q).extend(1.0).to_array());
     let k = inv_l / det;
     let (g1, g2, g3) = (c23 * k, c31 * k, c12 * k);
     let g0 = -(g1 + g2 + g3);
@@ -47,7 +52,6 @@ pub fn assemble(f: &ViewUniforms, p: [Vec3; 4], s: [f32; 4]) -> Option<TetRecord
     let s = Vec4::from_array(s) + Vec4::ONE;
     let gs = r[0] * s.x + r[1] * s.y + r[2] * s.z + r[3] * s.w;
     Some(TetRecord {
-        pos,
         grad_x: [r[0].x, r[1].x, r[2].x, r[3].x],
         grad_y: [r[0].y, r[1].y, r[2].y, r[3].y],
         grad_z: [r[0].z, r[1].z, r[2].z, r[3].z],
