@@ -606,9 +606,9 @@ mod tests {
         ]
     }
 
-    /// The same adapter and device as `ctx`, declared to bind at most 512 KiB per storage
-    /// buffer: the grid's 10,368 records (144 bytes each) then take 3 chunks, and its lists
-    /// (under 80,000 entries from every view) still fit one binding of 131,072.
+    /// The same adapter and device as `ctx`, declared to bind at most 384 KiB per storage
+    /// buffer: the grid's 10,368 records (80 bytes each) then take 3 chunks, and its lists
+    /// (under 80,000 entries from every view) still fit one binding of 98,304.
     fn chunked(ctx: &GpuContext) -> GpuContext {
         GpuContext {
             adapter: ctx.adapter.clone(),
@@ -616,7 +616,7 @@ mod tests {
             queue: ctx.queue.clone(),
             info: ctx.info.clone(),
             limits: wgpu::Limits {
-                max_storage_buffer_binding_size: 512 << 10,
+                max_storage_buffer_binding_size: 384 << 10,
                 ..ctx.limits.clone()
             },
             features: ctx.features,
