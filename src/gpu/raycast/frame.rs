@@ -4,6 +4,8 @@
 
 use std::time::Instant;
 
+use glam::DVec3;
+
 use crate::camera::Camera;
 use crate::gpu::cellproj::preint::TableKey;
 use crate::gpu::frame::{ImageReadback, Timestamps};
@@ -13,6 +15,7 @@ use crate::gpu::tf::tf_points;
 use crate::gpu::util::{check_image_size, entry, map_read, ms_since, settings_error, texture_2d};
 use crate::gpu::view::ViewFrame;
 use crate::image::Image;
+use crate::mesh::bounding_box;
 use crate::render::{Frame, RenderError, Timings};
 use crate::tf::TransferFunction;
 
@@ -20,8 +23,8 @@ use super::links::LINK_BINDINGS;
 use super::pipelines::{Groups, encode, linear};
 use super::texture_iso::HitBuffers;
 use super::{
-    COUNTERS, Entry, PixelBuffers, RAY_STATE_BYTES, RaycastRenderer, RaycastUniforms, Segments,
-    TILE, Targets, default_max_steps, near_tol, psi,
+    COUNTERS, EYE_BOX_GROWTH, Entry, PixelBuffers, RAY_STATE_BYTES, RaycastRenderer,
+    RaycastUniforms, Segments, TILE, Targets, default_max_steps, near_tol, psi,
 };
 
 /// A storage buffer of `bytes` (at least 16) that is also a copy source and destination.
@@ -104,6 +107,9 @@ impl RaycastRenderer {
             self.write_params();
             reruns += 1;
         };
+        if let Some(version) = self.planes.now {
+            self.planes.thin = Some((version, run.counters[0]));
+        }
         let t = Instant::now();
         let image = self.read_image()?;
         for &(stage, ms) in &run.stages {
@@ -128,7 +134,8 @@ impl RaycastRenderer {
     fn count(&self, timings: &mut Timings, run: &Run, reruns: u64) {
         timings.count("tets", self.mesh.tet_count() as u64);
         timings.count("boundary faces", self.boundary_count as u64);
-        timings.count("thin tets", run.counters[0] as u64);
+        let thin = self.planes.thin.map_or(0, |(_, n)| n);
+        timings.count("thin tets", thin as u64);
         timings.count("eye in a tet", (run.counters[1] != u32::MAX) as u64);
         match self.settings.entry {
             Entry::Lists => {
@@ -168,6 +175,7 @@ impl RaycastRenderer {
             (self.queue).write_buffer(&self.tf_buf, 0, bytemuck::bytes_of(&points));
         }
         self.eye_tol = near_tol(m.radius);
+        self.plan_planes(&m, camera.eye);
         // A textured cage steps through its texture: no integrator table.
         let segments = match self.texture {
             Some(_) => Segments::Exact,
@@ -185,6 +193,26 @@ impl RaycastRenderer {
         }
         self.write_params();
         Ok(rebuilt)
+    }
+
+    /// Whether this frame runs the planes stage (`PlanesStage`): for the eye's tet when the eye
+    /// lies in the bounding box of the current positions, grown by [`EYE_BOX_GROWTH`] eye
+    /// tolerances (outside it no tet holds the eye); for the thin-tet count when the positions
+    /// changed since it was taken.
+    fn plan_planes(&mut self, m: &MeshData, eye: DVec3) {
+        let version = m.positions_version;
+        let (lo, hi) = match self.planes.bounds {
+            Some((v, lo, hi)) if v == version => (lo, hi),
+            _ => {
+                let (lo, hi) = bounding_box(&m.positions);
+                self.planes.bounds = Some((version, lo, hi));
+                (lo, hi)
+            }
+        };
+        let grow = DVec3::splat(EYE_BOX_GROWTH * self.eye_tol as f64);
+        let eye_in_box = (eye.cmpge(lo - grow) & eye.cmple(hi + grow)).all();
+        let counted = self.planes.thin.is_some_and(|(v, _)| v == version);
+        self.planes.now = (eye_in_box || !counted).then_some(version);
     }
 
     /// Builds and uploads the 3D pre-integration table when the TF, the scalar range or the
@@ -493,7 +521,9 @@ impl RaycastRenderer {
         if first {
             let (nv, nt) = (self.verts.size() / 16, self.mesh.tet_count() as u64);
             passes.push(("vertices", &p.vertices, &groups.vertices, linear(nv, max)));
-            passes.push(("planes", &p.planes, &groups.planes, linear(nt, max)));
+            if self.planes.now.is_some() {
+                passes.push(("planes", &p.planes, &groups.planes, linear(nt, max)));
+            }
         }
         match &t.pixels {
             PixelBuffers::Lists { counts, .. } => {
