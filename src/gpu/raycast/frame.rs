@@ -63,6 +63,9 @@ struct Run {
     layers: u64,
     /// Tiles the traversal ran, summed over the layers.
     tiles_run: u64,
+    /// A rerun with longer entry lists: the view's eye-space vertices, eye's tet and thin
+    /// count are the first run's, kept.
+    rerun: bool,
 }
 
 /// What a layer read back besides the counters: the tiles it ran, the rays that wait for a
@@ -96,17 +99,7 @@ impl RaycastRenderer {
         let t = Instant::now();
         let rebuilt = self.upload(camera, tf)?;
         timings.stage("upload", ms_since(t));
-        let mut reruns = 0;
-        let run = loop {
-            self.ensure_targets(camera.width, camera.height)?;
-            let run = self.record()?;
-            if run.counters[2] == 0 {
-                break run;
-            }
-            self.capacity *= 2;
-            self.write_params();
-            reruns += 1;
-        };
+        let (run, reruns) = self.runs(camera)?;
         if let Some(version) = self.planes.now {
             self.planes.thin = Some((version, run.counters[0]));
         }
@@ -118,8 +111,8 @@ impl RaycastRenderer {
         timings.stage("readback", ms_since(t));
         timings.stage("total", ms_since(start));
         timings.clock = if run.gpu_clock {
-            "GPU timestamps for vertices, planes, entries or peel, tiles, traverse (the last \
-             run, summed over layers); wall clock for upload (with the 3D table's build), \
+            "GPU timestamps for vertices, planes (the first run), entries or peel, tiles, \
+             traverse (the last run, summed over layers); wall clock for upload (with the 3D table's build), \
              readback and total"
         } else {
             run.wall_clock
@@ -129,6 +122,31 @@ impl RaycastRenderer {
             timings.count("table rebuilt", rebuilt as u64);
         }
         Ok(Frame { image, timings })
+    }
+
+    /// Runs the stages, again with longer entry lists while a list overflowed; the last run and
+    /// the reruns. A rerun's stage times start with the first run's vertices and planes, which
+    /// it keeps rather than runs.
+    fn runs(&mut self, camera: &Camera) -> Result<(Run, u64), RenderError> {
+        let mut kept = Vec::new();
+        let mut reruns = 0;
+        loop {
+            self.ensure_targets(camera.width, camera.height)?;
+            let mut run = self.record(reruns > 0)?;
+            if reruns == 0 {
+                kept = (run.stages.iter().copied())
+                    .filter(|(s, _)| matches!(*s, "vertices" | "planes"))
+                    .collect();
+            } else {
+                run.stages.splice(0..0, kept.iter().copied());
+            }
+            if run.counters[2] == 0 {
+                return Ok((run, reruns));
+            }
+            self.capacity *= 2;
+            self.write_params();
+            reruns += 1;
+        }
     }
 
     fn count(&self, timings: &mut Timings, run: &Run, reruns: u64) {
@@ -476,13 +494,18 @@ impl RaycastRenderer {
     }
 
     /// Runs the stages once (each layer of depth peeling in turn, until no ray can enter
-    /// another) and reads the counters back.
-    fn record(&mut self) -> Result<Run, RenderError> {
+    /// another) and reads the counters back; a `rerun` keeps the eye-space vertices and the
+    /// planes stage's counters (thin tets, the eye's tet) and runs neither stage again.
+    fn record(&mut self, rerun: bool) -> Result<Run, RenderError> {
         let reset: [u32; COUNTERS] = [0, u32::MAX, 0, 0];
-        self.queue
-            .write_buffer(&self.counters, 0, bytemuck::cast_slice(&reset));
+        let kept = if rerun { 2 } else { 0 };
+        let words = bytemuck::cast_slice(&reset[kept..]);
+        (self.queue).write_buffer(&self.counters, 4 * kept as u64, words);
         let groups = self.bind(self.targets()?);
-        let mut run = Run::default();
+        let mut run = Run {
+            rerun,
+            ..Default::default()
+        };
         loop {
             let layer = LayerUniforms {
                 index: run.layers as u32,
@@ -518,7 +541,7 @@ impl RaycastRenderer {
         let faces = linear(self.boundary_count as u64, max);
         let mut rec = (self.frame).recorder(&self.device, &self.queue, 6, 0);
         let mut passes = Vec::new();
-        if first {
+        if first && !run.rerun {
             let (nv, nt) = (self.verts.size() / 16, self.mesh.tet_count() as u64);
             passes.push(("vertices", &p.vertices, &groups.vertices, linear(nv, max)));
             if self.planes.now.is_some() {
