@@ -1,7 +1,9 @@
 // Ray caster stage 2, planes (once per tet and frame): each tet's face planes from its
 // vertices (`tet_planes`, raycast_shared.wgsl), which are not stored (the traversal computes
 // them again where a ray steps); here they give the eye's tet (smallest index of a tet holding
-// the eye) and the count of thin tets. CPU twin: gpu::raycast::twin::planes.
+// the eye) and the count of thin tets. Dispatched only when one is needed (frame.rs,
+// `plan_planes`): the eye in the mesh's grown bounding box, or positions not counted yet.
+// CPU twin: gpu::raycast::twin::planes.
 
 @group(0) @binding(2) var<storage, read> verts: array<vec4<f32>>;
 @group(0) @binding(7) var<storage, read_write> counters: array<atomic<u32>, 4>;

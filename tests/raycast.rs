@@ -136,13 +136,7 @@ fn twin_matches_the_shaders() {
         .mesh;
     let (tf, camera) = default_view(&mesh, 96);
     twin_check("combustor", &mesh, &camera, &tf);
-    let grid = gaussians(6);
-    let mut tets = grid.tets().to_vec();
-    // Vertices of the grid are numbered x fastest over 7 x 7 x 7: two cube faces' corners.
-    let v = |x: u32, y: u32, z: u32| x + 7 * (y + 7 * z);
-    tets.push([v(0, 0, 0), v(1, 0, 0), v(0, 1, 0), v(1, 1, 0)]);
-    tets.push([v(2, 2, 3), v(3, 2, 3), v(2, 3, 3), v(3, 3, 3)]);
-    let (mesh, _) = TetMesh::new(grid.positions().to_vec(), tets, grid.arrays().to_vec()).unwrap();
+    let mesh = grid_with_flat_tets();
     let (tf, _) = default_view(&mesh, 64);
     let (lo, hi) = mesh.bounds();
     let camera = Camera {
@@ -157,6 +151,62 @@ fn twin_matches_the_shaders() {
     assert_eq!(counter(&got.timings, "thin tets"), 2);
     assert_eq!(counter(&got.timings, "eye in a tet"), 1);
     twin_check("flat-inside", &mesh, &camera, &tf);
+}
+
+/// A 6 x 6 x 6 grid (1,296 tets) with two flat tets more, each on four corners of a cube face:
+/// 2 thin tets in any view.
+fn grid_with_flat_tets() -> TetMesh {
+    let grid = gaussians(6);
+    let mut tets = grid.tets().to_vec();
+    // Vertices of the grid are numbered x fastest over 7 x 7 x 7: two cube faces' corners.
+    let v = |x: u32, y: u32, z: u32| x + 7 * (y + 7 * z);
+    tets.push([v(0, 0, 0), v(1, 0, 0), v(0, 1, 0), v(1, 1, 0)]);
+    tets.push([v(2, 2, 3), v(3, 2, 3), v(2, 3, 3), v(3, 3, 3)]);
+    let (mesh, _) = TetMesh::new(grid.positions().to_vec(), tets, grid.arrays().to_vec()).unwrap();
+    mesh
+}
+
+/// Whether a frame ran stage `name`.
+fn ran(frame: &Frame, name: &str) -> bool {
+    frame.timings.get(name).is_some()
+}
+
+/// The planes stage runs only for what needs it: with the eye outside the mesh's box, the
+/// first frame counts the thin tets and a later frame from another view skips the stage,
+/// reporting the same count and, bit for bit, the picture of a fresh renderer (which ran it);
+/// after `update_positions` moves the mesh around the eye, the stage runs again, finds the
+/// eye's tet, and gives a fresh renderer's picture of the moved mesh bit for bit.
+#[test]
+fn planes_stage_runs_only_for_the_eye_or_new_positions() {
+    let mut mesh = grid_with_flat_tets();
+    let (tf, first) = default_view(&mesh, 48);
+    let (lo, hi) = mesh.bounds();
+    let centre = (lo + hi) * 0.5;
+    let other = Camera {
+        eye: centre + (first.eye - centre).reflect(DVec3::X),
+        ..first
+    };
+    let mut r = RaycastRenderer::new(ctx(), &mesh, RaycastSettings::default()).unwrap();
+    let a = r.render(&first, &tf).unwrap();
+    let b = r.render(&other, &tf).unwrap();
+    let fresh = frame(&mesh, &other, &tf, Segments::Partial);
+    assert!(ran(&a, "planes") && !ran(&b, "planes") && ran(&fresh, "planes"));
+    for f in [&a, &b, &fresh] {
+        assert_eq!(counter(&f.timings, "thin tets"), 2);
+        assert_eq!(counter(&f.timings, "eye in a tet"), 0);
+    }
+    assert_eq!(bits(&b), bits(&fresh));
+    // The grid's centre moved onto the eye: the eye is inside.
+    let shift = other.eye - centre;
+    let moved: Vec<DVec3> = mesh.positions().iter().map(|&p| p + shift).collect();
+    r.update_positions(&moved).unwrap();
+    let c = r.render(&other, &tf).unwrap();
+    mesh.set_positions(moved).unwrap();
+    let fresh = frame(&mesh, &other, &tf, Segments::Partial);
+    assert!(ran(&c, "planes"));
+    assert_eq!(counter(&c.timings, "eye in a tet"), 1);
+    assert_eq!(counter(&c.timings, "thin tets"), 2);
+    assert_eq!(bits(&c), bits(&fresh));
 }
 
 /// The box with a square hole along z, seen through the hole from a little off its axis: rays

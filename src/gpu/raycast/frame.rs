@@ -4,6 +4,8 @@
 
 use std::time::Instant;
 
+use glam::DVec3;
+
 use crate::camera::Camera;
 use crate::gpu::cellproj::preint::TableKey;
 use crate::gpu::frame::{ImageReadback, Timestamps};
@@ -13,6 +15,7 @@ use crate::gpu::tf::tf_points;
 use crate::gpu::util::{check_image_size, entry, map_read, ms_since, settings_error, texture_2d};
 use crate::gpu::view::ViewFrame;
 use crate::image::Image;
+use crate::mesh::bounding_box;
 use crate::render::{Frame, RenderError, Timings};
 use crate::tf::TransferFunction;
 
@@ -20,8 +23,8 @@ use super::links::LINK_BINDINGS;
 use super::pipelines::{Groups, encode, linear};
 use super::texture_iso::HitBuffers;
 use super::{
-    COUNTERS, Entry, PixelBuffers, RAY_STATE_BYTES, RaycastRenderer, RaycastUniforms, Segments,
-    TILE, Targets, default_max_steps, near_tol, psi,
+    COUNTERS, EYE_BOX_GROWTH, Entry, PixelBuffers, RAY_STATE_BYTES, RaycastRenderer,
+    RaycastUniforms, Segments, TILE, Targets, default_max_steps, near_tol, psi,
 };
 
 /// A storage buffer of `bytes` (at least 16) that is also a copy source and destination.
@@ -60,6 +63,9 @@ struct Run {
     layers: u64,
     /// Tiles the traversal ran, summed over the layers.
     tiles_run: u64,
+    /// A rerun with longer entry lists: the view's eye-space vertices, eye's tet and thin
+    /// count are the first run's, kept.
+    rerun: bool,
 }
 
 /// What a layer read back besides the counters: the tiles it ran, the rays that wait for a
@@ -93,17 +99,10 @@ impl RaycastRenderer {
         let t = Instant::now();
         let rebuilt = self.upload(camera, tf)?;
         timings.stage("upload", ms_since(t));
-        let mut reruns = 0;
-        let run = loop {
-            self.ensure_targets(camera.width, camera.height)?;
-            let run = self.record()?;
-            if run.counters[2] == 0 {
-                break run;
-            }
-            self.capacity *= 2;
-            self.write_params();
-            reruns += 1;
-        };
+        let (run, reruns) = self.runs(camera)?;
+        if let Some(version) = self.planes.now {
+            self.planes.thin = Some((version, run.counters[0]));
+        }
         let t = Instant::now();
         let image = self.read_image()?;
         for &(stage, ms) in &run.stages {
@@ -112,8 +111,8 @@ impl RaycastRenderer {
         timings.stage("readback", ms_since(t));
         timings.stage("total", ms_since(start));
         timings.clock = if run.gpu_clock {
-            "GPU timestamps for vertices, planes, entries or peel, tiles, traverse (the last \
-             run, summed over layers); wall clock for upload (with the 3D table's build), \
+            "GPU timestamps for vertices, planes (the first run), entries or peel, tiles, \
+             traverse (the last run, summed over layers); wall clock for upload (with the 3D table's build), \
              readback and total"
         } else {
             run.wall_clock
@@ -125,10 +124,36 @@ impl RaycastRenderer {
         Ok(Frame { image, timings })
     }
 
+    /// Runs the stages, again with longer entry lists while a list overflowed; the last run and
+    /// the reruns. A rerun's stage times start with the first run's vertices and planes, which
+    /// it keeps rather than runs.
+    fn runs(&mut self, camera: &Camera) -> Result<(Run, u64), RenderError> {
+        let mut kept = Vec::new();
+        let mut reruns = 0;
+        loop {
+            self.ensure_targets(camera.width, camera.height)?;
+            let mut run = self.record(reruns > 0)?;
+            if reruns == 0 {
+                kept = (run.stages.iter().copied())
+                    .filter(|(s, _)| matches!(*s, "vertices" | "planes"))
+                    .collect();
+            } else {
+                run.stages.splice(0..0, kept.iter().copied());
+            }
+            if run.counters[2] == 0 {
+                return Ok((run, reruns));
+            }
+            self.capacity *= 2;
+            self.write_params();
+            reruns += 1;
+        }
+    }
+
     fn count(&self, timings: &mut Timings, run: &Run, reruns: u64) {
         timings.count("tets", self.mesh.tet_count() as u64);
         timings.count("boundary faces", self.boundary_count as u64);
-        timings.count("thin tets", run.counters[0] as u64);
+        let thin = self.planes.thin.map_or(0, |(_, n)| n);
+        timings.count("thin tets", thin as u64);
         timings.count("eye in a tet", (run.counters[1] != u32::MAX) as u64);
         match self.settings.entry {
             Entry::Lists => {
@@ -168,6 +193,7 @@ impl RaycastRenderer {
             (self.queue).write_buffer(&self.tf_buf, 0, bytemuck::bytes_of(&points));
         }
         self.eye_tol = near_tol(m.radius);
+        self.plan_planes(&m, camera.eye);
         // A textured cage steps through its texture: no integrator table.
         let segments = match self.texture {
             Some(_) => Segments::Exact,
@@ -185,6 +211,26 @@ impl RaycastRenderer {
         }
         self.write_params();
         Ok(rebuilt)
+    }
+
+    /// Whether this frame runs the planes stage (`PlanesStage`): for the eye's tet when the eye
+    /// lies in the bounding box of the current positions, grown by [`EYE_BOX_GROWTH`] eye
+    /// tolerances (outside it no tet holds the eye); for the thin-tet count when the positions
+    /// changed since it was taken.
+    fn plan_planes(&mut self, m: &MeshData, eye: DVec3) {
+        let version = m.positions_version;
+        let (lo, hi) = match self.planes.bounds {
+            Some((v, lo, hi)) if v == version => (lo, hi),
+            _ => {
+                let (lo, hi) = bounding_box(&m.positions);
+                self.planes.bounds = Some((version, lo, hi));
+                (lo, hi)
+            }
+        };
+        let grow = DVec3::splat(EYE_BOX_GROWTH * self.eye_tol as f64);
+        let eye_in_box = (eye.cmpge(lo - grow) & eye.cmple(hi + grow)).all();
+        let counted = self.planes.thin.is_some_and(|(v, _)| v == version);
+        self.planes.now = (eye_in_box || !counted).then_some(version);
     }
 
     /// Builds and uploads the 3D pre-integration table when the TF, the scalar range or the
@@ -448,13 +494,18 @@ impl RaycastRenderer {
     }
 
     /// Runs the stages once (each layer of depth peeling in turn, until no ray can enter
-    /// another) and reads the counters back.
-    fn record(&mut self) -> Result<Run, RenderError> {
+    /// another) and reads the counters back; a `rerun` keeps the eye-space vertices and the
+    /// planes stage's counters (thin tets, the eye's tet) and runs neither stage again.
+    fn record(&mut self, rerun: bool) -> Result<Run, RenderError> {
         let reset: [u32; COUNTERS] = [0, u32::MAX, 0, 0];
-        self.queue
-            .write_buffer(&self.counters, 0, bytemuck::cast_slice(&reset));
+        let kept = if rerun { 2 } else { 0 };
+        let words = bytemuck::cast_slice(&reset[kept..]);
+        (self.queue).write_buffer(&self.counters, 4 * kept as u64, words);
         let groups = self.bind(self.targets()?);
-        let mut run = Run::default();
+        let mut run = Run {
+            rerun,
+            ..Default::default()
+        };
         loop {
             let layer = LayerUniforms {
                 index: run.layers as u32,
@@ -490,10 +541,12 @@ impl RaycastRenderer {
         let faces = linear(self.boundary_count as u64, max);
         let mut rec = (self.frame).recorder(&self.device, &self.queue, 6, 0);
         let mut passes = Vec::new();
-        if first {
+        if first && !run.rerun {
             let (nv, nt) = (self.verts.size() / 16, self.mesh.tet_count() as u64);
             passes.push(("vertices", &p.vertices, &groups.vertices, linear(nv, max)));
-            passes.push(("planes", &p.planes, &groups.planes, linear(nt, max)));
+            if self.planes.now.is_some() {
+                passes.push(("planes", &p.planes, &groups.planes, linear(nt, max)));
+            }
         }
         match &t.pixels {
             PixelBuffers::Lists { counts, .. } => {

@@ -12,7 +12,9 @@
 //! 2. vertices (`shaders/raycast_vertices.wgsl`): once per vertex, its eye-space position and
 //!    scalar from the current positions (a deforming mesh needs no preprocessing);
 //! 3. planes (`shaders/raycast_planes.wgsl`): once per tet, its face planes from its vertices,
-//!    for the eye's tet when the eye is inside the mesh and the count of thin tets;
+//!    for the eye's tet and the count of thin tets; run only where needed (`PlanesStage`):
+//!    when the eye lies in the mesh's bounding box (grown by [`EYE_BOX_GROWTH`] eye
+//!    tolerances), or when the thin tets were not counted since the positions last changed;
 //! 4. entries, [`Entry::Lists`] (`shaders/raycast_entries.wgsl`): once per boundary face, its
 //!    hit (t, face) into the list of every pixel whose ray enters the mesh through it
 //!    (watertight edge tests, `raycast_cover.wgsl`); a full list counts an overflow and the
@@ -213,6 +215,30 @@ fn near_tol(radius: f64) -> f32 {
     (1e-5 * radius) as f32
 }
 
+/// The eye's tet is searched for only when the eye lies in the mesh's bounding box grown by
+/// this many eye tolerances ([`near_tol`]). The search takes a tet whose four planes each lie
+/// at most the tolerance from the eye: the tet scaled about its incentre, which reaches
+/// `tolerance R / r` beyond a corner at distance `R` from the incentre (`r`: the inradius;
+/// R / r is 3 for a regular tet, under 5 for a grid's); 64 leaves room for worse shapes (a thin
+/// tet holds no eye) and f32 rounding of eye-space vertices (far below the tolerance).
+pub const EYE_BOX_GROWTH: f64 = 64.0;
+
+/// When the planes stage runs, what it is for: its two results change with different things.
+/// The eye's tet only matters when the eye may be inside the mesh; the thin tets are counted in
+/// eye space (f32), where a tet at the threshold may count in one view and not in another, so
+/// the count reported is the one of the last frame that ran the stage, at least once per
+/// position update (exact per mesh, positions and view for tets clear of the threshold,
+/// e.g. the blunt fin's coincident corners).
+#[derive(Clone, Copy, Debug, Default)]
+struct PlanesStage {
+    /// The mesh's bounding box (world) and the positions version it was taken from.
+    bounds: Option<(u64, DVec3, DVec3)>,
+    /// The thin tets counted and the positions version they were counted for.
+    thin: Option<(u64, u32)>,
+    /// The positions version the current frame counts for, when it runs the stage.
+    now: Option<u64>,
+}
+
 /// The ray caster; see the module docs.
 pub struct RaycastRenderer {
     device: wgpu::Device,
@@ -251,6 +277,8 @@ pub struct RaycastRenderer {
     capacity: u32,
     /// The eye-in-tet tolerance of the current frame ([`near_tol`]).
     eye_tol: f32,
+    /// Whether this frame runs the planes stage, and what it counted last.
+    planes: PlanesStage,
     targets: Option<Targets>,
     /// A textured cage's volume and texture coordinates ([`RaycastRenderer::textured`]).
     texture: Option<GpuTexture>,
@@ -373,6 +401,7 @@ impl RaycastRenderer {
             max_edge: LongestEdge::default(),
             capacity: settings.list_capacity.max(1),
             eye_tol: 0.0,
+            planes: PlanesStage::default(),
             queue: ctx.queue.clone(),
             limits: ctx.limits.clone(),
             device,
