@@ -226,13 +226,14 @@ struct Readback {
 impl ShellsRenderer {
     /// The frame's slices per shell and active lists, binned on the GPU (the lists left in the
     /// active buffer, [`Binning::indices`] empty); re-run once with a larger list when the
-    /// first run overflowed it.
+    /// first run overflowed it. `None` when the lists take more than one storage binding:
+    /// `--binning auto` then bins the frame on the CPU, `gpu` says so.
     pub(super) fn bin_on_gpu(
         &mut self,
         m: &MeshData,
         plan: &FramePlan,
         tf: &TransferFunction,
-    ) -> Result<(u32, Binning), RenderError> {
+    ) -> Result<Option<(u32, Binning)>, RenderError> {
         let n = if plan.allowed.contains(&self.default_slices) && self.fixed_slices.is_none() {
             self.default_slices
         } else {
@@ -253,13 +254,16 @@ impl ShellsRenderer {
             let total = r.offsets.last().copied().unwrap_or(0) as u64;
             if total <= self.active_capacity() {
                 let chunks = self.chunking.ranges(tets).len();
-                return Ok((n, binning_of(r, shells as usize, chunks)));
+                return Ok(Some((n, binning_of(r, shells as usize, chunks))));
             }
             if total > max_entries {
+                if self.settings.binning == BinningMode::Auto {
+                    return Ok(None);
+                }
                 return Err(settings_error(format!(
                     "this view draws {total} tet-shell instances, more than one storage \
-                     binding holds on this adapter ({max_entries}); use --binning cpu, more \
-                     slices per shell or a larger dz"
+                     binding holds on this adapter ({max_entries}); use --binning cpu or \
+                     auto, more slices per shell or a larger dz"
                 )));
             }
             self.grow_active(total);
@@ -532,6 +536,7 @@ mod tests {
     use crate::gpu::shells::{ShellSettings, ShellsRenderer};
     use crate::gpu::{AdapterChoice, GpuContext};
     use crate::mesh::TetMesh;
+    use crate::render::Renderer;
 
     /// The first `n` entries of the renderer's active buffer.
     fn active_ids(r: &ShellsRenderer, n: u64) -> Vec<u32> {
@@ -610,17 +615,59 @@ mod tests {
     /// buffer: the grid's 10,368 records (80 bytes each) then take 3 chunks, and its lists
     /// (under 80,000 entries from every view) still fit one binding of 98,304.
     fn chunked(ctx: &GpuContext) -> GpuContext {
+        binding_of(ctx, 384 << 10)
+    }
+
+    /// The same adapter and device as `ctx`, declared to bind at most `bytes` per storage
+    /// buffer.
+    fn binding_of(ctx: &GpuContext, bytes: u64) -> GpuContext {
         GpuContext {
             adapter: ctx.adapter.clone(),
             device: ctx.device.clone(),
             queue: ctx.queue.clone(),
             info: ctx.info.clone(),
             limits: wgpu::Limits {
-                max_storage_buffer_binding_size: 384 << 10,
+                max_storage_buffer_binding_size: bytes,
                 ..ctx.limits.clone()
             },
             features: ctx.features,
         }
+    }
+
+    /// Lists longer than one binding holds: `--binning gpu` says so, `auto` bins that frame on
+    /// the CPU and draws the CPU binning's picture bit for bit. A 128 KiB binding holds 32,768
+    /// entries; the grid from its iso view at 512 samples in shells of 8 slices lists about
+    /// 65,000 (its records then take 7 chunks). `auto` picks the GPU only from 2^20 tets, so
+    /// the renderer is built with `gpu` and switched.
+    #[test]
+    fn auto_bins_on_the_cpu_when_the_lists_outgrow_one_binding() {
+        let ctx = GpuContext::new(AdapterChoice::Auto).expect("a GPU adapter (lavapipe will do)");
+        let small = binding_of(&ctx, 128 << 10);
+        let (_, mesh, camera) = scenes().swap_remove(0);
+        let (lo, hi) = mesh.active_array().and_then(|a| a.range()).unwrap();
+        let tf = TransferFunction::default_for_range(lo, hi, mesh.diagonal() / 100.0).unwrap();
+        let renderer = |binning| {
+            let settings = ShellSettings {
+                binning,
+                samples: 512,
+                slices_per_shell: Some(8),
+                ..ShellSettings::default()
+            };
+            ShellsRenderer::new(&small, &mesh, settings).expect("renderer")
+        };
+        let err = renderer(BinningMode::Gpu).render(&camera, &tf).err();
+        let msg = err.expect("lists over one binding refused").to_string();
+        assert!(msg.contains("--binning cpu or auto"), "{msg}");
+        let mut auto = renderer(BinningMode::Gpu);
+        auto.settings.binning = BinningMode::Auto;
+        let cpu = renderer(BinningMode::Cpu)
+            .render(&camera, &tf)
+            .expect("cpu frame");
+        let fallback = auto.render(&camera, &tf).expect("auto frame");
+        assert!(
+            fallback.image == cpu.image,
+            "auto's fallback differs from the CPU binning"
+        );
     }
 
     /// The GPU's lists hold every tet of the CPU's, shell by shell, each once, with the records
@@ -657,7 +704,10 @@ mod tests {
             let plan = r.plan(&m, &camera).expect("plan");
             let bins = r.classify(&m, &plan, &tf);
             let cpu = sort_into_shells(&bins, per_shell, plan.shells(per_shell) as u32);
-            let (n, gpu) = r.bin_on_gpu(&m, &plan, &tf).expect("gpu binning");
+            let (n, gpu) = r
+                .bin_on_gpu(&m, &plan, &tf)
+                .expect("gpu binning")
+                .expect("lists");
             assert_eq!(n, per_shell);
             let total = gpu.shells.last().map_or(0, |s| s.near.end) as u64;
             let chunking = (r.chunking.chunk as u32, chunks);

@@ -833,8 +833,11 @@ impl Renderer for ShellsRenderer {
         // 1. Plan and binning (CPU): the frame's slices, each tet's shells, slices per shell.
         let plan = self.plan(&m, camera)?;
         let t0 = Instant::now();
-        let (n, bins, bin) = if self.binner.is_some() {
-            let (n, bin) = self.bin_on_gpu(&m, &plan, tf)?;
+        let on_gpu = match self.binner {
+            Some(_) => self.bin_on_gpu(&m, &plan, tf)?,
+            None => None,
+        };
+        let (n, bins, bin) = if let Some((n, bin)) = on_gpu {
             (n, Vec::new(), bin)
         } else {
             let bins = self.classify(&m, &plan, tf);

@@ -117,7 +117,7 @@ impl ShellsRenderer {
                 index,
             );
         }
-        if self.binner.is_some() {
+        if !bin.buckets.is_empty() {
             // Binned on the GPU: the list is already in the active buffer.
             return Ok(());
         }
