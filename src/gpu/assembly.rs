@@ -193,4 +193,9 @@ impl AssemblyStage {
     pub(crate) fn degenerate(&self) -> &wgpu::Buffer {
         &self.degenerate
     }
+
+    /// GPU bytes of the stage's own buffers (the eye-space vertices and the count).
+    pub(crate) fn size(&self) -> u64 {
+        self.eye_vertices.size() + self.degenerate.size()
+    }
 }

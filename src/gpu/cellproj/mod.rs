@@ -360,15 +360,11 @@ impl Renderer for CellProjRenderer {
             let texel = x.format().block_copy_size(None).unwrap_or(16) as u64;
             s.width as u64 * s.height as u64 * s.depth_or_array_layers as u64 * texel
         };
-        let buffers: u64 = [
-            &self.view_buf,
-            &self.tf_buf,
-            &self.cellproj_buf,
-            self.assembly.degenerate(),
-        ]
-        .iter()
-        .map(|b| b.size())
-        .sum();
+        let buffers: u64 = [&self.view_buf, &self.tf_buf, &self.cellproj_buf]
+            .iter()
+            .map(|b| b.size())
+            .sum::<u64>()
+            + self.assembly.size();
         let cells = self.order_cells.as_ref().map_or(0, TetArray::size);
         let arrays = self.order_buf.size() + cells + self.records.size() + self.frame.size();
         let table = self.table.as_ref().map_or(0, |t| texture(&t.texture));

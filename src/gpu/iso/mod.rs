@@ -448,7 +448,8 @@ impl Renderer for IsoRenderer {
         let buffers = [&self.view_buf, &self.iso_buf, &self.gradients_buf]
             .iter()
             .map(|b| b.size())
-            .sum::<u64>();
+            .sum::<u64>()
+            + self.assembly.size();
         let lists = self
             .lists
             .as_ref()

@@ -899,7 +899,6 @@ impl Renderer for ShellsRenderer {
 
     fn gpu_memory(&self) -> u64 {
         let buffers = [
-            self.assembly.degenerate(),
             &self.view_buf,
             &self.slicing_buf,
             &self.active_buf,
@@ -909,7 +908,8 @@ impl Renderer for ShellsRenderer {
         ]
         .iter()
         .map(|b| b.size())
-        .sum::<u64>();
+        .sum::<u64>()
+            + self.assembly.size();
         let texel = |f: wgpu::TextureFormat| f.block_copy_size(None).unwrap_or(16) as u64;
         let texels = (texel(self.format), texel(self.accum_format));
         let targets = (self.targets.as_ref()).map_or(0, |t| t.size(self.slice_layers, texels))
