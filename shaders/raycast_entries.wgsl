@@ -1,4 +1,5 @@
-// Ray caster stage 3, entries (one workgroup per boundary face): every pixel whose ray enters the
+// Ray caster stage 3, entries (one workgroup per boundary face in `main`, one thread per face in
+// `per_thread` on software adapters): every pixel whose ray enters the
 // mesh through the face gets the hit (t, 4 * tet + face) in its list; rays leave and re-enter a
 // non-convex mesh through as many faces as they cross. A list that is full counts the hit as an
 // overflow and the CPU renders the frame again with longer lists; nothing is dropped silently.
@@ -64,7 +65,7 @@ fn main(
 // The same hits with one thread per boundary face walking its pixel rectangle alone, for
 // software adapters (gpu::raycast::pipelines::EntryLanes): there a workgroup per face runs its
 // 64 invocations and a barrier for the few pixels most faces cover (measured on lavapipe, the
-// blunt fin from the side at 512x512, 2 loaded cores: this stage 10-21 ms against 76-81 ms).
+// blunt fin from the side at 512x512, 2 loaded cores: this stage 10-28 ms against 76-81 ms).
 // The lists get the same entries in another order, which the traversal does not see (it
 // takes them in hit order).
 @compute @workgroup_size(64)

@@ -201,7 +201,8 @@ pub enum SamplerChoice {
     /// The rasterizer: front faces per shell, slices blended into colour targets.
     #[default]
     Raster,
-    /// Compute workgroups on 8 x 8 pixel tiles (meshes of one storage binding of records).
+    /// Compute workgroups on 8 x 8 pixel tiles (records in several storage bindings: one pass
+    /// per chunk).
     Compute,
 }
 

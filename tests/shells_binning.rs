@@ -134,7 +134,7 @@ fn gpu_binning_follows_updated_positions() {
     }
 }
 
-/// Records in several chunks (a storage binding declared at about a third of the records):
+/// Records in several chunks (a storage binding declared smaller than the records):
 /// the GPU binning counts and scatters each chunk into buckets of its own, and each sampler's
 /// pass for a chunk reads that chunk's part of a list (found from the bucket offsets read
 /// back), as it reads the CPU's lists (tet ids ascending, cut at chunk boundaries). Same
@@ -168,11 +168,12 @@ fn gpu_binning_draws_chunked_meshes_as_the_cpu_binning() {
 }
 
 /// Bindings declared at 84 KiB and buffers at 160 KiB (the image's 147 KB readback still
-/// fits, two bindings do not): the grid's 10,368 records of 80 bytes take 10 chunks in 10
-/// buffers, and its tets (16 bytes each,
-/// 166 KB) are cut into the same chunks over 2 buffers, so each count and scatter pass binds
-/// its chunk's window of the right buffer. Raster sampler only: the compute sampler's carried slices
-/// (96 x 96 x 2 layers x 16 bytes) exceed such a binding. Same bound as above.
+/// fits): the grid's 10,368 records of 80 bytes (829 KB) take at least 10 chunks spread over
+/// several buffers (10 in 10 on lavapipe; how many chunks share a buffer depends on the
+/// adapter's offset alignment), and its tets (16 bytes each, 166 KB) are cut into the same
+/// chunks over 2 buffers, so each count and scatter pass binds its chunk's window of the right
+/// buffer. Raster sampler only: the compute sampler's carried slices (96 x 96 x 2 layers x 16
+/// bytes) exceed such a binding. Same bound as above.
 #[test]
 fn gpu_binning_reads_each_chunks_tets_from_its_buffer() {
     let (mesh, tf, camera) = common::eye_inside_a_grid();
@@ -184,6 +185,6 @@ fn gpu_binning_reads_each_chunks_tets_from_its_buffer() {
     };
     let (cpu, gpu) = (frame(BinningMode::Cpu), frame(BinningMode::Gpu));
     assert!(counter(&gpu.timings, "record chunks") >= 10);
-    assert!(counter(&gpu.timings, "record buffers") >= 10);
+    assert!(counter(&gpu.timings, "record buffers") >= 2);
     assert_images_close("binning-buffers", &gpu.image, &cpu.image, SAME);
 }

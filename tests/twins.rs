@@ -616,7 +616,8 @@ fn assembly_all(src: &str) -> Drift {
 /// of the sweep (3 cameras x 1,400 tets: slivers around the degenerate threshold, zero-length
 /// tets, the eye at a vertex, vertices shared between tets), and both count the same
 /// degenerate tets. Bound: 8 epsilons
-/// of each value's scale (`record_scales`); lavapipe fuses multiplies and adds (about 1 value
+/// of each value's scale (`record_scales` for records, the vertex's coordinates' scale in
+/// `eye_vertices_drift`); lavapipe fuses multiplies and adds (about 1 value
 /// in 10 differs in its last bits), which moves a value by about one rounding of its terms
 /// amplified by the tet's condition; measured worst 1.4. A one-ulp change of an operation
 /// is not caught by this bound, a change of 1e-4 (~840 epsilons) is.

@@ -51,7 +51,9 @@ impl FrameResources {
     pub(crate) fn new(ctx: &GpuContext) -> Self {
         Self {
             gpu_clock: stage_timestamps(ctx),
-            wall_clock: if ctx.is_software() {
+            wall_clock: if ctx.is_software()
+                && ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY)
+            {
                 WALL_CLOCK_SOFTWARE
             } else {
                 WALL_CLOCK

@@ -29,7 +29,8 @@
 //!    TF ([`Segments`]: `integrate_segment.wgsl`, shared with cellproj, exact or with partial
 //!    pre-integration; or the 3D table), re-entering at the next entry of its list after it
 //!    leaves a non-convex mesh; early ray termination, and a step limit whose hits are counted;
-//! 7. readback (`gpu/frame.rs`) with the GPU timestamps of stages 2-6.
+//! 7. readback (`gpu/frame.rs`) with the GPU timestamps of stages 2-6 (on a hardware adapter;
+//!    on a software one each stage is timed by draining the GPU after it).
 //!
 //! With [`Entry::Peel`] stage 4 is depth peeling (`shaders/raycast_peel.wgsl`), and stages 4-6
 //! run once per layer: layer k holds each pixel's first boundary-face hit by which its ray
@@ -219,8 +220,13 @@ fn near_tol(radius: f64) -> f32 {
 /// this many eye tolerances ([`near_tol`]). The search takes a tet whose four planes each lie
 /// at most the tolerance from the eye: the tet scaled about its incentre, which reaches
 /// `tolerance R / r` beyond a corner at distance `R` from the incentre (`r`: the inradius;
-/// R / r is 3 for a regular tet, under 5 for a grid's); 64 leaves room for worse shapes (a thin
-/// tet holds no eye) and f32 rounding of eye-space vertices (far below the tolerance).
+/// R / r is 3 for a regular tet, under 5 for a grid's); 64 leaves room for worse shapes and
+/// f32 rounding of eye-space vertices (far below the tolerance). A sliver at the boundary
+/// with R / r above 64 (thin tets are only those under 1e-5) can reach further, so an eye just
+/// outside the box could be taken into it by the full search; such an eye is outside every
+/// tet, and skipping the search lets its rays enter through the boundary faces, as they do
+/// for any eye outside the mesh (the CPU ray caster still searches, so the two can differ
+/// there).
 pub const EYE_BOX_GROWTH: f64 = 64.0;
 
 /// When the planes stage runs, what it is for: its two results change with different things.

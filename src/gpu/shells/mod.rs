@@ -10,8 +10,10 @@
 //!    `shaders/shells_bin.wgsl`), the lists left in the active buffer;
 //! 2. upload (`upload.rs`): view and slicing constants, transfer function, per-shell constants, active
 //!    lists (chunk-local tet ids), the face index pattern;
-//! 3. assembly (compute, `gpu/assembly.rs`, shared by every mode): once per tet,
-//!    eye-space corners and the eye-to-barycentric transform (`shaders/assemble.wgsl`);
+//! 3. assembly (compute, `gpu/assembly.rs`, shared by every mode): once per vertex its
+//!    eye-space position, then once per tet the eye-to-barycentric transform (an 80-byte
+//!    record; `shaders/assemble.wgsl`); the stages that draw a tet read its corners through
+//!    its vertex ids (`shaders/tet_corners.wgsl`);
 //! 4. per drawn shell:
 //!    - raster (`raster.rs`, one render pass): front faces of the shell's tets, each fragment
 //!      writing its `n` slice samples (encoded scalar or 0) into `n / 4` colour targets under
@@ -22,7 +24,8 @@
 //!      from every later pass, and a few times per frame a tile mask of unfinished pixels is
 //!      read back (`shaders/shells_mark.wgsl`);
 //! 5. readback (`gpu/frame.rs`): the accumulation target, the degenerate count, the
-//!    occlusion queries and the GPU timestamps of every pass.
+//!    occlusion queries and the GPU timestamps of every pass (on a hardware adapter; a
+//!    software one's stages are timed by draining the GPU after each).
 //!
 //! With [`Sampler::Compute`] stages 4. and 5. run in compute instead (`compute.rs`): per drawn
 //! shell, `tiles.rs` bins its tets to 8 x 8 pixel tiles (`shaders/shells_tiles.wgsl`) and
@@ -42,7 +45,7 @@
 //! What a scene does not need is skipped: transparent tets, empty shells, finished pixels,
 //! tets outside the frustum ([`skips`], each skip switched by [`ShellSettings::skips`]).
 //!
-//! Meshes whose per-tet records exceed one storage binding (about 932k tets on lavapipe's
+//! Meshes whose per-tet records exceed one storage binding (about 1.68M tets on lavapipe's
 //! 128 MiB) are assembled and drawn in chunks: the records live in a tet array
 //! (`gpu/mesh.rs`, as many buffers as the adapter's largest buffer needs),
 //! each chunk binds its window of it, and a shell's active list (tet ids ascending, as binning
