@@ -21,6 +21,19 @@ fn record(pixel: u32, t: f32, code: u32) {
     }
 }
 
+// The hits of the face's pixels first, first + step, ... of its pixel rectangle `r`.
+fn cover(plane: vec4<f32>, face: Face, code: u32, r: vec4<i32>, first: i32, step: i32) {
+    let w = r.z - r.x;
+    let n = w * (r.w - r.y);
+    for (var i = first; i < n; i += step) {
+        let px = vec2<u32>(vec2<i32>(r.x + i % w, r.y + i / w));
+        let t = entry_t(plane, face, ray_of(px));
+        if t > 0.0 {
+            record(px.y * u32(view.size.x) + px.x, t, code);
+        }
+    }
+}
+
 // The face a workgroup works on, set up once by its first thread.
 var<workgroup> face_w: Face;
 var<workgroup> plane_w: vec4<f32>;
@@ -51,15 +64,7 @@ fn main(
         rect_w = pixel_bounds(face);
     }
     let r = workgroupUniformLoad(&rect_w);
-    let w = r.z - r.x;
-    let n = w * (r.w - r.y);
-    for (var i = i32(lane); i < n; i += 64) {
-        let px = vec2<u32>(vec2<i32>(r.x + i % w, r.y + i / w));
-        let t = entry_t(plane_w, face_w, ray_of(px));
-        if t > 0.0 {
-            record(px.y * u32(view.size.x) + px.x, t, code_w);
-        }
-    }
+    cover(plane_w, face_w, code_w, r, i32(lane), 64);
 }
 
 // The same hits with one thread per boundary face walking its pixel rectangle alone, for
@@ -81,14 +86,5 @@ fn per_thread(
     let ids = link(code >> 2u).tet;
     let face = face_of(ids, code & 3u);
     let plane = tet_planes(ids).face[code & 3u];
-    let r = pixel_bounds(face);
-    let w = r.z - r.x;
-    let n = w * (r.w - r.y);
-    for (var i = 0; i < n; i++) {
-        let px = vec2<u32>(vec2<i32>(r.x + i % w, r.y + i / w));
-        let t = entry_t(plane, face, ray_of(px));
-        if t > 0.0 {
-            record(px.y * u32(view.size.x) + px.x, t, code);
-        }
-    }
+    cover(plane, face, code, pixel_bounds(face), 0, 1);
 }
