@@ -33,18 +33,11 @@ fn fnv1a(image: &Image) -> u64 {
 /// `ctx`'s adapter and device, declared to bind at most `binding` bytes per storage buffer
 /// (`None`: the adapter's own limit), so the chunked paths are fingerprinted too.
 fn with_binding_limit(ctx: &GpuContext, binding: Option<u64>) -> GpuContext {
-    GpuContext {
-        adapter: ctx.adapter.clone(),
-        device: ctx.device.clone(),
-        queue: ctx.queue.clone(),
-        info: ctx.info.clone(),
-        limits: wgpu::Limits {
-            max_storage_buffer_binding_size: binding
-                .unwrap_or(ctx.limits.max_storage_buffer_binding_size),
-            ..ctx.limits.clone()
-        },
-        features: ctx.features,
+    let mut c = ctx.clone();
+    if let Some(bytes) = binding {
+        c.limits.max_storage_buffer_binding_size = bytes;
     }
+    c
 }
 
 type Build = fn(&GpuContext, &TetMesh) -> Result<Box<dyn Renderer>, RenderError>;

@@ -89,7 +89,9 @@ const WANTED_FEATURES: wgpu::Features = wgpu::Features::FLOAT32_BLENDABLE
 /// The fields are public so that a caller can share its own device with tetvr, or declare
 /// lower limits than the adapter's (the tests lower `limits.max_storage_buffer_binding_size`
 /// and `limits.max_buffer_size` to exercise chunked buffers on small meshes): the renderers
-/// size everything from `limits` and `features`, never from the adapter directly.
+/// size everything from `limits` and `features`, never from the adapter directly. A clone
+/// shares the device (wgpu's handles are reference counted).
+#[derive(Clone)]
 pub struct GpuContext {
     /// The adapter the device was opened on.
     pub adapter: wgpu::Adapter,

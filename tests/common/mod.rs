@@ -129,17 +129,9 @@ pub fn with_storage_binding_limit(
     ctx: &tetvr::gpu::GpuContext,
     bytes: u64,
 ) -> tetvr::gpu::GpuContext {
-    tetvr::gpu::GpuContext {
-        adapter: ctx.adapter.clone(),
-        device: ctx.device.clone(),
-        queue: ctx.queue.clone(),
-        info: ctx.info.clone(),
-        limits: wgpu::Limits {
-            max_storage_buffer_binding_size: bytes,
-            ..ctx.limits.clone()
-        },
-        features: ctx.features,
-    }
+    let mut c = ctx.clone();
+    c.limits.max_storage_buffer_binding_size = bytes;
+    c
 }
 
 /// The same adapter and device as `ctx`, declared to bind at most `binding` bytes per storage

@@ -621,17 +621,9 @@ mod tests {
     /// The same adapter and device as `ctx`, declared to bind at most `bytes` per storage
     /// buffer.
     fn binding_of(ctx: &GpuContext, bytes: u64) -> GpuContext {
-        GpuContext {
-            adapter: ctx.adapter.clone(),
-            device: ctx.device.clone(),
-            queue: ctx.queue.clone(),
-            info: ctx.info.clone(),
-            limits: wgpu::Limits {
-                max_storage_buffer_binding_size: bytes,
-                ..ctx.limits.clone()
-            },
-            features: ctx.features,
-        }
+        let mut c = ctx.clone();
+        c.limits.max_storage_buffer_binding_size = bytes;
+        c
     }
 
     /// Lists longer than one binding holds: `--binning gpu` says so, `auto` bins that frame on

@@ -390,14 +390,7 @@ impl TunedShells {
         };
         let first = ShellsRenderer::with_mesh(ctx, Arc::clone(&mesh), default)?;
         Ok(Self {
-            ctx: GpuContext {
-                adapter: ctx.adapter.clone(),
-                device: ctx.device.clone(),
-                queue: ctx.queue.clone(),
-                info: ctx.info.clone(),
-                limits: ctx.limits.clone(),
-                features: ctx.features,
-            },
+            ctx: ctx.clone(),
             mesh,
             default,
             source,
