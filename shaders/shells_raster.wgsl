@@ -18,7 +18,7 @@ fn vs_faces(@builtin(vertex_index) index: u32) -> Varyings {
     // faces from these 4 vertices, so each corner is shaded once, not three times.
     let tet = active_tets[index / 4u];
     let rec = records[tet];
-    let p = tet_corners(tet, rec)[index % 4u];
+    let p = tet_corner(tet, rec, index % 4u);
     let position = select(
         vec4<f32>(p.x * view.proj.x, p.y * view.proj.y, 0.0, p.z),
         NOWHERE,

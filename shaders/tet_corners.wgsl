@@ -16,6 +16,13 @@ fn usable(rec: TetRecord) -> bool {
     return any(rec.grad_x != zero) || any(rec.grad_y != zero) || any(rec.grad_z != zero);
 }
 
+// Corner `i` of record `t` (`rec`, the record itself), as `tet_corners` gives it: reads one
+// vertex, for a vertex shader that shades one corner (an array of all four indexed by a
+// computed index would be built and may be spilled to memory).
+fn tet_corner(t: u32, rec: TetRecord, i: u32) -> vec4<f32> {
+    return vec4<f32>(eye_vertices[tet_ids[t][i]].xyz, select(0.0, 1.0, usable(rec)));
+}
+
 // The eye-space corners of record `t` (`rec`, the record itself); `w` is 1 for a usable tet
 // and 0 for a skipped degenerate one.
 fn tet_corners(t: u32, rec: TetRecord) -> array<vec4<f32>, 4> {
