@@ -34,28 +34,75 @@ const CHUNK_STORE: u32 = 2u;
 
 var<workgroup> tile_finished: u32;
 var<workgroup> live: atomic<u32>;
+// The tile's list range [start, end), read once for the whole workgroup.
+var<workgroup> list_range: vec2<u32>;
 
-// The shell's slices of the pixel whose centre is `xy` (tile-local pixel `local`), from the
-// tets listed in [start, end) whose pixel box holds it.
-fn sample_tets(xy: vec2<f32>, local: vec2<u32>, start: u32, end: u32) -> array<vec4<f32>, TARGETS> {
-    let d = pixel_ray(xy);
-    let at = vec4<u32>(local.x, local.x, local.y, local.y);
-    var v: array<vec4<f32>, TARGETS>;
-    for (var i = start; i < end; i++) {
-        let item = lists[i];
-        let b = (vec4<u32>(item.y) >> vec4<u32>(0u, 8u, 16u, 24u)) & vec4<u32>(255u);
-        if any((at < b) != vec4<bool>(false, true, false, true)) {
+// Tile-list entries a batch holds: one per thread.
+const BATCH: u32 = TILE * TILE;
+// The batch's tets: their ids, pixel boxes (as `lists` packs them) and the parts of their
+// records the sampling reads, each loaded once per tile instead of once per pixel.
+var<workgroup> batch_ids: array<u32, BATCH>;
+var<workgroup> batch_boxes: array<u32, BATCH>;
+var<workgroup> batch_tets: array<SpanTet, BATCH>;
+// Per pixel row of the tile, the batch entries whose box holds the row, and their count: a
+// row's threads walk only those (a tet's box mostly covers a few rows of the tile).
+var<workgroup> rows: array<array<u32, BATCH>, TILE>;
+var<workgroup> row_counts: array<atomic<u32>, TILE>;
+
+// Thread `index` loads list entry `i` (below `end`) into the batch and files it under the
+// rows its box covers.
+fn load_entry(index: u32, i: u32, end: u32) {
+    if i >= end {
+        return;
+    }
+    let item = lists[i];
+    let r = records[item.x];
+    batch_ids[index] = item.x;
+    batch_boxes[index] = item.y;
+    batch_tets[index] = SpanTet(r.grad_x, r.grad_y, r.grad_z, r.lambda_eye, r.scalar);
+    for (var y = (item.y >> 16u) & 255u; y < (item.y >> 24u); y++) {
+        rows[y][atomicAdd(&row_counts[y], 1u)] = index;
+    }
+}
+
+// Adds to `v` (MAX) the slices of the pixel whose ray is `d` (tile-local pixel `local`) from
+// the batch's tets filed under its row whose box holds its column.
+fn sample_batch(v: ptr<function, array<vec4<f32>, TARGETS>>, d: vec3<f32>, local: vec2<u32>) {
+    let n = atomicLoad(&row_counts[local.y]);
+    for (var k = 0u; k < n; k++) {
+        let j = rows[local.y][k];
+        let box = batch_boxes[j];
+        if local.x < (box & 255u) || local.x >= ((box >> 8u) & 255u) {
             continue;
         }
-        let r = records[item.x];
-        let shape = SpanTet(r.grad_x, r.grad_y, r.grad_z, r.lambda_eye, r.scalar);
+        let shape = batch_tets[j];
         let span = tet_span(shape, d);
         if span.x <= span.y {
-            let values = tet_values(item.x, shape, d, span);
-            for (var k = 0u; k < TARGETS; k++) {
-                v[k] = max(v[k], values[k]);
+            let values = tet_values(batch_ids[j], shape, d, span);
+            for (var t = 0u; t < TARGETS; t++) {
+                (*v)[t] = max((*v)[t], values[t]);
             }
         }
+    }
+}
+
+// The shell's slices of the pixel whose centre is `xy` (tile-local pixel `local`) from the
+// tile's list [range.x, range.y), in batches of BATCH entries; `sampling`: whether this
+// thread's pixel takes samples (all threads take part in loading the batches).
+fn sample_tile(xy: vec2<f32>, local: vec2<u32>, index: u32, range: vec2<u32>, sampling: bool) -> array<vec4<f32>, TARGETS> {
+    let d = pixel_ray(xy);
+    var v: array<vec4<f32>, TARGETS>;
+    for (var base = range.x; base < range.y; base += BATCH) {
+        if index < TILE {
+            atomicStore(&row_counts[index], 0u);
+        }
+        workgroupBarrier();
+        load_entry(index, base + index, range.y);
+        workgroupBarrier();
+        if sampling {
+            sample_batch(&v, d, local);
+        }
+        workgroupBarrier();
     }
     return v;
 }
@@ -72,10 +119,13 @@ fn main(
     if index == 0u {
         tile_finished = finished[tile];
         atomicStore(&live, 0u);
+        let capacity = arrayLength(&lists);
+        list_range = vec2<u32>(min(offsets[tile], capacity), min(offsets[tile + 1u], capacity));
     }
     if workgroupUniformLoad(&tile_finished) != 0u {
         return;
     }
+    let range = workgroupUniformLoad(&list_range);
     let pixel = tile_xy * TILE + local.xy;
     let inside = all(pixel < size);
     let p = pixel.y * size.x + pixel.x;
@@ -83,11 +133,9 @@ fn main(
     if inside {
         dst = accum[p];
     }
-    if inside && dst.a < threshold {
-        let capacity = arrayLength(&lists);
-        let start = min(offsets[tile], capacity);
-        let end = min(offsets[tile + 1u], capacity);
-        var v = sample_tets(vec2<f32>(pixel) + 0.5, local.xy, start, end);
+    let sampling = inside && dst.a < threshold;
+    var v = sample_tile(vec2<f32>(pixel) + 0.5, local.xy, index, range, sampling);
+    if sampling {
         if (shell.chunk_pass & CHUNK_LOAD) != 0u {
             for (var k = 0u; k < TARGETS; k++) {
                 v[k] = max(v[k], slices[p * TARGETS + k]);
