@@ -126,6 +126,11 @@ fn main(
         return;
     }
     let range = workgroupUniformLoad(&list_range);
+    // A tile listing no tet adds nothing to its pixels (an empty shell composites to zero)
+    // unless a chunk pass carries slices into or out of it.
+    if range.x == range.y && shell.chunk_pass == 0u {
+        return;
+    }
     let pixel = tile_xy * TILE + local.xy;
     let inside = all(pixel < size);
     let p = pixel.y * size.x + pixel.x;
