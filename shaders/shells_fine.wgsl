@@ -1,8 +1,12 @@
 // Compute sampler, fine stage (one dispatch per shell): one workgroup per tile of the shell's
-// rectangle, one thread per pixel. Each unfinished pixel samples the shell's slices in every
-// tet of its tile's list (shells_span.wgsl, the raster sampler's arithmetic; where the inside
-// tolerance lets two tets claim a sample, the larger value is kept, as the raster's MAX blend
-// does), composites them (shells_tf.wgsl) and blends the result under its accumulated colour.
+// rectangle, one thread per pixel. The workgroup loads its tile's list in batches of one entry
+// per thread: each entry's record goes to workgroup memory once (not once per pixel) and is
+// filed under the tile rows its pixel box covers. Each unfinished pixel then samples the
+// shell's slices in the batch's tets of its row whose box holds its column (shells_span.wgsl,
+// the raster sampler's arithmetic; where the inside tolerance lets two tets claim a sample, the
+// larger value is kept, as the raster's MAX blend does, so the order rows list their tets in
+// does not matter), composites them (shells_tf.wgsl) and blends the result under its
+// accumulated colour. A tile whose list is empty returns at once (its pixels would add zero).
 // A pixel whose alpha reached `threshold` is finished; a tile whose pixels are all finished
 // is flagged and skipped by the later shells. The generated prelude defines TILE, TARGETS and
 // tf_eval(); the variant's sampling defines tet_values(): the linear field's (shaders.rs) or
