@@ -36,10 +36,9 @@ override threshold: f32 = 0.99999;
 const CHUNK_LOAD: u32 = 1u;
 const CHUNK_STORE: u32 = 2u;
 
-var<workgroup> tile_finished: u32;
+// The tile's finished flag and its list range [start, end), read once for the workgroup.
+var<workgroup> tile_head: vec3<u32>;
 var<workgroup> live: atomic<u32>;
-// The tile's list range [start, end), read once for the whole workgroup.
-var<workgroup> list_range: vec2<u32>;
 
 // Tile-list entries a batch holds: one per thread.
 const BATCH: u32 = TILE * TILE;
@@ -92,21 +91,25 @@ fn sample_batch(v: ptr<function, array<vec4<f32>, TARGETS>>, d: vec3<f32>, local
 
 // The shell's slices of the pixel whose centre is `xy` (tile-local pixel `local`) from the
 // tile's list [range.x, range.y), in batches of BATCH entries; `sampling`: whether this
-// thread's pixel takes samples (all threads take part in loading the batches).
+// thread's pixel takes samples (all threads take part in loading the batches). The row counts
+// start at zero (main); most tiles list one batch or less and pass one barrier here.
 fn sample_tile(xy: vec2<f32>, local: vec2<u32>, index: u32, range: vec2<u32>, sampling: bool) -> array<vec4<f32>, TARGETS> {
     let d = pixel_ray(xy);
     var v: array<vec4<f32>, TARGETS>;
     for (var base = range.x; base < range.y; base += BATCH) {
-        if index < TILE {
-            atomicStore(&row_counts[index], 0u);
+        if base != range.x {
+            // Every row has walked the previous batch: empty the rows for this one.
+            workgroupBarrier();
+            if index < TILE {
+                atomicStore(&row_counts[index], 0u);
+            }
+            workgroupBarrier();
         }
-        workgroupBarrier();
         load_entry(index, base + index, range.y);
         workgroupBarrier();
         if sampling {
             sample_batch(&v, d, local);
         }
-        workgroupBarrier();
     }
     return v;
 }
@@ -121,15 +124,19 @@ fn main(
     let tile_xy = shell.tiles.xy + group.xy;
     let tile = tile_xy.y * ((size.x + TILE - 1u) / TILE) + tile_xy.x;
     if index == 0u {
-        tile_finished = finished[tile];
         atomicStore(&live, 0u);
         let capacity = arrayLength(&lists);
-        list_range = vec2<u32>(min(offsets[tile], capacity), min(offsets[tile + 1u], capacity));
+        let range = vec2<u32>(min(offsets[tile], capacity), min(offsets[tile + 1u], capacity));
+        tile_head = vec3<u32>(finished[tile], range);
     }
-    if workgroupUniformLoad(&tile_finished) != 0u {
+    if index < TILE {
+        atomicStore(&row_counts[index], 0u);
+    }
+    let head = workgroupUniformLoad(&tile_head);
+    if head.x != 0u {
         return;
     }
-    let range = workgroupUniformLoad(&list_range);
+    let range = head.yz;
     // A tile listing no tet adds nothing to its pixels (an empty shell composites to zero)
     // unless a chunk pass carries slices into or out of it.
     if range.x == range.y && shell.chunk_pass == 0u {
