@@ -1,7 +1,8 @@
 //! The compute sampler's fine stage, once per drawn shell (`shaders/shells_fine.wgsl`): one
 //! workgroup per tile of the shell's rectangle samples, composites and accumulates the
-//! shell's slices of each unfinished pixel from the tile's list; variants built on first use
-//! and kept.
+//! shell's slices of each unfinished pixel from the tile's list (loaded into workgroup memory
+//! in batches, each entry filed under the tile rows its box covers); variants built on first
+//! use and kept.
 
 use std::collections::HashMap;
 
