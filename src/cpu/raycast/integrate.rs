@@ -203,7 +203,9 @@ impl SegmentTf {
         if a + b == 0.0 {
             return None;
         }
-        if a.max(b) <= OPTICALLY_THIN {
+        // A plain compare for the larger (one `maxss`; `f32::max`'s NaN handling cost four
+        // more instructions): `a` and `b` are not NaN once the lengths and weights are not.
+        if (if a > b { a } else { b }) <= OPTICALLY_THIN {
             let w = thin(a, b);
             return Some((ca * w.x + cb * w.y, 1.0 - w.z));
         }

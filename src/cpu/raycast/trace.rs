@@ -235,7 +235,9 @@ fn exit_by_planes(here: &Tet, den: Vec4, entry: usize, t_in: f32) -> (usize, f32
     let t_best = t.min_element();
     let best = t.cmpeq(Vec4::splat(t_best)).bitmask().trailing_zeros() as usize;
     if t_best < FAR {
-        return (best, t_in.max(t_best));
+        // Neither is NaN: a plain compare (one `maxss`), where `f32::max` also picks around
+        // NaN (four more instructions).
+        return (best, if t_best > t_in { t_best } else { t_in });
     }
     let den = den.to_array();
     let mut steep = (4, -FAR);
