@@ -38,11 +38,15 @@ struct Interval {
 }
 
 impl Interval {
-    /// Colour and extinction `(r, g, b, tau)` at `u`, clamped to the interval (f32 rounding of
-    /// `u` never reaches beyond its ends' values, so extinction stays at least 0).
-    fn at(&self, u: f32) -> Vec4 {
-        let w = ((u - self.lo) * self.inv_width).clamp(0.0, 1.0);
-        self.ends[0] * (1.0 - w) + self.ends[1] * w
+    /// Colour and extinction `(r, g, b, tau)` at `u0` and at `u1`, clamped to the interval (f32
+    /// rounding of `u` never reaches beyond its ends' values, so extinction stays at least 0).
+    /// Both weights in one vector and clamped by its `max` and `min` (`f32::clamp` kept NaN
+    /// apart from the bounds with a compare and branch per end; a NaN `u` weighs 0 here).
+    fn at(&self, u0: f32, u1: f32) -> (Vec4, Vec4) {
+        let u = Vec4::new(u0, u1, u0, u1);
+        let w = ((u - Vec4::splat(self.lo)) * self.inv_width).clamp(Vec4::ZERO, Vec4::ONE);
+        let mix = |w: f32| self.ends[0] * (1.0 - w) + self.ends[1] * w;
+        (mix(w.x), mix(w.y))
     }
 }
 
@@ -194,12 +198,14 @@ impl SegmentTf {
             return None;
         }
         let interval = &self.intervals[j];
-        let (ca, cb) = (interval.at(u0), interval.at(u1));
+        let (ca, cb) = interval.at(u0, u1);
         let (a, b) = (ca.w * l, cb.w * l);
         if a + b == 0.0 {
             return None;
         }
-        if a.max(b) <= OPTICALLY_THIN {
+        // A plain compare for the larger (one `maxss`; `f32::max`'s NaN handling cost four
+        // more instructions): `a` and `b` are not NaN once the lengths and weights are not.
+        if (if a > b { a } else { b }) <= OPTICALLY_THIN {
             let w = thin(a, b);
             return Some((ca * w.x + cb * w.y, 1.0 - w.z));
         }

@@ -191,9 +191,10 @@ fn segment_scalars(sc: &Scene, here: &Tet, tet: u32, d: Vec3, t0: f32, t1: f32) 
 /// no face passes) by its planes.
 fn exit(sc: &Scene, here: &Tet, tet: u32, entry: usize, d: Vec3, t: f32) -> (usize, f32) {
     let den = here.crossings(d);
-    // Lanes by `to_array`, not `Vec4`'s `Index` (a `match`: a jump table taken on the face
-    // index, mispredicted about every other step).
-    let folded = den.to_array().get(entry).is_some_and(|&c| c > 0.0);
+    // Lane `entry` of the compare's mask (0 for no face, `entry` 4), not `Vec4`'s `Index` (a
+    // jump table on the face index, mispredicted about every other step) nor `to_array` (the
+    // four crossings stored to the stack to load one).
+    let folded = den.cmpgt(Vec4::ZERO).bitmask() >> entry & 1 != 0;
     if here.thin() || folded {
         let ids = sc.ids[tet as usize];
         let faces = std::array::from_fn(|f| face_corners(sc.eye, ids, f));
@@ -228,14 +229,15 @@ fn exit_by_planes(here: &Tet, den: Vec4, entry: usize, t_in: f32) -> (usize, f32
     let ahead = others & den.cmpgt(Vec4::ZERO) & !along & t.cmplt(Vec4::splat(FAR));
     let t = Vec4::select(ahead, t, Vec4::splat(FAR));
     // The first lane holding the least t, as `min_position` but without its branch per lane
-    // (mispredicted as the nearest face changes from step to step); no lane is NaN.
-    let best = t
-        .cmpeq(Vec4::splat(t.min_element()))
-        .bitmask()
-        .trailing_zeros() as usize;
-    let t_best = t.to_array()[best];
+    // (mispredicted as the nearest face changes from step to step); no lane is NaN. The least
+    // t is the horizontal minimum itself, not that lane loaded back from the stack (the same
+    // value; only a zero's sign could differ, and `t_in >= 0` bounds it).
+    let t_best = t.min_element();
+    let best = t.cmpeq(Vec4::splat(t_best)).bitmask().trailing_zeros() as usize;
     if t_best < FAR {
-        return (best, t_in.max(t_best));
+        // Neither is NaN: a plain compare (one `maxss`), where `f32::max` also picks around
+        // NaN (four more instructions).
+        return (best, if t_best > t_in { t_best } else { t_in });
     }
     let den = den.to_array();
     let mut steep = (4, -FAR);
