@@ -26,9 +26,9 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::gpu::gpu_data::TetRecord;
-use crate::gpu::util::{bounding_sphere, scalar_frame, settings_error};
+use crate::gpu::util::{scalar_frame, settings_error, sphere_of};
 use crate::gpu::{GpuContext, GpuError};
-use crate::mesh::{TetMesh, check_new_positions, check_values, tet_ranges};
+use crate::mesh::{TetMesh, bounding_box, check_new_positions, check_values, tet_ranges};
 use crate::render::RenderError;
 
 /// The CPU side of a [`GpuTetMesh`]: the mesh as the per-frame CPU stages read it, and the
@@ -40,6 +40,8 @@ pub struct MeshData {
     pub scalars: Vec<f64>,
     /// Vertex indices per tet.
     pub tets: Vec<[u32; 4]>,
+    /// The positions' bounding box (world, lower and upper corner).
+    pub bounds: (DVec3, DVec3),
     /// Bounding-box centre: GPU positions and the eye are relative to it.
     pub origin: DVec3,
     /// Bounding-sphere radius about `origin`.
@@ -63,7 +65,8 @@ impl MeshData {
         let positions = mesh.positions().to_vec();
         let scalars = mesh.scalars()?.to_vec();
         let tets = mesh.tets().to_vec();
-        let (origin, radius) = bounding_sphere(&positions);
+        let bounds = bounding_box(&positions);
+        let (origin, radius) = sphere_of(bounds);
         let cells = mesh.cell_scalars().map(<[f64]>::to_vec);
         let (scalar_min, scalar_span) = match &cells {
             Some(c) => scalar_frame(&[scalars.as_slice(), c].concat()),
@@ -75,6 +78,7 @@ impl MeshData {
             positions,
             scalars,
             tets,
+            bounds,
             origin,
             radius,
             scalar_min,
@@ -302,7 +306,8 @@ impl GpuTetMesh {
         let mut data = self.data.write().unwrap_or_else(PoisonError::into_inner);
         check_new_positions(positions, data.positions.len())?;
         data.positions.copy_from_slice(positions);
-        (data.origin, data.radius) = bounding_sphere(&data.positions);
+        data.bounds = bounding_box(&data.positions);
+        (data.origin, data.radius) = sphere_of(data.bounds);
         data.positions_version += 1;
         self.upload_positions(&data);
         Ok(())

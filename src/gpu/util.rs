@@ -12,7 +12,11 @@ use crate::render::RenderError;
 /// The GPU modes' frame of reference for positions: the bounding-box centre (GPU positions
 /// and the eye are relative to it) and the bounding-sphere radius about it.
 pub(crate) fn bounding_sphere(positions: &[DVec3]) -> (DVec3, f64) {
-    let (lo, hi) = bounding_box(positions);
+    sphere_of(bounding_box(positions))
+}
+
+/// [`bounding_sphere`] of the positions whose bounding box is `(lo, hi)`.
+pub(crate) fn sphere_of((lo, hi): (DVec3, DVec3)) -> (DVec3, f64) {
     (
         (lo + hi) * 0.5,
         ((hi - lo).length() * 0.5).max(f64::MIN_POSITIVE),

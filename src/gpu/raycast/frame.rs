@@ -15,7 +15,6 @@ use crate::gpu::tf::tf_points;
 use crate::gpu::util::{check_image_size, entry, map_read, ms_since, settings_error, texture_2d};
 use crate::gpu::view::ViewFrame;
 use crate::image::Image;
-use crate::mesh::bounding_box;
 use crate::render::{Frame, RenderError, Timings};
 use crate::tf::TransferFunction;
 
@@ -219,14 +218,7 @@ impl RaycastRenderer {
     /// changed since it was taken.
     fn plan_planes(&mut self, m: &MeshData, eye: DVec3) {
         let version = m.positions_version;
-        let (lo, hi) = match self.planes.bounds {
-            Some((v, lo, hi)) if v == version => (lo, hi),
-            _ => {
-                let (lo, hi) = bounding_box(&m.positions);
-                self.planes.bounds = Some((version, lo, hi));
-                (lo, hi)
-            }
-        };
+        let (lo, hi) = m.bounds;
         let grow = DVec3::splat(EYE_BOX_GROWTH * self.eye_tol as f64);
         let eye_in_box = (eye.cmpge(lo - grow) & eye.cmple(hi + grow)).all();
         let counted = self.planes.thin.is_some_and(|(v, _)| v == version);

@@ -237,8 +237,6 @@ pub const EYE_BOX_GROWTH: f64 = 64.0;
 /// e.g. the blunt fin's coincident corners).
 #[derive(Clone, Copy, Debug, Default)]
 struct PlanesStage {
-    /// The mesh's bounding box (world) and the positions version it was taken from.
-    bounds: Option<(u64, DVec3, DVec3)>,
     /// The thin tets counted and the positions version they were counted for.
     thin: Option<(u64, u32)>,
     /// The positions version the current frame counts for, when it runs the stage.
