@@ -28,34 +28,34 @@ fn rotate(g: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(dot(view.right, g), dot(view.up, g), dot(view.forward, g));
 }
 
-@compute @workgroup_size(64)
-fn vertices(
+// The builtins an entry point below takes: dispatches spread over rows of workgroups.
+struct Invocation {
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
-) {
-    let v = (wid.y * groups.x + wid.x) * 64u + lid;
+}
+
+// The vertex or list entry invocation `i` works on.
+fn invocation_index(i: Invocation) -> u32 {
+    return (i.wid.y * i.groups.x + i.wid.x) * 64u + i.lid;
+}
+
+@compute @workgroup_size(64)
+fn vertices(i: Invocation) {
+    let v = invocation_index(i);
     if v < arrayLength(&eye_vertices) {
         eye_vertices[v] = vec4<f32>(to_eye(positions[v].xyz), 1.0);
     }
 }
 
 @compute @workgroup_size(64)
-fn main(
-    @builtin(workgroup_id) wid: vec3<u32>,
-    @builtin(num_workgroups) groups: vec3<u32>,
-    @builtin(local_invocation_index) lid: u32,
-) {
-    assemble((wid.y * groups.x + wid.x) * 64u + lid);
+fn main(i: Invocation) {
+    assemble(invocation_index(i));
 }
 
 @compute @workgroup_size(64)
-fn main_cells(
-    @builtin(workgroup_id) wid: vec3<u32>,
-    @builtin(num_workgroups) groups: vec3<u32>,
-    @builtin(local_invocation_index) lid: u32,
-) {
-    let t = (wid.y * groups.x + wid.x) * 64u + lid;
+fn main_cells(i: Invocation) {
+    let t = invocation_index(i);
     if assemble(t) {
         records[t].scalar = vec4<f32>(0.0, 0.0, 0.0, cells[t] + 1.0);
     }
