@@ -49,11 +49,11 @@ pub(crate) struct FrameResources {
 impl FrameResources {
     /// Nothing allocated yet; stages timed with timestamps where [`stage_timestamps`] says.
     pub(crate) fn new(ctx: &GpuContext) -> Self {
+        let gpu_clock = stage_timestamps(ctx);
+        let untrusted = ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY) && !gpu_clock;
         Self {
-            gpu_clock: stage_timestamps(ctx),
-            wall_clock: if ctx.is_software()
-                && ctx.features.contains(wgpu::Features::TIMESTAMP_QUERY)
-            {
+            gpu_clock,
+            wall_clock: if untrusted {
                 WALL_CLOCK_SOFTWARE
             } else {
                 WALL_CLOCK

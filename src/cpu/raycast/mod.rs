@@ -211,20 +211,16 @@ impl CpuRaycastRenderer {
     }
 
     /// Stages 1 and 2 for view `f`: eye-space positions and per-tet records into `self.eye`
-    /// and `self.tets`, then the entry bins; their times into `timings`.
-    fn view_geometry(
-        &mut self,
-        f: ViewUniforms,
-        eye_tol: f32,
-        timings: &mut Timings,
-    ) -> ViewGeometry {
+    /// and `self.tets`, then the entry bins; their times into `timings`. The eye-in-tet
+    /// tolerance is `f.near_z`, as on the GPU.
+    fn view_geometry(&mut self, f: ViewUniforms, timings: &mut Timings) -> ViewGeometry {
         let t = Instant::now();
         scene::eye_positions(&f, &self.positions, &mut self.eye);
         let pass = scene::tets(
             &self.eye,
             &self.scalars,
             (&self.links, &self.original),
-            eye_tol,
+            f.near_z,
             &mut self.tets,
         );
         timings.stage("planes", ms_since(t));
@@ -256,7 +252,7 @@ impl CpuRaycastRenderer {
         let reused = (self.view.as_ref()).is_some_and(|v| bytes_of(&v.frame) == bytes_of(&f));
         let view = match self.view.take() {
             Some(v) if reused => v,
-            _ => self.view_geometry(f, eye_tol, &mut timings),
+            _ => self.view_geometry(f, &mut timings),
         };
         let (pass, bins) = (view.pass, &view.bins);
         let t = Instant::now();
