@@ -217,6 +217,8 @@ pub(super) fn picked(mode: BinningMode, tets: u64) -> bool {
 
 /// What one binning run read back.
 struct Readback {
+    /// The record chunks the run binned.
+    chunks: usize,
     /// Per (shell, near, chunk) bucket its first entry, then the total.
     offsets: Vec<u32>,
     rects: Vec<ScreenRect>,
@@ -253,8 +255,7 @@ impl ShellsRenderer {
             let r = self.run_binning(m, plan, n, shells)?;
             let total = r.offsets.last().copied().unwrap_or(0) as u64;
             if total <= self.active_capacity() {
-                let chunks = self.chunking.ranges(tets).len();
-                return Ok(Some((n, binning_of(r, shells as usize, chunks))));
+                return Ok(Some((n, binning_of(r, shells as usize))));
             }
             if total > max_entries {
                 if self.settings.binning == BinningMode::Auto {
@@ -332,12 +333,12 @@ impl ShellsRenderer {
         n: u32,
         shells: u64,
     ) -> Result<Readback, RenderError> {
-        let u = self.bin_uniforms(m, plan, n, shells);
         let binner = (self.binner.as_mut())
             .ok_or_else(|| settings_error("internal: GPU binning without its binner"))?;
         binner.ensure(&self.device, shells);
         let binner = (self.binner.as_ref())
             .ok_or_else(|| settings_error("internal: GPU binning without its binner"))?;
+        let u = self.bin_uniforms(m, plan, (n, shells), binner);
         self.queue
             .write_buffer(&binner.uniforms, 0, bytemuck::bytes_of(&u));
         let sentinel: Vec<i32> = (0..4 * shells)
@@ -373,11 +374,18 @@ impl ShellsRenderer {
         enc.copy_buffer_to_buffer(&binner.rects, 0, &binner.readback, b_off, b_rect);
         enc.copy_buffer_to_buffer(&binner.stats, 0, &binner.readback, b_off + b_rect, 16);
         self.queue.submit([enc.finish()]);
-        read_back(&self.device, &binner.readback, words)
+        read_back(&self.device, &binner.readback, words, binner.chunks.len())
     }
 
-    /// The binning constants of a frame with `n` slices per shell and `shells` shells.
-    fn bin_uniforms(&self, m: &MeshData, plan: &FramePlan, n: u32, shells: u64) -> BinUniforms {
+    /// The binning constants of a frame with `n` slices per shell and `shells` shells, over
+    /// `binner`'s record chunks.
+    fn bin_uniforms(
+        &self,
+        m: &MeshData,
+        plan: &FramePlan,
+        (n, shells): (u32, u64),
+        binner: &GpuBinner,
+    ) -> BinUniforms {
         let f32x3 = |v: glam::DVec3| v.as_vec3().to_array();
         let [right, up, forward] = plan.view.basis;
         let dist = (m.origin - plan.view.eye).length();
@@ -395,7 +403,7 @@ impl ShellsRenderer {
             slices: plan.slices.min(u32::MAX as u64) as u32,
             per_shell: n,
             shells: shells as u32,
-            chunks: self.chunking.ranges(m.tets.len() as u64).len() as u32,
+            chunks: binner.chunks.len() as u32,
             frustum: self.settings.skips.frustum as u32,
             capacity: self.active_capacity().min(u32::MAX as u64) as u32,
         }
@@ -458,11 +466,13 @@ impl ShellsRenderer {
     }
 }
 
-/// The readback of a run: `words` of offsets, of rectangles and of counters.
+/// The readback of a run over `chunks` record chunks: `words` of offsets, of rectangles and
+/// of counters.
 fn read_back(
     device: &wgpu::Device,
     readback: &wgpu::Buffer,
     words: [u64; 3],
+    chunks: usize,
 ) -> Result<Readback, RenderError> {
     map_read(device, readback)?;
     let all: Vec<u32> = {
@@ -476,6 +486,7 @@ fn read_back(
     let (offsets, rest) = all.split_at(words[0] as usize);
     let (rects, stats) = rest.split_at(words[1] as usize);
     Ok(Readback {
+        chunks,
         offsets: offsets.to_vec(),
         rects: rects.chunks(4).map(read_rect).collect(),
         stats: [stats[0], stats[1], stats[2], stats[3]],
@@ -501,10 +512,10 @@ fn read_rect(w: &[u32]) -> ScreenRect {
     [float(w[0]), float(w[1]), float(w[2]), float(w[3])]
 }
 
-/// The frame's [`Binning`] from a run's readback over `chunks` record chunks (no indices:
-/// they stay on the GPU; the bucket offsets say where each chunk's part of a list lies).
-fn binning_of(r: Readback, shells: usize, chunks: usize) -> Binning {
-    let at = |s: usize, near: usize| r.offsets[(2 * s + near) * chunks];
+/// The frame's [`Binning`] from a run's readback (no indices: they stay on the GPU; the
+/// bucket offsets say where each chunk's part of a list lies).
+fn binning_of(r: Readback, shells: usize) -> Binning {
+    let at = |s: usize, near: usize| r.offsets[(2 * s + near) * r.chunks];
     let shells = (0..shells)
         .map(|s| ShellRange {
             faces: at(s, 0)..at(s, 1),
