@@ -9,9 +9,10 @@
 //! - **Configurations** ([`configurations`]): a mode name, a setting label and the mode's
 //!   [`ModeSettings`] for a scene, which build its [`Renderer`] as every front end does. A new
 //!   mode or setting joins the bench by adding one entry there.
-//! - **Measurement** ([`measure`]): warm-up frames, then the median wall time of `runs` frames
-//!   (each frame reads its image back, so the GPU is drained), per-stage medians from
-//!   [`Frame::timings`](tetvr::render::Frame), tets per second, GPU memory
+//! - **Measurement** ([`measure`]): warm-up frames ([`WarmUp`]: on a hardware adapter, half a
+//!   second of them before a scene's first GPU measurement), then the median wall time of
+//!   `runs` frames (each frame reads its image back, so the GPU is drained), per-stage medians
+//!   from [`Frame::timings`] ([`stage_medians`]), tets per second, GPU memory
 //!   ([`Renderer::gpu_memory`]) and the error metrics of DESIGN.md against the exact reference
 //!   ([`tetvr::image::Image::compare`]); reference images are cached ([`cache`]).
 //! - **Truth per mode.** Volume modes are compared with the reference ray caster's image. The
@@ -24,7 +25,6 @@
 pub mod cache;
 pub mod plot;
 
-use std::collections::BTreeMap;
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -48,7 +48,7 @@ use tetvr::mesh::TetMesh;
 use tetvr::mode::{ModeSettings, ReferenceSettings};
 use tetvr::reference::ReferenceRenderer;
 use tetvr::reference::iso::{IsoReference, Shading};
-use tetvr::render::{RenderError, Renderer, Tuning};
+use tetvr::render::{Frame, RenderError, Renderer, Tuning};
 use tetvr::texture::reference::DEFAULT_STEP_FRACTION;
 use tetvr::texture::{
     self, CageOptions, DEFAULT_TEXCOORDS, TexturedReference, Volume, cage, textured_renderer,
@@ -1063,8 +1063,62 @@ pub struct Skipped {
 pub struct Options {
     /// Timed frames per measurement (at least 1).
     pub runs: usize,
-    /// Untimed frames before them.
+    /// Untimed frames before them (more on a hardware adapter: [`WarmUp::of`]).
     pub warmup: usize,
+}
+
+/// Seconds of untimed frames before a scene's first GPU measurement on a hardware adapter,
+/// whose clocks ramp up under load: on an NVIDIA H200 the first timed configuration of a scene
+/// measured every stage about twice as slow as later ones (the 10M grid's raycast "partial
+/// lists" 49-51 ms, 26 ms rendered after others).
+pub const HARDWARE_WARM_UP_S: f64 = 0.5;
+/// Untimed frames at least before a scene's first GPU measurement on a hardware adapter.
+pub const HARDWARE_WARM_UP_FRAMES: usize = 2;
+
+/// Untimed frames before a measurement's timed ones: at least `frames`, and more until
+/// `seconds` of wall clock have passed since the first.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WarmUp {
+    pub frames: usize,
+    pub seconds: f64,
+}
+
+impl WarmUp {
+    /// The warm-up of a measurement: `options.warmup` frames; where `clocks_cold` (a hardware
+    /// adapter, the scene's first GPU measurement) also frames until [`HARDWARE_WARM_UP_S`]
+    /// have passed, at least [`HARDWARE_WARM_UP_FRAMES`]. A software adapter or the CPU
+    /// has no clocks to ramp: its first frame (caches, pipelines) is the cold one.
+    pub fn of(options: &Options, clocks_cold: bool) -> Self {
+        if clocks_cold {
+            Self {
+                frames: options.warmup.max(HARDWARE_WARM_UP_FRAMES),
+                seconds: HARDWARE_WARM_UP_S,
+            }
+        } else {
+            Self {
+                frames: options.warmup,
+                seconds: 0.0,
+            }
+        }
+    }
+
+    /// Whether another untimed frame is due after `done` of them in `elapsed_s` seconds.
+    pub fn wants_more(self, done: usize, elapsed_s: f64) -> bool {
+        done < self.frames || elapsed_s < self.seconds
+    }
+}
+
+/// The bench's printed legend: how the times were taken.
+pub fn legend(options: &Options) -> String {
+    format!(
+        "median ms: the median of {} timed frames, each drained by its readback, after {} \
+         untimed frame(s) per measurement (the reference: one timed frame); on a hardware \
+         adapter untimed frames go on for {HARDWARE_WARM_UP_S} s (at least \
+         {HARDWARE_WARM_UP_FRAMES}) before each scene's first GPU measurement, while the GPU's \
+         clocks ramp up.\n",
+        options.runs.max(1),
+        options.warmup
+    )
 }
 
 /// The reference image of `truth` for `scene` seen by `camera`, from `cache` when there.
@@ -1155,8 +1209,8 @@ fn textured_truth(
     }
 }
 
-/// Times `renderer` on `camera` (see the module docs) and compares its last frame with `truth`.
-#[allow(clippy::too_many_arguments)]
+/// Times `renderer` on `camera` (see the module docs) after `warm`, over `runs` frames, and
+/// compares its last frame with `truth`.
 pub fn measure(
     renderer: &mut dyn Renderer,
     scene: &Scene,
@@ -1164,52 +1218,31 @@ pub fn measure(
     camera: &Camera,
     config: &Config,
     truth: &Image,
-    options: &Options,
+    (warm, runs): (WarmUp, usize),
 ) -> Result<Row, RenderError> {
-    let (warmup, runs) = if config.single_run {
-        (0, 1)
-    } else {
-        (options.warmup, options.runs.max(1))
-    };
-    let mut frame_ms = Vec::with_capacity(runs);
-    let mut stages: BTreeMap<&'static str, (usize, Vec<f64>)> = BTreeMap::new();
-    let mut last = None;
-    let mut bytes_per_tet = None;
     tune(renderer, scene, camera)?;
-    for i in 0..warmup + runs {
-        let start = Instant::now();
-        let mut moved = Vec::new();
-        if let Some(p) = scene.deformed_positions() {
-            let deformed = Instant::now();
-            moved.push(("deform", ms_since(start)));
-            renderer.update_positions(&p)?;
-            moved.push(("update", ms_since(deformed)));
-        }
-        let frame = renderer.render(camera, &scene.tf)?;
-        let ms = ms_since(start);
-        if i >= warmup {
-            frame_ms.push(ms);
-            for (k, (name, t)) in (moved.into_iter())
-                .chain(frame.timings.stages.iter().copied())
-                .enumerate()
-            {
-                stages.entry(name).or_insert((k, Vec::new())).1.push(t);
-            }
-        }
-        bytes_per_tet = (frame.timings.counters.iter())
-            .find(|c| c.0 == "bytes per tet")
-            .map(|c| c.1);
-        last = Some(frame.image);
+    let start = Instant::now();
+    let mut done = 0;
+    while warm.wants_more(done, start.elapsed().as_secs_f64()) {
+        timed_frame(renderer, scene, camera)?;
+        done += 1;
     }
-    let image = last.expect("at least one frame");
-    let error = image.compare(truth).map_err(|e| {
+    let mut frame_ms = Vec::with_capacity(runs);
+    let mut stages = Vec::with_capacity(runs);
+    let mut last = None;
+    for _ in 0..runs.max(1) {
+        let (ms, split, frame) = timed_frame(renderer, scene, camera)?;
+        frame_ms.push(ms);
+        stages.push(split);
+        last = Some(frame);
+    }
+    let frame = last.expect("at least one frame");
+    let bytes_per_tet = (frame.timings.counters.iter())
+        .find(|c| c.0 == "bytes per tet")
+        .map(|c| c.1);
+    let error = frame.image.compare(truth).map_err(|e| {
         RenderError::Settings(format!("the frame and its reference differ in size: {e}"))
     })?;
-    let mut stages: Vec<(usize, String, f64)> = stages
-        .into_iter()
-        .map(|(name, (k, mut v))| (k, name.to_string(), median(&mut v)))
-        .collect();
-    stages.sort_by_key(|s| s.0);
     let median_ms = median(&mut frame_ms);
     Ok(Row {
         scene: scene.name.clone(),
@@ -1224,7 +1257,7 @@ pub fn measure(
             Some(Tuning::Measuring) => "still measuring".into(),
             None => String::new(),
         },
-        runs,
+        runs: frame_ms.len(),
         median_ms,
         min_ms: frame_ms.iter().copied().fold(f64::INFINITY, f64::min),
         max_ms: frame_ms.iter().copied().fold(0.0, f64::max),
@@ -1232,8 +1265,61 @@ pub fn measure(
         gpu_bytes: renderer.gpu_memory(),
         bytes_per_tet,
         error,
-        stages: stages.into_iter().map(|(_, n, t)| (n, t)).collect(),
+        stages: stage_medians(&stages),
     })
+}
+
+/// A frame's stages, (name, ms) in the order they ran.
+type Split = Vec<(&'static str, f64)>;
+
+/// One frame of `scene` (its deformation applied first where it has one): its wall time (ms),
+/// its stages (`deform` and `update` first) and the frame.
+fn timed_frame(
+    renderer: &mut dyn Renderer,
+    scene: &Scene,
+    camera: &Camera,
+) -> Result<(f64, Split, Frame), RenderError> {
+    let start = Instant::now();
+    let mut split = Vec::new();
+    if let Some(p) = scene.deformed_positions() {
+        let deformed = Instant::now();
+        split.push(("deform", ms_since(start)));
+        renderer.update_positions(&p)?;
+        split.push(("update", ms_since(deformed)));
+    }
+    let frame = renderer.render(camera, &scene.tf)?;
+    let ms = ms_since(start);
+    split.extend(frame.timings.stages.iter().copied());
+    Ok((ms, split, frame))
+}
+
+/// Each stage's median over the frames of `frames` that ran it (a stage reported twice in a
+/// frame counts its sum). Stages in the order the frames ran them, one first seen in a later
+/// frame after the stage it followed.
+fn stage_medians(frames: &[Split]) -> Vec<(String, f64)> {
+    let mut order: Vec<&'static str> = Vec::new();
+    for frame in frames {
+        let mut at = 0;
+        for &(name, _) in frame {
+            at = match order.iter().position(|&n| n == name) {
+                Some(k) => k + 1,
+                None => {
+                    order.insert(at, name);
+                    at + 1
+                }
+            };
+        }
+    }
+    order
+        .into_iter()
+        .map(|name| {
+            let mut ms: Vec<f64> = (frames.iter())
+                .filter(|f| f.iter().any(|s| s.0 == name))
+                .map(|f| f.iter().filter(|s| s.0 == name).map(|s| s.1).sum())
+                .collect();
+            (name.to_string(), median(&mut ms))
+        })
+        .collect()
 }
 
 /// Milliseconds since `start`.
@@ -1301,6 +1387,7 @@ pub fn run(
     progress: &mut dyn FnMut(&str, u64),
 ) -> Result<Report, BenchError> {
     let mut report = Report::default();
+    let hardware = ctx.is_some_and(|c| !c.is_software());
     for spec in &plan.scenes {
         let skip = |report: &mut Report, config: &Config, view: &str, reason: &str| {
             report.skipped.push(Skipped {
@@ -1344,6 +1431,8 @@ pub fn run(
         let scene = Scene::load(spec, &plan.data, plan.size)?;
         let first_row = report.rows.len();
         let mut truths: Vec<(ViewKind, Truth, Image)> = Vec::new();
+        // Whether a GPU measurement of this scene ran its frames (and warmed the clocks).
+        let mut warmed = false;
         for config in runnable {
             let what = format!("{} {} {}", scene.name, config.mode, config.setting);
             if config.mode == "reference" && wants_gpu && !gpu_built {
@@ -1378,6 +1467,8 @@ pub fn run(
                     }
                 };
                 let truth = &truths[k].2;
+                let cold = hardware && config.gpu && !warmed;
+                let timing = schedule(config, &plan.options, cold);
                 match measure(
                     renderer.as_mut(),
                     &scene,
@@ -1385,9 +1476,12 @@ pub fn run(
                     camera,
                     config,
                     truth,
-                    &plan.options,
+                    timing,
                 ) {
-                    Ok(row) => report.rows.push(row),
+                    Ok(row) => {
+                        warmed |= config.gpu;
+                        report.rows.push(row);
+                    }
                     Err(e) => skip(&mut report, config, view.name(), &e.to_string()),
                 }
                 progress(&format!("{what} {}", view.name()), 1);
@@ -1398,6 +1492,20 @@ pub fn run(
             .sort_by_key(|r| spec.views.iter().position(|v| v.name() == r.view));
     }
     Ok(report)
+}
+
+/// The warm-up and timed frames of `config`'s measurement: one timed frame and none untimed
+/// for a single-run configuration, else `options`' with [`WarmUp::of`] (`clocks_cold`: a
+/// hardware adapter before the scene's first GPU measurement).
+fn schedule(config: &Config, options: &Options, clocks_cold: bool) -> (WarmUp, usize) {
+    if config.single_run {
+        let none = WarmUp {
+            frames: 0,
+            seconds: 0.0,
+        };
+        return (none, 1);
+    }
+    (WarmUp::of(options, clocks_cold), options.runs.max(1))
 }
 
 /// Median of `v` (the upper one of an even count); NaN for an empty slice.
@@ -1600,6 +1708,26 @@ mod tests {
         assert_eq!(field("a,b"), "\"a,b\"");
         assert_eq!(field("x\"y"), "\"x\"\"y\"");
         assert_eq!(field("plain"), "plain");
+    }
+
+    /// A software adapter or the CPU discards its one cold frame whatever it took; a hardware
+    /// adapter before a scene's first GPU measurement renders at least 2 frames and until 0.5 s
+    /// have passed, more when the options ask for more; a single-run configuration (the
+    /// reference) renders one timed frame and nothing else.
+    #[test]
+    fn warm_up_policy() {
+        let options = Options { runs: 5, warmup: 1 };
+        let soft = WarmUp::of(&options, false);
+        assert!(soft.wants_more(0, 0.0) && !soft.wants_more(1, 0.0));
+        let hard = WarmUp::of(&options, true);
+        assert!(hard.wants_more(1, 10.0), "one frame, however long");
+        assert!(hard.wants_more(2, 0.4), "two frames within 0.4 s");
+        assert!(!hard.wants_more(2, 0.5) && !hard.wants_more(40, 0.6));
+        let more = WarmUp::of(&Options { runs: 5, warmup: 3 }, true);
+        assert!(more.wants_more(2, 1.0) && !more.wants_more(3, 1.0));
+        let (warm, runs) = schedule(&reference(), &options, true);
+        assert!(!warm.wants_more(0, 0.0) && runs == 1);
+        assert_eq!(schedule(&shells(512, None), &options, true), (hard, 5));
     }
 
     #[test]

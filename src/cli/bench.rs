@@ -59,6 +59,7 @@ pub fn bench(args: BenchArgs) -> Result<(), CliError> {
 
     let written = write_outputs(&args.out, &report, &env)?;
     print!("{}", bench::table(&report.rows));
+    print!("{}", bench::legend(&plan.options));
     for s in &report.skipped {
         println!(
             "skipped: {} {} {} ({}): {}",
