@@ -12,7 +12,7 @@
 //! - **Measurement** ([`measure`]): warm-up frames ([`WarmUp`]: on a hardware adapter, half a
 //!   second of them before a scene's first GPU measurement), then the median wall time of
 //!   `runs` frames (each frame reads its image back, so the GPU is drained), per-stage medians
-//!   from [`Frame::timings`] ([`stage_medians`]), tets per second, GPU memory
+//!   per frame from [`Frame::timings`] ([`stage_medians`]), tets per second, GPU memory
 //!   ([`Renderer::gpu_memory`]) and the error metrics of DESIGN.md against the exact reference
 //!   ([`tetvr::image::Image::compare`]); reference images are cached ([`cache`]).
 //! - **Truth per mode.** Volume modes are compared with the reference ray caster's image. The
@@ -1115,7 +1115,9 @@ pub fn legend(options: &Options) -> String {
          untimed frame(s) per measurement (the reference: one timed frame); on a hardware \
          adapter untimed frames go on for {HARDWARE_WARM_UP_S} s (at least \
          {HARDWARE_WARM_UP_FRAMES}) before each scene's first GPU measurement, while the GPU's \
-         clocks ramp up.\n",
+         clocks ramp up.\n\
+         stages_ms (CSV): each stage's median per timed frame, a frame that did not run the \
+         stage counting 0 ms for it.\n",
         options.runs.max(1),
         options.warmup
     )
@@ -1293,9 +1295,9 @@ fn timed_frame(
     Ok((ms, split, frame))
 }
 
-/// Each stage's median over the frames of `frames` that ran it (a stage reported twice in a
-/// frame counts its sum). Stages in the order the frames ran them, one first seen in a later
-/// frame after the stage it followed.
+/// Each stage's median over `frames`, where a frame that did not run a stage counts 0 ms for
+/// it: a per-frame cost (a stage every frame runs is unchanged by the zeros). Stages in the
+/// order the frames ran them, one first seen in a later frame after the stage it followed.
 fn stage_medians(frames: &[Split]) -> Vec<(String, f64)> {
     let mut order: Vec<&'static str> = Vec::new();
     for frame in frames {
@@ -1314,7 +1316,6 @@ fn stage_medians(frames: &[Split]) -> Vec<(String, f64)> {
         .into_iter()
         .map(|name| {
             let mut ms: Vec<f64> = (frames.iter())
-                .filter(|f| f.iter().any(|s| s.0 == name))
                 .map(|f| f.iter().filter(|s| s.0 == name).map(|s| s.1).sum())
                 .collect();
             (name.to_string(), median(&mut ms))
@@ -1728,6 +1729,32 @@ mod tests {
         let (warm, runs) = schedule(&reference(), &options, true);
         assert!(!warm.wants_more(0, 0.0) && runs == 1);
         assert_eq!(schedule(&shells(512, None), &options, true), (hard, 5));
+    }
+
+    /// A frame that did not run a stage counts 0 ms for it: a stage one frame of three runs
+    /// has median 0, one that two of three run the median of (0, its two times); stages every
+    /// frame runs keep their own median, a stage reported twice in a frame counts its sum, and
+    /// a stage first seen in a later frame keeps its place after the stage it followed.
+    #[test]
+    fn stage_medians_are_per_frame() {
+        let frames = [
+            vec![("upload", 1.0), ("sort", 5.0), ("draw", 10.0)],
+            vec![
+                ("upload", 3.0),
+                ("table", 40.0),
+                ("sort", 7.0),
+                ("draw", 12.0),
+            ],
+            vec![("upload", 2.0), ("draw", 5.5), ("draw", 5.5)],
+        ];
+        let got = stage_medians(&frames);
+        let want = [
+            ("upload", 2.0),
+            ("table", 0.0),
+            ("sort", 5.0),
+            ("draw", 11.0),
+        ];
+        assert_eq!(got, want.map(|(n, ms)| (n.to_string(), ms)));
     }
 
     #[test]
