@@ -28,18 +28,6 @@ fn rotate(g: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(dot(view.right, g), dot(view.up, g), dot(view.forward, g));
 }
 
-// The builtins an entry point below takes: dispatches spread over rows of workgroups.
-struct Invocation {
-    @builtin(workgroup_id) wid: vec3<u32>,
-    @builtin(num_workgroups) groups: vec3<u32>,
-    @builtin(local_invocation_index) lid: u32,
-}
-
-// The vertex or list entry invocation `i` works on.
-fn invocation_index(i: Invocation) -> u32 {
-    return (i.wid.y * i.groups.x + i.wid.x) * 64u + i.lid;
-}
-
 @compute @workgroup_size(64)
 fn vertices(i: Invocation) {
     let v = invocation_index(i);

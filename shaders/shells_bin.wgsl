@@ -182,22 +182,14 @@ fn grow_max(i: u32, v: i32) {
     }
 }
 
-fn tet_index(wid: vec3<u32>, groups: vec3<u32>, lid: u32) -> u32 {
-    return (wid.y * groups.x + wid.x) * 64u + lid;
-}
-
 // The bucket of shell `s`'s faces (or near-plane) list for the pass's chunk.
 fn bucket(s: u32, near: u32) -> u32 {
     return (2u * s + near) * bin.chunks + chunk.index;
 }
 
 @compute @workgroup_size(64)
-fn count(
-    @builtin(workgroup_id) wid: vec3<u32>,
-    @builtin(num_workgroups) groups: vec3<u32>,
-    @builtin(local_invocation_index) lid: u32,
-) {
-    let t = tet_index(wid, groups, lid);
+fn count(i: Invocation) {
+    let t = invocation_index(i);
     if t >= chunk.count {
         return;
     }
@@ -256,12 +248,8 @@ fn scan(@builtin(local_invocation_index) lid: u32) {
 }
 
 @compute @workgroup_size(64)
-fn scatter(
-    @builtin(workgroup_id) wid: vec3<u32>,
-    @builtin(num_workgroups) groups: vec3<u32>,
-    @builtin(local_invocation_index) lid: u32,
-) {
-    let t = tet_index(wid, groups, lid);
+fn scatter(i: Invocation) {
+    let t = invocation_index(i);
     if t >= chunk.count {
         return;
     }

@@ -1,5 +1,7 @@
 //! The shader registry: WGSL sources, one file per stage in `shaders/`, composed at load time:
 //! `shared.wgsl` (the view binding, structs and helpers) in front of each stage,
+//! `invocation.wgsl` (an invocation's index in a dispatch over rows of workgroups) in front of
+//! the assembly and the shells binning,
 //! `shells_shared.wgsl` (the shells' own uniforms) in front of the shells stages,
 //! `shells_span.wgsl` (the slice sampling) and `shells_tf.wgsl` (the TF and the composite) in
 //! front of the stages of both shells samplers that use them, `raster.wgsl` (the volume raster
@@ -23,6 +25,9 @@ pub const INTEGRATE_SEGMENT: &str = include_str!("../../shaders/integrate_segmen
 pub const PSI_EXACT: &str =
     "fn psi(a: f32, b: f32) -> f32 {\n    return mean_transmittance(a, b);\n}\n";
 const ASSEMBLE: &str = include_str!("../../shaders/assemble.wgsl");
+/// An invocation's index in a dispatch spread over rows of 64-thread workgroups (`struct
+/// Invocation`, `fn invocation_index`), in front of the assembly and the shells binning.
+const INVOCATION: &str = include_str!("../../shaders/invocation.wgsl");
 /// A tet's eye-space corners (`fn tet_corners`, bindings 13 and 16), in front of the stages
 /// that draw or bin tets (shells, iso and cellproj raster).
 const TET_CORNERS: &str = include_str!("../../shaders/tet_corners.wgsl");
@@ -185,7 +190,7 @@ pub const MAX_TARGETS: u32 = 8;
 /// The assembly stage every mode shares (compute entry points `vertices`, `main`, and
 /// `main_cells` for a field constant per tet).
 pub fn assemble() -> String {
-    format!("{SHARED}\n{ASSEMBLE}")
+    format!("{SHARED}\n{INVOCATION}\n{ASSEMBLE}")
 }
 
 /// The shells raster stage writing `targets` (1..=[`MAX_TARGETS`]) vec4 colour targets, i.e.
@@ -335,10 +340,10 @@ pub fn cellproj_raster() -> String {
     )
 }
 
-/// The shells' GPU binning (entry points `count`, `scan`, `scatter`): standalone, its uniforms
-/// ([`crate::gpu::gpu_data::BinUniforms`]) declared in it.
+/// The shells' GPU binning (entry points `count`, `scan`, `scatter`): its uniforms
+/// ([`crate::gpu::gpu_data::BinUniforms`]) declared in it, `invocation.wgsl` in front.
 pub fn shells_bin() -> String {
-    SHELLS_BIN.into()
+    format!("{INVOCATION}\n{SHELLS_BIN}")
 }
 
 /// Every WGSL module the renderers load, each variant once, with its name and its entry points
