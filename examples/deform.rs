@@ -35,9 +35,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     let ctx = GpuContext::new(AdapterChoice::from_env())?;
     let mut renderer = ModeSettings::Shells(ShellSettings::default()).build(Some(&ctx), &mesh)?;
+    // One buffer for every frame's positions (a fresh one per frame costs its page faults).
+    let mut moved = mesh.positions().to_vec();
     for i in 0..frames {
         let t = Instant::now();
-        let moved = deformation.apply(mesh.positions(), lo, hi, 0.5, i as f64 / frames as f64);
+        let phase = i as f64 / frames as f64;
+        deformation.apply_into(mesh.positions(), (lo, hi), 0.5, phase, &mut moved);
         renderer.update_positions(&moved)?;
         let update = t.elapsed();
         let t = Instant::now();

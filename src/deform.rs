@@ -53,34 +53,88 @@ impl Deformation {
         amplitude: f64,
         phase: f64,
     ) -> Vec<DVec3> {
-        let [long, mid, short] = axes(lo, hi);
-        let len = (hi - lo)[long].max(f64::MIN_POSITIVE);
-        let centre = (lo + hi) * 0.5;
-        let swing = (std::f64::consts::TAU * phase).sin();
-        rest.par_iter()
-            .map(|&p| {
-                let u = (p[long] - lo[long]) / len; // 0..1 along the longest axis
-                let mut q = p;
-                match self {
-                    Self::Twist => {
-                        let angle = amplitude * std::f64::consts::PI * u * swing;
-                        let (s, c) = angle.sin_cos();
-                        let (a, b) = (p[mid] - centre[mid], p[short] - centre[short]);
-                        q[mid] = centre[mid] + c * a - s * b;
-                        q[short] = centre[short] + s * a + c * b;
-                    }
-                    Self::Bend => q[mid] += amplitude * len * u * u * swing,
-                    Self::Wave => {
-                        let h = (hi - lo)[short];
-                        q[short] += amplitude
-                            * h
-                            * (std::f64::consts::TAU * (u - phase)).sin()
-                            * u.min(1.0);
-                    }
-                }
-                q
-            })
-            .collect()
+        let motion = Motion::new(self, (lo, hi), amplitude, phase);
+        rest.par_iter().map(|&p| motion.at(p)).collect()
+    }
+
+    /// [`Self::apply`] written into `out`, which must be as long as `rest` (a caller's bug
+    /// otherwise: it panics). For a caller that deforms every frame: reusing one buffer spares
+    /// a fresh allocation of the whole array per frame, whose page faults cost about as much
+    /// as the deformation itself on a large mesh.
+    pub fn apply_into(
+        self,
+        rest: &[DVec3],
+        (lo, hi): (DVec3, DVec3),
+        amplitude: f64,
+        phase: f64,
+        out: &mut [DVec3],
+    ) {
+        assert_eq!(
+            rest.len(),
+            out.len(),
+            "one output position per rest position"
+        );
+        let motion = Motion::new(self, (lo, hi), amplitude, phase);
+        out.par_iter_mut()
+            .zip(rest)
+            .for_each(|(q, &p)| *q = motion.at(p));
+    }
+}
+
+/// A deformation at one phase, with what every point shares worked out once.
+struct Motion {
+    kind: Deformation,
+    /// Box axes by extent (longest, middle, shortest).
+    axes: [usize; 3],
+    lo: DVec3,
+    /// The box's extent along the longest axis (at least the smallest positive f64).
+    len: f64,
+    /// The box's extent along the shortest axis.
+    height: f64,
+    centre: DVec3,
+    amplitude: f64,
+    phase: f64,
+    /// `sin(2 pi phase)`.
+    swing: f64,
+}
+
+impl Motion {
+    fn new(kind: Deformation, (lo, hi): (DVec3, DVec3), amplitude: f64, phase: f64) -> Self {
+        let axes = axes(lo, hi);
+        Self {
+            kind,
+            axes,
+            lo,
+            len: (hi - lo)[axes[0]].max(f64::MIN_POSITIVE),
+            height: (hi - lo)[axes[2]],
+            centre: (lo + hi) * 0.5,
+            amplitude,
+            phase,
+            swing: (std::f64::consts::TAU * phase).sin(),
+        }
+    }
+
+    /// Where rest position `p` moves.
+    fn at(&self, p: DVec3) -> DVec3 {
+        let [long, mid, short] = self.axes;
+        let (centre, amplitude) = (self.centre, self.amplitude);
+        let u = (p[long] - self.lo[long]) / self.len; // 0..1 along the longest axis
+        let mut q = p;
+        match self.kind {
+            Deformation::Twist => {
+                let angle = amplitude * std::f64::consts::PI * u * self.swing;
+                let (s, c) = angle.sin_cos();
+                let (a, b) = (p[mid] - centre[mid], p[short] - centre[short]);
+                q[mid] = centre[mid] + c * a - s * b;
+                q[short] = centre[short] + s * a + c * b;
+            }
+            Deformation::Bend => q[mid] += amplitude * self.len * u * u * self.swing,
+            Deformation::Wave => {
+                let wave = (std::f64::consts::TAU * (u - self.phase)).sin();
+                q[short] += amplitude * self.height * wave * u.min(1.0);
+            }
+        }
+        q
     }
 }
 
@@ -103,6 +157,17 @@ mod tests {
             assert_eq!(d.apply(&p, lo, hi, 0.7, 0.0), p);
         }
         assert_eq!(Deformation::Wave.apply(&p, lo, hi, 0.0, 0.3), p);
+    }
+
+    #[test]
+    fn apply_into_writes_what_apply_returns() {
+        let p = points();
+        let (lo, hi) = (DVec3::ZERO, DVec3::new(10.0, 0.6, 0.2));
+        let mut out = vec![DVec3::NAN; p.len()];
+        for d in [Deformation::Twist, Deformation::Bend, Deformation::Wave] {
+            d.apply_into(&p, (lo, hi), 0.4, 0.3, &mut out);
+            assert_eq!(out, d.apply(&p, lo, hi, 0.4, 0.3), "{d:?}");
+        }
     }
 
     #[test]

@@ -594,7 +594,10 @@ fn animate_writes_a_gif_whose_frames_move() {
     let (stdout, stderr) = text(&o);
     assert!(o.status.success(), "{stderr}");
     assert!(
-        stdout.contains("3 frames") && stdout.contains("render"),
+        stdout.contains("3 frames")
+            && stdout.contains("deform ")
+            && stdout.contains("update ")
+            && stdout.contains("render"),
         "{stdout}"
     );
     let file = std::io::BufReader::new(std::fs::File::open(&gif).unwrap());

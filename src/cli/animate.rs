@@ -52,15 +52,17 @@ fn deform(args: &AnimateArgs) -> Result<(), CliError> {
         args.amplitude.unwrap_or(0.5),
     );
     let mut play = Playback::open(args, &mesh, frames as u64)?;
-    let (lo, hi) = mesh.bounds();
+    let bounds = mesh.bounds();
+    // One buffer for every frame's positions: a fresh one per frame costs its page faults.
+    let mut moved = mesh.positions().to_vec();
     for i in 0..frames {
         let phase = i as f64 / frames as f64;
-        play.frame(|renderer| {
-            let positions = deformation.apply(mesh.positions(), lo, hi, amplitude, phase);
-            Ok(renderer.update_positions(&positions)?)
-        })?;
+        play.prepare(|| {
+            deformation.apply_into(mesh.positions(), bounds, amplitude, phase, &mut moved);
+        });
+        play.frame(|renderer| Ok(renderer.update_positions(&moved)?))?;
     }
-    play.finish("deform + update")
+    play.finish("deform")
 }
 
 /// The steps of a series, each loaded, checked against the first, given the chosen array and
@@ -80,13 +82,13 @@ fn play_series(args: &AnimateArgs) -> Result<(), CliError> {
     let mut play = Playback::open(args, &first, series.steps().len() as u64)?;
     play.frame(|_| Ok(()))?;
     for i in 1..series.steps().len() {
+        let step = play.prepare(|| series.load_like(i, &first, &limits, prepare))?;
         play.frame(|renderer| {
-            let step = series.load_like(i, &first, &limits, prepare)?;
             renderer.update_positions(step.positions())?;
             Ok(renderer.update_scalars(step.scalars()?)?)
         })?;
     }
-    play.finish("load + update")
+    play.finish("load")
 }
 
 /// What every frame needs: the renderer built on the first mesh, the camera and transfer
@@ -98,6 +100,8 @@ struct Playback {
     sink: FrameSink,
     what: String,
     bar: ProgressBar,
+    /// What each frame does before it touches the renderer (deform, or load a step).
+    prepare_ms: Vec<f64>,
     update_ms: Vec<f64>,
     render_ms: Vec<f64>,
 }
@@ -123,9 +127,19 @@ impl Playback {
             sink,
             what,
             bar,
+            prepare_ms: Vec::new(),
             update_ms: Vec::new(),
             render_ms: Vec::new(),
         })
+    }
+
+    /// Runs `prepare` (a frame's work before it touches the renderer), timed apart from the
+    /// update so that `finish` can tell them apart.
+    fn prepare<T>(&mut self, prepare: impl FnOnce() -> T) -> T {
+        let t = Instant::now();
+        let out = prepare();
+        self.prepare_ms.push(ms(t));
+        out
     }
 
     /// Updates the renderer with `update`, renders, and writes the frame; each part timed.
@@ -144,13 +158,18 @@ impl Playback {
         Ok(())
     }
 
-    /// Ends the output and prints what was written and the median times, the update's as
-    /// `update`.
-    fn finish(mut self, update: &str) -> Result<(), CliError> {
+    /// Ends the output and prints what was written and the median times, the preparation's
+    /// as `prepared` (none when no frame had one: a series of one step).
+    fn finish(mut self, prepared: &str) -> Result<(), CliError> {
         self.bar.finish_and_clear();
         let written = self.sink.finish()?;
+        let prepare = if self.prepare_ms.is_empty() {
+            String::new()
+        } else {
+            format!("{prepared} {:.1} ms, ", median(&mut self.prepare_ms))
+        };
         println!(
-            "wrote {written} ({} frames of {}x{}, {}); per frame, median: {update} {:.1} ms, render {:.1} ms",
+            "wrote {written} ({} frames of {}x{}, {}); per frame, median: {prepare}update {:.1} ms, render {:.1} ms",
             self.render_ms.len(),
             self.camera.width,
             self.camera.height,

