@@ -13,9 +13,10 @@
 //! How ([`Tuner`], greedy, one change at a time): the first frames each time, on the same camera
 //! and transfer function, the fixed default (the settings as given), the incumbent (the best so
 //! far, the default at first) and one candidate that changes one setting of the incumbent; a
-//! candidate's renderer renders one untimed frame first (pipelines, targets). A tuning frame
-//! renders each configuration twice, in mirrored order (default, incumbent, candidate,
-//! candidate, incumbent, default, the order itself alternating from frame to frame), and times
+//! candidate's renderer is built and renders one untimed frame (pipelines, targets) before the
+//! frame's timed renders. A tuning frame renders each configuration twice, in mirrored order
+//! (incumbent, candidate, default, default, candidate, incumbent, reversed on every other
+//! frame), and times
 //! each by the mean of its two renders: a load that rises or falls steadily while the frame is
 //! measured (another process starting or ending) then weighs on every configuration alike. A
 //! candidate is judged by its time over the incumbent's on each frame (paired on the same frame,
@@ -79,10 +80,12 @@ impl TimingSource for WallClock {
 /// change that noise may have made.
 pub const MARGIN: f64 = 0.05;
 
-/// Frames each candidate is timed on before it can be judged: one frame's ratio of the
-/// candidate's time over the incumbent's varied from 0.84 to 1.11 between frames of the same
-/// two configurations on the loaded 2-core machine (the blunt fin from the side at 512x512,
-/// early termination off and on, 12 frames), so one frame alone decides nothing.
+/// Frames each candidate is timed on before it can be judged: on the loaded 2-core machine
+/// (the blunt fin from the side at 512x512, lavapipe) one frame's ratio between two renderers
+/// of the same configuration, each timed by the mean of two mirrored renders, lay within ±3%
+/// while the load held still and reached 1.17 when it changed (16 frames); with one render
+/// each, early termination off over on varied from 0.84 to 1.11 (12 frames). One frame alone
+/// decides nothing.
 pub const MIN_ROUNDS: u32 = 2;
 
 /// The most frames a candidate is timed on while its ratios fall on both sides of
@@ -497,7 +500,7 @@ impl TunedShells {
         camera: &Camera,
         tf: &TransferFunction,
     ) -> Result<Frame, RenderError> {
-        let mut times: Vec<_> = list.iter().map(|s| (*s, Some(0.0))).collect();
+        let mut times = self.prepare(list, camera, tf)?;
         let mut shown = None;
         for (i, s) in (0..list.len())
             .chain((0..list.len()).rev())
@@ -523,6 +526,28 @@ impl TunedShells {
             .timings
             .count("tuning: configurations timed", times.len() as u64);
         Ok(frame)
+    }
+
+    /// Builds the renderers of `list` not built yet, each with its untimed frame, before any
+    /// timed render of the frame, so that building a configuration (allocations, pipelines)
+    /// falls between no other's timed renders. Returns `list` with no time yet, `None` for
+    /// those that failed to build.
+    fn prepare(
+        &mut self,
+        list: &[ShellSettings],
+        camera: &Camera,
+        tf: &TransferFunction,
+    ) -> Result<Vec<(ShellSettings, Option<f64>)>, RenderError> {
+        let mut times = Vec::with_capacity(list.len());
+        for s in list {
+            let default = *s == self.default;
+            match self.renderer(s, Some((camera, tf))).map(|_| ()) {
+                Ok(()) => times.push((*s, Some(0.0))),
+                Err(e) if default => return Err(e),
+                Err(_) => times.push((*s, None)),
+            }
+        }
+        Ok(times)
     }
 
     /// A frame of `s` and its time by the timing source.
