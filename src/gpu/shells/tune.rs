@@ -16,9 +16,9 @@
 //! candidate's renderer is built and renders one untimed frame (pipelines, targets) before the
 //! frame's timed renders. A tuning frame renders each configuration twice, in mirrored order
 //! (incumbent, candidate, default, default, candidate, incumbent, reversed on every other
-//! frame), and times
-//! each by the mean of its two renders: a load that rises or falls steadily while the frame is
-//! measured (another process starting or ending) then weighs on every configuration alike. A
+//! frame), and times each by the mean of its two renders: a load that rises or falls steadily
+//! while the frame is measured (another process starting or ending) then weighs on every
+//! configuration alike. A
 //! candidate is judged by its time over the incumbent's on each frame (paired on the same frame,
 //! so a frame slowed down for all counts as much as any other): after [`MIN_ROUNDS`] frames it
 //! replaces the incumbent when every ratio is below `1 - `[`MARGIN`], is dropped when every ratio
@@ -28,9 +28,9 @@
 //! frame can never be chosen. When the candidates are spent, one more frame times the default
 //! against the incumbent, which is kept only if faster there too. The tuning so ends within
 //! `candidates * MIN_ROUNDS + EXTRA_ROUNDS + 1` frames (27 from the default settings, 31 with
-//! `--binning auto`). The choice is then fixed for the renderer and cached per
-//! adapter name, tet count, image size and settings ([`TuneCache`], in memory): a renderer built
-//! later for the same scene size starts with it and times nothing.
+//! `--binning auto`). The choice is then fixed for the renderer and cached per adapter name, tet
+//! count, image size and settings ([`TuneCache`], in memory): a renderer built later for the
+//! same scene size starts with it and times nothing.
 //!
 //! The timing source is injectable ([`TimingSource`]); the default, [`WallClock`], takes the
 //! wall clock of the whole frame with the GPU drained (the frame's image is read back). GPU
