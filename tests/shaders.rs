@@ -21,12 +21,12 @@ fn validate(name: &str, src: &str) -> Vec<String> {
 fn every_registered_shader_validates() {
     let registry = shaders::registry();
     // assemble, shells_mark, shells_tiles, shells_bin, iso_raster, iso_gradients,
-    // cellproj_raster, 17 raycast stages (vertices, planes, entries, two peeling passes, tiles
+    // cellproj_raster, 19 raycast stages (vertices, planes, entries, two peeling passes, tiles
     // per entry method, traversal per entry method and integrator: exact, partial, table,
-    // textured, textured isosurfaces), and per target count two shells raster variants (the
-    // linear field, a textured cage), 33 composite and 66 fine (compute sampler; linear and
-    // textured) variants.
-    assert_eq!(registry.len(), 24 + shaders::MAX_TARGETS as usize * 101);
+    // textured, textured isosurfaces, the shells' walk sampler's slices), and per target count
+    // two shells raster variants (the linear field, a textured cage), 33 composite and 66 fine
+    // (compute sampler; linear and textured) variants.
+    assert_eq!(registry.len(), 26 + shaders::MAX_TARGETS as usize * 101);
     for (name, src, entries) in registry {
         assert_eq!(validate(&name, &src), entries, "{name}");
     }

@@ -1,8 +1,9 @@
 //! The shader registry: WGSL sources, one file per stage in `shaders/`, composed at load time:
 //! `shared.wgsl` (the view binding, structs and helpers) in front of each stage,
 //! `shells_shared.wgsl` (the shells' own uniforms) in front of the shells stages,
-//! `shells_span.wgsl` (the slice sampling) and `shells_tf.wgsl` (the TF and the composite) in
-//! front of the stages of both shells samplers that use them, `raster.wgsl` (the volume raster
+//! `shells_span.wgsl` (the slice sampling) and `shells_tf.wgsl` (the composite) in front of
+//! the stages of both shells samplers that use them, `tf_eval.wgsl` (the TF at one scalar) in
+//! front of those and of the walk sampler's traversal, `raster.wgsl` (the volume raster
 //! stages' varyings) in front of the shells and cellproj raster stages, plus a small generated
 //! prelude where a stage depends on a pipeline variant. A textured cage's stages (issue 12)
 //! add `texture_sample.wgsl` (trilinear reads of the volume, shared by the ray caster and
@@ -31,6 +32,10 @@ const TET_CORNERS: &str = include_str!("../../shaders/tet_corners.wgsl");
 pub const SHELLS_SHARED: &str = include_str!("../../shaders/shells_shared.wgsl");
 const SHELLS_SPAN: &str = include_str!("../../shaders/shells_span.wgsl");
 const SHELLS_TF: &str = include_str!("../../shaders/shells_tf.wgsl");
+/// The TF's evaluation at one scalar (`tf_value`, `tf_segment`, `tf_last`, called by the
+/// generated [`tf_eval`]), shared by the shells composite, the fine stage and the walk
+/// sampler's slices.
+const TF_EVAL: &str = include_str!("../../shaders/tf_eval.wgsl");
 const SHELLS_RASTER: &str = include_str!("../../shaders/shells_raster.wgsl");
 const SHELLS_COMPOSITE: &str = include_str!("../../shaders/shells_composite.wgsl");
 const SHELLS_TILES: &str = include_str!("../../shaders/shells_tiles.wgsl");
@@ -59,6 +64,8 @@ const RAYCAST_LAYERS: &str = include_str!("../../shaders/raycast_layers.wgsl");
 const RAYCAST_TRAVERSE: &str = include_str!("../../shaders/raycast_traverse.wgsl");
 const RAYCAST_PSI: &str = include_str!("../../shaders/raycast_psi.wgsl");
 const RAYCAST_TABLE: &str = include_str!("../../shaders/raycast_table.wgsl");
+/// The shells' walk sampler's segment integrator: the slices a segment holds.
+const RAYCAST_SLICES: &str = include_str!("../../shaders/raycast_slices.wgsl");
 
 /// The traversal's `segment` for the integrators of `integrate_segment.wgsl`.
 const SEGMENT_PIECEWISE: &str = "fn segment(u_front: f32, u_back: f32, len: f32) -> Acc {\n    \
@@ -112,8 +119,10 @@ const NO_HITS: &str = "fn store_hit(pixel: u32) {}\n";
 /// entry lists and from peeled hits; the traversal with entry lists and with depth peeling,
 /// each with every integrator (`Segments`: exact, partial, table); then both traversals for a
 /// textured cage (the volume texture stepped through, `raycast_texture.wgsl`), and both for
-/// its isosurfaces (`raycast_texture_iso.wgsl`).
-pub fn raycast_stages() -> [(&'static str, String); 17] {
+/// its isosurfaces (`raycast_texture_iso.wgsl`); then both for the shells' walk sampler (the
+/// slices each segment holds, `raycast_slices.wgsl`, with the looping `tf_eval`: the stages
+/// are built before any TF is known).
+pub fn raycast_stages() -> [(&'static str, String); 19] {
     let common = format!("{SHARED}\n{RAYCAST_SHARED}\n{RAYCAST_RAYS}");
     let psi = format!(
         "// Generated: samples per psi table axis.\nconst PSI_SIZE: u32 = {}u;\n{RAYCAST_PSI}",
@@ -125,6 +134,10 @@ pub fn raycast_stages() -> [(&'static str, String); 17] {
     let sample = format!("{PSI_EXACT}\n{RAYCAST_TEXTURE_SAMPLE}\n{TEXTURE_SAMPLE}");
     let textured = format!("{sample}\n{RAYCAST_TEXTURE}\n{NO_HITS}");
     let textured_iso = format!("{sample}\n{ISO_SHARED}\n{RAYCAST_TEXTURE_ISO}");
+    let slices = format!(
+        "{PSI_EXACT}\n{}{TF_EVAL}\n{RAYCAST_SLICES}\n{NO_HITS}",
+        tf_eval(0)
+    );
     // Every traversal has integrate_segment.wgsl (its `Acc`); the integrator gives `segment`.
     let traverse = |name, entries: &str, integrator: &str| {
         let integrate = INTEGRATE_SEGMENT;
@@ -176,6 +189,8 @@ pub fn raycast_stages() -> [(&'static str, String); 17] {
             RAYCAST_LAYERS,
             &textured_iso,
         ),
+        traverse("raycast_traverse (lists, slices)", RAYCAST_LISTS, &slices),
+        traverse("raycast_traverse (peel, slices)", RAYCAST_LAYERS, &slices),
     ]
 }
 
@@ -239,7 +254,7 @@ pub fn shells_composite(targets: u32, tf_points: u32) -> String {
         "{SHARED}\n{SHELLS_SHARED}\n// Generated: the composite variant reading {targets} layers, TF of {tf_points} \
          points.\nconst TARGETS: u32 = {targets}u;\n\
          fn load_layers(xy: vec2<i32>) -> array<vec4<f32>, TARGETS> {{\n    \
-         return array<vec4<f32>, TARGETS>({});\n}}\n{tf_eval}{SHELLS_TF}\n{SHELLS_COMPOSITE}",
+         return array<vec4<f32>, TARGETS>({});\n}}\n{tf_eval}{TF_EVAL}\n{SHELLS_TF}\n{SHELLS_COMPOSITE}",
         loads.join(", ")
     )
 }
@@ -302,7 +317,7 @@ fn shells_fine_variant(targets: u32, tf_points: u32, textured: bool) -> String {
         "{SHARED}\n{TET_CORNERS}\n{SHELLS_SHARED}\n// Generated: the fine variant sampling {targets} vec4 of \
          slices, TF of {tf_points} points, tiles of {SHELLS_TILE} pixels.\n\
          const TILE: u32 = {SHELLS_TILE}u;\nconst TARGETS: u32 = {targets}u;\n{}\
-         {SHELLS_SPAN}\n{}\n{SHELLS_TF}\n{SHELLS_FINE}",
+         {SHELLS_SPAN}\n{}\n{TF_EVAL}\n{SHELLS_TF}\n{SHELLS_FINE}",
         tf_eval(tf_points),
         shells_sampling(textured, false)
     )

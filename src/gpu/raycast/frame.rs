@@ -193,10 +193,11 @@ impl RaycastRenderer {
         }
         self.eye_tol = near_tol(m.radius);
         self.plan_planes(&m, camera.eye);
-        // A textured cage steps through its texture: no integrator table.
-        let segments = match self.texture {
-            Some(_) => Segments::Exact,
-            None => self.settings.segments,
+        // A textured cage steps through its texture, the walk sampler composites its slices:
+        // no integrator table.
+        let segments = match (&self.texture, self.slicing) {
+            (None, None) => self.settings.segments,
+            _ => Segments::Exact,
         };
         let rebuilt = match (segments, tf) {
             (Segments::Table, Some(tf)) => self.ensure_table(&m, tf)?,
@@ -254,6 +255,7 @@ impl RaycastRenderer {
 
     fn write_params(&self) {
         let lengths = self.settings.table_lengths;
+        let slicing = self.slicing.unwrap_or_default();
         let params = RaycastUniforms {
             capacity: self.capacity,
             max_steps: (self.settings.max_steps)
@@ -265,6 +267,10 @@ impl RaycastRenderer {
             table_lengths: lengths,
             inv_length_step: (self.preint_key.as_ref())
                 .map_or(0.0, |k| ((lengths - 1) as f64 / k.max_length) as f32),
+            t_first: slicing.t_first as f32,
+            dz: slicing.dz as f32,
+            slices: slicing.count,
+            _pad: 0,
         };
         self.queue
             .write_buffer(&self.params_buf, 0, bytemuck::bytes_of(&params));

@@ -33,6 +33,9 @@ pub struct Pipelines {
     /// For a textured cage: the traversal per [`Entry`] that steps through the volume texture
     /// (whatever the [`Segments`]), integrating it or finding its isosurfaces ([`TextureUse`]).
     textured: Option<[Stage; 2]>,
+    /// For the shells' walk sampler: the traversal per [`Entry`] that composites the slices
+    /// each segment holds (`shaders/raycast_slices.wgsl`), whatever the [`Segments`].
+    slices: Option<[Stage; 2]>,
 }
 
 const RO: B = B::Storage { read_only: true };
@@ -116,12 +119,12 @@ impl Pipelines {
     /// Compiles the stages for a mesh whose links take `windows` windows (WGSL
     /// `LINK_WINDOWS`) and whose field is constant per tet when `cells` (WGSL `CELLS`); with
     /// `texture`, also the textured traversals of that use sampling every that many world units;
-    /// the entries stage with `entry_lanes`.
+    /// with `slices`, also the walk sampler's traversals; the entries stage with `entry_lanes`.
     pub fn new(
         device: &wgpu::Device,
-        windows: u64,
-        cells: bool,
+        (windows, cells): (u64, bool),
         texture: Option<(f32, TextureUse)>,
+        slices: bool,
         entry_lanes: EntryLanes,
     ) -> Self {
         let cells = if cells { 1.0 } else { 0.0 };
@@ -147,6 +150,8 @@ impl Pipelines {
             peel_textured,
             lists_textured_iso,
             peel_textured_iso,
+            lists_slices,
+            peel_slices,
         ] = shaders::raycast_stages();
         // Peeling: the boundary, the hits, the ray states, the counters, the layer, progress.
         let u = B::Uniform;
@@ -170,6 +175,7 @@ impl Pipelines {
             entry_lanes,
             peel: [least_t, least_face].map(|s| stage(s, &peel)),
             tiles: [tiles_lists, tiles_peel].map(|s| stage(s, &tiles)),
+            slices: slices.then(|| [stage(lists_slices, &lists), stage(peel_slices, &layers)]),
             traverse: [
                 [lists_exact, lists_partial, lists_table].map(|s| stage(s, &lists)),
                 [peel_exact, peel_partial, peel_table].map(|s| stage(s, &layers)),
@@ -199,10 +205,13 @@ impl Pipelines {
     }
 
     /// The traversal stage of `entry` and `segments`; for a textured cage, its textured
-    /// traversal of `entry`.
+    /// traversal of `entry`; for the walk sampler, its traversal of `entry`.
     pub fn traverse(&self, entry: Entry, segments: Segments) -> &Stage {
         if let Some(textured) = &self.textured {
             return &textured[entry as usize];
+        }
+        if let Some(slices) = &self.slices {
+            return &slices[entry as usize];
         }
         let [exact, partial, table] = &self.traverse[entry as usize];
         match segments {
