@@ -304,8 +304,9 @@ impl RaycastRenderer {
         let max = (self.limits.max_storage_buffer_binding_size).min(self.limits.max_buffer_size);
         if bytes > max {
             return Err(settings_error(format!(
-                "--mode raycast: {what} per pixel at {width}x{height} need {bytes} bytes, more \
-                 than one storage binding of this adapter holds ({max}); render a smaller image"
+                "the ray caster's {what} per pixel at {width}x{height} need {bytes} bytes, \
+                 more than one storage binding of this adapter holds ({max}); render a smaller \
+                 image"
             )));
         }
         let format = wgpu::TextureFormat::Rgba32Float;

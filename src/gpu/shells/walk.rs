@@ -28,11 +28,21 @@ pub(super) struct WalkSampler {
 }
 
 impl WalkSampler {
-    /// The walk over `mesh` (shared with the shells renderer that owns it).
+    /// The walk over `mesh` (shared with the shells renderer that owns it) with the ray
+    /// caster's default settings (entry lists, empty tiles skipped, the default step limit).
     pub(super) fn new(ctx: &GpuContext, mesh: Arc<GpuTetMesh>) -> Result<Self, RenderError> {
+        Self::with_settings(ctx, mesh, RaycastSettings::default())
+    }
+
+    /// [`Self::new`] with the ray caster's `settings` (their integrator unused).
+    fn with_settings(
+        ctx: &GpuContext,
+        mesh: Arc<GpuTetMesh>,
+        settings: RaycastSettings,
+    ) -> Result<Self, RenderError> {
         let settings = RaycastSettings {
             segments: Segments::Exact,
-            ..RaycastSettings::default()
+            ..settings
         };
         Ok(Self {
             raycast: RaycastRenderer::sliced(ctx, mesh, settings)?,
@@ -73,5 +83,54 @@ impl ShellsRenderer {
         let mut frame = walk.raycast.render_slices(camera, tf, slicing)?;
         frame.timings.count("slices", count);
         Ok(frame)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::{DVec3, UVec3};
+
+    use super::*;
+    use crate::gpu::shells::{Sampler, ShellSettings};
+    use crate::gpu::{AdapterChoice, GpuContext};
+    use crate::tf::ControlPoint;
+    use crate::{View, generate};
+
+    /// The walk stops a ray once it is opaque: on a 12^3 grid (a ray through it steps through
+    /// dozens of tets) with a step limit of 12 tets, a TF of opacity 0.9999 per 1/100 of the
+    /// diagonal makes each sample's alpha about 0.84 at 512 samples, so every ray is opaque
+    /// (transmittance under 1e-5) within its first cell, a few tets, and none reaches the
+    /// limit; at opacity 0.01 many rays do. Without early termination the opaque rays would
+    /// reach it as the transparent ones do.
+    #[test]
+    fn an_opaque_ray_stops_before_the_step_limit() {
+        let ctx = GpuContext::new(AdapterChoice::Auto).expect("a GPU adapter (lavapipe will do)");
+        let (lo, hi) = (DVec3::splat(-1.0), DVec3::splat(1.0));
+        let mesh = generate::box_grid(lo, hi, UVec3::splat(12), "x", |p| p.x);
+        let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 48, 48);
+        let settings = ShellSettings {
+            sampler: Sampler::Walk,
+            ..ShellSettings::default()
+        };
+        let mut r = ShellsRenderer::new(&ctx, &mesh, settings).expect("walk renderer");
+        let limited = RaycastSettings {
+            max_steps: Some(12),
+            ..RaycastSettings::default()
+        };
+        let walk = WalkSampler::with_settings(&ctx, Arc::clone(&r.mesh), limited);
+        r.walk = Some(walk.expect("walk with a step limit"));
+        let at_limit = |opacity: f64, r: &mut ShellsRenderer| {
+            let points = [-1.0, 1.0].map(|s| ControlPoint {
+                s,
+                color: [0.5, 0.5, 0.5],
+                opacity,
+            });
+            let tf = TransferFunction::new(points.to_vec(), mesh.diagonal() / 100.0).unwrap();
+            let frame = r.render(&camera, &tf).expect("frame");
+            let count = |name| (frame.timings.counters.iter()).find(|(n, _)| *n == name);
+            count("rays at step limit").expect("the counter").1
+        };
+        assert_eq!(at_limit(0.9999, &mut r), 0);
+        assert!(at_limit(0.01, &mut r) > 100);
     }
 }
