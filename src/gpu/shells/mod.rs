@@ -349,7 +349,10 @@ impl ShellsRenderer {
         // a window of the record array (several buffers where one cannot hold them).
         let chunking = mesh.chunking()?;
         let tet_count = mesh.tet_count() as u64;
-        let records = mesh.tet_array("shells tet records", chunking, tet_count, RECORD_BYTES)?;
+        // The walk sampler assembles no records: one placeholder entry and no assembly windows.
+        let walks = settings.sampler == Sampler::Walk;
+        let assembled = if walks { 0 } else { tet_count };
+        let records = mesh.tet_array("shells tet records", chunking, assembled, RECORD_BYTES)?;
         let ert = (settings.skips.early_termination).then_some(settings.skips.ert_threshold);
         let textured = texture.is_some();
         let pipelines = Pipelines::new(&device, (config.format, config.accum), ert, textured);
@@ -359,8 +362,7 @@ impl ShellsRenderer {
             Sampler::Walk => Some(walk::WalkSampler::new(ctx, Arc::clone(&mesh))?),
             _ => None,
         };
-        let binned = settings.sampler != Sampler::Walk;
-        let binner = if binned && gpu_binning::picked(settings.binning, tet_count) {
+        let binner = if !walks && gpu_binning::picked(settings.binning, tet_count) {
             let spans = mesh.tet_array("shells bin spans", chunking, tet_count, 8)?;
             let gpu = (&device, &queue, &limits);
             let chunks = chunking.ranges(tet_count);
@@ -378,7 +380,7 @@ impl ShellsRenderer {
             records: &records,
             cells: mesh.cells()?,
         };
-        let assembly_groups = assembly.bind(&device, &inputs, &chunking.ranges(tet_count));
+        let assembly_groups = assembly.bind(&device, &inputs, &chunking.ranges(assembled));
         let shell_stride = (size_of::<ShellUniforms>() as u64)
             .next_multiple_of(limits.min_uniform_buffer_offset_alignment as u64);
         let active_buf = device.create_buffer(&wgpu::BufferDescriptor {
@@ -767,11 +769,17 @@ impl ShellsRenderer {
     /// GPU bytes per tet of what scales with the mesh: its vertices and per-tet arrays (tets,
     /// cell values), the records (80 bytes a tet), the eye-space vertices (16 bytes a vertex)
     /// and the active list (4 bytes per tet-shell instance, in a buffer grown to a power of
-    /// two).
+    /// two); with the walk sampler, its ray caster's figure (the mesh's vertices, the links,
+    /// the boundary, the eye-space vertices) instead of records and active lists (but for
+    /// their placeholders).
     pub fn bytes_per_tet(&self) -> f64 {
         let eye = self.assembly.eye_vertices().size();
-        let bytes = self.mesh.gpu_memory() + self.records.size() + eye + self.active_buf.size();
-        bytes as f64 / self.mesh.tet_count().max(1) as f64
+        let own = (self.records.size() + eye + self.active_buf.size()) as f64;
+        let tets = self.mesh.tet_count().max(1) as f64;
+        match &self.walk {
+            Some(walk) => walk.bytes_per_tet() + own / tets,
+            None => (self.mesh.gpu_memory() as f64 + own) / tets,
+        }
     }
 }
 

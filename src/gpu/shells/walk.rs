@@ -53,6 +53,11 @@ impl WalkSampler {
     pub(super) fn own_memory(&self, mesh: &GpuTetMesh) -> u64 {
         self.raycast.gpu_memory() - mesh.gpu_memory()
     }
+
+    /// The ray caster's bytes per tet of what scales with the mesh (the mesh included).
+    pub(super) fn bytes_per_tet(&self) -> f64 {
+        self.raycast.bytes_per_tet()
+    }
 }
 
 impl ShellsRenderer {
@@ -81,7 +86,15 @@ impl ShellsRenderer {
             count: count as u32,
         };
         let mut frame = walk.raycast.render_slices(camera, tf, slicing)?;
-        frame.timings.count("slices", count);
+        let t = &mut frame.timings;
+        t.count("slices", count);
+        // The renderer's bytes per tet, not only its ray caster's.
+        let per_tet = self.bytes_per_tet().round() as u64;
+        let counted = t.counters.iter_mut().find(|(n, _)| *n == "bytes per tet");
+        match counted {
+            Some((_, n)) => *n = per_tet,
+            None => t.count("bytes per tet", per_tet),
+        }
         Ok(frame)
     }
 }
