@@ -771,7 +771,8 @@ fn non_convex_mesh_and_inside_eye_match_the_reference() {
 
 #[test]
 fn large_transfer_functions_use_the_looping_variant_and_match() {
-    // 40 control points (more than UNROLLED_TF_POINTS): the composite walks them in a loop.
+    // 40 control points (more than UNROLLED_TF_POINTS): the composite (and the walk sampler's
+    // traversal) walks them in a loop.
     // The TF is the default one resampled, so the lox bounds apply unchanged.
     let mesh = lox();
     let base = default_tf(&mesh);
@@ -791,13 +792,13 @@ fn large_transfer_functions_use_the_looping_variant_and_match() {
     assert!(tf.points().len() as u32 > tetvr::gpu::shaders::UNROLLED_TF_POINTS);
     let (lo, hi) = mesh.bounds();
     let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 128, 128);
-    let img = shells_with(&mesh, (512, Sampler::Raster), &camera, &tf);
-    assert_images_close(
-        "shells-lox-40-points",
-        &img,
-        &reference_image(&mesh, &camera, &tf),
-        LOX_BOUNDS,
-    );
+    let truth = reference_image(&mesh, &camera, &tf);
+    // The walk sampler's traversal takes the looping variant too.
+    for sampler in [Sampler::Raster, Sampler::Walk] {
+        let img = shells_with(&mesh, (512, sampler), &camera, &tf);
+        let name = format!("shells-lox-40-points-{sampler:?}");
+        assert_images_close(&name, &img, &truth, LOX_BOUNDS);
+    }
 }
 
 #[test]

@@ -119,10 +119,9 @@ const NO_HITS: &str = "fn store_hit(pixel: u32) {}\n";
 /// entry lists and from peeled hits; the traversal with entry lists and with depth peeling,
 /// each with every integrator (`Segments`: exact, partial, table); then both traversals for a
 /// textured cage (the volume texture stepped through, `raycast_texture.wgsl`), and both for
-/// its isosurfaces (`raycast_texture_iso.wgsl`); then both for the shells' walk sampler (the
-/// slices each segment holds, `raycast_slices.wgsl`, with the looping `tf_eval`: the stages
-/// are built before any TF is known).
-pub fn raycast_stages() -> [(&'static str, String); 19] {
+/// its isosurfaces (`raycast_texture_iso.wgsl`). The shells' walk sampler's traversals are
+/// [`raycast_slices`].
+pub fn raycast_stages() -> [(&'static str, String); 17] {
     let common = format!("{SHARED}\n{RAYCAST_SHARED}\n{RAYCAST_RAYS}");
     let psi = format!(
         "// Generated: samples per psi table axis.\nconst PSI_SIZE: u32 = {}u;\n{RAYCAST_PSI}",
@@ -134,10 +133,6 @@ pub fn raycast_stages() -> [(&'static str, String); 19] {
     let sample = format!("{PSI_EXACT}\n{RAYCAST_TEXTURE_SAMPLE}\n{TEXTURE_SAMPLE}");
     let textured = format!("{sample}\n{RAYCAST_TEXTURE}\n{NO_HITS}");
     let textured_iso = format!("{sample}\n{ISO_SHARED}\n{RAYCAST_TEXTURE_ISO}");
-    let slices = format!(
-        "{PSI_EXACT}\n{}{TF_EVAL}\n{RAYCAST_SLICES}\n{NO_HITS}",
-        tf_eval(0)
-    );
     // Every traversal has integrate_segment.wgsl (its `Acc`); the integrator gives `segment`.
     let traverse = |name, entries: &str, integrator: &str| {
         let integrate = INTEGRATE_SEGMENT;
@@ -189,9 +184,35 @@ pub fn raycast_stages() -> [(&'static str, String); 19] {
             RAYCAST_LAYERS,
             &textured_iso,
         ),
-        traverse("raycast_traverse (lists, slices)", RAYCAST_LISTS, &slices),
-        traverse("raycast_traverse (peel, slices)", RAYCAST_LAYERS, &slices),
     ]
+}
+
+/// The shells' walk sampler's traversals, with entry lists and with depth peeling (entry point
+/// `main` in each): each segment composites the slices it holds (`raycast_slices.wgsl`), the TF
+/// evaluated as the shells composite does for `tf_points` control points ([`tf_eval`]:
+/// constant indices up to [`UNROLLED_TF_POINTS`], measured 1.6 times faster than the loop on
+/// lavapipe, else a loop; 0 selects the loop).
+pub fn raycast_slices(tf_points: u32) -> [(String, String); 2] {
+    let common = format!("{SHARED}\n{RAYCAST_SHARED}\n{RAYCAST_RAYS}\n{INTEGRATE_SEGMENT}");
+    let integrator = format!(
+        "{PSI_EXACT}\n{}{TF_EVAL}\n{RAYCAST_SLICES}\n{NO_HITS}",
+        tf_eval(tf_points)
+    );
+    [("lists", RAYCAST_LISTS), ("peel", RAYCAST_LAYERS)].map(|(name, entries)| {
+        let name = format!("raycast_traverse ({name}, slices, {tf_points} TF points)");
+        let source = format!("{common}\n{integrator}\n{entries}\n{RAYCAST_TRAVERSE}");
+        (name, source)
+    })
+}
+
+/// The TF variant of [`tf_eval`] a transfer function of `points` control points uses: its
+/// count when unrolled, else 0 (the loop).
+pub fn tf_variant(points: u32) -> u32 {
+    if points <= UNROLLED_TF_POINTS {
+        points
+    } else {
+        0
+    }
 }
 
 /// The most colour targets a raster variant may write (WebGPU's cap on colour attachments).
@@ -396,6 +417,12 @@ pub fn registry() -> Vec<(String, String, &'static [&'static str])> {
             &["main"]
         };
         out.push((name.into(), source, entries));
+    }
+    // The walk sampler's traversals: every unrolled TF variant, and the looping one (0).
+    for tf_points in 0..=UNROLLED_TF_POINTS {
+        for (name, source) in raycast_slices(tf_points) {
+            out.push((name, source, ["main"].as_slice()));
+        }
     }
     for targets in 1..=MAX_TARGETS {
         let raster = ["vs_faces", "vs_near", "fs_slices", "vs_clear", "fs_clear"].as_slice();

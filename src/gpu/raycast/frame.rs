@@ -190,6 +190,8 @@ impl RaycastRenderer {
         if let Some(tf) = tf {
             let points = tf_points(tf, lo, span)?;
             (self.queue).write_buffer(&self.tf_buf, 0, bytemuck::bytes_of(&points));
+            let count = tf.points().len() as u32;
+            self.pipelines.ensure_slices(&self.device, count);
         }
         self.eye_tol = near_tol(m.radius);
         self.plan_planes(&m, camera.eye);
