@@ -133,7 +133,9 @@ fn quick_bench_writes_the_csv_and_the_plots() {
         let chosen = &r[col("chosen")];
         if r[col("setting")].ends_with("tuned") {
             assert!(
-                chosen.starts_with("raster") || chosen.starts_with("compute"),
+                ["raster", "compute", "walk"]
+                    .iter()
+                    .any(|s| chosen.starts_with(s)),
                 "{r:?}"
             );
         } else {
@@ -173,7 +175,7 @@ fn quick_bench_writes_the_csv_and_the_plots() {
         // ray caster's figure and the shells' eye-space vertices (16 bytes a vertex, fewer
         // vertices than tets).
         let per_tet = &r[col("bytes_per_tet")];
-        let walk = r[col("setting")].contains("walk");
+        let walk = r[col("setting")].contains("walk") || chosen == "walk";
         if r[col("mode")] == "raycast" || walk {
             assert!((32.0..=80.0).contains(&num("bytes_per_tet")), "{r:?}");
         } else if r[col("mode")] == "shells" {
