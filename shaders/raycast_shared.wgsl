@@ -30,6 +30,12 @@ struct Raycast {
     table_size: u32,
     table_lengths: u32,
     inv_length_step: f32,
+    // The shells' walk sampler (raycast_slices.wgsl): slice k lies at t_first + k dz from the
+    // eye, k < slices; zero for the other integrators.
+    t_first: f32,
+    dz: f32,
+    slices: u32,
+    _pad0: u32,
 }
 
 // A tet's face planes and scalar in eye space (`tet_planes`): face f's plane (opposite local

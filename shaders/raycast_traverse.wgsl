@@ -6,7 +6,8 @@
 // (`tet_segment`, from the integrator composed in front of this file: the tet's linear scalar
 // into `segment`, exact or partial with integrate_segment.wgsl, or the 3D table,
 // raycast_table.wgsl; or, for a textured cage, stepping through the volume texture,
-// raycast_texture.wgsl), and at the boundary resumes at
+// raycast_texture.wgsl; or, for the shells' walk sampler, the slices the segment holds,
+// raycast_slices.wgsl), and at the boundary resumes at
 // its next entry beyond where it left (non-convex meshes). It stops when its transmittance
 // falls below TERMINATE (early ray termination) or after params.max_steps tets (counted).
 // Where entries come from (ray_start, start_tet, next_entry, ray_end, with their bindings 7-8

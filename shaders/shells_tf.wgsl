@@ -1,33 +1,10 @@
-// The transfer function and the front-to-back composite of one shell's slices, shared by the
-// raster sampler's composite pass and the compute sampler's fine pass (appended after
-// shells_shared.wgsl; the generated prelude defines TARGETS and tf_eval()). Per sample the
-// body is branch-free: fine-grained data-dependent branches cost lavapipe ~20 ns per sample
-// even when no lane takes them.
+// The front-to-back composite of one shell's slices, shared by the raster sampler's composite
+// pass and the compute sampler's fine pass (appended after shells_shared.wgsl and tf_eval.wgsl;
+// the generated prelude defines TARGETS and tf_eval()). Per sample the body is branch-free:
+// fine-grained data-dependent branches cost lavapipe ~20 ns per sample even when no lane takes
+// them.
 
 @group(0) @binding(2) var<uniform> tf: TfPoints;
-
-// The transfer function, piecewise linear between control points and constant beyond the
-// ends, exactly as tf::TransferFunction::eval: the generated tf_eval(u) starts from point 0,
-// lets every segment k (points k, k + 1) replace the value where u lies on it, and ends with
-// tf_last. Small TFs get these calls with constant k (the points become loop-invariant
-// broadcasts); larger ones a loop.
-
-fn tf_value(k: u32) -> vec4<f32> {
-    let p = tf.points[k];
-    return vec4<f32>(p.rgb, p.tau);
-}
-
-fn tf_segment(out: vec4<f32>, u: f32, k: u32) -> vec4<f32> {
-    let a = tf.points[k];
-    let b = tf.points[k + 1u];
-    let on = u > tf.points[0].s && u >= a.s && u < b.s;
-    let piece = mix(vec4<f32>(a.rgb, a.tau), vec4<f32>(b.rgb, b.tau), (u - a.s) * a.inv_width);
-    return select(out, piece, on);
-}
-
-fn tf_last(out: vec4<f32>, u: f32, last: u32) -> vec4<f32> {
-    return select(out, tf_value(last), u >= tf.points[last].s);
-}
 
 // Composites one sample (encoded scalar e, 0 = none) under the running colour and alpha.
 fn under(acc: vec4<f32>, e: f32) -> vec4<f32> {

@@ -204,6 +204,9 @@ pub enum SamplerChoice {
     /// Compute workgroups on 8 x 8 pixel tiles (records in several storage bindings: one pass
     /// per chunk).
     Compute,
+    /// Each pixel's ray walks the tets through shared faces (the ray caster's traversal) and
+    /// composites the same slices; slices per shell, skips and binning do not apply.
+    Walk,
 }
 
 /// Where the shells' tets are binned into the shells' active lists (`--binning`).
@@ -744,6 +747,7 @@ impl Scene {
         shells.sampler = match s.sampler {
             SamplerChoice::Raster => Sampler::Raster,
             SamplerChoice::Compute => Sampler::Compute,
+            SamplerChoice::Walk => Sampler::Walk,
         };
         shells.format = match s.slice_format {
             SliceFormatChoice::Auto => SliceFormat::Auto,
@@ -777,6 +781,7 @@ impl Scene {
                 s.sampler = match shells.sampler {
                     Sampler::Raster => SamplerChoice::Raster,
                     Sampler::Compute => SamplerChoice::Compute,
+                    Sampler::Walk => SamplerChoice::Walk,
                 };
                 s.slice_format = match shells.format {
                     SliceFormat::Auto => SliceFormatChoice::Auto,

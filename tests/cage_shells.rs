@@ -254,3 +254,18 @@ fn textured_shells_refuse_tuning() {
         .to_string();
     assert!(err.contains("--sampler"), "{err}");
 }
+
+/// The walk sampler does not sample a volume texture: refused with the samplers that do.
+#[test]
+fn textured_shells_refuse_the_walk_sampler() {
+    let (volume, mesh) = blob_cage();
+    let tc = texcoords(&mesh, DEFAULT_TEXCOORDS).unwrap();
+    let err = ShellsRenderer::textured(ctx(), &mesh, &tc, &volume, settings(Sampler::Walk))
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        err.contains("--sampler raster") && err.contains("--sampler compute"),
+        "{err}"
+    );
+}

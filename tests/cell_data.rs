@@ -141,7 +141,7 @@ const RAYCAST_TABLE: Bounds = bounds(3.5e-4, 4e-3);
 /// Every volume renderer of `mesh`, named, with its bound from `b`.
 fn renderers(mesh: &TetMesh, b: &SceneBounds) -> Vec<(String, Box<dyn Renderer>, Bounds)> {
     let mut out: Vec<(String, Box<dyn Renderer>, Bounds)> = Vec::new();
-    for sampler in [Sampler::Raster, Sampler::Compute] {
+    for sampler in [Sampler::Raster, Sampler::Compute, Sampler::Walk] {
         let s = ShellSettings {
             sampler,
             samples: SHELL_SAMPLES,

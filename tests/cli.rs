@@ -756,6 +756,16 @@ fn sampler_compute_renders_the_raster_samplers_picture_and_bad_samplers_are_name
     let (stdout, raster) = run("raster");
     assert!(stdout.contains("composite"), "{stdout}");
     assert_eq!(compute.pixels, raster.pixels);
+    // `--sampler walk` runs the ray caster's stages and counts the slices; its picture is the
+    // raster's to tests/shells.rs's WALK_BOUNDS (max 2e-2 of a channel: 6 of 255 in the PNG,
+    // which adds at most that much after compositing over the background).
+    let (stdout, walk) = run("walk");
+    assert!(
+        stdout.contains("traverse") && stdout.contains("slices"),
+        "{stdout}"
+    );
+    let m = walk.compare(&raster).unwrap();
+    assert!(m.max_abs <= 6.0 / 255.0 && m.holes == 0, "{m}");
     let bad = tetvr(&["render", LOX, "--sampler", "fragment"]);
     let (_, stderr) = text(&bad);
     assert!(!bad.status.success());
@@ -767,7 +777,7 @@ fn sampler_compute_renders_the_raster_samplers_picture_and_bad_samplers_are_name
 
 #[test]
 fn tune_and_slice_format_render_and_say_what_was_chosen() {
-    // The tuner needs at most 19 frames (9 candidates, 2 frames each, and a confirming one,
+    // The tuner needs at most 21 frames (10 candidates, 2 frames each, and a confirming one,
     // tune.rs): 24 warm frames end with the choice made, which `--frames` prints. The choice
     // itself depends on timings, so only its form is checked.
     let dir = out_dir("tune");

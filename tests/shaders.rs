@@ -23,10 +23,14 @@ fn every_registered_shader_validates() {
     // assemble, shells_mark, shells_tiles, shells_bin, iso_raster, iso_gradients,
     // cellproj_raster, 17 raycast stages (vertices, planes, entries, two peeling passes, tiles
     // per entry method, traversal per entry method and integrator: exact, partial, table,
-    // textured, textured isosurfaces), and per target count two shells raster variants (the
-    // linear field, a textured cage), 33 composite and 66 fine (compute sampler; linear and
-    // textured) variants.
-    assert_eq!(registry.len(), 24 + shaders::MAX_TARGETS as usize * 101);
+    // textured, textured isosurfaces), the shells' walk sampler's traversal per entry method
+    // and TF variant (33: every unrolled one and the loop), and per target count two shells
+    // raster variants (the linear field, a textured cage), 33 composite and 66 fine (compute
+    // sampler; linear and textured) variants.
+    assert_eq!(
+        registry.len(),
+        24 + 66 + shaders::MAX_TARGETS as usize * 101
+    );
     for (name, src, entries) in registry {
         assert_eq!(validate(&name, &src), entries, "{name}");
     }
@@ -57,8 +61,10 @@ fn shared_struct_layouts_match_gpu_data() {
 fn raycast_struct_layouts_match_gpu_data() {
     use tetvr::gpu::gpu_data::{LayerUniforms, RaycastUniforms, TetLinks};
     use tetvr::gpu::raycast::RAY_STATE_BYTES;
-    for (name, src) in shaders::raycast_stages() {
-        let module = validated_wgsl(name, &src);
+    let walk = [0, 5].into_iter().flat_map(shaders::raycast_slices);
+    let stages = shaders::raycast_stages().map(|(name, src)| (name.to_string(), src));
+    for (name, src) in stages.into_iter().chain(walk) {
+        let module = validated_wgsl(&name, &src);
         assert_eq!(
             wgsl_struct_size(&module, "Layer"),
             size_of::<LayerUniforms>()

@@ -148,8 +148,8 @@ fn render(
     (frame.image, r, frame.timings)
 }
 
-/// Both samplers: the scenes below hold each to the same bounds.
-const SAMPLERS: [Sampler; 2] = [Sampler::Raster, Sampler::Compute];
+/// Every sampler: the scenes below hold each to the same bounds.
+const SAMPLERS: [Sampler; 3] = [Sampler::Raster, Sampler::Compute, Sampler::Walk];
 
 /// The default settings with `sampler`.
 fn with_sampler(sampler: Sampler) -> ShellSettings {
@@ -275,7 +275,7 @@ fn linear_field_matches_exact_sampling_from_outside() {
 }
 
 /// Renders `mesh` with each sampler and compares with the exact sampled linear field on
-/// `region`; returns the last sampler's image and timings.
+/// `region`; returns each sampler's timings.
 fn check_linear(
     name: &str,
     mesh: &TetMesh,
@@ -284,8 +284,8 @@ fn check_linear(
     region: impl Fn(DVec3) -> Place,
     field: impl Fn(DVec3) -> f64,
     crossings: usize,
-) -> (Image, tetvr::Timings) {
-    let mut last = None;
+) -> Vec<(Sampler, tetvr::Timings)> {
+    let mut out = Vec::new();
     for sampler in SAMPLERS {
         let (img, r, timings) = render(mesh, with_sampler(sampler), camera, tf);
         let (lo, hi) = mesh.bounds();
@@ -308,9 +308,9 @@ fn check_linear(
             "{n} ambiguous pixels"
         );
         assert_images_close(&format!("{name}-{sampler:?}"), &img, &expect, LINEAR_BOUNDS);
-        last = Some((img, timings));
+        out.push((sampler, timings));
     }
-    last.expect("two samplers")
+    out
 }
 
 /// Keeps the tets of `mesh` for which `keep(centroid)` holds (vertices stay, some unused).
@@ -364,7 +364,7 @@ fn eye_inside_the_mesh() {
         112,
     );
     let tf = tf3(-1.6, 1.6, 0.2);
-    let (_, timings) = check_linear(
+    let timings = check_linear(
         "shells-eye-inside",
         &mesh,
         &camera,
@@ -373,7 +373,14 @@ fn eye_inside_the_mesh() {
         linear,
         1,
     );
-    assert!(counter(&timings, "near-plane tets") > 0);
+    // The binning samplers draw the tets around the eye as near-plane tets; the walk starts
+    // every ray in the eye's tet.
+    for (sampler, t) in &timings {
+        match sampler {
+            Sampler::Walk => assert_eq!(counter(t, "eye in a tet"), 1, "{t}"),
+            _ => assert!(counter(t, "near-plane tets") > 0, "{sampler:?}: {t}"),
+        }
+    }
 }
 
 #[test]
@@ -505,12 +512,16 @@ fn slivers_and_zero_volume_tets_give_no_nan_and_no_holes() {
         128,
     );
     let tf = tf3(-1.6, 1.6, 0.05);
-    let (_, timings) = check_linear("shells-slivers", &mesh, &camera, &tf, region, linear, 2);
-    // At least the 36 flat tets and the 216 tets of the 1e-9 layer.
-    assert!(
-        counter(&timings, "degenerate tets") >= 36 + 216,
-        "{timings}"
-    );
+    let timings = check_linear("shells-slivers", &mesh, &camera, &tf, region, linear, 2);
+    // At least the 36 flat tets and the 216 tets of the 1e-9 layer: degenerate to the binning
+    // samplers' assembly, thin to the walk (left by their edges, their segments empty).
+    for (sampler, t) in &timings {
+        let name = match sampler {
+            Sampler::Walk => "thin tets",
+            _ => "degenerate tets",
+        };
+        assert!(counter(t, name) >= 36 + 216, "{sampler:?}: {t}");
+    }
 }
 
 #[test]
@@ -760,7 +771,8 @@ fn non_convex_mesh_and_inside_eye_match_the_reference() {
 
 #[test]
 fn large_transfer_functions_use_the_looping_variant_and_match() {
-    // 40 control points (more than UNROLLED_TF_POINTS): the composite walks them in a loop.
+    // 40 control points (more than UNROLLED_TF_POINTS): the composite (and the walk sampler's
+    // traversal) walks them in a loop.
     // The TF is the default one resampled, so the lox bounds apply unchanged.
     let mesh = lox();
     let base = default_tf(&mesh);
@@ -780,13 +792,13 @@ fn large_transfer_functions_use_the_looping_variant_and_match() {
     assert!(tf.points().len() as u32 > tetvr::gpu::shaders::UNROLLED_TF_POINTS);
     let (lo, hi) = mesh.bounds();
     let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 128, 128);
-    let img = shells_with(&mesh, (512, Sampler::Raster), &camera, &tf);
-    assert_images_close(
-        "shells-lox-40-points",
-        &img,
-        &reference_image(&mesh, &camera, &tf),
-        LOX_BOUNDS,
-    );
+    let truth = reference_image(&mesh, &camera, &tf);
+    // The walk sampler's traversal takes the looping variant too.
+    for sampler in [Sampler::Raster, Sampler::Walk] {
+        let img = shells_with(&mesh, (512, sampler), &camera, &tf);
+        let name = format!("shells-lox-40-points-{sampler:?}");
+        assert_images_close(&name, &img, &truth, LOX_BOUNDS);
+    }
 }
 
 #[test]
@@ -914,6 +926,33 @@ const SAMPLER_BOUNDS: Bounds = Bounds {
     max_spill: 0,
 };
 
+/// The walk sampler against the raster sampler: the same slices, scalars, TF and composite,
+/// but each sample taken by the one tet whose segment holds it (t0 <= t_k < t1: never twice
+/// and, inside the mesh, never missed, whatever rounding does at edges), where the raster
+/// sampler takes it wherever a front face's coverage and the barycentric tolerance (epsilon
+/// 1e-4) say so, under MAX. Inside the mesh they differ by f32 rounding (the scalar: the
+/// raster's encoded 1 + u keeps 2^-23 of the range; the composite's order of operations). At
+/// the boundary a sample up to the tolerance outside a tet is the raster's and not the walk's
+/// (the walk is the reference's there: lox's error against it is 5.964e-4 against the
+/// raster's 5.967e-4), and at a thin tet (the blunt fin's 77 flat ones) the raster skips what
+/// the walk takes with the tet's mean scalar: one sample's alpha per such pixel, under 2e-2
+/// with these TFs (SAMPLER_BOUNDS). Raster holes at edges would show the same way; the
+/// tolerance leaves none (holes 0 both ways). Measured on lavapipe at 128x128: lox rmse
+/// 1.59e-4, max 9.6e-3, 50 pixels differing by more than 1e-3 (5 against the raster with
+/// epsilon 0: the tolerance band is most of it); blunt fin 6.3e-5, 4.5e-3, 37 pixels;
+/// from inside 3.2e-5, 1.2e-3, 30 pixels. The bound allows twice lox's rmse, and a pixel
+/// in 100 differing by more than 1e-3 (measured at most 0.3%).
+const WALK_BOUNDS: Bounds = Bounds {
+    max_rmse: 3.2e-4,
+    max_abs: 2e-2,
+    max_holes: 0,
+    max_spill: 0,
+};
+
+/// At most one pixel in this many may differ by more than 1e-3 between the walk and the raster
+/// sampler (WALK_BOUNDS).
+const WALK_DIFFERING_FRACTION: usize = 100;
+
 #[test]
 fn the_samplers_give_the_same_picture() {
     // lox from its iso view and the blunt fin from the side (its opaque core exercises early
@@ -942,6 +981,36 @@ fn the_samplers_give_the_same_picture() {
             &raster,
             SAMPLER_BOUNDS,
         );
+        let (walk, r, timings) = render(mesh, with_sampler(Sampler::Walk), &camera, &tf);
+        eprintln!(
+            "{name}: walk vs raster {}\n{timings}",
+            walk.compare(&raster).unwrap()
+        );
+        assert_images_close(
+            &format!("shells-samplers-walk-{name}"),
+            &walk,
+            &raster,
+            WALK_BOUNDS,
+        );
+        let differing = (walk.pixels.iter().zip(&raster.pixels))
+            .filter(|(p, q)| (0..4).any(|i| (p[i] - q[i]).abs() > 1e-3))
+            .count();
+        assert!(
+            differing <= walk.pixels.len() / WALK_DIFFERING_FRACTION,
+            "{name}: {differing} pixels differ by more than 1e-3"
+        );
+        // The ray caster's stages and the shells' slices (up to the far side of the bounding
+        // sphere: at least 256 of the 512 across its diameter).
+        assert!(timings.get("traverse").is_some(), "{timings}");
+        assert!(counter(&timings, "slices") >= 256, "{timings}");
+        // No records (80 bytes a tet) and no active lists: the ray caster's links, boundary
+        // and vertices (39-42 bytes a tet, tests/bench.rs) and the shells' eye-space vertices.
+        let per_tet = r.bytes_per_tet();
+        assert!(
+            (32.0..=80.0).contains(&per_tet),
+            "{name}: {per_tet} bytes per tet"
+        );
+        assert_eq!(counter(&timings, "bytes per tet"), per_tet.round() as u64);
     }
 }
 
@@ -972,6 +1041,20 @@ fn tile_lists_that_outgrow_their_buffer_rerun_the_frame_whole() {
     assert_eq!(again.image.compare(&compute).unwrap().max_abs, 0.0);
 }
 
+/// WALK_BOUNDS under the nearly opaque TF below: one sample's alpha is 1 - exp(-tau dz) =
+/// 0.74 there (tau dz = 100 ln(1000) / 512 = 1.35), so a pixel whose first sample falls in the
+/// raster's tolerance band outside the mesh differs by up to that; a grazing ray whose only
+/// such sample is there is a raster pixel the walk leaves empty (a "hole" against the raster,
+/// not against the mesh). Measured on lavapipe: 5 of 9,216 pixels differ by more than 1e-3,
+/// rmse 5.1e-3, max 0.74, 1 such pixel; bounds twice the rmse, one sample's alpha and colour,
+/// 4 of them.
+const OPAQUE_WALK_BOUNDS: Bounds = Bounds {
+    max_rmse: 1e-2,
+    max_abs: 1.0,
+    max_holes: 4,
+    max_spill: 0,
+};
+
 #[test]
 fn finished_pixels_and_tiles_stop_the_compute_sampler_as_they_stop_the_raster() {
     // lox under a nearly opaque TF (opacity 0.999 per 1/100 of the diagonal): most covered
@@ -998,6 +1081,41 @@ fn finished_pixels_and_tiles_stop_the_compute_sampler_as_they_stop_the_raster() 
     );
     assert!(finished > 1000, "{ct}");
     assert_images_close("shells-samplers-opaque", &compute, &raster, SAMPLER_BOUNDS);
+    // The walk stops each ray at transmittance 1e-5, the default threshold's 1 - 0.99999.
+    let (walk, _, _) = render(&mesh, with_sampler(Sampler::Walk), &camera, &tf);
+    let m = walk.compare(&raster).unwrap();
+    let differing = (walk.pixels.iter().zip(&raster.pixels))
+        .filter(|(p, q)| (0..4).any(|i| (p[i] - q[i]).abs() > 1e-3))
+        .count();
+    eprintln!("opaque: walk vs raster {m}, {differing} pixels differ by more than 1e-3");
+    assert_images_close(
+        "shells-samplers-walk-opaque",
+        &walk,
+        &raster,
+        OPAQUE_WALK_BOUNDS,
+    );
+    assert!(differing <= walk.pixels.len() / WALK_DIFFERING_FRACTION);
+}
+
+#[test]
+fn the_walk_refuses_what_would_change_its_picture() {
+    // 16-bit slices and another termination threshold are the binning samplers'; the walk
+    // says so instead of rendering something else.
+    let mesh = lox();
+    let walk = with_sampler(Sampler::Walk);
+    let f16 = ShellSettings {
+        format: SliceFormat::Float16,
+        ..walk
+    };
+    let mut threshold = walk;
+    threshold.skips.ert_threshold = 0.99;
+    for (settings, named) in [(f16, "--slice-format"), (threshold, "--ert-threshold")] {
+        let err = ShellsRenderer::new(ctx(), &mesh, settings)
+            .err()
+            .expect("refused")
+            .to_string();
+        assert!(err.contains(named) && err.contains("--sampler"), "{err}");
+    }
 }
 
 #[test]

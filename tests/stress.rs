@@ -129,6 +129,18 @@ static MODES: &[ModeDef] = &[
         bound: (1e-3, 0),
     },
     ModeDef {
+        name: "shells walk",
+        truth: Truth::Volume,
+        build: |mesh, _| {
+            let settings = ShellSettings {
+                sampler: Sampler::Walk,
+                ..ShellSettings::default()
+            };
+            Ok(Box::new(ShellsRenderer::new(ctx(), mesh, settings)?))
+        },
+        bound: (1e-3, 0),
+    },
+    ModeDef {
         name: "iso",
         truth: Truth::Iso,
         build: |mesh, isovalue| {
@@ -776,7 +788,8 @@ fn transfer_function_opacity_zero_and_nearly_one() {
     check(
         case.bound("reference", 0.0, 0)
             .bound("shells", 0.0, 0)
-            .bound("shells compute", 0.0, 0),
+            .bound("shells compute", 0.0, 0)
+            .bound("shells walk", 0.0, 0),
     );
     // Opacity 0.9999 per unit distance 0.3 (tau = 31 per unit): rays saturate within ~0.15 of
     // the boundary, a few samples. Point sampling then shows its error at full contrast: rmse
@@ -792,7 +805,8 @@ fn transfer_function_opacity_zero_and_nearly_one() {
     // segment between 64 lengths: measured rmse 6.8e-4, bound 3x.
     let saturated = case
         .bound("shells", 1e-2, 4)
-        .bound("shells compute", 1e-2, 4);
+        .bound("shells compute", 1e-2, 4)
+        .bound("shells walk", 1e-2, 4);
     check(
         saturated
             .bound("raycast", 2e-5, 0)
@@ -903,6 +917,7 @@ fn mesh_larger_than_one_storage_binding() {
         }
         if mode == "shells" {
             cells.push(compute_refuses_chunks(&small, &g, (&cam, &t)));
+            cells.push(walk_refuses_long_lists(&small, &g, (&cam, &t)));
         }
     }
     cells.push("clear error (its 16 MiB table)".to_string());
@@ -930,6 +945,27 @@ fn compute_refuses_chunks(
         Ok(_) => panic!("the compute sampler rendered a mesh beyond one binding"),
     }
     "clear error (one binding only)".to_string()
+}
+
+/// The walk sampler binds no records but the ray caster's per-pixel entry lists, which start
+/// at 4 hits a pixel (135,200 bytes at 65x65) and the 64 KiB binding cannot hold: refused with
+/// the sizes and what to do, never a truncated picture.
+fn walk_refuses_long_lists(
+    c: &GpuContext,
+    g: &TetMesh,
+    (cam, t): (&Camera, &TransferFunction),
+) -> String {
+    let settings = ShellSettings {
+        sampler: Sampler::Walk,
+        ..ShellSettings::default()
+    };
+    let frame = ShellsRenderer::new(c, g, settings).and_then(|mut r| r.render(cam, t));
+    let err = frame.expect_err("lists beyond one binding").to_string();
+    assert!(
+        err.contains("135200") && err.contains("smaller image"),
+        "shells walk: {err}"
+    );
+    "clear error (its entry lists)".to_string()
 }
 
 /// Bytes of one per-tet record, the chunked array of every mode but the ray caster.

@@ -749,15 +749,25 @@ fn shells(samples: u32, slices_per_shell: Option<u32>) -> Config {
     shells_with(setting, &[], settings)
 }
 
-/// The shells mode at `samples` with the compute sampler (the `samples N` row's settings
-/// otherwise, so the two rows compare the samplers).
-fn shells_compute(samples: u32) -> Config {
+/// The row name's part for `sampler`: nothing for the default raster sampler.
+fn sampler_suffix(sampler: Sampler) -> &'static str {
+    match sampler {
+        Sampler::Raster => "",
+        Sampler::Compute => ", compute",
+        Sampler::Walk => ", walk",
+    }
+}
+
+/// The shells mode at `samples` with `sampler` (the `samples N` row's settings otherwise, so
+/// the rows compare the samplers), e.g. `samples 512, compute`, `samples 512, walk`.
+fn shells_sampler(samples: u32, sampler: Sampler) -> Config {
     let settings = ShellSettings {
         samples,
-        sampler: Sampler::Compute,
+        sampler,
         ..ShellSettings::default()
     };
-    shells_with(format!("samples {samples}, compute"), &[], settings)
+    let setting = format!("samples {samples}{}", sampler_suffix(sampler));
+    shells_with(setting, &[], settings)
 }
 
 /// The shells mode at `samples` with the tets binned on the GPU (`sampler`'s `samples N` row
@@ -770,10 +780,7 @@ fn shells_gpu_binning(samples: u32, sampler: Sampler) -> Config {
         binning: BinningMode::Gpu,
         ..ShellSettings::default()
     };
-    let setting = match sampler {
-        Sampler::Raster => format!("samples {samples}, gpu binning"),
-        Sampler::Compute => format!("samples {samples}, compute, gpu binning"),
-    };
+    let setting = format!("samples {samples}{}, gpu binning", sampler_suffix(sampler));
     shells_with(setting, &[], settings)
 }
 
@@ -931,7 +938,7 @@ fn raycast_cpu(segments: cpu_raycast::Segments) -> Config {
     }
 }
 
-/// The configurations of the bench: `quick` keeps two shells settings, the compute sampler's
+/// The configurations of the bench: `quick` keeps two shells settings, the compute and walk samplers'
 /// and the tuned row, flat iso, the default cell projection, the ray casters (GPU and CPU) and the reference.
 /// Modes and settings join here.
 pub fn configurations(quick: bool) -> Vec<Config> {
@@ -939,7 +946,8 @@ pub fn configurations(quick: bool) -> Vec<Config> {
         vec![
             shells(128, None),
             shells(512, None),
-            shells_compute(512),
+            shells_sampler(512, Sampler::Compute),
+            shells_sampler(512, Sampler::Walk),
             shells_tuned(512),
             iso(Shading::Flat),
             cellproj(Integrate::Table, 128),
@@ -953,8 +961,10 @@ pub fn configurations(quick: bool) -> Vec<Config> {
             shells(512, None),
             shells(1024, None),
             shells(512, Some(32)),
-            shells_compute(128),
-            shells_compute(512),
+            shells_sampler(128, Sampler::Compute),
+            shells_sampler(512, Sampler::Compute),
+            shells_sampler(128, Sampler::Walk),
+            shells_sampler(512, Sampler::Walk),
             shells_tuned(512),
             shells_gpu_binning(512, Sampler::Raster),
             shells_gpu_binning(512, Sampler::Compute),

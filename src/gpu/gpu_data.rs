@@ -261,7 +261,7 @@ pub struct CellProjUniforms {
 }
 const _: () = assert!(size_of::<CellProjUniforms>() == 16);
 
-/// The ray caster's constants (WGSL `Raycast` in `shaders/raycast_shared.wgsl`, 32 bytes).
+/// The ray caster's constants (WGSL `Raycast` in `shaders/raycast_shared.wgsl`, 48 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct RaycastUniforms {
@@ -281,8 +281,17 @@ pub struct RaycastUniforms {
     pub table_lengths: u32,
     /// `--integrate table`: `(table_lengths - 1) / max_length`, length to level.
     pub inv_length_step: f32,
+    /// The shells' walk sampler (`shaders/raycast_slices.wgsl`): slice `k` lies at
+    /// `t_first + k dz` from the eye, `k < slices`; zero for the other integrators.
+    pub t_first: f32,
+    /// See `t_first`.
+    pub dz: f32,
+    /// See `t_first`.
+    pub slices: u32,
+    /// Zero: pads the struct to a multiple of 16 bytes.
+    pub _pad: u32,
 }
-const _: () = assert!(size_of::<RaycastUniforms>() == 32);
+const _: () = assert!(size_of::<RaycastUniforms>() == 48);
 
 /// The ray caster's depth-peeling layer (WGSL `Layer` in `shaders/raycast_rays.wgsl`, 16
 /// bytes); 0 for entry lists.

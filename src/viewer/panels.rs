@@ -125,7 +125,11 @@ fn shells_ui(v: &mut Viewer, ui: &mut egui::Ui) -> bool {
     changed |= choice(
         ui,
         &mut s.sampler,
-        &[(Sampler::Raster, "raster"), (Sampler::Compute, "compute")],
+        &[
+            (Sampler::Raster, "raster"),
+            (Sampler::Compute, "compute"),
+            (Sampler::Walk, "walk"),
+        ],
     );
     ui.horizontal_wrapped(|ui| {
         for skip in Skip::ALL {

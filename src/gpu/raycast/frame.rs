@@ -190,13 +190,16 @@ impl RaycastRenderer {
         if let Some(tf) = tf {
             let points = tf_points(tf, lo, span)?;
             (self.queue).write_buffer(&self.tf_buf, 0, bytemuck::bytes_of(&points));
+            let count = tf.points().len() as u32;
+            self.pipelines.ensure_slices(&self.device, count);
         }
         self.eye_tol = near_tol(m.radius);
         self.plan_planes(&m, camera.eye);
-        // A textured cage steps through its texture: no integrator table.
-        let segments = match self.texture {
-            Some(_) => Segments::Exact,
-            None => self.settings.segments,
+        // A textured cage steps through its texture, the walk sampler composites its slices:
+        // no integrator table.
+        let segments = match (&self.texture, self.slicing) {
+            (None, None) => self.settings.segments,
+            _ => Segments::Exact,
         };
         let rebuilt = match (segments, tf) {
             (Segments::Table, Some(tf)) => self.ensure_table(&m, tf)?,
@@ -254,6 +257,7 @@ impl RaycastRenderer {
 
     fn write_params(&self) {
         let lengths = self.settings.table_lengths;
+        let slicing = self.slicing.unwrap_or_default();
         let params = RaycastUniforms {
             capacity: self.capacity,
             max_steps: (self.settings.max_steps)
@@ -265,6 +269,10 @@ impl RaycastRenderer {
             table_lengths: lengths,
             inv_length_step: (self.preint_key.as_ref())
                 .map_or(0.0, |k| ((lengths - 1) as f64 / k.max_length) as f32),
+            t_first: slicing.t_first as f32,
+            dz: slicing.dz as f32,
+            slices: slicing.count,
+            _pad: 0,
         };
         self.queue
             .write_buffer(&self.params_buf, 0, bytemuck::bytes_of(&params));
@@ -298,8 +306,9 @@ impl RaycastRenderer {
         let max = (self.limits.max_storage_buffer_binding_size).min(self.limits.max_buffer_size);
         if bytes > max {
             return Err(settings_error(format!(
-                "--mode raycast: {what} per pixel at {width}x{height} need {bytes} bytes, more \
-                 than one storage binding of this adapter holds ({max}); render a smaller image"
+                "the ray caster's {what} per pixel at {width}x{height} need {bytes} bytes, \
+                 more than one storage binding of this adapter holds ({max}); render a smaller \
+                 image"
             )));
         }
         let format = wgpu::TextureFormat::Rgba32Float;

@@ -288,6 +288,18 @@ pub struct RaycastRenderer {
     texture: Option<GpuTexture>,
     /// A textured cage's isovalues ([`RaycastRenderer::textured_iso`]).
     iso: Option<TexturedIso>,
+    /// The shells' walk sampler's slices ([`RaycastRenderer::sliced`]); `None` for the ray
+    /// caster's own integrators.
+    slicing: Option<Slicing>,
+}
+
+/// Where the shells' walk sampler's slices lie for one frame: slice `k` at distance
+/// `t_first + k dz` from the eye, `k < count` (`crate::gpu::shells`' plan).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct Slicing {
+    pub t_first: f64,
+    pub dz: f64,
+    pub count: u32,
 }
 
 /// Per image size and entry method: the output, its readback, the per-pixel entry buffers,
@@ -338,7 +350,36 @@ impl RaycastRenderer {
         mesh: Arc<GpuTetMesh>,
         settings: RaycastSettings,
     ) -> Result<Self, RenderError> {
-        Self::build(ctx, mesh, settings, None)
+        Self::build(ctx, mesh, settings, None, false)
+    }
+
+    /// The traversal of the shells' walk sampler over a mesh already on the GPU: each segment
+    /// composites the slices it holds (`shaders/raycast_slices.wgsl`) instead of integrating
+    /// the TF, `settings.segments` unused; frames come from [`Self::render_slices`].
+    pub(crate) fn sliced(
+        ctx: &GpuContext,
+        mesh: Arc<GpuTetMesh>,
+        settings: RaycastSettings,
+    ) -> Result<Self, RenderError> {
+        let mut r = Self::build(ctx, mesh, settings, None, true)?;
+        r.slicing = Some(Slicing::default());
+        Ok(r)
+    }
+
+    /// A frame of the walk sampler ([`Self::sliced`]) with the slices of `slicing`.
+    pub(crate) fn render_slices(
+        &mut self,
+        camera: &Camera,
+        tf: &TransferFunction,
+        slicing: Slicing,
+    ) -> Result<Frame, RenderError> {
+        if self.slicing.is_none() {
+            return Err(settings_error(
+                "internal: slices rendered by a ray caster built without them",
+            ));
+        }
+        self.slicing = Some(slicing);
+        self.render(camera, tf)
     }
 
     /// The ray caster of a textured cage (issue 12): `cage`'s vertices carry `texcoords`, and
@@ -356,7 +397,7 @@ impl RaycastRenderer {
     ) -> Result<Self, RenderError> {
         let texture = GpuTexture::for_cage(ctx, cage, volume, texcoords, step)?;
         let textured = Some((texture, TextureUse::Volume));
-        Self::build(ctx, GpuTetMesh::new(ctx, cage)?, settings, textured)
+        Self::build(ctx, GpuTetMesh::new(ctx, cage)?, settings, textured, false)
     }
 
     fn build(
@@ -364,6 +405,7 @@ impl RaycastRenderer {
         mesh: Arc<GpuTetMesh>,
         settings: RaycastSettings,
         textured: Option<(GpuTexture, TextureUse)>,
+        sliced: bool,
     ) -> Result<Self, RenderError> {
         let nt = mesh.tet_count() as u64;
         let nv = mesh.read().positions.len() as u64;
@@ -381,9 +423,9 @@ impl RaycastRenderer {
         Ok(Self {
             pipelines: Pipelines::new(
                 &device,
-                nt.div_ceil(chunking.chunk).max(1),
-                mesh.has_cells(),
+                (nt.div_ceil(chunking.chunk).max(1), mesh.has_cells()),
                 textured.as_ref().map(|(t, used)| (t.step, *used)),
+                sliced,
                 (settings.entry_lanes).unwrap_or_else(|| EntryLanes::for_adapter(ctx)),
             ),
             frame: FrameResources::new(ctx),
@@ -414,6 +456,7 @@ impl RaycastRenderer {
             targets: None,
             texture: textured.map(|(t, _)| t),
             iso: None,
+            slicing: None,
         })
     }
 

@@ -33,7 +33,16 @@ pub struct Pipelines {
     /// For a textured cage: the traversal per [`Entry`] that steps through the volume texture
     /// (whatever the [`Segments`]), integrating it or finding its isosurfaces ([`TextureUse`]).
     textured: Option<[Stage; 2]>,
+    /// For the shells' walk sampler: the pipeline constants its traversals are built with.
+    sliced: Option<Constants>,
+    /// The walk sampler's traversal per [`Entry`] that composites the slices each segment holds
+    /// (`shaders/raycast_slices.wgsl`), whatever the [`Segments`], and the TF variant it was
+    /// built for ([`shaders::tf_variant`]); built by [`Pipelines::ensure_slices`].
+    slices: Option<(u32, [Stage; 2])>,
 }
+
+/// The traversals' pipeline constants: `LINK_WINDOWS` and `CELLS`.
+type Constants = [(&'static str, f64); 2];
 
 const RO: B = B::Storage { read_only: true };
 const RW: B = B::Storage { read_only: false };
@@ -116,12 +125,13 @@ impl Pipelines {
     /// Compiles the stages for a mesh whose links take `windows` windows (WGSL
     /// `LINK_WINDOWS`) and whose field is constant per tet when `cells` (WGSL `CELLS`); with
     /// `texture`, also the textured traversals of that use sampling every that many world units;
-    /// the entries stage with `entry_lanes`.
+    /// with `slices`, the walk sampler's traversals later ([`Self::ensure_slices`]); the entries
+    /// stage with `entry_lanes`.
     pub fn new(
         device: &wgpu::Device,
-        windows: u64,
-        cells: bool,
+        (windows, cells): (u64, bool),
         texture: Option<(f32, TextureUse)>,
+        slices: bool,
         entry_lanes: EntryLanes,
     ) -> Self {
         let cells = if cells { 1.0 } else { 0.0 };
@@ -170,6 +180,8 @@ impl Pipelines {
             entry_lanes,
             peel: [least_t, least_face].map(|s| stage(s, &peel)),
             tiles: [tiles_lists, tiles_peel].map(|s| stage(s, &tiles)),
+            sliced: slices.then_some(constants),
+            slices: None,
             traverse: [
                 [lists_exact, lists_partial, lists_table].map(|s| stage(s, &lists)),
                 [peel_exact, peel_partial, peel_table].map(|s| stage(s, &layers)),
@@ -193,16 +205,38 @@ impl Pipelines {
         }
     }
 
+    /// With the walk sampler's traversals ([`Pipelines::new`]'s `slices`), builds them for a
+    /// TF of `tf_points` control points unless they are built for its variant.
+    pub fn ensure_slices(&mut self, device: &wgpu::Device, tf_points: u32) {
+        let Some(constants) = self.sliced else {
+            return;
+        };
+        let variant = shaders::tf_variant(tf_points);
+        if self.slices.as_ref().is_some_and(|(v, _)| *v == variant) {
+            return;
+        }
+        let [lists, peel] = shaders::raycast_slices(variant);
+        let stage = |(name, source): (String, String), entry| {
+            let entries = traverse_entries(entry);
+            stage_with(device, (&name, source), &entries, (&constants, "main"))
+        };
+        let stages = [stage(lists, Entry::Lists), stage(peel, Entry::Peel)];
+        self.slices = Some((variant, stages));
+    }
+
     /// The tile-list stage of `entry`.
     pub fn tiles(&self, entry: Entry) -> &Stage {
         &self.tiles[entry as usize]
     }
 
     /// The traversal stage of `entry` and `segments`; for a textured cage, its textured
-    /// traversal of `entry`.
+    /// traversal of `entry`; for the walk sampler, its traversal of `entry`.
     pub fn traverse(&self, entry: Entry, segments: Segments) -> &Stage {
         if let Some(textured) = &self.textured {
             return &textured[entry as usize];
+        }
+        if let Some((_, slices)) = &self.slices {
+            return &slices[entry as usize];
         }
         let [exact, partial, table] = &self.traverse[entry as usize];
         match segments {

@@ -151,7 +151,7 @@ impl RaycastRenderer {
         let surfaces = TexturedIso::new(ctx, &iso.isovalues, &texture, field)?;
         let mesh: Arc<GpuTetMesh> = GpuTetMesh::new(ctx, cage)?;
         let textured = Some((texture, TextureUse::Isosurfaces));
-        let mut renderer = Self::build(ctx, mesh, settings, textured)?;
+        let mut renderer = Self::build(ctx, mesh, settings, textured, false)?;
         renderer.iso = Some(surfaces);
         Ok(renderer)
     }

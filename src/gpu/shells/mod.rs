@@ -35,6 +35,11 @@
 //! sampling (`shaders/shells_span.wgsl`) and the composite (`shaders/shells_tf.wgsl`), so they
 //! take the same samples.
 //!
+//! With [`Sampler::Walk`] none of stages 1.-5. runs: each pixel's ray walks the mesh through
+//! shared faces with the ray caster's machinery and composites the slices each tet's segment
+//! holds (`walk.rs`, `shaders/raycast_slices.wgsl`): the same slices, scalars, TF and
+//! composite.
+//!
 //! Pipelines (`pipelines.rs`), targets (`targets.rs`) and the slice configuration
 //! (`config.rs`) have files of their own.
 //!
@@ -79,6 +84,7 @@ mod tiles;
 pub mod tune;
 pub mod twin;
 mod upload;
+mod walk;
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -120,9 +126,9 @@ pub enum SliceFormat {
     Float16,
 }
 
-/// What samples a shell's slices: the paper's rasterizer or compute workgroups on screen tiles.
-/// Both take the same samples and composite them the same way; their pictures agree to
-/// rounding.
+/// What samples a shell's slices: the paper's rasterizer, compute workgroups on screen tiles,
+/// or each pixel's ray walking the tets. All take the same samples and composite them the same
+/// way; their pictures agree to rounding.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Sampler {
     /// Front faces rasterized per shell, each fragment writing its slices into colour targets
@@ -134,6 +140,13 @@ pub enum Sampler {
     /// pass per chunk, carrying the slices between them (`compute.rs`). Its slices and
     /// accumulation stay in f32 whatever [`ShellSettings::format`] says.
     Compute,
+    /// Each pixel's ray walks the tets through shared faces (the ray caster's entries, tiles
+    /// and traversal) and composites the slices each tet's segment holds, stopping at
+    /// transmittance 1e-5 (`walk.rs`). No shells, binning or slice targets: the slices per
+    /// shell, the skips and the binning do not change its picture and are not used; its
+    /// samples are f32 (16-bit slices are refused), and it stops a ray as the default
+    /// [`Skips::ert_threshold`] does (another threshold is refused). Not for textured cages.
+    Walk,
 }
 
 /// Where the tets are binned into the shells' active lists (stage 1).
@@ -273,6 +286,8 @@ pub struct ShellsRenderer {
     targets: Option<Targets>,
     /// The compute sampler, with [`Sampler::Compute`].
     compute: Option<compute::ComputeSampler>,
+    /// The walk sampler, with [`Sampler::Walk`].
+    walk: Option<walk::WalkSampler>,
     /// The GPU binning, when [`BinningMode`] picked it for this mesh.
     binner: Option<gpu_binning::GpuBinner>,
     /// The transfer function of the last frame, the scalars' version, and its transparent
@@ -311,6 +326,12 @@ impl ShellsRenderer {
                  per shell and the skips yourself",
             ));
         }
+        if settings.sampler == Sampler::Walk {
+            return Err(settings_error(
+                "--sampler walk does not sample a textured cage's volume; use --sampler raster \
+                 or --sampler compute (or --mode raycast)",
+            ));
+        }
         let texture = ShellTexture::new(ctx, cage, texcoords, volume)?;
         Self::build(ctx, GpuTetMesh::new(ctx, cage)?, settings, Some(texture))
     }
@@ -328,13 +349,20 @@ impl ShellsRenderer {
         // a window of the record array (several buffers where one cannot hold them).
         let chunking = mesh.chunking()?;
         let tet_count = mesh.tet_count() as u64;
-        let records = mesh.tet_array("shells tet records", chunking, tet_count, RECORD_BYTES)?;
+        // The walk sampler assembles no records: one placeholder entry and no assembly windows.
+        let walks = settings.sampler == Sampler::Walk;
+        let assembled = if walks { 0 } else { tet_count };
+        let records = mesh.tet_array("shells tet records", chunking, assembled, RECORD_BYTES)?;
         let ert = (settings.skips.early_termination).then_some(settings.skips.ert_threshold);
         let textured = texture.is_some();
         let pipelines = Pipelines::new(&device, (config.format, config.accum), ert, textured);
         let compute = (settings.sampler == Sampler::Compute)
             .then(|| compute::ComputeSampler::new(&device, ert, textured));
-        let binner = if gpu_binning::picked(settings.binning, tet_count) {
+        let walk = match settings.sampler {
+            Sampler::Walk => Some(walk::WalkSampler::new(ctx, Arc::clone(&mesh))?),
+            _ => None,
+        };
+        let binner = if !walks && gpu_binning::picked(settings.binning, tet_count) {
             let spans = mesh.tet_array("shells bin spans", chunking, tet_count, 8)?;
             let gpu = (&device, &queue, &limits);
             let chunks = chunking.ranges(tet_count);
@@ -352,7 +380,7 @@ impl ShellsRenderer {
             records: &records,
             cells: mesh.cells()?,
         };
-        let assembly_groups = assembly.bind(&device, &inputs, &chunking.ranges(tet_count));
+        let assembly_groups = assembly.bind(&device, &inputs, &chunking.ranges(assembled));
         let shell_stride = (size_of::<ShellUniforms>() as u64)
             .next_multiple_of(limits.min_uniform_buffer_offset_alignment as u64);
         let active_buf = device.create_buffer(&wgpu::BufferDescriptor {
@@ -405,6 +433,7 @@ impl ShellsRenderer {
             tf_buf,
             targets: None,
             compute,
+            walk,
             binner,
             transparent: None,
             texture,
@@ -740,11 +769,17 @@ impl ShellsRenderer {
     /// GPU bytes per tet of what scales with the mesh: its vertices and per-tet arrays (tets,
     /// cell values), the records (80 bytes a tet), the eye-space vertices (16 bytes a vertex)
     /// and the active list (4 bytes per tet-shell instance, in a buffer grown to a power of
-    /// two).
+    /// two); with the walk sampler, its ray caster's figure (the mesh's vertices, the links,
+    /// the boundary, the eye-space vertices) instead of records and active lists (but for
+    /// their placeholders).
     pub fn bytes_per_tet(&self) -> f64 {
         let eye = self.assembly.eye_vertices().size();
-        let bytes = self.mesh.gpu_memory() + self.records.size() + eye + self.active_buf.size();
-        bytes as f64 / self.mesh.tet_count().max(1) as f64
+        let own = (self.records.size() + eye + self.active_buf.size()) as f64;
+        let tets = self.mesh.tet_count().max(1) as f64;
+        match &self.walk {
+            Some(walk) => walk.bytes_per_tet() + own / tets,
+            None => (self.mesh.gpu_memory() as f64 + own) / tets,
+        }
     }
 }
 
@@ -828,6 +863,9 @@ impl Renderer for ShellsRenderer {
 
     fn render(&mut self, camera: &Camera, tf: &TransferFunction) -> Result<Frame, RenderError> {
         camera.validate()?;
+        if self.walk.is_some() {
+            return self.render_walk(camera, tf);
+        }
         let start = Instant::now();
         let mut timings = Timings::default();
         let mesh = Arc::clone(&self.mesh);
@@ -864,7 +902,8 @@ impl Renderer for ShellsRenderer {
             drawn,
         };
         let image = match self.settings.sampler {
-            Sampler::Raster => self.render_raster(frame, tf, &mut timings)?,
+            // The walk sampler rendered its frame above.
+            Sampler::Raster | Sampler::Walk => self.render_raster(frame, tf, &mut timings)?,
             Sampler::Compute => {
                 let c = self.draw_compute(&frame, tf)?;
                 self.report_frame(
@@ -923,6 +962,7 @@ impl Renderer for ShellsRenderer {
             + self.binner.as_ref().map_or(0, gpu_binning::GpuBinner::size);
         let frame = self.frame.size() + self.records.size();
         let texture = self.texture.as_ref().map_or(0, |t| t.gpu.bytes());
-        self.mesh.gpu_memory() + frame + buffers + targets + texture
+        let walk = (self.walk.as_ref()).map_or(0, |w| w.own_memory(&self.mesh));
+        self.mesh.gpu_memory() + frame + buffers + targets + texture + walk
     }
 }

@@ -56,6 +56,13 @@ impl FramePlan {
     }
 }
 
+/// The slices from `t_first` at spacing `dz` up to the far side of the mesh's bounding sphere
+/// seen from `camera`'s eye.
+pub(super) fn slice_count(m: &MeshData, camera: &Camera, t_first: f64, dz: f64) -> u64 {
+    let dist = (m.origin - camera.eye).length();
+    ((dist + m.radius - t_first) / dz).floor() as u64 + 1
+}
+
 impl ShellsRenderer {
     /// The slice spacing over the mesh `m` (see [`ShellsRenderer::dz`]).
     pub(super) fn dz_for(&self, m: &MeshData) -> f64 {
@@ -78,8 +85,7 @@ impl ShellsRenderer {
     pub(super) fn plan(&self, m: &MeshData, camera: &Camera) -> Result<FramePlan, RenderError> {
         let view = ViewFrame::new(camera);
         let (t_first, dz) = self.slices_for(m, camera);
-        let dist = (m.origin - camera.eye).length();
-        let slices = ((dist + m.radius - t_first) / dz).floor() as u64 + 1;
+        let slices = slice_count(m, camera, t_first, dz);
         let allowed: Vec<u32> = match self.fixed_slices {
             Some(n) => vec![n],
             None => self.candidates.clone(),

@@ -3,7 +3,7 @@
 //! picks slower counts on an H200, issue 15).
 //!
 //! What is chosen: with `--binning auto`, where the tets are binned (CPU or GPU, tried first:
-//! it decides whether slices are profiled), the sampler (raster or compute), the slices per
+//! it decides whether slices are profiled), the sampler (raster, compute or walk), the slices per
 //! shell (adaptive or fixed 4, 8, 16, 32) and each skip's on/off (early termination, empty space, TF culling, frustum; a
 //! skip that costs more than it saves on the adapter turns itself off). Every candidate is a
 //! correct render of the same samples: the samplers agree to rounding, the slice count moves no
@@ -94,7 +94,7 @@ pub const MAX_ROUNDS: u32 = 4;
 
 /// Frames beyond [`MIN_ROUNDS`] that all the candidates of one tuning may take together, which
 /// bounds the tuning (`tetvr bench` gives it 32 frames).
-pub const EXTRA_ROUNDS: u32 = 8;
+pub const EXTRA_ROUNDS: u32 = 6;
 
 /// The fixed slice counts tried beside adaptive slices (whole colour targets; counts beyond the
 /// adapter's targets fail to build and are dropped).
@@ -147,11 +147,13 @@ impl TuneCache {
     }
 }
 
-/// A short description of a configuration, e.g. `compute, 16 per shell, no frustum`.
+/// A short description of a configuration, e.g. `compute, 16 per shell, no frustum`; the walk
+/// sampler's is `walk` (it uses no slices per shell, skip or binning).
 pub fn describe(s: &ShellSettings) -> String {
     let sampler = match s.sampler {
         Sampler::Raster => "raster",
         Sampler::Compute => "compute",
+        Sampler::Walk => return "walk".into(),
     };
     let slices = match (s.slices_per_shell, s.skips.adaptive_slices) {
         (Some(n), _) => format!("{n} per shell"),
@@ -179,21 +181,23 @@ enum Step {
 }
 
 impl Step {
-    /// The configurations that make this change to `s`.
+    /// The configurations that make this change to `s`. Under the walk sampler only the
+    /// sampler changes anything: it has no shells, skips or binning to tune.
     fn alternatives(self, s: &ShellSettings) -> Vec<ShellSettings> {
         match self {
+            Step::Binning | Step::Slices | Step::Skip(_) if s.sampler == Sampler::Walk => {
+                Vec::new()
+            }
             // Only `auto` is tuned: an explicit cpu or gpu is the user's.
             Step::Binning if s.binning == BinningMode::Auto => [BinningMode::Cpu, BinningMode::Gpu]
                 .map(|binning| ShellSettings { binning, ..*s })
                 .to_vec(),
             Step::Binning => Vec::new(),
-            Step::Sampler => {
-                let sampler = match s.sampler {
-                    Sampler::Raster => Sampler::Compute,
-                    Sampler::Compute => Sampler::Raster,
-                };
-                vec![ShellSettings { sampler, ..*s }]
-            }
+            Step::Sampler => [Sampler::Raster, Sampler::Compute, Sampler::Walk]
+                .into_iter()
+                .filter(|&sampler| sampler != s.sampler)
+                .map(|sampler| ShellSettings { sampler, ..*s })
+                .collect(),
             Step::Slices => {
                 let fixed = SLICE_COUNTS.iter().map(|&n| ShellSettings {
                     slices_per_shell: Some(n),
@@ -669,9 +673,10 @@ mod tests {
         assert_eq!(choice.sampler, Sampler::Compute);
         assert_eq!(choice.slices_per_shell, Some(8));
         assert!(choice.skips.early_termination && choice.skips.frustum);
-        // 1 sampler + 4 slice candidates + 4 skips, MIN_ROUNDS frames each (without noise
-        // every ratio of a candidate lies on one side of the margin), and 1 confirming frame.
-        assert_eq!(frames.len() as u32, 9 * MIN_ROUNDS + 1);
+        // 2 samplers (compute; the walk, as slow as the default) + 4 slice candidates + 4
+        // skips, MIN_ROUNDS frames each (without noise every ratio of a candidate lies on one
+        // side of the margin), and 1 confirming frame.
+        assert_eq!(frames.len() as u32, 10 * MIN_ROUNDS + 1);
         assert_eq!(describe(&choice), "compute, 8 per shell");
     }
 
@@ -728,7 +733,7 @@ mod tests {
                 "raster, adaptive slices, no early-termination",
                 "seed {seed}"
             );
-            assert!(frames.len() as u32 <= 9 * MIN_ROUNDS + EXTRA_ROUNDS + 1);
+            assert!(frames.len() as u32 <= 10 * MIN_ROUNDS + EXTRA_ROUNDS + 1);
         }
     }
 
@@ -842,6 +847,32 @@ mod tests {
             )
         });
         assert_eq!(choice.binning, BinningMode::Gpu);
+    }
+
+    #[test]
+    fn a_walk_incumbent_is_offered_only_the_other_samplers() {
+        let walk = ShellSettings {
+            sampler: Sampler::Walk,
+            binning: BinningMode::Auto,
+            ..ShellSettings::default()
+        };
+        let samplers: Vec<Sampler> = (Step::Sampler.alternatives(&walk).iter())
+            .map(|s| s.sampler)
+            .collect();
+        assert_eq!(samplers, [Sampler::Raster, Sampler::Compute]);
+        for step in [Step::Binning, Step::Slices]
+            .into_iter()
+            .chain(SKIPS.map(Step::Skip))
+        {
+            assert!(step.alternatives(&walk).is_empty(), "{step:?}");
+        }
+        // The walk measured at 0.4 of the default (compute 0.6): chosen, and nothing else tried
+        // under it (the sampler's two alternatives, ROUNDS frames each, and the confirming
+        // frame).
+        let (choice, frames) =
+            run(|s, _| Some(model(s) * if s.sampler == Sampler::Walk { 0.4 } else { 1.0 }));
+        assert_eq!(describe(&choice), "walk");
+        assert_eq!(frames.len() as u32, 2 * ROUNDS + 1);
     }
 
     #[test]

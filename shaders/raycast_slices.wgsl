@@ -1,0 +1,62 @@
+// The traversal's segment integrator for the shells' walk sampler (`--mode shells --sampler
+// walk`, issue 15): the shells picture is its slice samples, so a ray that walks its tets
+// (raycast_traverse.wgsl) and samples, in each tet, the slices its segment holds takes the
+// same samples as the raster and compute samplers, with no binning and no blending. Slice k
+// lies at t_k = params.t_first + k params.dz from the eye, k < params.slices (the shells plan,
+// gpu::shells::plan); its scalar is the tet's linear field at t_k (for cell data the tet's
+// value), its colour and extinction the TF as the shells samplers evaluate it (tf_eval.wgsl,
+// with the generated looping `tf_eval`), composited front to back with
+// alpha = 1 - exp(-tau dz) as shells_tf.wgsl's `under` does.
+//
+// A segment takes the slices with t0 <= t_k < t1. The traversal starts each tet's segment at
+// the t where the previous one ended, bit for bit, and every segment computes t_k with the
+// same operations (`slice_t`, monotone in k), so each slice on the ray's path through the mesh
+// falls in exactly one tet: no holes, no doubles. Composed after integrate_segment.wgsl (its
+// `Acc`) in front of raycast_traverse.wgsl in place of the linear field's `tet_segment`.
+
+// Slice k's distance from the eye.
+fn slice_t(k: u32) -> f32 {
+    return params.t_first + f32(k) * params.dz;
+}
+
+// The first slice with slice_t(k) >= t (params.slices when none): the quotient's guess moved
+// while rounding put it on the wrong side (at most a step on the meshes' scales; the loops
+// keep it exact whatever the scale).
+fn first_slice(t: f32) -> u32 {
+    let guess = clamp(ceil((t - params.t_first) / params.dz), 0.0, f32(params.slices));
+    var k = u32(guess);
+    while k > 0u && slice_t(k - 1u) >= t {
+        k--;
+    }
+    while k < params.slices && slice_t(k) < t {
+        k++;
+    }
+    return k;
+}
+
+// The normalized scalar at t in tet `tet`: its linear field, or its value for cell data.
+fn sample_scalar(tet: u32, pl: TetPlanes, d: vec3<f32>, t: f32) -> f32 {
+    if CELLS {
+        return clamp(cells[tet], 0.0, 1.0);
+    }
+    return scalar_at(pl, d, t);
+}
+
+fn tet_segment(tet: u32, ids: vec4<u32>, pl: TetPlanes, d: vec3<f32>, t0: f32, t1: f32) -> Acc {
+    var acc = Acc(vec3<f32>(0.0), 1.0);
+    for (var k = first_slice(t0); k < params.slices; k++) {
+        let t = slice_t(k);
+        if !(t < t1) {
+            break;
+        }
+        let s = tf_eval(sample_scalar(tet, pl, d, t));
+        let alpha = 1.0 - exp(-s.w * params.dz);
+        acc = Acc(acc.color + acc.trans * alpha * s.rgb, acc.trans * (1.0 - alpha));
+        // The traversal's early ray termination, within the segment (what is behind adds at
+        // most TERMINATE to any channel).
+        if acc.trans < TERMINATE {
+            break;
+        }
+    }
+    return acc;
+}

@@ -1,0 +1,149 @@
+//! [`super::Sampler::Walk`]: the shells picture is fully defined by its slice samples, so each
+//! pixel's ray can find the tet of each sample by walking the mesh through shared faces
+//! instead of binning and rasterizing tets per shell. The ray caster's machinery does the walk
+//! (entry lists, tiles, traversal, early ray termination per ray; `gpu::raycast`), with the
+//! slices as its segment integrator (`shaders/raycast_slices.wgsl`): the same slices
+//! (`plan.rs`), the same linear scalar at each, the same TF evaluation (`shaders/tf_eval.wgsl`)
+//! and the same `alpha = 1 - exp(-tau dz)` composite, so its picture is the other samplers'
+//! to rounding. No shell, skip or slice target is involved.
+
+use std::sync::Arc;
+
+use crate::camera::Camera;
+use crate::gpu::raycast::{RaycastRenderer, RaycastSettings, Segments, Slicing};
+use crate::gpu::util::settings_error;
+use crate::gpu::{GpuContext, GpuTetMesh};
+use crate::render::{Frame, RenderError, Renderer};
+use crate::tf::TransferFunction;
+
+use super::ShellsRenderer;
+
+/// Slices the walk numbers: `f32(k)` is exact up to 2^24, so every segment computes the same
+/// `t_k` (`raycast_slices.wgsl`).
+const MAX_SLICES: u64 = 1 << 24;
+
+/// The walk sampler: a ray caster whose segments composite the shells' slices.
+pub(super) struct WalkSampler {
+    raycast: RaycastRenderer,
+}
+
+impl WalkSampler {
+    /// The walk over `mesh` (shared with the shells renderer that owns it) with the ray
+    /// caster's default settings (entry lists, empty tiles skipped, the default step limit).
+    pub(super) fn new(ctx: &GpuContext, mesh: Arc<GpuTetMesh>) -> Result<Self, RenderError> {
+        Self::with_settings(ctx, mesh, RaycastSettings::default())
+    }
+
+    /// [`Self::new`] with the ray caster's `settings` (their integrator unused).
+    fn with_settings(
+        ctx: &GpuContext,
+        mesh: Arc<GpuTetMesh>,
+        settings: RaycastSettings,
+    ) -> Result<Self, RenderError> {
+        let settings = RaycastSettings {
+            segments: Segments::Exact,
+            ..settings
+        };
+        Ok(Self {
+            raycast: RaycastRenderer::sliced(ctx, mesh, settings)?,
+        })
+    }
+
+    /// GPU bytes of the walk's own buffers (the shared mesh not counted).
+    pub(super) fn own_memory(&self, mesh: &GpuTetMesh) -> u64 {
+        self.raycast.gpu_memory() - mesh.gpu_memory()
+    }
+
+    /// The ray caster's bytes per tet of what scales with the mesh (the mesh included).
+    pub(super) fn bytes_per_tet(&self) -> f64 {
+        self.raycast.bytes_per_tet()
+    }
+}
+
+impl ShellsRenderer {
+    /// A frame of the walk sampler: the shells' slices for `camera`, walked; the ray caster's
+    /// stage times and counters, and the slices.
+    pub(super) fn render_walk(
+        &mut self,
+        camera: &Camera,
+        tf: &TransferFunction,
+    ) -> Result<Frame, RenderError> {
+        let m = self.mesh.read();
+        let (t_first, dz) = self.slices_for(&m, camera);
+        let count = super::plan::slice_count(&m, camera, t_first, dz);
+        drop(m);
+        if count > MAX_SLICES {
+            return Err(settings_error(format!(
+                "dz = {dz} makes {count} slices across the mesh; --sampler walk numbers at most \
+                 {MAX_SLICES}: use fewer samples or a larger dz"
+            )));
+        }
+        let walk = (self.walk.as_mut())
+            .ok_or_else(|| settings_error("internal: the walk sampler was not built"))?;
+        let slicing = Slicing {
+            t_first,
+            dz,
+            count: count as u32,
+        };
+        let mut frame = walk.raycast.render_slices(camera, tf, slicing)?;
+        let t = &mut frame.timings;
+        t.count("slices", count);
+        // The renderer's bytes per tet, not only its ray caster's.
+        let per_tet = self.bytes_per_tet().round() as u64;
+        let counted = t.counters.iter_mut().find(|(n, _)| *n == "bytes per tet");
+        match counted {
+            Some((_, n)) => *n = per_tet,
+            None => t.count("bytes per tet", per_tet),
+        }
+        Ok(frame)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::{DVec3, UVec3};
+
+    use super::*;
+    use crate::gpu::shells::{Sampler, ShellSettings};
+    use crate::gpu::{AdapterChoice, GpuContext};
+    use crate::tf::ControlPoint;
+    use crate::{View, generate};
+
+    /// The walk stops a ray once it is opaque: on a 12^3 grid (a ray through it steps through
+    /// dozens of tets) with a step limit of 12 tets, a TF of opacity 0.9999 per 1/100 of the
+    /// diagonal makes each sample's alpha about 0.84 at 512 samples, so every ray is opaque
+    /// (transmittance under 1e-5) within its first cell, a few tets, and none reaches the
+    /// limit; at opacity 0.01 many rays do. Without early termination the opaque rays would
+    /// reach it as the transparent ones do.
+    #[test]
+    fn an_opaque_ray_stops_before_the_step_limit() {
+        let ctx = GpuContext::new(AdapterChoice::Auto).expect("a GPU adapter (lavapipe will do)");
+        let (lo, hi) = (DVec3::splat(-1.0), DVec3::splat(1.0));
+        let mesh = generate::box_grid(lo, hi, UVec3::splat(12), "x", |p| p.x);
+        let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 48, 48);
+        let settings = ShellSettings {
+            sampler: Sampler::Walk,
+            ..ShellSettings::default()
+        };
+        let mut r = ShellsRenderer::new(&ctx, &mesh, settings).expect("walk renderer");
+        let limited = RaycastSettings {
+            max_steps: Some(12),
+            ..RaycastSettings::default()
+        };
+        let walk = WalkSampler::with_settings(&ctx, Arc::clone(&r.mesh), limited);
+        r.walk = Some(walk.expect("walk with a step limit"));
+        let at_limit = |opacity: f64, r: &mut ShellsRenderer| {
+            let points = [-1.0, 1.0].map(|s| ControlPoint {
+                s,
+                color: [0.5, 0.5, 0.5],
+                opacity,
+            });
+            let tf = TransferFunction::new(points.to_vec(), mesh.diagonal() / 100.0).unwrap();
+            let frame = r.render(&camera, &tf).expect("frame");
+            let count = |name| (frame.timings.counters.iter()).find(|(n, _)| *n == name);
+            count("rays at step limit").expect("the counter").1
+        };
+        assert_eq!(at_limit(0.9999, &mut r), 0);
+        assert!(at_limit(0.01, &mut r) > 100);
+    }
+}
