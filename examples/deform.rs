@@ -40,7 +40,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for i in 0..frames {
         let t = Instant::now();
         let phase = i as f64 / frames as f64;
-        deformation.apply_into(mesh.positions(), (lo, hi), 0.5, phase, &mut moved);
+        deformation.apply_into(mesh.positions(), lo, hi, 0.5, phase, &mut moved);
         renderer.update_positions(&moved)?;
         let update = t.elapsed();
         let t = Instant::now();

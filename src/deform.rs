@@ -57,24 +57,20 @@ impl Deformation {
         rest.par_iter().map(|&p| motion.at(p)).collect()
     }
 
-    /// [`Self::apply`] written into `out`, which must be as long as `rest` (a caller's bug
-    /// otherwise: it panics). For a caller that deforms every frame: reusing one buffer spares
-    /// a fresh allocation of the whole array per frame, whose page faults cost about as much
-    /// as the deformation itself on a large mesh.
+    /// [`Self::apply`] written into `out`, resized to `rest`'s length. For a caller that deforms
+    /// every frame: reusing one buffer spares a fresh allocation of the whole array per frame,
+    /// whose page faults cost about as much as the deformation itself on a large mesh.
     pub fn apply_into(
         self,
         rest: &[DVec3],
-        (lo, hi): (DVec3, DVec3),
+        lo: DVec3,
+        hi: DVec3,
         amplitude: f64,
         phase: f64,
-        out: &mut [DVec3],
+        out: &mut Vec<DVec3>,
     ) {
-        assert_eq!(
-            rest.len(),
-            out.len(),
-            "one output position per rest position"
-        );
         let motion = Motion::new(self, (lo, hi), amplitude, phase);
+        out.resize(rest.len(), DVec3::ZERO);
         out.par_iter_mut()
             .zip(rest)
             .for_each(|(q, &p)| *q = motion.at(p));
@@ -163,9 +159,9 @@ mod tests {
     fn apply_into_writes_what_apply_returns() {
         let p = points();
         let (lo, hi) = (DVec3::ZERO, DVec3::new(10.0, 0.6, 0.2));
-        let mut out = vec![DVec3::NAN; p.len()];
+        let mut out = vec![DVec3::NAN; 3];
         for d in [Deformation::Twist, Deformation::Bend, Deformation::Wave] {
-            d.apply_into(&p, (lo, hi), 0.4, 0.3, &mut out);
+            d.apply_into(&p, lo, hi, 0.4, 0.3, &mut out);
             assert_eq!(out, d.apply(&p, lo, hi, 0.4, 0.3), "{d:?}");
         }
     }

@@ -97,7 +97,7 @@ fn updates_through_a_reused_buffer_render_as_a_fresh_load() {
     let _serial = one_at_a_time();
     let (mut mesh, tf, camera) = scene("bluntfin_tet.vtu", 48);
     assert!(mesh.positions().len() > 2 * (1 << 14), "several chunks");
-    let bounds = mesh.bounds();
+    let (lo, hi) = mesh.bounds();
     let ctx =
         GpuContext::new(AdapterChoice::Auto).expect("a GPU adapter (Mesa's lavapipe will do)");
     let settings = || ShellSettings {
@@ -108,7 +108,7 @@ fn updates_through_a_reused_buffer_render_as_a_fresh_load() {
     let rest = shells.render(&camera, &tf).unwrap().image;
     let mut moved = mesh.positions().to_vec();
     for (d, phase) in [(Deformation::Twist, 0.2), (Deformation::Wave, 0.35)] {
-        d.apply_into(mesh.positions(), bounds, 0.4, phase, &mut moved);
+        d.apply_into(mesh.positions(), lo, hi, 0.4, phase, &mut moved);
         shells.update_positions(&moved).unwrap();
     }
     let updated = shells.render(&camera, &tf).unwrap().image;

@@ -52,13 +52,13 @@ fn deform(args: &AnimateArgs) -> Result<(), CliError> {
         args.amplitude.unwrap_or(0.5),
     );
     let mut play = Playback::open(args, &mesh, frames as u64)?;
-    let bounds = mesh.bounds();
+    let (lo, hi) = mesh.bounds();
     // One buffer for every frame's positions: a fresh one per frame costs its page faults.
-    let mut moved = mesh.positions().to_vec();
+    let mut moved = Vec::new();
     for i in 0..frames {
         let phase = i as f64 / frames as f64;
         play.prepare(|| {
-            deformation.apply_into(mesh.positions(), bounds, amplitude, phase, &mut moved);
+            deformation.apply_into(mesh.positions(), lo, hi, amplitude, phase, &mut moved);
         });
         play.frame(|renderer| Ok(renderer.update_positions(&moved)?))?;
     }

@@ -41,8 +41,9 @@
 //!
 //! Off by default: the choice depends on timings, which depend on the machine's load, so the
 //! same command could render with another configuration from one run to the next (pictures equal
-//! to rounding, not bit for bit), and the first frames cost 4 to 6 renders each. It pays where
-//! many frames of one scene follow (animations, interactive viewers, `tetvr bench`'s tuned row).
+//! to rounding, not bit for bit), and the first frames cost 4 to 7 renders each (a candidate's
+//! first, untimed render included). It pays where many frames of one scene follow (animations,
+//! interactive viewers, `tetvr bench`'s tuned row).
 
 use std::collections::VecDeque;
 use std::sync::{Arc, Mutex, OnceLock};
