@@ -6,7 +6,7 @@
 
 use std::collections::HashMap;
 
-use crate::gpu::shaders::{self, UNROLLED_TF_POINTS};
+use crate::gpu::shaders;
 use crate::gpu::util::wgsl_module;
 
 /// Fine variants by vec4s of slices and TF point count (0: the looping variant for large TFs).
@@ -38,11 +38,7 @@ impl FinePipelines {
         targets: u32,
         tf_points: u32,
     ) -> &wgpu::ComputePipeline {
-        let key = if tf_points <= UNROLLED_TF_POINTS {
-            tf_points
-        } else {
-            0
-        };
+        let key = shaders::tf_variant(tf_points);
         let threshold = self.threshold as f64;
         let source = if self.textured {
             shaders::shells_fine_textured

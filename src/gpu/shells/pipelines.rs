@@ -303,11 +303,7 @@ impl Pipelines {
         tf_points: u32,
         depth: bool,
     ) -> &wgpu::RenderPipeline {
-        let key = if tf_points <= shaders::UNROLLED_TF_POINTS {
-            tf_points
-        } else {
-            0
-        };
+        let key = shaders::tf_variant(tf_points);
         let (layout, format) = (&self.composite_pipeline_layout, self.accum);
         let depth_stencil = ert_depth_test(depth);
         self.composite
