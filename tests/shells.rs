@@ -1003,8 +1003,8 @@ fn the_samplers_give_the_same_picture() {
         // sphere: at least 256 of the 512 across its diameter).
         assert!(timings.get("traverse").is_some(), "{timings}");
         assert!(counter(&timings, "slices") >= 256, "{timings}");
-        // No records (80 bytes a tet) and no active lists: the ray caster's links, boundary
-        // and vertices (39-42 bytes a tet, tests/bench.rs) and the shells' eye-space vertices.
+        // No records (80 bytes a tet), assembly or active lists: the ray caster's links,
+        // boundary and vertices (39-42 bytes a tet, tests/bench.rs) and a 16-byte placeholder.
         let per_tet = r.bytes_per_tet();
         assert!(
             (32.0..=80.0).contains(&per_tet),

@@ -146,4 +146,49 @@ mod tests {
         assert_eq!(at_limit(0.9999, &mut r), 0);
         assert!(at_limit(0.01, &mut r) > 100);
     }
+
+    /// The walk builds none of what only the raster and compute samplers use: no records, no
+    /// assembly with its eye-space vertices (16 bytes a vertex, 35 KB on this 13^3-vertex
+    /// grid), no termination pipelines. Its GPU memory after a frame is its ray caster's (the
+    /// shared mesh included) and the shells' own uniforms and frame statistics, to the byte.
+    #[test]
+    fn the_walk_holds_only_its_ray_caster_and_the_shells_uniforms() {
+        let ctx = GpuContext::new(AdapterChoice::Auto).expect("a GPU adapter (lavapipe will do)");
+        let (lo, hi) = (DVec3::splat(-1.0), DVec3::splat(1.0));
+        let mesh = generate::box_grid(lo, hi, UVec3::splat(12), "x", |p| p.x);
+        let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 32, 32);
+        let settings = ShellSettings {
+            sampler: Sampler::Walk,
+            ..ShellSettings::default()
+        };
+        let mut r = ShellsRenderer::new(&ctx, &mesh, settings).expect("walk renderer");
+        assert!(r.assembled.is_none() && r.pipelines.ert.is_none());
+        let tf = TransferFunction::new(
+            [-1.0, 1.0]
+                .map(|s| ControlPoint {
+                    s,
+                    color: [0.5, 0.5, 0.5],
+                    opacity: 0.5,
+                })
+                .to_vec(),
+            mesh.diagonal() / 10.0,
+        )
+        .unwrap();
+        r.render(&camera, &tf).expect("frame");
+        let uniforms = [
+            &r.view_buf,
+            &r.slicing_buf,
+            &r.active_buf,
+            &r.face_indices,
+            &r.shell_buf,
+            &r.tf_buf,
+        ];
+        let own = uniforms.iter().map(|b| b.size()).sum::<u64>() + r.frame.size();
+        let raycast = r.walk.as_ref().expect("the walk").raycast.gpu_memory();
+        assert_eq!(r.gpu_memory(), raycast + own);
+        // Per tet: the ray caster's figure and the 16-byte active-list placeholder.
+        let walk = r.walk.as_ref().expect("the walk").bytes_per_tet();
+        let tets = mesh.tet_count() as f64;
+        assert_eq!(r.bytes_per_tet(), walk + 16.0 / tets);
+    }
 }
