@@ -8,6 +8,12 @@
 // with the generated looping `tf_eval`), composited front to back with
 // alpha = 1 - exp(-tau dz) as shells_tf.wgsl's `under` does.
 //
+// Early ray termination as the raster and compute samplers have it: they finish a pixel whose
+// alpha reached the threshold after compositing a whole shell (params.shell_slices slices,
+// shell i holding slices [i n, (i + 1) n)), so the walk stops its ray before the first slice
+// of a shell when the ray's transmittance (trans_in, the traversal's, times the segment's) is
+// below params.terminate = 1 - threshold, and tells the traversal (`stopped`).
+//
 // A segment takes the slices with t0 <= t_k < t1. The traversal starts each tet's segment at
 // the t where the previous one ended, bit for bit, and every segment computes t_k with the
 // same operations (`slice_t`, monotone in k), so each slice on the ray's path through the mesh
@@ -49,14 +55,13 @@ fn tet_segment(tet: u32, ids: vec4<u32>, pl: TetPlanes, d: vec3<f32>, t0: f32, t
         if !(t < t1) {
             break;
         }
+        if k % params.shell_slices == 0u && trans_in * acc.trans < params.terminate {
+            stopped = true;
+            break;
+        }
         let s = tf_eval(sample_scalar(tet, pl, d, t));
         let alpha = 1.0 - exp(-s.w * params.dz);
         acc = Acc(acc.color + acc.trans * alpha * s.rgb, acc.trans * (1.0 - alpha));
-        // The traversal's early ray termination, within the segment (what is behind adds at
-        // most TERMINATE to any channel).
-        if acc.trans < TERMINATE {
-            break;
-        }
     }
     return acc;
 }

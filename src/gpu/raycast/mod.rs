@@ -294,12 +294,16 @@ pub struct RaycastRenderer {
 }
 
 /// Where the shells' walk sampler's slices lie for one frame: slice `k` at distance
-/// `t_first + k dz` from the eye, `k < count` (`crate::gpu::shells`' plan).
+/// `t_first + k dz` from the eye, `k < count` (`crate::gpu::shells`' plan); and where its rays
+/// stop: before the first slice of a shell of `shell_slices` (at least 1) once their
+/// transmittance is below `terminate` (`shaders/raycast_slices.wgsl`).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct Slicing {
     pub t_first: f64,
     pub dz: f64,
     pub count: u32,
+    pub shell_slices: u32,
+    pub terminate: f32,
 }
 
 /// Per image size and entry method: the output, its readback, the per-pixel entry buffers,

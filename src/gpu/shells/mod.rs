@@ -141,11 +141,13 @@ pub enum Sampler {
     /// accumulation stay in f32 whatever [`ShellSettings::format`] says.
     Compute,
     /// Each pixel's ray walks the tets through shared faces (the ray caster's entries, tiles
-    /// and traversal) and composites the slices each tet's segment holds, stopping at
-    /// transmittance 1e-5 (`walk.rs`). No shells, binning or slice targets: the slices per
-    /// shell, the skips and the binning do not change its picture and are not used; its
-    /// samples are f32 (16-bit slices are refused), and it stops a ray as the default
-    /// [`Skips::ert_threshold`] does (another threshold is refused). Not for textured cages.
+    /// and traversal) and composites the slices each tet's segment holds (`walk.rs`). No
+    /// binning or slice targets: the skips but early ray termination and the binning do not
+    /// change its picture and are not used; its samples are f32 (16-bit slices are refused).
+    /// It stops a ray where the other samplers finish its pixel, at the end of the shell in
+    /// which its alpha reached [`Skips::ert_threshold`], its shells of the fixed or default
+    /// slices per shell (adaptive slices, choosing another count, move where a pixel is
+    /// finished by less than a shell's samples after the threshold). Not for textured cages.
     Walk,
 }
 

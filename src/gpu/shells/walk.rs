@@ -5,7 +5,9 @@
 //! slices as its segment integrator (`shaders/raycast_slices.wgsl`): the same slices
 //! (`plan.rs`), the same linear scalar at each, the same TF evaluation (`shaders/tf_eval.wgsl`)
 //! and the same `alpha = 1 - exp(-tau dz)` composite, so its picture is the other samplers'
-//! to rounding. No shell, skip or slice target is involved.
+//! to rounding. Its rays stop where the other samplers finish a pixel: at the end of the first
+//! shell (of the fixed or default slices per shell) after which the pixel's alpha reached
+//! [`super::Skips::ert_threshold`]. No binning, other skip or slice target is involved.
 
 use std::sync::Arc;
 
@@ -61,6 +63,17 @@ impl WalkSampler {
 }
 
 impl ShellsRenderer {
+    /// The transmittance below which the walk stops a ray at a shell's end: 1 - the threshold
+    /// of early ray termination (the binning samplers finish a pixel whose alpha reached it);
+    /// 0, never, with early termination off.
+    fn walk_terminate(&self) -> f32 {
+        let skips = &self.settings.skips;
+        match skips.early_termination {
+            true => (1.0 - skips.ert_threshold as f64) as f32,
+            false => 0.0,
+        }
+    }
+
     /// A frame of the walk sampler: the shells' slices for `camera`, walked; the ray caster's
     /// stage times and counters, and the slices.
     pub(super) fn render_walk(
@@ -78,13 +91,15 @@ impl ShellsRenderer {
                  {MAX_SLICES}: use fewer samples or a larger dz"
             )));
         }
-        let walk = (self.walk.as_mut())
-            .ok_or_else(|| settings_error("internal: the walk sampler was not built"))?;
         let slicing = Slicing {
             t_first,
             dz,
             count: count as u32,
+            shell_slices: self.fixed_slices.unwrap_or(self.default_slices).max(1),
+            terminate: self.walk_terminate(),
         };
+        let walk = (self.walk.as_mut())
+            .ok_or_else(|| settings_error("internal: the walk sampler was not built"))?;
         let mut frame = walk.raycast.render_slices(camera, tf, slicing)?;
         let t = &mut frame.timings;
         t.count("slices", count);
