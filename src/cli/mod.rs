@@ -271,7 +271,7 @@ pub struct ShellArgs {
     /// pixel's ray walks the tets (the ray caster's traversal) and takes the same slices,
     /// stopping it where the others finish its pixel (--ert-threshold, at a shell's end); it
     /// ignores --binning and the other skips, which do not change its picture, and refuses
-    /// --slice-format f16 and textured cages.
+    /// --slice-format f16.
     #[arg(long, value_enum, default_value_t = SamplerChoice::Raster)]
     pub sampler: SamplerChoice,
     /// shells: float format of the raster sampler's slice targets; auto is 32-bit where the

@@ -45,7 +45,8 @@
 //!
 //! A textured cage ([`ShellsRenderer::textured`], issue 12) runs the same stages; only a
 //! slice sample's value changes: the volume texture read at the barycentric interpolation of
-//! its tet's corners' texture coordinates (`texture.rs`, `shaders/shells_texture.wgsl`).
+//! its tet's corners' texture coordinates (`texture.rs`, `shaders/shells_texture.wgsl`; for
+//! the walk, the coordinate at the slice, `shaders/raycast_slices_texture.wgsl`).
 //!
 //! What a scene does not need is skipped: transparent tets, empty shells, finished pixels,
 //! tets outside the frustum ([`skips`], each skip switched by [`ShellSettings::skips`]).
@@ -147,7 +148,8 @@ pub enum Sampler {
     /// It stops a ray where the other samplers finish its pixel, at the end of the shell in
     /// which its alpha reached [`Skips::ert_threshold`], its shells of the fixed or default
     /// slices per shell (adaptive slices, choosing another count, move where a pixel is
-    /// finished by less than a shell's samples after the threshold). Not for textured cages.
+    /// finished by less than a shell's samples after the threshold). A textured cage's slices
+    /// read its volume as the other samplers' do.
     Walk,
 }
 
@@ -310,10 +312,12 @@ impl ShellsRenderer {
 
     /// The shells renderer of a textured cage (issue 12): `cage`'s vertices carry `texcoords`,
     /// and every slice sample reads `volume` (trilinear) at its texture coordinate instead of
-    /// the cage's own scalars (`shaders/shells_texture.wgsl`), with either sampler;
+    /// the cage's own scalars (`shaders/shells_texture.wgsl`; the walk sampler's
+    /// `shaders/raycast_slices_texture.wgsl`), with any sampler;
     /// [`Renderer::update_positions`] moves the volume with the cage. The TF applies to the
     /// volume's values. Transfer-function culling uses each tet's range of the volume
-    /// (`texture.rs`); `settings.tune` is refused.
+    /// (`texture.rs`); `settings.tune` is refused. The walk sampler shares the texture with
+    /// its ray caster.
     pub fn textured(
         ctx: &GpuContext,
         cage: &TetMesh,
@@ -325,12 +329,6 @@ impl ShellsRenderer {
             return Err(settings_error(
                 "--tune is not available for a textured cage: choose --sampler, the slices \
                  per shell and the skips yourself",
-            ));
-        }
-        if settings.sampler == Sampler::Walk {
-            return Err(settings_error(
-                "--sampler walk does not sample a textured cage's volume; use --sampler raster \
-                 or --sampler compute (or --mode raycast)",
             ));
         }
         let texture = ShellTexture::new(ctx, cage, texcoords, volume)?;
@@ -359,7 +357,10 @@ impl ShellsRenderer {
         let compute = (settings.sampler == Sampler::Compute)
             .then(|| compute::ComputeSampler::new(&device, ert, textured));
         let walk = match settings.sampler {
-            Sampler::Walk => Some(walk::WalkSampler::new(ctx, Arc::clone(&mesh))?),
+            Sampler::Walk => {
+                let shared = texture.as_ref().map(|t| t.gpu.clone());
+                Some(walk::WalkSampler::new(ctx, Arc::clone(&mesh), shared)?)
+            }
             _ => None,
         };
         let binner = if !walks && gpu_binning::picked(settings.binning, tet_count) {
@@ -1001,8 +1002,13 @@ impl Renderer for ShellsRenderer {
                 .map_or(0, compute::ComputeSampler::size)
             + self.binner.as_ref().map_or(0, gpu_binning::GpuBinner::size);
         let frame = self.frame.size();
-        let texture = self.texture.as_ref().map_or(0, |t| t.gpu.bytes());
-        let walk = (self.walk.as_ref()).map_or(0, |w| w.own_memory(&self.mesh));
+        // The walk's ray caster counts the texture it shares.
+        let texture = match self.walk {
+            None => self.texture.as_ref().map_or(0, |t| t.gpu.bytes()),
+            Some(_) => 0,
+        };
+        let shared = self.texture.as_ref().map(|t| &t.gpu);
+        let walk = (self.walk.as_ref()).map_or(0, |w| w.own_memory(&self.mesh, shared));
         self.mesh.gpu_memory() + frame + buffers + targets + texture + walk
     }
 }

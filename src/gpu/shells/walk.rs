@@ -7,11 +7,14 @@
 //! and the same `alpha = 1 - exp(-tau dz)` composite, so its picture is the other samplers'
 //! to rounding. Its rays stop where the other samplers finish a pixel: at the end of the first
 //! shell (of the fixed or default slices per shell) after which the pixel's alpha reached
-//! [`super::Skips::ert_threshold`]. No binning, other skip or slice target is involved.
+//! [`super::Skips::ert_threshold`]. No binning, other skip or slice target is involved. A
+//! textured cage's slices read its volume texture (shared with the shells renderer) at their
+//! texture coordinates (`shaders/raycast_slices_texture.wgsl`).
 
 use std::sync::Arc;
 
 use crate::camera::Camera;
+use crate::gpu::raycast::texture::GpuTexture;
 use crate::gpu::raycast::{RaycastRenderer, RaycastSettings, Segments, Slicing};
 use crate::gpu::util::settings_error;
 use crate::gpu::{GpuContext, GpuTetMesh};
@@ -31,9 +34,14 @@ pub(super) struct WalkSampler {
 
 impl WalkSampler {
     /// The walk over `mesh` (shared with the shells renderer that owns it) with the ray
-    /// caster's default settings (entry lists, empty tiles skipped, the default step limit).
-    pub(super) fn new(ctx: &GpuContext, mesh: Arc<GpuTetMesh>) -> Result<Self, RenderError> {
-        Self::with_settings(ctx, mesh, RaycastSettings::default())
+    /// caster's default settings (entry lists, empty tiles skipped, the default step limit);
+    /// with `texture` (a textured cage's, shared with that renderer), sampling its volume.
+    pub(super) fn new(
+        ctx: &GpuContext,
+        mesh: Arc<GpuTetMesh>,
+        texture: Option<GpuTexture>,
+    ) -> Result<Self, RenderError> {
+        Self::with_settings(ctx, mesh, RaycastSettings::default(), texture)
     }
 
     /// [`Self::new`] with the ray caster's `settings` (their integrator unused).
@@ -41,19 +49,20 @@ impl WalkSampler {
         ctx: &GpuContext,
         mesh: Arc<GpuTetMesh>,
         settings: RaycastSettings,
+        texture: Option<GpuTexture>,
     ) -> Result<Self, RenderError> {
         let settings = RaycastSettings {
             segments: Segments::Exact,
             ..settings
         };
         Ok(Self {
-            raycast: RaycastRenderer::sliced(ctx, mesh, settings)?,
+            raycast: RaycastRenderer::sliced(ctx, mesh, settings, texture)?,
         })
     }
 
-    /// GPU bytes of the walk's own buffers (the shared mesh not counted).
-    pub(super) fn own_memory(&self, mesh: &GpuTetMesh) -> u64 {
-        self.raycast.gpu_memory() - mesh.gpu_memory()
+    /// GPU bytes of the walk's own buffers (the shared mesh and texture not counted).
+    pub(super) fn own_memory(&self, mesh: &GpuTetMesh, texture: Option<&GpuTexture>) -> u64 {
+        self.raycast.gpu_memory() - mesh.gpu_memory() - texture.map_or(0, GpuTexture::bytes)
     }
 
     /// The ray caster's bytes per tet of what scales with the mesh (the mesh included).
@@ -145,7 +154,7 @@ mod tests {
             max_steps: Some(12),
             ..RaycastSettings::default()
         };
-        let walk = WalkSampler::with_settings(&ctx, Arc::clone(&r.mesh), limited);
+        let walk = WalkSampler::with_settings(&ctx, Arc::clone(&r.mesh), limited, None);
         r.walk = Some(walk.expect("walk with a step limit"));
         let at_limit = |opacity: f64, r: &mut ShellsRenderer| {
             let points = [-1.0, 1.0].map(|s| ControlPoint {
