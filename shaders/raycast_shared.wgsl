@@ -35,7 +35,14 @@ struct Raycast {
     t_first: f32,
     dz: f32,
     slices: u32,
+    // Early ray termination: the ray stops once its transmittance is below this; checked
+    // after every segment when shell_slices is 0 (the ray caster's integrators), else by the
+    // walk's integrator where a shell of shell_slices slices ends (raycast_slices.wgsl).
+    terminate: f32,
+    shell_slices: u32,
     _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 // A tet's face planes and scalar in eye space (`tet_planes`): face f's plane (opposite local

@@ -4,9 +4,16 @@
 // same samples as the raster and compute samplers, with no binning and no blending. Slice k
 // lies at t_k = params.t_first + k params.dz from the eye, k < params.slices (the shells plan,
 // gpu::shells::plan); its scalar is the tet's linear field at t_k (for cell data the tet's
-// value), its colour and extinction the TF as the shells samplers evaluate it (tf_eval.wgsl,
+// value; for a textured cage the volume there, raycast_slices_texture.wgsl: `sample_scalar`,
+// composed in front), its colour and extinction the TF as the shells samplers evaluate it (tf_eval.wgsl,
 // with the generated looping `tf_eval`), composited front to back with
 // alpha = 1 - exp(-tau dz) as shells_tf.wgsl's `under` does.
+//
+// Early ray termination as the raster and compute samplers have it: they finish a pixel whose
+// alpha reached the threshold after compositing a whole shell (params.shell_slices slices,
+// shell i holding slices [i n, (i + 1) n)), so the walk stops its ray before the first slice
+// of a shell when the ray's transmittance (trans_in, the traversal's, times the segment's) is
+// below params.terminate = 1 - threshold, and tells the traversal (`stopped`).
 //
 // A segment takes the slices with t0 <= t_k < t1. The traversal starts each tet's segment at
 // the t where the previous one ended, bit for bit, and every segment computes t_k with the
@@ -34,14 +41,6 @@ fn first_slice(t: f32) -> u32 {
     return k;
 }
 
-// The normalized scalar at t in tet `tet`: its linear field, or its value for cell data.
-fn sample_scalar(tet: u32, pl: TetPlanes, d: vec3<f32>, t: f32) -> f32 {
-    if CELLS {
-        return clamp(cells[tet], 0.0, 1.0);
-    }
-    return scalar_at(pl, d, t);
-}
-
 fn tet_segment(tet: u32, ids: vec4<u32>, pl: TetPlanes, d: vec3<f32>, t0: f32, t1: f32) -> Acc {
     var acc = Acc(vec3<f32>(0.0), 1.0);
     for (var k = first_slice(t0); k < params.slices; k++) {
@@ -49,14 +48,13 @@ fn tet_segment(tet: u32, ids: vec4<u32>, pl: TetPlanes, d: vec3<f32>, t0: f32, t
         if !(t < t1) {
             break;
         }
-        let s = tf_eval(sample_scalar(tet, pl, d, t));
-        let alpha = 1.0 - exp(-s.w * params.dz);
-        acc = Acc(acc.color + acc.trans * alpha * s.rgb, acc.trans * (1.0 - alpha));
-        // The traversal's early ray termination, within the segment (what is behind adds at
-        // most TERMINATE to any channel).
-        if acc.trans < TERMINATE {
+        if k % params.shell_slices == 0u && trans_in * acc.trans < params.terminate {
+            stopped = true;
             break;
         }
+        let s = tf_eval(sample_scalar(tet, ids, pl, d, t));
+        let alpha = 1.0 - exp(-s.w * params.dz);
+        acc = Acc(acc.color + acc.trans * alpha * s.rgb, acc.trans * (1.0 - alpha));
     }
     return acc;
 }

@@ -22,7 +22,7 @@ fn tet_segment(tet: u32, ids: vec4<u32>, pl: TetPlanes, d: vec3<f32>, t0: f32, t
         let c = on_interval(points_below(u, false), u);
         let alpha = 1.0 - exp(-c.w * dz);
         acc = Acc(acc.color + acc.trans * alpha * c.rgb, acc.trans * (1.0 - alpha));
-        if acc.trans < TERMINATE {
+        if acc.trans < params.terminate {
             break;
         }
     }

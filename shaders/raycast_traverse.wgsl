@@ -9,7 +9,8 @@
 // raycast_texture.wgsl; or, for the shells' walk sampler, the slices the segment holds,
 // raycast_slices.wgsl), and at the boundary resumes at
 // its next entry beyond where it left (non-convex meshes). It stops when its transmittance
-// falls below TERMINATE (early ray termination) or after params.max_steps tets (counted).
+// falls below params.terminate (early ray termination; where the walk's integrator says so,
+// `stopped`) or after params.max_steps tets (counted).
 // Where entries come from (ray_start, start_tet, next_entry, ray_end, with their bindings 7-8
 // and 14-15): raycast_lists.wgsl or, one depth-peeling layer per dispatch, raycast_layers.wgsl.
 // CPU twin: gpu::raycast::twin::exit and twin::trace.
@@ -23,9 +24,18 @@
 // Cell data (CELLS, raycast_shared.wgsl): each tet's normalized value; unread otherwise.
 @group(0) @binding(16) var<storage, read> cells: array<f32>;
 
-// Early ray termination: what lies behind a transmittance below this adds at most this much to
-// any channel (twin::TERMINATE).
-const TERMINATE: f32 = 1e-5;
+// The ray's transmittance in front of the segment being integrated, and whether the integrator
+// stopped the ray within it: the walk's slices end a ray where a shell ends
+// (raycast_slices.wgsl), the other integrators leave the check to the traversal.
+var<private> trans_in: f32 = 1.0;
+var<private> stopped: bool = false;
+
+// Early ray termination after a segment: what lies behind a transmittance below
+// params.terminate adds at most that much to any channel (twin::TERMINATE for the ray
+// caster's own integrators).
+fn finished(trans: f32) -> bool {
+    return stopped || (params.shell_slices == 0u && trans < params.terminate);
+}
 
 // The face the ray leaves a tet by and the t it leaves at (at least t_in): the nearest
 // crossing among the faces it moves outward through, not along, other than `entry`; when there
@@ -169,9 +179,10 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
             out = exit(pl, entry, d, t);
         }
         let f = u32(out.x);
+        trans_in = acc.trans;
         let seg = tet_segment(tet, l.tet, pl, d, t, out.y);
         acc = Acc(acc.color + acc.trans * seg.color, acc.trans * seg.trans);
-        if acc.trans < TERMINATE {
+        if finished(acc.trans) {
             break;
         }
         t = out.y;

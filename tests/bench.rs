@@ -172,8 +172,7 @@ fn quick_bench_writes_the_csv_and_the_plots() {
         // issue's aim of at most 80 (measured 39-42 on lox, a 105k grid and the blunt fin).
         // Shells reports its records, tets, vertices and active lists (96-148 on lox,
         // tests/shells.rs; 107-115 on the blunt fin, 80-byte records); its walk sampler the
-        // ray caster's figure and the shells' eye-space vertices (16 bytes a vertex, fewer
-        // vertices than tets).
+        // ray caster's figure.
         let per_tet = &r[col("bytes_per_tet")];
         let walk = r[col("setting")].contains("walk") || chosen == "walk";
         if r[col("mode")] == "raycast" || walk {

@@ -268,10 +268,10 @@ pub struct ShellArgs {
     #[arg(long)]
     pub ert_threshold: Option<f32>,
     /// shells: what samples the slices; all give the same picture to rounding. walk: each
-    /// pixel's ray walks the tets (the ray caster's traversal) and takes the same slices; it
-    /// ignores --slices-per-shell, --no-skip and --binning, which do not change its picture
-    /// (it always stops a ray at transmittance 1e-5, as --ert-threshold's default does), and
-    /// refuses --slice-format f16, another --ert-threshold and textured cages.
+    /// pixel's ray walks the tets (the ray caster's traversal) and takes the same slices,
+    /// stopping it where the others finish its pixel (--ert-threshold, at a shell's end); it
+    /// ignores --binning and the other skips, which do not change its picture, and refuses
+    /// --slice-format f16.
     #[arg(long, value_enum, default_value_t = SamplerChoice::Raster)]
     pub sampler: SamplerChoice,
     /// shells: float format of the raster sampler's slice targets; auto is 32-bit where the

@@ -288,10 +288,18 @@ pub struct RaycastUniforms {
     pub dz: f32,
     /// See `t_first`.
     pub slices: u32,
+    /// Early ray termination: a ray stops once its transmittance is below this (what lies
+    /// behind adds at most this to any channel): `twin::TERMINATE` for the ray caster's own
+    /// integrators, `1 - threshold` for the walk sampler (0 with its early termination off).
+    pub terminate: f32,
+    /// 0: the traversal checks `terminate` after every segment (the ray caster's own
+    /// integrators). The walk sampler's slice count per shell: its integrator checks it only
+    /// where a shell ends, as the raster and compute samplers do.
+    pub shell_slices: u32,
     /// Zero: pads the struct to a multiple of 16 bytes.
-    pub _pad: u32,
+    pub _pad: [u32; 3],
 }
-const _: () = assert!(size_of::<RaycastUniforms>() == 48);
+const _: () = assert!(size_of::<RaycastUniforms>() == 64);
 
 /// The ray caster's depth-peeling layer (WGSL `Layer` in `shaders/raycast_rays.wgsl`, 16
 /// bytes); 0 for entry lists.

@@ -71,6 +71,13 @@ const RAYCAST_PSI: &str = include_str!("../../shaders/raycast_psi.wgsl");
 const RAYCAST_TABLE: &str = include_str!("../../shaders/raycast_table.wgsl");
 /// The shells' walk sampler's segment integrator: the slices a segment holds.
 const RAYCAST_SLICES: &str = include_str!("../../shaders/raycast_slices.wgsl");
+/// The walk sampler's `sample_scalar` for a textured cage: the volume at the slice.
+const RAYCAST_SLICES_TEXTURE: &str = include_str!("../../shaders/raycast_slices_texture.wgsl");
+/// The walk sampler's `sample_scalar` for the mesh's own field: the tet's linear field at the
+/// slice, or its value for cell data.
+const SLICE_SCALAR_LINEAR: &str = "fn sample_scalar(tet: u32, ids: vec4<u32>, pl: TetPlanes, \
+    d: vec3<f32>, t: f32) -> f32 {\n    if CELLS {\n        return clamp(cells[tet], 0.0, 1.0);\n    \
+    }\n    return scalar_at(pl, d, t);\n}\n";
 
 /// The traversal's `segment` for the integrators of `integrate_segment.wgsl`.
 const SEGMENT_PIECEWISE: &str = "fn segment(u_front: f32, u_back: f32, len: f32) -> Acc {\n    \
@@ -196,15 +203,23 @@ pub fn raycast_stages() -> [(&'static str, String); 17] {
 /// `main` in each): each segment composites the slices it holds (`raycast_slices.wgsl`), the TF
 /// evaluated as the shells composite does for `tf_points` control points ([`tf_eval`]:
 /// constant indices up to [`UNROLLED_TF_POINTS`], measured 1.6 times faster than the loop on
-/// lavapipe, else a loop; 0 selects the loop).
-pub fn raycast_slices(tf_points: u32) -> [(String, String); 2] {
+/// lavapipe, else a loop; 0 selects the loop); `textured`: at the volume texture of a textured
+/// cage (`raycast_slices_texture.wgsl`, bindings 17 and 18) instead of the mesh's field.
+pub fn raycast_slices(tf_points: u32, textured: bool) -> [(String, String); 2] {
     let common = format!("{SHARED}\n{RAYCAST_SHARED}\n{RAYCAST_RAYS}\n{INTEGRATE_SEGMENT}");
+    let (scalar, field) = match textured {
+        true => (
+            format!("{RAYCAST_TEXTURE_SAMPLE}\n{TEXTURE_SAMPLE}\n{RAYCAST_SLICES_TEXTURE}"),
+            ", textured",
+        ),
+        false => (SLICE_SCALAR_LINEAR.to_string(), ""),
+    };
     let integrator = format!(
-        "{PSI_EXACT}\n{}{TF_EVAL}\n{RAYCAST_SLICES}\n{NO_HITS}",
+        "{PSI_EXACT}\n{scalar}\n{}{TF_EVAL}\n{RAYCAST_SLICES}\n{NO_HITS}",
         tf_eval(tf_points)
     );
     [("lists", RAYCAST_LISTS), ("peel", RAYCAST_LAYERS)].map(|(name, entries)| {
-        let name = format!("raycast_traverse ({name}, slices, {tf_points} TF points)");
+        let name = format!("raycast_traverse ({name}, slices, {tf_points} TF points{field})");
         let source = format!("{common}\n{integrator}\n{entries}\n{RAYCAST_TRAVERSE}");
         (name, source)
     })
@@ -423,10 +438,13 @@ pub fn registry() -> Vec<(String, String, &'static [&'static str])> {
         };
         out.push((name.into(), source, entries));
     }
-    // The walk sampler's traversals: every unrolled TF variant, and the looping one (0).
+    // The walk sampler's traversals: every unrolled TF variant, and the looping one (0), of
+    // the mesh's field and of a textured cage's.
     for tf_points in 0..=UNROLLED_TF_POINTS {
-        for (name, source) in raycast_slices(tf_points) {
-            out.push((name, source, ["main"].as_slice()));
+        for textured in [false, true] {
+            for (name, source) in raycast_slices(tf_points, textured) {
+                out.push((name, source, ["main"].as_slice()));
+            }
         }
     }
     for targets in 1..=MAX_TARGETS {

@@ -23,7 +23,7 @@ use super::pipelines::{Groups, encode, linear};
 use super::texture_iso::HitBuffers;
 use super::{
     COUNTERS, EYE_BOX_GROWTH, Entry, PixelBuffers, RAY_STATE_BYTES, RaycastRenderer,
-    RaycastUniforms, Segments, TILE, Targets, default_max_steps, near_tol, psi,
+    RaycastUniforms, Segments, Slicing, TILE, Targets, default_max_steps, near_tol, psi,
 };
 
 /// A storage buffer of `bytes` (at least 16) that is also a copy source and destination.
@@ -257,7 +257,12 @@ impl RaycastRenderer {
 
     fn write_params(&self) {
         let lengths = self.settings.table_lengths;
-        let slicing = self.slicing.unwrap_or_default();
+        // The ray caster's own integrators stop a ray after the segment that takes it below
+        // twin::TERMINATE.
+        let slicing = self.slicing.unwrap_or(Slicing {
+            terminate: super::twin::TERMINATE,
+            ..Slicing::default()
+        });
         let params = RaycastUniforms {
             capacity: self.capacity,
             max_steps: (self.settings.max_steps)
@@ -272,7 +277,9 @@ impl RaycastRenderer {
             t_first: slicing.t_first as f32,
             dz: slicing.dz as f32,
             slices: slicing.count,
-            _pad: 0,
+            terminate: slicing.terminate,
+            shell_slices: slicing.shell_slices,
+            _pad: [0; 3],
         };
         self.queue
             .write_buffer(&self.params_buf, 0, bytemuck::bytes_of(&params));

@@ -82,7 +82,7 @@ use crate::mesh::TetMesh;
 use crate::render::{Frame, RenderError, Renderer};
 use crate::tf::TransferFunction;
 
-use pipelines::Pipelines;
+use pipelines::{Pipelines, SliceField};
 use texture::{GpuTexture, TextureUse};
 use texture_iso::{HitBuffers, TexturedIso};
 
@@ -294,12 +294,16 @@ pub struct RaycastRenderer {
 }
 
 /// Where the shells' walk sampler's slices lie for one frame: slice `k` at distance
-/// `t_first + k dz` from the eye, `k < count` (`crate::gpu::shells`' plan).
+/// `t_first + k dz` from the eye, `k < count` (`crate::gpu::shells`' plan); and where its rays
+/// stop: before the first slice of a shell of `shell_slices` (at least 1) once their
+/// transmittance is below `terminate` (`shaders/raycast_slices.wgsl`).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct Slicing {
     pub t_first: f64,
     pub dz: f64,
     pub count: u32,
+    pub shell_slices: u32,
+    pub terminate: f32,
 }
 
 /// Per image size and entry method: the output, its readback, the per-pixel entry buffers,
@@ -356,12 +360,16 @@ impl RaycastRenderer {
     /// The traversal of the shells' walk sampler over a mesh already on the GPU: each segment
     /// composites the slices it holds (`shaders/raycast_slices.wgsl`) instead of integrating
     /// the TF, `settings.segments` unused; frames come from [`Self::render_slices`].
+    /// With `texture` (a textured cage's, over `mesh` as its cage), the slices read its volume
+    /// (`shaders/raycast_slices_texture.wgsl`).
     pub(crate) fn sliced(
         ctx: &GpuContext,
         mesh: Arc<GpuTetMesh>,
         settings: RaycastSettings,
+        texture: Option<GpuTexture>,
     ) -> Result<Self, RenderError> {
-        let mut r = Self::build(ctx, mesh, settings, None, true)?;
+        let textured = texture.map(|t| (t, TextureUse::Volume));
+        let mut r = Self::build(ctx, mesh, settings, textured, true)?;
         r.slicing = Some(Slicing::default());
         Ok(r)
     }
@@ -413,6 +421,14 @@ impl RaycastRenderer {
         let (links_cpu, boundary_cpu) = links::build(&mesh.read().tets);
         let chunking = links::chunking(nt, &ctx.limits)?;
         let links = mesh.tet_array("raycast links", chunking, nt, links::LINK_BYTES)?;
+        // The walk sampler's slices read a textured cage's volume themselves: no textured
+        // traversal of the ray caster's own.
+        let field = match (sliced, &textured) {
+            (false, _) => None,
+            (true, None) => Some(SliceField::Mesh),
+            (true, Some(_)) => Some(SliceField::Texture),
+        };
+        let own_texture = (!sliced).then_some(textured.as_ref()).flatten();
         links.write(&ctx.queue, bytemuck::cast_slice(&links_cpu));
         check_cells(&mesh)?;
         let boundary = frame::storage(&ctx.device, "raycast boundary", 4 * boundary_cpu.len());
@@ -424,8 +440,8 @@ impl RaycastRenderer {
             pipelines: Pipelines::new(
                 &device,
                 (nt.div_ceil(chunking.chunk).max(1), mesh.has_cells()),
-                textured.as_ref().map(|(t, used)| (t.step, *used)),
-                sliced,
+                own_texture.map(|(t, used)| (t.step, *used)),
+                field,
                 (settings.entry_lanes).unwrap_or_else(|| EntryLanes::for_adapter(ctx)),
             ),
             frame: FrameResources::new(ctx),

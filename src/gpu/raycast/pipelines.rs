@@ -33,8 +33,9 @@ pub struct Pipelines {
     /// For a textured cage: the traversal per [`Entry`] that steps through the volume texture
     /// (whatever the [`Segments`]), integrating it or finding its isosurfaces ([`TextureUse`]).
     textured: Option<[Stage; 2]>,
-    /// For the shells' walk sampler: the pipeline constants its traversals are built with.
-    sliced: Option<Constants>,
+    /// For the shells' walk sampler: the pipeline constants its traversals are built with, and
+    /// the field they read.
+    sliced: Option<(Constants, SliceField)>,
     /// The walk sampler's traversal per [`Entry`] that composites the slices each segment holds
     /// (`shaders/raycast_slices.wgsl`), whatever the [`Segments`], and the TF variant it was
     /// built for ([`shaders::tf_variant`]); built by [`Pipelines::ensure_slices`].
@@ -43,6 +44,15 @@ pub struct Pipelines {
 
 /// The traversals' pipeline constants: `LINK_WINDOWS` and `CELLS`.
 type Constants = [(&'static str, f64); 2];
+
+/// What the shells' walk sampler's slices read.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SliceField {
+    /// The mesh's own field (linear per tet, or its cell values).
+    Mesh,
+    /// A textured cage's volume texture at the slice's texture coordinate.
+    Texture,
+}
 
 const RO: B = B::Storage { read_only: true };
 const RW: B = B::Storage { read_only: false };
@@ -125,13 +135,13 @@ impl Pipelines {
     /// Compiles the stages for a mesh whose links take `windows` windows (WGSL
     /// `LINK_WINDOWS`) and whose field is constant per tet when `cells` (WGSL `CELLS`); with
     /// `texture`, also the textured traversals of that use sampling every that many world units;
-    /// with `slices`, the walk sampler's traversals later ([`Self::ensure_slices`]); the entries
-    /// stage with `entry_lanes`.
+    /// with `slices`, the walk sampler's traversals of that field later
+    /// ([`Self::ensure_slices`]); the entries stage with `entry_lanes`.
     pub fn new(
         device: &wgpu::Device,
         (windows, cells): (u64, bool),
         texture: Option<(f32, TextureUse)>,
-        slices: bool,
+        slices: Option<SliceField>,
         entry_lanes: EntryLanes,
     ) -> Self {
         let cells = if cells { 1.0 } else { 0.0 };
@@ -180,7 +190,7 @@ impl Pipelines {
             entry_lanes,
             peel: [least_t, least_face].map(|s| stage(s, &peel)),
             tiles: [tiles_lists, tiles_peel].map(|s| stage(s, &tiles)),
-            sliced: slices.then_some(constants),
+            sliced: slices.map(|field| (constants, field)),
             slices: None,
             traverse: [
                 [lists_exact, lists_partial, lists_table].map(|s| stage(s, &lists)),
@@ -208,16 +218,20 @@ impl Pipelines {
     /// With the walk sampler's traversals ([`Pipelines::new`]'s `slices`), builds them for a
     /// TF of `tf_points` control points unless they are built for its variant.
     pub fn ensure_slices(&mut self, device: &wgpu::Device, tf_points: u32) {
-        let Some(constants) = self.sliced else {
+        let Some((constants, field)) = self.sliced else {
             return;
         };
         let variant = shaders::tf_variant(tf_points);
         if self.slices.as_ref().is_some_and(|(v, _)| *v == variant) {
             return;
         }
-        let [lists, peel] = shaders::raycast_slices(variant);
+        let textured = field == SliceField::Texture;
+        let [lists, peel] = shaders::raycast_slices(variant, textured);
         let stage = |(name, source): (String, String), entry| {
-            let entries = traverse_entries(entry);
+            let entries = match textured {
+                true => textured_entries(entry),
+                false => traverse_entries(entry),
+            };
             stage_with(device, (&name, source), &entries, (&constants, "main"))
         };
         let stages = [stage(lists, Entry::Lists), stage(peel, Entry::Peel)];

@@ -26,7 +26,9 @@ pub enum TextureUse {
 }
 
 /// The volume texture (R32Float, values normalized to [0, 1] by the volume's range), the
-/// texture coordinates (vec4 per vertex, w unused) and the sampling step.
+/// texture coordinates (vec4 per vertex, w unused) and the sampling step. A clone shares the
+/// GPU objects (the shells' walk sampler reads its renderer's).
+#[derive(Clone)]
 pub struct GpuTexture {
     texture: wgpu::Texture,
     pub(crate) view: wgpu::TextureView,

@@ -216,7 +216,8 @@ impl ShellsRenderer {
             enc.clear_buffer(buf, 0, None);
         }
         let max_groups = self.limits.max_compute_workgroups_per_dimension;
-        (self.assembly).record(&mut rec, &self.assembly_groups, max_groups)?;
+        let assembled = self.assembled.as_ref().ok_or_else(super::no_records)?;
+        (assembled.stage).record(&mut rec, &assembled.groups, max_groups)?;
         for (i, p) in passes.iter().enumerate() {
             let u = &p.uniforms;
             let tets = u.faces[1] + u.near[1];
@@ -249,7 +250,7 @@ impl ShellsRenderer {
         let enc = rec.encoder();
         enc.copy_buffer_to_buffer(&b.accum, 0, &b.accum_readback, 0, b.accum.size());
         enc.copy_buffer_to_buffer(&b.needed, 0, &b.needed_readback, 0, 4);
-        let stats = rec.finish(&[], self.assembly.degenerate(), 0)?;
+        let stats = rec.finish(&[], assembled.stage.degenerate(), 0)?;
         let needed = read_u32(&self.device, &b.needed_readback)? as u64;
         Ok((stats, (needed > b.capacity).then_some(needed)))
     }
@@ -271,12 +272,13 @@ impl ShellsRenderer {
         };
         let chunks = self.chunking.ranges(self.mesh.tet_count() as u64);
         let tets = self.mesh.tets()?;
+        let assembled = self.assembled.as_ref().ok_or_else(super::no_records)?;
         let groups = chunks.iter().map(|&(first, count)| {
             let mut entries = vec![
                 entry(0, &self.view_buf),
                 shell(),
                 entry(2, &self.tf_buf),
-                self.records.window(3, first, count),
+                assembled.records.window(3, first, count),
                 entry(4, &self.slicing_buf),
                 entry(5, &self.active_buf),
                 entry(6, &b.counts),
@@ -287,7 +289,7 @@ impl ShellsRenderer {
                 entry(11, &b.finished),
                 entry(12, &b.slices),
                 tets.window(13, first, count),
-                entry(16, self.assembly.eye_vertices()),
+                entry(16, assembled.stage.eye_vertices()),
             ];
             if let Some(t) = &self.texture {
                 entries.extend(t.entries());

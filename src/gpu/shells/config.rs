@@ -6,7 +6,6 @@ use crate::gpu::util::settings_error;
 use crate::gpu::{GpuContext, GpuError, shaders};
 use crate::render::RenderError;
 
-use super::skips::DEFAULT_ERT_THRESHOLD;
 use super::{SOFTWARE_SLICES_PER_SHELL, Sampler, ShellSettings, SliceFormat, adaptive};
 
 /// The slice configuration of a renderer.
@@ -139,9 +138,8 @@ pub(super) fn check(settings: &ShellSettings) -> Result<(), RenderError> {
 }
 
 /// An error when [`Sampler::Walk`] is given a setting that would change its picture and that
-/// it does not honour: 16-bit slices (its samples are f32), or an early-termination threshold
-/// other than the default (it stops each ray at transmittance 1e-5, the ray caster's rule,
-/// which the default threshold matches). The settings it ignores change nothing in its picture.
+/// it does not honour: 16-bit slices (its samples are f32). The settings it ignores change
+/// nothing in its picture.
 fn check_walk(settings: &ShellSettings) -> Result<(), RenderError> {
     if settings.sampler != Sampler::Walk {
         return Ok(());
@@ -151,14 +149,6 @@ fn check_walk(settings: &ShellSettings) -> Result<(), RenderError> {
             "--slice-format f16 sets the raster sampler's slice targets; --sampler walk samples \
              in f32: use --slice-format auto or f32, or --sampler raster",
         ));
-    }
-    let threshold = settings.skips.ert_threshold;
-    if threshold != DEFAULT_ERT_THRESHOLD {
-        return Err(settings_error(format!(
-            "--sampler walk stops each ray at transmittance 1e-5 (threshold \
-             {DEFAULT_ERT_THRESHOLD}), not at {threshold}: leave --ert-threshold out, or use \
-             --sampler raster or compute"
-        )));
     }
     Ok(())
 }

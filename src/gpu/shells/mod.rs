@@ -35,17 +35,18 @@
 //! sampling (`shaders/shells_span.wgsl`) and the composite (`shaders/shells_tf.wgsl`), so they
 //! take the same samples.
 //!
-//! With [`Sampler::Walk`] none of stages 1.-5. runs: each pixel's ray walks the mesh through
-//! shared faces with the ray caster's machinery and composites the slices each tet's segment
-//! holds (`walk.rs`, `shaders/raycast_slices.wgsl`): the same slices, scalars, TF and
-//! composite.
+//! With [`Sampler::Walk`] none of stages 1.-5. runs, and none of their records, assembly or
+//! termination pipelines is built: each pixel's ray walks the mesh through shared faces with
+//! the ray caster's machinery and composites the slices each tet's segment holds (`walk.rs`,
+//! `shaders/raycast_slices.wgsl`): the same slices, scalars, TF and composite.
 //!
 //! Pipelines (`pipelines.rs`), targets (`targets.rs`) and the slice configuration
 //! (`config.rs`) have files of their own.
 //!
 //! A textured cage ([`ShellsRenderer::textured`], issue 12) runs the same stages; only a
 //! slice sample's value changes: the volume texture read at the barycentric interpolation of
-//! its tet's corners' texture coordinates (`texture.rs`, `shaders/shells_texture.wgsl`).
+//! its tet's corners' texture coordinates (`texture.rs`, `shaders/shells_texture.wgsl`; for
+//! the walk, the coordinate at the slice, `shaders/raycast_slices_texture.wgsl`).
 //!
 //! What a scene does not need is skipped: transparent tets, empty shells, finished pixels,
 //! tets outside the frustum ([`skips`], each skip switched by [`ShellSettings::skips`]).
@@ -141,11 +142,14 @@ pub enum Sampler {
     /// accumulation stay in f32 whatever [`ShellSettings::format`] says.
     Compute,
     /// Each pixel's ray walks the tets through shared faces (the ray caster's entries, tiles
-    /// and traversal) and composites the slices each tet's segment holds, stopping at
-    /// transmittance 1e-5 (`walk.rs`). No shells, binning or slice targets: the slices per
-    /// shell, the skips and the binning do not change its picture and are not used; its
-    /// samples are f32 (16-bit slices are refused), and it stops a ray as the default
-    /// [`Skips::ert_threshold`] does (another threshold is refused). Not for textured cages.
+    /// and traversal) and composites the slices each tet's segment holds (`walk.rs`). No
+    /// binning or slice targets: the skips but early ray termination and the binning do not
+    /// change its picture and are not used; its samples are f32 (16-bit slices are refused).
+    /// It stops a ray where the other samplers finish its pixel, at the end of the shell in
+    /// which its alpha reached [`Skips::ert_threshold`], its shells of the fixed or default
+    /// slices per shell (adaptive slices, choosing another count, move where a pixel is
+    /// finished by less than a shell's samples after the threshold). A textured cage's slices
+    /// read its volume as the other samplers' do.
     Walk,
 }
 
@@ -266,10 +270,9 @@ pub struct ShellsRenderer {
     mesh: Arc<GpuTetMesh>,
     /// How the per-tet arrays are cut into binding-sized chunks.
     chunking: Chunking,
-    /// One record per tet, written by the assembly.
-    records: TetArray,
-    assembly: AssemblyStage,
-    assembly_groups: AssemblyGroups,
+    /// The records and their assembly (stage 3), for the raster and compute samplers; `None`
+    /// for the walk, which reads neither.
+    assembled: Option<Assembled>,
     /// Query sets and statistics buffers kept across frames.
     frame: FrameResources,
     /// How the last uploaded active list is drawn.
@@ -309,10 +312,12 @@ impl ShellsRenderer {
 
     /// The shells renderer of a textured cage (issue 12): `cage`'s vertices carry `texcoords`,
     /// and every slice sample reads `volume` (trilinear) at its texture coordinate instead of
-    /// the cage's own scalars (`shaders/shells_texture.wgsl`), with either sampler;
+    /// the cage's own scalars (`shaders/shells_texture.wgsl`; the walk sampler's
+    /// `shaders/raycast_slices_texture.wgsl`), with any sampler;
     /// [`Renderer::update_positions`] moves the volume with the cage. The TF applies to the
     /// volume's values. Transfer-function culling uses each tet's range of the volume
-    /// (`texture.rs`); `settings.tune` is refused.
+    /// (`texture.rs`); `settings.tune` is refused. The walk sampler shares the texture with
+    /// its ray caster.
     pub fn textured(
         ctx: &GpuContext,
         cage: &TetMesh,
@@ -324,12 +329,6 @@ impl ShellsRenderer {
             return Err(settings_error(
                 "--tune is not available for a textured cage: choose --sampler, the slices \
                  per shell and the skips yourself",
-            ));
-        }
-        if settings.sampler == Sampler::Walk {
-            return Err(settings_error(
-                "--sampler walk does not sample a textured cage's volume; use --sampler raster \
-                 or --sampler compute (or --mode raycast)",
             ));
         }
         let texture = ShellTexture::new(ctx, cage, texcoords, volume)?;
@@ -349,17 +348,19 @@ impl ShellsRenderer {
         // a window of the record array (several buffers where one cannot hold them).
         let chunking = mesh.chunking()?;
         let tet_count = mesh.tet_count() as u64;
-        // The walk sampler assembles no records: one placeholder entry and no assembly windows.
+        // The walk sampler uses no records, assembly or termination passes.
         let walks = settings.sampler == Sampler::Walk;
-        let assembled = if walks { 0 } else { tet_count };
-        let records = mesh.tet_array("shells tet records", chunking, assembled, RECORD_BYTES)?;
-        let ert = (settings.skips.early_termination).then_some(settings.skips.ert_threshold);
+        let ert =
+            (settings.skips.early_termination && !walks).then_some(settings.skips.ert_threshold);
         let textured = texture.is_some();
         let pipelines = Pipelines::new(&device, (config.format, config.accum), ert, textured);
         let compute = (settings.sampler == Sampler::Compute)
             .then(|| compute::ComputeSampler::new(&device, ert, textured));
         let walk = match settings.sampler {
-            Sampler::Walk => Some(walk::WalkSampler::new(ctx, Arc::clone(&mesh))?),
+            Sampler::Walk => {
+                let shared = texture.as_ref().map(|t| t.gpu.clone());
+                Some(walk::WalkSampler::new(ctx, Arc::clone(&mesh), shared)?)
+            }
             _ => None,
         };
         let binner = if !walks && gpu_binning::picked(settings.binning, tet_count) {
@@ -372,15 +373,10 @@ impl ShellsRenderer {
         };
         let view_buf = uniform_buffer(&device, "shells view", size_of::<ViewUniforms>());
         let slicing_buf = uniform_buffer(&device, "shells slicing", size_of::<SlicingUniforms>());
-        let assembly = AssemblyStage::new(&device, &mesh, mesh.has_cells());
-        let inputs = AssemblyInputs {
-            view: &view_buf,
-            mesh: &mesh,
-            tets: mesh.tets()?,
-            records: &records,
-            cells: mesh.cells()?,
+        let assembled = match walks {
+            true => None,
+            false => Some(Assembled::new(&device, &mesh, &view_buf)?),
         };
-        let assembly_groups = assembly.bind(&device, &inputs, &chunking.ranges(assembled));
         let shell_stride = (size_of::<ShellUniforms>() as u64)
             .next_multiple_of(limits.min_uniform_buffer_offset_alignment as u64);
         let active_buf = device.create_buffer(&wgpu::BufferDescriptor {
@@ -422,9 +418,7 @@ impl ShellsRenderer {
             pipelines,
             mesh,
             chunking,
-            records,
-            assembly,
-            assembly_groups,
+            assembled,
             view_buf,
             slicing_buf,
             active_buf,
@@ -481,6 +475,50 @@ impl ShellsRenderer {
         self.targets = Some(Targets::new(&self.device, (width, height), layers, ert));
         Ok(())
     }
+}
+
+/// What the raster and compute samplers sample from: one record per tet (80 bytes), and the
+/// assembly that writes them each frame with the eye-space vertices (16 bytes a vertex).
+struct Assembled {
+    records: TetArray,
+    stage: AssemblyStage,
+    groups: AssemblyGroups,
+}
+
+impl Assembled {
+    /// The records of `mesh`'s tets in its chunks, and their assembly reading `view`.
+    fn new(
+        device: &wgpu::Device,
+        mesh: &GpuTetMesh,
+        view: &wgpu::Buffer,
+    ) -> Result<Self, RenderError> {
+        let (chunking, tets) = (mesh.chunking()?, mesh.tet_count() as u64);
+        let records = mesh.tet_array("shells tet records", chunking, tets, RECORD_BYTES)?;
+        let stage = AssemblyStage::new(device, mesh, mesh.has_cells());
+        let inputs = AssemblyInputs {
+            view,
+            mesh,
+            tets: mesh.tets()?,
+            records: &records,
+            cells: mesh.cells()?,
+        };
+        let groups = stage.bind(device, &inputs, &chunking.ranges(tets));
+        Ok(Self {
+            records,
+            stage,
+            groups,
+        })
+    }
+
+    /// GPU bytes of the records and the stage's buffers.
+    fn size(&self) -> u64 {
+        self.records.size() + self.stage.size()
+    }
+}
+
+/// The error of a raster or compute stage run by a renderer without records (the walk's).
+fn no_records() -> RenderError {
+    settings_error("internal: the walk sampler has no records or assembly")
 }
 
 /// A frame after the CPU stages: its plan, slices per shell, binned tets and shells to draw.
@@ -623,7 +661,8 @@ impl ShellsRenderer {
         };
         let mut rec = (self.frame).recorder(&self.device, &self.queue, count, occlusion);
         let max_groups = self.limits.max_compute_workgroups_per_dimension;
-        (self.assembly).record(&mut rec, &self.assembly_groups, max_groups)?;
+        let assembled = self.assembled.as_ref().ok_or_else(no_records)?;
+        (assembled.stage).record(&mut rec, &assembled.groups, max_groups)?;
         if f.drawn.is_empty() {
             composite::clear(&mut rec, &passes);
         }
@@ -633,7 +672,7 @@ impl ShellsRenderer {
         let active = (&self.queue, &self.active_buf, self.mesh.tet_count() as u32);
         let draws = draw_shells(&mut rec, &passes, f, &mut term, active)?;
         let images = [(&targets.accum, &targets.readback)];
-        let stats = rec.finish(&images, self.assembly.degenerate(), draws.queries)?;
+        let stats = rec.finish(&images, assembled.stage.degenerate(), draws.queries)?;
         Ok((stats, draws, term))
     }
 
@@ -642,6 +681,7 @@ impl ShellsRenderer {
     fn raster_groups(&self) -> Result<Vec<wgpu::BindGroup>, RenderError> {
         let chunks = self.chunking.ranges(self.mesh.tet_count() as u64);
         let tets = self.mesh.tets()?;
+        let assembled = self.assembled.as_ref().ok_or_else(no_records)?;
         let layout = self.instances;
         let windows = (0..layout.windows as u64).flat_map(|w| chunks.iter().map(move |&c| (w, c)));
         Ok(windows
@@ -670,11 +710,11 @@ impl ShellsRenderer {
                             size: wgpu::BufferSize::new(size_of::<ShellUniforms>() as u64),
                         }),
                     },
-                    self.records.window(2, first, count),
+                    assembled.records.window(2, first, count),
                     active,
                     entry(4, &self.slicing_buf),
                     tets.window(13, first, count),
-                    entry(16, self.assembly.eye_vertices()),
+                    entry(16, assembled.stage.eye_vertices()),
                 ];
                 if let Some(t) = &self.texture {
                     entries.extend(t.entries());
@@ -751,7 +791,8 @@ impl ShellsRenderer {
         let chunks = self.chunking.ranges(tets).len();
         timings.count("tets", tets);
         timings.count("record chunks", chunks as u64);
-        timings.count("record buffers", self.records.buffer_count() as u64);
+        let buffers = (self.assembled.as_ref()).map_or(0, |a| a.records.buffer_count());
+        timings.count("record buffers", buffers as u64);
         timings.count("bytes per tet", self.bytes_per_tet().round() as u64);
         let bin = &f.bin;
         timings.count("tets culled", bin.culled);
@@ -770,11 +811,11 @@ impl ShellsRenderer {
     /// cell values), the records (80 bytes a tet), the eye-space vertices (16 bytes a vertex)
     /// and the active list (4 bytes per tet-shell instance, in a buffer grown to a power of
     /// two); with the walk sampler, its ray caster's figure (the mesh's vertices, the links,
-    /// the boundary, the eye-space vertices) instead of records and active lists (but for
-    /// their placeholders).
+    /// the boundary, the ray caster's eye-space vertices) and the active list's placeholder.
     pub fn bytes_per_tet(&self) -> f64 {
-        let eye = self.assembly.eye_vertices().size();
-        let own = (self.records.size() + eye + self.active_buf.size()) as f64;
+        let assembled = (self.assembled.as_ref())
+            .map_or(0, |a| a.records.size() + a.stage.eye_vertices().size());
+        let own = (assembled + self.active_buf.size()) as f64;
         let tets = self.mesh.tet_count().max(1) as f64;
         match &self.walk {
             Some(walk) => walk.bytes_per_tet() + own / tets,
@@ -951,7 +992,7 @@ impl Renderer for ShellsRenderer {
         .iter()
         .map(|b| b.size())
         .sum::<u64>()
-            + self.assembly.size();
+            + self.assembled.as_ref().map_or(0, Assembled::size);
         let texel = |f: wgpu::TextureFormat| f.block_copy_size(None).unwrap_or(16) as u64;
         let texels = (texel(self.format), texel(self.accum_format));
         let targets = (self.targets.as_ref()).map_or(0, |t| t.size(self.slice_layers, texels))
@@ -960,9 +1001,14 @@ impl Renderer for ShellsRenderer {
                 .as_ref()
                 .map_or(0, compute::ComputeSampler::size)
             + self.binner.as_ref().map_or(0, gpu_binning::GpuBinner::size);
-        let frame = self.frame.size() + self.records.size();
-        let texture = self.texture.as_ref().map_or(0, |t| t.gpu.bytes());
-        let walk = (self.walk.as_ref()).map_or(0, |w| w.own_memory(&self.mesh));
+        let frame = self.frame.size();
+        // The walk's ray caster counts the texture it shares.
+        let texture = match self.walk {
+            None => self.texture.as_ref().map_or(0, |t| t.gpu.bytes()),
+            Some(_) => 0,
+        };
+        let shared = self.texture.as_ref().map(|t| &t.gpu);
+        let walk = (self.walk.as_ref()).map_or(0, |w| w.own_memory(&self.mesh, shared));
         self.mesh.gpu_memory() + frame + buffers + targets + texture + walk
     }
 }

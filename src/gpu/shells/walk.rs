@@ -5,11 +5,16 @@
 //! slices as its segment integrator (`shaders/raycast_slices.wgsl`): the same slices
 //! (`plan.rs`), the same linear scalar at each, the same TF evaluation (`shaders/tf_eval.wgsl`)
 //! and the same `alpha = 1 - exp(-tau dz)` composite, so its picture is the other samplers'
-//! to rounding. No shell, skip or slice target is involved.
+//! to rounding. Its rays stop where the other samplers finish a pixel: at the end of the first
+//! shell (of the fixed or default slices per shell) after which the pixel's alpha reached
+//! [`super::Skips::ert_threshold`]. No binning, other skip or slice target is involved. A
+//! textured cage's slices read its volume texture (shared with the shells renderer) at their
+//! texture coordinates (`shaders/raycast_slices_texture.wgsl`).
 
 use std::sync::Arc;
 
 use crate::camera::Camera;
+use crate::gpu::raycast::texture::GpuTexture;
 use crate::gpu::raycast::{RaycastRenderer, RaycastSettings, Segments, Slicing};
 use crate::gpu::util::settings_error;
 use crate::gpu::{GpuContext, GpuTetMesh};
@@ -29,9 +34,14 @@ pub(super) struct WalkSampler {
 
 impl WalkSampler {
     /// The walk over `mesh` (shared with the shells renderer that owns it) with the ray
-    /// caster's default settings (entry lists, empty tiles skipped, the default step limit).
-    pub(super) fn new(ctx: &GpuContext, mesh: Arc<GpuTetMesh>) -> Result<Self, RenderError> {
-        Self::with_settings(ctx, mesh, RaycastSettings::default())
+    /// caster's default settings (entry lists, empty tiles skipped, the default step limit);
+    /// with `texture` (a textured cage's, shared with that renderer), sampling its volume.
+    pub(super) fn new(
+        ctx: &GpuContext,
+        mesh: Arc<GpuTetMesh>,
+        texture: Option<GpuTexture>,
+    ) -> Result<Self, RenderError> {
+        Self::with_settings(ctx, mesh, RaycastSettings::default(), texture)
     }
 
     /// [`Self::new`] with the ray caster's `settings` (their integrator unused).
@@ -39,19 +49,20 @@ impl WalkSampler {
         ctx: &GpuContext,
         mesh: Arc<GpuTetMesh>,
         settings: RaycastSettings,
+        texture: Option<GpuTexture>,
     ) -> Result<Self, RenderError> {
         let settings = RaycastSettings {
             segments: Segments::Exact,
             ..settings
         };
         Ok(Self {
-            raycast: RaycastRenderer::sliced(ctx, mesh, settings)?,
+            raycast: RaycastRenderer::sliced(ctx, mesh, settings, texture)?,
         })
     }
 
-    /// GPU bytes of the walk's own buffers (the shared mesh not counted).
-    pub(super) fn own_memory(&self, mesh: &GpuTetMesh) -> u64 {
-        self.raycast.gpu_memory() - mesh.gpu_memory()
+    /// GPU bytes of the walk's own buffers (the shared mesh and texture not counted).
+    pub(super) fn own_memory(&self, mesh: &GpuTetMesh, texture: Option<&GpuTexture>) -> u64 {
+        self.raycast.gpu_memory() - mesh.gpu_memory() - texture.map_or(0, GpuTexture::bytes)
     }
 
     /// The ray caster's bytes per tet of what scales with the mesh (the mesh included).
@@ -61,6 +72,17 @@ impl WalkSampler {
 }
 
 impl ShellsRenderer {
+    /// The transmittance below which the walk stops a ray at a shell's end: 1 - the threshold
+    /// of early ray termination (the binning samplers finish a pixel whose alpha reached it);
+    /// 0, never, with early termination off.
+    fn walk_terminate(&self) -> f32 {
+        let skips = &self.settings.skips;
+        match skips.early_termination {
+            true => (1.0 - skips.ert_threshold as f64) as f32,
+            false => 0.0,
+        }
+    }
+
     /// A frame of the walk sampler: the shells' slices for `camera`, walked; the ray caster's
     /// stage times and counters, and the slices.
     pub(super) fn render_walk(
@@ -78,13 +100,15 @@ impl ShellsRenderer {
                  {MAX_SLICES}: use fewer samples or a larger dz"
             )));
         }
-        let walk = (self.walk.as_mut())
-            .ok_or_else(|| settings_error("internal: the walk sampler was not built"))?;
         let slicing = Slicing {
             t_first,
             dz,
             count: count as u32,
+            shell_slices: self.fixed_slices.unwrap_or(self.default_slices).max(1),
+            terminate: self.walk_terminate(),
         };
+        let walk = (self.walk.as_mut())
+            .ok_or_else(|| settings_error("internal: the walk sampler was not built"))?;
         let mut frame = walk.raycast.render_slices(camera, tf, slicing)?;
         let t = &mut frame.timings;
         t.count("slices", count);
@@ -130,7 +154,7 @@ mod tests {
             max_steps: Some(12),
             ..RaycastSettings::default()
         };
-        let walk = WalkSampler::with_settings(&ctx, Arc::clone(&r.mesh), limited);
+        let walk = WalkSampler::with_settings(&ctx, Arc::clone(&r.mesh), limited, None);
         r.walk = Some(walk.expect("walk with a step limit"));
         let at_limit = |opacity: f64, r: &mut ShellsRenderer| {
             let points = [-1.0, 1.0].map(|s| ControlPoint {
@@ -145,5 +169,50 @@ mod tests {
         };
         assert_eq!(at_limit(0.9999, &mut r), 0);
         assert!(at_limit(0.01, &mut r) > 100);
+    }
+
+    /// The walk builds none of what only the raster and compute samplers use: no records, no
+    /// assembly with its eye-space vertices (16 bytes a vertex, 35 KB on this 13^3-vertex
+    /// grid), no termination pipelines. Its GPU memory after a frame is its ray caster's (the
+    /// shared mesh included) and the shells' own uniforms and frame statistics, to the byte.
+    #[test]
+    fn the_walk_holds_only_its_ray_caster_and_the_shells_uniforms() {
+        let ctx = GpuContext::new(AdapterChoice::Auto).expect("a GPU adapter (lavapipe will do)");
+        let (lo, hi) = (DVec3::splat(-1.0), DVec3::splat(1.0));
+        let mesh = generate::box_grid(lo, hi, UVec3::splat(12), "x", |p| p.x);
+        let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 32, 32);
+        let settings = ShellSettings {
+            sampler: Sampler::Walk,
+            ..ShellSettings::default()
+        };
+        let mut r = ShellsRenderer::new(&ctx, &mesh, settings).expect("walk renderer");
+        assert!(r.assembled.is_none() && r.pipelines.ert.is_none());
+        let tf = TransferFunction::new(
+            [-1.0, 1.0]
+                .map(|s| ControlPoint {
+                    s,
+                    color: [0.5, 0.5, 0.5],
+                    opacity: 0.5,
+                })
+                .to_vec(),
+            mesh.diagonal() / 10.0,
+        )
+        .unwrap();
+        r.render(&camera, &tf).expect("frame");
+        let uniforms = [
+            &r.view_buf,
+            &r.slicing_buf,
+            &r.active_buf,
+            &r.face_indices,
+            &r.shell_buf,
+            &r.tf_buf,
+        ];
+        let own = uniforms.iter().map(|b| b.size()).sum::<u64>() + r.frame.size();
+        let raycast = r.walk.as_ref().expect("the walk").raycast.gpu_memory();
+        assert_eq!(r.gpu_memory(), raycast + own);
+        // Per tet: the ray caster's figure and the 16-byte active-list placeholder.
+        let walk = r.walk.as_ref().expect("the walk").bytes_per_tet();
+        let tets = mesh.tet_count() as f64;
+        assert_eq!(r.bytes_per_tet(), walk + 16.0 / tets);
     }
 }
