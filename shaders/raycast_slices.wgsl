@@ -15,10 +15,13 @@
 // of a shell when the ray's transmittance (trans_in, the traversal's, times the segment's) is
 // below params.terminate = 1 - threshold, and tells the traversal (`stopped`).
 //
-// A segment takes the slices with t0 <= t_k < t1. The traversal starts each tet's segment at
-// the t where the previous one ended, bit for bit, and every segment computes t_k with the
-// same operations (`slice_t`, monotone in k), so each slice on the ray's path through the mesh
-// falls in exactly one tet: no holes, no doubles. Composed after integrate_segment.wgsl (its
+// A segment takes the slices with t0 <= t_k < t1 that no earlier segment of the ray took
+// (`next_slice`). The traversal starts each tet's segment at the t where the previous one
+// ended, bit for bit, and every segment computes t_k with the same operations (`slice_t`,
+// monotone in k), so each slice on the ray's path through the mesh falls in exactly one tet:
+// no holes; and where a ray leaves the mesh and re-enters it, the entry may lie up to a
+// rounding tolerance before the exit (next_entry), so a slice in that sliver is not taken
+// again: no doubles. Composed after integrate_segment.wgsl (its
 // `Acc`) in front of raycast_traverse.wgsl in place of the linear field's `tet_segment`.
 
 // Slice k's distance from the eye.
@@ -41,9 +44,13 @@ fn first_slice(t: f32) -> u32 {
     return k;
 }
 
+// The first slice the ray has not taken yet.
+var<private> next_slice: u32 = 0u;
+
 fn tet_segment(tet: u32, ids: vec4<u32>, pl: TetPlanes, d: vec3<f32>, t0: f32, t1: f32) -> Acc {
     var acc = Acc(vec3<f32>(0.0), 1.0);
-    for (var k = first_slice(t0); k < params.slices; k++) {
+    var k = max(first_slice(t0), next_slice);
+    for (; k < params.slices; k++) {
         let t = slice_t(k);
         if !(t < t1) {
             break;
@@ -56,5 +63,6 @@ fn tet_segment(tet: u32, ids: vec4<u32>, pl: TetPlanes, d: vec3<f32>, t0: f32, t
         let alpha = 1.0 - exp(-s.w * params.dz);
         acc = Acc(acc.color + acc.trans * alpha * s.rgb, acc.trans * (1.0 - alpha));
     }
+    next_slice = k;
     return acc;
 }

@@ -42,9 +42,9 @@ pub(crate) fn chunking(tets: u64, limits: &wgpu::Limits) -> Result<Chunking, Ren
     };
     if chunk == 0 || tets.div_ceil(chunk) > LINK_BINDINGS {
         return Err(settings_error(format!(
-            "--mode raycast binds its {tets} tets' links ({LINK_BYTES} bytes each) in at most \
+            "the ray caster (--mode raycast, and shells' --sampler walk) binds its {tets} tets' links ({LINK_BYTES} bytes each) in at most \
              {LINK_BINDINGS} storage bindings, and this adapter binds at most {max} bytes each; \
-             use --mode cellproj for this mesh"
+             use --mode cellproj, or shells' --sampler raster, for this mesh"
         )));
     }
     Ok(Chunking { chunk })

@@ -513,8 +513,8 @@ impl RaycastRenderer {
 fn check_cells(mesh: &GpuTetMesh) -> Result<(), RenderError> {
     match mesh.cells()? {
         Some(cells) if cells.buffer_count() > 1 => Err(settings_error(format!(
-            "--mode raycast binds the {} tets' cell values (4 bytes each) as one buffer, and \
-             this adapter's buffers hold less; use --mode cellproj for this mesh",
+            "the ray caster (--mode raycast, and shells' --sampler walk) binds the {} tets' cell values (4 bytes each) as one buffer, and \
+             this adapter's buffers hold less; use --mode cellproj, or shells' --sampler raster, for this mesh",
             mesh.tet_count()
         ))),
         _ => Ok(()),
@@ -533,15 +533,15 @@ fn check_fits(
     let max = (limits.max_storage_buffer_binding_size).min(limits.max_buffer_size);
     if tets >= 1 << 30 {
         return Err(settings_error(format!(
-            "--mode raycast numbers faces as 4 tet + face in 32 bits: at most 2^30 tets, not \
-             {tets}; use --mode cellproj for this mesh"
+            "the ray caster (--mode raycast, and shells' --sampler walk) numbers faces as 4 tet + face in 32 bits: at most 2^30 tets, not \
+             {tets}; use --mode cellproj, or shells' --sampler raster, for this mesh"
         )));
     }
     if vertices * 16 > max {
         return Err(settings_error(format!(
-            "--mode raycast keeps its {vertices} vertices' eye-space positions (16 bytes each) \
+            "the ray caster (--mode raycast, and shells' --sampler walk) keeps its {vertices} vertices' eye-space positions (16 bytes each) \
              in one storage binding, and this adapter binds at most {max} bytes; use --mode \
-             cellproj for this mesh"
+             cellproj, or shells' --sampler raster, for this mesh"
         )));
     }
     if s.table_size < 2 || s.table_lengths < 2 {

@@ -943,8 +943,9 @@ impl Renderer for ShellsRenderer {
             drawn,
         };
         let image = match self.settings.sampler {
-            // The walk sampler rendered its frame above.
-            Sampler::Raster | Sampler::Walk => self.render_raster(frame, tf, &mut timings)?,
+            Sampler::Raster => self.render_raster(frame, tf, &mut timings)?,
+            // The walk sampler renders its frame before any of the stages above.
+            Sampler::Walk => return Err(settings_error("internal: the walk reached the binning")),
             Sampler::Compute => {
                 let c = self.draw_compute(&frame, tf)?;
                 self.report_frame(

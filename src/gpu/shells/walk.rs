@@ -23,9 +23,11 @@ use crate::tf::TransferFunction;
 
 use super::ShellsRenderer;
 
-/// Slices the walk numbers: `f32(k)` is exact up to 2^24, so every segment computes the same
-/// `t_k` (`raycast_slices.wgsl`).
-const MAX_SLICES: u64 = 1 << 24;
+/// How far, in slices, the last slice may lie from the eye: `t_k = t_first + k dz` is computed
+/// in f32 (`raycast_slices.wgsl`), so beyond about 2^24 slices from the eye neighbouring
+/// slices round to the same distance; at 2^22 a slice is still placed within a quarter of dz.
+/// (The camera must then be thousands of mesh depths away, the mesh a dot in the picture.)
+const MAX_SLICES: f64 = (1u64 << 22) as f64;
 
 /// The walk sampler: a ray caster whose segments composite the shells' slices.
 pub(super) struct WalkSampler {
@@ -94,10 +96,12 @@ impl ShellsRenderer {
         let (t_first, dz) = self.slices_for(&m, camera);
         let count = super::plan::slice_count(&m, camera, t_first, dz);
         drop(m);
-        if count > MAX_SLICES {
+        let reach = t_first / dz + count as f64;
+        if reach > MAX_SLICES {
             return Err(settings_error(format!(
-                "dz = {dz} makes {count} slices across the mesh; --sampler walk numbers at most \
-                 {MAX_SLICES}: use fewer samples or a larger dz"
+                "dz = {dz} puts the last of {count} slices {reach:.0} slices from the eye; \
+                 --sampler walk places slices in f32 up to {MAX_SLICES} slices from the eye: \
+                 use fewer samples, move the camera closer, or use --sampler raster"
             )));
         }
         let slicing = Slicing {
