@@ -30,8 +30,8 @@ fn median(v: &mut [f64]) -> f64 {
 /// First frame, warm frame and position updates on a grid of `TETVR_LARGE_TETS` tets
 /// (default 2M): mesh upload, renderer construction, each frame's stages, and the median of
 /// 9 `update_positions` calls (GPU drained after each). Run with `cargo test --test
-/// shells_large -- --ignored --nocapture`; `TETVR_LARGE_SAMPLER=compute` for the compute
-/// sampler.
+/// shells_large -- --ignored --nocapture`; `TETVR_LARGE_SAMPLER=compute` or `walk` for
+/// those samplers.
 #[test]
 #[ignore = "benchmark: run with --ignored --nocapture"]
 fn bench_large_grid_first_frame_and_updates() {
@@ -41,6 +41,7 @@ fn bench_large_grid_first_frame_and_updates() {
         .unwrap_or(2_000_000u64);
     let sampler = match std::env::var("TETVR_LARGE_SAMPLER").as_deref() {
         Ok("compute") => Sampler::Compute,
+        Ok("walk") => Sampler::Walk,
         _ => Sampler::Raster,
     };
     let mesh = grid(tets);
