@@ -4,6 +4,8 @@
 //! order whose normal `(v1 - v0) x (v2 - v0)` points out of a positively oriented tet.
 
 use std::collections::HashMap;
+use std::sync::atomic::AtomicU32;
+use std::sync::atomic::Ordering::Relaxed;
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -37,53 +39,39 @@ pub struct Adjacency {
 }
 
 impl Adjacency {
-    /// Matches faces by their sorted vertex triples with one parallel sort.
+    /// Matches faces by their sorted vertex triples. A face's partner shares its smallest
+    /// vertex, so the faces are bucketed by it with a counting sort (two passes over the tets,
+    /// atomic counters) and matched within each bucket (about 24 faces in a tet mesh). Two
+    /// faces with the same vertices are neighbours; a face alone, or one of three or more with
+    /// the same vertices (counted once in [`Adjacency::non_manifold_faces`]), is a boundary
+    /// face. [`Adjacency::boundary`] lists boundary faces by tet, then local face. Face slots
+    /// are numbered `4 * tet + face` in 32 bits: at most 2^30 tets
+    /// ([`crate::generate::MAX_GENERATED_TETS`]).
     pub fn build(tets: &[[u32; 4]]) -> Self {
-        let mut keys: Vec<([u32; 3], u32)> = tets
+        let buckets = FaceBuckets::build(tets);
+        let neighbors: Vec<[AtomicU32; 4]> = (0..tets.len())
+            .into_par_iter()
+            .with_min_len(CHUNK)
+            .map(|_| [const { AtomicU32::new(NO_NEIGHBOR) }; 4])
+            .collect();
+        let non_manifold_faces = buckets.match_faces(tets, &neighbors);
+        // Same layout: collects in place, without a second allocation.
+        let neighbors: Vec<[u32; 4]> = neighbors
+            .into_iter()
+            .map(|n| n.map(AtomicU32::into_inner))
+            .collect();
+        let boundary = neighbors
             .par_iter()
             .enumerate()
-            .flat_map_iter(|(t, tet)| {
-                FACES.iter().enumerate().map(move |(f, lf)| {
-                    let mut k = lf.map(|i| tet[i]);
-                    k.sort_unstable();
-                    (k, (t * 4 + f) as u32)
-                })
-            })
-            .collect();
-        keys.par_sort_unstable();
-        let mut neighbors = vec![[NO_NEIGHBOR; 4]; tets.len()];
-        let mut boundary_slots = Vec::new();
-        let mut non_manifold_faces = 0;
-        let mut i = 0;
-        while i < keys.len() {
-            let mut j = i + 1;
-            while j < keys.len() && keys[j].0 == keys[i].0 {
-                j += 1;
-            }
-            match j - i {
-                2 => {
-                    let (a, b) = (keys[i].1, keys[i + 1].1);
-                    neighbors[(a / 4) as usize][(a % 4) as usize] = b / 4;
-                    neighbors[(b / 4) as usize][(b % 4) as usize] = a / 4;
-                }
-                1 => boundary_slots.push(keys[i].1),
-                _ => {
-                    non_manifold_faces += 1;
-                    boundary_slots.extend(keys[i..j].iter().map(|k| k.1));
-                }
-            }
-            i = j;
-        }
-        boundary_slots.sort_unstable();
-        let boundary = boundary_slots
-            .into_iter()
-            .map(|slot| {
-                let (t, f) = ((slot / 4) as usize, (slot % 4) as usize);
-                BoundaryFace {
-                    tet: t as u32,
-                    face: f as u8,
-                    vertices: FACES[f].map(|i| tets[t][i]),
-                }
+            .with_min_len(CHUNK)
+            .flat_map_iter(|(t, n)| {
+                (0..4)
+                    .filter(|&f| n[f] == NO_NEIGHBOR)
+                    .map(move |f| BoundaryFace {
+                        tet: t as u32,
+                        face: f as u8,
+                        vertices: FACES[f].map(|i| tets[t][i]),
+                    })
             })
             .collect();
         Self {
@@ -92,7 +80,131 @@ impl Adjacency {
             non_manifold_faces,
         }
     }
+}
 
+/// Tets per parallel work item in [`Adjacency::build`].
+const CHUNK: usize = 4096;
+
+/// Face slots (`4 * tet + face`) bucketed by their smallest vertex (modulo the bucket count):
+/// bucket `b` is `slots[ends[b - 1]..ends[b]]` (from 0 for the first), in no particular order.
+struct FaceBuckets {
+    ends: Vec<AtomicU32>,
+    slots: Vec<AtomicU32>,
+}
+
+impl FaceBuckets {
+    /// A counting sort of the faces of `tets` by smallest vertex. A tet's three faces through
+    /// its smallest vertex share a bucket; the fourth goes under its second smallest.
+    fn build(tets: &[[u32; 4]]) -> Self {
+        let max_vertex = tets
+            .par_iter()
+            .map(|t| t.iter().max().copied().unwrap_or(0))
+            .max();
+        // One bucket per vertex, fewer only for sparse indices (never more than there are tets).
+        let count = (max_vertex.map_or(0, |v| v as usize + 1))
+            .min(tets.len())
+            .max(1);
+        let bucket = |v: u32| v as usize % count;
+        let ends: Vec<AtomicU32> = (0..count).map(|_| AtomicU32::new(0)).collect();
+        tets.par_iter().with_min_len(CHUNK).for_each(|t| {
+            let (a, b) = two_smallest(t);
+            ends[bucket(a)].fetch_add(3, Relaxed);
+            ends[bucket(b)].fetch_add(1, Relaxed);
+        });
+        // Each bucket's start, which the fill below advances to its end.
+        let mut start = 0u32;
+        for e in &ends {
+            let n = e.load(Relaxed);
+            e.store(start, Relaxed);
+            start = start.wrapping_add(n);
+        }
+        let slots: Vec<AtomicU32> = (0..tets.len() * 4)
+            .into_par_iter()
+            .with_min_len(4 * CHUNK)
+            .map(|_| AtomicU32::new(0))
+            .collect();
+        tets.par_iter()
+            .enumerate()
+            .with_min_len(CHUNK)
+            .for_each(|(t, tet)| {
+                let (lowest, second) = lowest_corner(tet);
+                let at = ends[bucket(tet[lowest])].fetch_add(3, Relaxed) as usize;
+                let others = (0..4u32).filter(|&f| f as usize != lowest);
+                for (k, f) in others.enumerate() {
+                    slots[at + k].store(4 * t as u32 + f, Relaxed);
+                }
+                let at = ends[bucket(second)].fetch_add(1, Relaxed) as usize;
+                slots[at].store(4 * t as u32 + lowest as u32, Relaxed);
+            });
+        Self { ends, slots }
+    }
+
+    /// Pairs the faces of each bucket with equal vertex triples, recording each pair in
+    /// `neighbors`; returns the number of triples shared by more than two faces.
+    fn match_faces(&self, tets: &[[u32; 4]], neighbors: &[[AtomicU32; 4]]) -> usize {
+        (0..self.ends.len())
+            .into_par_iter()
+            .with_min_len(CHUNK / 4)
+            .map_init(Vec::new, |faces, b| {
+                let lo = if b == 0 {
+                    0
+                } else {
+                    self.ends[b - 1].load(Relaxed)
+                };
+                let hi = self.ends[b].load(Relaxed);
+                faces.clear();
+                faces.extend(self.slots[lo as usize..hi as usize].iter().map(|s| {
+                    let slot = s.load(Relaxed);
+                    (face_key(tets, slot), slot)
+                }));
+                faces.sort_unstable();
+                match_sorted(faces, neighbors)
+            })
+            .sum()
+    }
+}
+
+/// Records the pairs among `faces` (sorted by key) in `neighbors`; returns the number of keys
+/// held by more than two faces, which stay boundary faces.
+fn match_sorted(faces: &[([u32; 3], u32)], neighbors: &[[AtomicU32; 4]]) -> usize {
+    let mut non_manifold = 0;
+    for group in faces.chunk_by(|x, y| x.0 == y.0) {
+        match group {
+            [(_, a), (_, b)] => {
+                let (a, b) = (*a as usize, *b as usize);
+                neighbors[a / 4][a % 4].store((b / 4) as u32, Relaxed);
+                neighbors[b / 4][b % 4].store((a / 4) as u32, Relaxed);
+            }
+            [_] => {}
+            _ => non_manifold += 1,
+        }
+    }
+    non_manifold
+}
+
+/// The sorted vertices of face slot `4 * tet + face`.
+fn face_key(tets: &[[u32; 4]], slot: u32) -> [u32; 3] {
+    let (t, f) = ((slot / 4) as usize, (slot % 4) as usize);
+    let mut k = FACES[f].map(|i| tets[t][i]);
+    k.sort_unstable();
+    k
+}
+
+/// The local index of the tet's smallest vertex (the first if repeated) and the smallest of
+/// its other three: the smallest vertex of the face opposite it.
+fn lowest_corner(tet: &[u32; 4]) -> (usize, u32) {
+    let lowest = (1..4).fold(0, |m, i| if tet[i] < tet[m] { i } else { m });
+    let second = (0..4).filter(|&i| i != lowest).map(|i| tet[i]).min();
+    (lowest, second.unwrap_or(tet[lowest]))
+}
+
+/// The tet's smallest vertex and the smallest of its other three.
+fn two_smallest(tet: &[u32; 4]) -> (u32, u32) {
+    let (lowest, second) = lowest_corner(tet);
+    (tet[lowest], second)
+}
+
+impl Adjacency {
     /// Whether the region the boundary encloses is convex: the boundary is one closed,
     /// edge-manifold surface whose dihedral angles are all at most 180 degrees (within a
     /// tolerance relative to the mesh size). Internal boundary faces (a seam of duplicate
