@@ -78,7 +78,7 @@ fn main() -> Result<(), Error> {
     };
     let mut what: Vec<String> = args.collect();
     if what.is_empty() {
-        what = ["1000000", "15100000", "/work/shared/data/bluntfin_tet.vtk"]
+        what = ["1000000", "15100000", "../shared/data/bluntfin_tet.vtk"]
             .map(String::from)
             .into();
     }
