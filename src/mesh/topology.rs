@@ -4,6 +4,8 @@
 //! order whose normal `(v1 - v0) x (v2 - v0)` points out of a positively oriented tet.
 
 use std::collections::HashMap;
+use std::sync::atomic::Ordering::Relaxed;
+use std::sync::atomic::{AtomicU32, AtomicUsize};
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -37,53 +39,40 @@ pub struct Adjacency {
 }
 
 impl Adjacency {
-    /// Matches faces by their sorted vertex triples with one parallel sort.
+    /// Matches faces by their sorted vertex triples. A face's partner shares its smallest
+    /// vertex, so the faces are bucketed by it with a counting sort (two passes over the tets,
+    /// atomic counters) and matched within each bucket (some 20 to 25 faces in a tet mesh: four
+    /// per tet, five or six tets per vertex). Two
+    /// faces with the same vertices are neighbours; a face alone, or one of three or more with
+    /// the same vertices (counted once in [`Adjacency::non_manifold_faces`]), is a boundary
+    /// face. [`Adjacency::boundary`] lists boundary faces by tet, then local face. Face slots
+    /// are numbered `4 * tet + face` in 32 bits: at most 2^30 tets
+    /// ([`crate::generate::MAX_GENERATED_TETS`]).
     pub fn build(tets: &[[u32; 4]]) -> Self {
-        let mut keys: Vec<([u32; 3], u32)> = tets
+        let buckets = FaceBuckets::build(tets);
+        let neighbors: Vec<[AtomicU32; 4]> = (0..tets.len())
+            .into_par_iter()
+            .with_min_len(CHUNK)
+            .map(|_| [const { AtomicU32::new(NO_NEIGHBOR) }; 4])
+            .collect();
+        let non_manifold_faces = buckets.match_faces(tets, &neighbors);
+        // Same layout: collects in place, without a second allocation.
+        let neighbors: Vec<[u32; 4]> = neighbors
+            .into_iter()
+            .map(|n| n.map(AtomicU32::into_inner))
+            .collect();
+        let boundary = neighbors
             .par_iter()
             .enumerate()
-            .flat_map_iter(|(t, tet)| {
-                FACES.iter().enumerate().map(move |(f, lf)| {
-                    let mut k = lf.map(|i| tet[i]);
-                    k.sort_unstable();
-                    (k, (t * 4 + f) as u32)
-                })
-            })
-            .collect();
-        keys.par_sort_unstable();
-        let mut neighbors = vec![[NO_NEIGHBOR; 4]; tets.len()];
-        let mut boundary_slots = Vec::new();
-        let mut non_manifold_faces = 0;
-        let mut i = 0;
-        while i < keys.len() {
-            let mut j = i + 1;
-            while j < keys.len() && keys[j].0 == keys[i].0 {
-                j += 1;
-            }
-            match j - i {
-                2 => {
-                    let (a, b) = (keys[i].1, keys[i + 1].1);
-                    neighbors[(a / 4) as usize][(a % 4) as usize] = b / 4;
-                    neighbors[(b / 4) as usize][(b % 4) as usize] = a / 4;
-                }
-                1 => boundary_slots.push(keys[i].1),
-                _ => {
-                    non_manifold_faces += 1;
-                    boundary_slots.extend(keys[i..j].iter().map(|k| k.1));
-                }
-            }
-            i = j;
-        }
-        boundary_slots.sort_unstable();
-        let boundary = boundary_slots
-            .into_iter()
-            .map(|slot| {
-                let (t, f) = ((slot / 4) as usize, (slot % 4) as usize);
-                BoundaryFace {
-                    tet: t as u32,
-                    face: f as u8,
-                    vertices: FACES[f].map(|i| tets[t][i]),
-                }
+            .with_min_len(CHUNK)
+            .flat_map_iter(|(t, n)| {
+                (0..4)
+                    .filter(|&f| n[f] == NO_NEIGHBOR)
+                    .map(move |f| BoundaryFace {
+                        tet: t as u32,
+                        face: f as u8,
+                        vertices: FACES[f].map(|i| tets[t][i]),
+                    })
             })
             .collect();
         Self {
@@ -147,8 +136,123 @@ impl Adjacency {
     }
 }
 
+/// Tets per parallel work item in [`Adjacency::build`].
+const CHUNK: usize = 4096;
+
+/// Face slots (`4 * tet + face`) bucketed by their smallest vertex (modulo the bucket count):
+/// bucket `b` is `slots[ends[b - 1]..ends[b]]` (from 0 for the first), in no particular order.
+struct FaceBuckets {
+    ends: Vec<AtomicUsize>,
+    slots: Vec<AtomicU32>,
+}
+
+impl FaceBuckets {
+    /// A counting sort of the faces of `tets` by smallest vertex. A tet's three faces through
+    /// its smallest vertex share a bucket; the fourth goes under its second smallest.
+    fn build(tets: &[[u32; 4]]) -> Self {
+        let max_vertex = tets
+            .par_iter()
+            .map(|t| t.iter().max().copied().unwrap_or(0))
+            .max();
+        // One bucket per vertex, fewer only for sparse indices (never more than there are tets).
+        let count = (max_vertex.map_or(0, |v| v as usize + 1))
+            .min(tets.len())
+            .max(1);
+        let bucket = |v: u32| v as usize % count;
+        let ends: Vec<AtomicUsize> = (0..count).map(|_| AtomicUsize::new(0)).collect();
+        tets.par_iter().with_min_len(CHUNK).for_each(|t| {
+            let (lowest, second) = lowest_corner(t);
+            ends[bucket(t[lowest])].fetch_add(3, Relaxed);
+            ends[bucket(second)].fetch_add(1, Relaxed);
+        });
+        // Each bucket's start, which the fill below advances to its end.
+        let mut start = 0;
+        for e in &ends {
+            start += e.swap(start, Relaxed);
+        }
+        let slots: Vec<AtomicU32> = (0..tets.len() * 4)
+            .into_par_iter()
+            .with_min_len(4 * CHUNK)
+            .map(|_| AtomicU32::new(0))
+            .collect();
+        tets.par_iter()
+            .enumerate()
+            .with_min_len(CHUNK)
+            .for_each(|(t, tet)| {
+                let (lowest, second) = lowest_corner(tet);
+                let at = ends[bucket(tet[lowest])].fetch_add(3, Relaxed);
+                let others = (0..4u32).filter(|&f| f as usize != lowest);
+                for (k, f) in others.enumerate() {
+                    slots[at + k].store(4 * t as u32 + f, Relaxed);
+                }
+                let at = ends[bucket(second)].fetch_add(1, Relaxed);
+                slots[at].store(4 * t as u32 + lowest as u32, Relaxed);
+            });
+        Self { ends, slots }
+    }
+
+    /// Pairs the faces of each bucket with equal vertex triples, recording each pair in
+    /// `neighbors`; returns the number of triples shared by more than two faces.
+    fn match_faces(&self, tets: &[[u32; 4]], neighbors: &[[AtomicU32; 4]]) -> usize {
+        (0..self.ends.len())
+            .into_par_iter()
+            .with_min_len(CHUNK / 4)
+            .map_init(Vec::new, |faces, b| {
+                let lo = if b == 0 {
+                    0
+                } else {
+                    self.ends[b - 1].load(Relaxed)
+                };
+                let hi = self.ends[b].load(Relaxed);
+                faces.clear();
+                let slots = &self.slots[lo..hi];
+                faces.extend(slots.iter().map(|s| face_key(tets, s.load(Relaxed))));
+                faces.sort_unstable();
+                match_sorted(faces, neighbors)
+            })
+            .sum()
+    }
+}
+
+/// Records the pairs among `faces` (sorted by key) in `neighbors`; returns the number of keys
+/// held by more than two faces, which stay boundary faces.
+fn match_sorted(faces: &[u128], neighbors: &[[AtomicU32; 4]]) -> usize {
+    let mut non_manifold = 0;
+    for group in faces.chunk_by(|x, y| x >> 32 == y >> 32) {
+        match group {
+            [a, b] => {
+                let (a, b) = (*a as u32 as usize, *b as u32 as usize);
+                neighbors[a / 4][a % 4].store((b / 4) as u32, Relaxed);
+                neighbors[b / 4][b % 4].store((a / 4) as u32, Relaxed);
+            }
+            [_] => {}
+            _ => non_manifold += 1,
+        }
+    }
+    non_manifold
+}
+
+/// The sorted vertices of face slot `4 * tet + face` packed from the high bits down, then
+/// the slot in the low 32 bits.
+fn face_key(tets: &[[u32; 4]], slot: u32) -> u128 {
+    let (t, f) = ((slot / 4) as usize, (slot % 4) as usize);
+    let mut k = FACES[f].map(|i| tets[t][i]);
+    k.sort_unstable();
+    (k[0] as u128) << 96 | (k[1] as u128) << 64 | (k[2] as u128) << 32 | slot as u128
+}
+
+/// The local index of the tet's smallest vertex (the first if repeated) and the smallest of
+/// its other three: the smallest vertex of the face opposite it.
+fn lowest_corner(tet: &[u32; 4]) -> (usize, u32) {
+    let lowest = (1..4).fold(0, |m, i| if tet[i] < tet[m] { i } else { m });
+    let second = (0..4).filter(|&i| i != lowest).map(|i| tet[i]);
+    (lowest, second.fold(u32::MAX, u32::min))
+}
+
 #[cfg(test)]
 mod tests {
+    use proptest::prelude::*;
+
     use super::*;
     use crate::mesh::TetMesh;
 
@@ -182,6 +286,84 @@ mod tests {
         assert_eq!(adj.non_manifold_faces, 0);
         // (0,0,0) and (1,1,1) on either side of the face x+y+z=1: a convex triangular bipyramid.
         assert!(adj.is_convex(m.positions()));
+    }
+
+    /// Three tets on the face {0, 1, 2}: one non-manifold face, its three copies boundary
+    /// faces listed by tet, no neighbour across any of them.
+    #[test]
+    fn face_of_three_tets_is_non_manifold_boundary() {
+        let tets = [[0, 1, 2, 3], [2, 1, 0, 4], [1, 0, 2, 5]];
+        let adj = Adjacency::build(&tets);
+        assert_eq!(adj.non_manifold_faces, 1);
+        assert!(adj.neighbors.iter().flatten().all(|&n| n == NO_NEIGHBOR));
+        let slots: Vec<(u32, u8)> = adj.boundary.iter().map(|b| (b.tet, b.face)).collect();
+        assert_eq!(slots.len(), 12);
+        assert!(slots.windows(2).all(|w| w[0] < w[1]));
+        assert_eq!(adj.boundary[3].vertices, [0, 2, 1]);
+    }
+
+    /// The adjacency as the old sort-based build defined it, from a hash map of sorted face
+    /// triples: the tet across each face shared by exactly two faces, the boundary slots
+    /// ascending, the number of triples held by three or more faces.
+    fn hashed(tets: &[[u32; 4]]) -> (Vec<[u32; 4]>, Vec<(u32, u8)>, usize) {
+        let mut faces: HashMap<[u32; 3], Vec<(usize, usize)>> = HashMap::new();
+        for (t, tet) in tets.iter().enumerate() {
+            for (f, lf) in FACES.iter().enumerate() {
+                let mut k = lf.map(|i| tet[i]);
+                k.sort_unstable();
+                faces.entry(k).or_default().push((t, f));
+            }
+        }
+        let mut neighbors = vec![[NO_NEIGHBOR; 4]; tets.len()];
+        let mut non_manifold = 0;
+        for slots in faces.values() {
+            match slots[..] {
+                [(t, f), (u, g)] => {
+                    neighbors[t][f] = u as u32;
+                    neighbors[u][g] = t as u32;
+                }
+                [_] => {}
+                _ => non_manifold += 1,
+            }
+        }
+        let boundary = (0..tets.len())
+            .flat_map(|t| (0..4).map(move |f| (t, f)))
+            .filter(|&(t, f)| {
+                let mut k = FACES[f].map(|i| tets[t][i]);
+                k.sort_unstable();
+                faces[&k].len() != 2
+            })
+            .map(|(t, f)| (t as u32, f as u8))
+            .collect();
+        (neighbors, boundary, non_manifold)
+    }
+
+    /// Random tets over a few vertices, so that faces are often shared by two tets and
+    /// sometimes by three or more; corners may repeat (TetMesh refuses such tets, `build` takes
+    /// them). `spread` multiplies the indices, leaving most vertex numbers unused (fewer
+    /// buckets than vertices).
+    fn tets_strategy() -> impl Strategy<Value = Vec<[u32; 4]>> {
+        let tet = [0u32..9, 0u32..9, 0u32..9, 0u32..9];
+        (
+            proptest::collection::vec(tet, 0..60),
+            prop_oneof![Just(1u32), Just(0x1fff_ffff)],
+        )
+            .prop_map(|(tets, spread)| tets.into_iter().map(|t| t.map(|v| v * spread)).collect())
+    }
+
+    proptest! {
+        #[test]
+        fn build_matches_a_hash_map_of_faces(tets in tets_strategy()) {
+            let adj = Adjacency::build(&tets);
+            let (neighbors, boundary, non_manifold) = hashed(&tets);
+            prop_assert_eq!(&adj.neighbors, &neighbors);
+            let slots: Vec<(u32, u8)> = adj.boundary.iter().map(|b| (b.tet, b.face)).collect();
+            prop_assert_eq!(slots, boundary);
+            prop_assert_eq!(adj.non_manifold_faces, non_manifold);
+            for b in &adj.boundary {
+                prop_assert_eq!(b.vertices, FACES[b.face as usize].map(|i| tets[b.tet as usize][i]));
+            }
+        }
     }
 
     #[test]
