@@ -5,15 +5,18 @@
 // lies at t_k = params.t_first + k params.dz from the eye, k < params.slices (the shells plan,
 // gpu::shells::plan); its scalar is the tet's linear field at t_k (for cell data the tet's
 // value; for a textured cage the volume there, raycast_slices_texture.wgsl: `sample_scalar`,
-// composed in front), its colour and extinction the TF as the shells samplers evaluate it (tf_eval.wgsl,
-// with the generated looping `tf_eval`), composited front to back with
+// composed in front), its colour and extinction the TF as the shells samplers evaluate it
+// (tf_eval.wgsl, with the generated `tf_eval`), composited front to back with
 // alpha = 1 - exp(-tau dz) as shells_tf.wgsl's `under` does.
 //
 // Early ray termination as the raster and compute samplers have it: they finish a pixel whose
-// alpha reached the threshold after compositing a whole shell (params.shell_slices slices,
-// shell i holding slices [i n, (i + 1) n)), so the walk stops its ray before the first slice
-// of a shell when the ray's transmittance (trans_in, the traversal's, times the segment's) is
-// below params.terminate = 1 - threshold, and tells the traversal (`stopped`).
+// alpha reached the threshold (transmittance at most 1 - threshold) after compositing a whole
+// shell (params.shell_slices slices, shell i holding slices [i n, (i + 1) n)), so the walk
+// stops its ray before the first slice it takes in a later shell than the last one it
+// sampled (`last_shell`; the first slice of a shell may lie outside the mesh, between an exit
+// and a re-entry) when the ray's transmittance (trans_in, the traversal's, times the
+// segment's) is at most params.terminate = 1 - threshold (-1 with early termination off), and
+// tells the traversal (`stopped`).
 //
 // A segment takes the slices with t0 <= t_k < t1 that no earlier segment of the ray took
 // (`next_slice`). The traversal starts each tet's segment at the t where the previous one
@@ -46,6 +49,9 @@ fn first_slice(t: f32) -> u32 {
 
 // The first slice the ray has not taken yet.
 var<private> next_slice: u32 = 0u;
+// The shell of the last slice the ray took (NO_SHELL: none yet).
+const NO_SHELL: u32 = 0xffffffffu;
+var<private> last_shell: u32 = NO_SHELL;
 
 fn tet_segment(tet: u32, ids: vec4<u32>, pl: TetPlanes, d: vec3<f32>, t0: f32, t1: f32) -> Acc {
     var acc = Acc(vec3<f32>(0.0), 1.0);
@@ -55,9 +61,13 @@ fn tet_segment(tet: u32, ids: vec4<u32>, pl: TetPlanes, d: vec3<f32>, t0: f32, t
         if !(t < t1) {
             break;
         }
-        if k % params.shell_slices == 0u && trans_in * acc.trans < params.terminate {
-            stopped = true;
-            break;
+        let shell = k / params.shell_slices;
+        if shell != last_shell {
+            if trans_in * acc.trans <= params.terminate {
+                stopped = true;
+                break;
+            }
+            last_shell = shell;
         }
         let s = tf_eval(sample_scalar(tet, ids, pl, d, t));
         let alpha = 1.0 - exp(-s.w * params.dz);

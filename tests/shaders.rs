@@ -23,13 +23,13 @@ fn every_registered_shader_validates() {
     // assemble, shells_mark, shells_tiles, shells_bin, iso_raster, iso_gradients,
     // cellproj_raster, 17 raycast stages (vertices, planes, entries, two peeling passes, tiles
     // per entry method, traversal per entry method and integrator: exact, partial, table,
-    // textured, textured isosurfaces), the shells' walk sampler's traversal per entry method,
+    // textured, textured isosurfaces), the shells' walk sampler's traversal (entry lists) per
     // TF variant (33: every unrolled one and the loop) and field (the mesh's, a textured
     // cage's), and per target count two shells raster variants (the linear field, a textured
     // cage), 33 composite and 66 fine (compute sampler; linear and textured) variants.
     assert_eq!(
         registry.len(),
-        24 + 132 + shaders::MAX_TARGETS as usize * 101
+        24 + 66 + shaders::MAX_TARGETS as usize * 101
     );
     for (name, src, entries) in registry {
         assert_eq!(validate(&name, &src), entries, "{name}");
@@ -63,7 +63,7 @@ fn raycast_struct_layouts_match_gpu_data() {
     use tetvr::gpu::raycast::RAY_STATE_BYTES;
     let walk = [(0, false), (5, true)]
         .into_iter()
-        .flat_map(|(points, textured)| shaders::raycast_slices(points, textured));
+        .map(|(points, textured)| shaders::raycast_slices(points, textured));
     let stages = shaders::raycast_stages().map(|(name, src)| (name.to_string(), src));
     for (name, src) in stages.into_iter().chain(walk) {
         let module = validated_wgsl(&name, &src);

@@ -261,7 +261,7 @@ pub struct CellProjUniforms {
 }
 const _: () = assert!(size_of::<CellProjUniforms>() == 16);
 
-/// The ray caster's constants (WGSL `Raycast` in `shaders/raycast_shared.wgsl`, 48 bytes).
+/// The ray caster's constants (WGSL `Raycast` in `shaders/raycast_shared.wgsl`, 64 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct RaycastUniforms {
@@ -289,8 +289,9 @@ pub struct RaycastUniforms {
     /// See `t_first`.
     pub slices: u32,
     /// Early ray termination: a ray stops once its transmittance is below this (what lies
-    /// behind adds at most this to any channel): `twin::TERMINATE` for the ray caster's own
-    /// integrators, `1 - threshold` for the walk sampler (0 with its early termination off).
+    /// behind adds at most this to any channel), `twin::TERMINATE`, for the ray caster's own
+    /// integrators; for the walk sampler, at or below `1 - threshold` where a shell ends (-1
+    /// with its early termination off: never).
     pub terminate: f32,
     /// 0: the traversal checks `terminate` after every segment (the ray caster's own
     /// integrators). The walk sampler's slice count per shell: its integrator checks it only

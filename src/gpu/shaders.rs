@@ -205,7 +205,7 @@ pub fn raycast_stages() -> [(&'static str, String); 17] {
 /// constant indices up to [`UNROLLED_TF_POINTS`], measured 1.6 times faster than the loop on
 /// lavapipe, else a loop; 0 selects the loop); `textured`: at the volume texture of a textured
 /// cage (`raycast_slices_texture.wgsl`, bindings 17 and 18) instead of the mesh's field.
-pub fn raycast_slices(tf_points: u32, textured: bool) -> [(String, String); 2] {
+pub fn raycast_slices(tf_points: u32, textured: bool) -> (String, String) {
     let common = format!("{SHARED}\n{RAYCAST_SHARED}\n{RAYCAST_RAYS}\n{INTEGRATE_SEGMENT}");
     let (scalar, field) = match textured {
         true => (
@@ -218,11 +218,9 @@ pub fn raycast_slices(tf_points: u32, textured: bool) -> [(String, String); 2] {
         "{PSI_EXACT}\n{scalar}\n{}{TF_EVAL}\n{RAYCAST_SLICES}\n{NO_HITS}",
         tf_eval(tf_points)
     );
-    [("lists", RAYCAST_LISTS), ("peel", RAYCAST_LAYERS)].map(|(name, entries)| {
-        let name = format!("raycast_traverse ({name}, slices, {tf_points} TF points{field})");
-        let source = format!("{common}\n{integrator}\n{entries}\n{RAYCAST_TRAVERSE}");
-        (name, source)
-    })
+    let name = format!("raycast_traverse (lists, slices, {tf_points} TF points{field})");
+    let source = format!("{common}\n{integrator}\n{RAYCAST_LISTS}\n{RAYCAST_TRAVERSE}");
+    (name, source)
 }
 
 /// The TF variant of [`tf_eval`] a transfer function of `points` control points uses: its
@@ -442,9 +440,8 @@ pub fn registry() -> Vec<(String, String, &'static [&'static str])> {
     // the mesh's field and of a textured cage's.
     for tf_points in 0..=UNROLLED_TF_POINTS {
         for textured in [false, true] {
-            for (name, source) in raycast_slices(tf_points, textured) {
-                out.push((name, source, ["main"].as_slice()));
-            }
+            let (name, source) = raycast_slices(tf_points, textured);
+            out.push((name, source, ["main"].as_slice()));
         }
     }
     for targets in 1..=MAX_TARGETS {

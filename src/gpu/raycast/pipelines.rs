@@ -36,10 +36,12 @@ pub struct Pipelines {
     /// For the shells' walk sampler: the pipeline constants its traversals are built with, and
     /// the field they read.
     sliced: Option<(Constants, SliceField)>,
-    /// The walk sampler's traversal per [`Entry`] that composites the slices each segment holds
+    /// The walk sampler's traversal that composites the slices each segment holds
     /// (`shaders/raycast_slices.wgsl`), whatever the [`Segments`], and the TF variant it was
-    /// built for ([`shaders::tf_variant`]); built by [`Pipelines::ensure_slices`].
-    slices: Option<(u32, [Stage; 2])>,
+    /// built for ([`shaders::tf_variant`]); built by [`Pipelines::ensure_slices`]. Entry lists
+    /// only: a ray's slice count (`next_slice`) lives in one dispatch, which depth-peeling
+    /// layers would cut; the walk's ray caster is private to it and built with entry lists.
+    slices: Option<(u32, Stage)>,
 }
 
 /// The traversals' pipeline constants: `LINK_WINDOWS` and `CELLS`.
@@ -226,16 +228,13 @@ impl Pipelines {
             return;
         }
         let textured = field == SliceField::Texture;
-        let [lists, peel] = shaders::raycast_slices(variant, textured);
-        let stage = |(name, source): (String, String), entry| {
-            let entries = match textured {
-                true => textured_entries(entry),
-                false => traverse_entries(entry),
-            };
-            stage_with(device, (&name, source), &entries, (&constants, "main"))
+        let (name, source) = shaders::raycast_slices(variant, textured);
+        let entries = match textured {
+            true => textured_entries(Entry::Lists),
+            false => traverse_entries(Entry::Lists),
         };
-        let stages = [stage(lists, Entry::Lists), stage(peel, Entry::Peel)];
-        self.slices = Some((variant, stages));
+        let stage = stage_with(device, (&name, source), &entries, (&constants, "main"));
+        self.slices = Some((variant, stage));
     }
 
     /// The tile-list stage of `entry`.
@@ -244,13 +243,13 @@ impl Pipelines {
     }
 
     /// The traversal stage of `entry` and `segments`; for a textured cage, its textured
-    /// traversal of `entry`; for the walk sampler, its traversal of `entry`.
+    /// traversal of `entry`; for the walk sampler, its traversal (entry lists).
     pub fn traverse(&self, entry: Entry, segments: Segments) -> &Stage {
         if let Some(textured) = &self.textured {
             return &textured[entry as usize];
         }
         if let Some((_, slices)) = &self.slices {
-            return &slices[entry as usize];
+            return slices;
         }
         let [exact, partial, table] = &self.traverse[entry as usize];
         match segments {

@@ -34,8 +34,8 @@ pub struct TetPlanes {
 /// a face is never an exit or an entry (the crossing's t is a ratio of rounding errors).
 pub const PARALLEL: f32 = 1e-5;
 
-/// WGSL `TERMINATE`: a ray stops when its transmittance falls below this, so what lies behind
-/// adds at most this much to any channel.
+/// WGSL `params.terminate` for the ray caster's own integrators: a ray stops when its
+/// transmittance falls below this, so what lies behind adds at most this much to any channel.
 pub const TERMINATE: f32 = 1e-5;
 
 /// WGSL `REENTRY`: after leaving the mesh at t, a ray re-enters through entries from

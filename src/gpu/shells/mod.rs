@@ -1003,11 +1003,8 @@ impl Renderer for ShellsRenderer {
                 .map_or(0, compute::ComputeSampler::size)
             + self.binner.as_ref().map_or(0, gpu_binning::GpuBinner::size);
         let frame = self.frame.size();
-        // The walk's ray caster counts the texture it shares.
-        let texture = match self.walk {
-            None => self.texture.as_ref().map_or(0, |t| t.gpu.bytes()),
-            Some(_) => 0,
-        };
+        // The texture counted once, here: the walk's own memory leaves out what it shares.
+        let texture = self.texture.as_ref().map_or(0, |t| t.gpu.bytes());
         let shared = self.texture.as_ref().map(|t| &t.gpu);
         let walk = (self.walk.as_ref()).map_or(0, |w| w.own_memory(&self.mesh, shared));
         self.mesh.gpu_memory() + frame + buffers + targets + texture + walk

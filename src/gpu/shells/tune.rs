@@ -149,12 +149,13 @@ impl TuneCache {
 }
 
 /// A short description of a configuration, e.g. `compute, 16 per shell, no frustum`; the walk
-/// sampler's is `walk` (it uses no slices per shell, skip or binning).
+/// sampler's is `walk`, with the two settings it reads: fixed slices per shell and early
+/// termination off (where it stops a ray; it has no binning or other skip).
 pub fn describe(s: &ShellSettings) -> String {
     let sampler = match s.sampler {
         Sampler::Raster => "raster",
         Sampler::Compute => "compute",
-        Sampler::Walk => return "walk".into(),
+        Sampler::Walk => return describe_walk(s),
     };
     let slices = match (s.slices_per_shell, s.skips.adaptive_slices) {
         (Some(n), _) => format!("{n} per shell"),
@@ -172,6 +173,16 @@ pub fn describe(s: &ShellSettings) -> String {
     parts.join(", ")
 }
 
+/// [`describe`] of a walk configuration.
+fn describe_walk(s: &ShellSettings) -> String {
+    let mut parts = vec!["walk".to_string()];
+    parts.extend(s.slices_per_shell.map(|n| format!("{n} per shell")));
+    if !s.skips.early_termination {
+        parts.push("no early-termination".into());
+    }
+    parts.join(", ")
+}
+
 /// One kind of change tried on the incumbent.
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Step {
@@ -183,7 +194,9 @@ enum Step {
 
 impl Step {
     /// The configurations that make this change to `s`. Under the walk sampler only the
-    /// sampler changes anything: it has no shells, skips or binning to tune.
+    /// sampler is tuned: it has no binning or skips but early termination, which with the
+    /// slices per shell only sets where a ray stops (kept from the configuration it came
+    /// from).
     fn alternatives(self, s: &ShellSettings) -> Vec<ShellSettings> {
         match self {
             Step::Binning | Step::Slices | Step::Skip(_) if s.sampler == Sampler::Walk => {

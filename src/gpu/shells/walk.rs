@@ -25,8 +25,9 @@ use super::ShellsRenderer;
 
 /// How far, in slices, the last slice may lie from the eye: `t_k = t_first + k dz` is computed
 /// in f32 (`raycast_slices.wgsl`), so beyond about 2^24 slices from the eye neighbouring
-/// slices round to the same distance; at 2^22 a slice is still placed within a quarter of dz.
-/// (The camera must then be thousands of mesh depths away, the mesh a dot in the picture.)
+/// slices round to the same distance; within 2^22 consecutive slices stay distinct and in
+/// order (each placed within a few f32 roundings of its distance). The camera must then be
+/// thousands of mesh depths away, the mesh a dot in the picture.
 const MAX_SLICES: f64 = (1u64 << 22) as f64;
 
 /// The walk sampler: a ray caster whose segments composite the shells' slices.
@@ -74,14 +75,14 @@ impl WalkSampler {
 }
 
 impl ShellsRenderer {
-    /// The transmittance below which the walk stops a ray at a shell's end: 1 - the threshold
-    /// of early ray termination (the binning samplers finish a pixel whose alpha reached it);
-    /// 0, never, with early termination off.
+    /// The transmittance at or below which the walk stops a ray at a shell's end: 1 - the
+    /// threshold of early ray termination (the binning samplers finish a pixel whose alpha
+    /// reached it); -1, never, with early termination off.
     fn walk_terminate(&self) -> f32 {
         let skips = &self.settings.skips;
         match skips.early_termination {
             true => (1.0 - skips.ert_threshold as f64) as f32,
-            false => 0.0,
+            false => -1.0,
         }
     }
 
@@ -140,9 +141,10 @@ mod tests {
     /// The walk stops a ray once it is opaque: on a 12^3 grid (a ray through it steps through
     /// dozens of tets) with a step limit of 12 tets, a TF of opacity 0.9999 per 1/100 of the
     /// diagonal makes each sample's alpha about 0.84 at 512 samples, so every ray is opaque
-    /// (transmittance under 1e-5) within its first cell, a few tets, and none reaches the
-    /// limit; at opacity 0.01 many rays do. Without early termination the opaque rays would
-    /// reach it as the transparent ones do.
+    /// (transmittance under 1e-5) after about 7 samples, and stops where that shell ends, at
+    /// most 3 samples on (4 slices per shell): about 0.07 of the grid's 0.29 cell diagonal,
+    /// a few tets, and none reaches the limit; at opacity 0.01 many rays do. Without early
+    /// termination the opaque rays would reach it as the transparent ones do.
     #[test]
     fn an_opaque_ray_stops_before_the_step_limit() {
         let ctx = GpuContext::new(AdapterChoice::Auto).expect("a GPU adapter (lavapipe will do)");
@@ -151,6 +153,7 @@ mod tests {
         let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 48, 48);
         let settings = ShellSettings {
             sampler: Sampler::Walk,
+            slices_per_shell: Some(4),
             ..ShellSettings::default()
         };
         let mut r = ShellsRenderer::new(&ctx, &mesh, settings).expect("walk renderer");
