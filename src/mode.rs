@@ -27,8 +27,8 @@ use crate::cpu::raycast::{self as cpu_raycast, CpuRaycastRenderer, CpuRaycastSet
 use crate::gpu::raycast::{Entry, Segments};
 use crate::gpu::{
     AdapterChoice, CellProjRenderer, CellProjSettings, GpuContext, GpuError, Integrate,
-    IsoRenderer, IsoSettings, RaycastRenderer, RaycastSettings, ShellSettings, ShellsRenderer,
-    TunedShells,
+    IsoRenderer, IsoSettings, RaycastRenderer, RaycastSettings, Sampler, ShellSettings,
+    ShellsRenderer, TunedShells,
 };
 use crate::mesh::TetMesh;
 use crate::reference::ReferenceRenderer;
@@ -195,13 +195,21 @@ impl ModeSettings {
         })
     }
 
-    /// A one-line description of the resolved mode for people, e.g. `mode shells on llvmpipe
-    /// (...)` or `mode iso at 0.5, 0.7 on ...`.
+    /// A one-line description of the resolved mode for people, e.g. `mode shells (raster
+    /// sampler, 512 samples) on llvmpipe (...)` or `mode iso at 0.5, 0.7 on ...`.
     pub fn describe(&self, gpu: Option<&GpuContext>) -> String {
         let on = gpu.map_or_else(|| "no GPU".to_string(), GpuContext::summary);
         match self.resolve(gpu) {
             Self::Auto(_) | Self::Reference(_) => "mode reference, exact f64 on the CPU".into(),
-            Self::Shells(_) => format!("mode shells on {on}"),
+            Self::Shells(s) => {
+                let sampler = match (s.tune, s.sampler) {
+                    (true, _) => "sampler tuned",
+                    (false, Sampler::Raster) => "raster sampler",
+                    (false, Sampler::Compute) => "compute sampler",
+                    (false, Sampler::Walk) => "walk sampler",
+                };
+                format!("mode shells ({sampler}, {} samples) on {on}", s.samples)
+            }
             Self::Iso(s) => {
                 let values: Vec<String> = s.isovalues.iter().map(|(v, _)| v.to_string()).collect();
                 format!("mode iso at {} on {on}", values.join(", "))

@@ -764,6 +764,11 @@ fn sampler_compute_renders_the_raster_samplers_picture_and_bad_samplers_are_name
         stdout.contains("traverse") && stdout.contains("slices"),
         "{stdout}"
     );
+    // The summary line names the sampler.
+    assert!(
+        stdout.contains("mode shells (walk sampler, 512 samples)"),
+        "{stdout}"
+    );
     let m = walk.compare(&raster).unwrap();
     assert!(m.max_abs <= 6.0 / 255.0 && m.holes == 0, "{m}");
     let bad = tetvr(&["render", LOX, "--sampler", "fragment"]);

@@ -36,12 +36,16 @@ pub struct Pipelines {
     /// For the shells' walk sampler: the pipeline constants its traversals are built with, and
     /// the field they read.
     sliced: Option<(Constants, SliceField)>,
-    /// The walk sampler's traversal that composites the slices each segment holds
-    /// (`shaders/raycast_slices.wgsl`), whatever the [`Segments`], and the TF variant it was
-    /// built for ([`shaders::tf_variant`]); built by [`Pipelines::ensure_slices`]. Entry lists
-    /// only: a ray's slice count (`next_slice`) lives in one dispatch, which depth-peeling
-    /// layers would cut; the walk's ray caster is private to it and built with entry lists.
-    slices: Option<(u32, Stage)>,
+    /// The walk sampler's traversals that composite the slices each segment holds
+    /// (`shaders/raycast_slices.wgsl`), whatever the [`Segments`], by the TF variant each was
+    /// built for ([`shaders::tf_variant`]); built by [`Pipelines::ensure_slices`] on first use
+    /// and kept, so a TF whose point count changes back and forth (the viewer's editor)
+    /// compiles each variant once. Entry lists only: a ray's slice count (`next_slice`) lives
+    /// in one dispatch, which depth-peeling layers would cut; the walk's ray caster is private
+    /// to it and built with entry lists.
+    slices: Vec<(u32, Stage)>,
+    /// The TF variant of the walk's traversal the next frame records.
+    slice_variant: u32,
 }
 
 /// The traversals' pipeline constants: `LINK_WINDOWS` and `CELLS`.
@@ -193,7 +197,8 @@ impl Pipelines {
             peel: [least_t, least_face].map(|s| stage(s, &peel)),
             tiles: [tiles_lists, tiles_peel].map(|s| stage(s, &tiles)),
             sliced: slices.map(|field| (constants, field)),
-            slices: None,
+            slices: Vec::new(),
+            slice_variant: 0,
             traverse: [
                 [lists_exact, lists_partial, lists_table].map(|s| stage(s, &lists)),
                 [peel_exact, peel_partial, peel_table].map(|s| stage(s, &layers)),
@@ -217,14 +222,15 @@ impl Pipelines {
         }
     }
 
-    /// With the walk sampler's traversals ([`Pipelines::new`]'s `slices`), builds them for a
-    /// TF of `tf_points` control points unless they are built for its variant.
+    /// With the walk sampler's traversals ([`Pipelines::new`]'s `slices`), selects the one
+    /// for a TF of `tf_points` control points, built unless it was for its variant before.
     pub fn ensure_slices(&mut self, device: &wgpu::Device, tf_points: u32) {
         let Some((constants, field)) = self.sliced else {
             return;
         };
         let variant = shaders::tf_variant(tf_points);
-        if self.slices.as_ref().is_some_and(|(v, _)| *v == variant) {
+        self.slice_variant = variant;
+        if self.slices.iter().any(|(v, _)| *v == variant) {
             return;
         }
         let textured = field == SliceField::Texture;
@@ -234,7 +240,7 @@ impl Pipelines {
             false => traverse_entries(Entry::Lists),
         };
         let stage = stage_with(device, (&name, source), &entries, (&constants, "main"));
-        self.slices = Some((variant, stage));
+        self.slices.push((variant, stage));
     }
 
     /// The tile-list stage of `entry`.
@@ -248,7 +254,7 @@ impl Pipelines {
         if let Some(textured) = &self.textured {
             return &textured[entry as usize];
         }
-        if let Some((_, slices)) = &self.slices {
+        if let Some((_, slices)) = self.slices.iter().find(|(v, _)| *v == self.slice_variant) {
             return slices;
         }
         let [exact, partial, table] = &self.traverse[entry as usize];

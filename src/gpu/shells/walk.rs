@@ -222,4 +222,38 @@ mod tests {
         let tets = mesh.tet_count() as f64;
         assert_eq!(r.bytes_per_tet(), walk + 16.0 / tets);
     }
+
+    /// A TF with another point count selects the walk's traversal built for it, and the first
+    /// one again when the count comes back (each variant built once, then kept): the frames
+    /// equal a fresh renderer's bit for bit (2 points: constant indices; 40: the loop).
+    #[test]
+    fn tf_point_counts_switching_back_and_forth_draw_as_fresh_renderers() {
+        let ctx = GpuContext::new(AdapterChoice::Auto).expect("a GPU adapter (lavapipe will do)");
+        let (lo, hi) = (DVec3::splat(-1.0), DVec3::splat(1.0));
+        let mesh = generate::box_grid(lo, hi, UVec3::splat(6), "x", |p| p.x);
+        let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 24, 24);
+        let settings = ShellSettings {
+            sampler: Sampler::Walk,
+            ..ShellSettings::default()
+        };
+        let tf = |points: usize| {
+            let point = |i: usize| ControlPoint {
+                s: -1.0 + 2.0 * i as f64 / (points - 1) as f64,
+                color: [0.5, (i % 3) as f64 / 2.0, 0.5],
+                opacity: 0.1 + 0.8 * (i % 2) as f64,
+            };
+            TransferFunction::new((0..points).map(point).collect(), mesh.diagonal() / 10.0).unwrap()
+        };
+        let fresh = |points| {
+            let mut r = ShellsRenderer::new(&ctx, &mesh, settings).expect("walk renderer");
+            r.render(&camera, &tf(points)).expect("frame").image.pixels
+        };
+        let mut r = ShellsRenderer::new(&ctx, &mesh, settings).expect("walk renderer");
+        let (two, forty) = (fresh(2), fresh(40));
+        assert_ne!(two, forty);
+        for (points, want) in [(2, &two), (40, &forty), (2, &two)] {
+            let got = r.render(&camera, &tf(points)).expect("frame").image.pixels;
+            assert_eq!(&got, want, "{points} points");
+        }
+    }
 }
