@@ -418,7 +418,7 @@ impl RaycastRenderer {
 
     /// The bind groups of the stages: the shared bindings, then each stage's own (the stage
     /// files and `pipelines.rs` number them).
-    fn bind(&self, t: &Targets) -> BindGroups {
+    fn bind(&self, t: &Targets) -> Result<BindGroups, RenderError> {
         let p = &self.pipelines;
         let view = t.image.create_view(&Default::default());
         let image = |binding| wgpu::BindGroupEntry {
@@ -491,14 +491,14 @@ impl RaycastRenderer {
             traverse.push(entry(20, &iso.uniforms));
             traverse.push(entry(21, &iso.ranges));
         }
-        let stage = p.traverse(self.settings.entry, self.settings.segments);
-        BindGroups {
+        let stage = p.traverse(self.settings.entry, self.settings.segments)?;
+        Ok(BindGroups {
             vertices: self.group(&p.vertices.layout, &vertices),
             planes: self.group(&p.planes.layout, &planes),
             entry: self.group(entry_layout, &faces),
             tiles: self.group(&p.tiles(self.settings.entry).layout, &tiles),
             traverse: self.group(&stage.layout, &traverse),
-        }
+        })
     }
 
     /// Runs the stages once (each layer of depth peeling in turn, until no ray can enter
@@ -509,7 +509,7 @@ impl RaycastRenderer {
         let kept = if rerun { 2 } else { 0 };
         let words = bytemuck::cast_slice(&reset[kept..]);
         (self.queue).write_buffer(&self.counters, 4 * kept as u64, words);
-        let groups = self.bind(self.targets()?);
+        let groups = self.bind(self.targets()?)?;
         let mut run = Run {
             rerun,
             ..Default::default()
@@ -576,7 +576,7 @@ impl RaycastRenderer {
         }
         let tiles = (t.width.div_ceil(TILE) * t.height.div_ceil(TILE)) as u64;
         passes.push(("tiles", p.tiles(entry), &groups.tiles, linear(tiles, max)));
-        let traverse = p.traverse(entry, self.settings.segments);
+        let traverse = p.traverse(entry, self.settings.segments)?;
         let indirect = Groups::Indirect(&t.tiles);
         passes.push(("traverse", traverse, &groups.traverse, indirect));
         for (name, stage, group, groups) in passes {

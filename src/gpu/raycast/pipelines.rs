@@ -5,7 +5,10 @@ use wgpu::BufferBindingType as B;
 use wgpu::ShaderStages as S;
 
 use crate::gpu::shaders;
-use crate::gpu::util::{bind_group_layout, buffer_entry, pipeline_layout_for, wgsl_module};
+use crate::gpu::util::{
+    bind_group_layout, buffer_entry, pipeline_layout_for, settings_error, wgsl_module,
+};
+use crate::render::RenderError;
 
 use super::links::LINK_BINDINGS;
 use super::texture::TextureUse;
@@ -28,8 +31,9 @@ pub struct Pipelines {
     pub peel: [Stage; 2],
     /// Indexed by [`Entry`].
     tiles: [Stage; 2],
-    /// Indexed by [`Entry`], then [`Segments`] (exact, partial, table).
-    traverse: [[Stage; 3]; 2],
+    /// Indexed by [`Entry`], then [`Segments`] (exact, partial, table); not built for a
+    /// textured cage or the walk sampler, which traverse with their own integrators.
+    traverse: Option<[[Stage; 3]; 2]>,
     /// For a textured cage: the traversal per [`Entry`] that steps through the volume texture
     /// (whatever the [`Segments`]), integrating it or finding its isosurfaces ([`TextureUse`]).
     textured: Option<[Stage; 2]>,
@@ -199,10 +203,12 @@ impl Pipelines {
             sliced: slices.map(|field| (constants, field)),
             slices: Vec::new(),
             slice_variant: 0,
-            traverse: [
-                [lists_exact, lists_partial, lists_table].map(|s| stage(s, &lists)),
-                [peel_exact, peel_partial, peel_table].map(|s| stage(s, &layers)),
-            ],
+            traverse: (texture.is_none() && slices.is_none()).then(|| {
+                [
+                    [lists_exact, lists_partial, lists_table].map(|s| stage(s, &lists)),
+                    [peel_exact, peel_partial, peel_table].map(|s| stage(s, &layers)),
+                ]
+            }),
             textured: texture.map(|(step, used)| {
                 let constants = [constants[0], constants[1], ("STEP", step as f64)];
                 let with = (&constants[..], "main");
@@ -249,20 +255,23 @@ impl Pipelines {
     }
 
     /// The traversal stage of `entry` and `segments`; for a textured cage, its textured
-    /// traversal of `entry`; for the walk sampler, its traversal (entry lists).
-    pub fn traverse(&self, entry: Entry, segments: Segments) -> &Stage {
+    /// traversal of `entry`; for the walk sampler, its traversal (entry lists) of the TF
+    /// variant [`Self::ensure_slices`] selected.
+    pub fn traverse(&self, entry: Entry, segments: Segments) -> Result<&Stage, RenderError> {
         if let Some(textured) = &self.textured {
-            return &textured[entry as usize];
+            return Ok(&textured[entry as usize]);
         }
         if let Some((_, slices)) = self.slices.iter().find(|(v, _)| *v == self.slice_variant) {
-            return slices;
+            return Ok(slices);
         }
-        let [exact, partial, table] = &self.traverse[entry as usize];
-        match segments {
+        let [exact, partial, table] = (self.traverse.as_ref())
+            .map(|t| &t[entry as usize])
+            .ok_or_else(|| settings_error("internal: the walk's traversal was not built"))?;
+        Ok(match segments {
             Segments::Exact => exact,
             Segments::Partial => partial,
             Segments::Table => table,
-        }
+        })
     }
 }
 
