@@ -417,9 +417,12 @@ impl RaycastRenderer {
     ) -> Result<Self, RenderError> {
         let nt = mesh.tet_count() as u64;
         let nv = mesh.read().positions.len() as u64;
+        // The limits first, then the face adjacency (seconds on a mesh of tens of millions of
+        // tets), so a mesh that does not fit is refused at once.
         check_fits(&ctx.limits, nt, nv, &settings)?;
-        let (links_cpu, boundary_cpu) = links::build(&mesh.read().tets);
         let chunking = links::chunking(nt, &ctx.limits)?;
+        check_cells(&mesh)?;
+        let (links_cpu, boundary_cpu) = links::build(&mesh.read().tets);
         let links = mesh.tet_array("raycast links", chunking, nt, links::LINK_BYTES)?;
         // The walk sampler's slices read a textured cage's volume themselves: no textured
         // traversal of the ray caster's own.
@@ -430,7 +433,6 @@ impl RaycastRenderer {
         };
         let own_texture = (!sliced).then_some(textured.as_ref()).flatten();
         links.write(&ctx.queue, bytemuck::cast_slice(&links_cpu));
-        check_cells(&mesh)?;
         let boundary = frame::storage(&ctx.device, "raycast boundary", 4 * boundary_cpu.len());
         ctx.queue
             .write_buffer(&boundary, 0, bytemuck::cast_slice(&boundary_cpu));
