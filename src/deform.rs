@@ -53,13 +53,14 @@ impl Deformation {
         amplitude: f64,
         phase: f64,
     ) -> Vec<DVec3> {
-        let motion = Motion::new(self, (lo, hi), amplitude, phase);
-        rest.par_iter().map(|&p| motion.at(p)).collect()
+        let mut out = Vec::new();
+        self.apply_into(rest, lo, hi, amplitude, phase, &mut out);
+        out
     }
 
-    /// [`Self::apply`] written into `out`, resized to `rest`'s length. For a caller that deforms
-    /// every frame: reusing one buffer spares a fresh allocation of the whole array per frame,
-    /// whose page faults cost about as much as the deformation itself on a large mesh.
+    /// The deformed positions written into `out`, resized to `rest`'s length. For a caller that
+    /// deforms every frame: reusing one buffer spares a fresh allocation of the whole array per
+    /// frame, whose page faults cost about as much as the deformation itself on a large mesh.
     pub fn apply_into(
         self,
         rest: &[DVec3],
@@ -155,8 +156,9 @@ mod tests {
         assert_eq!(Deformation::Wave.apply(&p, lo, hi, 0.0, 0.3), p);
     }
 
+    /// A reused buffer (stale values, another length) holds what a fresh one gets.
     #[test]
-    fn apply_into_writes_what_apply_returns() {
+    fn apply_into_a_reused_buffer_writes_what_apply_returns() {
         let p = points();
         let (lo, hi) = (DVec3::ZERO, DVec3::new(10.0, 0.6, 0.2));
         let mut out = vec![DVec3::NAN; 3];
