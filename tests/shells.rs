@@ -953,6 +953,13 @@ const WALK_BOUNDS: Bounds = Bounds {
 /// sampler (WALK_BOUNDS).
 const WALK_DIFFERING_FRACTION: usize = 100;
 
+/// Pixels of `a` with a channel more than `by` from `b`'s.
+fn pixels_differing(a: &Image, b: &Image, by: f64) -> usize {
+    (a.pixels.iter().zip(&b.pixels))
+        .filter(|(p, q)| (0..4).any(|i| (p[i] - q[i]).abs() as f64 > by))
+        .count()
+}
+
 #[test]
 fn the_samplers_give_the_same_picture() {
     // lox from its iso view and the blunt fin from the side (its opaque core exercises early
@@ -992,9 +999,7 @@ fn the_samplers_give_the_same_picture() {
             &raster,
             WALK_BOUNDS,
         );
-        let differing = (walk.pixels.iter().zip(&raster.pixels))
-            .filter(|(p, q)| (0..4).any(|i| (p[i] - q[i]).abs() > 1e-3))
-            .count();
+        let differing = pixels_differing(&walk, &raster, 1e-3);
         assert!(
             differing <= walk.pixels.len() / WALK_DIFFERING_FRACTION,
             "{name}: {differing} pixels differ by more than 1e-3"
@@ -1085,9 +1090,7 @@ fn finished_pixels_and_tiles_stop_the_compute_sampler_as_they_stop_the_raster() 
     // which its transmittance fell below the default threshold's 1 - 0.99999.
     let (walk, _, _) = render(&mesh, with_sampler(Sampler::Walk), &camera, &tf);
     let m = walk.compare(&raster).unwrap();
-    let differing = (walk.pixels.iter().zip(&raster.pixels))
-        .filter(|(p, q)| (0..4).any(|i| (p[i] - q[i]).abs() > 1e-3))
-        .count();
+    let differing = pixels_differing(&walk, &raster, 1e-3);
     eprintln!("opaque: walk vs raster {m}, {differing} pixels differ by more than 1e-3");
     assert_images_close(
         "shells-samplers-walk-opaque",
@@ -1168,12 +1171,8 @@ fn the_walk_stops_its_rays_at_the_threshold_where_the_raster_finishes_pixels() {
     eprintln!("threshold 0.3: raster vs default {change}; walk vs raster {m}\n{rt}");
     assert!(change.max_abs > THRESHOLD_CHANGE, "{change}");
     assert!(counter(&rt, "pixels finished") > 100, "{rt}");
-    let differing = (walk.pixels.iter().zip(&raster.pixels))
-        .filter(|(p, q)| (0..4).any(|i| (p[i] - q[i]).abs() > 1e-3))
-        .count();
-    let flipped = (walk.pixels.iter().zip(&raster.pixels))
-        .filter(|(p, q)| (0..4).any(|i| (p[i] - q[i]).abs() as f64 > WALK_BOUNDS.max_abs))
-        .count();
+    let differing = pixels_differing(&walk, &raster, 1e-3);
+    let flipped = pixels_differing(&walk, &raster, WALK_BOUNDS.max_abs);
     eprintln!("{differing} pixels differ by more than 1e-3, {flipped} beyond WALK_BOUNDS");
     assert_images_close(
         "shells-walk-threshold",

@@ -136,7 +136,27 @@ mod tests {
     use crate::gpu::shells::{Sampler, ShellSettings};
     use crate::gpu::{AdapterChoice, GpuContext};
     use crate::tf::ControlPoint;
-    use crate::{View, generate};
+    use crate::{TetMesh, View, generate};
+
+    /// A GPU adapter, a grid of `cells`^3 cells over [-1, 1]^3 with the field x, and a camera
+    /// framing it at `size` x `size` pixels.
+    fn grid_scene(cells: u32, size: u32) -> (GpuContext, TetMesh, Camera) {
+        let ctx = GpuContext::new(AdapterChoice::Auto).expect("a GPU adapter (lavapipe will do)");
+        let (lo, hi) = (DVec3::splat(-1.0), DVec3::splat(1.0));
+        let mesh = generate::box_grid(lo, hi, UVec3::splat(cells), "x", |p| p.x);
+        let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, size, size);
+        (ctx, mesh, camera)
+    }
+
+    /// A grey TF of `opacity` per `unit` over the field x's range [-1, 1].
+    fn grey_tf(opacity: f64, unit: f64) -> TransferFunction {
+        let points = [-1.0, 1.0].map(|s| ControlPoint {
+            s,
+            color: [0.5, 0.5, 0.5],
+            opacity,
+        });
+        TransferFunction::new(points.to_vec(), unit).unwrap()
+    }
 
     /// The walk stops a ray once it is opaque: on a 12^3 grid (a ray through it steps through
     /// dozens of tets) with a step limit of 12 tets, a TF of opacity 0.9999 per 1/100 of the
@@ -147,10 +167,7 @@ mod tests {
     /// termination the opaque rays would reach it as the transparent ones do.
     #[test]
     fn an_opaque_ray_stops_before_the_step_limit() {
-        let ctx = GpuContext::new(AdapterChoice::Auto).expect("a GPU adapter (lavapipe will do)");
-        let (lo, hi) = (DVec3::splat(-1.0), DVec3::splat(1.0));
-        let mesh = generate::box_grid(lo, hi, UVec3::splat(12), "x", |p| p.x);
-        let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 48, 48);
+        let (ctx, mesh, camera) = grid_scene(12, 48);
         let settings = ShellSettings {
             sampler: Sampler::Walk,
             slices_per_shell: Some(4),
@@ -164,12 +181,7 @@ mod tests {
         let walk = WalkSampler::with_settings(&ctx, Arc::clone(&r.mesh), limited, None);
         r.walk = Some(walk.expect("walk with a step limit"));
         let at_limit = |opacity: f64, r: &mut ShellsRenderer| {
-            let points = [-1.0, 1.0].map(|s| ControlPoint {
-                s,
-                color: [0.5, 0.5, 0.5],
-                opacity,
-            });
-            let tf = TransferFunction::new(points.to_vec(), mesh.diagonal() / 100.0).unwrap();
+            let tf = grey_tf(opacity, mesh.diagonal() / 100.0);
             let frame = r.render(&camera, &tf).expect("frame");
             let count = |name| (frame.timings.counters.iter()).find(|(n, _)| *n == name);
             count("rays at step limit").expect("the counter").1
@@ -184,28 +196,15 @@ mod tests {
     /// shared mesh included) and the shells' own uniforms and frame statistics, to the byte.
     #[test]
     fn the_walk_holds_only_its_ray_caster_and_the_shells_uniforms() {
-        let ctx = GpuContext::new(AdapterChoice::Auto).expect("a GPU adapter (lavapipe will do)");
-        let (lo, hi) = (DVec3::splat(-1.0), DVec3::splat(1.0));
-        let mesh = generate::box_grid(lo, hi, UVec3::splat(12), "x", |p| p.x);
-        let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 32, 32);
+        let (ctx, mesh, camera) = grid_scene(12, 32);
         let settings = ShellSettings {
             sampler: Sampler::Walk,
             ..ShellSettings::default()
         };
         let mut r = ShellsRenderer::new(&ctx, &mesh, settings).expect("walk renderer");
         assert!(r.assembled.is_none() && r.pipelines.ert.is_none());
-        let tf = TransferFunction::new(
-            [-1.0, 1.0]
-                .map(|s| ControlPoint {
-                    s,
-                    color: [0.5, 0.5, 0.5],
-                    opacity: 0.5,
-                })
-                .to_vec(),
-            mesh.diagonal() / 10.0,
-        )
-        .unwrap();
-        r.render(&camera, &tf).expect("frame");
+        r.render(&camera, &grey_tf(0.5, mesh.diagonal() / 10.0))
+            .expect("frame");
         let uniforms = [
             &r.view_buf,
             &r.slicing_buf,
@@ -228,10 +227,7 @@ mod tests {
     /// equal a fresh renderer's bit for bit (2 points: constant indices; 40: the loop).
     #[test]
     fn tf_point_counts_switching_back_and_forth_draw_as_fresh_renderers() {
-        let ctx = GpuContext::new(AdapterChoice::Auto).expect("a GPU adapter (lavapipe will do)");
-        let (lo, hi) = (DVec3::splat(-1.0), DVec3::splat(1.0));
-        let mesh = generate::box_grid(lo, hi, UVec3::splat(6), "x", |p| p.x);
-        let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 24, 24);
+        let (ctx, mesh, camera) = grid_scene(6, 24);
         let settings = ShellSettings {
             sampler: Sampler::Walk,
             ..ShellSettings::default()
