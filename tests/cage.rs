@@ -34,19 +34,24 @@ fn blob(x: usize, y: usize, z: usize) -> f32 {
     (g(DVec3::new(6.0, 7.0, 8.0), 3.0, 100.0) + g(DVec3::new(11.0, 9.0, 5.0), 2.0, 60.0)) as f32
 }
 
-/// Writes the blob volume as NIfTI-1 float32 and returns its path.
+/// The blob volume as NIfTI-1 float32: its path, written once for every test of this file
+/// (tests run in parallel: one writing the file while another reads it failed the reader).
 fn blob_nifti() -> PathBuf {
-    let path = scratch("blob.nii.gz");
-    let data = ndarray::Array3::from_shape_fn((N, N, N), |(x, y, z)| blob(x, y, z));
-    let header = nifti::NiftiHeader {
-        pixdim: [1.0, SPACING[0], SPACING[1], SPACING[2], 1.0, 1.0, 1.0, 1.0],
-        ..Default::default()
-    };
-    nifti::writer::WriterOptions::new(&path)
-        .reference_header(&header)
-        .write_nifti(&data)
-        .unwrap();
-    path
+    static PATH: OnceLock<PathBuf> = OnceLock::new();
+    PATH.get_or_init(|| {
+        let path = scratch("blob.nii.gz");
+        let data = ndarray::Array3::from_shape_fn((N, N, N), |(x, y, z)| blob(x, y, z));
+        let header = nifti::NiftiHeader {
+            pixdim: [1.0, SPACING[0], SPACING[1], SPACING[2], 1.0, 1.0, 1.0, 1.0],
+            ..Default::default()
+        };
+        nifti::writer::WriterOptions::new(&path)
+            .reference_header(&header)
+            .write_nifti(&data)
+            .unwrap();
+        path
+    })
+    .clone()
 }
 
 /// The blob volume and its undeformed cage of about 162 tets (144: 3 x 4 x 2 cells).

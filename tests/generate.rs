@@ -387,17 +387,24 @@ const BITPIX: usize = 72;
 const VOX_OFFSET: usize = 108;
 const EXTENDER: usize = 348;
 
-/// A valid 3 x 3 x 3 float32 volume (`value_at`) as bytes, uncompressed, voxels at byte 352.
+/// A valid 3 x 3 x 3 float32 volume (`value_at`) as bytes, uncompressed, voxels at byte 352;
+/// written once for every test of this file (tests run in parallel: one rewriting the file
+/// while another reads it would hand the reader a partial file).
 fn valid_nifti_bytes() -> Vec<u8> {
-    let path = scratch("hostile").join("valid.nii");
-    write_nifti(&path, [3, 3, 3], [1.0; 3], value_at);
-    let bytes = std::fs::read(&path).unwrap();
-    assert_eq!(
-        bytes.len(),
-        352 + 27 * 4,
-        "the writer puts the voxels at byte 352"
-    );
-    bytes
+    static BYTES: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+    BYTES
+        .get_or_init(|| {
+            let path = scratch("hostile").join("valid.nii");
+            write_nifti(&path, [3, 3, 3], [1.0; 3], value_at);
+            let bytes = std::fs::read(&path).unwrap();
+            assert_eq!(
+                bytes.len(),
+                352 + 27 * 4,
+                "the writer puts the voxels at byte 352"
+            );
+            bytes
+        })
+        .clone()
 }
 
 fn set_i16(bytes: &mut [u8], at: usize, v: i16) {
