@@ -5,17 +5,12 @@ use std::time::Instant;
 use glam::DVec3;
 
 use crate::gpu::GpuError;
-use crate::mesh::bounding_box;
 use crate::render::RenderError;
 
 /// Milliseconds since `t`.
-/// The GPU modes' frame of reference for positions: the bounding-box centre (GPU positions
-/// and the eye are relative to it) and the bounding-sphere radius about it.
-pub(crate) fn bounding_sphere(positions: &[DVec3]) -> (DVec3, f64) {
-    sphere_of(bounding_box(positions))
-}
-
-/// [`bounding_sphere`] of the positions whose bounding box is `(lo, hi)`.
+/// The GPU modes' frame of reference for positions whose bounding box is `(lo, hi)`: the box's
+/// centre (GPU positions and the eye are relative to it) and the bounding-sphere radius about
+/// it.
 pub(crate) fn sphere_of((lo, hi): (DVec3, DVec3)) -> (DVec3, f64) {
     (
         (lo + hi) * 0.5,

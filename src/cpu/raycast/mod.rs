@@ -46,10 +46,10 @@ use crate::camera::Camera;
 use crate::gpu::gpu_data::ViewUniforms;
 use crate::gpu::mesh::cell_update_error;
 use crate::gpu::raycast::{TetLinks, default_max_steps, links};
-use crate::gpu::util::{bounding_sphere, ms_since, scalar_frame};
+use crate::gpu::util::{ms_since, scalar_frame, sphere_of};
 use crate::gpu::view::ViewFrame;
 use crate::image::Image;
-use crate::mesh::{TetMesh, check_new_positions, check_values};
+use crate::mesh::{TetMesh, check_values, checked_bounds};
 use crate::render::{Frame, RenderError, Renderer, Timings};
 use crate::texture::Volume;
 use crate::texture::reference::DEFAULT_STEP_FRACTION;
@@ -147,7 +147,7 @@ impl CpuRaycastRenderer {
             view: None,
             texture: None,
         };
-        r.set_positions(mesh.positions());
+        r.set_positions(mesh.positions(), mesh.bounds());
         r.normalize_scalars();
         Ok(r)
     }
@@ -193,8 +193,9 @@ impl CpuRaycastRenderer {
         self.settings
     }
 
-    fn set_positions(&mut self, positions: &[DVec3]) {
-        (self.origin, self.radius) = bounding_sphere(positions);
+    /// `positions`, whose bounding box is `bounds`, relative to the box's centre.
+    fn set_positions(&mut self, positions: &[DVec3], bounds: (DVec3, DVec3)) {
+        (self.origin, self.radius) = sphere_of(bounds);
         let o = self.origin;
         self.positions = positions.par_iter().map(|&p| (p - o).as_vec3()).collect();
     }
@@ -356,8 +357,8 @@ impl Renderer for CpuRaycastRenderer {
     }
 
     fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {
-        check_new_positions(positions, self.positions.len())?;
-        self.set_positions(positions);
+        let bounds = checked_bounds(positions, self.positions.len())?;
+        self.set_positions(positions, bounds);
         self.view = None;
         Ok(())
     }
