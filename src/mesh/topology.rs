@@ -91,10 +91,7 @@ impl Adjacency {
         if nf < 4 {
             return false;
         }
-        let (lo, hi) = positions.iter().fold(
-            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-            |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-        );
+        let (lo, hi) = super::bounding_box(positions);
         let tol = 1e-9 * (hi - lo).length();
         let mut edges: HashMap<(u32, u32), Vec<usize>> = HashMap::with_capacity(nf * 3 / 2);
         for (fi, f) in self.boundary.iter().enumerate() {
