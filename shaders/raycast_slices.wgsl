@@ -4,10 +4,13 @@
 // same samples as the raster and compute samplers, with no binning and no blending. Slice k
 // lies at t_k = params.t_first + k params.dz from the eye, k < params.slices (the shells plan,
 // gpu::shells::plan); its scalar is the tet's linear field at t_k (for cell data the tet's
-// value; for a textured cage the volume there, raycast_slices_texture.wgsl: `sample_scalar`,
-// composed in front), its colour and extinction the TF as the shells samplers evaluate it
-// (tf_eval.wgsl, with the generated `tf_eval`), composited front to back with
-// alpha = 1 - exp(-tau dz) as shells_tf.wgsl's `under` does.
+// value; for a textured cage the volume there, raycast_slices_texture.wgsl, composed in
+// front), its colour and extinction the TF as the shells samplers evaluate it (tf_eval.wgsl,
+// with the generated `tf_eval`), composited front to back with alpha = 1 - exp(-tau dz) as
+// shells_tf.wgsl's `under` does. What the field needs from the tet and the segment
+// (`SliceField`: the linear scalar's terms along the ray, or a textured tet's texture
+// coordinate at t0 and its slope) is built once per segment that holds a slice
+// (`slice_field`), and `sample_scalar` steps it to each slice.
 //
 // Early ray termination as the raster and compute samplers have it: they finish a pixel whose
 // alpha reached the threshold (transmittance at most 1 - threshold) after compositing a whole
@@ -56,6 +59,11 @@ var<private> last_shell: u32 = NO_SHELL;
 fn tet_segment(tet: u32, ids: vec4<u32>, pl: TetPlanes, d: vec3<f32>, t0: f32, t1: f32) -> Acc {
     var acc = Acc(vec3<f32>(0.0), 1.0);
     var k = max(first_slice(t0), next_slice);
+    if k >= params.slices || !(slice_t(k) < t1) {
+        next_slice = k;
+        return acc;
+    }
+    let field = slice_field(tet, ids, pl, d, t0, t1);
     for (; k < params.slices; k++) {
         let t = slice_t(k);
         if !(t < t1) {
@@ -69,7 +77,7 @@ fn tet_segment(tet: u32, ids: vec4<u32>, pl: TetPlanes, d: vec3<f32>, t0: f32, t
             }
             last_shell = shell;
         }
-        let s = tf_eval(sample_scalar(tet, ids, pl, d, t));
+        let s = tf_eval(sample_scalar(field, t));
         let alpha = 1.0 - exp(-s.w * params.dz);
         acc = Acc(acc.color + acc.trans * alpha * s.rgb, acc.trans * (1.0 - alpha));
     }

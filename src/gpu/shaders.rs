@@ -71,13 +71,18 @@ const RAYCAST_PSI: &str = include_str!("../../shaders/raycast_psi.wgsl");
 const RAYCAST_TABLE: &str = include_str!("../../shaders/raycast_table.wgsl");
 /// The shells' walk sampler's segment integrator: the slices a segment holds.
 const RAYCAST_SLICES: &str = include_str!("../../shaders/raycast_slices.wgsl");
-/// The walk sampler's `sample_scalar` for a textured cage: the volume at the slice.
+/// The walk sampler's field for a textured cage: the segment's texture coordinates, the volume
+/// at each slice's.
 const RAYCAST_SLICES_TEXTURE: &str = include_str!("../../shaders/raycast_slices_texture.wgsl");
-/// The walk sampler's `sample_scalar` for the mesh's own field: the tet's linear field at the
-/// slice, or its value for cell data.
-const SLICE_SCALAR_LINEAR: &str = "fn sample_scalar(tet: u32, ids: vec4<u32>, pl: TetPlanes, \
-    d: vec3<f32>, t: f32) -> f32 {\n    if CELLS {\n        return clamp(cells[tet], 0.0, 1.0);\n    \
-    }\n    return scalar_at(pl, d, t);\n}\n";
+/// The walk sampler's field for the mesh's own scalars: per segment the tet's linear field along
+/// the ray, `u(t) = a + t b` (`scalar_at`'s terms; b = 0 for cell data, the tet's value), per
+/// slice its value at the slice.
+const SLICE_SCALAR_LINEAR: &str = "struct SliceField {\n    a: f32,\n    b: f32,\n}\n\n\
+    fn slice_field(tet: u32, ids: vec4<u32>, pl: TetPlanes, d: vec3<f32>, t0: f32, t1: f32) \
+    -> SliceField {\n    if CELLS {\n        return SliceField(clamp(cells[tet], 0.0, 1.0), 0.0);\n    \
+    }\n    return SliceField(pl.scalar.w, dot(pl.scalar.xyz, d));\n}\n\n\
+    fn sample_scalar(f: SliceField, t: f32) -> f32 {\n    \
+    return clamp(f.a + t * f.b, 0.0, 1.0);\n}\n";
 
 /// The traversal's `segment` for the integrators of `integrate_segment.wgsl`.
 const SEGMENT_PIECEWISE: &str = "fn segment(u_front: f32, u_back: f32, len: f32) -> Acc {\n    \
