@@ -32,6 +32,13 @@ pub enum RenderError {
     /// The mode's settings do not fit the mesh or adapter; the message names the setting.
     #[error("{0}")]
     Settings(String),
+    /// A state tetvr's own code rules out (e.g. a target missing after it was built): a bug in
+    /// tetvr, not something the user can change.
+    #[error(
+        "internal error: {0}. This is a bug in tetvr; please report it with the command line \
+         that caused it"
+    )]
+    Internal(&'static str),
 }
 
 /// Per-stage wall or GPU times and work counters of one frame, in the order they happened.

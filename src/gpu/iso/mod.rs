@@ -53,7 +53,7 @@ use crate::gpu::frame::{FrameResources, FrameStats, ImageReadback, Timestamps};
 use crate::gpu::gpu_data::ViewUniforms;
 pub use crate::gpu::gpu_data::{IsoUniforms, MAX_ISOVALUES};
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
-use crate::gpu::util::{map_read, ms_since, settings_error, uniform_buffer};
+use crate::gpu::util::{ms_since, read_mapped, settings_error, uniform_buffer};
 use crate::gpu::view::ViewFrame;
 use crate::image::Image;
 use crate::mesh::TetMesh;
@@ -291,10 +291,7 @@ impl IsoRenderer {
         let mut enc = self.device.create_command_encoder(&Default::default());
         enc.copy_buffer_to_buffer(&self.gradients_buf, 0, &readback, 0, size);
         self.queue.submit([enc.finish()]);
-        map_read(&self.device, &readback)?;
-        let data = readback
-            .get_mapped_range(..)
-            .map_err(|e| settings_error(format!("mapping the gradients readback failed: {e}")))?;
+        let data = read_mapped(&self.device, &readback, "the iso gradients")?;
         let all = bytemuck::cast_slice::<u8, [f32; 4]>(&data);
         let out = vertices.iter().map(|&v| (v, all[v as usize])).collect();
         drop(data);

@@ -12,7 +12,9 @@ use crate::gpu::frame::{ImageReadback, Timestamps};
 use crate::gpu::gpu_data::LayerUniforms;
 use crate::gpu::mesh::{MeshData, chunk_ranges};
 use crate::gpu::tf::tf_points;
-use crate::gpu::util::{check_image_size, entry, map_read, ms_since, settings_error, texture_2d};
+use crate::gpu::util::{
+    check_image_size, entry, ms_since, read_mapped, settings_error, texture_2d,
+};
 use crate::gpu::view::ViewFrame;
 use crate::image::Image;
 use crate::render::{Frame, RenderError, Timings};
@@ -633,10 +635,8 @@ fn read_words<const N: usize>(
     device: &wgpu::Device,
     buffer: &wgpu::Buffer,
 ) -> Result<[u32; N], RenderError> {
-    map_read(device, buffer)?;
     let words = {
-        let data = (buffer.get_mapped_range(..))
-            .map_err(|e| settings_error(format!("mapping the counters failed: {e}")))?;
+        let data = read_mapped(device, buffer, "the ray caster's counters")?;
         let words: &[u32] = bytemuck::cast_slice(&data);
         std::array::from_fn(|i| words[i])
     };

@@ -17,7 +17,7 @@ use crate::gpu::GpuContext;
 use crate::gpu::gpu_data::IsoUniforms;
 use crate::gpu::iso::{DEFAULT_COLOR, IsoSettings, check_isovalues};
 use crate::gpu::mesh::GpuTetMesh;
-use crate::gpu::util::{map_read, settings_error, uniform_buffer};
+use crate::gpu::util::{read_mapped, settings_error, uniform_buffer};
 use crate::mesh::TetMesh;
 use crate::reference::iso::IsoImage;
 use crate::render::{RenderError, Timings};
@@ -113,10 +113,8 @@ impl HitBuffers {
     /// Each pixel's distance (infinite on a miss) and unit world normal (zero on a miss), from
     /// the last copy.
     fn read(&self, device: &wgpu::Device) -> Result<(Vec<f32>, Vec<[f32; 3]>), RenderError> {
-        map_read(device, &self.readback)?;
         let out = {
-            let data = (self.readback.get_mapped_range(..))
-                .map_err(|e| settings_error(format!("mapping the iso hits failed: {e}")))?;
+            let data = read_mapped(device, &self.readback, "the textured iso hits")?;
             let hits: &[[f32; 4]] = bytemuck::cast_slice(&data);
             hits.iter()
                 .map(|h| match h[3] > 0.0 {

@@ -20,7 +20,7 @@ use std::time::Instant;
 
 use crate::gpu::frame::FrameStats;
 use crate::gpu::gpu_data::{CHUNK_LOAD, CHUNK_STORE, ShellUniforms};
-use crate::gpu::util::{entry, map_read, ms_since, settings_error};
+use crate::gpu::util::{entry, ms_since, read_mapped, settings_error};
 use crate::image::Image;
 use crate::render::RenderError;
 use crate::tf::TransferFunction;
@@ -309,11 +309,13 @@ impl ShellsRenderer {
             (self.compute.as_ref()).ok_or_else(|| settings_error("internal: no sampler"))?;
         let b = (sampler.buffers.as_ref())
             .ok_or_else(|| settings_error("internal: no tile buffers"))?;
-        map_read(&self.device, &b.accum_readback)?;
         let mut image = Image::new(b.width, b.height);
         {
-            let data = (b.accum_readback.get_mapped_range(..))
-                .map_err(|e| settings_error(format!("mapping the compute readback failed: {e}")))?;
+            let data = read_mapped(
+                &self.device,
+                &b.accum_readback,
+                "the compute sampler's image",
+            )?;
             image.pixels = bytemuck::cast_slice::<u8, [f32; 4]>(&data).to_vec();
         }
         b.accum_readback.unmap();
@@ -323,10 +325,8 @@ impl ShellsRenderer {
 
 /// The first u32 of a mappable buffer (after the frame ran).
 fn read_u32(device: &wgpu::Device, buf: &wgpu::Buffer) -> Result<u32, RenderError> {
-    map_read(device, buf)?;
     let value = {
-        let data = (buf.get_mapped_range(..))
-            .map_err(|e| settings_error(format!("mapping the tile-list size failed: {e}")))?;
+        let data = read_mapped(device, buf, "the tile lists' size")?;
         u32::from_le_bytes([data[0], data[1], data[2], data[3]])
     };
     buf.unmap();

@@ -23,7 +23,7 @@ use crate::gpu::gpu_data::{BinChunk, BinUniforms};
 use crate::gpu::mesh::{MeshData, TetArray};
 use crate::gpu::shaders;
 use crate::gpu::util::{
-    bind_group_layout, buffer_entry, entry, map_read, pipeline_layout_for, settings_error,
+    bind_group_layout, buffer_entry, entry, pipeline_layout_for, read_mapped, settings_error,
     uniform_buffer, wgsl_module,
 };
 use crate::render::RenderError;
@@ -474,11 +474,8 @@ fn read_back(
     words: [u64; 3],
     chunks: usize,
 ) -> Result<Readback, RenderError> {
-    map_read(device, readback)?;
     let all: Vec<u32> = {
-        let view = (readback.get_mapped_range(..)).map_err(|e| {
-            settings_error(format!("mapping the GPU binning's readback failed: {e}"))
-        })?;
+        let view = read_mapped(device, readback, "the GPU binning's offsets and counters")?;
         let bytes = 4 * words.iter().sum::<u64>() as usize;
         bytemuck::cast_slice(&view[..bytes]).to_vec()
     };
@@ -561,8 +558,8 @@ mod tests {
         let mut enc = r.device.create_command_encoder(&Default::default());
         enc.copy_buffer_to_buffer(&r.active_buf, 0, &read, 0, bytes);
         r.queue.submit([enc.finish()]);
-        map_read(&r.device, &read).expect("map");
-        let ids = bytemuck::cast_slice(&read.get_mapped_range(..).expect("mapped")).to_vec();
+        let ids =
+            bytemuck::cast_slice(&read_mapped(&r.device, &read, "ids").expect("map")).to_vec();
         ids[..n as usize].to_vec()
     }
 

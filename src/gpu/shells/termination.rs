@@ -6,7 +6,7 @@
 //! tiles.
 
 use crate::gpu::frame::Recorder;
-use crate::gpu::util::{map_read, settings_error};
+use crate::gpu::util::{read_mapped, settings_error};
 use crate::render::RenderError;
 
 use super::binning::{Binning, TetBin};
@@ -167,14 +167,16 @@ pub(super) fn read_tiles(rec: &mut Recorder, p: &Passes) -> Result<TileMask, Ren
     enc.copy_buffer_to_buffer(&ert.flags, 0, &ert.flags_readback, 0, ert.flags.size());
     rec.end_stage("termination")?;
     rec.submit();
-    map_read(rec.device(), &ert.flags_readback)?;
-    tile_mask(ert)
+    tile_mask(rec.device(), ert)
 }
 
-fn tile_mask(ert: &ErtTargets) -> Result<TileMask, RenderError> {
+fn tile_mask(device: &wgpu::Device, ert: &ErtTargets) -> Result<TileMask, RenderError> {
     let unfinished = {
-        let data = (ert.flags_readback.get_mapped_range(..))
-            .map_err(|e| settings_error(format!("mapping the tile flags failed: {e}")))?;
+        let data = read_mapped(
+            device,
+            &ert.flags_readback,
+            "the early termination's tile flags",
+        )?;
         let flags: &[u32] = bytemuck::cast_slice(&data);
         flags.iter().map(|&f| f != 0).collect()
     };
