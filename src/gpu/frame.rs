@@ -364,6 +364,7 @@ fn add(sums: &mut Vec<(&'static str, f64)>, stage: &'static str, ms: f64) {
 
 /// A render target's readback: a mappable buffer with rows padded to the copy alignment, and
 /// the conversion of its texels (`Rgba32Float` or `Rgba16Float`) to f32 RGBA.
+#[derive(Clone)]
 pub(crate) struct ImageReadback {
     buffer: wgpu::Buffer,
     padded_row: u32,

@@ -13,11 +13,17 @@ use crate::render::RenderError;
 use super::{CellProjRenderer, Pipelines, Targets};
 
 impl CellProjRenderer {
-    pub(super) fn ensure_targets(&mut self, width: u32, height: u32) -> Result<(), RenderError> {
+    /// The targets of a `width` x `height` frame: the kept ones when the size holds, else
+    /// new ones, kept for the next frames.
+    pub(super) fn ensure_targets(
+        &mut self,
+        width: u32,
+        height: u32,
+    ) -> Result<Targets, RenderError> {
         if let Some(t) = &self.targets
             && (t.width, t.height) == (width, height)
         {
-            return Ok(());
+            return Ok(t.clone());
         }
         check_image_size(&self.limits, width, height)?;
         let color = texture_2d(
@@ -34,13 +40,13 @@ impl CellProjRenderer {
             height,
             self.format,
         );
-        self.targets = Some(Targets {
+        let targets = Targets {
             width,
             height,
             color,
             readback,
-        });
-        Ok(())
+        };
+        Ok(self.targets.insert(targets).clone())
     }
 }
 

@@ -134,7 +134,9 @@ pub struct IsoRenderer {
     targets: Option<Targets>,
 }
 
-/// The per-tet arrays of a selection, cut into chunks of one [`Chunking`].
+/// The per-tet arrays of a selection, cut into chunks of one [`Chunking`] (a clone shares
+/// them).
+#[derive(Clone)]
 struct SelectionLists {
     chunking: Chunking,
     tets: TetArray,
@@ -146,6 +148,8 @@ struct Pipelines {
     raster: wgpu::RenderPipeline,
 }
 
+/// The targets of one image size and their readbacks (a clone shares them).
+#[derive(Clone)]
 struct Targets {
     width: u32,
     height: u32,
@@ -317,16 +321,13 @@ impl IsoRenderer {
 
         // 2. Upload.
         let t1 = Instant::now();
-        self.upload(&m, &view, visible.as_deref(), drawn)?;
-        self.ensure_targets(camera.width, camera.height)?;
+        let lists = self.upload(&m, &view, visible.as_deref(), drawn)?;
+        let targets = self.ensure_targets(camera.width, camera.height)?;
         timings.stage("upload", ms_since(t1));
 
         // 3.-5. Gradients, assembly, raster; 6. readback.
-        let stats = self.record(drawn as u64)?;
+        let stats = self.record(&lists, &targets, drawn as u64)?;
         let t4 = Instant::now();
-        let targets = self.targets.as_ref().ok_or_else(|| {
-            settings_error("internal: render targets missing after ensure_targets")
-        })?;
         let mut color = Image::new(targets.width, targets.height);
         color.pixels = targets.color_readback.read(&self.device)?;
         let geometry_px = targets.geometry_readback.read(&self.device)?;
@@ -358,11 +359,9 @@ impl IsoRenderer {
         timings.count("tets", m.tets.len() as u64);
         timings.count("tets selected", all_selected as u64);
         timings.count("tets culled (frustum)", (all_selected - drawn) as u64);
-        if let Some(lists) = &self.lists {
-            let chunks = lists.chunking.ranges(drawn as u64).len();
-            timings.count("record chunks", chunks as u64);
-            timings.count("record buffers", lists.records.buffer_count() as u64);
-        }
+        let chunks = lists.chunking.ranges(drawn as u64).len();
+        timings.count("record chunks", chunks as u64);
+        timings.count("record buffers", lists.records.buffer_count() as u64);
         timings.count("triangles", 4 * drawn as u64);
         timings.count("degenerate tets", stats.degenerate as u64);
         timings.count("fragments (occlusion query)", stats.fragments.unwrap_or(0));
@@ -379,11 +378,12 @@ impl IsoRenderer {
     /// Records the GPU stages of a frame drawing the first `drawn` tets of the lists (the
     /// gradients with smooth shading, the assembly, the raster), runs them and reads the
     /// images and statistics back.
-    fn record(&mut self, drawn: u64) -> Result<FrameStats, RenderError> {
-        let (lists, targets) = match (&self.lists, &self.targets) {
-            (Some(l), Some(t)) => (l, t),
-            _ => return Err(settings_error("internal: iso lists or targets missing")),
-        };
+    fn record(
+        &mut self,
+        lists: &SelectionLists,
+        targets: &Targets,
+        drawn: u64,
+    ) -> Result<FrameStats, RenderError> {
         let chunks = lists.chunking.ranges(drawn);
         let inputs = AssemblyInputs {
             view: &self.view_buf,

@@ -13,11 +13,17 @@ use crate::render::RenderError;
 use super::{DEPTH_FORMAT, IsoRenderer, Pipelines, SelectionLists, TARGET_FORMAT, Targets};
 
 impl IsoRenderer {
-    pub(super) fn ensure_targets(&mut self, width: u32, height: u32) -> Result<(), RenderError> {
+    /// The targets of a `width` x `height` frame: the kept ones when the size holds, else
+    /// new ones, kept for the next frames.
+    pub(super) fn ensure_targets(
+        &mut self,
+        width: u32,
+        height: u32,
+    ) -> Result<Targets, RenderError> {
         if let Some(t) = &self.targets
             && (t.width, t.height) == (width, height)
         {
-            return Ok(());
+            return Ok(t.clone());
         }
         check_image_size(&self.limits, width, height)?;
         let texture = |label, format, usage| {
@@ -33,7 +39,7 @@ impl IsoRenderer {
         );
         let readback =
             |label| ImageReadback::new(&self.device, label, width, height, TARGET_FORMAT);
-        self.targets = Some(Targets {
+        let targets = Targets {
             width,
             height,
             depth_view: depth.create_view(&Default::default()),
@@ -41,8 +47,8 @@ impl IsoRenderer {
             geometry_readback: readback("iso geometry readback"),
             color,
             geometry,
-        });
-        Ok(())
+        };
+        Ok(self.targets.insert(targets).clone())
     }
 
     /// The raster bind group of each chunk, with its tet count.

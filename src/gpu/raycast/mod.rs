@@ -307,7 +307,8 @@ pub(crate) struct Slicing {
 }
 
 /// Per image size and entry method: the output, its readback, the per-pixel entry buffers,
-/// the tile list.
+/// the tile list (a clone shares them).
+#[derive(Clone)]
 struct Targets {
     width: u32,
     height: u32,
@@ -322,6 +323,7 @@ struct Targets {
 }
 
 /// The per-pixel buffers of an entry method.
+#[derive(Clone)]
 enum PixelBuffers {
     /// The hits each pixel's list has, and `capacity` hits per pixel.
     Lists {

@@ -88,6 +88,7 @@ impl TexturedIso {
 
 /// Per pixel the hit's world normal and distance (`[nx, ny, nz, t]`, `t = 0`: no hit),
 /// written by the traversal, and its mappable copy.
+#[derive(Clone)]
 pub(super) struct HitBuffers {
     pub(super) hits: wgpu::Buffer,
     readback: wgpu::Buffer,
