@@ -106,11 +106,11 @@ use crate::render::{Frame, RenderError, Renderer, Timings};
 use crate::tf::TransferFunction;
 
 use binning::Binning;
-use pipelines::{ErtPipelines, Pipelines, RasterSet};
+use pipelines::{Pipelines, RasterSet};
 use plan::FramePlan;
 use skips::Skips;
 use targets::Targets;
-use termination::{Cut, Termination};
+use termination::{Cut, Ert, Termination};
 use texture::ShellTexture;
 use upload::{DrawnShell, InstanceLayout, chunk_local};
 
@@ -463,17 +463,19 @@ impl ShellsRenderer {
         self.slices_for(&self.mesh.read(), camera)
     }
 
-    fn ensure_targets(&mut self, width: u32, height: u32) -> Result<(), RenderError> {
+    /// The targets of a `width` x `height` frame: the kept ones when the size holds, else
+    /// new ones, kept for the next frames.
+    fn ensure_targets(&mut self, width: u32, height: u32) -> Result<Targets, RenderError> {
         if let Some(t) = &self.targets
             && (t.width, t.height) == (width, height)
         {
-            return Ok(());
+            return Ok(t.clone());
         }
         check_image_size(&self.limits, width, height)?;
         let layers = (self.format, self.slice_layers, self.accum_format);
         let ert = self.pipelines.ert.as_ref();
-        self.targets = Some(Targets::new(&self.device, (width, height), layers, ert));
-        Ok(())
+        let targets = Targets::new(&self.device, (width, height), layers, ert);
+        Ok(self.targets.insert(targets).clone())
     }
 }
 
@@ -544,7 +546,8 @@ struct ShellPass {
 /// What the passes of one frame draw with.
 struct Passes<'a> {
     targets: &'a Targets,
-    ert: Option<&'a ErtPipelines>,
+    /// Early ray termination's pipelines and targets, when it is on.
+    ert: Option<Ert<'a>>,
     /// Raster pipelines without and with the termination mask test.
     raster: (RasterSet, Option<RasterSet>),
     /// Composite pipelines without and with the termination mask test.
@@ -567,7 +570,7 @@ impl Passes<'_> {
     /// The termination mask as the depth attachment of a pass that tests it (`on`, with early
     /// ray termination), cleared to 1 (nothing finished) by the `first` mark pass.
     fn mask(&self, on: bool, first: bool) -> Option<wgpu::RenderPassDepthStencilAttachment<'_>> {
-        let ert = (self.targets.ert.as_ref()).filter(|_| on && self.ert.is_some())?;
+        let ert = self.ert.filter(|_| on)?.targets;
         let load = if first {
             wgpu::LoadOp::Clear(1.0)
         } else {
@@ -603,11 +606,9 @@ impl ShellsRenderer {
         timings: &mut Timings,
     ) -> Result<Image, RenderError> {
         let [width, height] = frame.plan.view.size;
-        self.ensure_targets(width, height)?;
-        let (stats, draws, term) = self.draw(&mut frame, tf)?;
+        let targets = self.ensure_targets(width, height)?;
+        let (stats, draws, term) = self.draw(&targets, &mut frame, tf)?;
         let t_read = Instant::now();
-        let targets = (self.targets.as_ref())
-            .ok_or_else(|| settings_error("internal: targets missing after ensure_targets"))?;
         let mut image = Image::new(targets.width, targets.height);
         image.pixels = targets.readback.read(&self.device)?;
         let readback = ms_since(t_read);
@@ -620,6 +621,7 @@ impl ShellsRenderer {
     /// termination passes; runs them and reads the statistics back.
     fn draw(
         &mut self,
+        targets: &Targets,
         f: &mut ShellFrame,
         tf: &TransferFunction,
     ) -> Result<(FrameStats, Draws, Termination), RenderError> {
@@ -635,11 +637,11 @@ impl ShellsRenderer {
         let mut raster = |d| self.pipelines.raster(&self.device, layers, d).clone();
         let raster = (raster(false), ert.then(|| raster(true)));
         let raster_groups = self.raster_groups()?;
-        let targets = (self.targets.as_ref())
-            .ok_or_else(|| settings_error("internal: targets missing after ensure_targets"))?;
         let passes = Passes {
             targets,
-            ert: self.pipelines.ert.as_ref(),
+            ert: (self.pipelines.ert.as_ref())
+                .zip(targets.ert.as_ref())
+                .map(|(pipelines, targets)| Ert { pipelines, targets }),
             raster,
             composite,
             chunks: self.chunking.ranges(self.mesh.tet_count() as u64).len(),
@@ -871,13 +873,13 @@ fn draw_shells(
         rec.end_stage("raster")?;
         composite::encode(rec, p, &s);
         rec.end_stage("composite")?;
-        if p.ert.is_none() || !term.can_finish(shell) {
+        let Some(ert) = p.ert.filter(|_| term.can_finish(shell)) else {
             continue;
-        }
-        termination::mark(rec, p, &s, term.first_finishing == Some(i));
+        };
+        termination::mark(rec, p, ert, &s, term.first_finishing == Some(i));
         rec.end_stage("termination")?;
         if term.check_due(i, len) {
-            let mask = termination::read_tiles(rec, p)?;
+            let mask = termination::read_tiles(rec, p, ert)?;
             if f.bins.is_empty() {
                 // Binned on the GPU: the lists stay there, the mask still skips tiles.
                 term.checked(i, mask);

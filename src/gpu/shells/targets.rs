@@ -9,7 +9,8 @@ use super::ERT_DEPTH;
 use super::pipelines::ErtPipelines;
 use super::skips::TileMask;
 
-/// Image-size-dependent targets, rebuilt when the size changes.
+/// Image-size-dependent targets, rebuilt when the size changes (a clone shares them).
+#[derive(Clone)]
 pub(super) struct Targets {
     pub(super) width: u32,
     pub(super) height: u32,
@@ -24,6 +25,7 @@ pub(super) struct Targets {
 }
 
 /// The early-ray-termination mask and tile flags of one image size.
+#[derive(Clone)]
 pub(super) struct ErtTargets {
     pub(super) depth_view: wgpu::TextureView,
     pub(super) mark_group: wgpu::BindGroup,

@@ -6,10 +6,11 @@
 //! tiles.
 
 use crate::gpu::frame::Recorder;
-use crate::gpu::util::{read_mapped, settings_error};
+use crate::gpu::util::read_mapped;
 use crate::render::RenderError;
 
 use super::binning::{Binning, TetBin};
+use super::pipelines::ErtPipelines;
 use super::plan::FramePlan;
 use super::skips::TileMask;
 use super::targets::ErtTargets;
@@ -121,11 +122,15 @@ impl Termination {
     }
 }
 
+/// Early ray termination's pipelines and the targets of the frame's image size.
+#[derive(Clone, Copy)]
+pub(super) struct Ert<'a> {
+    pub(super) pipelines: &'a ErtPipelines,
+    pub(super) targets: &'a ErtTargets,
+}
+
 /// Encodes the mark pass of shell `s`: the first one clears the mask to 1 (nothing finished).
-pub(super) fn mark(rec: &mut Recorder, p: &Passes, s: &ShellPass, first: bool) {
-    let Some((pipelines, targets)) = p.ert.zip(p.targets.ert.as_ref()) else {
-        return;
-    };
+pub(super) fn mark(rec: &mut Recorder, p: &Passes, ert: Ert, s: &ShellPass, first: bool) {
     let ts = rec.timestamps("termination");
     let mut pass = rec
         .encoder()
@@ -138,19 +143,22 @@ pub(super) fn mark(rec: &mut Recorder, p: &Passes, s: &ShellPass, first: bool) {
         });
     let [sx, sy, sw, sh] = s.rect;
     pass.set_scissor_rect(sx, sy, sw, sh);
-    pass.set_pipeline(&pipelines.mark);
-    pass.set_bind_group(0, &targets.mark_group, &[]);
+    pass.set_pipeline(&ert.pipelines.mark);
+    pass.set_bind_group(0, &ert.targets.mark_group, &[]);
     pass.draw(0..3, 0..1);
 }
 
 /// Runs what `rec` recorded, then flags the tiles with an unfinished pixel and reads them back
 /// (the one place a frame waits for the GPU before its end).
-pub(super) fn read_tiles(rec: &mut Recorder, p: &Passes) -> Result<TileMask, RenderError> {
-    let (Some(pipelines), Some(ert)) = (p.ert, p.targets.ert.as_ref()) else {
-        return Err(settings_error(
-            "internal: early termination without its targets",
-        ));
-    };
+pub(super) fn read_tiles(
+    rec: &mut Recorder,
+    p: &Passes,
+    ert: Ert,
+) -> Result<TileMask, RenderError> {
+    let Ert {
+        pipelines,
+        targets: ert,
+    } = ert;
     let ts = rec.timestamps("termination");
     let enc = rec.encoder();
     enc.clear_buffer(&ert.flags, 0, None);
