@@ -76,27 +76,42 @@ impl ShellsRenderer {
         f: &ShellFrame,
         tf: &TransferFunction,
     ) -> Result<ComputeFrame, RenderError> {
+        // Out of `self` while the frame runs, so that the stages can borrow the renderer.
+        let mut sampler = (self.compute.take())
+            .ok_or(RenderError::Internal("the compute sampler was not built"))?;
+        let frame = self.draw_with(&mut sampler, f, tf);
+        self.compute = Some(sampler);
+        frame
+    }
+
+    fn draw_with(
+        &mut self,
+        sampler: &mut ComputeSampler,
+        f: &ShellFrame,
+        tf: &TransferFunction,
+    ) -> Result<ComputeFrame, RenderError> {
         self.check_one_window()?;
         let [width, height] = f.plan.view.size;
-        self.ensure_tile_buffers(f, (width, height), 0)?;
+        let mut buffers = self.ensure_tile_buffers(sampler, f, (width, height), 0)?;
         let chunk_tets = self.chunking.chunk as u32;
         let whole = |(s, r): &DrawnShell| shell_uniforms((*s, r), f.n, &f.plan);
         let chunks = self.chunking.ranges(self.mesh.tet_count() as u64).len();
         let passes = chunk_passes(&f.drawn, &f.bin, (chunk_tets, chunks), whole);
         self.upload_passes(&passes);
-        let (mut stats, needed) = self.run_compute(f, tf, &passes)?;
+        let (mut stats, needed) = self.run_compute(sampler, &buffers, f, tf, &passes)?;
         if let Some(n) = needed {
-            self.ensure_tile_buffers(f, (width, height), n)?;
+            buffers = self.ensure_tile_buffers(sampler, f, (width, height), n)?;
             let again;
-            (stats, again) = self.run_compute(f, tf, &passes)?;
-            if let Some(n) = again {
-                return Err(settings_error(format!(
-                    "internal: the tile lists needed {n} entries after growing to it"
-                )));
+            (stats, again) = self.run_compute(sampler, &buffers, f, tf, &passes)?;
+            if again.is_some() {
+                // The second run bins the same tets as the first, into lists grown to its need.
+                return Err(RenderError::Internal(
+                    "the compute sampler's tile lists outgrew the size the first run needed",
+                ));
             }
         }
         let t_read = Instant::now();
-        let image = self.read_compute_image()?;
+        let image = self.read_compute_image(&buffers)?;
         Ok(ComputeFrame {
             stats,
             image,
@@ -141,13 +156,15 @@ impl ShellsRenderer {
     }
 
     /// Buffers for the image size and at least `needed` list entries (and at least 4 per
-    /// active tet of the largest shell), kept when they already suffice.
+    /// active tet of the largest shell): `sampler`'s when they already suffice, else new ones
+    /// it keeps.
     fn ensure_tile_buffers(
-        &mut self,
+        &self,
+        sampler: &mut ComputeSampler,
         f: &ShellFrame,
         size: (u32, u32),
         needed: u64,
-    ) -> Result<(), RenderError> {
+    ) -> Result<TileBuffers, RenderError> {
         let most = (f.drawn.iter())
             .map(|(_, r)| (r.faces.len() + r.near.len()) as u64)
             .max()
@@ -174,41 +191,31 @@ impl ShellsRenderer {
                 size.0, size.1
             )));
         }
-        let device = self.device.clone();
-        let sampler = self.sampler()?;
-        let fits = (sampler.buffers.as_ref())
-            .is_some_and(|b| (b.width, b.height) == size && b.capacity >= want.min(max));
-        if !fits {
-            let capacity = want.next_power_of_two().min(max);
-            sampler.buffers = Some(TileBuffers::new(&device, size, capacity, slice_bytes));
+        let kept = (sampler.buffers.as_ref())
+            .filter(|b| (b.width, b.height) == size && b.capacity >= want.min(max));
+        if let Some(b) = kept {
+            return Ok(b.clone());
         }
-        Ok(())
-    }
-
-    fn sampler(&mut self) -> Result<&mut ComputeSampler, RenderError> {
-        (self.compute.as_mut())
-            .ok_or_else(|| settings_error("internal: the compute sampler was not built"))
+        let capacity = want.next_power_of_two().min(max);
+        let buffers = TileBuffers::new(&self.device, size, capacity, slice_bytes);
+        Ok(sampler.buffers.insert(buffers).clone())
     }
 
     /// Runs the frame's `passes` once: its statistics, and the list entries it needed when
     /// they exceeded the buffer.
     fn run_compute(
         &mut self,
+        sampler: &mut ComputeSampler,
+        b: &TileBuffers,
         f: &ShellFrame,
         tf: &TransferFunction,
         passes: &[ChunkPass],
     ) -> Result<(FrameStats, Option<u64>), RenderError> {
         let targets = f.n.div_ceil(4);
         let points = tf.points().len() as u32;
-        let device = self.device.clone();
-        let sampler = self.sampler()?;
         let layout = &sampler.tiles.pipeline_layout;
-        let fine = (sampler.fine.get(&device, layout, targets, points)).clone();
-        let groups = self.compute_groups()?;
-        let sampler =
-            (self.compute.as_ref()).ok_or_else(|| settings_error("internal: no sampler"))?;
-        let b = (sampler.buffers.as_ref())
-            .ok_or_else(|| settings_error("internal: no tile buffers"))?;
+        let fine = (sampler.fine.get(&self.device, layout, targets, points)).clone();
+        let groups = self.compute_groups(sampler, b)?;
         let stages = 1 + 2 * passes.len() as u32;
         let mut rec = (self.frame).recorder(&self.device, &self.queue, stages, 0);
         let enc = rec.encoder();
@@ -257,11 +264,11 @@ impl ShellsRenderer {
 
     /// The bind groups both compute stages use, one per record chunk (the per-frame buffers
     /// may have been regrown).
-    fn compute_groups(&self) -> Result<Vec<wgpu::BindGroup>, RenderError> {
-        let sampler =
-            (self.compute.as_ref()).ok_or_else(|| settings_error("internal: no sampler"))?;
-        let b = (sampler.buffers.as_ref())
-            .ok_or_else(|| settings_error("internal: no tile buffers"))?;
+    fn compute_groups(
+        &self,
+        sampler: &ComputeSampler,
+        b: &TileBuffers,
+    ) -> Result<Vec<wgpu::BindGroup>, RenderError> {
         let shell = || wgpu::BindGroupEntry {
             binding: 1,
             resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
@@ -304,11 +311,7 @@ impl ShellsRenderer {
     }
 
     /// The accumulation buffer as an image (after the frame ran).
-    fn read_compute_image(&self) -> Result<Image, RenderError> {
-        let sampler =
-            (self.compute.as_ref()).ok_or_else(|| settings_error("internal: no sampler"))?;
-        let b = (sampler.buffers.as_ref())
-            .ok_or_else(|| settings_error("internal: no tile buffers"))?;
+    fn read_compute_image(&self, b: &TileBuffers) -> Result<Image, RenderError> {
         let mut image = Image::new(b.width, b.height);
         {
             let data = read_mapped(

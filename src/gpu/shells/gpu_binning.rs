@@ -228,10 +228,26 @@ struct Readback {
 impl ShellsRenderer {
     /// The frame's slices per shell and active lists, binned on the GPU (the lists left in the
     /// active buffer, [`Binning::indices`] empty); re-run once with a larger list when the
-    /// first run overflowed it. `None` when the lists take more than one storage binding:
-    /// `--binning auto` then bins the frame on the CPU, `gpu` says so.
+    /// first run overflowed it. `None` without a GPU binner, or when the lists take more than
+    /// one storage binding: `--binning auto` then bins the frame on the CPU, `gpu` says so.
     pub(super) fn bin_on_gpu(
         &mut self,
+        m: &MeshData,
+        plan: &FramePlan,
+        tf: &TransferFunction,
+    ) -> Result<Option<(u32, Binning)>, RenderError> {
+        // Out of `self` while it runs, so that the binning can borrow the renderer.
+        let Some(mut binner) = self.binner.take() else {
+            return Ok(None);
+        };
+        let binned = self.bin_with(&mut binner, m, plan, tf);
+        self.binner = Some(binner);
+        binned
+    }
+
+    fn bin_with(
+        &mut self,
+        binner: &mut GpuBinner,
         m: &MeshData,
         plan: &FramePlan,
         tf: &TransferFunction,
@@ -244,7 +260,7 @@ impl ShellsRenderer {
         self.slices_per_shell = n;
         let shells = plan.shells(n);
         self.transparent_mask(m, tf);
-        self.upload_mask();
+        self.upload_mask(binner);
         let max_entries = self.max_active_entries();
         // A first guess of one entry per tet, so that a first frame seldom runs twice.
         let tets = m.tets.len() as u64;
@@ -252,7 +268,7 @@ impl ShellsRenderer {
             self.grow_active(tets.min(max_entries));
         }
         for _ in 0..2 {
-            let r = self.run_binning(m, plan, n, shells)?;
+            let r = self.run_binning(binner, m, plan, n)?;
             let total = r.offsets.last().copied().unwrap_or(0) as u64;
             if total <= self.active_capacity() {
                 return Ok(Some((n, binning_of(r, shells as usize))));
@@ -269,8 +285,9 @@ impl ShellsRenderer {
             }
             self.grow_active(total);
         }
-        Err(settings_error(
-            "internal: the GPU binning overflowed its list after growing it",
+        // The second run bins the same tets as the first, into a list grown to its total.
+        Err(RenderError::Internal(
+            "the GPU binning overflowed its list after growing it",
         ))
     }
 
@@ -303,13 +320,10 @@ impl ShellsRenderer {
 
     /// The transparent-tet bits of the renderer's cached mask (all clear without
     /// transfer-function culling), uploaded when the transfer function or scalars changed.
-    fn upload_mask(&mut self) {
+    fn upload_mask(&self, binner: &mut GpuBinner) {
         let key = (self.settings.skips.tf_cull)
             .then(|| self.transparent.as_ref().map(|(tf, v, _)| (tf.clone(), *v)))
             .flatten();
-        let Some(binner) = self.binner.as_mut() else {
-            return;
-        };
         if binner.mask_key.as_ref() == Some(&key) {
             return;
         }
@@ -325,20 +339,18 @@ impl ShellsRenderer {
         binner.mask_key = Some(key);
     }
 
-    /// One run of count, scan and scatter; reads back offsets, rectangles and counters.
+    /// One run of count, scan and scatter with `n` slices per shell; reads back offsets,
+    /// rectangles and counters.
     fn run_binning(
-        &mut self,
+        &self,
+        binner: &mut GpuBinner,
         m: &MeshData,
         plan: &FramePlan,
         n: u32,
-        shells: u64,
     ) -> Result<Readback, RenderError> {
-        let binner = (self.binner.as_mut())
-            .ok_or_else(|| settings_error("internal: GPU binning without its binner"))?;
+        let shells = plan.shells(n);
         binner.ensure(&self.device, shells);
-        let binner = (self.binner.as_ref())
-            .ok_or_else(|| settings_error("internal: GPU binning without its binner"))?;
-        let u = self.bin_uniforms(m, plan, (n, shells), binner);
+        let u = self.bin_uniforms(m, plan, n, binner);
         self.queue
             .write_buffer(&binner.uniforms, 0, bytemuck::bytes_of(&u));
         let sentinel: Vec<i32> = (0..4 * shells)
@@ -377,15 +389,16 @@ impl ShellsRenderer {
         read_back(&self.device, &binner.readback, words, binner.chunks.len())
     }
 
-    /// The binning constants of a frame with `n` slices per shell and `shells` shells, over
-    /// `binner`'s record chunks.
+    /// The binning constants of a frame with `n` slices per shell, over `binner`'s record
+    /// chunks.
     fn bin_uniforms(
         &self,
         m: &MeshData,
         plan: &FramePlan,
-        (n, shells): (u32, u64),
+        n: u32,
         binner: &GpuBinner,
     ) -> BinUniforms {
+        let shells = plan.shells(n);
         let f32x3 = |v: glam::DVec3| v.as_vec3().to_array();
         let [right, up, forward] = plan.view.basis;
         let dist = (m.origin - plan.view.eye).length();

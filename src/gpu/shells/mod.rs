@@ -917,10 +917,7 @@ impl Renderer for ShellsRenderer {
         // 1. Plan and binning (CPU): the frame's slices, each tet's shells, slices per shell.
         let plan = self.plan(&m, camera)?;
         let t0 = Instant::now();
-        let on_gpu = match self.binner {
-            Some(_) => self.bin_on_gpu(&m, &plan, tf)?,
-            None => None,
-        };
+        let on_gpu = self.bin_on_gpu(&m, &plan, tf)?;
         let (n, bins, bin) = if let Some((n, bin)) = on_gpu {
             (n, Vec::new(), bin)
         } else {
