@@ -152,3 +152,38 @@ pub enum Tuning {
     /// The configuration chosen, described (e.g. `compute, 8 per shell, no frustum`).
     Chose(String),
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gpu::GpuError;
+
+    /// An internal state reads as tetvr's bug, with what to report, not as a setting to change.
+    #[test]
+    fn internal_errors_ask_for_a_bug_report() {
+        let msg = RenderError::Internal("the walk reached the binning").to_string();
+        assert!(
+            msg.starts_with("internal error: the walk reached the binning."),
+            "{msg}"
+        );
+        assert!(
+            msg.contains("bug in tetvr") && msg.contains("command line"),
+            "{msg}"
+        );
+    }
+
+    /// A failed readback names the buffer and what the user can do about a lost device.
+    #[test]
+    fn readback_errors_name_the_buffer_and_the_remedy() {
+        let e = RenderError::from(GpuError::Readback {
+            what: "the tile flags",
+            reason: "Device lost".into(),
+        });
+        let msg = e.to_string();
+        assert!(msg.starts_with("reading the tile flags back from the GPU failed (Device lost)"));
+        assert!(
+            msg.contains("driver") && msg.contains("smaller mesh or image"),
+            "{msg}"
+        );
+    }
+}

@@ -384,8 +384,8 @@ impl RaycastRenderer {
         slicing: Slicing,
     ) -> Result<Frame, RenderError> {
         if self.slicing.is_none() {
-            return Err(settings_error(
-                "internal: slices rendered by a ray caster built without them",
+            return Err(RenderError::Internal(
+                "slices rendered by a ray caster built without them",
             ));
         }
         self.slicing = Some(slicing);

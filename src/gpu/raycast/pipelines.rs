@@ -5,9 +5,7 @@ use wgpu::BufferBindingType as B;
 use wgpu::ShaderStages as S;
 
 use crate::gpu::shaders;
-use crate::gpu::util::{
-    bind_group_layout, buffer_entry, pipeline_layout_for, settings_error, wgsl_module,
-};
+use crate::gpu::util::{bind_group_layout, buffer_entry, pipeline_layout_for, wgsl_module};
 use crate::render::RenderError;
 
 use super::links::LINK_BINDINGS;
@@ -266,7 +264,7 @@ impl Pipelines {
         }
         let [exact, partial, table] = (self.traverse.as_ref())
             .map(|t| &t[entry as usize])
-            .ok_or_else(|| settings_error("internal: the walk's traversal was not built"))?;
+            .ok_or(RenderError::Internal("the walk's traversal was not built"))?;
         Ok(match segments {
             Segments::Exact => exact,
             Segments::Partial => partial,

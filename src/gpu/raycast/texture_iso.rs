@@ -174,7 +174,7 @@ impl RaycastRenderer {
         }
         let frame = self.frame(camera, None)?;
         let hits = (self.targets.as_ref()).and_then(|t| t.hits.as_ref());
-        let hits = hits.ok_or_else(|| settings_error("internal: iso hit buffers missing"))?;
+        let hits = hits.ok_or(RenderError::Internal("the iso hit buffers are missing"))?;
         let (depth, normal) = hits.read(&self.device)?;
         let surface = IsoImage {
             color: frame.image,

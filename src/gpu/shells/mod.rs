@@ -520,7 +520,7 @@ impl Assembled {
 
 /// The error of a raster or compute stage run by a renderer without records (the walk's).
 fn no_records() -> RenderError {
-    settings_error("internal: the walk sampler has no records or assembly")
+    RenderError::Internal("the walk sampler has no records or assembly")
 }
 
 /// A frame after the CPU stages: its plan, slices per shell, binned tets and shells to draw.
@@ -944,7 +944,7 @@ impl Renderer for ShellsRenderer {
         let image = match self.settings.sampler {
             Sampler::Raster => self.render_raster(frame, tf, &mut timings)?,
             // The walk sampler renders its frame before any of the stages above.
-            Sampler::Walk => return Err(settings_error("internal: the walk reached the binning")),
+            Sampler::Walk => return Err(RenderError::Internal("the walk reached the binning")),
             Sampler::Compute => {
                 let c = self.draw_compute(&frame, tf)?;
                 self.report_frame(
