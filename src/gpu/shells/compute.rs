@@ -151,8 +151,7 @@ impl ShellsRenderer {
         for (slot, p) in data.chunks_mut(stride).zip(passes) {
             slot[..size_of::<ShellUniforms>()].copy_from_slice(bytemuck::bytes_of(&p.uniforms));
         }
-        let gpu = (&self.device, &self.queue, &self.limits);
-        write_grown(gpu, &mut self.shell_buf, &data, wgpu::BufferUsages::UNIFORM);
+        write_grown(&self.ctx, &mut self.shell_buf, &data, wgpu::BufferUsages::UNIFORM);
     }
 
     /// Buffers for the image size and at least `needed` list entries (and at least 4 per
@@ -171,7 +170,7 @@ impl ShellsRenderer {
             .unwrap_or(0);
         let want = needed.max(4 * most).max(MIN_CAPACITY);
         let binding =
-            (self.limits.max_storage_buffer_binding_size).min(self.limits.max_buffer_size);
+            (self.ctx.limits.max_storage_buffer_binding_size).min(self.ctx.limits.max_buffer_size);
         // List entries are 8 bytes (a tet id and its pixel box in the tile).
         let max = binding / 8;
         if needed > max {
@@ -197,7 +196,7 @@ impl ShellsRenderer {
             return Ok(b.clone());
         }
         let capacity = want.next_power_of_two().min(max);
-        let buffers = TileBuffers::new(&self.device, size, capacity, slice_bytes);
+        let buffers = TileBuffers::new(&self.ctx.device, size, capacity, slice_bytes);
         Ok(sampler.buffers.insert(buffers).clone())
     }
 
@@ -214,15 +213,15 @@ impl ShellsRenderer {
         let targets = f.n.div_ceil(4);
         let points = tf.points().len() as u32;
         let layout = &sampler.tiles.pipeline_layout;
-        let fine = (sampler.fine.get(&self.device, layout, targets, points)).clone();
+        let fine = (sampler.fine.get(&self.ctx.device, layout, targets, points)).clone();
         let groups = self.compute_groups(sampler, b)?;
         let stages = 1 + 2 * passes.len() as u32;
-        let mut rec = (self.frame).recorder(&self.device, &self.queue, stages, 0);
+        let mut rec = (self.frame).recorder(&self.ctx.device, &self.ctx.queue, stages, 0);
         let enc = rec.encoder();
         for buf in [&b.accum, &b.finished, &b.needed] {
             enc.clear_buffer(buf, 0, None);
         }
-        let max_groups = self.limits.max_compute_workgroups_per_dimension;
+        let max_groups = self.ctx.limits.max_compute_workgroups_per_dimension;
         let assembled = self.assembled.as_ref().ok_or_else(super::no_records)?;
         (assembled.stage).record(&mut rec, &assembled.groups, max_groups)?;
         for (i, p) in passes.iter().enumerate() {
@@ -258,7 +257,7 @@ impl ShellsRenderer {
         enc.copy_buffer_to_buffer(&b.accum, 0, &b.accum_readback, 0, b.accum.size());
         enc.copy_buffer_to_buffer(&b.needed, 0, &b.needed_readback, 0, 4);
         let stats = rec.finish(&[], assembled.stage.degenerate(), 0)?;
-        let needed = read_u32(&self.device, &b.needed_readback)? as u64;
+        let needed = read_u32(&self.ctx.device, &b.needed_readback)? as u64;
         Ok((stats, (needed > b.capacity).then_some(needed)))
     }
 
@@ -301,7 +300,7 @@ impl ShellsRenderer {
             if let Some(t) = &self.texture {
                 entries.extend(t.entries());
             }
-            self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            self.ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("shells compute sampler"),
                 layout: &sampler.tiles.layout,
                 entries: &entries,
@@ -315,7 +314,7 @@ impl ShellsRenderer {
         let mut image = Image::new(b.width, b.height);
         {
             let data = read_mapped(
-                &self.device,
+                &self.ctx.device,
                 &b.accum_readback,
                 "the compute sampler's image",
             )?;

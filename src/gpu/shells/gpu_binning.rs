@@ -19,6 +19,7 @@
 //! tiles and shells but does not drop finished tets from later lists (that reads the lists on
 //! the CPU).
 
+use crate::gpu::GpuContext;
 use crate::gpu::gpu_data::{BinChunk, BinUniforms};
 use crate::gpu::mesh::{MeshData, TetArray};
 use crate::gpu::shaders;
@@ -82,11 +83,12 @@ impl GpuBinner {
     /// The binner of a mesh of `tets` tets in record chunks `chunks` ((first, count) each),
     /// with `spans` (8 bytes per tet, chunked as the records).
     pub(super) fn new(
-        (device, queue, limits): (&wgpu::Device, &wgpu::Queue, &wgpu::Limits),
+        ctx: &GpuContext,
         tets: u64,
         chunks: Vec<(u64, u64)>,
         spans: TetArray,
     ) -> Self {
+        let device = &ctx.device;
         let cs = wgpu::ShaderStages::COMPUTE;
         let ro = wgpu::BufferBindingType::Storage { read_only: true };
         let rw = wgpu::BufferBindingType::Storage { read_only: false };
@@ -109,7 +111,7 @@ impl GpuBinner {
             })
         };
         let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
-        let (chunk_stride, chunk_uniforms) = chunk_uniforms((device, queue, limits), &chunks);
+        let (chunk_stride, chunk_uniforms) = chunk_uniforms(ctx, &chunks);
         Self {
             count: pipeline("count"),
             scan: pipeline("scan"),
@@ -185,12 +187,10 @@ impl GpuBinner {
 
 /// Each chunk's [`BinChunk`] in one uniform buffer, at a stride the adapter accepts as a
 /// binding offset: (stride, buffer).
-fn chunk_uniforms(
-    (device, queue, limits): (&wgpu::Device, &wgpu::Queue, &wgpu::Limits),
-    chunks: &[(u64, u64)],
-) -> (u64, wgpu::Buffer) {
+fn chunk_uniforms(ctx: &GpuContext, chunks: &[(u64, u64)]) -> (u64, wgpu::Buffer) {
     let size = size_of::<BinChunk>();
-    let stride = size.next_multiple_of(limits.min_uniform_buffer_offset_alignment as usize);
+    let alignment = ctx.limits.min_uniform_buffer_offset_alignment;
+    let stride = size.next_multiple_of(alignment as usize);
     let mut data = vec![0u8; stride * chunks.len().max(1)];
     for (c, (slot, &(first, count))) in data.chunks_mut(stride).zip(chunks).enumerate() {
         let chunk = BinChunk {
@@ -201,8 +201,8 @@ fn chunk_uniforms(
         };
         slot[..size].copy_from_slice(bytemuck::bytes_of(&chunk));
     }
-    let buffer = uniform_buffer(device, "shells bin chunks", data.len());
-    queue.write_buffer(&buffer, 0, &data);
+    let buffer = uniform_buffer(&ctx.device, "shells bin chunks", data.len());
+    ctx.queue.write_buffer(&buffer, 0, &data);
     (stride as u64, buffer)
 }
 
@@ -298,8 +298,8 @@ impl ShellsRenderer {
 
     /// The most active-list entries one storage binding holds.
     fn max_active_entries(&self) -> u64 {
-        let binding = self.limits.max_storage_buffer_binding_size;
-        binding.min(self.limits.max_buffer_size) / 4
+        let binding = self.ctx.limits.max_storage_buffer_binding_size;
+        binding.min(self.ctx.limits.max_buffer_size) / 4
     }
 
     /// Replaces the active buffer by one of at least `entries` entries (a power of two,
@@ -308,7 +308,7 @@ impl ShellsRenderer {
         let bytes = (entries * 4)
             .next_power_of_two()
             .min(4 * self.max_active_entries());
-        self.active_buf = self.device.create_buffer(&wgpu::BufferDescriptor {
+        self.active_buf = self.ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("shells active tets"),
             size: bytes.max(entries * 4),
             usage: wgpu::BufferUsages::STORAGE
@@ -334,7 +334,7 @@ impl ShellsRenderer {
                 *word = (part.iter().enumerate()).fold(0, |w, (i, &m)| w | (m as u32) << i);
             }
         }
-        self.queue
+        self.ctx.queue
             .write_buffer(&binner.mask, 0, bytemuck::cast_slice(&bits));
         binner.mask_key = Some(key);
     }
@@ -349,17 +349,17 @@ impl ShellsRenderer {
         n: u32,
     ) -> Result<Readback, RenderError> {
         let shells = plan.shells(n);
-        binner.ensure(&self.device, shells);
+        binner.ensure(&self.ctx.device, shells);
         let u = self.bin_uniforms(m, plan, n, binner);
-        self.queue
+        self.ctx.queue
             .write_buffer(&binner.uniforms, 0, bytemuck::bytes_of(&u));
         let sentinel: Vec<i32> = (0..4 * shells)
             .map(|i| if i % 4 < 2 { i32::MAX } else { i32::MIN })
             .collect();
-        self.queue
+        self.ctx.queue
             .write_buffer(&binner.rects, 0, bytemuck::cast_slice(&sentinel));
         let groups = self.bin_groups(binner)?;
-        let mut enc = self.device.create_command_encoder(&Default::default());
+        let mut enc = self.ctx.device.create_command_encoder(&Default::default());
         enc.clear_buffer(&binner.cursors, 0, None);
         enc.clear_buffer(&binner.stats, 0, None);
         {
@@ -385,8 +385,8 @@ impl ShellsRenderer {
         enc.copy_buffer_to_buffer(&binner.offsets, 0, &binner.readback, 0, b_off);
         enc.copy_buffer_to_buffer(&binner.rects, 0, &binner.readback, b_off, b_rect);
         enc.copy_buffer_to_buffer(&binner.stats, 0, &binner.readback, b_off + b_rect, 16);
-        self.queue.submit([enc.finish()]);
-        read_back(&self.device, &binner.readback, words, binner.chunks.len())
+        self.ctx.queue.submit([enc.finish()]);
+        read_back(&self.ctx.device, &binner.readback, words, binner.chunks.len())
     }
 
     /// The binning constants of a frame with `n` slices per shell, over `binner`'s record
@@ -426,7 +426,7 @@ impl ShellsRenderer {
     /// them).
     fn tet_groups(&self, tets: u32) -> (u32, u32) {
         let groups = tets.div_ceil(GROUP).max(1);
-        let max = self.limits.max_compute_workgroups_per_dimension;
+        let max = self.ctx.limits.max_compute_workgroups_per_dimension;
         if groups <= max {
             (groups, 1)
         } else {
@@ -455,7 +455,7 @@ impl ShellsRenderer {
                     size: wgpu::BufferSize::new(size_of::<BinChunk>() as u64),
                 }),
             };
-            self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            self.ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("shells gpu binning"),
                 layout: &binner.layout,
                 entries: &[
@@ -562,17 +562,17 @@ mod tests {
     /// The first `n` entries of the renderer's active buffer.
     fn active_ids(r: &ShellsRenderer, n: u64) -> Vec<u32> {
         let bytes = (4 * n).max(4);
-        let read = r.device.create_buffer(&wgpu::BufferDescriptor {
+        let read = r.ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: None,
             size: bytes,
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let mut enc = r.device.create_command_encoder(&Default::default());
+        let mut enc = r.ctx.device.create_command_encoder(&Default::default());
         enc.copy_buffer_to_buffer(&r.active_buf, 0, &read, 0, bytes);
-        r.queue.submit([enc.finish()]);
+        r.ctx.queue.submit([enc.finish()]);
         let ids =
-            bytemuck::cast_slice(&read_mapped(&r.device, &read, "ids").expect("map")).to_vec();
+            bytemuck::cast_slice(&read_mapped(&r.ctx.device, &read, "ids").expect("map")).to_vec();
         ids[..n as usize].to_vec()
     }
 

@@ -247,9 +247,7 @@ const ERT_CHECKS: usize = 8;
 
 /// The barycentric shell-sampling renderer; see the module docs.
 pub struct ShellsRenderer {
-    device: wgpu::Device,
-    queue: wgpu::Queue,
-    limits: wgpu::Limits,
+    ctx: GpuContext,
     settings: ShellSettings,
     format: wgpu::TextureFormat,
     /// The accumulation target's format (32-bit where the adapter blends it).
@@ -343,7 +341,7 @@ impl ShellsRenderer {
     ) -> Result<Self, RenderError> {
         let config = config::slices(ctx, &settings)?;
         config::check(&settings)?;
-        let (device, queue, limits) = (ctx.device.clone(), ctx.queue.clone(), ctx.limits.clone());
+        let device = &ctx.device;
         // Records beyond one storage binding are assembled and drawn in chunks, each bound as
         // a window of the record array (several buffers where one cannot hold them).
         let chunking = mesh.chunking()?;
@@ -353,9 +351,9 @@ impl ShellsRenderer {
         let ert =
             (settings.skips.early_termination && !walks).then_some(settings.skips.ert_threshold);
         let textured = texture.is_some();
-        let pipelines = Pipelines::new(&device, (config.format, config.accum), ert, textured);
+        let pipelines = Pipelines::new(device, (config.format, config.accum), ert, textured);
         let compute = (settings.sampler == Sampler::Compute)
-            .then(|| compute::ComputeSampler::new(&device, ert, textured));
+            .then(|| compute::ComputeSampler::new(device, ert, textured));
         let walk = match settings.sampler {
             Sampler::Walk => {
                 let shared = texture.as_ref().map(|t| t.gpu.clone());
@@ -365,20 +363,19 @@ impl ShellsRenderer {
         };
         let binner = if !walks && gpu_binning::picked(settings.binning, tet_count) {
             let spans = mesh.tet_array("shells bin spans", chunking, tet_count, 8)?;
-            let gpu = (&device, &queue, &limits);
             let chunks = chunking.ranges(tet_count);
-            Some(gpu_binning::GpuBinner::new(gpu, tet_count, chunks, spans))
+            Some(gpu_binning::GpuBinner::new(ctx, tet_count, chunks, spans))
         } else {
             None
         };
-        let view_buf = uniform_buffer(&device, "shells view", size_of::<ViewUniforms>());
-        let slicing_buf = uniform_buffer(&device, "shells slicing", size_of::<SlicingUniforms>());
+        let view_buf = uniform_buffer(device, "shells view", size_of::<ViewUniforms>());
+        let slicing_buf = uniform_buffer(device, "shells slicing", size_of::<SlicingUniforms>());
         let assembled = match walks {
             true => None,
-            false => Some(Assembled::new(&device, &mesh, &view_buf)?),
+            false => Some(Assembled::new(device, &mesh, &view_buf)?),
         };
         let shell_stride = (size_of::<ShellUniforms>() as u64)
-            .next_multiple_of(limits.min_uniform_buffer_offset_alignment as u64);
+            .next_multiple_of(ctx.limits.min_uniform_buffer_offset_alignment as u64);
         let active_buf = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("shells active tets"),
             size: 16,
@@ -393,12 +390,10 @@ impl ShellsRenderer {
             usage: wgpu::BufferUsages::INDEX | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let shell_buf = uniform_buffer(&device, "shells shell uniforms", shell_stride as usize);
-        let tf_buf = uniform_buffer(&device, "shells transfer function", size_of::<TfPoints>());
+        let shell_buf = uniform_buffer(device, "shells shell uniforms", shell_stride as usize);
+        let tf_buf = uniform_buffer(device, "shells transfer function", size_of::<TfPoints>());
         Ok(Self {
-            device,
-            queue,
-            limits,
+            ctx: ctx.clone(),
             settings,
             format: config.format,
             accum_format: config.accum,
@@ -471,10 +466,10 @@ impl ShellsRenderer {
         {
             return Ok(t.clone());
         }
-        check_image_size(&self.limits, width, height)?;
+        check_image_size(&self.ctx.limits, width, height)?;
         let layers = (self.format, self.slice_layers, self.accum_format);
         let ert = self.pipelines.ert.as_ref();
-        let targets = Targets::new(&self.device, (width, height), layers, ert);
+        let targets = Targets::new(&self.ctx.device, (width, height), layers, ert);
         Ok(self.targets.insert(targets).clone())
     }
 }
@@ -610,7 +605,7 @@ impl ShellsRenderer {
         let (stats, draws, term) = self.draw(&targets, &mut frame, tf)?;
         let t_read = Instant::now();
         let mut image = Image::new(targets.width, targets.height);
-        image.pixels = targets.readback.read(&self.device)?;
+        image.pixels = targets.readback.read(&self.ctx.device)?;
         let readback = ms_since(t_read);
         self.report(timings, &stats, (&frame, &draws, &term), &image);
         timings.stage("readback", readback);
@@ -630,11 +625,11 @@ impl ShellsRenderer {
         let ert = self.settings.skips.early_termination;
         let mut composite = |d| {
             self.pipelines
-                .composite(&self.device, layers, points, d)
+                .composite(&self.ctx.device, layers, points, d)
                 .clone()
         };
         let composite = (composite(false), ert.then(|| composite(true)));
-        let mut raster = |d| self.pipelines.raster(&self.device, layers, d).clone();
+        let mut raster = |d| self.pipelines.raster(&self.ctx.device, layers, d).clone();
         let raster = (raster(false), ert.then(|| raster(true)));
         let raster_groups = self.raster_groups()?;
         let passes = Passes {
@@ -661,8 +656,8 @@ impl ShellsRenderer {
         } else {
             0
         };
-        let mut rec = (self.frame).recorder(&self.device, &self.queue, count, occlusion);
-        let max_groups = self.limits.max_compute_workgroups_per_dimension;
+        let mut rec = (self.frame).recorder(&self.ctx.device, &self.ctx.queue, count, occlusion);
+        let max_groups = self.ctx.limits.max_compute_workgroups_per_dimension;
         let assembled = self.assembled.as_ref().ok_or_else(no_records)?;
         (assembled.stage).record(&mut rec, &assembled.groups, max_groups)?;
         if f.drawn.is_empty() {
@@ -671,7 +666,7 @@ impl ShellsRenderer {
         let tau_max = tf.taus().iter().copied().fold(0.0, f64::max);
         let threshold = self.settings.skips.ert_threshold;
         let mut term = Termination::new(&f.drawn, (f.n, f.plan.dz), tau_max, threshold);
-        let active = (&self.queue, &self.active_buf, self.mesh.tet_count() as u32);
+        let active = (&self.ctx.queue, &self.active_buf, self.mesh.tet_count() as u32);
         let draws = draw_shells(&mut rec, &passes, f, &mut term, active)?;
         let images = [(&targets.accum, &targets.readback)];
         let stats = rec.finish(&images, assembled.stage.degenerate(), draws.queries)?;
@@ -721,7 +716,7 @@ impl ShellsRenderer {
                 if let Some(t) = &self.texture {
                     entries.extend(t.entries());
                 }
-                self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                self.ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some("shells raster"),
                     layout: &self.pipelines.raster_layout,
                     entries: &entries,
@@ -732,7 +727,7 @@ impl ShellsRenderer {
 
     /// The composite bind group: the slice layers, the transfer function, the slicing.
     fn composite_group(&self, targets: &Targets) -> wgpu::BindGroup {
-        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        self.ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("shells composite"),
             layout: &self.pipelines.composite_layout,
             entries: &[
