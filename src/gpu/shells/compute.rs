@@ -141,7 +141,7 @@ impl ShellsRenderer {
         if chunks <= 1 {
             return 0;
         }
-        width as u64 * height as u64 * self.slice_layers as u64 * 16
+        width as u64 * height as u64 * self.formats.layers as u64 * 16
     }
 
     /// Writes the passes' constants, one slot each at the dynamic-offset stride.
@@ -151,7 +151,12 @@ impl ShellsRenderer {
         for (slot, p) in data.chunks_mut(stride).zip(passes) {
             slot[..size_of::<ShellUniforms>()].copy_from_slice(bytemuck::bytes_of(&p.uniforms));
         }
-        write_grown(&self.ctx, &mut self.shell_buf, &data, wgpu::BufferUsages::UNIFORM);
+        write_grown(
+            &self.ctx,
+            &mut self.shell_buf,
+            &data,
+            wgpu::BufferUsages::UNIFORM,
+        );
     }
 
     /// Buffers for the image size and at least `needed` list entries (and at least 4 per
@@ -300,11 +305,13 @@ impl ShellsRenderer {
             if let Some(t) = &self.texture {
                 entries.extend(t.entries());
             }
-            self.ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("shells compute sampler"),
-                layout: &sampler.tiles.layout,
-                entries: &entries,
-            })
+            self.ctx
+                .device
+                .create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("shells compute sampler"),
+                    layout: &sampler.tiles.layout,
+                    entries: &entries,
+                })
         });
         Ok(groups.collect())
     }

@@ -334,7 +334,8 @@ impl ShellsRenderer {
                 *word = (part.iter().enumerate()).fold(0, |w, (i, &m)| w | (m as u32) << i);
             }
         }
-        self.ctx.queue
+        self.ctx
+            .queue
             .write_buffer(&binner.mask, 0, bytemuck::cast_slice(&bits));
         binner.mask_key = Some(key);
     }
@@ -351,12 +352,14 @@ impl ShellsRenderer {
         let shells = plan.shells(n);
         binner.ensure(&self.ctx.device, shells);
         let u = self.bin_uniforms(m, plan, n, binner);
-        self.ctx.queue
+        self.ctx
+            .queue
             .write_buffer(&binner.uniforms, 0, bytemuck::bytes_of(&u));
         let sentinel: Vec<i32> = (0..4 * shells)
             .map(|i| if i % 4 < 2 { i32::MAX } else { i32::MIN })
             .collect();
-        self.ctx.queue
+        self.ctx
+            .queue
             .write_buffer(&binner.rects, 0, bytemuck::cast_slice(&sentinel));
         let groups = self.bin_groups(binner)?;
         let mut enc = self.ctx.device.create_command_encoder(&Default::default());
@@ -386,7 +389,12 @@ impl ShellsRenderer {
         enc.copy_buffer_to_buffer(&binner.rects, 0, &binner.readback, b_off, b_rect);
         enc.copy_buffer_to_buffer(&binner.stats, 0, &binner.readback, b_off + b_rect, 16);
         self.ctx.queue.submit([enc.finish()]);
-        read_back(&self.ctx.device, &binner.readback, words, binner.chunks.len())
+        read_back(
+            &self.ctx.device,
+            &binner.readback,
+            words,
+            binner.chunks.len(),
+        )
     }
 
     /// The binning constants of a frame with `n` slices per shell, over `binner`'s record
@@ -455,23 +463,25 @@ impl ShellsRenderer {
                     size: wgpu::BufferSize::new(size_of::<BinChunk>() as u64),
                 }),
             };
-            self.ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("shells gpu binning"),
-                layout: &binner.layout,
-                entries: &[
-                    entry(0, &binner.uniforms),
-                    entry(1, self.mesh.positions()),
-                    tets.window(2, first, count),
-                    entry(3, &binner.mask),
-                    entry(4, &binner.cursors),
-                    entry(5, &binner.offsets),
-                    entry(6, &binner.rects),
-                    entry(7, &binner.stats),
-                    ids.clone(),
-                    binner.spans.window(9, first, count),
-                    chunk,
-                ],
-            })
+            self.ctx
+                .device
+                .create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("shells gpu binning"),
+                    layout: &binner.layout,
+                    entries: &[
+                        entry(0, &binner.uniforms),
+                        entry(1, self.mesh.positions()),
+                        tets.window(2, first, count),
+                        entry(3, &binner.mask),
+                        entry(4, &binner.cursors),
+                        entry(5, &binner.offsets),
+                        entry(6, &binner.rects),
+                        entry(7, &binner.stats),
+                        ids.clone(),
+                        binner.spans.window(9, first, count),
+                        chunk,
+                    ],
+                })
         };
         Ok((binner.chunks.iter().enumerate())
             .map(|(c, &range)| group(c, range))

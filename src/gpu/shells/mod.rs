@@ -72,6 +72,7 @@ pub(crate) mod binning;
 mod composite;
 mod compute;
 mod config;
+use config::TargetFormats;
 mod fine;
 mod gpu_binning;
 mod pipelines;
@@ -249,9 +250,8 @@ const ERT_CHECKS: usize = 8;
 pub struct ShellsRenderer {
     ctx: GpuContext,
     settings: ShellSettings,
-    format: wgpu::TextureFormat,
-    /// The accumulation target's format (32-bit where the adapter blends it).
-    accum_format: wgpu::TextureFormat,
+    /// The slice and accumulation targets' formats and slice layers.
+    formats: TargetFormats,
     /// The fixed slices per shell, or `None` when chosen per frame among `candidates`.
     fixed_slices: Option<u32>,
     /// The count used without adaptive slices, and kept by them unless another is predicted to
@@ -259,8 +259,6 @@ pub struct ShellsRenderer {
     default_slices: u32,
     candidates: Vec<u32>,
     model: adaptive::CostModel,
-    /// Layers of the slice texture: the colour targets of the largest count in use.
-    slice_layers: u32,
     /// The last frame's slices per shell (before the first frame: the fixed or default count).
     slices_per_shell: u32,
     shell_stride: u64,
@@ -351,7 +349,7 @@ impl ShellsRenderer {
         let ert =
             (settings.skips.early_termination && !walks).then_some(settings.skips.ert_threshold);
         let textured = texture.is_some();
-        let pipelines = Pipelines::new(device, (config.format, config.accum), ert, textured);
+        let pipelines = Pipelines::new(device, config.targets, ert, textured);
         let compute = (settings.sampler == Sampler::Compute)
             .then(|| compute::ComputeSampler::new(device, ert, textured));
         let walk = match settings.sampler {
@@ -395,14 +393,12 @@ impl ShellsRenderer {
         Ok(Self {
             ctx: ctx.clone(),
             settings,
-            format: config.format,
-            accum_format: config.accum,
+            formats: config.targets,
             fixed_slices: config.fixed,
             default_slices: config.default,
             slices_per_shell: config.fixed.unwrap_or(config.default),
             candidates: config.candidates,
             model: config.model,
-            slice_layers: config.layers,
             frame: FrameResources::new(ctx),
             instances: InstanceLayout {
                 window: 1,
@@ -437,7 +433,7 @@ impl ShellsRenderer {
 
     /// The slice target format in use.
     pub fn format(&self) -> wgpu::TextureFormat {
-        self.format
+        self.formats.slices
     }
 
     /// Builds pipelines and uploads the mesh (positions relative to its bounding-box centre,
@@ -467,9 +463,8 @@ impl ShellsRenderer {
             return Ok(t.clone());
         }
         check_image_size(&self.ctx.limits, width, height)?;
-        let layers = (self.format, self.slice_layers, self.accum_format);
         let ert = self.pipelines.ert.as_ref();
-        let targets = Targets::new(&self.ctx.device, (width, height), layers, ert);
+        let targets = Targets::new(&self.ctx.device, (width, height), self.formats, ert);
         Ok(self.targets.insert(targets).clone())
     }
 }
@@ -666,7 +661,11 @@ impl ShellsRenderer {
         let tau_max = tf.taus().iter().copied().fold(0.0, f64::max);
         let threshold = self.settings.skips.ert_threshold;
         let mut term = Termination::new(&f.drawn, (f.n, f.plan.dz), tau_max, threshold);
-        let active = (&self.ctx.queue, &self.active_buf, self.mesh.tet_count() as u32);
+        let active = (
+            &self.ctx.queue,
+            &self.active_buf,
+            self.mesh.tet_count() as u32,
+        );
         let draws = draw_shells(&mut rec, &passes, f, &mut term, active)?;
         let images = [(&targets.accum, &targets.readback)];
         let stats = rec.finish(&images, assembled.stage.degenerate(), draws.queries)?;
@@ -716,29 +715,33 @@ impl ShellsRenderer {
                 if let Some(t) = &self.texture {
                     entries.extend(t.entries());
                 }
-                self.ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("shells raster"),
-                    layout: &self.pipelines.raster_layout,
-                    entries: &entries,
-                })
+                self.ctx
+                    .device
+                    .create_bind_group(&wgpu::BindGroupDescriptor {
+                        label: Some("shells raster"),
+                        layout: &self.pipelines.raster_layout,
+                        entries: &entries,
+                    })
             })
             .collect())
     }
 
     /// The composite bind group: the slice layers, the transfer function, the slicing.
     fn composite_group(&self, targets: &Targets) -> wgpu::BindGroup {
-        self.ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("shells composite"),
-            layout: &self.pipelines.composite_layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: wgpu::BindingResource::TextureView(&targets.slices_view),
-                },
-                entry(2, &self.tf_buf),
-                entry(4, &self.slicing_buf),
-            ],
-        })
+        self.ctx
+            .device
+            .create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("shells composite"),
+                layout: &self.pipelines.composite_layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: wgpu::BindingResource::TextureView(&targets.slices_view),
+                    },
+                    entry(2, &self.tf_buf),
+                    entry(4, &self.slicing_buf),
+                ],
+            })
     }
 
     /// The raster sampler's GPU stage times and counters.
@@ -988,9 +991,7 @@ impl Renderer for ShellsRenderer {
         .map(|b| b.size())
         .sum::<u64>()
             + self.assembled.as_ref().map_or(0, Assembled::size);
-        let texel = |f: wgpu::TextureFormat| f.block_copy_size(None).unwrap_or(16) as u64;
-        let texels = (texel(self.format), texel(self.accum_format));
-        let targets = (self.targets.as_ref()).map_or(0, |t| t.size(self.slice_layers, texels))
+        let targets = (self.targets.as_ref()).map_or(0, |t| t.size(self.formats))
             + self
                 .compute
                 .as_ref()

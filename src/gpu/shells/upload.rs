@@ -37,7 +37,8 @@ impl ShellsRenderer {
         let near = (0.5 * plan.near_z) as f32;
         let tets = m.tets.len() as u32;
         let view = (plan.view).uniforms(m.origin, self.settings.epsilon, near, tets);
-        self.ctx.queue
+        self.ctx
+            .queue
             .write_buffer(&self.view_buf, 0, bytemuck::bytes_of(&view));
         let slicing = SlicingUniforms {
             t_first: plan.t_first as f32,
@@ -45,13 +46,15 @@ impl ShellsRenderer {
             slices_per_shell: n,
             _pad: 0,
         };
-        self.ctx.queue
+        self.ctx
+            .queue
             .write_buffer(&self.slicing_buf, 0, bytemuck::bytes_of(&slicing));
         // A textured cage's TF applies to the volume's texels, normalized by its range.
         let (lo, span) = (self.texture.as_ref())
             .map_or((m.scalar_min, m.scalar_span), |t| (t.gpu.lo, t.gpu.span));
         let points = tf_points(tf, lo, span)?;
-        self.ctx.queue
+        self.ctx
+            .queue
             .write_buffer(&self.tf_buf, 0, bytemuck::bytes_of(&points));
         let drawn = self.drawn_shells(bin);
         self.upload_shells(&drawn, n, plan);
