@@ -94,7 +94,7 @@ impl ShellsRenderer {
         let [width, height] = f.plan.view.size;
         let mut buffers = self.ensure_tile_buffers(sampler, f, (width, height), 0)?;
         let chunk_tets = self.chunking.chunk as u32;
-        let whole = |(s, r): &DrawnShell| shell_uniforms((*s, r), f.n, &f.plan);
+        let whole = |shell: &DrawnShell| shell_uniforms(shell, f.n, &f.plan);
         let chunks = self.chunking.ranges(self.mesh.tet_count() as u64).len();
         let passes = chunk_passes(&f.drawn, &f.bin, (chunk_tets, chunks), whole);
         self.upload_passes(&passes);

@@ -660,7 +660,7 @@ impl ShellsRenderer {
         }
         let tau_max = tf.taus().iter().copied().fold(0.0, f64::max);
         let threshold = self.settings.skips.ert_threshold;
-        let mut term = Termination::new(&f.drawn, (f.n, f.plan.dz), tau_max, threshold);
+        let mut term = Termination::new(f, tau_max, threshold);
         let active = (
             &self.ctx.queue,
             &self.active_buf,
@@ -883,9 +883,7 @@ fn draw_shells(
                 term.checked(i, mask);
                 continue;
             }
-            let frame = (&f.plan, f.bins.as_slice());
-            let rest = &mut f.drawn[i + 1..];
-            let (dropped, changed) = termination::drop_finished(&mask, frame, &mut f.bin, rest);
+            let (dropped, changed) = f.drop_finished(&mask, i + 1);
             term.tets_finished += dropped;
             if let Some((from, to)) = changed {
                 let ids = chunk_local(&f.bin.indices[from..to], p.chunk_tets, tet_count);
@@ -928,7 +926,7 @@ impl Renderer for ShellsRenderer {
 
         // 2. Upload: view and slicing constants, transfer function, shell constants, active lists.
         let t1 = Instant::now();
-        let drawn = self.upload(&m, &plan, tf, (n, &bin))?;
+        let drawn = self.upload(&m, &plan, tf, n, &bin)?;
         timings.stage("upload", ms_since(t1));
 
         // 3.-6. Assembly, per drawn shell its sampling and composite, readback.

@@ -9,13 +9,11 @@ use crate::gpu::frame::Recorder;
 use crate::gpu::util::read_mapped;
 use crate::render::RenderError;
 
-use super::binning::{Binning, TetBin};
+use super::binning::TetBin;
 use super::pipelines::ErtPipelines;
-use super::plan::FramePlan;
 use super::skips::TileMask;
 use super::targets::ErtTargets;
-use super::upload::DrawnShell;
-use super::{ERT_CHECKS, Passes, ShellPass};
+use super::{ERT_CHECKS, Passes, ShellFrame, ShellPass};
 
 /// What becomes of a shell once the finished tiles are known.
 pub(super) enum Cut {
@@ -48,14 +46,10 @@ pub(super) struct Termination {
 }
 
 impl Termination {
-    /// The schedule for `drawn` shells of `n` slices of spacing `dz`, extinction at most
-    /// `tau_max`, threshold `threshold`.
-    pub(super) fn new(
-        drawn: &[DrawnShell],
-        (n, dz): (u32, f64),
-        tau_max: f64,
-        threshold: f32,
-    ) -> Self {
+    /// The schedule for the drawn shells of frame `f`, extinction at most `tau_max`, threshold
+    /// `threshold`.
+    pub(super) fn new(f: &ShellFrame, tau_max: f64, threshold: f32) -> Self {
+        let (drawn, n, dz) = (&f.drawn, f.n, f.plan.dz);
         let depth_needed = -(1.0 - threshold as f64).ln();
         let can_finish =
             |shell: u32| (shell as f64 + 1.0) * n as f64 * dz * tau_max * 1.01 >= depth_needed;
@@ -196,35 +190,44 @@ fn tile_mask(device: &wgpu::Device, ert: &ErtTargets) -> Result<TileMask, Render
     })
 }
 
-/// Drops from the `rest` of the drawn shells the tets whose pixels all lie in tiles that
-/// `mask` says are finished; returns how many were dropped and the part of `bin.indices` to
-/// upload again.
-pub(super) fn drop_finished(
-    mask: &TileMask,
-    (plan, bins): (&FramePlan, &[TetBin]),
-    bin: &mut Binning,
-    rest: &mut [DrawnShell],
-) -> (u64, Option<(usize, usize)>) {
-    let keep = |t: &u32| match bins[*t as usize] {
-        TetBin::Drawn { screen, .. } => mask.cut(plan.scissor(screen)).is_some(),
-        _ => true,
-    };
-    let (Some(first), Some(last)) = (rest.first(), rest.last()) else {
-        return (0, None);
-    };
-    let (from, to) = (first.1.faces.start as usize, last.1.near.end as usize);
-    let mut dropped = 0;
-    for (_, r) in rest.iter_mut() {
-        let list = &mut bin.indices[r.faces.start as usize..r.faces.end as usize];
-        let mut kept = 0;
-        for k in 0..list.len() {
-            if keep(&list[k]) {
-                list[kept] = list[k];
-                kept += 1;
+impl ShellFrame {
+    /// Drops from the drawn shells from index `from` on the tets whose pixels all lie in tiles
+    /// that `mask` says are finished; returns how many were dropped and the part of
+    /// `bin.indices` to upload again.
+    pub(super) fn drop_finished(
+        &mut self,
+        mask: &TileMask,
+        from: usize,
+    ) -> (u64, Option<(usize, usize)>) {
+        let Self {
+            plan,
+            bins,
+            bin,
+            drawn,
+            ..
+        } = self;
+        let keep = |t: &u32| match bins[*t as usize] {
+            TetBin::Drawn { screen, .. } => mask.cut(plan.scissor(screen)).is_some(),
+            _ => true,
+        };
+        let rest = &mut drawn[from..];
+        let (Some(first), Some(last)) = (rest.first(), rest.last()) else {
+            return (0, None);
+        };
+        let listed = (first.1.faces.start as usize, last.1.near.end as usize);
+        let mut dropped = 0;
+        for (_, r) in rest.iter_mut() {
+            let list = &mut bin.indices[r.faces.start as usize..r.faces.end as usize];
+            let mut kept = 0;
+            for k in 0..list.len() {
+                if keep(&list[k]) {
+                    list[kept] = list[k];
+                    kept += 1;
+                }
             }
+            dropped += (list.len() - kept) as u64;
+            r.faces.end = r.faces.start + kept as u32;
         }
-        dropped += (list.len() - kept) as u64;
-        r.faces.end = r.faces.start + kept as u32;
+        (dropped, Some(listed))
     }
-    (dropped, Some((from, to)))
 }

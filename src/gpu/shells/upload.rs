@@ -32,7 +32,8 @@ impl ShellsRenderer {
         m: &MeshData,
         plan: &FramePlan,
         tf: &TransferFunction,
-        (n, bin): (u32, &Binning),
+        n: u32,
+        bin: &Binning,
     ) -> Result<Vec<DrawnShell>, RenderError> {
         let near = (0.5 * plan.near_z) as f32;
         let tets = m.tets.len() as u32;
@@ -82,8 +83,8 @@ impl ShellsRenderer {
     fn upload_shells(&mut self, drawn: &[DrawnShell], n: u32, plan: &FramePlan) {
         let stride = self.shell_stride as usize;
         let mut shell_data = vec![0u8; stride * drawn.len().max(1)];
-        for (i, (s, r)) in drawn.iter().enumerate() {
-            let u = shell_uniforms((*s, r), n, plan);
+        for (i, shell) in drawn.iter().enumerate() {
+            let u = shell_uniforms(shell, n, plan);
             shell_data[i * stride..i * stride + size_of::<ShellUniforms>()]
                 .copy_from_slice(bytemuck::bytes_of(&u));
         }
@@ -132,13 +133,10 @@ impl ShellsRenderer {
     }
 }
 
-/// The constants of drawn shell `s` with `n` slices per shell: its first slice, its ranges of
+/// The constants of a drawn shell with `n` slices per shell: its first slice, its ranges of
 /// the active list and the tiles of its rectangle.
-pub(super) fn shell_uniforms(
-    (s, r): (u32, &ShellRange),
-    n: u32,
-    plan: &FramePlan,
-) -> ShellUniforms {
+pub(super) fn shell_uniforms(shell: &DrawnShell, n: u32, plan: &FramePlan) -> ShellUniforms {
+    let (s, r) = shell;
     ShellUniforms {
         first_slice: s * n,
         faces: [r.faces.start, r.faces.len() as u32],
