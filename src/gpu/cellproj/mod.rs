@@ -270,15 +270,7 @@ impl CellProjRenderer {
         let mut rec = (self.frame).recorder(&self.device, &self.queue, 2, 1);
         let max_groups = self.limits.max_compute_workgroups_per_dimension;
         (self.assembly).record(&mut rec, &assembly, max_groups)?;
-        let ts = rec.timestamps("raster");
-        let occlusion = rec.occlusion();
-        raster::encode_raster(
-            rec.encoder(),
-            targets,
-            (pipeline, &raster_groups),
-            occlusion,
-            ts,
-        );
+        raster::encode_raster(&mut rec, targets, pipeline, &raster_groups);
         rec.end_stage("raster")?;
         let images = [(&targets.color, &targets.readback)];
         rec.finish(&images, self.assembly.degenerate(), 1)

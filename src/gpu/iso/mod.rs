@@ -406,10 +406,7 @@ impl IsoRenderer {
         }
         let max_groups = self.limits.max_compute_workgroups_per_dimension;
         (self.assembly).record(&mut rec, &assembly, max_groups)?;
-        let ts = rec.timestamps("raster");
-        let occlusion = rec.occlusion();
-        let raster = (&self.pipelines.raster, raster_groups.as_slice());
-        raster::encode_raster(rec.encoder(), targets, raster, occlusion, ts);
+        raster::encode_raster(&mut rec, targets, &self.pipelines.raster, &raster_groups);
         rec.end_stage("raster")?;
         let images = [
             (&targets.color, &targets.color_readback),
