@@ -260,6 +260,11 @@ impl<'a> Recorder<'a> {
         self.device
     }
 
+    /// The queue the frame is submitted to.
+    pub(crate) fn queue(&self) -> &'a wgpu::Queue {
+        self.queue
+    }
+
     /// The occlusion query set, when the frame asked for queries.
     pub(crate) fn occlusion(&self) -> Option<&'a wgpu::QuerySet> {
         self.occlusion

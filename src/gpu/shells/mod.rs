@@ -106,7 +106,7 @@ use crate::mesh::TetMesh;
 use crate::render::{Frame, RenderError, Renderer, Timings};
 use crate::tf::TransferFunction;
 
-use binning::Binning;
+use binning::{Binning, ShellRange};
 use pipelines::{Pipelines, RasterSet};
 use plan::FramePlan;
 use skips::Skips;
@@ -531,6 +531,8 @@ struct ShellPass {
     rect: [u32; 4],
     /// Whether its passes test the termination mask.
     tested: bool,
+    /// Its ranges of the active lists.
+    range: ShellRange,
 }
 
 /// What the passes of one frame draw with.
@@ -550,6 +552,9 @@ struct Passes<'a> {
     instances: InstanceLayout,
     composite_group: wgpu::BindGroup,
     face_indices: &'a wgpu::Buffer,
+    /// The active list, and the mesh's tets (its ids are chunk-local when they exceed a chunk).
+    active: &'a wgpu::Buffer,
+    tet_count: u32,
     shell_stride: u64,
     chunk_tets: u32,
     /// Colour targets (of 4 slices) per shell.
@@ -577,6 +582,14 @@ impl Passes<'_> {
     }
 }
 
+/// What a frame with the raster sampler ran: its statistics, what the shell loop drew and the
+/// early termination's schedule.
+struct RasterRun {
+    stats: FrameStats,
+    draws: Draws,
+    term: Termination,
+}
+
 /// What the shell loop drew.
 #[derive(Default)]
 struct Draws {
@@ -597,12 +610,12 @@ impl ShellsRenderer {
     ) -> Result<Image, RenderError> {
         let [width, height] = frame.plan.view.size;
         let targets = self.ensure_targets(width, height)?;
-        let (stats, draws, term) = self.draw(&targets, &mut frame, tf)?;
+        let run = self.draw(&targets, &mut frame, tf)?;
         let t_read = Instant::now();
         let mut image = Image::new(targets.width, targets.height);
         image.pixels = targets.readback.read(&self.ctx.device)?;
         let readback = ms_since(t_read);
-        self.report(timings, &stats, (&frame, &draws, &term), &image);
+        self.report(timings, &frame, &run, &image);
         timings.stage("readback", readback);
         Ok(image)
     }
@@ -614,7 +627,7 @@ impl ShellsRenderer {
         targets: &Targets,
         f: &mut ShellFrame,
         tf: &TransferFunction,
-    ) -> Result<(FrameStats, Draws, Termination), RenderError> {
+    ) -> Result<RasterRun, RenderError> {
         let layers = f.n.div_ceil(4);
         let points = tf.points().len() as u32;
         let ert = self.settings.skips.early_termination;
@@ -639,6 +652,8 @@ impl ShellsRenderer {
             raster_groups,
             composite_group: self.composite_group(targets),
             face_indices: &self.face_indices,
+            active: &self.active_buf,
+            tet_count: self.mesh.tet_count() as u32,
             shell_stride: self.shell_stride,
             chunk_tets: self.chunking.chunk as u32,
             layers,
@@ -661,15 +676,10 @@ impl ShellsRenderer {
         let tau_max = tf.taus().iter().copied().fold(0.0, f64::max);
         let threshold = self.settings.skips.ert_threshold;
         let mut term = Termination::new(f, tau_max, threshold);
-        let active = (
-            &self.ctx.queue,
-            &self.active_buf,
-            self.mesh.tet_count() as u32,
-        );
-        let draws = draw_shells(&mut rec, &passes, f, &mut term, active)?;
+        let draws = draw_shells(&mut rec, &passes, f, &mut term)?;
         let images = [(&targets.accum, &targets.readback)];
         let stats = rec.finish(&images, assembled.stage.degenerate(), draws.queries)?;
-        Ok((stats, draws, term))
+        Ok(RasterRun { stats, draws, term })
     }
 
     /// One raster bind group per window of the active list and chunk of records, window by
@@ -745,13 +755,8 @@ impl ShellsRenderer {
     }
 
     /// The raster sampler's GPU stage times and counters.
-    fn report(
-        &self,
-        timings: &mut Timings,
-        stats: &FrameStats,
-        (f, draws, term): (&ShellFrame, &Draws, &Termination),
-        image: &Image,
-    ) {
+    fn report(&self, timings: &mut Timings, f: &ShellFrame, run: &RasterRun, image: &Image) {
+        let RasterRun { stats, draws, term } = run;
         let ert = self.settings.skips.early_termination;
         let stages: &[&str] = if ert {
             &["assembly", "raster", "composite", "termination"]
@@ -840,14 +845,12 @@ fn report_termination(timings: &mut Timings, term: &Termination, image: &Image, 
 
 /// The shell loop: per drawn shell, cut to the unfinished tiles, its raster and composite
 /// passes, then with early ray termination its mark pass and now and then a tile readback
-/// after which the later shells drop finished tets (their active list uploaded again through
-/// `active`: queue, buffer, the mesh's tet count).
+/// after which the later shells drop finished tets (their active list uploaded again).
 fn draw_shells(
     rec: &mut Recorder,
     p: &Passes,
     f: &mut ShellFrame,
     term: &mut Termination,
-    (queue, active, tet_count): (&wgpu::Queue, &wgpu::Buffer, u32),
 ) -> Result<Draws, RenderError> {
     let mut draws = Draws::default();
     let len = f.drawn.len();
@@ -858,16 +861,18 @@ fn draw_shells(
             Cut::Skip => continue,
             Cut::Stop => break,
         };
+        let (faces, near) = (range.faces.len() as u64, range.near.len() as u64);
         let s = ShellPass {
             index: i,
             rect,
             tested: term.tested(i),
+            range,
         };
         let query = rec.occlusion().map(|_| draws.queries);
-        raster::encode(rec, p, (&s, &range), &f.bin, query);
+        raster::encode(rec, p, &s, &f.bin, query);
         draws.queries += query.is_some() as u32;
-        draws.instances += range.faces.len() as u64 + range.near.len() as u64;
-        draws.triangles += 4 * range.faces.len() as u64 + 2 * range.near.len() as u64;
+        draws.instances += faces + near;
+        draws.triangles += 4 * faces + 2 * near;
         rec.end_stage("raster")?;
         composite::encode(rec, p, &s);
         rec.end_stage("composite")?;
@@ -886,8 +891,9 @@ fn draw_shells(
             let (dropped, changed) = f.drop_finished(&mask, i + 1);
             term.tets_finished += dropped;
             if let Some((from, to)) = changed {
-                let ids = chunk_local(&f.bin.indices[from..to], p.chunk_tets, tet_count);
-                queue.write_buffer(active, 4 * from as u64, bytemuck::cast_slice(&ids));
+                let ids = chunk_local(&f.bin.indices[from..to], p.chunk_tets, p.tet_count);
+                let ids = bytemuck::cast_slice(&ids);
+                rec.queue().write_buffer(p.active, 4 * from as u64, ids);
             }
             term.checked(i, mask);
         }
