@@ -583,7 +583,7 @@ impl RaycastRenderer {
         for (name, stage, group, groups) in passes {
             let ts = rec.timestamps(name);
             let writes = ts.as_ref().map(Timestamps::compute);
-            encode(rec.encoder(), name, (stage, group), groups, writes);
+            encode(rec.encoder(), name, stage, group, groups, writes);
             rec.end_stage(name)?;
         }
         let bytes = 4 * COUNTERS as u64;

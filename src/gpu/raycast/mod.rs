@@ -443,7 +443,8 @@ impl RaycastRenderer {
         Ok(Self {
             pipelines: Pipelines::new(
                 &device,
-                (nt.div_ceil(chunking.chunk).max(1), mesh.has_cells()),
+                nt.div_ceil(chunking.chunk).max(1),
+                mesh.has_cells(),
                 own_texture.map(|(t, used)| (t.step, *used)),
                 field,
                 (settings.entry_lanes).unwrap_or_else(|| EntryLanes::for_adapter(ctx)),
