@@ -395,11 +395,8 @@ impl IsoRenderer {
         let assembly = self.assembly.bind(&self.device, &inputs, &chunks);
         let raster_groups = self.raster_groups(lists, &chunks);
         let mut rec = (self.frame).recorder(&self.device, &self.queue, 3, 1);
-        if let (Some(stage), Some((vertices, list))) =
-            (&self.gradient_stage, &self.gradient_vertices)
-        {
+        if let (Some(stage), Some((_, list))) = (&self.gradient_stage, &self.gradient_vertices) {
             let ts = rec.timestamps("gradients");
-            let list = (list, vertices.len() as u32);
             let writes = ts.as_ref().map(Timestamps::compute);
             stage.encode(rec.encoder(), &self.mesh, &self.gradients_buf, list, writes)?;
             rec.end_stage("gradients")?;

@@ -58,7 +58,9 @@ impl TexturedIso {
         ctx: &GpuContext,
         isovalues: &[(f64, [f32; 3])],
         texture: &GpuTexture,
-        (cage, texcoords, volume): (&TetMesh, &[DVec3], &Volume),
+        cage: &TetMesh,
+        texcoords: &[DVec3],
+        volume: &Volume,
     ) -> Result<Self, RenderError> {
         check_isovalues(isovalues)?;
         let isovalues = match isovalues {
@@ -146,8 +148,7 @@ impl RaycastRenderer {
         iso: &IsoSettings,
     ) -> Result<Self, RenderError> {
         let texture = GpuTexture::for_cage(ctx, cage, volume, texcoords, step)?;
-        let field = (cage, texcoords, volume);
-        let surfaces = TexturedIso::new(ctx, &iso.isovalues, &texture, field)?;
+        let surfaces = TexturedIso::new(ctx, &iso.isovalues, &texture, cage, texcoords, volume)?;
         let mesh: Arc<GpuTetMesh> = GpuTetMesh::new(ctx, cage)?;
         let textured = Some((texture, TextureUse::Isosurfaces));
         let mut renderer = Self::build(ctx, mesh, settings, textured, false)?;
