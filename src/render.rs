@@ -32,6 +32,13 @@ pub enum RenderError {
     /// The mode's settings do not fit the mesh or adapter; the message names the setting.
     #[error("{0}")]
     Settings(String),
+    /// A state tetvr's own code rules out (e.g. a target missing after it was built): a bug in
+    /// tetvr, not something the user can change.
+    #[error(
+        "internal error: {0}. This is a bug in tetvr; please report it with the command line \
+         that caused it"
+    )]
+    Internal(&'static str),
 }
 
 /// Per-stage wall or GPU times and work counters of one frame, in the order they happened.
@@ -144,4 +151,39 @@ pub enum Tuning {
     Measuring,
     /// The configuration chosen, described (e.g. `compute, 8 per shell, no frustum`).
     Chose(String),
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gpu::GpuError;
+
+    /// An internal state reads as tetvr's bug, with what to report, not as a setting to change.
+    #[test]
+    fn internal_errors_ask_for_a_bug_report() {
+        let msg = RenderError::Internal("the walk reached the binning").to_string();
+        assert!(
+            msg.starts_with("internal error: the walk reached the binning."),
+            "{msg}"
+        );
+        assert!(
+            msg.contains("bug in tetvr") && msg.contains("command line"),
+            "{msg}"
+        );
+    }
+
+    /// A failed readback names the buffer and what the user can do about a lost device.
+    #[test]
+    fn readback_errors_name_the_buffer_and_the_remedy() {
+        let e = RenderError::from(GpuError::Readback {
+            what: "the tile flags",
+            reason: "Device lost".into(),
+        });
+        let msg = e.to_string();
+        assert!(msg.starts_with("reading the tile flags back from the GPU failed (Device lost)"));
+        assert!(
+            msg.contains("driver") && msg.contains("smaller mesh or image"),
+            "{msg}"
+        );
+    }
 }

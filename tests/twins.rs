@@ -926,7 +926,7 @@ fn slices_drift(source: &dyn Fn(u32) -> String) -> (Drift, u32) {
                 &twin::pixel_ray(&f, xy).to_array(),
                 &[1.0; 3],
             );
-            let twin = twin::sample_slices((&f, &sl), &c.rec, xy, first);
+            let twin = twin::sample_slices(&f, &sl, &c.rec, xy, first);
             for (j, (&g, &t)) in gpu[8..].iter().zip(&twin).enumerate() {
                 if (g == 0.0) != (t == 0.0) {
                     flips += 1;

@@ -1118,6 +1118,13 @@ impl WarmUp {
     }
 }
 
+/// A measurement's untimed warm-up frames and timed frames.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Schedule {
+    pub warm: WarmUp,
+    pub runs: usize,
+}
+
 /// The bench's printed legend: how the times were taken.
 pub fn legend(options: &Options) -> String {
     format!(
@@ -1221,8 +1228,8 @@ fn textured_truth(
     }
 }
 
-/// Times `renderer` on `camera` (see the module docs) after `warm`, over `runs` frames, and
-/// compares its last frame with `truth`.
+/// Times `renderer` on `camera` (see the module docs) as `schedule` says, and compares its last
+/// frame with `truth`.
 pub fn measure(
     renderer: &mut dyn Renderer,
     scene: &Scene,
@@ -1230,8 +1237,9 @@ pub fn measure(
     camera: &Camera,
     config: &Config,
     truth: &Image,
-    (warm, runs): (WarmUp, usize),
+    schedule: Schedule,
 ) -> Result<Row, RenderError> {
+    let Schedule { warm, runs } = schedule;
     tune(renderer, scene, camera)?;
     let start = Instant::now();
     let mut done = 0;
@@ -1508,15 +1516,21 @@ pub fn run(
 /// The warm-up and timed frames of `config`'s measurement: one timed frame and none untimed
 /// for a single-run configuration, else `options`' with [`WarmUp::of`] (`clocks_cold`: a
 /// hardware adapter before the scene's first GPU measurement).
-fn schedule(config: &Config, options: &Options, clocks_cold: bool) -> (WarmUp, usize) {
+fn schedule(config: &Config, options: &Options, clocks_cold: bool) -> Schedule {
     if config.single_run {
         let none = WarmUp {
             frames: 0,
             seconds: 0.0,
         };
-        return (none, 1);
+        return Schedule {
+            warm: none,
+            runs: 1,
+        };
     }
-    (WarmUp::of(options, clocks_cold), options.runs.max(1))
+    Schedule {
+        warm: WarmUp::of(options, clocks_cold),
+        runs: options.runs.max(1),
+    }
 }
 
 /// Median of `v` (the upper one of an even count); NaN for an empty slice.
@@ -1736,9 +1750,13 @@ mod tests {
         assert!(!hard.wants_more(2, 0.5) && !hard.wants_more(40, 0.6));
         let more = WarmUp::of(&Options { runs: 5, warmup: 3 }, true);
         assert!(more.wants_more(2, 1.0) && !more.wants_more(3, 1.0));
-        let (warm, runs) = schedule(&reference(), &options, true);
+        let Schedule { warm, runs } = schedule(&reference(), &options, true);
         assert!(!warm.wants_more(0, 0.0) && runs == 1);
-        assert_eq!(schedule(&shells(512, None), &options, true), (hard, 5));
+        let five = Schedule {
+            warm: hard,
+            runs: 5,
+        };
+        assert_eq!(schedule(&shells(512, None), &options, true), five);
     }
 
     /// A frame that did not run a stage counts 0 ms for it: a stage one frame of three runs

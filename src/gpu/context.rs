@@ -73,9 +73,19 @@ pub enum GpuError {
     /// Waiting for submitted GPU work failed (device lost or a timeout).
     #[error("GPU work failed: {0}")]
     Poll(#[from] wgpu::PollError),
-    /// Mapping a result buffer for reading failed (device lost).
-    #[error("reading back a GPU buffer failed: {0}")]
-    Map(#[from] wgpu::BufferAsyncError),
+    /// Mapping a result buffer for reading failed: the device was lost (a driver reset, or
+    /// GPU memory ran out).
+    #[error(
+        "reading {what} back from the GPU failed ({reason}); the device was probably lost: \
+         update or restart the GPU driver, or render a smaller mesh or image if GPU memory ran \
+         out"
+    )]
+    Readback {
+        /// The buffer, e.g. `the tile flags`.
+        what: &'static str,
+        /// wgpu's reason.
+        reason: String,
+    },
 }
 
 /// The optional features tetvr uses where the adapter has them: blendable 32-bit float targets

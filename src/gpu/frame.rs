@@ -7,7 +7,7 @@
 
 use std::time::Instant;
 
-use crate::gpu::util::{f16_to_f32, map_read, readback_buffer, settings_error};
+use crate::gpu::util::{f16_to_f32, read_mapped, readback_buffer};
 use crate::gpu::{GpuContext, GpuError};
 use crate::render::RenderError;
 
@@ -260,6 +260,11 @@ impl<'a> Recorder<'a> {
         self.device
     }
 
+    /// The queue the frame is submitted to.
+    pub(crate) fn queue(&self) -> &'a wgpu::Queue {
+        self.queue
+    }
+
     /// The occlusion query set, when the frame asked for queries.
     pub(crate) fn occlusion(&self) -> Option<&'a wgpu::QuerySet> {
         self.occlusion
@@ -317,11 +322,8 @@ impl<'a> Recorder<'a> {
         self.device
             .poll(wgpu::PollType::wait_indefinitely())
             .map_err(GpuError::from)?;
-        map_read(self.device, stats)?;
         let out = {
-            let data = stats
-                .get_mapped_range(..)
-                .map_err(|e| settings_error(format!("mapping the stats buffer failed: {e}")))?;
+            let data = read_mapped(self.device, stats, "the frame's statistics")?;
             let degenerate = u32::from_le_bytes([data[0], data[1], data[2], data[3]]);
             let words = |at: u64, n: u32| -> &[u64] {
                 bytemuck::cast_slice(&data[at as usize..(at + 8 * n as u64) as usize])
@@ -367,6 +369,7 @@ fn add(sums: &mut Vec<(&'static str, f64)>, stage: &'static str, ms: f64) {
 
 /// A render target's readback: a mappable buffer with rows padded to the copy alignment, and
 /// the conversion of its texels (`Rgba32Float` or `Rgba16Float`) to f32 RGBA.
+#[derive(Clone)]
 pub(crate) struct ImageReadback {
     buffer: wgpu::Buffer,
     padded_row: u32,
@@ -417,9 +420,7 @@ impl ImageReadback {
 
     /// Maps the buffer (after the copy ran) and returns its texels row by row as f32 RGBA.
     pub(crate) fn read(&self, device: &wgpu::Device) -> Result<Vec<[f32; 4]>, RenderError> {
-        map_read(device, &self.buffer)?;
-        let data = (self.buffer.get_mapped_range(..))
-            .map_err(|e| settings_error(format!("mapping the readback buffer failed: {e}")))?;
+        let data = read_mapped(device, &self.buffer, "the rendered image")?;
         let w = self.width as usize;
         let mut out = Vec::with_capacity(w * self.height as usize);
         for y in 0..self.height as usize {

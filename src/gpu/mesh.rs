@@ -416,6 +416,7 @@ impl Chunking {
 /// A per-tet array: entries of `stride` bytes in chunks of [`Chunking::chunk`], as many whole
 /// chunks per buffer as the adapter's largest buffer holds. Chunk `c` is bound as one window
 /// ([`TetArray::window`]).
+#[derive(Clone)]
 pub(crate) struct TetArray {
     stride: u64,
     chunk: u64,

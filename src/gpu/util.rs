@@ -91,8 +91,14 @@ pub(crate) fn settings_error(msg: impl Into<String>) -> RenderError {
     RenderError::Settings(msg.into())
 }
 
-/// Maps `buf` for reading and waits for it.
-pub(crate) fn map_read(device: &wgpu::Device, buf: &wgpu::Buffer) -> Result<(), GpuError> {
+/// Maps `buf` for reading, waits for it and returns its bytes (unmap the buffer after the view
+/// is dropped); `what` names the buffer in the error.
+pub(crate) fn read_mapped(
+    device: &wgpu::Device,
+    buf: &wgpu::Buffer,
+    what: &'static str,
+) -> Result<wgpu::BufferView, GpuError> {
+    let failed = |reason: String| GpuError::Readback { what, reason };
     let (tx, rx) = std::sync::mpsc::channel();
     buf.slice(..).map_async(wgpu::MapMode::Read, move |r| {
         // The receiver outlives the wait below; a send can only fail after it returned.
@@ -100,9 +106,11 @@ pub(crate) fn map_read(device: &wgpu::Device, buf: &wgpu::Buffer) -> Result<(), 
     });
     device.poll(wgpu::PollType::wait_indefinitely())?;
     match rx.recv() {
-        Ok(r) => r.map_err(GpuError::from),
-        Err(_) => Err(GpuError::Map(wgpu::BufferAsyncError)),
+        Ok(Ok(())) => {}
+        Ok(Err(e)) => return Err(failed(e.to_string())),
+        Err(_) => return Err(failed("the map callback never ran".into())),
     }
+    buf.get_mapped_range(..).map_err(|e| failed(e.to_string()))
 }
 
 /// A bind group layout entry for a buffer without dynamic offset.

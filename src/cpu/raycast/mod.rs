@@ -45,7 +45,7 @@ use rayon::prelude::*;
 use crate::camera::Camera;
 use crate::gpu::gpu_data::ViewUniforms;
 use crate::gpu::mesh::cell_update_error;
-use crate::gpu::raycast::{TetLinks, default_max_steps, links};
+use crate::gpu::raycast::{default_max_steps, links};
 use crate::gpu::util::{ms_since, scalar_frame, sphere_of};
 use crate::gpu::view::ViewFrame;
 use crate::image::Image;
@@ -96,11 +96,10 @@ pub struct CpuRaycastRenderer {
     raw_cells: Option<Vec<f64>>,
     scalar_min: f64,
     scalar_span: f64,
-    /// The tets' vertices in Morton order ([`order::Renumbering`]), and each one's index in
-    /// the file.
+    /// The tets' vertices in Morton order ([`order::Renumbering`]), their links and each
+    /// one's index in the file.
     tet_ids: Vec<[u32; 4]>,
-    original: Vec<u32>,
-    links: Vec<TetLinks>,
+    topology: scene::Topology,
     /// Boundary face codes (`4 * tet + face`).
     boundary: Vec<u32>,
     /// Per view, kept to reuse their memory: eye-space positions, per-tet records.
@@ -139,8 +138,10 @@ impl CpuRaycastRenderer {
             scalar_min: 0.0,
             scalar_span: 1.0,
             tet_ids,
-            original: order.original,
-            links,
+            topology: scene::Topology {
+                links,
+                original: order.original,
+            },
             boundary,
             eye: Vec::new(),
             tets: Vec::new(),
@@ -220,19 +221,13 @@ impl CpuRaycastRenderer {
         let pass = scene::tets(
             &self.eye,
             &self.scalars,
-            (&self.links, &self.original),
+            &self.topology,
             f.near_z,
             &mut self.tets,
         );
         timings.stage("planes", ms_since(t));
         let t = Instant::now();
-        let bins = scene::bins(
-            &f,
-            &self.boundary,
-            &self.tets,
-            (&self.links, &self.original),
-            &self.eye,
-        );
+        let bins = scene::bins(&f, &self.boundary, &self.tets, &self.topology, &self.eye);
         timings.stage("entries", ms_since(t));
         ViewGeometry {
             frame: f,
@@ -249,7 +244,12 @@ impl CpuRaycastRenderer {
         };
         // The eye-in-tet tolerance: 1e-5 of the bounding radius (the GPU's).
         let eye_tol = (1e-5 * self.radius) as f32;
-        let f = ViewFrame::new(camera).uniforms(self.origin, 0.0, eye_tol, self.links.len() as u32);
+        let f = ViewFrame::new(camera).uniforms(
+            self.origin,
+            0.0,
+            eye_tol,
+            self.topology.links.len() as u32,
+        );
         let reused = (self.view.as_ref()).is_some_and(|v| bytes_of(&v.frame) == bytes_of(&f));
         let view = match self.view.take() {
             Some(v) if reused => v,
@@ -280,13 +280,13 @@ impl CpuRaycastRenderer {
             eye_tet: pass.eye_tet,
             eye_tol,
             max_steps: (self.settings.max_steps)
-                .unwrap_or_else(|| default_max_steps(self.links.len())),
+                .unwrap_or_else(|| default_max_steps(self.topology.links.len())),
             texture: field.as_ref(),
         };
         let (image, work) = render_tiles(&sc, &seg, camera.width, camera.height);
         timings.stage("traverse", ms_since(t));
         timings.stage("total", ms_since(start));
-        timings.count("tets", self.links.len() as u64);
+        timings.count("tets", self.topology.links.len() as u64);
         timings.count("boundary faces", self.boundary.len() as u64);
         timings.count("faces in tiles", bins.len() as u64);
         timings.count("thin tets", pass.thin);

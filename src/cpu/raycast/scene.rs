@@ -89,17 +89,24 @@ pub struct TetPass {
     pub eye_tet: u32,
 }
 
+/// The tets in traversal (Morton) order ([`super::order`]): each one's links, and its index in
+/// the file, which picks the eye's tet and orders entry faces as the file's order would.
+pub struct Topology {
+    pub links: Vec<TetLinks>,
+    pub original: Vec<u32>,
+}
+
 /// Fills `out` with each tet's planes and links, from eye-space `eye` and normalized
 /// `scalars`; the eye is in a (not thin) tet when it lies at most `eye_tol` outside each face.
-/// `original[k]` is tet `k`'s index in the file ([`super::order`]), which picks the eye's tet
-/// among several as the file's order would.
+/// Of several, the eye's tet is the one first in the file.
 pub fn tets(
     eye: &[Vec3],
     scalars: &[f32],
-    (links, original): (&[TetLinks], &[u32]),
+    topology: &Topology,
     eye_tol: f32,
     out: &mut Vec<Tet>,
 ) -> TetPass {
+    let Topology { links, original } = topology;
     out.resize(links.len(), Tet::default());
     let (thin, eye_key) = (out.par_iter_mut().zip(links).enumerate())
         .map(|(k, (tet, l))| {
@@ -197,14 +204,15 @@ impl Bins {
 
 /// Bins the `boundary` faces (codes) that face the eye into the tiles of the image that their
 /// projection's pixel box, one pixel wider on each side, covers (every tile where a face
-/// reaches behind the eye plane). `original[k]` is tet `k`'s index in the file.
+/// reaches behind the eye plane).
 pub fn bins(
     f: &ViewUniforms,
     boundary: &[u32],
     tets: &[Tet],
-    (links, original): (&[TetLinks], &[u32]),
+    topology: &Topology,
     eye: &[Vec3],
 ) -> Bins {
+    let Topology { links, original } = topology;
     let size = UVec2::new(f.size[0] as u32, f.size[1] as u32);
     let tiles = (size + UVec2::splat(TILE - 1)) / TILE;
     let placed: Vec<EntryFace> = (boundary.par_iter())

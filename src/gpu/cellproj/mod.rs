@@ -55,7 +55,7 @@ use crate::gpu::frame::{FrameResources, FrameStats, ImageReadback};
 pub use crate::gpu::gpu_data::CellProjUniforms;
 use crate::gpu::gpu_data::{TfPoints, ViewUniforms};
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
-use crate::gpu::util::{entry, ms_since, settings_error, uniform_buffer};
+use crate::gpu::util::{entry, ms_since, uniform_buffer};
 use crate::image::Image;
 use crate::mesh::TetMesh;
 use crate::render::{Frame, RenderError, Renderer, Timings};
@@ -144,6 +144,8 @@ struct Pipelines {
     raster_exact: wgpu::RenderPipeline,
 }
 
+/// The colour target of one image size and its readback (a clone shares them).
+#[derive(Clone)]
 struct Targets {
     width: u32,
     height: u32,
@@ -225,9 +227,7 @@ impl CellProjRenderer {
 
     /// Records the assembly and the raster of the first `drawn` tets of the order, runs them
     /// and reads the image and the statistics back.
-    fn record(&mut self, drawn: u64) -> Result<FrameStats, RenderError> {
-        let targets = (self.targets.as_ref())
-            .ok_or_else(|| settings_error("internal: render target missing"))?;
+    fn record(&mut self, targets: &Targets, drawn: u64) -> Result<FrameStats, RenderError> {
         let chunks = self.chunking.ranges(drawn);
         let inputs = AssemblyInputs {
             view: &self.view_buf,
@@ -270,15 +270,7 @@ impl CellProjRenderer {
         let mut rec = (self.frame).recorder(&self.device, &self.queue, 2, 1);
         let max_groups = self.limits.max_compute_workgroups_per_dimension;
         (self.assembly).record(&mut rec, &assembly, max_groups)?;
-        let ts = rec.timestamps("raster");
-        let occlusion = rec.occlusion();
-        raster::encode_raster(
-            rec.encoder(),
-            targets,
-            (pipeline, &raster_groups),
-            occlusion,
-            ts,
-        );
+        raster::encode_raster(&mut rec, targets, pipeline, &raster_groups);
         rec.end_stage("raster")?;
         let images = [(&targets.color, &targets.readback)];
         rec.finish(&images, self.assembly.degenerate(), 1)
@@ -314,14 +306,12 @@ impl Renderer for CellProjRenderer {
         // 3. Upload.
         let t1 = Instant::now();
         self.upload(&m, camera, tf, &order)?;
-        self.ensure_targets(camera.width, camera.height)?;
+        let targets = self.ensure_targets(camera.width, camera.height)?;
         timings.stage("upload", ms_since(t1));
 
         // 4. Assembly, in the sorted order; 5. raster; 6. readback.
-        let stats = self.record(drawn as u64)?;
+        let stats = self.record(&targets, drawn as u64)?;
         let t4 = Instant::now();
-        let targets = (self.targets.as_ref())
-            .ok_or_else(|| settings_error("internal: render target missing"))?;
         let mut image = Image::new(targets.width, targets.height);
         image.pixels = targets.readback.read(&self.device)?;
         timings.stage("assembly", stats.stage("assembly"));

@@ -2,7 +2,9 @@
 //! the other, blended "over": `shaders/cellproj_raster.wgsl`), its pipelines and target, and
 //! the target's readback.
 
-use crate::gpu::frame::{ImageReadback, Timestamps, attachment, cleared, draw_tet_chunks};
+use crate::gpu::frame::{
+    ImageReadback, Recorder, Timestamps, attachment, cleared, draw_tet_chunks,
+};
 use crate::gpu::shaders;
 use crate::gpu::util::{
     bind_group_layout, buffer_entry, check_image_size, pipeline_layout_for, tet_faces, texture_2d,
@@ -13,11 +15,17 @@ use crate::render::RenderError;
 use super::{CellProjRenderer, Pipelines, Targets};
 
 impl CellProjRenderer {
-    pub(super) fn ensure_targets(&mut self, width: u32, height: u32) -> Result<(), RenderError> {
+    /// The targets of a `width` x `height` frame: the kept ones when the size holds, else
+    /// new ones, kept for the next frames.
+    pub(super) fn ensure_targets(
+        &mut self,
+        width: u32,
+        height: u32,
+    ) -> Result<Targets, RenderError> {
         if let Some(t) = &self.targets
             && (t.width, t.height) == (width, height)
         {
-            return Ok(());
+            return Ok(t.clone());
         }
         check_image_size(&self.limits, width, height)?;
         let color = texture_2d(
@@ -34,33 +42,36 @@ impl CellProjRenderer {
             height,
             self.format,
         );
-        self.targets = Some(Targets {
+        let targets = Targets {
             width,
             height,
             color,
             readback,
-        });
-        Ok(())
+        };
+        Ok(self.targets.insert(targets).clone())
     }
 }
 
 /// Encodes the raster pass: every chunk's tets in the sorted order, one after the other
 /// (blending follows it), the fragments counted by occlusion query 0.
 pub(super) fn encode_raster(
-    enc: &mut wgpu::CommandEncoder,
+    rec: &mut Recorder,
     targets: &Targets,
-    (pipeline, groups): (&wgpu::RenderPipeline, &[(wgpu::BindGroup, u64)]),
-    occlusion: Option<&wgpu::QuerySet>,
-    timestamps: Option<Timestamps>,
+    pipeline: &wgpu::RenderPipeline,
+    groups: &[(wgpu::BindGroup, u64)],
 ) {
+    let timestamps = rec.timestamps("raster");
+    let occlusion = rec.occlusion();
     let color_view = targets.color.create_view(&Default::default());
-    let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-        label: Some("cellproj raster"),
-        color_attachments: &[attachment(&color_view, cleared(wgpu::Color::TRANSPARENT))],
-        timestamp_writes: timestamps.as_ref().map(Timestamps::render),
-        occlusion_query_set: occlusion,
-        ..Default::default()
-    });
+    let mut pass = rec
+        .encoder()
+        .begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("cellproj raster"),
+            color_attachments: &[attachment(&color_view, cleared(wgpu::Color::TRANSPARENT))],
+            timestamp_writes: timestamps.as_ref().map(Timestamps::render),
+            occlusion_query_set: occlusion,
+            ..Default::default()
+        });
     draw_tet_chunks(&mut pass, pipeline, groups, occlusion.is_some());
 }
 

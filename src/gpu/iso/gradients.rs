@@ -189,15 +189,15 @@ impl GradientStage {
     }
 
     /// Records the pass (timed by `timestamps`; one dispatch per chunk, in tet order) writing
-    /// the gradient of each vertex listed in `vertices` (a buffer of exactly `count` u32s: the
-    /// shader takes the count from its length) into `gradients`, from the mesh's current
+    /// the gradient of each vertex listed in `vertices` (a buffer of exactly the listed u32s:
+    /// the shader takes the count from its length) into `gradients`, from the mesh's current
     /// positions and scalars.
     pub(super) fn encode(
         &self,
         enc: &mut wgpu::CommandEncoder,
         mesh: &GpuTetMesh,
         gradients: &wgpu::Buffer,
-        (vertices, count): (&wgpu::Buffer, u32),
+        vertices: &wgpu::Buffer,
         timestamps: Option<wgpu::ComputePassTimestampWrites>,
     ) -> Result<(), RenderError> {
         let tets = mesh.tets()?;
@@ -224,6 +224,7 @@ impl GradientStage {
             timestamp_writes: timestamps,
         });
         pass.set_pipeline(&self.pipeline);
+        let count = (vertices.size() / 4) as u32;
         let workgroups = count.div_ceil(64).max(1);
         let x = workgroups
             .min(mesh.limits().max_compute_workgroups_per_dimension)

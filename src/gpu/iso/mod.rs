@@ -53,7 +53,7 @@ use crate::gpu::frame::{FrameResources, FrameStats, ImageReadback, Timestamps};
 use crate::gpu::gpu_data::ViewUniforms;
 pub use crate::gpu::gpu_data::{IsoUniforms, MAX_ISOVALUES};
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
-use crate::gpu::util::{map_read, ms_since, settings_error, uniform_buffer};
+use crate::gpu::util::{ms_since, read_mapped, settings_error, uniform_buffer};
 use crate::gpu::view::ViewFrame;
 use crate::image::Image;
 use crate::mesh::TetMesh;
@@ -134,7 +134,9 @@ pub struct IsoRenderer {
     targets: Option<Targets>,
 }
 
-/// The per-tet arrays of a selection, cut into chunks of one [`Chunking`].
+/// The per-tet arrays of a selection, cut into chunks of one [`Chunking`] (a clone shares
+/// them).
+#[derive(Clone)]
 struct SelectionLists {
     chunking: Chunking,
     tets: TetArray,
@@ -146,6 +148,8 @@ struct Pipelines {
     raster: wgpu::RenderPipeline,
 }
 
+/// The targets of one image size and their readbacks (a clone shares them).
+#[derive(Clone)]
 struct Targets {
     width: u32,
     height: u32,
@@ -291,10 +295,7 @@ impl IsoRenderer {
         let mut enc = self.device.create_command_encoder(&Default::default());
         enc.copy_buffer_to_buffer(&self.gradients_buf, 0, &readback, 0, size);
         self.queue.submit([enc.finish()]);
-        map_read(&self.device, &readback)?;
-        let data = readback
-            .get_mapped_range(..)
-            .map_err(|e| settings_error(format!("mapping the gradients readback failed: {e}")))?;
+        let data = read_mapped(&self.device, &readback, "the iso gradients")?;
         let all = bytemuck::cast_slice::<u8, [f32; 4]>(&data);
         let out = vertices.iter().map(|&v| (v, all[v as usize])).collect();
         drop(data);
@@ -320,16 +321,13 @@ impl IsoRenderer {
 
         // 2. Upload.
         let t1 = Instant::now();
-        self.upload(&m, &view, visible.as_deref(), drawn)?;
-        self.ensure_targets(camera.width, camera.height)?;
+        let lists = self.upload(&m, &view, visible.as_deref(), drawn)?;
+        let targets = self.ensure_targets(camera.width, camera.height)?;
         timings.stage("upload", ms_since(t1));
 
         // 3.-5. Gradients, assembly, raster; 6. readback.
-        let stats = self.record(drawn as u64)?;
+        let stats = self.record(&lists, &targets, drawn as u64)?;
         let t4 = Instant::now();
-        let targets = self.targets.as_ref().ok_or_else(|| {
-            settings_error("internal: render targets missing after ensure_targets")
-        })?;
         let mut color = Image::new(targets.width, targets.height);
         color.pixels = targets.color_readback.read(&self.device)?;
         let geometry_px = targets.geometry_readback.read(&self.device)?;
@@ -361,11 +359,9 @@ impl IsoRenderer {
         timings.count("tets", m.tets.len() as u64);
         timings.count("tets selected", all_selected as u64);
         timings.count("tets culled (frustum)", (all_selected - drawn) as u64);
-        if let Some(lists) = &self.lists {
-            let chunks = lists.chunking.ranges(drawn as u64).len();
-            timings.count("record chunks", chunks as u64);
-            timings.count("record buffers", lists.records.buffer_count() as u64);
-        }
+        let chunks = lists.chunking.ranges(drawn as u64).len();
+        timings.count("record chunks", chunks as u64);
+        timings.count("record buffers", lists.records.buffer_count() as u64);
         timings.count("triangles", 4 * drawn as u64);
         timings.count("degenerate tets", stats.degenerate as u64);
         timings.count("fragments (occlusion query)", stats.fragments.unwrap_or(0));
@@ -382,11 +378,12 @@ impl IsoRenderer {
     /// Records the GPU stages of a frame drawing the first `drawn` tets of the lists (the
     /// gradients with smooth shading, the assembly, the raster), runs them and reads the
     /// images and statistics back.
-    fn record(&mut self, drawn: u64) -> Result<FrameStats, RenderError> {
-        let (lists, targets) = match (&self.lists, &self.targets) {
-            (Some(l), Some(t)) => (l, t),
-            _ => return Err(settings_error("internal: iso lists or targets missing")),
-        };
+    fn record(
+        &mut self,
+        lists: &SelectionLists,
+        targets: &Targets,
+        drawn: u64,
+    ) -> Result<FrameStats, RenderError> {
         let chunks = lists.chunking.ranges(drawn);
         let inputs = AssemblyInputs {
             view: &self.view_buf,
@@ -398,21 +395,15 @@ impl IsoRenderer {
         let assembly = self.assembly.bind(&self.device, &inputs, &chunks);
         let raster_groups = self.raster_groups(lists, &chunks);
         let mut rec = (self.frame).recorder(&self.device, &self.queue, 3, 1);
-        if let (Some(stage), Some((vertices, list))) =
-            (&self.gradient_stage, &self.gradient_vertices)
-        {
+        if let (Some(stage), Some((_, list))) = (&self.gradient_stage, &self.gradient_vertices) {
             let ts = rec.timestamps("gradients");
-            let list = (list, vertices.len() as u32);
             let writes = ts.as_ref().map(Timestamps::compute);
             stage.encode(rec.encoder(), &self.mesh, &self.gradients_buf, list, writes)?;
             rec.end_stage("gradients")?;
         }
         let max_groups = self.limits.max_compute_workgroups_per_dimension;
         (self.assembly).record(&mut rec, &assembly, max_groups)?;
-        let ts = rec.timestamps("raster");
-        let occlusion = rec.occlusion();
-        let raster = (&self.pipelines.raster, raster_groups.as_slice());
-        raster::encode_raster(rec.encoder(), targets, raster, occlusion, ts);
+        raster::encode_raster(&mut rec, targets, &self.pipelines.raster, &raster_groups);
         rec.end_stage("raster")?;
         let images = [
             (&targets.color, &targets.color_readback),

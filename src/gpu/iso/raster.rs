@@ -2,7 +2,9 @@
 //! per tet, the depth test keeping the nearest ray/isoplane hit, `shaders/iso_raster.wgsl`),
 //! its pipeline and targets, and their readback.
 
-use crate::gpu::frame::{ImageReadback, Timestamps, attachment, cleared, draw_tet_chunks};
+use crate::gpu::frame::{
+    ImageReadback, Recorder, Timestamps, attachment, cleared, draw_tet_chunks,
+};
 use crate::gpu::shaders;
 use crate::gpu::util::{
     bind_group_layout, buffer_entry, check_image_size, entry, pipeline_layout_for, tet_faces,
@@ -13,11 +15,17 @@ use crate::render::RenderError;
 use super::{DEPTH_FORMAT, IsoRenderer, Pipelines, SelectionLists, TARGET_FORMAT, Targets};
 
 impl IsoRenderer {
-    pub(super) fn ensure_targets(&mut self, width: u32, height: u32) -> Result<(), RenderError> {
+    /// The targets of a `width` x `height` frame: the kept ones when the size holds, else
+    /// new ones, kept for the next frames.
+    pub(super) fn ensure_targets(
+        &mut self,
+        width: u32,
+        height: u32,
+    ) -> Result<Targets, RenderError> {
         if let Some(t) = &self.targets
             && (t.width, t.height) == (width, height)
         {
-            return Ok(());
+            return Ok(t.clone());
         }
         check_image_size(&self.limits, width, height)?;
         let texture = |label, format, usage| {
@@ -33,7 +41,7 @@ impl IsoRenderer {
         );
         let readback =
             |label| ImageReadback::new(&self.device, label, width, height, TARGET_FORMAT);
-        self.targets = Some(Targets {
+        let targets = Targets {
             width,
             height,
             depth_view: depth.create_view(&Default::default()),
@@ -41,8 +49,8 @@ impl IsoRenderer {
             geometry_readback: readback("iso geometry readback"),
             color,
             geometry,
-        });
-        Ok(())
+        };
+        Ok(self.targets.insert(targets).clone())
     }
 
     /// The raster bind group of each chunk, with its tet count.
@@ -76,12 +84,13 @@ impl IsoRenderer {
 /// Encodes the raster pass: each chunk's tets' front faces, one instance per tet, the depth
 /// test keeping the nearest hit; the fragments counted by occlusion query 0.
 pub(super) fn encode_raster(
-    enc: &mut wgpu::CommandEncoder,
+    rec: &mut Recorder,
     targets: &Targets,
-    (pipeline, groups): (&wgpu::RenderPipeline, &[(wgpu::BindGroup, u64)]),
-    occlusion: Option<&wgpu::QuerySet>,
-    timestamps: Option<Timestamps>,
+    pipeline: &wgpu::RenderPipeline,
+    groups: &[(wgpu::BindGroup, u64)],
 ) {
+    let timestamps = rec.timestamps("raster");
+    let occlusion = rec.occlusion();
     let miss = wgpu::Color {
         r: 0.0,
         g: 0.0,
@@ -90,24 +99,26 @@ pub(super) fn encode_raster(
     };
     let color_view = targets.color.create_view(&Default::default());
     let geometry_view = targets.geometry.create_view(&Default::default());
-    let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-        label: Some("iso raster"),
-        color_attachments: &[
-            attachment(&color_view, cleared(wgpu::Color::TRANSPARENT)),
-            attachment(&geometry_view, cleared(miss)),
-        ],
-        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-            view: &targets.depth_view,
-            depth_ops: Some(wgpu::Operations {
-                load: wgpu::LoadOp::Clear(1.0),
-                store: wgpu::StoreOp::Store,
+    let mut pass = rec
+        .encoder()
+        .begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("iso raster"),
+            color_attachments: &[
+                attachment(&color_view, cleared(wgpu::Color::TRANSPARENT)),
+                attachment(&geometry_view, cleared(miss)),
+            ],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &targets.depth_view,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Store,
+                }),
+                stencil_ops: None,
             }),
-            stencil_ops: None,
-        }),
-        timestamp_writes: timestamps.as_ref().map(Timestamps::render),
-        occlusion_query_set: occlusion,
-        ..Default::default()
-    });
+            timestamp_writes: timestamps.as_ref().map(Timestamps::render),
+            occlusion_query_set: occlusion,
+            ..Default::default()
+        });
     draw_tet_chunks(&mut pass, pipeline, groups, occlusion.is_some());
 }
 

@@ -13,13 +13,14 @@ use super::{IsoRenderer, IsoUniforms, SelectionLists, Shading, gradients, near_z
 impl IsoRenderer {
     /// Writes the frame and isovalue constants, and the tets to draw: the whole selection's
     /// lists when it changed (and the gradient stage's vertices), the visible tets every frame.
+    /// Returns the lists drawn from.
     pub(super) fn upload(
         &mut self,
         m: &MeshData,
         view: &ViewFrame,
         visible: Option<&[[u32; 4]]>,
         drawn: usize,
-    ) -> Result<(), RenderError> {
+    ) -> Result<SelectionLists, RenderError> {
         let uniforms = view.uniforms(
             m.origin,
             self.settings.epsilon,
@@ -39,18 +40,20 @@ impl IsoRenderer {
         iso.inv_depth_range = (1.0 / far.max(f64::MIN_POSITIVE)) as f32;
         self.queue
             .write_buffer(&self.iso_buf, 0, bytemuck::bytes_of(&iso));
-        if !self.selection_uploaded {
-            self.upload_selection(visible.is_none())?;
-        }
-        if let (Some(v), Some(lists)) = (visible.filter(|v| !v.is_empty()), &self.lists) {
+        let lists = match &self.lists {
+            Some(lists) if self.selection_uploaded => lists.clone(),
+            _ => self.upload_selection(visible.is_none())?,
+        };
+        if let Some(v) = visible.filter(|v| !v.is_empty()) {
             lists.tets.write(&self.queue, bytemuck::cast_slice(v));
         }
-        Ok(())
+        Ok(lists)
     }
 
     /// New lists for a new selection (chunked when its records exceed a storage binding),
     /// written whole when `write` (no frustum culling), and the gradient stage's vertices.
-    pub(super) fn upload_selection(&mut self, write: bool) -> Result<(), RenderError> {
+    /// Returns the new lists.
+    pub(super) fn upload_selection(&mut self, write: bool) -> Result<SelectionLists, RenderError> {
         let sel = self.selection.as_deref().unwrap_or(&[]);
         let n = sel.len() as u64;
         let chunking = Chunking::new(n, self.mesh.limits())?;
@@ -73,12 +76,12 @@ impl IsoRenderer {
                 (vertices, buf)
             });
         }
-        self.lists = Some(SelectionLists {
+        let lists = SelectionLists {
             chunking,
             tets,
             records,
-        });
+        };
         self.selection_uploaded = true;
-        Ok(())
+        Ok(self.lists.insert(lists).clone())
     }
 }

@@ -12,7 +12,9 @@ use crate::gpu::frame::{ImageReadback, Timestamps};
 use crate::gpu::gpu_data::LayerUniforms;
 use crate::gpu::mesh::{MeshData, chunk_ranges};
 use crate::gpu::tf::tf_points;
-use crate::gpu::util::{check_image_size, entry, map_read, ms_since, settings_error, texture_2d};
+use crate::gpu::util::{
+    check_image_size, entry, ms_since, read_mapped, settings_error, texture_2d,
+};
 use crate::gpu::view::ViewFrame;
 use crate::image::Image;
 use crate::render::{Frame, RenderError, Timings};
@@ -98,12 +100,12 @@ impl RaycastRenderer {
         let t = Instant::now();
         let rebuilt = self.upload(camera, tf)?;
         timings.stage("upload", ms_since(t));
-        let (run, reruns) = self.runs(camera)?;
+        let (run, reruns, targets) = self.runs(camera)?;
         if let Some(version) = self.planes.now {
             self.planes.thin = Some((version, run.counters[0]));
         }
         let t = Instant::now();
-        let image = self.read_image()?;
+        let image = self.read_image(&targets)?;
         for &(stage, ms) in &run.stages {
             timings.stage(stage, ms);
         }
@@ -123,15 +125,15 @@ impl RaycastRenderer {
         Ok(Frame { image, timings })
     }
 
-    /// Runs the stages, again with longer entry lists while a list overflowed; the last run and
-    /// the reruns. A rerun's stage times start with the first run's vertices and planes, which
+    /// Runs the stages, again with longer entry lists while a list overflowed; the last run,
+    /// the reruns and the targets the last run drew into. A rerun's stage times start with the first run's vertices and planes, which
     /// it keeps rather than runs.
-    fn runs(&mut self, camera: &Camera) -> Result<(Run, u64), RenderError> {
+    fn runs(&mut self, camera: &Camera) -> Result<(Run, u64, Targets), RenderError> {
         let mut kept = Vec::new();
         let mut reruns = 0;
         loop {
-            self.ensure_targets(camera.width, camera.height)?;
-            let mut run = self.record(reruns > 0)?;
+            let targets = self.ensure_targets(camera.width, camera.height)?;
+            let mut run = self.record(&targets, reruns > 0)?;
             if reruns == 0 {
                 kept = (run.stages.iter().copied())
                     .filter(|(s, _)| matches!(*s, "vertices" | "planes"))
@@ -140,7 +142,7 @@ impl RaycastRenderer {
                 run.stages.splice(0..0, kept.iter().copied());
             }
             if run.counters[2] == 0 {
-                return Ok((run, reruns));
+                return Ok((run, reruns, targets));
             }
             self.capacity *= 2;
             self.write_params();
@@ -287,18 +289,18 @@ impl RaycastRenderer {
 
     /// The output image, the entry method's per-pixel buffers and the tile list for `width` x
     /// `height`, kept while they match; an error naming the sizes when the per-pixel buffers
-    /// exceed one binding.
-    fn ensure_targets(&mut self, width: u32, height: u32) -> Result<(), RenderError> {
+    /// exceed one binding. Returns them (a clone sharing the kept ones).
+    fn ensure_targets(&mut self, width: u32, height: u32) -> Result<Targets, RenderError> {
         let entry = self.settings.entry;
-        let keep = self.targets.as_ref().is_some_and(|t| {
+        let kept = self.targets.as_ref().filter(|t| {
             let pixels = match t.pixels {
                 PixelBuffers::Lists { capacity, .. } => (Entry::Lists, capacity),
                 PixelBuffers::Peel { .. } => (Entry::Peel, self.capacity),
             };
             (t.width, t.height) == (width, height) && pixels == (entry, self.capacity)
         });
-        if keep {
-            return Ok(());
+        if let Some(t) = kept {
+            return Ok(t.clone());
         }
         check_image_size(&self.limits, width, height)?;
         let pixels = width as u64 * height as u64;
@@ -341,7 +343,7 @@ impl RaycastRenderer {
         };
         let tiles = width.div_ceil(TILE) as usize * height.div_ceil(TILE) as usize;
         let hits = (self.iso.as_ref()).map(|_| HitBuffers::new(device, px));
-        self.targets = Some(Targets {
+        let targets = Targets {
             width,
             height,
             readback: ImageReadback::new(device, "raycast readback", width, height, format),
@@ -357,8 +359,8 @@ impl RaycastRenderer {
                 mapped_at_creation: false,
             }),
             hits,
-        });
-        Ok(())
+        };
+        Ok(self.targets.insert(targets).clone())
     }
 
     /// The tiles of the current image.
@@ -504,12 +506,12 @@ impl RaycastRenderer {
     /// Runs the stages once (each layer of depth peeling in turn, until no ray can enter
     /// another) and reads the counters back; a `rerun` keeps the eye-space vertices and the
     /// planes stage's counters (thin tets, the eye's tet) and runs neither stage again.
-    fn record(&mut self, rerun: bool) -> Result<Run, RenderError> {
+    fn record(&mut self, targets: &Targets, rerun: bool) -> Result<Run, RenderError> {
         let reset: [u32; COUNTERS] = [0, u32::MAX, 0, 0];
         let kept = if rerun { 2 } else { 0 };
         let words = bytemuck::cast_slice(&reset[kept..]);
         (self.queue).write_buffer(&self.counters, 4 * kept as u64, words);
-        let groups = self.bind(self.targets()?)?;
+        let groups = self.bind(targets)?;
         let mut run = Run {
             rerun,
             ..Default::default()
@@ -522,7 +524,7 @@ impl RaycastRenderer {
             };
             self.queue
                 .write_buffer(&self.layer_buf, 0, bytemuck::bytes_of(&layer));
-            let progress = self.record_layer(&mut run, &groups)?;
+            let progress = self.record_layer(targets, &mut run, &groups)?;
             run.layers += 1;
             run.tiles_run += progress.tiles as u64;
             let eye_inside = run.counters[1] != u32::MAX;
@@ -537,11 +539,10 @@ impl RaycastRenderer {
     /// Records, runs and reads back one layer (the whole frame with entry lists).
     fn record_layer(
         &mut self,
+        t: &Targets,
         run: &mut Run,
         groups: &BindGroups,
     ) -> Result<Progress, RenderError> {
-        let t = (self.targets.as_ref())
-            .ok_or_else(|| settings_error("internal: render target missing"))?;
         let p = &self.pipelines;
         let max = self.limits.max_compute_workgroups_per_dimension;
         let first = run.layers == 0;
@@ -582,7 +583,7 @@ impl RaycastRenderer {
         for (name, stage, group, groups) in passes {
             let ts = rec.timestamps(name);
             let writes = ts.as_ref().map(Timestamps::compute);
-            encode(rec.encoder(), name, (stage, group), groups, writes);
+            encode(rec.encoder(), name, stage, group, groups, writes);
             rec.end_stage(name)?;
         }
         let bytes = 4 * COUNTERS as u64;
@@ -615,13 +616,8 @@ impl RaycastRenderer {
         })
     }
 
-    fn targets(&self) -> Result<&Targets, RenderError> {
-        (self.targets.as_ref()).ok_or_else(|| settings_error("internal: render target missing"))
-    }
-
     /// Reads back the image the last layer copied out ([`Self::record_layer`]).
-    fn read_image(&self) -> Result<Image, RenderError> {
-        let t = self.targets()?;
+    fn read_image(&self, t: &Targets) -> Result<Image, RenderError> {
         let mut image = Image::new(t.width, t.height);
         image.pixels = t.readback.read(&self.device)?;
         Ok(image)
@@ -633,10 +629,8 @@ fn read_words<const N: usize>(
     device: &wgpu::Device,
     buffer: &wgpu::Buffer,
 ) -> Result<[u32; N], RenderError> {
-    map_read(device, buffer)?;
     let words = {
-        let data = (buffer.get_mapped_range(..))
-            .map_err(|e| settings_error(format!("mapping the counters failed: {e}")))?;
+        let data = read_mapped(device, buffer, "the ray caster's counters")?;
         let words: &[u32] = bytemuck::cast_slice(&data);
         std::array::from_fn(|i| words[i])
     };

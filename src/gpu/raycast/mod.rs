@@ -307,7 +307,8 @@ pub(crate) struct Slicing {
 }
 
 /// Per image size and entry method: the output, its readback, the per-pixel entry buffers,
-/// the tile list.
+/// the tile list (a clone shares them).
+#[derive(Clone)]
 struct Targets {
     width: u32,
     height: u32,
@@ -322,6 +323,7 @@ struct Targets {
 }
 
 /// The per-pixel buffers of an entry method.
+#[derive(Clone)]
 enum PixelBuffers {
     /// The hits each pixel's list has, and `capacity` hits per pixel.
     Lists {
@@ -382,8 +384,8 @@ impl RaycastRenderer {
         slicing: Slicing,
     ) -> Result<Frame, RenderError> {
         if self.slicing.is_none() {
-            return Err(settings_error(
-                "internal: slices rendered by a ray caster built without them",
+            return Err(RenderError::Internal(
+                "slices rendered by a ray caster built without them",
             ));
         }
         self.slicing = Some(slicing);
@@ -441,7 +443,8 @@ impl RaycastRenderer {
         Ok(Self {
             pipelines: Pipelines::new(
                 &device,
-                (nt.div_ceil(chunking.chunk).max(1), mesh.has_cells()),
+                nt.div_ceil(chunking.chunk).max(1),
+                mesh.has_cells(),
                 own_texture.map(|(t, used)| (t.step, *used)),
                 field,
                 (settings.entry_lanes).unwrap_or_else(|| EntryLanes::for_adapter(ctx)),

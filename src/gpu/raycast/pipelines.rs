@@ -5,9 +5,7 @@ use wgpu::BufferBindingType as B;
 use wgpu::ShaderStages as S;
 
 use crate::gpu::shaders;
-use crate::gpu::util::{
-    bind_group_layout, buffer_entry, pipeline_layout_for, settings_error, wgsl_module,
-};
+use crate::gpu::util::{bind_group_layout, buffer_entry, pipeline_layout_for, wgsl_module};
 use crate::render::RenderError;
 
 use super::links::LINK_BINDINGS;
@@ -149,7 +147,8 @@ impl Pipelines {
     /// ([`Self::ensure_slices`]); the entries stage with `entry_lanes`.
     pub fn new(
         device: &wgpu::Device,
-        (windows, cells): (u64, bool),
+        windows: u64,
+        cells: bool,
         texture: Option<(f32, TextureUse)>,
         slices: Option<SliceField>,
         entry_lanes: EntryLanes,
@@ -157,7 +156,7 @@ impl Pipelines {
         let cells = if cells { 1.0 } else { 0.0 };
         let constants = [("LINK_WINDOWS", windows as f64), ("CELLS", cells)];
         let stage = |shader, entries: &[wgpu::BindGroupLayoutEntry]| {
-            stage_with(device, shader, entries, (&constants, "main"))
+            stage_with(device, shader, entries, &constants, "main")
         };
         let [
             vertices,
@@ -195,7 +194,8 @@ impl Pipelines {
                 device,
                 entries,
                 &layout(RO, &[RO, RW, RW, RW]),
-                (&constants, entry_lanes.entry_point()),
+                &constants,
+                entry_lanes.entry_point(),
             ),
             entry_lanes,
             peel: [least_t, least_face].map(|s| stage(s, &peel)),
@@ -211,9 +211,10 @@ impl Pipelines {
             }),
             textured: texture.map(|(step, used)| {
                 let constants = [constants[0], constants[1], ("STEP", step as f64)];
-                let with = (&constants[..], "main");
-                let textured = |s, e| stage_with(device, s, &textured_entries(e), with);
-                let iso = |s, e| stage_with(device, s, &textured_iso_entries(e), with);
+                let textured =
+                    |s, e| stage_with(device, s, &textured_entries(e), &constants, "main");
+                let iso =
+                    |s, e| stage_with(device, s, &textured_iso_entries(e), &constants, "main");
                 match used {
                     TextureUse::Volume => [
                         textured(lists_textured, Entry::Lists),
@@ -245,7 +246,7 @@ impl Pipelines {
             true => textured_entries(Entry::Lists),
             false => traverse_entries(Entry::Lists),
         };
-        let stage = stage_with(device, (&name, source), &entries, (&constants, "main"));
+        let stage = stage_with(device, (&name, source), &entries, &constants, "main");
         self.slices.push((variant, stage));
     }
 
@@ -266,7 +267,7 @@ impl Pipelines {
         }
         let [exact, partial, table] = (self.traverse.as_ref())
             .map(|t| &t[entry as usize])
-            .ok_or_else(|| settings_error("internal: the walk's traversal was not built"))?;
+            .ok_or(RenderError::Internal("the walk's traversal was not built"))?;
         Ok(match segments {
             Segments::Exact => exact,
             Segments::Partial => partial,
@@ -286,7 +287,8 @@ fn stage_with(
     device: &wgpu::Device,
     (name, source): (&str, String),
     entries: &[wgpu::BindGroupLayoutEntry],
-    (constants, entry): (&[(&str, f64)], &str),
+    constants: &[(&str, f64)],
+    entry: &str,
 ) -> Stage {
     let layout = bind_group_layout(device, name, entries);
     let module = wgsl_module(device, name, source);
@@ -330,7 +332,8 @@ pub enum Groups<'a> {
 pub fn encode(
     enc: &mut wgpu::CommandEncoder,
     label: &str,
-    (stage, group): (&Stage, &wgpu::BindGroup),
+    stage: &Stage,
+    group: &wgpu::BindGroup,
     groups: Groups,
     timestamps: Option<wgpu::ComputePassTimestampWrites>,
 ) {

@@ -17,7 +17,7 @@ use crate::gpu::GpuContext;
 use crate::gpu::gpu_data::IsoUniforms;
 use crate::gpu::iso::{DEFAULT_COLOR, IsoSettings, check_isovalues};
 use crate::gpu::mesh::GpuTetMesh;
-use crate::gpu::util::{map_read, settings_error, uniform_buffer};
+use crate::gpu::util::{read_mapped, settings_error, uniform_buffer};
 use crate::mesh::TetMesh;
 use crate::reference::iso::IsoImage;
 use crate::render::{RenderError, Timings};
@@ -58,7 +58,9 @@ impl TexturedIso {
         ctx: &GpuContext,
         isovalues: &[(f64, [f32; 3])],
         texture: &GpuTexture,
-        (cage, texcoords, volume): (&TetMesh, &[DVec3], &Volume),
+        cage: &TetMesh,
+        texcoords: &[DVec3],
+        volume: &Volume,
     ) -> Result<Self, RenderError> {
         check_isovalues(isovalues)?;
         let isovalues = match isovalues {
@@ -88,6 +90,7 @@ impl TexturedIso {
 
 /// Per pixel the hit's world normal and distance (`[nx, ny, nz, t]`, `t = 0`: no hit),
 /// written by the traversal, and its mappable copy.
+#[derive(Clone)]
 pub(super) struct HitBuffers {
     pub(super) hits: wgpu::Buffer,
     readback: wgpu::Buffer,
@@ -113,10 +116,8 @@ impl HitBuffers {
     /// Each pixel's distance (infinite on a miss) and unit world normal (zero on a miss), from
     /// the last copy.
     fn read(&self, device: &wgpu::Device) -> Result<(Vec<f32>, Vec<[f32; 3]>), RenderError> {
-        map_read(device, &self.readback)?;
         let out = {
-            let data = (self.readback.get_mapped_range(..))
-                .map_err(|e| settings_error(format!("mapping the iso hits failed: {e}")))?;
+            let data = read_mapped(device, &self.readback, "the textured iso hits")?;
             let hits: &[[f32; 4]] = bytemuck::cast_slice(&data);
             hits.iter()
                 .map(|h| match h[3] > 0.0 {
@@ -147,8 +148,7 @@ impl RaycastRenderer {
         iso: &IsoSettings,
     ) -> Result<Self, RenderError> {
         let texture = GpuTexture::for_cage(ctx, cage, volume, texcoords, step)?;
-        let field = (cage, texcoords, volume);
-        let surfaces = TexturedIso::new(ctx, &iso.isovalues, &texture, field)?;
+        let surfaces = TexturedIso::new(ctx, &iso.isovalues, &texture, cage, texcoords, volume)?;
         let mesh: Arc<GpuTetMesh> = GpuTetMesh::new(ctx, cage)?;
         let textured = Some((texture, TextureUse::Isosurfaces));
         let mut renderer = Self::build(ctx, mesh, settings, textured, false)?;
@@ -175,7 +175,7 @@ impl RaycastRenderer {
         }
         let frame = self.frame(camera, None)?;
         let hits = (self.targets.as_ref()).and_then(|t| t.hits.as_ref());
-        let hits = hits.ok_or_else(|| settings_error("internal: iso hit buffers missing"))?;
+        let hits = hits.ok_or(RenderError::Internal("the iso hit buffers are missing"))?;
         let (depth, normal) = hits.read(&self.device)?;
         let surface = IsoImage {
             color: frame.image,

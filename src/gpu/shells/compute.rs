@@ -20,7 +20,7 @@ use std::time::Instant;
 
 use crate::gpu::frame::FrameStats;
 use crate::gpu::gpu_data::{CHUNK_LOAD, CHUNK_STORE, ShellUniforms};
-use crate::gpu::util::{entry, map_read, ms_since, settings_error};
+use crate::gpu::util::{entry, ms_since, read_mapped, settings_error};
 use crate::image::Image;
 use crate::render::RenderError;
 use crate::tf::TransferFunction;
@@ -76,27 +76,42 @@ impl ShellsRenderer {
         f: &ShellFrame,
         tf: &TransferFunction,
     ) -> Result<ComputeFrame, RenderError> {
+        // Out of `self` while the frame runs, so that the stages can borrow the renderer.
+        let mut sampler = (self.compute.take())
+            .ok_or(RenderError::Internal("the compute sampler was not built"))?;
+        let frame = self.draw_with(&mut sampler, f, tf);
+        self.compute = Some(sampler);
+        frame
+    }
+
+    fn draw_with(
+        &mut self,
+        sampler: &mut ComputeSampler,
+        f: &ShellFrame,
+        tf: &TransferFunction,
+    ) -> Result<ComputeFrame, RenderError> {
         self.check_one_window()?;
         let [width, height] = f.plan.view.size;
-        self.ensure_tile_buffers(f, (width, height), 0)?;
+        let mut buffers = self.ensure_tile_buffers(sampler, f, (width, height), 0)?;
         let chunk_tets = self.chunking.chunk as u32;
-        let whole = |(s, r): &DrawnShell| shell_uniforms((*s, r), f.n, &f.plan);
+        let whole = |shell: &DrawnShell| shell_uniforms(shell, f.n, &f.plan);
         let chunks = self.chunking.ranges(self.mesh.tet_count() as u64).len();
         let passes = chunk_passes(&f.drawn, &f.bin, (chunk_tets, chunks), whole);
         self.upload_passes(&passes);
-        let (mut stats, needed) = self.run_compute(f, tf, &passes)?;
+        let (mut stats, needed) = self.run_compute(sampler, &buffers, f, tf, &passes)?;
         if let Some(n) = needed {
-            self.ensure_tile_buffers(f, (width, height), n)?;
+            buffers = self.ensure_tile_buffers(sampler, f, (width, height), n)?;
             let again;
-            (stats, again) = self.run_compute(f, tf, &passes)?;
-            if let Some(n) = again {
-                return Err(settings_error(format!(
-                    "internal: the tile lists needed {n} entries after growing to it"
-                )));
+            (stats, again) = self.run_compute(sampler, &buffers, f, tf, &passes)?;
+            if again.is_some() {
+                // The second run bins the same tets as the first, into lists grown to its need.
+                return Err(RenderError::Internal(
+                    "the compute sampler's tile lists outgrew the size the first run needed",
+                ));
             }
         }
         let t_read = Instant::now();
-        let image = self.read_compute_image()?;
+        let image = self.read_compute_image(&buffers)?;
         Ok(ComputeFrame {
             stats,
             image,
@@ -126,7 +141,7 @@ impl ShellsRenderer {
         if chunks <= 1 {
             return 0;
         }
-        width as u64 * height as u64 * self.slice_layers as u64 * 16
+        width as u64 * height as u64 * self.formats.layers as u64 * 16
     }
 
     /// Writes the passes' constants, one slot each at the dynamic-offset stride.
@@ -136,25 +151,31 @@ impl ShellsRenderer {
         for (slot, p) in data.chunks_mut(stride).zip(passes) {
             slot[..size_of::<ShellUniforms>()].copy_from_slice(bytemuck::bytes_of(&p.uniforms));
         }
-        let gpu = (&self.device, &self.queue, &self.limits);
-        write_grown(gpu, &mut self.shell_buf, &data, wgpu::BufferUsages::UNIFORM);
+        write_grown(
+            &self.ctx,
+            &mut self.shell_buf,
+            &data,
+            wgpu::BufferUsages::UNIFORM,
+        );
     }
 
     /// Buffers for the image size and at least `needed` list entries (and at least 4 per
-    /// active tet of the largest shell), kept when they already suffice.
+    /// active tet of the largest shell): `sampler`'s when they already suffice, else new ones
+    /// it keeps.
     fn ensure_tile_buffers(
-        &mut self,
+        &self,
+        sampler: &mut ComputeSampler,
         f: &ShellFrame,
         size: (u32, u32),
         needed: u64,
-    ) -> Result<(), RenderError> {
+    ) -> Result<TileBuffers, RenderError> {
         let most = (f.drawn.iter())
             .map(|(_, r)| (r.faces.len() + r.near.len()) as u64)
             .max()
             .unwrap_or(0);
         let want = needed.max(4 * most).max(MIN_CAPACITY);
         let binding =
-            (self.limits.max_storage_buffer_binding_size).min(self.limits.max_buffer_size);
+            (self.ctx.limits.max_storage_buffer_binding_size).min(self.ctx.limits.max_buffer_size);
         // List entries are 8 bytes (a tet id and its pixel box in the tile).
         let max = binding / 8;
         if needed > max {
@@ -174,48 +195,38 @@ impl ShellsRenderer {
                 size.0, size.1
             )));
         }
-        let device = self.device.clone();
-        let sampler = self.sampler()?;
-        let fits = (sampler.buffers.as_ref())
-            .is_some_and(|b| (b.width, b.height) == size && b.capacity >= want.min(max));
-        if !fits {
-            let capacity = want.next_power_of_two().min(max);
-            sampler.buffers = Some(TileBuffers::new(&device, size, capacity, slice_bytes));
+        let kept = (sampler.buffers.as_ref())
+            .filter(|b| (b.width, b.height) == size && b.capacity >= want.min(max));
+        if let Some(b) = kept {
+            return Ok(b.clone());
         }
-        Ok(())
-    }
-
-    fn sampler(&mut self) -> Result<&mut ComputeSampler, RenderError> {
-        (self.compute.as_mut())
-            .ok_or_else(|| settings_error("internal: the compute sampler was not built"))
+        let capacity = want.next_power_of_two().min(max);
+        let buffers = TileBuffers::new(&self.ctx.device, size, capacity, slice_bytes);
+        Ok(sampler.buffers.insert(buffers).clone())
     }
 
     /// Runs the frame's `passes` once: its statistics, and the list entries it needed when
     /// they exceeded the buffer.
     fn run_compute(
         &mut self,
+        sampler: &mut ComputeSampler,
+        b: &TileBuffers,
         f: &ShellFrame,
         tf: &TransferFunction,
         passes: &[ChunkPass],
     ) -> Result<(FrameStats, Option<u64>), RenderError> {
         let targets = f.n.div_ceil(4);
         let points = tf.points().len() as u32;
-        let device = self.device.clone();
-        let sampler = self.sampler()?;
         let layout = &sampler.tiles.pipeline_layout;
-        let fine = (sampler.fine.get(&device, layout, targets, points)).clone();
-        let groups = self.compute_groups()?;
-        let sampler =
-            (self.compute.as_ref()).ok_or_else(|| settings_error("internal: no sampler"))?;
-        let b = (sampler.buffers.as_ref())
-            .ok_or_else(|| settings_error("internal: no tile buffers"))?;
+        let fine = (sampler.fine.get(&self.ctx.device, layout, targets, points)).clone();
+        let groups = self.compute_groups(sampler, b)?;
         let stages = 1 + 2 * passes.len() as u32;
-        let mut rec = (self.frame).recorder(&self.device, &self.queue, stages, 0);
+        let mut rec = (self.frame).recorder(&self.ctx.device, &self.ctx.queue, stages, 0);
         let enc = rec.encoder();
         for buf in [&b.accum, &b.finished, &b.needed] {
             enc.clear_buffer(buf, 0, None);
         }
-        let max_groups = self.limits.max_compute_workgroups_per_dimension;
+        let max_groups = self.ctx.limits.max_compute_workgroups_per_dimension;
         let assembled = self.assembled.as_ref().ok_or_else(super::no_records)?;
         (assembled.stage).record(&mut rec, &assembled.groups, max_groups)?;
         for (i, p) in passes.iter().enumerate() {
@@ -251,17 +262,17 @@ impl ShellsRenderer {
         enc.copy_buffer_to_buffer(&b.accum, 0, &b.accum_readback, 0, b.accum.size());
         enc.copy_buffer_to_buffer(&b.needed, 0, &b.needed_readback, 0, 4);
         let stats = rec.finish(&[], assembled.stage.degenerate(), 0)?;
-        let needed = read_u32(&self.device, &b.needed_readback)? as u64;
+        let needed = read_u32(&self.ctx.device, &b.needed_readback)? as u64;
         Ok((stats, (needed > b.capacity).then_some(needed)))
     }
 
     /// The bind groups both compute stages use, one per record chunk (the per-frame buffers
     /// may have been regrown).
-    fn compute_groups(&self) -> Result<Vec<wgpu::BindGroup>, RenderError> {
-        let sampler =
-            (self.compute.as_ref()).ok_or_else(|| settings_error("internal: no sampler"))?;
-        let b = (sampler.buffers.as_ref())
-            .ok_or_else(|| settings_error("internal: no tile buffers"))?;
+    fn compute_groups(
+        &self,
+        sampler: &ComputeSampler,
+        b: &TileBuffers,
+    ) -> Result<Vec<wgpu::BindGroup>, RenderError> {
         let shell = || wgpu::BindGroupEntry {
             binding: 1,
             resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
@@ -294,26 +305,26 @@ impl ShellsRenderer {
             if let Some(t) = &self.texture {
                 entries.extend(t.entries());
             }
-            self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("shells compute sampler"),
-                layout: &sampler.tiles.layout,
-                entries: &entries,
-            })
+            self.ctx
+                .device
+                .create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("shells compute sampler"),
+                    layout: &sampler.tiles.layout,
+                    entries: &entries,
+                })
         });
         Ok(groups.collect())
     }
 
     /// The accumulation buffer as an image (after the frame ran).
-    fn read_compute_image(&self) -> Result<Image, RenderError> {
-        let sampler =
-            (self.compute.as_ref()).ok_or_else(|| settings_error("internal: no sampler"))?;
-        let b = (sampler.buffers.as_ref())
-            .ok_or_else(|| settings_error("internal: no tile buffers"))?;
-        map_read(&self.device, &b.accum_readback)?;
+    fn read_compute_image(&self, b: &TileBuffers) -> Result<Image, RenderError> {
         let mut image = Image::new(b.width, b.height);
         {
-            let data = (b.accum_readback.get_mapped_range(..))
-                .map_err(|e| settings_error(format!("mapping the compute readback failed: {e}")))?;
+            let data = read_mapped(
+                &self.ctx.device,
+                &b.accum_readback,
+                "the compute sampler's image",
+            )?;
             image.pixels = bytemuck::cast_slice::<u8, [f32; 4]>(&data).to_vec();
         }
         b.accum_readback.unmap();
@@ -323,10 +334,8 @@ impl ShellsRenderer {
 
 /// The first u32 of a mappable buffer (after the frame ran).
 fn read_u32(device: &wgpu::Device, buf: &wgpu::Buffer) -> Result<u32, RenderError> {
-    map_read(device, buf)?;
     let value = {
-        let data = (buf.get_mapped_range(..))
-            .map_err(|e| settings_error(format!("mapping the tile-list size failed: {e}")))?;
+        let data = read_mapped(device, buf, "the tile lists' size")?;
         u32::from_le_bytes([data[0], data[1], data[2], data[3]])
     };
     buf.unmap();

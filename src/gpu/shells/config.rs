@@ -8,21 +8,28 @@ use crate::render::RenderError;
 
 use super::{SOFTWARE_SLICES_PER_SHELL, Sampler, ShellSettings, SliceFormat, adaptive};
 
-/// The slice configuration of a renderer.
-pub(super) struct SliceConfig {
-    pub(super) format: wgpu::TextureFormat,
+/// The formats of a renderer's slice and accumulation targets, and its slice layers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct TargetFormats {
+    /// The slice targets' format.
+    pub(super) slices: wgpu::TextureFormat,
     /// The accumulation target's format: 32-bit floats wherever the adapter blends them, even
     /// under 16-bit slices (the rounding of every blend into it would cost more than the
     /// slices' quantization, README).
     pub(super) accum: wgpu::TextureFormat,
+    /// Layers of the slice texture: the colour targets of the largest count in use.
+    pub(super) layers: u32,
+}
+
+/// The slice configuration of a renderer.
+pub(super) struct SliceConfig {
+    pub(super) targets: TargetFormats,
     /// The fixed slices per shell, or `None` when chosen per frame among `candidates`.
     pub(super) fixed: Option<u32>,
     /// The count used without adaptive slices, and kept by them unless another is predicted
     /// to be clearly cheaper.
     pub(super) default: u32,
     pub(super) candidates: Vec<u32>,
-    /// Layers of the slice texture: the colour targets of the largest count in use.
-    pub(super) layers: u32,
     pub(super) model: adaptive::CostModel,
 }
 
@@ -94,12 +101,14 @@ pub(super) fn slices(
         None => (adaptive::candidates(4 * max_targets), max_targets),
     };
     Ok(SliceConfig {
-        format,
-        accum,
+        targets: TargetFormats {
+            slices: format,
+            accum,
+            layers,
+        },
         fixed,
         default,
         candidates,
-        layers,
         model: if software {
             adaptive::CostModel::SOFTWARE
         } else {

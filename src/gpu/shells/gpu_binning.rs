@@ -19,11 +19,12 @@
 //! tiles and shells but does not drop finished tets from later lists (that reads the lists on
 //! the CPU).
 
+use crate::gpu::GpuContext;
 use crate::gpu::gpu_data::{BinChunk, BinUniforms};
 use crate::gpu::mesh::{MeshData, TetArray};
 use crate::gpu::shaders;
 use crate::gpu::util::{
-    bind_group_layout, buffer_entry, entry, map_read, pipeline_layout_for, settings_error,
+    bind_group_layout, buffer_entry, entry, pipeline_layout_for, read_mapped, settings_error,
     uniform_buffer, wgsl_module,
 };
 use crate::render::RenderError;
@@ -82,11 +83,12 @@ impl GpuBinner {
     /// The binner of a mesh of `tets` tets in record chunks `chunks` ((first, count) each),
     /// with `spans` (8 bytes per tet, chunked as the records).
     pub(super) fn new(
-        (device, queue, limits): (&wgpu::Device, &wgpu::Queue, &wgpu::Limits),
+        ctx: &GpuContext,
         tets: u64,
         chunks: Vec<(u64, u64)>,
         spans: TetArray,
     ) -> Self {
+        let device = &ctx.device;
         let cs = wgpu::ShaderStages::COMPUTE;
         let ro = wgpu::BufferBindingType::Storage { read_only: true };
         let rw = wgpu::BufferBindingType::Storage { read_only: false };
@@ -109,7 +111,7 @@ impl GpuBinner {
             })
         };
         let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
-        let (chunk_stride, chunk_uniforms) = chunk_uniforms((device, queue, limits), &chunks);
+        let (chunk_stride, chunk_uniforms) = chunk_uniforms(ctx, &chunks);
         Self {
             count: pipeline("count"),
             scan: pipeline("scan"),
@@ -185,12 +187,10 @@ impl GpuBinner {
 
 /// Each chunk's [`BinChunk`] in one uniform buffer, at a stride the adapter accepts as a
 /// binding offset: (stride, buffer).
-fn chunk_uniforms(
-    (device, queue, limits): (&wgpu::Device, &wgpu::Queue, &wgpu::Limits),
-    chunks: &[(u64, u64)],
-) -> (u64, wgpu::Buffer) {
+fn chunk_uniforms(ctx: &GpuContext, chunks: &[(u64, u64)]) -> (u64, wgpu::Buffer) {
     let size = size_of::<BinChunk>();
-    let stride = size.next_multiple_of(limits.min_uniform_buffer_offset_alignment as usize);
+    let alignment = ctx.limits.min_uniform_buffer_offset_alignment;
+    let stride = size.next_multiple_of(alignment as usize);
     let mut data = vec![0u8; stride * chunks.len().max(1)];
     for (c, (slot, &(first, count))) in data.chunks_mut(stride).zip(chunks).enumerate() {
         let chunk = BinChunk {
@@ -201,8 +201,8 @@ fn chunk_uniforms(
         };
         slot[..size].copy_from_slice(bytemuck::bytes_of(&chunk));
     }
-    let buffer = uniform_buffer(device, "shells bin chunks", data.len());
-    queue.write_buffer(&buffer, 0, &data);
+    let buffer = uniform_buffer(&ctx.device, "shells bin chunks", data.len());
+    ctx.queue.write_buffer(&buffer, 0, &data);
     (stride as u64, buffer)
 }
 
@@ -228,10 +228,26 @@ struct Readback {
 impl ShellsRenderer {
     /// The frame's slices per shell and active lists, binned on the GPU (the lists left in the
     /// active buffer, [`Binning::indices`] empty); re-run once with a larger list when the
-    /// first run overflowed it. `None` when the lists take more than one storage binding:
-    /// `--binning auto` then bins the frame on the CPU, `gpu` says so.
+    /// first run overflowed it. `None` without a GPU binner, or when the lists take more than
+    /// one storage binding: `--binning auto` then bins the frame on the CPU, `gpu` says so.
     pub(super) fn bin_on_gpu(
         &mut self,
+        m: &MeshData,
+        plan: &FramePlan,
+        tf: &TransferFunction,
+    ) -> Result<Option<(u32, Binning)>, RenderError> {
+        // Out of `self` while it runs, so that the binning can borrow the renderer.
+        let Some(mut binner) = self.binner.take() else {
+            return Ok(None);
+        };
+        let binned = self.bin_with(&mut binner, m, plan, tf);
+        self.binner = Some(binner);
+        binned
+    }
+
+    fn bin_with(
+        &mut self,
+        binner: &mut GpuBinner,
         m: &MeshData,
         plan: &FramePlan,
         tf: &TransferFunction,
@@ -244,7 +260,7 @@ impl ShellsRenderer {
         self.slices_per_shell = n;
         let shells = plan.shells(n);
         self.transparent_mask(m, tf);
-        self.upload_mask();
+        self.upload_mask(binner);
         let max_entries = self.max_active_entries();
         // A first guess of one entry per tet, so that a first frame seldom runs twice.
         let tets = m.tets.len() as u64;
@@ -252,7 +268,7 @@ impl ShellsRenderer {
             self.grow_active(tets.min(max_entries));
         }
         for _ in 0..2 {
-            let r = self.run_binning(m, plan, n, shells)?;
+            let r = self.run_binning(binner, m, plan, n)?;
             let total = r.offsets.last().copied().unwrap_or(0) as u64;
             if total <= self.active_capacity() {
                 return Ok(Some((n, binning_of(r, shells as usize))));
@@ -269,8 +285,9 @@ impl ShellsRenderer {
             }
             self.grow_active(total);
         }
-        Err(settings_error(
-            "internal: the GPU binning overflowed its list after growing it",
+        // The second run bins the same tets as the first, into a list grown to its total.
+        Err(RenderError::Internal(
+            "the GPU binning overflowed its list after growing it",
         ))
     }
 
@@ -281,8 +298,8 @@ impl ShellsRenderer {
 
     /// The most active-list entries one storage binding holds.
     fn max_active_entries(&self) -> u64 {
-        let binding = self.limits.max_storage_buffer_binding_size;
-        binding.min(self.limits.max_buffer_size) / 4
+        let binding = self.ctx.limits.max_storage_buffer_binding_size;
+        binding.min(self.ctx.limits.max_buffer_size) / 4
     }
 
     /// Replaces the active buffer by one of at least `entries` entries (a power of two,
@@ -291,7 +308,7 @@ impl ShellsRenderer {
         let bytes = (entries * 4)
             .next_power_of_two()
             .min(4 * self.max_active_entries());
-        self.active_buf = self.device.create_buffer(&wgpu::BufferDescriptor {
+        self.active_buf = self.ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("shells active tets"),
             size: bytes.max(entries * 4),
             usage: wgpu::BufferUsages::STORAGE
@@ -303,13 +320,10 @@ impl ShellsRenderer {
 
     /// The transparent-tet bits of the renderer's cached mask (all clear without
     /// transfer-function culling), uploaded when the transfer function or scalars changed.
-    fn upload_mask(&mut self) {
+    fn upload_mask(&self, binner: &mut GpuBinner) {
         let key = (self.settings.skips.tf_cull)
             .then(|| self.transparent.as_ref().map(|(tf, v, _)| (tf.clone(), *v)))
             .flatten();
-        let Some(binner) = self.binner.as_mut() else {
-            return;
-        };
         if binner.mask_key.as_ref() == Some(&key) {
             return;
         }
@@ -320,34 +334,35 @@ impl ShellsRenderer {
                 *word = (part.iter().enumerate()).fold(0, |w, (i, &m)| w | (m as u32) << i);
             }
         }
-        self.queue
+        self.ctx
+            .queue
             .write_buffer(&binner.mask, 0, bytemuck::cast_slice(&bits));
         binner.mask_key = Some(key);
     }
 
-    /// One run of count, scan and scatter; reads back offsets, rectangles and counters.
+    /// One run of count, scan and scatter with `n` slices per shell; reads back offsets,
+    /// rectangles and counters.
     fn run_binning(
-        &mut self,
+        &self,
+        binner: &mut GpuBinner,
         m: &MeshData,
         plan: &FramePlan,
         n: u32,
-        shells: u64,
     ) -> Result<Readback, RenderError> {
-        let binner = (self.binner.as_mut())
-            .ok_or_else(|| settings_error("internal: GPU binning without its binner"))?;
-        binner.ensure(&self.device, shells);
-        let binner = (self.binner.as_ref())
-            .ok_or_else(|| settings_error("internal: GPU binning without its binner"))?;
-        let u = self.bin_uniforms(m, plan, (n, shells), binner);
-        self.queue
+        let shells = plan.shells(n);
+        binner.ensure(&self.ctx.device, shells);
+        let u = self.bin_uniforms(m, plan, n, binner);
+        self.ctx
+            .queue
             .write_buffer(&binner.uniforms, 0, bytemuck::bytes_of(&u));
         let sentinel: Vec<i32> = (0..4 * shells)
             .map(|i| if i % 4 < 2 { i32::MAX } else { i32::MIN })
             .collect();
-        self.queue
+        self.ctx
+            .queue
             .write_buffer(&binner.rects, 0, bytemuck::cast_slice(&sentinel));
         let groups = self.bin_groups(binner)?;
-        let mut enc = self.device.create_command_encoder(&Default::default());
+        let mut enc = self.ctx.device.create_command_encoder(&Default::default());
         enc.clear_buffer(&binner.cursors, 0, None);
         enc.clear_buffer(&binner.stats, 0, None);
         {
@@ -373,19 +388,25 @@ impl ShellsRenderer {
         enc.copy_buffer_to_buffer(&binner.offsets, 0, &binner.readback, 0, b_off);
         enc.copy_buffer_to_buffer(&binner.rects, 0, &binner.readback, b_off, b_rect);
         enc.copy_buffer_to_buffer(&binner.stats, 0, &binner.readback, b_off + b_rect, 16);
-        self.queue.submit([enc.finish()]);
-        read_back(&self.device, &binner.readback, words, binner.chunks.len())
+        self.ctx.queue.submit([enc.finish()]);
+        read_back(
+            &self.ctx.device,
+            &binner.readback,
+            words,
+            binner.chunks.len(),
+        )
     }
 
-    /// The binning constants of a frame with `n` slices per shell and `shells` shells, over
-    /// `binner`'s record chunks.
+    /// The binning constants of a frame with `n` slices per shell, over `binner`'s record
+    /// chunks.
     fn bin_uniforms(
         &self,
         m: &MeshData,
         plan: &FramePlan,
-        (n, shells): (u32, u64),
+        n: u32,
         binner: &GpuBinner,
     ) -> BinUniforms {
+        let shells = plan.shells(n);
         let f32x3 = |v: glam::DVec3| v.as_vec3().to_array();
         let [right, up, forward] = plan.view.basis;
         let dist = (m.origin - plan.view.eye).length();
@@ -413,7 +434,7 @@ impl ShellsRenderer {
     /// them).
     fn tet_groups(&self, tets: u32) -> (u32, u32) {
         let groups = tets.div_ceil(GROUP).max(1);
-        let max = self.limits.max_compute_workgroups_per_dimension;
+        let max = self.ctx.limits.max_compute_workgroups_per_dimension;
         if groups <= max {
             (groups, 1)
         } else {
@@ -442,23 +463,25 @@ impl ShellsRenderer {
                     size: wgpu::BufferSize::new(size_of::<BinChunk>() as u64),
                 }),
             };
-            self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("shells gpu binning"),
-                layout: &binner.layout,
-                entries: &[
-                    entry(0, &binner.uniforms),
-                    entry(1, self.mesh.positions()),
-                    tets.window(2, first, count),
-                    entry(3, &binner.mask),
-                    entry(4, &binner.cursors),
-                    entry(5, &binner.offsets),
-                    entry(6, &binner.rects),
-                    entry(7, &binner.stats),
-                    ids.clone(),
-                    binner.spans.window(9, first, count),
-                    chunk,
-                ],
-            })
+            self.ctx
+                .device
+                .create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("shells gpu binning"),
+                    layout: &binner.layout,
+                    entries: &[
+                        entry(0, &binner.uniforms),
+                        entry(1, self.mesh.positions()),
+                        tets.window(2, first, count),
+                        entry(3, &binner.mask),
+                        entry(4, &binner.cursors),
+                        entry(5, &binner.offsets),
+                        entry(6, &binner.rects),
+                        entry(7, &binner.stats),
+                        ids.clone(),
+                        binner.spans.window(9, first, count),
+                        chunk,
+                    ],
+                })
         };
         Ok((binner.chunks.iter().enumerate())
             .map(|(c, &range)| group(c, range))
@@ -474,11 +497,8 @@ fn read_back(
     words: [u64; 3],
     chunks: usize,
 ) -> Result<Readback, RenderError> {
-    map_read(device, readback)?;
     let all: Vec<u32> = {
-        let view = (readback.get_mapped_range(..)).map_err(|e| {
-            settings_error(format!("mapping the GPU binning's readback failed: {e}"))
-        })?;
+        let view = read_mapped(device, readback, "the GPU binning's offsets and counters")?;
         let bytes = 4 * words.iter().sum::<u64>() as usize;
         bytemuck::cast_slice(&view[..bytes]).to_vec()
     };
@@ -552,17 +572,17 @@ mod tests {
     /// The first `n` entries of the renderer's active buffer.
     fn active_ids(r: &ShellsRenderer, n: u64) -> Vec<u32> {
         let bytes = (4 * n).max(4);
-        let read = r.device.create_buffer(&wgpu::BufferDescriptor {
+        let read = r.ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: None,
             size: bytes,
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let mut enc = r.device.create_command_encoder(&Default::default());
+        let mut enc = r.ctx.device.create_command_encoder(&Default::default());
         enc.copy_buffer_to_buffer(&r.active_buf, 0, &read, 0, bytes);
-        r.queue.submit([enc.finish()]);
-        map_read(&r.device, &read).expect("map");
-        let ids = bytemuck::cast_slice(&read.get_mapped_range(..).expect("mapped")).to_vec();
+        r.ctx.queue.submit([enc.finish()]);
+        let ids =
+            bytemuck::cast_slice(&read_mapped(&r.ctx.device, &read, "ids").expect("map")).to_vec();
         ids[..n as usize].to_vec()
     }
 

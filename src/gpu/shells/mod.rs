@@ -72,6 +72,7 @@ pub(crate) mod binning;
 mod composite;
 mod compute;
 mod config;
+use config::TargetFormats;
 mod fine;
 mod gpu_binning;
 mod pipelines;
@@ -105,12 +106,12 @@ use crate::mesh::TetMesh;
 use crate::render::{Frame, RenderError, Renderer, Timings};
 use crate::tf::TransferFunction;
 
-use binning::Binning;
-use pipelines::{ErtPipelines, Pipelines, RasterSet};
+use binning::{Binning, ShellRange};
+use pipelines::{Pipelines, RasterSet};
 use plan::FramePlan;
 use skips::Skips;
 use targets::Targets;
-use termination::{Cut, Termination};
+use termination::{Cut, Ert, Termination};
 use texture::ShellTexture;
 use upload::{DrawnShell, InstanceLayout, chunk_local};
 
@@ -247,13 +248,10 @@ const ERT_CHECKS: usize = 8;
 
 /// The barycentric shell-sampling renderer; see the module docs.
 pub struct ShellsRenderer {
-    device: wgpu::Device,
-    queue: wgpu::Queue,
-    limits: wgpu::Limits,
+    ctx: GpuContext,
     settings: ShellSettings,
-    format: wgpu::TextureFormat,
-    /// The accumulation target's format (32-bit where the adapter blends it).
-    accum_format: wgpu::TextureFormat,
+    /// The slice and accumulation targets' formats and slice layers.
+    formats: TargetFormats,
     /// The fixed slices per shell, or `None` when chosen per frame among `candidates`.
     fixed_slices: Option<u32>,
     /// The count used without adaptive slices, and kept by them unless another is predicted to
@@ -261,8 +259,6 @@ pub struct ShellsRenderer {
     default_slices: u32,
     candidates: Vec<u32>,
     model: adaptive::CostModel,
-    /// Layers of the slice texture: the colour targets of the largest count in use.
-    slice_layers: u32,
     /// The last frame's slices per shell (before the first frame: the fixed or default count).
     slices_per_shell: u32,
     shell_stride: u64,
@@ -343,7 +339,7 @@ impl ShellsRenderer {
     ) -> Result<Self, RenderError> {
         let config = config::slices(ctx, &settings)?;
         config::check(&settings)?;
-        let (device, queue, limits) = (ctx.device.clone(), ctx.queue.clone(), ctx.limits.clone());
+        let device = &ctx.device;
         // Records beyond one storage binding are assembled and drawn in chunks, each bound as
         // a window of the record array (several buffers where one cannot hold them).
         let chunking = mesh.chunking()?;
@@ -353,9 +349,9 @@ impl ShellsRenderer {
         let ert =
             (settings.skips.early_termination && !walks).then_some(settings.skips.ert_threshold);
         let textured = texture.is_some();
-        let pipelines = Pipelines::new(&device, (config.format, config.accum), ert, textured);
+        let pipelines = Pipelines::new(device, config.targets, ert, textured);
         let compute = (settings.sampler == Sampler::Compute)
-            .then(|| compute::ComputeSampler::new(&device, ert, textured));
+            .then(|| compute::ComputeSampler::new(device, ert, textured));
         let walk = match settings.sampler {
             Sampler::Walk => {
                 let shared = texture.as_ref().map(|t| t.gpu.clone());
@@ -365,20 +361,19 @@ impl ShellsRenderer {
         };
         let binner = if !walks && gpu_binning::picked(settings.binning, tet_count) {
             let spans = mesh.tet_array("shells bin spans", chunking, tet_count, 8)?;
-            let gpu = (&device, &queue, &limits);
             let chunks = chunking.ranges(tet_count);
-            Some(gpu_binning::GpuBinner::new(gpu, tet_count, chunks, spans))
+            Some(gpu_binning::GpuBinner::new(ctx, tet_count, chunks, spans))
         } else {
             None
         };
-        let view_buf = uniform_buffer(&device, "shells view", size_of::<ViewUniforms>());
-        let slicing_buf = uniform_buffer(&device, "shells slicing", size_of::<SlicingUniforms>());
+        let view_buf = uniform_buffer(device, "shells view", size_of::<ViewUniforms>());
+        let slicing_buf = uniform_buffer(device, "shells slicing", size_of::<SlicingUniforms>());
         let assembled = match walks {
             true => None,
-            false => Some(Assembled::new(&device, &mesh, &view_buf)?),
+            false => Some(Assembled::new(device, &mesh, &view_buf)?),
         };
         let shell_stride = (size_of::<ShellUniforms>() as u64)
-            .next_multiple_of(limits.min_uniform_buffer_offset_alignment as u64);
+            .next_multiple_of(ctx.limits.min_uniform_buffer_offset_alignment as u64);
         let active_buf = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("shells active tets"),
             size: 16,
@@ -393,21 +388,17 @@ impl ShellsRenderer {
             usage: wgpu::BufferUsages::INDEX | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let shell_buf = uniform_buffer(&device, "shells shell uniforms", shell_stride as usize);
-        let tf_buf = uniform_buffer(&device, "shells transfer function", size_of::<TfPoints>());
+        let shell_buf = uniform_buffer(device, "shells shell uniforms", shell_stride as usize);
+        let tf_buf = uniform_buffer(device, "shells transfer function", size_of::<TfPoints>());
         Ok(Self {
-            device,
-            queue,
-            limits,
+            ctx: ctx.clone(),
             settings,
-            format: config.format,
-            accum_format: config.accum,
+            formats: config.targets,
             fixed_slices: config.fixed,
             default_slices: config.default,
             slices_per_shell: config.fixed.unwrap_or(config.default),
             candidates: config.candidates,
             model: config.model,
-            slice_layers: config.layers,
             frame: FrameResources::new(ctx),
             instances: InstanceLayout {
                 window: 1,
@@ -442,7 +433,7 @@ impl ShellsRenderer {
 
     /// The slice target format in use.
     pub fn format(&self) -> wgpu::TextureFormat {
-        self.format
+        self.formats.slices
     }
 
     /// Builds pipelines and uploads the mesh (positions relative to its bounding-box centre,
@@ -463,17 +454,18 @@ impl ShellsRenderer {
         self.slices_for(&self.mesh.read(), camera)
     }
 
-    fn ensure_targets(&mut self, width: u32, height: u32) -> Result<(), RenderError> {
+    /// The targets of a `width` x `height` frame: the kept ones when the size holds, else
+    /// new ones, kept for the next frames.
+    fn ensure_targets(&mut self, width: u32, height: u32) -> Result<Targets, RenderError> {
         if let Some(t) = &self.targets
             && (t.width, t.height) == (width, height)
         {
-            return Ok(());
+            return Ok(t.clone());
         }
-        check_image_size(&self.limits, width, height)?;
-        let layers = (self.format, self.slice_layers, self.accum_format);
+        check_image_size(&self.ctx.limits, width, height)?;
         let ert = self.pipelines.ert.as_ref();
-        self.targets = Some(Targets::new(&self.device, (width, height), layers, ert));
-        Ok(())
+        let targets = Targets::new(&self.ctx.device, (width, height), self.formats, ert);
+        Ok(self.targets.insert(targets).clone())
     }
 }
 
@@ -518,7 +510,7 @@ impl Assembled {
 
 /// The error of a raster or compute stage run by a renderer without records (the walk's).
 fn no_records() -> RenderError {
-    settings_error("internal: the walk sampler has no records or assembly")
+    RenderError::Internal("the walk sampler has no records or assembly")
 }
 
 /// A frame after the CPU stages: its plan, slices per shell, binned tets and shells to draw.
@@ -539,12 +531,15 @@ struct ShellPass {
     rect: [u32; 4],
     /// Whether its passes test the termination mask.
     tested: bool,
+    /// Its ranges of the active lists.
+    range: ShellRange,
 }
 
 /// What the passes of one frame draw with.
 struct Passes<'a> {
     targets: &'a Targets,
-    ert: Option<&'a ErtPipelines>,
+    /// Early ray termination's pipelines and targets, when it is on.
+    ert: Option<Ert<'a>>,
     /// Raster pipelines without and with the termination mask test.
     raster: (RasterSet, Option<RasterSet>),
     /// Composite pipelines without and with the termination mask test.
@@ -557,6 +552,9 @@ struct Passes<'a> {
     instances: InstanceLayout,
     composite_group: wgpu::BindGroup,
     face_indices: &'a wgpu::Buffer,
+    /// The active list, and the mesh's tets (its ids are chunk-local when they exceed a chunk).
+    active: &'a wgpu::Buffer,
+    tet_count: u32,
     shell_stride: u64,
     chunk_tets: u32,
     /// Colour targets (of 4 slices) per shell.
@@ -567,7 +565,7 @@ impl Passes<'_> {
     /// The termination mask as the depth attachment of a pass that tests it (`on`, with early
     /// ray termination), cleared to 1 (nothing finished) by the `first` mark pass.
     fn mask(&self, on: bool, first: bool) -> Option<wgpu::RenderPassDepthStencilAttachment<'_>> {
-        let ert = (self.targets.ert.as_ref()).filter(|_| on && self.ert.is_some())?;
+        let ert = self.ert.filter(|_| on)?.targets;
         let load = if first {
             wgpu::LoadOp::Clear(1.0)
         } else {
@@ -582,6 +580,14 @@ impl Passes<'_> {
             stencil_ops: None,
         })
     }
+}
+
+/// What a frame with the raster sampler ran: its statistics, what the shell loop drew and the
+/// early termination's schedule.
+struct RasterRun {
+    stats: FrameStats,
+    draws: Draws,
+    term: Termination,
 }
 
 /// What the shell loop drew.
@@ -603,15 +609,13 @@ impl ShellsRenderer {
         timings: &mut Timings,
     ) -> Result<Image, RenderError> {
         let [width, height] = frame.plan.view.size;
-        self.ensure_targets(width, height)?;
-        let (stats, draws, term) = self.draw(&mut frame, tf)?;
+        let targets = self.ensure_targets(width, height)?;
+        let run = self.draw(&targets, &mut frame, tf)?;
         let t_read = Instant::now();
-        let targets = (self.targets.as_ref())
-            .ok_or_else(|| settings_error("internal: targets missing after ensure_targets"))?;
         let mut image = Image::new(targets.width, targets.height);
-        image.pixels = targets.readback.read(&self.device)?;
+        image.pixels = targets.readback.read(&self.ctx.device)?;
         let readback = ms_since(t_read);
-        self.report(timings, &stats, (&frame, &draws, &term), &image);
+        self.report(timings, &frame, &run, &image);
         timings.stage("readback", readback);
         Ok(image)
     }
@@ -620,26 +624,27 @@ impl ShellsRenderer {
     /// termination passes; runs them and reads the statistics back.
     fn draw(
         &mut self,
+        targets: &Targets,
         f: &mut ShellFrame,
         tf: &TransferFunction,
-    ) -> Result<(FrameStats, Draws, Termination), RenderError> {
+    ) -> Result<RasterRun, RenderError> {
         let layers = f.n.div_ceil(4);
         let points = tf.points().len() as u32;
         let ert = self.settings.skips.early_termination;
         let mut composite = |d| {
             self.pipelines
-                .composite(&self.device, layers, points, d)
+                .composite(&self.ctx.device, layers, points, d)
                 .clone()
         };
         let composite = (composite(false), ert.then(|| composite(true)));
-        let mut raster = |d| self.pipelines.raster(&self.device, layers, d).clone();
+        let mut raster = |d| self.pipelines.raster(&self.ctx.device, layers, d).clone();
         let raster = (raster(false), ert.then(|| raster(true)));
         let raster_groups = self.raster_groups()?;
-        let targets = (self.targets.as_ref())
-            .ok_or_else(|| settings_error("internal: targets missing after ensure_targets"))?;
         let passes = Passes {
             targets,
-            ert: self.pipelines.ert.as_ref(),
+            ert: (self.pipelines.ert.as_ref())
+                .zip(targets.ert.as_ref())
+                .map(|(pipelines, targets)| Ert { pipelines, targets }),
             raster,
             composite,
             chunks: self.chunking.ranges(self.mesh.tet_count() as u64).len(),
@@ -647,6 +652,8 @@ impl ShellsRenderer {
             raster_groups,
             composite_group: self.composite_group(targets),
             face_indices: &self.face_indices,
+            active: &self.active_buf,
+            tet_count: self.mesh.tet_count() as u32,
             shell_stride: self.shell_stride,
             chunk_tets: self.chunking.chunk as u32,
             layers,
@@ -659,8 +666,8 @@ impl ShellsRenderer {
         } else {
             0
         };
-        let mut rec = (self.frame).recorder(&self.device, &self.queue, count, occlusion);
-        let max_groups = self.limits.max_compute_workgroups_per_dimension;
+        let mut rec = (self.frame).recorder(&self.ctx.device, &self.ctx.queue, count, occlusion);
+        let max_groups = self.ctx.limits.max_compute_workgroups_per_dimension;
         let assembled = self.assembled.as_ref().ok_or_else(no_records)?;
         (assembled.stage).record(&mut rec, &assembled.groups, max_groups)?;
         if f.drawn.is_empty() {
@@ -668,12 +675,11 @@ impl ShellsRenderer {
         }
         let tau_max = tf.taus().iter().copied().fold(0.0, f64::max);
         let threshold = self.settings.skips.ert_threshold;
-        let mut term = Termination::new(&f.drawn, (f.n, f.plan.dz), tau_max, threshold);
-        let active = (&self.queue, &self.active_buf, self.mesh.tet_count() as u32);
-        let draws = draw_shells(&mut rec, &passes, f, &mut term, active)?;
+        let mut term = Termination::new(f, tau_max, threshold);
+        let draws = draw_shells(&mut rec, &passes, f, &mut term)?;
         let images = [(&targets.accum, &targets.readback)];
         let stats = rec.finish(&images, assembled.stage.degenerate(), draws.queries)?;
-        Ok((stats, draws, term))
+        Ok(RasterRun { stats, draws, term })
     }
 
     /// One raster bind group per window of the active list and chunk of records, window by
@@ -719,39 +725,38 @@ impl ShellsRenderer {
                 if let Some(t) = &self.texture {
                     entries.extend(t.entries());
                 }
-                self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("shells raster"),
-                    layout: &self.pipelines.raster_layout,
-                    entries: &entries,
-                })
+                self.ctx
+                    .device
+                    .create_bind_group(&wgpu::BindGroupDescriptor {
+                        label: Some("shells raster"),
+                        layout: &self.pipelines.raster_layout,
+                        entries: &entries,
+                    })
             })
             .collect())
     }
 
     /// The composite bind group: the slice layers, the transfer function, the slicing.
     fn composite_group(&self, targets: &Targets) -> wgpu::BindGroup {
-        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("shells composite"),
-            layout: &self.pipelines.composite_layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: wgpu::BindingResource::TextureView(&targets.slices_view),
-                },
-                entry(2, &self.tf_buf),
-                entry(4, &self.slicing_buf),
-            ],
-        })
+        self.ctx
+            .device
+            .create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("shells composite"),
+                layout: &self.pipelines.composite_layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: wgpu::BindingResource::TextureView(&targets.slices_view),
+                    },
+                    entry(2, &self.tf_buf),
+                    entry(4, &self.slicing_buf),
+                ],
+            })
     }
 
     /// The raster sampler's GPU stage times and counters.
-    fn report(
-        &self,
-        timings: &mut Timings,
-        stats: &FrameStats,
-        (f, draws, term): (&ShellFrame, &Draws, &Termination),
-        image: &Image,
-    ) {
+    fn report(&self, timings: &mut Timings, f: &ShellFrame, run: &RasterRun, image: &Image) {
+        let RasterRun { stats, draws, term } = run;
         let ert = self.settings.skips.early_termination;
         let stages: &[&str] = if ert {
             &["assembly", "raster", "composite", "termination"]
@@ -840,14 +845,12 @@ fn report_termination(timings: &mut Timings, term: &Termination, image: &Image, 
 
 /// The shell loop: per drawn shell, cut to the unfinished tiles, its raster and composite
 /// passes, then with early ray termination its mark pass and now and then a tile readback
-/// after which the later shells drop finished tets (their active list uploaded again through
-/// `active`: queue, buffer, the mesh's tet count).
+/// after which the later shells drop finished tets (their active list uploaded again).
 fn draw_shells(
     rec: &mut Recorder,
     p: &Passes,
     f: &mut ShellFrame,
     term: &mut Termination,
-    (queue, active, tet_count): (&wgpu::Queue, &wgpu::Buffer, u32),
 ) -> Result<Draws, RenderError> {
     let mut draws = Draws::default();
     let len = f.drawn.len();
@@ -858,38 +861,39 @@ fn draw_shells(
             Cut::Skip => continue,
             Cut::Stop => break,
         };
+        let (faces, near) = (range.faces.len() as u64, range.near.len() as u64);
         let s = ShellPass {
             index: i,
             rect,
             tested: term.tested(i),
+            range,
         };
         let query = rec.occlusion().map(|_| draws.queries);
-        raster::encode(rec, p, (&s, &range), &f.bin, query);
+        raster::encode(rec, p, &s, &f.bin, query);
         draws.queries += query.is_some() as u32;
-        draws.instances += range.faces.len() as u64 + range.near.len() as u64;
-        draws.triangles += 4 * range.faces.len() as u64 + 2 * range.near.len() as u64;
+        draws.instances += faces + near;
+        draws.triangles += 4 * faces + 2 * near;
         rec.end_stage("raster")?;
         composite::encode(rec, p, &s);
         rec.end_stage("composite")?;
-        if p.ert.is_none() || !term.can_finish(shell) {
+        let Some(ert) = p.ert.filter(|_| term.can_finish(shell)) else {
             continue;
-        }
-        termination::mark(rec, p, &s, term.first_finishing == Some(i));
+        };
+        termination::mark(rec, p, ert, &s, term.first_finishing == Some(i));
         rec.end_stage("termination")?;
         if term.check_due(i, len) {
-            let mask = termination::read_tiles(rec, p)?;
+            let mask = termination::read_tiles(rec, p, ert)?;
             if f.bins.is_empty() {
                 // Binned on the GPU: the lists stay there, the mask still skips tiles.
                 term.checked(i, mask);
                 continue;
             }
-            let frame = (&f.plan, f.bins.as_slice());
-            let rest = &mut f.drawn[i + 1..];
-            let (dropped, changed) = termination::drop_finished(&mask, frame, &mut f.bin, rest);
+            let (dropped, changed) = f.drop_finished(&mask, i + 1);
             term.tets_finished += dropped;
             if let Some((from, to)) = changed {
-                let ids = chunk_local(&f.bin.indices[from..to], p.chunk_tets, tet_count);
-                queue.write_buffer(active, 4 * from as u64, bytemuck::cast_slice(&ids));
+                let ids = chunk_local(&f.bin.indices[from..to], p.chunk_tets, p.tet_count);
+                let ids = bytemuck::cast_slice(&ids);
+                rec.queue().write_buffer(p.active, 4 * from as u64, ids);
             }
             term.checked(i, mask);
         }
@@ -915,10 +919,7 @@ impl Renderer for ShellsRenderer {
         // 1. Plan and binning (CPU): the frame's slices, each tet's shells, slices per shell.
         let plan = self.plan(&m, camera)?;
         let t0 = Instant::now();
-        let on_gpu = match self.binner {
-            Some(_) => self.bin_on_gpu(&m, &plan, tf)?,
-            None => None,
-        };
+        let on_gpu = self.bin_on_gpu(&m, &plan, tf)?;
         let (n, bins, bin) = if let Some((n, bin)) = on_gpu {
             (n, Vec::new(), bin)
         } else {
@@ -931,7 +932,7 @@ impl Renderer for ShellsRenderer {
 
         // 2. Upload: view and slicing constants, transfer function, shell constants, active lists.
         let t1 = Instant::now();
-        let drawn = self.upload(&m, &plan, tf, (n, &bin))?;
+        let drawn = self.upload(&m, &plan, tf, n, &bin)?;
         timings.stage("upload", ms_since(t1));
 
         // 3.-6. Assembly, per drawn shell its sampling and composite, readback.
@@ -945,7 +946,7 @@ impl Renderer for ShellsRenderer {
         let image = match self.settings.sampler {
             Sampler::Raster => self.render_raster(frame, tf, &mut timings)?,
             // The walk sampler renders its frame before any of the stages above.
-            Sampler::Walk => return Err(settings_error("internal: the walk reached the binning")),
+            Sampler::Walk => return Err(RenderError::Internal("the walk reached the binning")),
             Sampler::Compute => {
                 let c = self.draw_compute(&frame, tf)?;
                 self.report_frame(
@@ -994,9 +995,7 @@ impl Renderer for ShellsRenderer {
         .map(|b| b.size())
         .sum::<u64>()
             + self.assembled.as_ref().map_or(0, Assembled::size);
-        let texel = |f: wgpu::TextureFormat| f.block_copy_size(None).unwrap_or(16) as u64;
-        let texels = (texel(self.format), texel(self.accum_format));
-        let targets = (self.targets.as_ref()).map_or(0, |t| t.size(self.slice_layers, texels))
+        let targets = (self.targets.as_ref()).map_or(0, |t| t.size(self.formats))
             + self
                 .compute
                 .as_ref()

@@ -10,6 +10,7 @@ use crate::gpu::util::{
     bind_group_layout, buffer_entry, pipeline_layout_for, tet_faces, vertex_state, wgsl_module,
 };
 
+use super::config::TargetFormats;
 use super::{ERT_DEPTH, texture};
 
 /// Layouts and the pipelines that do not depend on the slices per shell, built once; raster
@@ -144,7 +145,7 @@ impl ErtPipelines {
 impl Pipelines {
     pub(super) fn new(
         device: &wgpu::Device,
-        (format, accum): (wgpu::TextureFormat, wgpu::TextureFormat),
+        formats: TargetFormats,
         ert: Option<f32>,
         textured: bool,
     ) -> Self {
@@ -206,8 +207,8 @@ impl Pipelines {
             composite_layout,
             composite_pipeline_layout,
             composite: HashMap::new(),
-            format,
-            accum,
+            format: formats.slices,
+            accum: formats.accum,
             ert: ert.map(|threshold| ErtPipelines::new(device, threshold)),
             textured,
         }

@@ -94,7 +94,7 @@ impl ShellsRenderer {
         .filter(|&n| slices.div_ceil(n as u64) <= MAX_SHELLS)
         .collect();
         if allowed.is_empty() {
-            let n = self.fixed_slices.unwrap_or(4 * self.slice_layers);
+            let n = self.fixed_slices.unwrap_or(4 * self.formats.layers);
             return Err(settings_error(format!(
                 "dz = {dz} makes {} shells of {n} slices across the mesh; at most \
                  {MAX_SHELLS} are allowed: use fewer samples or a larger dz",

@@ -8,7 +8,7 @@ use std::ops::Range;
 
 use crate::gpu::frame::Recorder;
 
-use super::binning::{Binning, ScreenRect, ShellRange};
+use super::binning::{Binning, ScreenRect};
 use super::{Passes, ShellPass};
 
 /// Encodes the raster pass of shell `s` (its index among the drawn shells, its ranges of the
@@ -16,10 +16,11 @@ use super::{Passes, ShellPass};
 pub(super) fn encode(
     rec: &mut Recorder,
     p: &Passes,
-    (s, range): (&ShellPass, &ShellRange),
+    s: &ShellPass,
     bin: &Binning,
     query: Option<u32>,
 ) {
+    let range = &s.range;
     let ts = rec.timestamps("raster");
     let occlusion = rec.occlusion();
     let load = wgpu::Operations {

@@ -6,10 +6,12 @@ use crate::gpu::frame::ImageReadback;
 use crate::gpu::util::{entry, texture_2d};
 
 use super::ERT_DEPTH;
+use super::config::TargetFormats;
 use super::pipelines::ErtPipelines;
 use super::skips::TileMask;
 
-/// Image-size-dependent targets, rebuilt when the size changes.
+/// Image-size-dependent targets, rebuilt when the size changes (a clone shares them).
+#[derive(Clone)]
 pub(super) struct Targets {
     pub(super) width: u32,
     pub(super) height: u32,
@@ -24,6 +26,7 @@ pub(super) struct Targets {
 }
 
 /// The early-ray-termination mask and tile flags of one image size.
+#[derive(Clone)]
 pub(super) struct ErtTargets {
     pub(super) depth_view: wgpu::TextureView,
     pub(super) mark_group: wgpu::BindGroup,
@@ -35,14 +38,19 @@ pub(super) struct ErtTargets {
 }
 
 impl Targets {
-    /// The targets of a `width` x `height` image with `layers` slice layers of `format` and
-    /// an accumulation target of `accum`.
+    /// The targets of a `width` x `height` image with the slice layers and accumulation
+    /// target of `formats`.
     pub(super) fn new(
         device: &wgpu::Device,
         (width, height): (u32, u32),
-        (format, layers, accum_format): (wgpu::TextureFormat, u32, wgpu::TextureFormat),
+        formats: TargetFormats,
         ert: Option<&ErtPipelines>,
     ) -> Self {
+        let TargetFormats {
+            slices: format,
+            accum: accum_format,
+            layers,
+        } = formats;
         use wgpu::TextureUsages as U;
         let slices = texture_2d(
             device,
@@ -89,11 +97,13 @@ impl Targets {
         }
     }
 
-    /// Bytes of the targets: `layers` slice layers of `texel` bytes, the accumulation target
-    /// of `accum_texel` bytes a pixel, and the readback buffer.
-    pub(super) fn size(&self, layers: u32, (texel, accum_texel): (u64, u64)) -> u64 {
+    /// Bytes of the targets: the slice layers and the accumulation target of `formats`, and
+    /// the readback buffer.
+    pub(super) fn size(&self, formats: TargetFormats) -> u64 {
+        let texel = |f: wgpu::TextureFormat| f.block_copy_size(None).unwrap_or(16) as u64;
+        let slices = texel(formats.slices) * formats.layers as u64;
         let pixels = self.width as u64 * self.height as u64;
-        pixels * (texel * layers as u64 + accum_texel) + self.readback.size()
+        pixels * (slices + texel(formats.accum)) + self.readback.size()
     }
 }
 

@@ -6,15 +6,14 @@
 //! tiles.
 
 use crate::gpu::frame::Recorder;
-use crate::gpu::util::{map_read, settings_error};
+use crate::gpu::util::read_mapped;
 use crate::render::RenderError;
 
-use super::binning::{Binning, TetBin};
-use super::plan::FramePlan;
+use super::binning::TetBin;
+use super::pipelines::ErtPipelines;
 use super::skips::TileMask;
 use super::targets::ErtTargets;
-use super::upload::DrawnShell;
-use super::{ERT_CHECKS, Passes, ShellPass};
+use super::{ERT_CHECKS, Passes, ShellFrame, ShellPass};
 
 /// What becomes of a shell once the finished tiles are known.
 pub(super) enum Cut {
@@ -47,14 +46,10 @@ pub(super) struct Termination {
 }
 
 impl Termination {
-    /// The schedule for `drawn` shells of `n` slices of spacing `dz`, extinction at most
-    /// `tau_max`, threshold `threshold`.
-    pub(super) fn new(
-        drawn: &[DrawnShell],
-        (n, dz): (u32, f64),
-        tau_max: f64,
-        threshold: f32,
-    ) -> Self {
+    /// The schedule for the drawn shells of frame `f`, extinction at most `tau_max`, threshold
+    /// `threshold`.
+    pub(super) fn new(f: &ShellFrame, tau_max: f64, threshold: f32) -> Self {
+        let (drawn, n, dz) = (&f.drawn, f.n, f.plan.dz);
         let depth_needed = -(1.0 - threshold as f64).ln();
         let can_finish =
             |shell: u32| (shell as f64 + 1.0) * n as f64 * dz * tau_max * 1.01 >= depth_needed;
@@ -121,11 +116,15 @@ impl Termination {
     }
 }
 
+/// Early ray termination's pipelines and the targets of the frame's image size.
+#[derive(Clone, Copy)]
+pub(super) struct Ert<'a> {
+    pub(super) pipelines: &'a ErtPipelines,
+    pub(super) targets: &'a ErtTargets,
+}
+
 /// Encodes the mark pass of shell `s`: the first one clears the mask to 1 (nothing finished).
-pub(super) fn mark(rec: &mut Recorder, p: &Passes, s: &ShellPass, first: bool) {
-    let Some((pipelines, targets)) = p.ert.zip(p.targets.ert.as_ref()) else {
-        return;
-    };
+pub(super) fn mark(rec: &mut Recorder, p: &Passes, ert: Ert, s: &ShellPass, first: bool) {
     let ts = rec.timestamps("termination");
     let mut pass = rec
         .encoder()
@@ -138,19 +137,22 @@ pub(super) fn mark(rec: &mut Recorder, p: &Passes, s: &ShellPass, first: bool) {
         });
     let [sx, sy, sw, sh] = s.rect;
     pass.set_scissor_rect(sx, sy, sw, sh);
-    pass.set_pipeline(&pipelines.mark);
-    pass.set_bind_group(0, &targets.mark_group, &[]);
+    pass.set_pipeline(&ert.pipelines.mark);
+    pass.set_bind_group(0, &ert.targets.mark_group, &[]);
     pass.draw(0..3, 0..1);
 }
 
 /// Runs what `rec` recorded, then flags the tiles with an unfinished pixel and reads them back
 /// (the one place a frame waits for the GPU before its end).
-pub(super) fn read_tiles(rec: &mut Recorder, p: &Passes) -> Result<TileMask, RenderError> {
-    let (Some(pipelines), Some(ert)) = (p.ert, p.targets.ert.as_ref()) else {
-        return Err(settings_error(
-            "internal: early termination without its targets",
-        ));
-    };
+pub(super) fn read_tiles(
+    rec: &mut Recorder,
+    p: &Passes,
+    ert: Ert,
+) -> Result<TileMask, RenderError> {
+    let Ert {
+        pipelines,
+        targets: ert,
+    } = ert;
     let ts = rec.timestamps("termination");
     let enc = rec.encoder();
     enc.clear_buffer(&ert.flags, 0, None);
@@ -167,14 +169,16 @@ pub(super) fn read_tiles(rec: &mut Recorder, p: &Passes) -> Result<TileMask, Ren
     enc.copy_buffer_to_buffer(&ert.flags, 0, &ert.flags_readback, 0, ert.flags.size());
     rec.end_stage("termination")?;
     rec.submit();
-    map_read(rec.device(), &ert.flags_readback)?;
-    tile_mask(ert)
+    tile_mask(rec.device(), ert)
 }
 
-fn tile_mask(ert: &ErtTargets) -> Result<TileMask, RenderError> {
+fn tile_mask(device: &wgpu::Device, ert: &ErtTargets) -> Result<TileMask, RenderError> {
     let unfinished = {
-        let data = (ert.flags_readback.get_mapped_range(..))
-            .map_err(|e| settings_error(format!("mapping the tile flags failed: {e}")))?;
+        let data = read_mapped(
+            device,
+            &ert.flags_readback,
+            "the early termination's tile flags",
+        )?;
         let flags: &[u32] = bytemuck::cast_slice(&data);
         flags.iter().map(|&f| f != 0).collect()
     };
@@ -186,35 +190,44 @@ fn tile_mask(ert: &ErtTargets) -> Result<TileMask, RenderError> {
     })
 }
 
-/// Drops from the `rest` of the drawn shells the tets whose pixels all lie in tiles that
-/// `mask` says are finished; returns how many were dropped and the part of `bin.indices` to
-/// upload again.
-pub(super) fn drop_finished(
-    mask: &TileMask,
-    (plan, bins): (&FramePlan, &[TetBin]),
-    bin: &mut Binning,
-    rest: &mut [DrawnShell],
-) -> (u64, Option<(usize, usize)>) {
-    let keep = |t: &u32| match bins[*t as usize] {
-        TetBin::Drawn { screen, .. } => mask.cut(plan.scissor(screen)).is_some(),
-        _ => true,
-    };
-    let (Some(first), Some(last)) = (rest.first(), rest.last()) else {
-        return (0, None);
-    };
-    let (from, to) = (first.1.faces.start as usize, last.1.near.end as usize);
-    let mut dropped = 0;
-    for (_, r) in rest.iter_mut() {
-        let list = &mut bin.indices[r.faces.start as usize..r.faces.end as usize];
-        let mut kept = 0;
-        for k in 0..list.len() {
-            if keep(&list[k]) {
-                list[kept] = list[k];
-                kept += 1;
+impl ShellFrame {
+    /// Drops from the drawn shells from index `from` on the tets whose pixels all lie in tiles
+    /// that `mask` says are finished; returns how many were dropped and the part of
+    /// `bin.indices` to upload again.
+    pub(super) fn drop_finished(
+        &mut self,
+        mask: &TileMask,
+        from: usize,
+    ) -> (u64, Option<(usize, usize)>) {
+        let Self {
+            plan,
+            bins,
+            bin,
+            drawn,
+            ..
+        } = self;
+        let keep = |t: &u32| match bins[*t as usize] {
+            TetBin::Drawn { screen, .. } => mask.cut(plan.scissor(screen)).is_some(),
+            _ => true,
+        };
+        let rest = &mut drawn[from..];
+        let (Some(first), Some(last)) = (rest.first(), rest.last()) else {
+            return (0, None);
+        };
+        let listed = (first.1.faces.start as usize, last.1.near.end as usize);
+        let mut dropped = 0;
+        for (_, r) in rest.iter_mut() {
+            let list = &mut bin.indices[r.faces.start as usize..r.faces.end as usize];
+            let mut kept = 0;
+            for k in 0..list.len() {
+                if keep(&list[k]) {
+                    list[kept] = list[k];
+                    kept += 1;
+                }
             }
+            dropped += (list.len() - kept) as u64;
+            r.faces.end = r.faces.start + kept as u32;
         }
-        dropped += (list.len() - kept) as u64;
-        r.faces.end = r.faces.start + kept as u32;
+        (dropped, Some(listed))
     }
-    (dropped, Some((from, to)))
 }

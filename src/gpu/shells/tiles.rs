@@ -103,7 +103,9 @@ pub(super) fn tile_rect([x, y, w, h]: [u32; 4]) -> [u32; 4] {
     [x / t, y / t, (x + w).div_ceil(t), (y + h).div_ceil(t)]
 }
 
-/// The compute sampler's buffers of one image size and tile-list capacity.
+/// The compute sampler's buffers of one image size and tile-list capacity (a clone shares
+/// them).
+#[derive(Clone)]
 pub(super) struct TileBuffers {
     pub(super) width: u32,
     pub(super) height: u32,

@@ -537,9 +537,9 @@ impl TunedShells {
             }
         }
         self.tuner.record(&times);
-        let mut frame = shown.ok_or_else(|| {
-            RenderError::Settings("internal: a tuning frame without the default".into())
-        })?;
+        let mut frame = shown.ok_or(RenderError::Internal(
+            "a tuning frame without the default's",
+        ))?;
         frame
             .timings
             .count("tuning: configurations timed", times.len() as u64);

@@ -81,7 +81,8 @@ pub fn barycentric(rec: &TetRecord, d: Vec3, t: f32) -> Vec4 {
 /// encoded scalar is `s0 + j s1`. Each barycentric is linear in `j`, `A + j B`, so the range is
 /// the intersection of the half-lines `A_i + j B_i >= -epsilon`.
 pub fn slice_span(
-    (f, sl): (&ViewUniforms, &SlicingUniforms),
+    f: &ViewUniforms,
+    sl: &SlicingUniforms,
     rec: &TetRecord,
     d: Vec3,
     first_slice: u32,
@@ -114,12 +115,13 @@ pub fn slice_span(
 /// The raster fragment for one pixel and shell: each slice's encoded scalar where the sample is
 /// inside the tet ([`slice_span`]), 0 elsewhere.
 pub fn sample_slices(
-    (f, sl): (&ViewUniforms, &SlicingUniforms),
+    f: &ViewUniforms,
+    sl: &SlicingUniforms,
     rec: &TetRecord,
     xy: [f32; 2],
     first_slice: u32,
 ) -> Vec<f32> {
-    let span = slice_span((f, sl), rec, pixel_ray(f, xy), first_slice);
+    let span = slice_span(f, sl, rec, pixel_ray(f, xy), first_slice);
     (0..sl.slices_per_shell)
         .map(|j| {
             let j = j as f32;
@@ -237,7 +239,7 @@ mod tests {
             let rec = assemble(&f, p, [0.5; 4]).expect("well conditioned");
             let lam = barycentric(&rec, pixel_ray(&f, xy), t);
             prop_assert!(lam.min_element() >= -f.epsilon, "inside point rejected: {lam}");
-            let out = sample_slices((&f, &sl), &rec, xy, 0);
+            let out = sample_slices(&f, &sl, &rec, xy, 0);
             prop_assert!(out[j as usize] > 0.0);
             for (k, &v) in out.iter().enumerate() {
                 let lam_k = barycentric(&rec, pixel_ray(&f, xy), sl.t_first + k as f32 * sl.dz);
@@ -262,7 +264,7 @@ mod tests {
             let d = xe / xe.length();
             let first = ((xe.length() - sl.t_first) / sl.dz) as u32 - shift;
             let rec = assemble(&f, p, [0.2, 0.9, 0.4, 0.6]).expect("well conditioned");
-            let span = slice_span((&f, &sl), &rec, d, first);
+            let span = slice_span(&f, &sl, &rec, d, first);
             let sd = Vec3::from_slice(&rec.scalar[..3]).dot(d);
             for j in 0..sl.slices_per_shell {
                 let t = sl.t_first + (first + j) as f32 * sl.dz;

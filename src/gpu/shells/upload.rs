@@ -6,6 +6,7 @@ use std::ops::Range;
 use bytemuck::Zeroable;
 use rayon::prelude::*;
 
+use crate::gpu::GpuContext;
 use crate::gpu::gpu_data::{ShellUniforms, SlicingUniforms};
 use crate::gpu::mesh::MeshData;
 use crate::gpu::tf::tf_points;
@@ -31,12 +32,14 @@ impl ShellsRenderer {
         m: &MeshData,
         plan: &FramePlan,
         tf: &TransferFunction,
-        (n, bin): (u32, &Binning),
+        n: u32,
+        bin: &Binning,
     ) -> Result<Vec<DrawnShell>, RenderError> {
         let near = (0.5 * plan.near_z) as f32;
         let tets = m.tets.len() as u32;
         let view = (plan.view).uniforms(m.origin, self.settings.epsilon, near, tets);
-        self.queue
+        self.ctx
+            .queue
             .write_buffer(&self.view_buf, 0, bytemuck::bytes_of(&view));
         let slicing = SlicingUniforms {
             t_first: plan.t_first as f32,
@@ -44,13 +47,15 @@ impl ShellsRenderer {
             slices_per_shell: n,
             _pad: 0,
         };
-        self.queue
+        self.ctx
+            .queue
             .write_buffer(&self.slicing_buf, 0, bytemuck::bytes_of(&slicing));
         // A textured cage's TF applies to the volume's texels, normalized by its range.
         let (lo, span) = (self.texture.as_ref())
             .map_or((m.scalar_min, m.scalar_span), |t| (t.gpu.lo, t.gpu.span));
         let points = tf_points(tf, lo, span)?;
-        self.queue
+        self.ctx
+            .queue
             .write_buffer(&self.tf_buf, 0, bytemuck::bytes_of(&points));
         let drawn = self.drawn_shells(bin);
         self.upload_shells(&drawn, n, plan);
@@ -78,14 +83,13 @@ impl ShellsRenderer {
     fn upload_shells(&mut self, drawn: &[DrawnShell], n: u32, plan: &FramePlan) {
         let stride = self.shell_stride as usize;
         let mut shell_data = vec![0u8; stride * drawn.len().max(1)];
-        for (i, (s, r)) in drawn.iter().enumerate() {
-            let u = shell_uniforms((*s, r), n, plan);
+        for (i, shell) in drawn.iter().enumerate() {
+            let u = shell_uniforms(shell, n, plan);
             shell_data[i * stride..i * stride + size_of::<ShellUniforms>()]
                 .copy_from_slice(bytemuck::bytes_of(&u));
         }
-        let gpu = (&self.device, &self.queue, &self.limits);
         let uniform = wgpu::BufferUsages::UNIFORM;
-        write_grown(gpu, &mut self.shell_buf, &shell_data, uniform);
+        write_grown(&self.ctx, &mut self.shell_buf, &shell_data, uniform);
     }
 
     /// The active list (in windows of one storage binding; left as the GPU binning wrote it)
@@ -94,14 +98,13 @@ impl ShellsRenderer {
     /// buffer grown to a power of two of the instances of a window, at most one buffer.
     fn upload_instances(&mut self, bin: &Binning, tet_count: u32) -> Result<(), RenderError> {
         let n = bin.shells.last().map_or(0, |r| r.near.end) as u64;
-        self.instances = InstanceLayout::new(n, &self.limits).ok_or_else(|| {
+        self.instances = InstanceLayout::new(n, &self.ctx.limits).ok_or_else(|| {
             settings_error(format!(
                 "this view draws {n} tet-shell instances, more than one buffer holds on this \
                  adapter; use more slices per shell or a larger dz"
             ))
         })?;
         let tets = self.instances.batch as usize;
-        let gpu = (&self.device, &self.queue, &self.limits);
         if self.face_indices.size() < 48 * tets as u64 {
             let mut pattern = vec![0u32; 12 * tets];
             pattern.par_chunks_mut(12).enumerate().for_each(|(k, tet)| {
@@ -111,7 +114,7 @@ impl ShellsRenderer {
             });
             let index = wgpu::BufferUsages::INDEX;
             write_grown(
-                gpu,
+                &self.ctx,
                 &mut self.face_indices,
                 bytemuck::cast_slice(&pattern),
                 index,
@@ -125,18 +128,15 @@ impl ShellsRenderer {
         let active = chunk_local(&bin.indices, chunk_tets, tet_count);
         let storage = wgpu::BufferUsages::STORAGE;
         let data = bytemuck::cast_slice(&active);
-        write_grown(gpu, &mut self.active_buf, data, storage);
+        write_grown(&self.ctx, &mut self.active_buf, data, storage);
         Ok(())
     }
 }
 
-/// The constants of drawn shell `s` with `n` slices per shell: its first slice, its ranges of
+/// The constants of a drawn shell with `n` slices per shell: its first slice, its ranges of
 /// the active list and the tiles of its rectangle.
-pub(super) fn shell_uniforms(
-    (s, r): (u32, &ShellRange),
-    n: u32,
-    plan: &FramePlan,
-) -> ShellUniforms {
+pub(super) fn shell_uniforms(shell: &DrawnShell, n: u32, plan: &FramePlan) -> ShellUniforms {
+    let (s, r) = shell;
     ShellUniforms {
         first_slice: s * n,
         faces: [r.faces.start, r.faces.len() as u32],
@@ -161,25 +161,25 @@ pub(super) fn chunk_local(ids: &[u32], chunk_tets: u32, tets: u32) -> std::borro
 /// Writes `data` to `*buf`, first growing it (to a power of two, at most the adapter's largest
 /// buffer) when it is too small.
 pub(super) fn write_grown(
-    (device, queue, limits): (&wgpu::Device, &wgpu::Queue, &wgpu::Limits),
+    ctx: &GpuContext,
     buf: &mut wgpu::Buffer,
     data: &[u8],
     usage: wgpu::BufferUsages,
 ) {
     if buf.size() < data.len() as u64 {
         let bytes = data.len() as u64;
-        *buf = device.create_buffer(&wgpu::BufferDescriptor {
+        *buf = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("shells per-frame data"),
             size: bytes
                 .next_power_of_two()
-                .min(limits.max_buffer_size)
+                .min(ctx.limits.max_buffer_size)
                 .max(bytes),
             usage: usage | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
     }
     if !data.is_empty() {
-        queue.write_buffer(buf, 0, data);
+        ctx.queue.write_buffer(buf, 0, data);
     }
 }
 

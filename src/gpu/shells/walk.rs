@@ -112,8 +112,8 @@ impl ShellsRenderer {
             shell_slices: self.fixed_slices.unwrap_or(self.default_slices).max(1),
             terminate: self.walk_terminate(),
         };
-        let walk = (self.walk.as_mut())
-            .ok_or_else(|| settings_error("internal: the walk sampler was not built"))?;
+        let walk =
+            (self.walk.as_mut()).ok_or(RenderError::Internal("the walk sampler was not built"))?;
         let mut frame = walk.raycast.render_slices(camera, tf, slicing)?;
         let t = &mut frame.timings;
         t.count("slices", count);
