@@ -584,6 +584,13 @@ impl Scene {
         let (lo, hi) = mesh.bounds();
         let c = &self.camera;
         let [w, h] = self.size;
+        // Checked before framing, which would turn them into a non-finite or mirrored eye.
+        if !(c.fov > 0.0 && c.fov < 180.0) {
+            return Err(CameraError::BadFov(c.fov).into());
+        }
+        if !(c.distance > 0.0 && c.distance.is_finite()) {
+            return Err(CameraError::BadDistance(c.distance).into());
+        }
         let mut camera = Camera::framing(lo, hi, View::parse(&c.view)?, c.distance, c.fov, w, h);
         if let Some(target) = c.target.map(glam::DVec3::from) {
             camera.eye += target - camera.target;
@@ -725,13 +732,23 @@ impl Scene {
                 format!("isovalues must be finite numbers, not {v}"),
             ));
         }
-        if !self.settings.iso.is_empty() {
-            return Ok(self.settings.iso.clone());
-        }
         let (lo, hi) = (mesh.active_array())
             .and_then(|a| a.range())
             .ok_or(MeshError::NoScalars)?;
-        Ok(vec![0.5 * (lo + hi)])
+        if self.settings.iso.is_empty() {
+            return Ok(vec![0.5 * (lo + hi)]);
+        }
+        // A surface outside the range is drawn nowhere: a blank picture, not what was asked.
+        if let Some(v) = (self.settings.iso.iter()).find(|v| !(lo..=hi).contains(*v)) {
+            return Err(setting(
+                "settings.iso",
+                format!(
+                    "isovalue {v} is outside the scalar range [{lo}, {hi}], so no surface would \
+                     be drawn; choose values inside the range"
+                ),
+            ));
+        }
+        Ok(self.settings.iso.clone())
     }
 
     fn shell_settings(&self) -> ShellSettings {

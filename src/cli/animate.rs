@@ -18,8 +18,8 @@ use tetvr::tf::TransferFunction;
 use tetvr::{Image, TetMesh};
 
 use super::commands::{
-    CliError, Textured, build_renderer, camera, load_mesh, median, ms, open_mode, read_limits,
-    transfer_function_for,
+    CliError, Textured, build_renderer, camera, check_output, load_mesh, median, ms, open_mode,
+    read_limits, transfer_function_for,
 };
 use super::scene::of_flags;
 use super::{AnimateArgs, RenderArgs};
@@ -30,6 +30,17 @@ pub(super) fn animate(args: AnimateArgs) -> Result<(), CliError> {
             "--frames and --fps must be at least 1".into(),
         ));
     }
+    if let Some(a) = args.amplitude.filter(|a| !a.is_finite()) {
+        return Err(CliError::Usage(format!(
+            "--amplitude must be a finite number, not {a}"
+        )));
+    }
+    let output = args
+        .render
+        .output
+        .as_deref()
+        .unwrap_or(Path::new("tetvr.gif"));
+    check_output(output, &["gif", "png"])?;
     if Series::is_series(&args.render.mesh.mesh) {
         if args.deform.is_some() || args.amplitude.is_some() || args.frames.is_some() {
             return Err(CliError::Usage(

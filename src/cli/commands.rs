@@ -108,6 +108,30 @@ pub fn run(cli: Cli, matches: &ArgMatches) -> Result<(), CliError> {
     }
 }
 
+/// Checks an output path before any work is done: its extension is one of `extensions` (the
+/// first is the format written) and its folder exists, so a long render does not end in an
+/// error, or in a file of one format under another's name.
+pub(super) fn check_output(path: &Path, extensions: &[&str]) -> Result<(), CliError> {
+    let ext = path.extension().and_then(|e| e.to_str());
+    if !ext.is_some_and(|e| extensions.iter().any(|x| e.eq_ignore_ascii_case(x))) {
+        let names: Vec<String> = extensions.iter().map(|e| format!(".{e}")).collect();
+        return Err(CliError::Usage(format!(
+            "{}: this command writes {}; name the output with that extension",
+            path.display(),
+            names.join(" or ")
+        )));
+    }
+    let folder = path.parent().filter(|f| !f.as_os_str().is_empty());
+    if let Some(folder) = folder.filter(|f| !f.is_dir()) {
+        return Err(CliError::Usage(format!(
+            "{}: the folder {} does not exist; create it first",
+            path.display(),
+            folder.display()
+        )));
+    }
+    Ok(())
+}
+
 pub(super) fn load_mesh(args: &MeshArgs) -> Result<Loaded, CliError> {
     let mut loaded = io::load_with(&args.mesh, &read_limits(args))?;
     let warp = args.warp.as_deref().map(|name| (name, args.scale));
@@ -127,6 +151,11 @@ pub(super) fn read_limits(args: &MeshArgs) -> io::ReadLimits {
 fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
     let scene = resolve(&cmd, matches)?;
     let args = &cmd.render;
+    let output = args.output.clone().unwrap_or_else(|| "tetvr.png".into());
+    check_output(&output, &["png"])?;
+    if let Some(path) = &cmd.save_scene {
+        check_output(path, &["json"])?;
+    }
     let Loaded { mesh, .. } = scene.load_mesh(&read_limits(&args.mesh))?;
     let camera = scene.camera(&mesh)?;
 
@@ -155,7 +184,6 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
     if args.timings {
         print!("{}", frame.timings);
     }
-    let output = args.output.clone().unwrap_or_else(|| "tetvr.png".into());
     image.save_png(&output, scene.background)?;
     if args.cellproj.sort_check {
         write_sort_check(&mesh, &camera, &output)?;
@@ -355,6 +383,7 @@ fn iso_export(args: IsoExportArgs) -> Result<(), CliError> {
             "--iso: isovalues must be finite numbers, not {v}"
         )));
     }
+    check_output(&args.output, &["glb"])?;
     let Loaded { mesh, .. } = load_mesh(&args.mesh)?;
     let range = mesh
         .active_array()
@@ -425,6 +454,15 @@ fn info(args: InfoArgs) -> Result<(), CliError> {
 }
 
 fn compare(args: CompareArgs) -> Result<(), CliError> {
+    if !(args.scale > 0.0 && args.scale.is_finite()) {
+        return Err(CliError::Usage(format!(
+            "--scale {} must be a positive number: the channel difference shown as white",
+            args.scale
+        )));
+    }
+    if let Some(out) = &args.output {
+        check_output(out, &["png"])?;
+    }
     let result = Image::load_png(&args.result)?;
     let reference = Image::load_png(&args.reference)?;
     println!("{}", result.compare(&reference)?);
@@ -438,6 +476,7 @@ fn compare(args: CompareArgs) -> Result<(), CliError> {
 }
 
 fn generate(args: GenerateArgs) -> Result<(), CliError> {
+    check_output(&args.output, &["vtu"])?;
     let mesh = match &args.shape {
         GenerateShape::Grid { tets, field } => generate::grid(
             parse_field(field)?,
