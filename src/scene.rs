@@ -732,23 +732,13 @@ impl Scene {
                 format!("isovalues must be finite numbers, not {v}"),
             ));
         }
+        if !self.settings.iso.is_empty() {
+            return Ok(self.settings.iso.clone());
+        }
         let (lo, hi) = (mesh.active_array())
             .and_then(|a| a.range())
             .ok_or(MeshError::NoScalars)?;
-        if self.settings.iso.is_empty() {
-            return Ok(vec![0.5 * (lo + hi)]);
-        }
-        // A surface outside the range is drawn nowhere: a blank picture, not what was asked.
-        if let Some(v) = (self.settings.iso.iter()).find(|v| !(lo..=hi).contains(*v)) {
-            return Err(setting(
-                "settings.iso",
-                format!(
-                    "isovalue {v} is outside the scalar range [{lo}, {hi}], so no surface would \
-                     be drawn; choose values inside the range"
-                ),
-            ));
-        }
-        Ok(self.settings.iso.clone())
+        Ok(vec![0.5 * (lo + hi)])
     }
 
     fn shell_settings(&self) -> ShellSettings {

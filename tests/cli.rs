@@ -885,7 +885,7 @@ fn out_of_range_numbers_are_named_with_what_to_write() {
         ),
         (
             &["--mode", "iso", "--iso", "1e9"],
-            "isovalue 1000000000 is outside the scalar range",
+            "--iso 1000000000 is outside the scalar range",
         ),
     ] {
         let mode = if flags[0] == "--mode" {
@@ -910,4 +910,46 @@ fn out_of_range_numbers_are_named_with_what_to_write() {
     let (_, stderr) = text(&o);
     assert_eq!(o.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("'0' for '--runs <RUNS>'"), "{stderr}");
+}
+
+#[test]
+fn flags_of_another_mode_are_refused_not_ignored() {
+    let png = out_dir("mode-flags").join("x.png");
+    let render = ["render", LOX, "--size", "8x8", "-o", png.to_str().unwrap()];
+    for (flags, expected) in [
+        (
+            &["--mode", "shells", "--integrate", "exact"][..],
+            "--integrate belongs to",
+        ),
+        (
+            &["--integrate", "exact"],
+            "this render's mode, auto, would ignore it",
+        ),
+        (
+            &["--mode", "reference", "--samples", "64"],
+            "--samples belongs to --mode shells",
+        ),
+        (
+            &["--mode", "cellproj", "--dz", "0.1"],
+            "--dz belongs to --mode shells",
+        ),
+        (
+            &["--mode", "raycast-cpu", "--iso", "1"],
+            "--iso belongs to --mode iso",
+        ),
+    ] {
+        let stderr = failure(&[&render[..], flags].concat());
+        assert!(stderr.contains(expected), "{flags:?}: {stderr}");
+    }
+    let stderr = failure(&["animate", LOX, "--iso", "1", "-o", "x.gif"]);
+    assert!(stderr.contains("--iso belongs to --mode iso"), "{stderr}");
+    // The flags with their own mode still render.
+    let o = tetvr(
+        &[
+            &render[..],
+            &["--mode", "raycast-cpu", "--integrate", "exact"],
+        ]
+        .concat(),
+    );
+    assert!(o.status.success(), "{}", text(&o).1);
 }

@@ -26,7 +26,7 @@ use tetvr::tf::TransferFunction;
 use tetvr::tf::file::{TfFileError, load_tf};
 use tetvr::{TetMesh, generate};
 
-use super::scene::{of_flags, resolve, warm_frames};
+use super::scene::{of_flags, resolve, unused_mode_flags, warm_frames};
 use super::{
     Cli, Command, CompareArgs, GenerateArgs, GenerateShape, InfoArgs, IsoExportArgs, MeshArgs,
     RenderArgs, RenderCommand,
@@ -151,6 +151,7 @@ pub(super) fn read_limits(args: &MeshArgs) -> io::ReadLimits {
 fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
     let scene = resolve(&cmd, matches)?;
     let args = &cmd.render;
+    unused_mode_flags(args, scene.mode)?;
     let output = args.output.clone().unwrap_or_else(|| "tetvr.png".into());
     check_output(&output, &["png"])?;
     if let Some(path) = &cmd.save_scene {
@@ -165,6 +166,9 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
         Some(t) => scene.transfer_function_over(t.volume.range(), mesh.diagonal() / 100.0)?,
         None => scene.transfer_function(&mesh)?,
     };
+    if scene.mode == tetvr::scene::Mode::Iso {
+        check_isovalues(&scene.settings.iso, &mesh, textured.as_ref())?;
+    }
     let (mode, gpu) = open_scene_mode(&scene, &mesh, &tf)?;
     // A textured cage keeps `auto` for its own rule (texture::textured_renderer).
     let (mode, bar) = match (cmd.frames, &textured) {
@@ -205,6 +209,29 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
         println!("wrote {}", path.display());
     }
     Ok(())
+}
+
+/// Refuses isovalues outside the scalar range (a textured cage's: its volume's): their
+/// surfaces are drawn nowhere, a blank picture instead of what was asked.
+pub(super) fn check_isovalues(
+    isovalues: &[f64],
+    mesh: &TetMesh,
+    textured: Option<&Textured>,
+) -> Result<(), CliError> {
+    let range = match textured {
+        Some(t) => Some(t.volume.range()),
+        None => mesh.active_array().and_then(|a| a.range()),
+    };
+    let Some((lo, hi)) = range else {
+        return Err(MeshError::NoScalars.into());
+    };
+    match isovalues.iter().find(|v| !(lo..=hi).contains(*v)) {
+        Some(v) => Err(CliError::Usage(format!(
+            "--iso {v} is outside the scalar range [{lo}, {hi}], so no surface would be drawn; \
+             choose values inside the range"
+        ))),
+        None => Ok(()),
+    }
 }
 
 /// The renderer of `mode` for `mesh`, textured when `textured` is given, and how the lines
