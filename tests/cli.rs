@@ -906,6 +906,24 @@ fn out_of_range_numbers_are_named_with_what_to_write() {
         stderr.contains("--scale 0 must be a positive number"),
         "{stderr}"
     );
+    // A mesh without scalars is named with the file, before any work.
+    let bare = out_dir("numbers").join("bare.vtk");
+    std::fs::write(
+        &bare,
+        "# vtk DataFile Version 3.0\nbare\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 4 float\n\
+         0 0 0 1 0 0 0 1 0 0 0 1\nCELLS 1 5\n4 0 1 2 3\nCELL_TYPES 1\n10\n",
+    )
+    .unwrap();
+    let bare = bare.to_str().unwrap();
+    let glb = png.with_extension("glb");
+    let (png, glb) = (png.to_str().unwrap(), glb.to_str().unwrap());
+    for args in [["render", bare, "-o", png], ["iso-export", bare, "-o", glb]] {
+        let stderr = failure(&args);
+        assert!(
+            stderr.starts_with(&format!("error: {bare}: the mesh has no scalar array")),
+            "{stderr}"
+        );
+    }
     let o = tetvr(&["bench", "--runs", "0"]);
     let (_, stderr) = text(&o);
     assert_eq!(o.status.code(), Some(2), "{stderr}");

@@ -20,7 +20,7 @@ use tetvr::{Image, TetMesh};
 
 use super::commands::{
     CliError, Textured, build_renderer, camera, check_isovalues, check_output, load_mesh, median,
-    ms, open_mode, read_limits, transfer_function_for,
+    ms, open_mode, read_limits, require_scalars, transfer_function_for,
 };
 use super::scene::{of_flags, unused_mode_flags};
 use super::{AnimateArgs, RenderArgs};
@@ -59,6 +59,9 @@ pub(super) fn animate(args: AnimateArgs) -> Result<(), CliError> {
 /// One mesh under `--deform`, one period in `--frames` frames.
 fn deform(args: &AnimateArgs) -> Result<(), CliError> {
     let mesh = load_mesh(&args.render.mesh)?.mesh;
+    if args.render.texture.is_none() {
+        require_scalars(&mesh, &args.render.mesh.mesh)?;
+    }
     let frames = args.frames.unwrap_or(24);
     let (deformation, amplitude) = (
         args.deform.unwrap_or(Deformation::Twist),

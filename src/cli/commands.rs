@@ -47,6 +47,8 @@ pub enum CliError {
     Write(#[from] io::WriteError),
     #[error(transparent)]
     Mesh(#[from] MeshError),
+    #[error("{path}: {source}")]
+    MeshIn { path: String, source: MeshError },
     #[error(transparent)]
     Render(#[from] RenderError),
     #[error(transparent)]
@@ -139,6 +141,17 @@ pub(super) fn load_mesh(args: &MeshArgs) -> Result<Loaded, CliError> {
     Ok(loaded)
 }
 
+/// Every mode renders an active scalar array: its lack named with the file, before any work.
+pub(super) fn require_scalars(mesh: &TetMesh, path: &Path) -> Result<(), CliError> {
+    match mesh.active_array() {
+        Some(_) => Ok(()),
+        None => Err(CliError::MeshIn {
+            path: path.display().to_string(),
+            source: MeshError::NoScalars,
+        }),
+    }
+}
+
 /// The reading limits of `--max-memory`.
 pub(super) fn read_limits(args: &MeshArgs) -> io::ReadLimits {
     let mut limits = io::ReadLimits::default();
@@ -158,6 +171,9 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
         check_output(path, &["json"])?;
     }
     let Loaded { mesh, .. } = scene.load_mesh(&read_limits(&args.mesh))?;
+    if scene.texture.is_none() {
+        require_scalars(&mesh, &scene.mesh)?;
+    }
     let camera = scene.camera(&mesh)?;
 
     let start = Instant::now();
@@ -412,6 +428,7 @@ fn iso_export(args: IsoExportArgs) -> Result<(), CliError> {
     }
     check_output(&args.output, &["glb"])?;
     let Loaded { mesh, .. } = load_mesh(&args.mesh)?;
+    require_scalars(&mesh, &args.mesh.mesh)?;
     let range = mesh
         .active_array()
         .and_then(|a| a.range())

@@ -6,7 +6,7 @@ use tetvr::io::series::Series;
 use tetvr::viewer::{ViewerSetup, WindowOptions};
 
 use super::ViewCommand;
-use super::commands::{CliError, check_output, read_limits};
+use super::commands::{CliError, check_output, read_limits, require_scalars};
 use super::scene::resolve_flags;
 
 pub fn view(cmd: ViewCommand, matches: &ArgMatches) -> Result<(), CliError> {
@@ -33,6 +33,7 @@ pub fn view(cmd: ViewCommand, matches: &ArgMatches) -> Result<(), CliError> {
         scene.mesh = s.steps()[0].path.clone();
     }
     let Loaded { mesh, .. } = scene.load_mesh(&limits)?;
+    require_scalars(&mesh, &scene.mesh)?;
     let tf = scene.transfer_function(&mesh)?;
     let camera = scene.camera(&mesh)?;
     let mode = scene.mode_settings(&mesh, &tf)?;
