@@ -541,6 +541,12 @@ pub(super) fn read(data: &[u8], name: &str, budget: &Budget) -> Result<Loaded, L
         appended: None,
         appended_offsets: Vec::new(),
     };
+    if data.trim_ascii_start().starts_with(b"# vtk DataFile") {
+        return Err(file.err(
+            0,
+            "not a VTK XML file but a legacy VTK one ('# vtk DataFile ...'): name it .vtk",
+        ));
+    }
     let xml_end = file.appended_data()?;
     let pieces = file.pieces(xml_end)?;
     file.appended_offsets.sort_unstable();
