@@ -619,6 +619,18 @@ fn help_has_examples() {
             && stdout.contains("--mode")
             && stdout.contains("--slices-per-shell")
     );
+    // Doc comments serve rustdoc and --help: no intra-doc link may reach the help text.
+    for cmd in [
+        "render",
+        "animate",
+        "iso-export",
+        "info",
+        "generate",
+        "bench",
+    ] {
+        let (stdout, _) = text(&tetvr(&[cmd, "--help"]));
+        assert!(!stdout.contains("[`"), "{cmd} --help:\n{stdout}");
+    }
 }
 
 #[test]
