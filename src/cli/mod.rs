@@ -257,7 +257,8 @@ pub struct ShellArgs {
     /// shells: distance between samples along a ray, in world units.
     #[arg(long)]
     pub dz: Option<f64>,
-    /// shells: slices sampled per fragment and shell (a multiple of 4, at most 4 x the adapter's colour targets); fixed for every frame, overriding adaptive slices.
+    /// shells: slices sampled per fragment and shell (1 to 4 x the adapter's colour targets, 4
+    /// per target); fixed for every frame, overriding adaptive slices.
     #[arg(long)]
     pub slices_per_shell: Option<u32>,
     /// Work-skipping to turn off (all on by default), comma separated: tf-cull, empty-space,
