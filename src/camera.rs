@@ -36,6 +36,11 @@ pub enum CameraError {
     /// The field of view (degrees) is not in (0, 180).
     #[error("field of view {0} degrees is outside (0, 180); use e.g. --fov 30")]
     BadFov(f64),
+    /// The eye distance (a multiple of the framing distance) is not positive and finite.
+    #[error(
+        "eye distance {0} must be a positive multiple of the distance that fits the mesh; use e.g. --distance 1"
+    )]
+    BadDistance(f64),
     /// The image has no pixels (width x height).
     #[error("image size {0}x{1} is empty; use e.g. --size 512x512")]
     EmptyImage(u32, u32),

@@ -584,6 +584,13 @@ impl Scene {
         let (lo, hi) = mesh.bounds();
         let c = &self.camera;
         let [w, h] = self.size;
+        // Checked before framing, which would turn them into a non-finite or mirrored eye.
+        if !(c.fov > 0.0 && c.fov < 180.0) {
+            return Err(CameraError::BadFov(c.fov).into());
+        }
+        if !(c.distance > 0.0 && c.distance.is_finite()) {
+            return Err(CameraError::BadDistance(c.distance).into());
+        }
         let mut camera = Camera::framing(lo, hi, View::parse(&c.view)?, c.distance, c.fov, w, h);
         if let Some(target) = c.target.map(glam::DVec3::from) {
             camera.eye += target - camera.target;

@@ -619,6 +619,18 @@ fn help_has_examples() {
             && stdout.contains("--mode")
             && stdout.contains("--slices-per-shell")
     );
+    // Doc comments serve rustdoc and --help: no intra-doc link may reach the help text.
+    for cmd in [
+        "render",
+        "animate",
+        "iso-export",
+        "info",
+        "generate",
+        "bench",
+    ] {
+        let (stdout, _) = text(&tetvr(&[cmd, "--help"]));
+        assert!(!stdout.contains("[`"), "{cmd} --help:\n{stdout}");
+    }
 }
 
 #[test]
@@ -808,4 +820,166 @@ fn tune_and_slice_format_render_and_say_what_was_chosen() {
     let (_, stderr) = text(&bad);
     assert!(!bad.status.success());
     assert!(stderr.contains("f8") && stderr.contains("f16"), "{stderr}");
+}
+
+/// Runs tetvr, expects it to fail with exit status 1 and returns its stderr.
+fn failure(args: &[&str]) -> String {
+    let o = tetvr(args);
+    let (_, stderr) = text(&o);
+    assert_eq!(o.status.code(), Some(1), "{args:?}: {stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    stderr
+}
+
+#[test]
+fn outputs_are_checked_before_any_work_and_nothing_is_written() {
+    let dir = out_dir("outputs");
+    let at = |name: &str| dir.join(name).to_str().unwrap().to_owned();
+    let mesh = ["render", LOX, "--mode", "reference", "--size", "8x8"];
+    // Each: the command, the path it must refuse, the extension it must name.
+    let cases: [(Vec<&str>, String, &str); 5] = [
+        ([&mesh[..], &["-o"]].concat(), at("picture.jpg"), ".png"),
+        (vec!["iso-export", LOX, "-o"], at("surface.png"), ".glb"),
+        (
+            vec!["generate", "grid", "--tets", "10", "-o"],
+            at("grid.vtk"),
+            ".vtu",
+        ),
+        (vec!["compare", LOX, LOX, "-o"], at("diff.gif"), ".png"),
+        (
+            vec!["animate", LOX, "--frames", "1", "-o"],
+            at("run.mp4"),
+            ".gif or .png",
+        ),
+    ];
+    for (args, path, ext) in &cases {
+        let _ = std::fs::remove_file(path); // left by an earlier run that wrote it
+        let stderr = failure(&[&args[..], &[path.as_str()]].concat());
+        assert!(
+            stderr.starts_with(&format!("error: {path}: this command writes {ext}")),
+            "{stderr}"
+        );
+        assert!(!Path::new(path).exists(), "{path} was written");
+    }
+    let missing = at("no-such-folder/picture.png");
+    let stderr = failure(&[&mesh[..], &["-o", &missing]].concat());
+    assert!(
+        stderr.contains("does not exist; create it first"),
+        "{stderr}"
+    );
+    let scene = at("no-such-folder/scene.json");
+    let _ = std::fs::remove_file(dir.join("x.png"));
+    let stderr = failure(&[&mesh[..], &["-o", &at("x.png"), "--save-scene", &scene]].concat());
+    assert!(stderr.contains("no-such-folder does not exist"), "{stderr}");
+    assert!(
+        !dir.join("x.png").exists(),
+        "rendered before the scene path was checked"
+    );
+}
+
+#[test]
+fn out_of_range_numbers_are_named_with_what_to_write() {
+    let png = out_dir("numbers").join("x.png");
+    let render = ["render", LOX, "--size", "8x8", "-o", png.to_str().unwrap()];
+    // Negative numbers reach these checks rather than clap's "unexpected argument"; the
+    // isovalue far outside the range would draw a blank picture.
+    for (flags, expected) in [
+        (
+            &["--fov", "0"][..],
+            "field of view 0 degrees is outside (0, 180)",
+        ),
+        (&["--fov", "-5"], "field of view -5 degrees"),
+        (&["--distance", "0"], "eye distance 0 must be a positive"),
+        (&["--distance", "-1"], "eye distance -1 must be a positive"),
+        (
+            &["--unit-distance", "-1"],
+            "unit distance -1 must be positive",
+        ),
+        (
+            &["--mode", "iso", "--iso", "1e9"],
+            "--iso 1000000000 is outside the scalar range",
+        ),
+    ] {
+        let mode = if flags[0] == "--mode" {
+            &[][..]
+        } else {
+            &["--mode", "reference"]
+        };
+        let stderr = failure(&[&render[..], mode, flags].concat());
+        assert!(stderr.contains(expected), "{flags:?}: {stderr}");
+    }
+    let stderr = failure(&["animate", LOX, "--amplitude", "nan", "-o", "x.gif"]);
+    assert!(
+        stderr.contains("--amplitude must be a finite number"),
+        "{stderr}"
+    );
+    let stderr = failure(&["compare", LOX, LOX, "--scale", "0"]);
+    assert!(
+        stderr.contains("--scale 0 must be a positive number"),
+        "{stderr}"
+    );
+    // A mesh without scalars is named with the file, before any work.
+    let bare = out_dir("numbers").join("bare.vtk");
+    std::fs::write(
+        &bare,
+        "# vtk DataFile Version 3.0\nbare\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 4 float\n\
+         0 0 0 1 0 0 0 1 0 0 0 1\nCELLS 1 5\n4 0 1 2 3\nCELL_TYPES 1\n10\n",
+    )
+    .unwrap();
+    let bare = bare.to_str().unwrap();
+    let glb = png.with_extension("glb");
+    let (png, glb) = (png.to_str().unwrap(), glb.to_str().unwrap());
+    for args in [["render", bare, "-o", png], ["iso-export", bare, "-o", glb]] {
+        let stderr = failure(&args);
+        assert!(
+            stderr.starts_with(&format!("error: {bare}: the mesh has no scalar array")),
+            "{stderr}"
+        );
+    }
+    let o = tetvr(&["bench", "--runs", "0"]);
+    let (_, stderr) = text(&o);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("'0' for '--runs <RUNS>'"), "{stderr}");
+}
+
+#[test]
+fn flags_of_another_mode_are_refused_not_ignored() {
+    let png = out_dir("mode-flags").join("x.png");
+    let render = ["render", LOX, "--size", "8x8", "-o", png.to_str().unwrap()];
+    for (flags, expected) in [
+        (
+            &["--mode", "shells", "--integrate", "exact"][..],
+            "--integrate belongs to",
+        ),
+        (
+            &["--integrate", "exact"],
+            "this render's mode, auto, would ignore it",
+        ),
+        (
+            &["--mode", "reference", "--samples", "64"],
+            "--samples belongs to --mode shells",
+        ),
+        (
+            &["--mode", "cellproj", "--dz", "0.1"],
+            "--dz belongs to --mode shells",
+        ),
+        (
+            &["--mode", "raycast-cpu", "--iso", "1"],
+            "--iso belongs to --mode iso",
+        ),
+    ] {
+        let stderr = failure(&[&render[..], flags].concat());
+        assert!(stderr.contains(expected), "{flags:?}: {stderr}");
+    }
+    let stderr = failure(&["animate", LOX, "--iso", "1", "-o", "x.gif"]);
+    assert!(stderr.contains("--iso belongs to --mode iso"), "{stderr}");
+    // The flags with their own mode still render.
+    let o = tetvr(
+        &[
+            &render[..],
+            &["--mode", "raycast-cpu", "--integrate", "exact"],
+        ]
+        .concat(),
+    );
+    assert!(o.status.success(), "{}", text(&o).1);
 }

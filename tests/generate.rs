@@ -619,4 +619,11 @@ fn nifti_truncated_voxels_and_non_nifti_files_are_errors() {
         let e = convert_bytes("junk.nii", bytes, &VolumeToTets::default()).unwrap_err();
         assert!(e.to_string().contains("junk.nii"), "{what}: {e}");
     }
+    // Shorter than a header: said so, not "its header puts voxel data up to byte 348".
+    let e = convert_bytes("junk.nii", b"hello", &VolumeToTets::default()).unwrap_err();
+    assert!(
+        e.to_string()
+            .ends_with("not a NIfTI-1 volume tetvr can read: it has 5 bytes, fewer than the 348 of a NIfTI-1 header"),
+        "{e}"
+    );
 }

@@ -926,7 +926,8 @@ const MALFORMED: &[(&str, &str)] = &[
     ),
     (
         "truncated_compressed.vtu",
-        "truncated_compressed.vtu: byte 354: file ends inside DataArray",
+        // Points' DataArray has no Name: it is called by its part (not DataArray '').
+        "truncated_compressed.vtu: byte 354: file ends inside Points DataArray (expected 64 more bytes)",
     ),
     ("bad_xml.vtu", "bad_xml.vtu: byte "),
     (
@@ -1134,4 +1135,23 @@ proptest! {
             prop_assert!(e.to_string().starts_with(name), "{e}");
         }
     }
+}
+
+/// A file named for the other VTK format is refused with the extension that reads it.
+#[test]
+fn vtk_files_under_the_other_vtk_extension_name_the_right_one() {
+    let legacy = std::fs::read(common::asset("lox_post_subset_tet.vtk")).unwrap();
+    let e = load_bytes(&legacy, Format::Vtu, "lox.vtu").unwrap_err();
+    assert!(
+        e.to_string()
+            .starts_with("lox.vtu: byte 0: not a VTK XML file but a legacy VTK one"),
+        "{e}"
+    );
+    let xml = std::fs::read(common::asset("combustor_subset_tet.vtu")).unwrap();
+    let e = load_bytes(&xml, Format::VtkLegacy, "combustor.vtk").unwrap_err();
+    assert!(
+        e.to_string()
+            .ends_with("(XML: a VTK XML file is read when named .vtu)"),
+        "{e}"
+    );
 }

@@ -444,7 +444,7 @@ fn errors_name_the_path_or_the_range() {
     );
     assert!(!Path::new("unused.glb").exists());
 
-    // The CLI says the same and fails.
+    // The CLI says the same and fails (the missing folder found before the mesh is read).
     let mesh = generate::fields::grid(generate::Field::Linear, UVec3::splat(2), "l").unwrap();
     let (mesh_path, _) = write_temp_mesh("linear", &mesh);
     let run = Command::new(env!("CARGO_BIN_EXE_tetvr"))
@@ -459,7 +459,7 @@ fn errors_name_the_path_or_the_range() {
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(!run.status.success());
     assert!(
-        stderr.contains("/nonexistent-dir/s.glb: cannot write"),
+        stderr.contains("/nonexistent-dir/s.glb: the folder /nonexistent-dir does not exist"),
         "{stderr}"
     );
 }

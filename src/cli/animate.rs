@@ -14,14 +14,15 @@ use tetvr::deform::Deformation;
 use tetvr::io::series::Series;
 use tetvr::mesh::CellDataMode;
 use tetvr::render::Renderer;
+use tetvr::scene::Mode;
 use tetvr::tf::TransferFunction;
 use tetvr::{Image, TetMesh};
 
 use super::commands::{
-    CliError, Textured, build_renderer, camera, load_mesh, median, ms, open_mode, read_limits,
-    transfer_function_for,
+    CliError, Textured, build_renderer, camera, check_isovalues, check_output, load_mesh, median,
+    ms, open_mode, read_limits, require_scalars, transfer_function_for,
 };
-use super::scene::of_flags;
+use super::scene::{of_flags, unused_mode_flags};
 use super::{AnimateArgs, RenderArgs};
 
 pub(super) fn animate(args: AnimateArgs) -> Result<(), CliError> {
@@ -30,6 +31,18 @@ pub(super) fn animate(args: AnimateArgs) -> Result<(), CliError> {
             "--frames and --fps must be at least 1".into(),
         ));
     }
+    if let Some(a) = args.amplitude.filter(|a| !a.is_finite()) {
+        return Err(CliError::Usage(format!(
+            "--amplitude must be a finite number, not {a}"
+        )));
+    }
+    let output = args
+        .render
+        .output
+        .as_deref()
+        .unwrap_or(Path::new("tetvr.gif"));
+    check_output(output, &["gif", "png"])?;
+    unused_mode_flags(&args.render, args.render.mode)?;
     if Series::is_series(&args.render.mesh.mesh) {
         if args.deform.is_some() || args.amplitude.is_some() || args.frames.is_some() {
             return Err(CliError::Usage(
@@ -46,6 +59,9 @@ pub(super) fn animate(args: AnimateArgs) -> Result<(), CliError> {
 /// One mesh under `--deform`, one period in `--frames` frames.
 fn deform(args: &AnimateArgs) -> Result<(), CliError> {
     let mesh = load_mesh(&args.render.mesh)?.mesh;
+    if args.render.texture.is_none() {
+        require_scalars(&mesh, &args.render.mesh.mesh)?;
+    }
     let frames = args.frames.unwrap_or(24);
     let (deformation, amplitude) = (
         args.deform.unwrap_or(Deformation::Twist),
@@ -111,6 +127,10 @@ impl Playback {
         let r: &RenderArgs = &args.render;
         let textured = Textured::load(of_flags(r)?.texture.as_ref(), mesh)?;
         let tf = transfer_function_for(r, mesh, textured.as_ref())?;
+        // A series' later steps may bring its field to an isovalue; a deformation keeps it.
+        if r.mode == Mode::Iso && !Series::is_series(&r.mesh.mesh) {
+            check_isovalues(&r.iso, mesh, textured.as_ref())?;
+        }
         let camera = camera(r, mesh)?;
         let (mode, gpu) = open_mode(r, mesh, &tf)?;
         let (renderer, what) = build_renderer(textured.as_ref(), &mode, gpu.as_ref(), mesh)?;

@@ -38,7 +38,9 @@ pub fn bench(args: BenchArgs) -> Result<(), CliError> {
             .unwrap_or(if args.quick { (128, 128) } else { (256, 256) }),
         data: args.data.clone(),
         options: Options {
-            runs: args.runs.unwrap_or(if args.quick { 3 } else { 5 }),
+            runs: args
+                .runs
+                .map_or(if args.quick { 3 } else { 5 }, |r| r as usize),
             warmup: 1,
         },
     };

@@ -26,7 +26,7 @@ use tetvr::tf::TransferFunction;
 use tetvr::tf::file::{TfFileError, load_tf};
 use tetvr::{TetMesh, generate};
 
-use super::scene::{of_flags, resolve, warm_frames};
+use super::scene::{of_flags, resolve, unused_mode_flags, warm_frames};
 use super::{
     Cli, Command, CompareArgs, GenerateArgs, GenerateShape, InfoArgs, IsoExportArgs, MeshArgs,
     RenderArgs, RenderCommand,
@@ -47,6 +47,8 @@ pub enum CliError {
     Write(#[from] io::WriteError),
     #[error(transparent)]
     Mesh(#[from] MeshError),
+    #[error("{path}: {source}")]
+    MeshIn { path: String, source: MeshError },
     #[error(transparent)]
     Render(#[from] RenderError),
     #[error(transparent)]
@@ -108,11 +110,46 @@ pub fn run(cli: Cli, matches: &ArgMatches) -> Result<(), CliError> {
     }
 }
 
+/// Checks an output path before any work is done: its extension is one of `extensions` (the
+/// first is the format written) and its folder exists, so a long render does not end in an
+/// error, or in a file of one format under another's name.
+pub(super) fn check_output(path: &Path, extensions: &[&str]) -> Result<(), CliError> {
+    let ext = path.extension().and_then(|e| e.to_str());
+    if !ext.is_some_and(|e| extensions.iter().any(|x| e.eq_ignore_ascii_case(x))) {
+        let names: Vec<String> = extensions.iter().map(|e| format!(".{e}")).collect();
+        return Err(CliError::Usage(format!(
+            "{}: this command writes {}; name the output with that extension",
+            path.display(),
+            names.join(" or ")
+        )));
+    }
+    let folder = path.parent().filter(|f| !f.as_os_str().is_empty());
+    if let Some(folder) = folder.filter(|f| !f.is_dir()) {
+        return Err(CliError::Usage(format!(
+            "{}: the folder {} does not exist; create it first",
+            path.display(),
+            folder.display()
+        )));
+    }
+    Ok(())
+}
+
 pub(super) fn load_mesh(args: &MeshArgs) -> Result<Loaded, CliError> {
     let mut loaded = io::load_with(&args.mesh, &read_limits(args))?;
     let warp = args.warp.as_deref().map(|name| (name, args.scale));
     (loaded.mesh).prepare(args.array.as_deref(), args.cell_data, warp)?;
     Ok(loaded)
+}
+
+/// Every mode renders an active scalar array: its lack named with the file, before any work.
+pub(super) fn require_scalars(mesh: &TetMesh, path: &Path) -> Result<(), CliError> {
+    match mesh.active_array() {
+        Some(_) => Ok(()),
+        None => Err(CliError::MeshIn {
+            path: path.display().to_string(),
+            source: MeshError::NoScalars,
+        }),
+    }
 }
 
 /// The reading limits of `--max-memory`.
@@ -127,7 +164,16 @@ pub(super) fn read_limits(args: &MeshArgs) -> io::ReadLimits {
 fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
     let scene = resolve(&cmd, matches)?;
     let args = &cmd.render;
+    unused_mode_flags(args, scene.mode)?;
+    let output = args.output.clone().unwrap_or_else(|| "tetvr.png".into());
+    check_output(&output, &["png"])?;
+    if let Some(path) = &cmd.save_scene {
+        check_output(path, &["json"])?;
+    }
     let Loaded { mesh, .. } = scene.load_mesh(&read_limits(&args.mesh))?;
+    if scene.texture.is_none() {
+        require_scalars(&mesh, &scene.mesh)?;
+    }
     let camera = scene.camera(&mesh)?;
 
     let start = Instant::now();
@@ -136,6 +182,9 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
         Some(t) => scene.transfer_function_over(t.volume.range(), mesh.diagonal() / 100.0)?,
         None => scene.transfer_function(&mesh)?,
     };
+    if scene.mode == tetvr::scene::Mode::Iso {
+        check_isovalues(&scene.settings.iso, &mesh, textured.as_ref())?;
+    }
     let (mode, gpu) = open_scene_mode(&scene, &mesh, &tf)?;
     // A textured cage keeps `auto` for its own rule (texture::textured_renderer).
     let (mode, bar) = match (cmd.frames, &textured) {
@@ -155,7 +204,6 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
     if args.timings {
         print!("{}", frame.timings);
     }
-    let output = args.output.clone().unwrap_or_else(|| "tetvr.png".into());
     image.save_png(&output, scene.background)?;
     if args.cellproj.sort_check {
         write_sort_check(&mesh, &camera, &output)?;
@@ -177,6 +225,29 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
         println!("wrote {}", path.display());
     }
     Ok(())
+}
+
+/// Refuses isovalues outside the scalar range (a textured cage's: its volume's): their
+/// surfaces are drawn nowhere, a blank picture instead of what was asked.
+pub(super) fn check_isovalues(
+    isovalues: &[f64],
+    mesh: &TetMesh,
+    textured: Option<&Textured>,
+) -> Result<(), CliError> {
+    let range = match textured {
+        Some(t) => Some(t.volume.range()),
+        None => mesh.active_array().and_then(|a| a.range()),
+    };
+    let Some((lo, hi)) = range else {
+        return Err(MeshError::NoScalars.into());
+    };
+    match isovalues.iter().find(|v| !(lo..=hi).contains(*v)) {
+        Some(v) => Err(CliError::Usage(format!(
+            "--iso {v} is outside the scalar range [{lo}, {hi}], so no surface would be drawn; \
+             choose values inside the range"
+        ))),
+        None => Ok(()),
+    }
 }
 
 /// The renderer of `mode` for `mesh`, textured when `textured` is given, and how the lines
@@ -355,7 +426,9 @@ fn iso_export(args: IsoExportArgs) -> Result<(), CliError> {
             "--iso: isovalues must be finite numbers, not {v}"
         )));
     }
+    check_output(&args.output, &["glb"])?;
     let Loaded { mesh, .. } = load_mesh(&args.mesh)?;
+    require_scalars(&mesh, &args.mesh.mesh)?;
     let range = mesh
         .active_array()
         .and_then(|a| a.range())
@@ -425,6 +498,15 @@ fn info(args: InfoArgs) -> Result<(), CliError> {
 }
 
 fn compare(args: CompareArgs) -> Result<(), CliError> {
+    if !(args.scale > 0.0 && args.scale.is_finite()) {
+        return Err(CliError::Usage(format!(
+            "--scale {} must be a positive number: the channel difference shown as white",
+            args.scale
+        )));
+    }
+    if let Some(out) = &args.output {
+        check_output(out, &["png"])?;
+    }
     let result = Image::load_png(&args.result)?;
     let reference = Image::load_png(&args.reference)?;
     println!("{}", result.compare(&reference)?);
@@ -438,6 +520,7 @@ fn compare(args: CompareArgs) -> Result<(), CliError> {
 }
 
 fn generate(args: GenerateArgs) -> Result<(), CliError> {
+    check_output(&args.output, &["vtu"])?;
     let mesh = match &args.shape {
         GenerateShape::Grid { tets, field } => generate::grid(
             parse_field(field)?,

@@ -58,21 +58,22 @@ pub struct Cli {
 #[derive(Subcommand, Debug)]
 pub enum Command {
     /// Render a mesh to a PNG.
-    #[command(after_help = EXAMPLES)]
+    #[command(after_help = EXAMPLES, allow_negative_numbers = true)]
     Render(Box<RenderCommand>),
     /// Render a mesh under an analytic deformation over time, or play a time series (a ParaView
     /// .pvd, or numbered files as a quoted pattern 'step_*.vtu'), to an animated GIF or PNGs
     /// written frame by frame.
-    #[command(after_help = EXAMPLES)]
+    #[command(after_help = EXAMPLES, allow_negative_numbers = true)]
     Animate(Box<AnimateArgs>),
     /// Extract isosurfaces (marching tetrahedra, on the CPU) and write them as glTF binary (.glb).
-    #[command(after_help = EXAMPLES)]
+    #[command(after_help = EXAMPLES, allow_negative_numbers = true)]
     IsoExport(IsoExportArgs),
     /// Print a mesh's statistics: counts, bounds, scalar ranges, quality, degenerate tets.
     Info(InfoArgs),
     /// Show which GPU adapter tetvr would use and the limits that matter to it.
     GpuInfo,
     /// Compare two PNGs of the same size: error metrics and a difference image.
+    #[command(allow_negative_numbers = true)]
     Compare(CompareArgs),
     /// Write a generated mesh (structured grid, non-convex shape, or a NIfTI volume) as .vtu.
     Generate(GenerateArgs),
@@ -82,7 +83,7 @@ pub enum Command {
     /// Open a window to turn the mesh, switch modes, edit the transfer function, play a
     /// deformation and watch the error against the exact reference (keys: see the README).
     #[cfg(feature = "viewer")]
-    #[command(after_help = EXAMPLES)]
+    #[command(after_help = EXAMPLES, allow_negative_numbers = true)]
     View(Box<ViewCommand>),
 }
 
@@ -256,7 +257,8 @@ pub struct ShellArgs {
     /// shells: distance between samples along a ray, in world units.
     #[arg(long)]
     pub dz: Option<f64>,
-    /// shells: slices sampled per fragment and shell (a multiple of 4, at most 4 x the adapter's colour targets); fixed for every frame, overriding adaptive slices.
+    /// shells: slices sampled per fragment and shell (1 to 4 x the adapter's colour targets, 4
+    /// per target); fixed for every frame, overriding adaptive slices.
     #[arg(long)]
     pub slices_per_shell: Option<u32>,
     /// Work-skipping to turn off (all on by default), comma separated: tf-cull, empty-space,
@@ -360,8 +362,8 @@ pub struct BenchArgs {
     #[arg(long, default_value = "bench-out")]
     pub out: PathBuf,
     /// Timed frames per measurement (default 3 with --quick, else 5).
-    #[arg(long)]
-    pub runs: Option<usize>,
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    pub runs: Option<u32>,
     /// Image size (default 128x128 with --quick, else 256x256; with --scene, the scene's).
     #[arg(long, value_parser = args::parse_size)]
     pub size: Option<(u32, u32)>,

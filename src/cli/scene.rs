@@ -4,8 +4,8 @@
 use std::path::Path;
 use std::time::Instant;
 
-use clap::ArgMatches;
 use clap::parser::ValueSource;
+use clap::{ArgMatches, ValueEnum};
 use tetvr::scene::{Mode, Scene, SceneTexture, TfSpec, Warp};
 use tetvr::{Camera, Renderer, TransferFunction, Tuning};
 
@@ -101,6 +101,42 @@ fn check(args: &RenderArgs, scene: &Scene, entry_given: bool) -> Result<(), CliE
         ));
     }
     Ok(())
+}
+
+/// Flags given on the command line for a mode other than `mode`, which it would ignore: the
+/// picture would not be what they ask for. (`view` takes them: its window switches modes.)
+pub fn unused_mode_flags(args: &RenderArgs, mode: Mode) -> Result<(), CliError> {
+    let shells = &args.shells;
+    let shell_flag = [
+        (shells.samples.is_some(), "--samples"),
+        (shells.dz.is_some(), "--dz"),
+        (shells.slices_per_shell.is_some(), "--slices-per-shell"),
+        (shells.ert_threshold.is_some(), "--ert-threshold"),
+    ]
+    .into_iter()
+    .find_map(|(given, flag)| given.then_some(flag));
+    let refused = match (shell_flag, mode) {
+        (Some(flag), m) if !matches!(m, Mode::Shells | Mode::Auto) => {
+            Some(format!("{flag} belongs to --mode shells (or auto)"))
+        }
+        _ if !args.iso.is_empty() && mode != Mode::Iso => {
+            Some("--iso belongs to --mode iso (isovalues of its surfaces)".to_owned())
+        }
+        _ if args.cellproj.integrate.is_some()
+            && !matches!(mode, Mode::Cellproj | Mode::Raycast | Mode::RaycastCpu) =>
+        {
+            Some("--integrate belongs to --mode cellproj, raycast or raycast-cpu".to_owned())
+        }
+        _ => None,
+    };
+    match refused {
+        Some(why) => Err(CliError::Usage(format!(
+            "{why}; this render's mode, {}, would ignore it",
+            mode.to_possible_value()
+                .map_or_else(String::new, |v| v.get_name().to_owned())
+        ))),
+        None => Ok(()),
+    }
 }
 
 /// Renders `frames` warm frames with `renderer` and returns a table of their median time and

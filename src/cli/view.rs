@@ -6,7 +6,7 @@ use tetvr::io::series::Series;
 use tetvr::viewer::{ViewerSetup, WindowOptions};
 
 use super::ViewCommand;
-use super::commands::{CliError, read_limits};
+use super::commands::{CliError, check_output, read_limits, require_scalars};
 use super::scene::resolve_flags;
 
 pub fn view(cmd: ViewCommand, matches: &ArgMatches) -> Result<(), CliError> {
@@ -17,6 +17,9 @@ pub fn view(cmd: ViewCommand, matches: &ArgMatches) -> Result<(), CliError> {
              from the Save picture panel); -o, --timings and --sort-check belong to tetvr render"
                 .into(),
         ));
+    }
+    if let Some(path) = &cmd.screenshot {
+        check_output(path, &["png"])?;
     }
     let mut scene = resolve_flags(cmd.scene.as_deref(), r, matches)?;
     let limits = read_limits(&r.mesh);
@@ -30,6 +33,7 @@ pub fn view(cmd: ViewCommand, matches: &ArgMatches) -> Result<(), CliError> {
         scene.mesh = s.steps()[0].path.clone();
     }
     let Loaded { mesh, .. } = scene.load_mesh(&limits)?;
+    require_scalars(&mesh, &scene.mesh)?;
     let tf = scene.transfer_function(&mesh)?;
     let camera = scene.camera(&mesh)?;
     let mode = scene.mode_settings(&mesh, &tf)?;

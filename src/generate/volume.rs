@@ -411,7 +411,14 @@ fn read_volume<R: Read>(
     opts: &VolumeToTets,
 ) -> Result<Samples, VolumeError> {
     let mut buf = Vec::new();
-    stream.read(HEADER_LEN, &mut buf, HEADER_LEN as u64, name)?;
+    // A file shorter than a header is no NIfTI file: its "voxel data" has no header to end.
+    (stream.read(HEADER_LEN, &mut buf, HEADER_LEN as u64, name)).map_err(|e| match e {
+        VolumeError::Truncated { found, .. } => bad_header(
+            name,
+            format!("it has {found} bytes, fewer than the {HEADER_LEN} of a NIfTI-1 header"),
+        ),
+        e => e,
+    })?;
     let bytes = buf
         .as_slice()
         .try_into()

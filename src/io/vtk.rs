@@ -224,10 +224,14 @@ impl<'a> Reader<'a> {
             .to_ascii_lowercase()
             .starts_with(b"# vtk datafile version")
         {
+            let hint = match first.trim_ascii_start().starts_with(b"<") {
+                true => " (XML: a VTK XML file is read when named .vtu)",
+                false => "",
+            };
             return Err(self.c.err_line(
                 0,
                 format!(
-                    "not a legacy VTK file: the first line must be '# vtk DataFile Version x.y', found '{}'",
+                    "not a legacy VTK file: the first line must be '# vtk DataFile Version x.y', found '{}'{hint}",
                     shown(first)
                 ),
             ));

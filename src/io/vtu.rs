@@ -213,7 +213,7 @@ impl File<'_> {
             self.name,
             Some(Location::Byte(at as u64)),
             LoadErrorKind::Truncated {
-                section: format!("DataArray '{}'", shown_name(what)),
+                section: what.to_owned(),
                 missing: need.saturating_sub(have as u64),
             },
         )
@@ -281,8 +281,7 @@ impl File<'_> {
             return Err(self.err(
                 at,
                 format!(
-                    "DataArray '{}' declares {total} bytes from {in_total} compressed bytes, more than zlib can produce",
-                    shown_name(what)
+                    "{what} declares {total} bytes from {in_total} compressed bytes, more than zlib can produce"
                 ),
             ));
         }
@@ -291,12 +290,8 @@ impl File<'_> {
         let mut pos = header_end as usize;
         for (i, (&cs, &size)) in compressed.iter().zip(&sizes).enumerate() {
             let src = &raw[pos..pos + cs as usize];
-            self.inflate(src, size, &mut out).map_err(|m| {
-                self.err(
-                    at,
-                    format!("DataArray '{}': block {i} {m}", shown_name(what)),
-                )
-            })?;
+            self.inflate(src, size, &mut out)
+                .map_err(|m| self.err(at, format!("{what}: block {i} {m}")))?;
             pos += cs as usize;
         }
         Ok(out)
@@ -326,11 +321,10 @@ impl File<'_> {
         a: &Array,
         check: &dyn Fn(u64) -> Result<(), LoadError>,
     ) -> Result<Cow<'_, [u8]>, LoadError> {
-        let what = a.name();
+        let what = &a.label();
         if a.attr("format") == Some("binary") {
-            let raw = b64_streams(&a.text).map_err(|m| {
-                self.err(a.text_at, format!("DataArray '{}': {m}", shown_name(what)))
-            })?;
+            let raw =
+                b64_streams(&a.text).map_err(|m| self.err(a.text_at, format!("{what}: {m}")))?;
             return Ok(Cow::Owned(
                 self.block(&raw, a.text_at, what, check)?.into_owned(),
             ));
@@ -338,26 +332,17 @@ impl File<'_> {
         let (start, base64) = self.appended.ok_or_else(|| {
             self.err(
                 a.at,
-                format!(
-                    "DataArray '{}' is appended, but the file has no AppendedData",
-                    shown_name(what)
-                ),
+                format!("{what} is appended, but the file has no AppendedData"),
             )
         })?;
-        let off = a.offset().ok_or_else(|| {
-            self.err(
-                a.at,
-                format!("DataArray '{}' has no valid offset", shown_name(what)),
-            )
-        })?;
+        let off = a
+            .offset()
+            .ok_or_else(|| self.err(a.at, format!("{what} has no valid offset")))?;
         let from = start.saturating_add(off);
         if from > self.data.len() {
             return Err(self.err(
                 a.at,
-                format!(
-                    "DataArray '{}': offset {off} is past the end of the file",
-                    shown_name(what)
-                ),
+                format!("{what}: offset {off} is past the end of the file"),
             ));
         }
         if !base64 {
@@ -373,8 +358,7 @@ impl File<'_> {
             });
         let text = &self.data[from..end];
         let text = find(text, b"<").map_or(text, |i| &text[..i]);
-        let raw = b64_streams(text)
-            .map_err(|m| self.err(from, format!("DataArray '{}': {m}", shown_name(what))))?;
+        let raw = b64_streams(text).map_err(|m| self.err(from, format!("{what}: {m}")))?;
         Ok(Cow::Owned(
             self.block(&raw, from, what, check)?.into_owned(),
         ))
@@ -388,8 +372,8 @@ impl File<'_> {
                 self.name,
                 Location::Byte(a.at as u64),
                 format!(
-                    "DataArray '{}' has type '{}'; tetvr reads numeric types",
-                    shown_name(a.name()),
+                    "{} has type '{}'; tetvr reads numeric types",
+                    a.label(),
                     shown(tname.as_bytes())
                 ),
             )
@@ -409,8 +393,8 @@ impl File<'_> {
                 return Err(self.err(
                     a.at,
                     format!(
-                        "DataArray '{}' holds {bytes} bytes, not a whole number of {} values",
-                        shown_name(a.name()),
+                        "{} holds {bytes} bytes, not a whole number of {} values",
+                        a.label(),
                         a.attr("type").unwrap_or("")
                     ),
                 ));
@@ -457,7 +441,7 @@ impl File<'_> {
         finite: Option<&dyn Fn(usize, f64) -> String>,
     ) -> Result<Vec<f64>, LoadError> {
         let ty = self.scalar(a)?;
-        let what = shown_name(a.name());
+        let what = a.label();
         let v = if self.format(a)? == "ascii" {
             let limit = self.ascii_limit(a, want)?;
             let mut v = Vec::with_capacity(limit);
@@ -469,10 +453,7 @@ impl File<'_> {
                         LoadError::malformed(
                             self.name,
                             self.line(a, s),
-                            format!(
-                                "DataArray '{what}': expected a number, found '{}'",
-                                shown(tok)
-                            ),
+                            format!("{what}: expected a number, found '{}'", shown(tok)),
                         )
                     })?;
                 if let Some(d) = finite
@@ -509,7 +490,7 @@ impl File<'_> {
     /// Integers of an array (cell lists, offsets, types), exactly: no trip through f64.
     fn ints(&self, a: &Array, want: &Want) -> Result<Vec<i64>, LoadError> {
         let ty = self.scalar(a)?;
-        let what = shown_name(a.name());
+        let what = a.label();
         let v = if self.format(a)? == "ascii" {
             let limit = self.ascii_limit(a, Some(want))?;
             let mut v = Vec::with_capacity(limit);
@@ -518,17 +499,14 @@ impl File<'_> {
                     LoadError::malformed(
                         self.name,
                         self.line(a, s),
-                        format!(
-                            "DataArray '{what}': expected an integer, found '{}'",
-                            shown(tok)
-                        ),
+                        format!("{what}: expected an integer, found '{}'", shown(tok)),
                     )
                 })?);
             }
             v
         } else {
             ty.decode_ints(&self.checked_bytes(a, ty, Some(want))?, self.big_endian)
-                .map_err(|x| self.err(a.at, format!("DataArray '{what}': {x} is not an integer")))?
+                .map_err(|x| self.err(a.at, format!("{what}: {x} is not an integer")))?
         };
         if v.len() != want.count {
             return Err(self.err(a.at, (want.wrong)(v.len())));
@@ -542,11 +520,7 @@ impl File<'_> {
             f @ ("ascii" | "binary" | "appended") => Ok(f),
             f => Err(self.err(
                 a.at,
-                format!(
-                    "DataArray '{}' has unknown format '{}'",
-                    shown_name(a.name()),
-                    shown(f.as_bytes())
-                ),
+                format!("{} has unknown format '{}'", a.label(), shown(f.as_bytes())),
             )),
         }
     }
@@ -567,6 +541,12 @@ pub(super) fn read(data: &[u8], name: &str, budget: &Budget) -> Result<Loaded, L
         appended: None,
         appended_offsets: Vec::new(),
     };
+    if data.trim_ascii_start().starts_with(b"# vtk DataFile") {
+        return Err(file.err(
+            0,
+            "not a VTK XML file but a legacy VTK one ('# vtk DataFile ...'): name it .vtk",
+        ));
+    }
     let xml_end = file.appended_data()?;
     let pieces = file.pieces(xml_end)?;
     file.appended_offsets.sort_unstable();

@@ -40,6 +40,14 @@ pub enum Component {
 pub enum CellDataMode {
     /// Constant per tet, exactly as the file gives it ([`TetMesh::cell_scalars`]); the vertices
     /// get the volume-weighted average for what needs vertex values.
+    // The help without the rustdoc link, which `--help` would print as written.
+    #[cfg_attr(
+        feature = "cli",
+        value(
+            help = "Constant per tet, exactly as the file gives it; the vertices get the \
+                      volume-weighted average for what needs vertex values"
+        )
+    )]
     #[default]
     Constant,
     /// Averaged to the vertices (volume-weighted, ParaView's Cell Data to Point Data) and

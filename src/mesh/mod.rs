@@ -191,8 +191,11 @@ pub enum MeshError {
         /// Components it has (1 for a scalar).
         components: usize,
     },
-    /// The mesh has no per-vertex scalars, which every mode renders.
-    #[error("the mesh has no per-vertex scalar array to render; add POINT_DATA to the file")]
+    /// The mesh has no scalars (point or cell data), which every mode renders.
+    #[error(
+        "the mesh has no scalar array to render; add point or cell data to the file (POINT_DATA \
+         or CELL_DATA in .vtk, PointData or CellData in .vtu, $NodeData or $ElementData in .msh)"
+    )]
     NoScalars,
 }
 
