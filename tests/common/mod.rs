@@ -65,12 +65,16 @@ pub fn shared_data_dir(test: &str) -> Option<PathBuf> {
     None
 }
 
-/// `target/test-output/`, where failed image comparisons leave their pictures.
+/// `target/test-output/`, where failed image comparisons leave their pictures; created here,
+/// so tests that write into it right away (the viewer's) do not race the first test that would
+/// otherwise create it on a fresh target.
 pub fn test_output_dir() -> PathBuf {
-    Path::new(env!("CARGO_TARGET_TMPDIR"))
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
         .parent()
         .expect("target/tmp has a parent")
-        .join("test-output")
+        .join("test-output");
+    std::fs::create_dir_all(&dir).expect("create target/test-output");
+    dir
 }
 
 /// Writes one row of a README table that the tests measure (`cells[0]` names the case) to
