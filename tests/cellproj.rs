@@ -390,18 +390,27 @@ fn frustum_culling_drops_tets_out_of_view_and_changes_nothing() {
 fn meshes_beyond_one_storage_binding_are_drawn_in_chunks() {
     // The same adapter told it may bind only 64 KiB per storage binding: lox's 8,750 records
     // (700 KB) are assembled and drawn in about 11 chunks of the sorted order, one after the
-    // other, so the blending order is unchanged and the picture must be bit-identical.
+    // other, so the blending order is unchanged and the picture must be bit-identical. Told
+    // too that a buffer holds 64 KiB, the sorted tets' vertex ids (16 bytes a tet, written
+    // straight into each buffer's staging memory) span 3 buffers and the records 11: the
+    // same picture again.
     let base = ctx();
     let small = common::with_storage_binding_limit(base, 64 << 10);
+    let split = common::with_buffer_limits(base, 64 << 10, 64 << 10);
     let mesh = lox();
-    let (tf, camera) = default_view(&mesh, 96);
+    // 64 x 64: the readback of the 16-byte pixels fits a 64 KiB buffer.
+    let (tf, camera) = default_view(&mesh, 64);
     let frame = |ctx: &GpuContext| {
         let mut r =
             CellProjRenderer::new(ctx, &mesh, settings(Integrate::Table)).expect("renderer");
-        r.render(&camera, &tf).expect("frame").image
+        let f = r.render(&camera, &tf).expect("frame");
+        (f.image, common::counter(&f.timings, "record buffers"))
     };
-    let (whole, chunked) = (frame(base), frame(&small));
+    let ((whole, _), (chunked, _)) = (frame(base), frame(&small));
+    let (buffers, records) = frame(&split);
     assert_eq!(chunked.compare(&whole).expect("same size").max_abs, 0.0);
+    assert_eq!(buffers.compare(&whole).expect("same size").max_abs, 0.0);
+    assert_eq!(records, 11);
     assert!(
         whole.pixels.iter().any(|p| p[3] > 0.01),
         "the view is not empty"

@@ -11,7 +11,9 @@ use std::sync::OnceLock;
 
 use glam::{DVec3, UVec3};
 use tetvr::generate::fields::Field;
-use tetvr::gpu::{AdapterChoice, GpuContext, Sampler, ShellSettings, ShellsRenderer, SliceFormat};
+use tetvr::gpu::{
+    AdapterChoice, GpuContext, Sampler, ShellSettings, ShellsRenderer, Skips, SliceFormat,
+};
 use tetvr::tf::ControlPoint;
 use tetvr::{Camera, Image, Renderer, TetMesh, TransferFunction, View, generate};
 
@@ -839,6 +841,47 @@ fn a_mesh_beyond_one_storage_binding_is_drawn_in_chunks() {
             a.pixels.iter().any(|p| p[3] > 0.01),
             "the scene is not empty"
         );
+    }
+}
+
+#[test]
+fn an_active_list_grown_past_a_binding_that_is_no_power_of_two_binds_what_it_holds() {
+    // The H200 binds 2 GiB - 4 bytes, and the active list's buffer grows to a power of two:
+    // a list of 1-2 GiB lay in a 2 GiB buffer that was bound whole, a validation error there.
+    // Scaled down: a device binding 112 KiB and a frame of 16,385 to 28,672 instances (64-112
+    // KiB, one window, in a 128 KiB buffer; lox has 26,201 at 256 samples and 4 slices per
+    // shell). Lox's records (700 KB) are then chunked as well; both
+    // samplers must draw the picture the unrestricted adapter draws, bit for bit (chunks and
+    // windows only split what is bound; MAX blending ignores draw order).
+    let base = ctx();
+    let small = common::device_binding_at_most(base, 112 << 10);
+    let mesh = lox();
+    let (tf, camera) = common::default_view(&mesh, 32);
+    for sampler in [Sampler::Raster, Sampler::Compute] {
+        let settings = ShellSettings {
+            samples: 256,
+            slices_per_shell: Some(4),
+            skips: Skips {
+                early_termination: false,
+                ..Skips::ALL
+            },
+            ..with_sampler(sampler)
+        };
+        let mut whole = ShellsRenderer::new(base, &mesh, settings).expect("renderer");
+        let mut bound = ShellsRenderer::new(&small, &mesh, settings).expect("112 KiB renderer");
+        let a = whole.render(&camera, &tf).expect("frame").image;
+        let frame = bound.render(&camera, &tf).expect("112 KiB frame");
+        if sampler == Sampler::Raster {
+            // (The compute sampler bins the same list and does not count it.)
+            let instances = counter(&frame.timings, "tet-shell instances");
+            assert!(
+                (16_385..=28_672).contains(&instances),
+                "{instances} instances: not between half a binding and a binding"
+            );
+        }
+        let m = frame.image.compare(&a).expect("same size");
+        assert_eq!(m.max_abs, 0.0, "{sampler:?}: {m:?}");
+        assert!(a.pixels.iter().any(|p| p[3] > 0.01), "the scene is empty");
     }
 }
 

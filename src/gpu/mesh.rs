@@ -112,20 +112,19 @@ impl MeshData {
 
     /// Vertex `v`'s scalar as [`Self::gpu_scalars`] has it.
     fn gpu_scalar(&self, v: usize) -> f32 {
-        ((self.scalars[v] - self.scalar_min) / self.scalar_span) as f32
+        self.gpu_value(self.scalars[v])
     }
 
     /// The per-tet values of a cell-data mesh, normalized as [`Self::gpu_scalars`]; `None` for
     /// point data.
     pub(crate) fn gpu_cells(&self) -> Option<Vec<f32>> {
-        let (lo, span) = (self.scalar_min, self.scalar_span);
         let cells = self.cells.as_ref()?;
-        Some(
-            cells
-                .par_iter()
-                .map(|&s| ((s - lo) / span) as f32)
-                .collect(),
-        )
+        Some(cells.par_iter().map(|&s| self.gpu_value(s)).collect())
+    }
+
+    /// A scalar value (a vertex's or a tet's) normalized as the GPU stages read it.
+    pub(crate) fn gpu_value(&self, s: f64) -> f32 {
+        ((s - self.scalar_min) / self.scalar_span) as f32
     }
 }
 
@@ -437,21 +436,33 @@ impl TetArray {
         stride: u64,
     ) -> Self {
         let chunk = chunking.chunk.max(1);
-        let chunk_bytes = chunk * stride;
-        let per_buffer = (limits.max_buffer_size / chunk_bytes).max(1) * chunk;
-        let count = count.max(1);
-        let buffers = (0..count.div_ceil(per_buffer))
-            .map(|b| {
-                let entries = per_buffer.min(count - b * per_buffer);
-                storage_buffer(device, label, entries * stride)
-            })
+        let layout = Self::layout(limits, chunk, count, stride);
+        let buffers = (layout.iter())
+            .map(|&entries| storage_buffer(device, label, entries * stride))
             .collect();
         Self {
             stride,
             chunk,
-            per_buffer,
+            per_buffer: Self::per_buffer(limits, chunk, stride),
             buffers,
         }
+    }
+
+    /// Entries per buffer: whole chunks of `chunk`, as many as the adapter's largest buffer
+    /// holds (at least one).
+    fn per_buffer(limits: &wgpu::Limits, chunk: u64, stride: u64) -> u64 {
+        let chunk = chunk.max(1);
+        (limits.max_buffer_size / (chunk * stride)).max(1) * chunk
+    }
+
+    /// The entries each buffer of such an array holds (at least one buffer of one entry):
+    /// [`Self::per_buffer`] each, the last buffer the rest.
+    pub(crate) fn layout(limits: &wgpu::Limits, chunk: u64, count: u64, stride: u64) -> Vec<u64> {
+        let per_buffer = Self::per_buffer(limits, chunk, stride);
+        let count = count.max(1);
+        (0..count.div_ceil(per_buffer))
+            .map(|b| per_buffer.min(count - b * per_buffer))
+            .collect()
     }
 
     /// Writes `data` (whole entries) from entry 0 on, buffer by buffer.
@@ -459,6 +470,24 @@ impl TetArray {
         let per_buffer = (self.per_buffer * self.stride) as usize;
         for (buffer, part) in self.buffers.iter().zip(data.chunks(per_buffer)) {
             queue.write_buffer(buffer, 0, part);
+        }
+    }
+
+    /// Writes `count` entries from entry 0 on, entry `i` being `entry(i)`, converted in
+    /// parallel straight into the queue's staging memory, buffer by buffer: no whole
+    /// intermediate array (a sorted copy of 100M tets' vertex indices is 1.6 GB).
+    pub(crate) fn write_with<T: bytemuck::Pod + Send>(
+        &self,
+        queue: &wgpu::Queue,
+        count: usize,
+        entry: impl Fn(usize) -> T + Sync,
+    ) {
+        debug_assert_eq!(size_of::<T>() as u64, self.stride);
+        let per_buffer = self.per_buffer as usize;
+        for (b, buffer) in self.buffers.iter().enumerate() {
+            let first = b * per_buffer;
+            let n = per_buffer.min(count.saturating_sub(first));
+            write_parallel(queue, buffer, n, |i| entry(first + i));
         }
     }
 
@@ -595,5 +624,39 @@ mod tests {
         assert_eq!(chunk_ranges(10, 4), vec![(0, 4), (4, 4), (8, 2)]);
         assert_eq!(chunk_ranges(8, 4), vec![(0, 4), (4, 4)]);
         assert_eq!(chunk_ranges(0, 4), vec![]);
+    }
+
+    #[test]
+    fn the_100m_grid_s_per_tet_arrays_fit_the_h200_s_bindings_and_buffers() {
+        use crate::gpu::h200::{self, GRID_100M_TETS};
+        let limits = h200::limits();
+        let (binding, buffer) = (
+            limits.max_storage_buffer_binding_size,
+            limits.max_buffer_size,
+        );
+        let chunking = Chunking::new(GRID_100M_TETS, &limits).unwrap();
+        // 2147483644 / 80 = 26,843,545 records, rounded down to a multiple of 256 tets.
+        assert_eq!(chunking.chunk, 26_843_392);
+        let chunks = chunking.ranges(GRID_100M_TETS);
+        assert_eq!(chunks.len(), 4);
+        // Records (80 bytes): a buffer per chunk (two exceed a buffer); vertex indices (16)
+        // and cell values (4): one buffer of all. Every window within a binding, every buffer
+        // within the largest buffer, every window at an aligned offset of its buffer.
+        for (stride, buffers) in [(80, 4), (16, 1), (4, 1)] {
+            let layout = TetArray::layout(&limits, chunking.chunk, GRID_100M_TETS, stride);
+            assert_eq!(layout.len(), buffers, "stride {stride}");
+            assert_eq!(layout.iter().sum::<u64>(), GRID_100M_TETS);
+            assert!(
+                layout.iter().all(|&n| n * stride <= buffer),
+                "stride {stride}"
+            );
+            let per_buffer = layout[0];
+            for &(first, count) in &chunks {
+                assert!(count * stride <= binding, "stride {stride}");
+                let local = first % per_buffer;
+                assert_eq!(local * stride % 256, 0, "stride {stride}");
+                assert!(local + count <= per_buffer, "a window crosses buffers");
+            }
+        }
     }
 }

@@ -17,6 +17,8 @@ pub mod cellproj;
 mod context;
 pub(crate) mod frame;
 pub mod gpu_data;
+#[cfg(test)]
+pub(crate) mod h200;
 pub mod iso;
 pub mod mesh;
 pub mod raycast;

@@ -138,6 +138,17 @@ pub fn with_storage_binding_limit(
     c
 }
 
+/// A new device on `ctx`'s adapter opened to bind at most `bytes` per storage buffer: unlike
+/// [`with_storage_binding_limit`], wgpu then refuses any binding beyond it, as a driver whose
+/// limit is not a power of two does (the H200's 2147483644 bytes).
+pub fn device_binding_at_most(ctx: &tetvr::gpu::GpuContext, bytes: u64) -> tetvr::gpu::GpuContext {
+    let mut desc = tetvr::gpu::GpuContext::device_descriptor(&ctx.adapter);
+    desc.required_limits.max_storage_buffer_binding_size = bytes;
+    let (device, queue) = pollster::block_on(ctx.adapter.request_device(&desc))
+        .unwrap_or_else(|e| panic!("a device binding at most {bytes} bytes: {e}"));
+    tetvr::gpu::GpuContext::from_device(ctx.adapter.clone(), device, queue)
+}
+
 /// The same adapter and device as `ctx`, declared to bind at most `binding` bytes per storage
 /// buffer and to hold at most `buffer` bytes per buffer: per-tet arrays then span several
 /// buffers on an adapter whose own limits would hold them in one.

@@ -1,8 +1,6 @@
 //! Stage 3 of a cellproj frame: the view constants, the transfer function, the table
 //! constants and the sorted tets' vertex indices.
 
-use rayon::prelude::*;
-
 use crate::camera::Camera;
 use crate::gpu::mesh::MeshData;
 use crate::gpu::tf::tf_points;
@@ -39,16 +37,10 @@ impl CellProjRenderer {
         };
         self.queue
             .write_buffer(&self.cellproj_buf, 0, bytemuck::bytes_of(&constants));
-        let indices: Vec<[u32; 4]> = order.par_iter().map(|&t| m.tets[t as usize]).collect();
-        if !indices.is_empty() {
-            self.order_buf
-                .write(&self.queue, bytemuck::cast_slice(&indices));
-        }
-        if let (Some(buf), Some(cells)) = (&self.order_cells, m.gpu_cells()) {
-            let sorted: Vec<f32> = order.par_iter().map(|&t| cells[t as usize]).collect();
-            if !sorted.is_empty() {
-                buf.write(&self.queue, bytemuck::cast_slice(&sorted));
-            }
+        (self.order_buf).write_with(&self.queue, order.len(), |k| m.tets[order[k] as usize]);
+        if let (Some(buf), Some(cells)) = (&self.order_cells, m.cells.as_ref()) {
+            let value = |k: usize| m.gpu_value(cells[order[k] as usize]);
+            buf.write_with(&self.queue, order.len(), value);
         }
         Ok(())
     }

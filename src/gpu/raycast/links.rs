@@ -5,12 +5,13 @@
 //! The links are the ray caster's only per-tet data on the GPU (32 bytes a tet), in windows of
 //! one storage binding each (`chunking`); every stage binds [`LINK_BINDINGS`] windows and
 //! reads tet `t` from window `t / chunk` (WGSL `link`), so a ray steps into any tet of any
-//! window. On an adapter that binds 4 GiB (NVIDIA's Vulkan drivers), one window holds 134M
-//! tets; 100M tets need 3.2 GB of links, plus the shared vertex buffers (positions 16, scalars 4
-//! and the ray caster's eye-space vertices 16 bytes a vertex: about 0.65 GB for the ~18M
-//! vertices of such a mesh), the boundary (4 bytes a boundary face) and the per-pixel entry
-//! lists (8 bytes a hit: 32 MiB at 1024 x 1024 with 4 hits): about 4 GB, far within an
-//! 80-140 GB GPU.
+//! window. NVIDIA's Vulkan drivers bind 2147483644 bytes (2 GiB - 4, measured on an H200; not
+//! 4 GiB), so one window holds 67,108,608 tets (at 256-byte offsets) and four hold 268M: the
+//! 99.5M tets of `tetvr generate grid --tets 100000000` take two windows in two buffers, 3.2 GB
+//! of links, plus the shared vertex buffers (positions 16, scalars 4 and the ray caster's
+//! eye-space vertices 16 bytes a vertex: 0.6 GB for that grid's 16.8M vertices), the boundary
+//! (4 bytes a boundary face) and the per-pixel entry lists (8 bytes a hit: 32 MiB at
+//! 1024 x 1024 with 4 hits): about 3.8 GB, far within an 80-140 GB GPU.
 
 use rayon::prelude::*;
 
@@ -126,13 +127,28 @@ mod tests {
         assert!(err.contains("4097 tets") && err.contains("32768"), "{err}");
         // A binding below one aligned group of links cannot be windowed.
         assert!(chunking(1000, &limits(4096)).is_err());
-        // 100M tets where a binding holds 4 GiB (NVIDIA's Vulkan drivers): one window of all,
-        // 3.2 GB of links (the module docs' budget).
-        let big = wgpu::Limits {
-            max_buffer_size: 1 << 40,
-            ..limits(u32::MAX as u64)
-        };
-        assert_eq!(chunking(100_000_000, &big).unwrap().chunk, 100_000_000);
-        assert_eq!(100_000_000 * LINK_BYTES, 3_200_000_000);
+    }
+
+    #[test]
+    fn the_100m_grid_takes_two_windows_within_the_h200_s_binding() {
+        use crate::gpu::h200::{self, GRID_100M_TETS};
+        use crate::gpu::mesh::{TetArray, chunk_ranges};
+        let limits = h200::limits();
+        let binding = limits.max_storage_buffer_binding_size;
+        let chunk = chunking(GRID_100M_TETS, &limits).unwrap().chunk;
+        // 2147483644 / 32 = 67,108,863 links, rounded down to whole 256-byte offsets (8 links).
+        assert_eq!(chunk, 67_108_608);
+        let windows = chunk_ranges(GRID_100M_TETS, chunk);
+        assert_eq!(windows.len(), 2);
+        for (first, count) in windows {
+            assert!(count * LINK_BYTES <= binding, "{count} links");
+            assert_eq!(first * LINK_BYTES % 256, 0);
+        }
+        // Each window a buffer of its own (two do not fit the 4292870144-byte buffer limit).
+        let layout = TetArray::layout(&limits, chunk, GRID_100M_TETS, LINK_BYTES);
+        assert_eq!(layout, vec![chunk, GRID_100M_TETS - chunk]);
+        // Four windows: 268M tets at most, not one more.
+        assert!(chunking(4 * chunk, &limits).is_ok());
+        assert!(chunking(4 * chunk + 1, &limits).is_err());
     }
 }

@@ -425,6 +425,7 @@ impl RaycastRenderer {
         let chunking = links::chunking(nt, &ctx.limits)?;
         check_cells(&mesh)?;
         let (links_cpu, boundary_cpu) = links::build(&mesh.read().tets);
+        check_boundary(&ctx.limits, boundary_cpu.len() as u64)?;
         let links = mesh.tet_array("raycast links", chunking, nt, links::LINK_BYTES)?;
         // The walk sampler's slices read a textured cage's volume themselves: no textured
         // traversal of the ray caster's own.
@@ -526,6 +527,22 @@ fn check_cells(mesh: &GpuTetMesh) -> Result<(), RenderError> {
     }
 }
 
+/// An error unless the `faces` boundary faces (4 bytes each) fit the one storage binding the
+/// entry stages read them from (a grid of 100M tets has 0.8M; only a soup of loose tets
+/// comes near a binding).
+fn check_boundary(limits: &wgpu::Limits, faces: u64) -> Result<(), RenderError> {
+    let max = (limits.max_storage_buffer_binding_size).min(limits.max_buffer_size);
+    if 4 * faces > max {
+        return Err(settings_error(format!(
+            "the ray caster (--mode raycast, and shells' --sampler walk) binds the mesh's \
+             {faces} boundary faces (4 bytes each) as one storage binding, and this adapter \
+             binds at most {max} bytes; use --mode cellproj, or shells' --sampler raster, for \
+             this mesh"
+        )));
+    }
+    Ok(())
+}
+
 /// An error unless face codes (`4 tet + face`) fit a u32, the eye-space vertices fit one
 /// storage binding, and the table has at least 2 samples per axis (the links:
 /// [`links::chunking`]; the table's size: `frame.rs`).
@@ -619,5 +636,34 @@ impl Renderer for RaycastRenderer {
                 .as_ref()
                 .map_or(0, |i| i.uniforms.size() + i.ranges.size());
         self.mesh.gpu_memory() + buffers + self.links.size() + self.frame.size() + targets + texture
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gpu::h200::{self, GRID_100M_TETS, GRID_100M_VERTICES};
+
+    #[test]
+    fn the_100m_grid_fits_the_ray_caster_under_the_h200_s_limits() {
+        let limits = h200::limits();
+        let settings = RaycastSettings::default();
+        check_fits(&limits, GRID_100M_TETS, GRID_100M_VERTICES, &settings).unwrap();
+        // Eye-space vertices in one binding of 2147483644 bytes: 134,217,727 at most.
+        assert!(check_fits(&limits, GRID_100M_TETS, 134_217_727, &settings).is_ok());
+        assert!(check_fits(&limits, GRID_100M_TETS, 134_217_728, &settings).is_err());
+        // The grid's boundary: 6 sides of 255 x 255 squares of 2 triangles (3 MB); a binding
+        // holds 536,870,911 faces, not one more.
+        check_boundary(&limits, 6 * 255 * 255 * 2).unwrap();
+        assert!(check_boundary(&limits, 536_870_911).is_ok());
+        let err = check_boundary(&limits, 536_870_912)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("536870912 boundary faces"), "{err}");
+        assert!(err.contains("--mode cellproj"), "{err}");
+        // The step limit: 64 x 464 (the cube root of the tets, rounded up), far above the
+        // ~1,800 tets a ray crosses along the grid's diagonal (255 sqrt 3 cubes, about 4 tets
+        // each).
+        assert_eq!(default_max_steps(GRID_100M_TETS as usize), 29_696);
     }
 }

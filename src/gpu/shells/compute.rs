@@ -291,7 +291,7 @@ impl ShellsRenderer {
                 entry(2, &self.tf_buf),
                 assembled.records.window(3, first, count),
                 entry(4, &self.slicing_buf),
-                entry(5, &self.active_buf),
+                self.instances.entry(5, &self.active_buf, 0),
                 entry(6, &b.counts),
                 entry(7, &b.offsets),
                 entry(8, &b.lists),

@@ -401,6 +401,7 @@ impl ShellsRenderer {
             model: config.model,
             frame: FrameResources::new(ctx),
             instances: InstanceLayout {
+                entries: 0,
                 window: 1,
                 windows: 1,
                 batch: 1,
@@ -689,23 +690,10 @@ impl ShellsRenderer {
         let tets = self.mesh.tets()?;
         let assembled = self.assembled.as_ref().ok_or_else(no_records)?;
         let layout = self.instances;
-        let windows = (0..layout.windows as u64).flat_map(|w| chunks.iter().map(move |&c| (w, c)));
+        let windows = (0..layout.windows).flat_map(|w| chunks.iter().map(move |&c| (w, c)));
         Ok(windows
             .map(|(w, (first, count))| {
-                let window = layout.window as u64 * 4;
-                let active = if layout.windows == 1 {
-                    entry(3, &self.active_buf)
-                } else {
-                    let size = window.min(self.active_buf.size() - w * window);
-                    wgpu::BindGroupEntry {
-                        binding: 3,
-                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                            buffer: &self.active_buf,
-                            offset: w * window,
-                            size: wgpu::BufferSize::new(size),
-                        }),
-                    }
-                };
+                let active = layout.entry(3, &self.active_buf, w);
                 let mut entries = vec![
                     entry(0, &self.view_buf),
                     wgpu::BindGroupEntry {

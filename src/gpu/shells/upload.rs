@@ -167,13 +167,9 @@ pub(super) fn write_grown(
     usage: wgpu::BufferUsages,
 ) {
     if buf.size() < data.len() as u64 {
-        let bytes = data.len() as u64;
         *buf = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("shells per-frame data"),
-            size: bytes
-                .next_power_of_two()
-                .min(ctx.limits.max_buffer_size)
-                .max(bytes),
+            size: grown_size(data.len() as u64, &ctx.limits),
             usage: usage | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
@@ -181,6 +177,16 @@ pub(super) fn write_grown(
     if !data.is_empty() {
         ctx.queue.write_buffer(buf, 0, data);
     }
+}
+
+/// The size [`write_grown`] gives a buffer for `bytes`: the next power of two, at most the
+/// adapter's largest buffer (and at least `bytes`). It may exceed a storage binding: bind
+/// what the data needs ([`InstanceLayout::binding`]), not the whole buffer.
+pub(super) fn grown_size(bytes: u64, limits: &wgpu::Limits) -> u64 {
+    bytes
+        .next_power_of_two()
+        .min(limits.max_buffer_size)
+        .max(bytes)
 }
 
 /// The most instances one draw of faces covers, so the face index pattern takes at most
@@ -195,6 +201,8 @@ const MAX_BATCH: u64 = 1 << 18;
 /// within a batch of `batch` instances, which the face index pattern covers.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) struct InstanceLayout {
+    /// Entries of the active list.
+    pub(super) entries: u64,
     /// Active-list entries per window (all of them when they fit one binding).
     pub(super) window: u32,
     /// Number of windows.
@@ -224,10 +232,39 @@ impl InstanceLayout {
             .min(max_buffer / 48)
             .min(u32::MAX as u64 / 12);
         (window > 0 && batch > 0).then(|| Self {
+            entries: n,
             window: window as u32,
             windows: n.div_ceil(window).max(1) as u32,
             batch: batch as u32,
         })
+    }
+
+    /// Window `w`'s binding of the active list: its byte offset and size, the size that of
+    /// its entries (at least one), not of the buffer, which is grown to a power of two and
+    /// may exceed a binding (the H200 binds 2 GiB - 4 bytes: a list of 1-2 GiB has a 2 GiB
+    /// buffer).
+    pub(super) fn binding(&self, w: u32) -> (u64, u64) {
+        let (window, first) = (self.window as u64, w as u64 * self.window as u64);
+        let count = window.min(self.entries.saturating_sub(first)).max(1);
+        (4 * first, 4 * count)
+    }
+
+    /// Window `w`'s binding (see [`Self::binding`]) of `active` at `binding`.
+    pub(super) fn entry<'a>(
+        &self,
+        binding: u32,
+        active: &'a wgpu::Buffer,
+        w: u32,
+    ) -> wgpu::BindGroupEntry<'a> {
+        let (offset, size) = self.binding(w);
+        wgpu::BindGroupEntry {
+            binding,
+            resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                buffer: active,
+                offset,
+                size: wgpu::BufferSize::new(size),
+            }),
+        }
     }
 
     /// The pieces of the active-list range `range` to draw: per window `w`, the range relative
@@ -256,6 +293,7 @@ mod tests {
     #[test]
     fn pieces_stay_within_a_window_and_a_batch() {
         let layout = InstanceLayout {
+            entries: 300,
             window: 100,
             windows: 3,
             batch: 32,
@@ -270,6 +308,7 @@ mod tests {
             ]
         );
         let whole = InstanceLayout {
+            entries: 1000,
             window: 1000,
             windows: 1,
             batch: 1024,
@@ -298,5 +337,45 @@ mod tests {
         );
         // More than one buffer holds.
         assert_eq!(InstanceLayout::new(1 << 19, &limits), None);
+    }
+
+    /// Every window of a layout of `n` instances under `limits` binds at most one storage
+    /// binding, at an offset aligned to 256 bytes, and the windows cover the list once.
+    fn assert_bindings_fit(n: u64, limits: &wgpu::Limits) -> InstanceLayout {
+        let layout = InstanceLayout::new(n, limits).expect("fits one buffer");
+        let mut covered = 0;
+        for w in 0..layout.windows {
+            let (offset, size) = layout.binding(w);
+            assert!(
+                size <= limits.max_storage_buffer_binding_size,
+                "window {w}: {size}"
+            );
+            assert_eq!((offset % 256, offset), (0, 4 * covered), "window {w}");
+            covered += size / 4;
+        }
+        assert_eq!(covered, n.max(1));
+        layout
+    }
+
+    #[test]
+    fn the_active_list_of_a_100m_tet_frame_binds_within_the_h200_s_limit() {
+        use crate::gpu::h200;
+        let limits = h200::limits();
+        let binding = limits.max_storage_buffer_binding_size;
+        // 150M instances (a 100M-tet grid's tets in 1.5 shells each): one window of 600 MB.
+        let one = assert_bindings_fit(150_000_000, &limits);
+        assert_eq!((one.windows, one.binding(0)), (1, (0, 600_000_000)));
+        // 400M instances, 1.6 GB: one window, in a buffer grown to 2 GiB, 4 bytes more than
+        // the H200 binds; binding that buffer whole was a validation error there.
+        let n = 400_000_000;
+        assert_eq!(grown_size(4 * n, &limits), 1 << 31);
+        assert!(grown_size(4 * n, &limits) > binding);
+        assert_eq!(assert_bindings_fit(n, &limits).windows, 1);
+        // 600M instances, 2.4 GB: windows of 2^28 instances (vertex indices below 2^31).
+        let three = assert_bindings_fit(600_000_000, &limits);
+        assert_eq!((three.window, three.windows), (1 << 28, 3));
+        // Beyond one 4292870144-byte buffer: refused (an error naming the way out).
+        assert_eq!(InstanceLayout::new(1_073_217_537, &limits), None);
+        assert_bindings_fit(0, &limits);
     }
 }
