@@ -611,6 +611,33 @@ fn animate_writes_a_gif_whose_frames_move() {
     assert_ne!(frames[0].buffer().as_raw(), frames[1].buffer().as_raw());
 }
 
+/// The output check takes `.GIF` and `.PNG` (any case); so must the writer, which refused
+/// them once the mesh was loaded and the renderer built.
+#[test]
+fn animate_takes_its_output_extensions_in_any_case() {
+    let dir = out_dir("animate-case");
+    let (gif, png) = (dir.join("upper.GIF"), dir.join("seq.PNG"));
+    let frame0 = dir.join("seq-0000.png");
+    for path in [&gif, &frame0] {
+        let _ = std::fs::remove_file(path); // left by an earlier run
+    }
+    let args = [
+        "animate",
+        LOX,
+        "--frames",
+        "1",
+        "--size",
+        "8x8",
+        "--mode",
+        "raycast-cpu",
+    ];
+    for (out, written) in [(&gif, &gif), (&png, &frame0)] {
+        let o = tetvr(&[&args[..], &["-o", out.to_str().unwrap()]].concat());
+        assert!(o.status.success(), "{}", text(&o).1);
+        assert!(written.exists(), "{} was not written", written.display());
+    }
+}
+
 #[test]
 fn help_has_examples() {
     let (stdout, _) = text(&tetvr(&["render", "--help"]));

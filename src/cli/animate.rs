@@ -225,7 +225,9 @@ enum FrameSink {
 impl FrameSink {
     /// A sink for `output` (`.gif`, or `.png` for a numbered sequence).
     fn create(output: &Path, background: Option<[f32; 3]>, fps: u32) -> Result<Self, CliError> {
-        match output.extension().and_then(|e| e.to_str()) {
+        // Any case, as check_output takes it: out.GIF is a GIF.
+        let ext = output.extension().and_then(|e| e.to_str());
+        match ext.map(str::to_ascii_lowercase).as_deref() {
             Some("png") => Ok(Self::Png {
                 stem: output.with_extension(""),
                 written: 0,
