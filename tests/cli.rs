@@ -969,6 +969,37 @@ fn out_of_range_numbers_are_named_with_what_to_write() {
     assert!(stderr.contains("'0' for '--runs <RUNS>'"), "{stderr}");
 }
 
+/// An isovalue outside the range is named where it was given: a scene file's `settings.iso`
+/// is not `--iso`, which the user did not write; a value that is not a number is said to be
+/// one, not to lie outside the range.
+#[test]
+fn isovalues_are_named_where_they_were_given() {
+    let dir = out_dir("iso-source");
+    let png = dir.join("x.png");
+    let scene = dir.join("far.json");
+    let json = serde_json::json!({"mesh": LOX, "mode": "iso", "settings": {"iso": [1e9]}});
+    std::fs::write(&scene, json.to_string()).unwrap();
+    let (png, scene) = (png.to_str().unwrap(), scene.to_str().unwrap());
+    let stderr = failure(&["render", "--scene", scene, "--size", "8x8", "-o", png]);
+    assert!(
+        stderr.starts_with(&format!(
+            "error: {scene}: settings.iso 1000000000 is outside the scalar range"
+        )),
+        "{stderr}"
+    );
+    // The command line's value over the file's is the one named.
+    let stderr = failure(&["render", "--scene", scene, "--iso", "-5e9", "-o", png]);
+    assert!(
+        stderr.starts_with("error: --iso -5000000000 is outside"),
+        "{stderr}"
+    );
+    let stderr = failure(&["render", LOX, "--mode", "iso", "--iso", "nan", "-o", png]);
+    assert!(
+        stderr.contains("isovalues must be finite numbers, not NaN"),
+        "{stderr}"
+    );
+}
+
 #[test]
 fn flags_of_another_mode_are_refused_not_ignored() {
     let png = out_dir("mode-flags").join("x.png");

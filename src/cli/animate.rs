@@ -129,7 +129,7 @@ impl Playback {
         let tf = transfer_function_for(r, mesh, textured.as_ref())?;
         // A series' later steps may bring its field to an isovalue; a deformation keeps it.
         if r.mode == Mode::Iso && !Series::is_series(&r.mesh.mesh) {
-            check_isovalues(&r.iso, mesh, textured.as_ref())?;
+            check_isovalues(&r.iso, "--iso", mesh, textured.as_ref())?;
         }
         let camera = camera(r, mesh)?;
         let (mode, gpu) = open_mode(r, mesh, &tf)?;
