@@ -1000,6 +1000,39 @@ fn isovalues_are_named_where_they_were_given() {
     );
 }
 
+/// The camera flags need no mesh: a bad one is named before the mesh is read (here a mesh
+/// that does not exist, whose error would come first otherwise), not after minutes of loading.
+#[test]
+fn camera_flags_are_checked_before_the_mesh_is_read() {
+    let dir = out_dir("camera-first");
+    let missing = dir.join("missing.vtu");
+    let (png, gif) = (dir.join("x.png"), dir.join("x.gif"));
+    let (missing, png, gif) = (
+        missing.to_str().unwrap(),
+        png.to_str().unwrap(),
+        gif.to_str().unwrap(),
+    );
+    for (flags, expected) in [
+        (["--fov", "0"], "field of view 0 degrees"),
+        (["--distance", "-1"], "eye distance -1 must be a positive"),
+        (["--view", "sideways"], "sideways"),
+    ] {
+        let commands = [
+            vec!["render", missing, "-o", png],
+            vec!["animate", missing, "-o", gif],
+            #[cfg(feature = "viewer")]
+            vec!["view", missing],
+        ];
+        for command in commands {
+            let stderr = failure(&[&command[..], &flags[..]].concat());
+            assert!(
+                stderr.contains(expected) && !stderr.contains("missing.vtu"),
+                "{command:?} {flags:?}: {stderr}"
+            );
+        }
+    }
+}
+
 #[test]
 fn flags_of_another_mode_are_refused_not_ignored() {
     let png = out_dir("mode-flags").join("x.png");
