@@ -963,6 +963,27 @@ fn out_of_range_numbers_are_named_with_what_to_write() {
             "{stderr}"
         );
     }
+    // A series too: its first step named, not a bare "the mesh has no scalar array".
+    let series = out_dir("numbers-series");
+    for i in 0..2 {
+        std::fs::copy(bare, series.join(format!("bare_{i}.vtk"))).unwrap();
+    }
+    let pattern = series.join("bare_*.vtk");
+    let gif = series.join("x.gif");
+    let stderr = failure(&[
+        "animate",
+        pattern.to_str().unwrap(),
+        "-o",
+        gif.to_str().unwrap(),
+    ]);
+    let first = series.join("bare_0.vtk");
+    assert!(
+        stderr.starts_with(&format!(
+            "error: {}: the mesh has no scalar array",
+            first.display()
+        )),
+        "{stderr}"
+    );
     let o = tetvr(&["bench", "--runs", "0"]);
     let (_, stderr) = text(&o);
     assert_eq!(o.status.code(), Some(2), "{stderr}");

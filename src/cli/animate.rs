@@ -96,6 +96,9 @@ fn play_series(args: &AnimateArgs) -> Result<(), CliError> {
         mesh.prepare(m.array.as_deref(), CellDataMode::Points, warp)
     };
     let first = series.load_prepared(0, &limits, prepare)?;
+    if args.render.texture.is_none() {
+        require_scalars(&first, &series.steps()[0].path)?;
+    }
     let mut play = Playback::open(args, &first, series.steps().len() as u64)?;
     play.frame(|_| Ok(()))?;
     for i in 1..series.steps().len() {
