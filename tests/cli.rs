@@ -638,6 +638,34 @@ fn animate_takes_its_output_extensions_in_any_case() {
     }
 }
 
+/// A CT volume's Hounsfield units are negative below water: `--threshold -500` is a value, not
+/// an unknown flag (clap took it for one, with the tip to write `-- -500`).
+#[test]
+fn generate_takes_negative_thresholds() {
+    let dir = out_dir("negative-threshold");
+    let nii = dir.join("ct.nii");
+    // 6^3 voxels from -1000 (air) to 1000 (bone) along x.
+    let data = ndarray::Array3::from_shape_fn((6, 6, 6), |(x, _, _)| x as f32 * 400.0 - 1000.0);
+    nifti::writer::WriterOptions::new(&nii)
+        .write_nifti(&data)
+        .unwrap();
+    let nii = nii.to_str().unwrap();
+    for (shape, out) in [("nifti", "tissue.vtu"), ("cage", "cage.vtu")] {
+        let out = dir.join(out);
+        let o = tetvr(&[
+            "generate",
+            shape,
+            nii,
+            "--threshold",
+            "-500",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{shape}: {}", text(&o).1);
+        assert!(text(&o).0.contains("wrote"), "{shape}");
+    }
+}
+
 #[test]
 fn help_has_examples() {
     let (stdout, _) = text(&tetvr(&["render", "--help"]));
