@@ -585,13 +585,8 @@ impl Scene {
         let c = &self.camera;
         let [w, h] = self.size;
         // Checked before framing, which would turn them into a non-finite or mirrored eye.
-        if !(c.fov > 0.0 && c.fov < 180.0) {
-            return Err(CameraError::BadFov(c.fov).into());
-        }
-        if !(c.distance > 0.0 && c.distance.is_finite()) {
-            return Err(CameraError::BadDistance(c.distance).into());
-        }
-        let mut camera = Camera::framing(lo, hi, View::parse(&c.view)?, c.distance, c.fov, w, h);
+        let view = self.check_camera()?;
+        let mut camera = Camera::framing(lo, hi, view, c.distance, c.fov, w, h);
         if let Some(target) = c.target.map(glam::DVec3::from) {
             camera.eye += target - camera.target;
             camera.target = target;
@@ -600,6 +595,19 @@ impl Scene {
         camera.up = c.up.map_or(camera.up, glam::DVec3::from);
         camera.validate()?;
         Ok(camera)
+    }
+
+    /// The view, after checking the camera settings that need no mesh (view, field of view,
+    /// distance), so that a command can refuse them before it reads one.
+    pub fn check_camera(&self) -> Result<View, SceneError> {
+        let c = &self.camera;
+        if !(c.fov > 0.0 && c.fov < 180.0) {
+            return Err(CameraError::BadFov(c.fov).into());
+        }
+        if !(c.distance > 0.0 && c.distance.is_finite()) {
+            return Err(CameraError::BadDistance(c.distance).into());
+        }
+        Ok(View::parse(&c.view)?)
     }
 
     /// Sets the camera to exactly `camera`: eye, target, up, field of view and size.

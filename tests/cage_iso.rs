@@ -305,4 +305,45 @@ fn render_textured_iso_from_the_command_line() {
         .compare(&expected.color)
         .unwrap();
     assert!(m.max_abs <= 1.0 / 255.0 + 1e-6, "{m}");
+
+    // The isovalue check takes the volume's range, not the cage's vertex samples': a value above
+    // every vertex sample but inside the volume renders, one above the volume is refused.
+    let (_, cage_hi) = mesh.active_array().and_then(|a| a.range()).unwrap();
+    assert!(
+        cage_hi < hi,
+        "the blob's peak {hi} lies between the cage's vertices ({cage_hi})"
+    );
+    let iso_run = |value: f64| {
+        let value = std::ffi::OsString::from(value.to_string());
+        let args = [
+            os("render"),
+            cage_path.as_os_str(),
+            os("--texture"),
+            nii.as_os_str(),
+        ];
+        let flags = [
+            os("--mode"),
+            os("iso"),
+            os("--iso"),
+            &value,
+            os("--size"),
+            os("8x8"),
+        ];
+        Command::new(env!("CARGO_BIN_EXE_tetvr"))
+            .args(args.iter().chain(&flags))
+            .arg("-o")
+            .arg(&png)
+            .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+            .output()
+            .unwrap()
+    };
+    let inside = iso_run(0.5 * (cage_hi + hi));
+    assert!(
+        inside.status.success(),
+        "{}",
+        String::from_utf8_lossy(&inside.stderr)
+    );
+    let above = iso_run(hi + 1.0);
+    let stderr = String::from_utf8_lossy(&above.stderr);
+    assert!(stderr.contains("is outside the scalar range"), "{stderr}");
 }

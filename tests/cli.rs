@@ -611,6 +611,61 @@ fn animate_writes_a_gif_whose_frames_move() {
     assert_ne!(frames[0].buffer().as_raw(), frames[1].buffer().as_raw());
 }
 
+/// The output check takes `.GIF` and `.PNG` (any case); so must the writer, which refused
+/// them once the mesh was loaded and the renderer built.
+#[test]
+fn animate_takes_its_output_extensions_in_any_case() {
+    let dir = out_dir("animate-case");
+    let (gif, png) = (dir.join("upper.GIF"), dir.join("seq.PNG"));
+    let frame0 = dir.join("seq-0000.png");
+    for path in [&gif, &frame0] {
+        let _ = std::fs::remove_file(path); // left by an earlier run
+    }
+    let args = [
+        "animate",
+        LOX,
+        "--frames",
+        "1",
+        "--size",
+        "8x8",
+        "--mode",
+        "raycast-cpu",
+    ];
+    for (out, written) in [(&gif, &gif), (&png, &frame0)] {
+        let o = tetvr(&[&args[..], &["-o", out.to_str().unwrap()]].concat());
+        assert!(o.status.success(), "{}", text(&o).1);
+        assert!(written.exists(), "{} was not written", written.display());
+    }
+}
+
+/// A CT volume's Hounsfield units are negative below water: `--threshold -500` is a value, not
+/// an unknown flag (clap took it for one, with the tip to write `-- -500`).
+#[test]
+fn generate_takes_negative_thresholds() {
+    let dir = out_dir("negative-threshold");
+    let nii = dir.join("ct.nii");
+    // 6^3 voxels from -1000 (air) to 1000 (bone) along x.
+    let data = ndarray::Array3::from_shape_fn((6, 6, 6), |(x, _, _)| x as f32 * 400.0 - 1000.0);
+    nifti::writer::WriterOptions::new(&nii)
+        .write_nifti(&data)
+        .unwrap();
+    let nii = nii.to_str().unwrap();
+    for (shape, out) in [("nifti", "tissue.vtu"), ("cage", "cage.vtu")] {
+        let out = dir.join(out);
+        let o = tetvr(&[
+            "generate",
+            shape,
+            nii,
+            "--threshold",
+            "-500",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{shape}: {}", text(&o).1);
+        assert!(text(&o).0.contains("wrote"), "{shape}");
+    }
+}
+
 #[test]
 fn help_has_examples() {
     let (stdout, _) = text(&tetvr(&["render", "--help"]));
@@ -936,10 +991,95 @@ fn out_of_range_numbers_are_named_with_what_to_write() {
             "{stderr}"
         );
     }
+    // A series too: its first step named, not a bare "the mesh has no scalar array".
+    let series = out_dir("numbers-series");
+    for i in 0..2 {
+        std::fs::copy(bare, series.join(format!("bare_{i}.vtk"))).unwrap();
+    }
+    let pattern = series.join("bare_*.vtk");
+    let gif = series.join("x.gif");
+    let stderr = failure(&[
+        "animate",
+        pattern.to_str().unwrap(),
+        "-o",
+        gif.to_str().unwrap(),
+    ]);
+    let first = series.join("bare_0.vtk");
+    assert!(
+        stderr.starts_with(&format!(
+            "error: {}: the mesh has no scalar array",
+            first.display()
+        )),
+        "{stderr}"
+    );
     let o = tetvr(&["bench", "--runs", "0"]);
     let (_, stderr) = text(&o);
     assert_eq!(o.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("'0' for '--runs <RUNS>'"), "{stderr}");
+}
+
+/// An isovalue outside the range is named where it was given: a scene file's `settings.iso`
+/// is not `--iso`, which the user did not write; a value that is not a number is said to be
+/// one, not to lie outside the range.
+#[test]
+fn isovalues_are_named_where_they_were_given() {
+    let dir = out_dir("iso-source");
+    let png = dir.join("x.png");
+    let scene = dir.join("far.json");
+    let json = serde_json::json!({"mesh": LOX, "mode": "iso", "settings": {"iso": [1e9]}});
+    std::fs::write(&scene, json.to_string()).unwrap();
+    let (png, scene) = (png.to_str().unwrap(), scene.to_str().unwrap());
+    let stderr = failure(&["render", "--scene", scene, "--size", "8x8", "-o", png]);
+    assert!(
+        stderr.starts_with(&format!(
+            "error: {scene}: settings.iso 1000000000 is outside the scalar range"
+        )),
+        "{stderr}"
+    );
+    // The command line's value over the file's is the one named.
+    let stderr = failure(&["render", "--scene", scene, "--iso", "-5e9", "-o", png]);
+    assert!(
+        stderr.starts_with("error: --iso -5000000000 is outside"),
+        "{stderr}"
+    );
+    let stderr = failure(&["render", LOX, "--mode", "iso", "--iso", "nan", "-o", png]);
+    assert!(
+        stderr.contains("isovalues must be finite numbers, not NaN"),
+        "{stderr}"
+    );
+}
+
+/// The camera flags need no mesh: a bad one is named before the mesh is read (here a mesh
+/// that does not exist, whose error would come first otherwise), not after minutes of loading.
+#[test]
+fn camera_flags_are_checked_before_the_mesh_is_read() {
+    let dir = out_dir("camera-first");
+    let missing = dir.join("missing.vtu");
+    let (png, gif) = (dir.join("x.png"), dir.join("x.gif"));
+    let (missing, png, gif) = (
+        missing.to_str().unwrap(),
+        png.to_str().unwrap(),
+        gif.to_str().unwrap(),
+    );
+    for (flags, expected) in [
+        (["--fov", "0"], "field of view 0 degrees"),
+        (["--distance", "-1"], "eye distance -1 must be a positive"),
+        (["--view", "sideways"], "sideways"),
+    ] {
+        let commands = [
+            vec!["render", missing, "-o", png],
+            vec!["animate", missing, "-o", gif],
+            #[cfg(feature = "viewer")]
+            vec!["view", missing],
+        ];
+        for command in commands {
+            let stderr = failure(&[&command[..], &flags[..]].concat());
+            assert!(
+                stderr.contains(expected) && !stderr.contains("missing.vtu"),
+                "{command:?} {flags:?}: {stderr}"
+            );
+        }
+    }
 }
 
 #[test]

@@ -289,6 +289,26 @@ fn pvd_and_numbered_series_play_as_each_step_rendered_alone() {
     }
 }
 
+/// An isovalue above the first step's range but reached by later steps is drawn where they reach
+/// it, not refused by the check that refuses a single mesh's: the first frame is blank, the
+/// last is not. (Step k's field is the base's times 1 + k/4: 1.25 x the base's maximum lies
+/// inside step 2's range only.)
+#[test]
+fn a_series_draws_an_isovalue_that_only_later_steps_reach() {
+    let dir = out_dir("iso-later");
+    write_series(&dir, 3);
+    let (_, hi) = base_grid().active_array().and_then(|a| a.range()).unwrap();
+    let iso = (1.25 * hi).to_string();
+    let frames = animate_frames(&dir.join("run.pvd"), "iso", &dir, "iso", &["--iso", &iso]);
+    assert_eq!(frames.len(), 3);
+    let blank = |f: &[u8]| f.chunks(4).all(|p| p == &f[..4]);
+    assert!(blank(&frames[0]), "step 0 cannot reach {iso}");
+    assert!(
+        !blank(&frames[2]),
+        "step 2 reaches {iso}: its surface is drawn"
+    );
+}
+
 /// Runs `tetvr animate` expecting failure; returns its error message.
 fn animate_error(args: &[&str]) -> String {
     let o = Command::new(BIN)

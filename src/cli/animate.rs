@@ -43,6 +43,7 @@ pub(super) fn animate(args: AnimateArgs) -> Result<(), CliError> {
         .unwrap_or(Path::new("tetvr.gif"));
     check_output(output, &["gif", "png"])?;
     unused_mode_flags(&args.render, args.render.mode)?;
+    of_flags(&args.render)?.check_camera()?;
     if Series::is_series(&args.render.mesh.mesh) {
         if args.deform.is_some() || args.amplitude.is_some() || args.frames.is_some() {
             return Err(CliError::Usage(
@@ -95,6 +96,9 @@ fn play_series(args: &AnimateArgs) -> Result<(), CliError> {
         mesh.prepare(m.array.as_deref(), CellDataMode::Points, warp)
     };
     let first = series.load_prepared(0, &limits, prepare)?;
+    if args.render.texture.is_none() {
+        require_scalars(&first, &series.steps()[0].path)?;
+    }
     let mut play = Playback::open(args, &first, series.steps().len() as u64)?;
     play.frame(|_| Ok(()))?;
     for i in 1..series.steps().len() {
@@ -129,7 +133,7 @@ impl Playback {
         let tf = transfer_function_for(r, mesh, textured.as_ref())?;
         // A series' later steps may bring its field to an isovalue; a deformation keeps it.
         if r.mode == Mode::Iso && !Series::is_series(&r.mesh.mesh) {
-            check_isovalues(&r.iso, mesh, textured.as_ref())?;
+            check_isovalues(&r.iso, "--iso", mesh, textured.as_ref())?;
         }
         let camera = camera(r, mesh)?;
         let (mode, gpu) = open_mode(r, mesh, &tf)?;
@@ -225,7 +229,9 @@ enum FrameSink {
 impl FrameSink {
     /// A sink for `output` (`.gif`, or `.png` for a numbered sequence).
     fn create(output: &Path, background: Option<[f32; 3]>, fps: u32) -> Result<Self, CliError> {
-        match output.extension().and_then(|e| e.to_str()) {
+        // Any case, as check_output takes it: out.GIF is a GIF.
+        let ext = output.extension().and_then(|e| e.to_str());
+        match ext.map(str::to_ascii_lowercase).as_deref() {
             Some("png") => Ok(Self::Png {
                 stem: output.with_extension(""),
                 written: 0,

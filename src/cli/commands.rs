@@ -170,6 +170,7 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
     if let Some(path) = &cmd.save_scene {
         check_output(path, &["json"])?;
     }
+    scene.check_camera()?;
     let Loaded { mesh, .. } = scene.load_mesh(&read_limits(&args.mesh))?;
     if scene.texture.is_none() {
         require_scalars(&mesh, &scene.mesh)?;
@@ -183,7 +184,12 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
         None => scene.transfer_function(&mesh)?,
     };
     if scene.mode == tetvr::scene::Mode::Iso {
-        check_isovalues(&scene.settings.iso, &mesh, textured.as_ref())?;
+        // Given on the command line, or else by the scene file.
+        let from = match (args.iso.is_empty(), &cmd.scene) {
+            (true, Some(file)) => format!("{}: settings.iso", file.display()),
+            _ => "--iso".to_owned(),
+        };
+        check_isovalues(&scene.settings.iso, &from, &mesh, textured.as_ref())?;
     }
     let (mode, gpu) = open_scene_mode(&scene, &mesh, &tf)?;
     // A textured cage keeps `auto` for its own rule (texture::textured_renderer).
@@ -228,9 +234,12 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
 }
 
 /// Refuses isovalues outside the scalar range (a textured cage's: its volume's): their
-/// surfaces are drawn nowhere, a blank picture instead of what was asked.
+/// surfaces are drawn nowhere, a blank picture instead of what was asked. `from` names where
+/// they were given (`--iso`, or a scene file's `settings.iso`); values that are not finite are
+/// left to the scene's own check, which says so.
 pub(super) fn check_isovalues(
     isovalues: &[f64],
+    from: &str,
     mesh: &TetMesh,
     textured: Option<&Textured>,
 ) -> Result<(), CliError> {
@@ -241,9 +250,9 @@ pub(super) fn check_isovalues(
     let Some((lo, hi)) = range else {
         return Err(MeshError::NoScalars.into());
     };
-    match isovalues.iter().find(|v| !(lo..=hi).contains(*v)) {
+    match (isovalues.iter()).find(|v| v.is_finite() && !(lo..=hi).contains(*v)) {
         Some(v) => Err(CliError::Usage(format!(
-            "--iso {v} is outside the scalar range [{lo}, {hi}], so no surface would be drawn; \
+            "{from} {v} is outside the scalar range [{lo}, {hi}], so no surface would be drawn; \
              choose values inside the range"
         ))),
         None => Ok(()),

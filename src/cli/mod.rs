@@ -419,6 +419,7 @@ pub enum GenerateShape {
         field: String,
     },
     /// Tetrahedralize a NIfTI volume (.nii or .nii.gz): voxel centres become vertices.
+    #[command(allow_negative_numbers = true)]
     Nifti {
         /// The volume file.
         input: PathBuf,
@@ -434,6 +435,7 @@ pub enum GenerateShape {
     /// (`render --texture`): the box of its voxel centres, placed as `generate nifti` places
     /// them, with the point array `texcoords` (normalized 3D texture coordinates) and the
     /// volume sampled at the vertices as `intensity`.
+    #[command(allow_negative_numbers = true)]
     Cage {
         /// The volume file.
         input: PathBuf,
