@@ -196,6 +196,11 @@ pub(super) fn grown_size(bytes: u64, limits: &wgpu::Limits) -> u64 {
 /// frame of 16M instances makes 64 draws more, in the same order, so the picture is the same.
 const MAX_BATCH: u64 = 1 << 18;
 
+/// The most instances one window of the active list holds: a draw of faces starts at base
+/// vertex 4 x its batch's first instance (an `i32`), and a near draw's vertices are 6 per
+/// instance (a `u32`), so both stay in range for windows of at most 2^29 instances.
+const MAX_WINDOW: u64 = 1 << 29;
+
 /// How a frame's tet-shell instances are drawn: the active list bound in windows of `window`
 /// entries (each within one storage binding, at an aligned offset), and each draw of faces
 /// within a batch of `batch` instances, which the face index pattern covers.
@@ -221,8 +226,9 @@ impl InstanceLayout {
             return None;
         }
         let align = (limits.min_storage_buffer_offset_alignment as u64 / 4).max(1);
-        // Vertex indices (4 per instance, with the draw's base vertex) stay below 2^31.
-        let window = if n * 4 <= max_binding {
+        // Vertex indices (4 per instance, with the draw's base vertex) stay below 2^31, also
+        // where one binding holds more (Metal binds up to its largest buffer).
+        let window = if n * 4 <= max_binding && n <= MAX_WINDOW {
             n.max(1)
         } else {
             (max_binding / 4 / align * align).min(1 << 28)
@@ -377,5 +383,44 @@ mod tests {
         // Beyond one 4292870144-byte buffer: refused (an error naming the way out).
         assert_eq!(InstanceLayout::new(1_073_217_537, &limits), None);
         assert_bindings_fit(0, &limits);
+        for n in [150_000_000, 400_000_000, 600_000_000] {
+            assert_draws_in_range(&InstanceLayout::new(n, &limits).unwrap());
+        }
+    }
+
+    /// Every draw of `layout`'s whole list stays within the vertex indices a draw takes: a
+    /// faces draw's base vertex (4 x its batch's first instance) plus its indices (4 per
+    /// instance of the batch) within an `i32`, a near draw's vertices (6 per instance, from
+    /// the window's start) within a `u32`.
+    fn assert_draws_in_range(layout: &InstanceLayout) {
+        let n = layout.entries as u32;
+        for (w, local, base) in layout.pieces(0..n) {
+            let faces = 4 * (base as u64 + layout.batch as u64);
+            assert!(faces <= 1 << 31, "window {w}: faces reach vertex {faces}");
+            let near = 6 * local.end as u64;
+            assert!(
+                near <= u32::MAX as u64,
+                "window {w}: near reach vertex {near}"
+            );
+        }
+    }
+
+    #[test]
+    fn an_adapter_binding_a_whole_large_buffer_gets_windows_its_draws_can_index() {
+        // Metal binds up to its largest buffer (here 8 GiB): 10^9 instances (4 GB) fit one
+        // binding, but one window of them would start faces draws at base vertex 4 x 10^9,
+        // beyond an i32, and number near vertices up to 6 x 10^9, beyond a u32.
+        let limits = wgpu::Limits {
+            max_storage_buffer_binding_size: 8 << 30,
+            max_buffer_size: 8 << 30,
+            ..wgpu::Limits::default()
+        };
+        let layout = assert_bindings_fit(1_000_000_000, &limits);
+        assert_eq!((layout.window, layout.windows), (1 << 28, 4));
+        assert_draws_in_range(&layout);
+        // At most 2^29 instances (2 GiB of list) are still drawn from one window.
+        let one = assert_bindings_fit(1 << 29, &limits);
+        assert_eq!(one.windows, 1);
+        assert_draws_in_range(&one);
     }
 }
