@@ -263,14 +263,26 @@ impl InstanceLayout {
         w: u32,
     ) -> wgpu::BindGroupEntry<'a> {
         let (offset, size) = self.binding(w);
-        wgpu::BindGroupEntry {
-            binding,
-            resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                buffer: active,
-                offset,
-                size: wgpu::BufferSize::new(size),
-            }),
-        }
+        list_entry(binding, active, offset, size)
+    }
+
+    /// The most entries one storage binding of the list holds on an adapter with `limits`:
+    /// more than a window where the draws' vertex indices cap the windows ([`MAX_WINDOW`]).
+    pub(super) fn most_in_one_binding(limits: &wgpu::Limits) -> u64 {
+        limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size)
+            / 4
+    }
+
+    /// The whole list (at least one entry) of `active` at `binding`, for a stage that draws
+    /// no vertices and takes the list in one binding ([`Self::most_in_one_binding`]).
+    pub(super) fn whole<'a>(
+        &self,
+        binding: u32,
+        active: &'a wgpu::Buffer,
+    ) -> wgpu::BindGroupEntry<'a> {
+        list_entry(binding, active, 0, 4 * self.entries.max(1))
     }
 
     /// The pieces of the active-list range `range` to draw: per window `w`, the range relative
@@ -289,6 +301,23 @@ impl InstanceLayout {
             s = end;
         }
         out
+    }
+}
+
+/// A bind group entry of `active`'s bytes `offset..offset + size`.
+fn list_entry(
+    binding: u32,
+    active: &wgpu::Buffer,
+    offset: u64,
+    size: u64,
+) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry {
+        binding,
+        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+            buffer: active,
+            offset,
+            size: wgpu::BufferSize::new(size),
+        }),
     }
 }
 
@@ -380,6 +409,9 @@ mod tests {
         // 600M instances, 2.4 GB: windows of 2^28 instances (vertex indices below 2^31).
         let three = assert_bindings_fit(600_000_000, &limits);
         assert_eq!((three.window, three.windows), (1 << 28, 3));
+        // More than the compute sampler binds: 536,870,911 entries.
+        assert_eq!(InstanceLayout::most_in_one_binding(&limits), binding / 4);
+        assert!(three.entries > binding / 4);
         // Beyond one 4292870144-byte buffer: refused (an error naming the way out).
         assert_eq!(InstanceLayout::new(1_073_217_537, &limits), None);
         assert_bindings_fit(0, &limits);
@@ -418,6 +450,8 @@ mod tests {
         let layout = assert_bindings_fit(1_000_000_000, &limits);
         assert_eq!((layout.window, layout.windows), (1 << 28, 4));
         assert_draws_in_range(&layout);
+        // The compute sampler, which draws no vertices, still binds them whole.
+        assert!(layout.entries <= InstanceLayout::most_in_one_binding(&limits));
         // At most 2^29 instances (2 GiB of list) are still drawn from one window.
         let one = assert_bindings_fit(1 << 29, &limits);
         assert_eq!(one.windows, 1);
