@@ -899,7 +899,7 @@ fn the_compute_sampler_refuses_an_active_list_beyond_one_binding_with_what_to_do
         ..with_sampler(Sampler::Compute)
     };
     let mut r = ShellsRenderer::new(&small, &mesh, settings).expect("renderer");
-    let err = r.render(&camera, &tf).err().expect("refused").to_string();
+    let err = r.render(&camera, &tf).expect_err("refused").to_string();
     for part in ["up to 16384 tet-shell", "draws 26201", "--sampler raster"] {
         assert!(err.contains(part), "{part:?} not in: {err}");
     }
