@@ -417,6 +417,42 @@ fn meshes_beyond_one_storage_binding_are_drawn_in_chunks() {
     );
 }
 
+#[test]
+fn cell_values_beyond_one_buffer_draw_the_same_picture() {
+    // A 16^3 grid (24,576 tets) with a value per tet (its corners' mean, scaled by a per-tet
+    // factor in [0.7, 1] so that neighbours differ), on the same adapter told that a binding
+    // holds 64 KiB and a buffer 80 KiB (its 4,913 vertices' positions take 78,608 bytes):
+    // the sorted tets' cell values (4 bytes a tet, written straight into each buffer's
+    // staging memory) span 2 buffers, the sorted vertex ids 6 and the records 31 (chunks of
+    // 800 records on lavapipe's 32-byte offset alignment). A value written into the wrong
+    // buffer, or left out, changes the picture, which must be bit-identical to the one of
+    // one buffer.
+    let base = ctx();
+    let split = common::with_buffer_limits(base, 64 << 10, 80 << 10);
+    let mut mesh = gaussians();
+    let scalars = mesh.scalars().expect("scalars").to_vec();
+    let cells = (mesh.tets().iter().enumerate())
+        .map(|(t, tet)| {
+            let mean = tet.iter().map(|&v| scalars[v as usize]).sum::<f64>() / 4.0;
+            mean * (0.7 + 0.03 * ((t * 7919) % 11) as f64)
+        })
+        .collect();
+    mesh.set_cell_scalars(Some(cells)).expect("cell values");
+    // 64 x 64: the readback of the 16-byte pixels fits an 80 KiB buffer.
+    let (tf, camera) = default_view(&mesh, 64);
+    let frame = |ctx: &GpuContext| {
+        let mut r =
+            CellProjRenderer::new(ctx, &mesh, settings(Integrate::Exact)).expect("renderer");
+        r.render(&camera, &tf).expect("frame").image
+    };
+    let (whole, buffers) = (frame(base), frame(&split));
+    assert_eq!(buffers.compare(&whole).expect("same size").max_abs, 0.0);
+    assert!(
+        whole.pixels.iter().any(|p| p[3] > 0.01),
+        "the view is not empty"
+    );
+}
+
 /// Head-on down -z at a 6^3 grid of [-1, 1]^3 with an odd image (65 x 65), the stress suite's
 /// scene: the centre row's rays lie in the grid plane y = 0 (and the centre column's in
 /// x = 0), in the face planes of the tets the rasterizer gives those pixels. Before faces

@@ -886,6 +886,26 @@ fn an_active_list_grown_past_a_binding_that_is_no_power_of_two_binds_what_it_hol
 }
 
 #[test]
+fn the_compute_sampler_refuses_an_active_list_beyond_one_binding_with_what_to_do() {
+    // Lox's 26,201 instances at 256 samples and 4 slices per shell (105 KB) on an adapter told
+    // it binds 64 KiB (16,384 entries): the raster sampler draws them in two windows, the
+    // compute sampler binds the list whole and refuses it, naming both counts and the ways out.
+    let small = common::with_storage_binding_limit(ctx(), 64 << 10);
+    let mesh = lox();
+    let (tf, camera) = common::default_view(&mesh, 32);
+    let settings = ShellSettings {
+        samples: 256,
+        slices_per_shell: Some(4),
+        ..with_sampler(Sampler::Compute)
+    };
+    let mut r = ShellsRenderer::new(&small, &mesh, settings).expect("renderer");
+    let err = r.render(&camera, &tf).expect_err("refused").to_string();
+    for part in ["up to 16384 tet-shell", "draws 26201", "--sampler raster"] {
+        assert!(err.contains(part), "{part:?} not in: {err}");
+    }
+}
+
+#[test]
 fn bytes_per_tet_count_the_records_tets_vertices_and_active_list() {
     // Per tet: an 80-byte record and 16 bytes of vertex indices; lox has fewer vertices than
     // tets (36 bytes each: position, scalar and eye-space position) and a tet spans one or

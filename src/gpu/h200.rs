@@ -23,6 +23,8 @@ pub(crate) const GRID_100M_VERTICES: u64 = 16_777_216;
 
 #[test]
 fn the_grid_counts_are_the_generator_s() {
-    assert_eq!(GRID_100M_TETS, 6 * 255u64.pow(3));
-    assert_eq!(GRID_100M_VERTICES, 256u64.pow(3));
+    // The cells `tetvr generate grid --tets 100000000` asks for, 6 tets each.
+    let cells = crate::generate::cells_for_tet_count(100_000_000).as_u64vec3();
+    assert_eq!(GRID_100M_TETS, 6 * cells.element_product());
+    assert_eq!(GRID_100M_VERTICES, (cells + 1).element_product());
 }

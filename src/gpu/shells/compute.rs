@@ -29,7 +29,7 @@ use super::binning::Binning;
 use super::fine::FinePipelines;
 use super::raster::by_chunk;
 use super::tiles::{TileBuffers, TilePipelines};
-use super::upload::{DrawnShell, shell_uniforms, write_grown};
+use super::upload::{DrawnShell, InstanceLayout, shell_uniforms, write_grown};
 use super::{ShellFrame, ShellsRenderer};
 
 /// Tile-list entries of the first frame at least (grown per frame as needed).
@@ -90,7 +90,7 @@ impl ShellsRenderer {
         f: &ShellFrame,
         tf: &TransferFunction,
     ) -> Result<ComputeFrame, RenderError> {
-        self.check_one_window()?;
+        self.check_one_binding()?;
         let [width, height] = f.plan.view.size;
         let mut buffers = self.ensure_tile_buffers(sampler, f, (width, height), 0)?;
         let chunk_tets = self.chunking.chunk as u32;
@@ -120,15 +120,16 @@ impl ShellsRenderer {
         })
     }
 
-    /// The compute sampler binds the active list as one window: an error when it exceeds one
-    /// storage binding.
-    fn check_one_window(&self) -> Result<(), RenderError> {
-        if self.instances.windows > 1 {
+    /// The compute sampler binds the active list whole (it draws no vertices, so the raster's
+    /// windows do not apply): an error when it exceeds one storage binding.
+    fn check_one_binding(&self) -> Result<(), RenderError> {
+        let most = InstanceLayout::most_in_one_binding(&self.ctx.limits);
+        if self.instances.entries > most {
             return Err(settings_error(format!(
                 "the compute sampler binds the frame's active list as one storage binding (up \
-                 to {} tet-shell instances on this adapter), and this view draws more: use \
+                 to {most} tet-shell instances on this adapter), and this view draws {}: use \
                  the raster sampler (--sampler raster), more slices per shell or a larger dz",
-                self.instances.window
+                self.instances.entries
             )));
         }
         Ok(())
@@ -291,7 +292,7 @@ impl ShellsRenderer {
                 entry(2, &self.tf_buf),
                 assembled.records.window(3, first, count),
                 entry(4, &self.slicing_buf),
-                self.instances.entry(5, &self.active_buf, 0),
+                self.instances.whole(5, &self.active_buf),
                 entry(6, &b.counts),
                 entry(7, &b.offsets),
                 entry(8, &b.lists),

@@ -151,6 +151,12 @@ impl GpuBinner {
         buffers.iter().map(|b| b.size()).sum::<u64>() + self.spans.size()
     }
 
+    /// Bytes of its per-tet arrays: the spans (8 bytes a tet) and the transparent mask (a bit
+    /// a tet).
+    pub(super) fn per_tet_size(&self) -> u64 {
+        self.spans.size() + self.mask.size()
+    }
+
     /// Buckets for `shells` shells: (shell, near, chunk).
     fn buckets(&self, shells: u64) -> u64 {
         2 * shells * self.chunks.len() as u64
@@ -613,6 +619,29 @@ mod tests {
                 (all.collect(), (r.near.end - r.faces.start) as usize)
             })
             .collect()
+    }
+
+    /// With `--binning gpu` the bytes per tet count the binner's spans (8 bytes a tet) and
+    /// transparent mask (a bit a tet), which scale with the mesh as the records do: on the
+    /// 10,368-tet grid 82,944 + 1,296 bytes, 8.125 a tet, more than the CPU binning's figure
+    /// (after each renderer's active list, a power of two of its own, is taken out).
+    #[test]
+    fn bytes_per_tet_count_the_gpu_binner_s_spans_and_mask() {
+        let ctx = GpuContext::new(AdapterChoice::Auto).expect("a GPU adapter (lavapipe will do)");
+        let (_, mesh, camera) = scenes().swap_remove(0);
+        let (lo, hi) = mesh.active_array().and_then(|a| a.range()).unwrap();
+        let tf = TransferFunction::default_for_range(lo, hi, mesh.diagonal() / 100.0).unwrap();
+        let figure = |binning| {
+            let settings = ShellSettings {
+                binning,
+                ..ShellSettings::default()
+            };
+            let mut r = ShellsRenderer::new(&ctx, &mesh, settings).expect("renderer");
+            r.render(&camera, &tf).expect("frame");
+            r.bytes_per_tet() - r.active_buf.size() as f64 / mesh.tet_count() as f64
+        };
+        let extra = figure(BinningMode::Gpu) - figure(BinningMode::Cpu);
+        assert!((extra - 8.125).abs() < 1e-9, "{extra} bytes per tet more");
     }
 
     /// A gaussians grid seen from outside (iso), from inside, and zoomed in (most of its tets

@@ -803,12 +803,14 @@ impl ShellsRenderer {
     /// GPU bytes per tet of what scales with the mesh: its vertices and per-tet arrays (tets,
     /// cell values), the records (80 bytes a tet), the eye-space vertices (16 bytes a vertex)
     /// and the active list (4 bytes per tet-shell instance, in a buffer grown to a power of
-    /// two); with the walk sampler, its ray caster's figure (the mesh's vertices, the links,
-    /// the boundary, the ray caster's eye-space vertices) and the active list's placeholder.
+    /// two), and with `--binning gpu` the binner's spans and mask (8 bytes and a bit a tet);
+    /// with the walk sampler, its ray caster's figure (the mesh's vertices, the links, the
+    /// boundary, the ray caster's eye-space vertices) and the active list's placeholder.
     pub fn bytes_per_tet(&self) -> f64 {
         let assembled = (self.assembled.as_ref())
             .map_or(0, |a| a.records.size() + a.stage.eye_vertices().size());
-        let own = (assembled + self.active_buf.size()) as f64;
+        let binner = (self.binner.as_ref()).map_or(0, gpu_binning::GpuBinner::per_tet_size);
+        let own = (assembled + binner + self.active_buf.size()) as f64;
         let tets = self.mesh.tet_count().max(1) as f64;
         match &self.walk {
             Some(walk) => walk.bytes_per_tet() + own / tets,

@@ -196,6 +196,11 @@ pub(super) fn grown_size(bytes: u64, limits: &wgpu::Limits) -> u64 {
 /// frame of 16M instances makes 64 draws more, in the same order, so the picture is the same.
 const MAX_BATCH: u64 = 1 << 18;
 
+/// The most instances one window of the active list holds: a draw of faces starts at base
+/// vertex 4 x its batch's first instance (an `i32`), and a near draw's vertices are 6 per
+/// instance (a `u32`), so both stay in range for windows of at most 2^29 instances.
+const MAX_WINDOW: u64 = 1 << 29;
+
 /// How a frame's tet-shell instances are drawn: the active list bound in windows of `window`
 /// entries (each within one storage binding, at an aligned offset), and each draw of faces
 /// within a batch of `batch` instances, which the face index pattern covers.
@@ -221,8 +226,9 @@ impl InstanceLayout {
             return None;
         }
         let align = (limits.min_storage_buffer_offset_alignment as u64 / 4).max(1);
-        // Vertex indices (4 per instance, with the draw's base vertex) stay below 2^31.
-        let window = if n * 4 <= max_binding {
+        // Vertex indices (4 per instance, with the draw's base vertex) stay below 2^31, also
+        // where one binding holds more (Metal binds up to its largest buffer).
+        let window = if n * 4 <= max_binding && n <= MAX_WINDOW {
             n.max(1)
         } else {
             (max_binding / 4 / align * align).min(1 << 28)
@@ -257,14 +263,26 @@ impl InstanceLayout {
         w: u32,
     ) -> wgpu::BindGroupEntry<'a> {
         let (offset, size) = self.binding(w);
-        wgpu::BindGroupEntry {
-            binding,
-            resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                buffer: active,
-                offset,
-                size: wgpu::BufferSize::new(size),
-            }),
-        }
+        list_entry(binding, active, offset, size)
+    }
+
+    /// The most entries one storage binding of the list holds on an adapter with `limits`:
+    /// more than a window where the draws' vertex indices cap the windows ([`MAX_WINDOW`]).
+    pub(super) fn most_in_one_binding(limits: &wgpu::Limits) -> u64 {
+        limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size)
+            / 4
+    }
+
+    /// The whole list (at least one entry) of `active` at `binding`, for a stage that draws
+    /// no vertices and takes the list in one binding ([`Self::most_in_one_binding`]).
+    pub(super) fn whole<'a>(
+        &self,
+        binding: u32,
+        active: &'a wgpu::Buffer,
+    ) -> wgpu::BindGroupEntry<'a> {
+        list_entry(binding, active, 0, 4 * self.entries.max(1))
     }
 
     /// The pieces of the active-list range `range` to draw: per window `w`, the range relative
@@ -283,6 +301,23 @@ impl InstanceLayout {
             s = end;
         }
         out
+    }
+}
+
+/// A bind group entry of `active`'s bytes `offset..offset + size`.
+fn list_entry(
+    binding: u32,
+    active: &wgpu::Buffer,
+    offset: u64,
+    size: u64,
+) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry {
+        binding,
+        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+            buffer: active,
+            offset,
+            size: wgpu::BufferSize::new(size),
+        }),
     }
 }
 
@@ -374,8 +409,52 @@ mod tests {
         // 600M instances, 2.4 GB: windows of 2^28 instances (vertex indices below 2^31).
         let three = assert_bindings_fit(600_000_000, &limits);
         assert_eq!((three.window, three.windows), (1 << 28, 3));
+        // More than the compute sampler binds: 536,870,911 entries.
+        assert_eq!(InstanceLayout::most_in_one_binding(&limits), binding / 4);
+        assert!(three.entries > binding / 4);
         // Beyond one 4292870144-byte buffer: refused (an error naming the way out).
         assert_eq!(InstanceLayout::new(1_073_217_537, &limits), None);
         assert_bindings_fit(0, &limits);
+        for n in [150_000_000, 400_000_000, 600_000_000] {
+            assert_draws_in_range(&InstanceLayout::new(n, &limits).unwrap());
+        }
+    }
+
+    /// Every draw of `layout`'s whole list stays within the vertex indices a draw takes: a
+    /// faces draw's base vertex (4 x its batch's first instance) plus its indices (4 per
+    /// instance of the batch) within an `i32`, a near draw's vertices (6 per instance, from
+    /// the window's start) within a `u32`.
+    fn assert_draws_in_range(layout: &InstanceLayout) {
+        let n = layout.entries as u32;
+        for (w, local, base) in layout.pieces(0..n) {
+            let faces = 4 * (base as u64 + layout.batch as u64);
+            assert!(faces <= 1 << 31, "window {w}: faces reach vertex {faces}");
+            let near = 6 * local.end as u64;
+            assert!(
+                near <= u32::MAX as u64,
+                "window {w}: near reach vertex {near}"
+            );
+        }
+    }
+
+    #[test]
+    fn an_adapter_binding_a_whole_large_buffer_gets_windows_its_draws_can_index() {
+        // Metal binds up to its largest buffer (here 8 GiB): 10^9 instances (4 GB) fit one
+        // binding, but one window of them would start faces draws at base vertex 4 x 10^9,
+        // beyond an i32, and number near vertices up to 6 x 10^9, beyond a u32.
+        let limits = wgpu::Limits {
+            max_storage_buffer_binding_size: 8 << 30,
+            max_buffer_size: 8 << 30,
+            ..wgpu::Limits::default()
+        };
+        let layout = assert_bindings_fit(1_000_000_000, &limits);
+        assert_eq!((layout.window, layout.windows), (1 << 28, 4));
+        assert_draws_in_range(&layout);
+        // The compute sampler, which draws no vertices, still binds them whole.
+        assert!(layout.entries <= InstanceLayout::most_in_one_binding(&limits));
+        // At most 2^29 instances (2 GiB of list) are still drawn from one window.
+        let one = assert_bindings_fit(1 << 29, &limits);
+        assert_eq!(one.windows, 1);
+        assert_draws_in_range(&one);
     }
 }
