@@ -15,12 +15,15 @@ use std::collections::VecDeque;
 
 use rayon::prelude::*;
 
-/// Most bytes of one piece: 64 MiB. Large enough that a piece's own cost (a staging
-/// allocation and one submission, tens of microseconds) is lost in its fill (64 MiB at the
-/// ~10 GB/s one core copies takes ~6 ms); small enough that the pieces in flight
-/// ((IN_FLIGHT + 1) x 64 MiB = 192 MiB) are a few percent of the 3.2 GB of links of a 100M-tet
-/// grid. A multiple of every entry size written (4, 8, 16, 32 bytes).
-pub(crate) const PIECE: u64 = 64 << 20;
+/// Most bytes of one piece: 16 MiB, the fastest measured. Writing 480 MiB of 32-byte entries
+/// (a 15M-tet grid's links) on lavapipe (2 cores, other builds running; 3 rounds): pieces of
+/// 64, 32, 16, 8, 4 and 1 MiB took 82-272, 63-74, 43-45, 51-63, 56-66 and 72-85 ms, one
+/// `write_buffer` of the whole array 260-280 ms. Pieces of a few MiB reuse the staging memory
+/// the allocator freed (a whole-array staging buffer is fresh memory, faulted in page by page)
+/// and stay in cache until copied; below that the per-piece submission and wait dominate. The
+/// staging memory in use then stays under (IN_FLIGHT + 1) x 16 MiB = 48 MiB, and the 3.2 GB
+/// of a 100M-tet grid's links are 200 submissions.
+pub(crate) const PIECE: u64 = 16 << 20;
 
 /// Pieces submitted but not yet waited for: the copy of one overlaps the fill of the next.
 const IN_FLIGHT: usize = 2;
