@@ -1,6 +1,8 @@
 //! A headless wgpu device: prefers a real GPU, falls back to a software adapter (Mesa's
 //! lavapipe), and says which one it got.
 
+use crate::gpu::pieces::Uploader;
+
 /// Which adapter to ask for.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum AdapterChoice {
@@ -120,6 +122,11 @@ pub struct GpuContext {
 }
 
 impl GpuContext {
+    /// Uploads to this device, in pieces ([`Uploader`]).
+    pub(crate) fn uploader(&self) -> Uploader<'_> {
+        Uploader::new(&self.device, &self.queue)
+    }
+
     /// Opens a headless device on [`Self::pick_adapter`]'s adapter, as
     /// [`Self::device_descriptor`] asks.
     pub fn new(choice: AdapterChoice) -> Result<Self, GpuError> {

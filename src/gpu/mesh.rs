@@ -26,6 +26,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::gpu::gpu_data::TetRecord;
+use crate::gpu::pieces::Uploader;
 use crate::gpu::util::{scalar_frame, settings_error, sphere_of};
 use crate::gpu::{GpuContext, GpuError};
 use crate::mesh::{TetMesh, bounding_box, check_values, checked_bounds, tet_ranges};
@@ -115,13 +116,6 @@ impl MeshData {
         self.gpu_value(self.scalars[v])
     }
 
-    /// The per-tet values of a cell-data mesh, normalized as [`Self::gpu_scalars`]; `None` for
-    /// point data.
-    pub(crate) fn gpu_cells(&self) -> Option<Vec<f32>> {
-        let cells = self.cells.as_ref()?;
-        Some(cells.par_iter().map(|&s| self.gpu_value(s)).collect())
-    }
-
     /// A scalar value (a vertex's or a tet's) normalized as the GPU stages read it.
     pub(crate) fn gpu_value(&self, s: f64) -> f32 {
         ((s - self.scalar_min) / self.scalar_span) as f32
@@ -206,9 +200,9 @@ impl GpuTetMesh {
         &self.device
     }
 
-    /// The queue its uploads go through.
-    pub(crate) fn queue(&self) -> &wgpu::Queue {
-        &self.queue
+    /// Uploads to the mesh's device, in pieces ([`Uploader`]).
+    pub(crate) fn uploader(&self) -> Uploader<'_> {
+        Uploader::new(&self.device, &self.queue)
     }
 
     /// The limits the buffers were cut for.
@@ -233,8 +227,8 @@ impl GpuTetMesh {
 
     /// The tets' vertex indices (`vec4<u32>` per tet), in chunks of [`Self::chunking`].
     pub(crate) fn tets(&self) -> Result<&TetArray, RenderError> {
-        self.lazy(&self.tets, "mesh tets", 16, |d, write| {
-            write(bytemuck::cast_slice(&d.tets));
+        self.lazy(&self.tets, "mesh tets", 16, |d, up, array| {
+            array.write(up, &d.tets);
         })
     }
 
@@ -249,8 +243,10 @@ impl GpuTetMesh {
         if !self.has_cells() {
             return Ok(None);
         }
-        let array = self.lazy(&self.cells, "mesh cell values", 4, |d, write| {
-            write(bytemuck::cast_slice(&d.gpu_cells().unwrap_or_default()));
+        let array = self.lazy(&self.cells, "mesh cell values", 4, |d, up, array| {
+            if let Some(cells) = &d.cells {
+                array.write_with(up, cells.len(), |t| d.gpu_value(cells[t]));
+            }
         })?;
         Ok(Some(array))
     }
@@ -265,22 +261,22 @@ impl GpuTetMesh {
         Chunking::new(self.tet_count() as u64, &self.limits)
     }
 
-    /// The per-tet array in `cell`, made and filled on first use: `fill` hands the mesh's
-    /// bytes for it (one entry of `stride` bytes per tet) to the writer it is given, which
-    /// uploads them without a copy of its own (on a 10M-tet mesh a copy of the tets alone is
+    /// The per-tet array in `cell`, made and filled on first use: `fill` writes the mesh's
+    /// entries (one of `stride` bytes per tet) into the array it is given, straight from the
+    /// mesh data without a copy of its own (on a 10M-tet mesh a copy of the tets alone is
     /// 160 MB).
     fn lazy<'a>(
         &'a self,
         cell: &'a OnceLock<TetArray>,
         label: &str,
         stride: u64,
-        fill: impl FnOnce(&MeshData, &mut dyn FnMut(&[u8])),
+        fill: impl FnOnce(&MeshData, Uploader, &TetArray),
     ) -> Result<&'a TetArray, RenderError> {
         if let Some(array) = cell.get() {
             return Ok(array);
         }
         let array = self.tet_array(label, self.chunking()?, self.tet_count as u64, stride)?;
-        fill(&self.read(), &mut |bytes| array.write(&self.queue, bytes));
+        fill(&self.read(), self.uploader(), &array);
         Ok(cell.get_or_init(|| array))
     }
 
@@ -338,14 +334,12 @@ impl GpuTetMesh {
 
     fn upload_positions(&self, data: &MeshData) {
         let count = data.positions.len();
-        write_parallel(&self.queue, &self.positions, count, |v| {
-            data.gpu_position(v)
-        });
+        (self.uploader()).entries(&self.positions, 0, count, |v| data.gpu_position(v));
     }
 
     fn upload_scalars(&self, data: &MeshData) {
         let count = data.scalars.len();
-        write_parallel(&self.queue, &self.scalars, count, |v| data.gpu_scalar(v));
+        (self.uploader()).entries(&self.scalars, 0, count, |v| data.gpu_scalar(v));
     }
 
     /// Bytes of the mesh's GPU buffers (vertices, and the per-tet arrays uploaded so far).
@@ -465,20 +459,23 @@ impl TetArray {
             .collect()
     }
 
-    /// Writes `data` (whole entries) from entry 0 on, buffer by buffer.
-    pub(crate) fn write(&self, queue: &wgpu::Queue, data: &[u8]) {
-        let per_buffer = (self.per_buffer * self.stride) as usize;
+    /// Writes `data` (one entry each) from entry 0 on, buffer by buffer, in pieces
+    /// ([`Uploader`]).
+    pub(crate) fn write<T: bytemuck::Pod>(&self, up: Uploader, data: &[T]) {
+        debug_assert_eq!(size_of::<T>() as u64, self.stride);
+        let per_buffer = self.per_buffer as usize;
         for (buffer, part) in self.buffers.iter().zip(data.chunks(per_buffer)) {
-            queue.write_buffer(buffer, 0, part);
+            up.slice(buffer, 0, part);
         }
     }
 
-    /// Writes `count` entries from entry 0 on, entry `i` being `entry(i)`, converted in
-    /// parallel straight into the queue's staging memory, buffer by buffer: no whole
-    /// intermediate array (a sorted copy of 100M tets' vertex indices is 1.6 GB).
+    /// Writes `count` entries from entry 0 on, entry `i` being `entry(i)`, computed in
+    /// parallel straight into the queue's staging memory, buffer by buffer and piece by piece
+    /// ([`Uploader::entries`]): no whole intermediate array (a sorted copy of 100M tets'
+    /// vertex indices is 1.6 GB).
     pub(crate) fn write_with<T: bytemuck::Pod + Send>(
         &self,
-        queue: &wgpu::Queue,
+        up: Uploader,
         count: usize,
         entry: impl Fn(usize) -> T + Sync,
     ) {
@@ -487,7 +484,7 @@ impl TetArray {
         for (b, buffer) in self.buffers.iter().enumerate() {
             let first = b * per_buffer;
             let n = per_buffer.min(count.saturating_sub(first));
-            write_parallel(queue, buffer, n, |i| entry(first + i));
+            up.entries(buffer, 0, n, |i| entry(first + i));
         }
     }
 
@@ -516,41 +513,6 @@ impl TetArray {
     pub(crate) fn size(&self) -> u64 {
         self.buffers.iter().map(wgpu::Buffer::size).sum()
     }
-}
-
-/// Writes `count` entries to the start of `buffer`, entry `i` being `entry(i)`, converted in
-/// parallel straight into the queue's staging memory: no whole intermediate array and no
-/// second copy of it, which is what a per-frame position update of a large mesh costs
-/// (measured in tests/shells_large.rs). A write wgpu refuses is reported by wgpu's error
-/// handler, as [`wgpu::Queue::write_buffer`]'s would be.
-fn write_parallel<T: bytemuck::Pod + Send>(
-    queue: &wgpu::Queue,
-    buffer: &wgpu::Buffer,
-    count: usize,
-    entry: impl Fn(usize) -> T + Sync,
-) {
-    /// Bytes converted per task: whole entries of every type written here (16 or 4 bytes).
-    const CHUNK: usize = 1 << 18;
-    const { assert!(CHUNK.is_multiple_of(size_of::<T>())) };
-    let per_chunk = CHUNK / size_of::<T>();
-    let Some(size) = wgpu::BufferSize::new((count * size_of::<T>()) as u64) else {
-        return;
-    };
-    let Some(mut view) = queue.write_buffer_with(buffer, 0, size) else {
-        return;
-    };
-    let fill = |mut part: wgpu::WriteOnly<'_, [u8]>, first: usize| {
-        let n = part.len() / size_of::<T>();
-        let entries: Vec<T> = (first..first + n).map(&entry).collect();
-        part.copy_from_slice(bytemuck::cast_slice(&entries));
-    };
-    let (chunks, tail) = view.slice(..).into_chunks::<CHUNK>();
-    let chunks: Vec<_> = chunks.into_iter().enumerate().collect();
-    let whole = chunks.len() * per_chunk;
-    chunks
-        .into_par_iter()
-        .for_each(|(c, chunk)| fill(chunk.into(), c * per_chunk));
-    fill(tail, whole);
 }
 
 /// A storage buffer of `bytes` (at least 16) that is also a copy destination and source.
@@ -658,5 +620,69 @@ mod tests {
                 assert!(local + count <= per_buffer, "a window crosses buffers");
             }
         }
+    }
+
+    /// The bytes of `buffer` (a copy source), read back.
+    fn contents(ctx: &GpuContext, buffer: &wgpu::Buffer) -> Vec<u8> {
+        let read = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("test readback"),
+            size: buffer.size(),
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = (ctx.device).create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(buffer, 0, &read, 0, buffer.size());
+        ctx.queue.submit([encoder.finish()]);
+        let view = crate::gpu::util::read_mapped(&ctx.device, &read, "test readback");
+        view.expect("readback").to_vec()
+    }
+
+    /// A per-tet array of 100 entries over three buffers (40, 40 and 20 entries: buffers of
+    /// 640 bytes hold 5 chunks of 8), written in pieces of 48 bytes (3 entries: 14 pieces per
+    /// full buffer, more than are kept in flight, the last one short), from a closure and
+    /// from a slice, holds exactly what one `write_buffer` per buffer writes; and so does a
+    /// write from an unaligned entry at a byte offset (the shells' partial active list) in
+    /// pieces of 8 bytes. The entries differ in every word, so a piece written at a wrong
+    /// offset, twice or not at all changes the bytes.
+    #[test]
+    fn piecewise_writes_match_one_write_across_pieces_and_buffers() {
+        let ctx = GpuContext::new(crate::gpu::AdapterChoice::Auto).expect("an adapter");
+        let limits = wgpu::Limits {
+            max_buffer_size: 40 * 16,
+            ..ctx.limits.clone()
+        };
+        let chunking = Chunking { chunk: 8 };
+        let count = 100;
+        let entry = |i: usize| {
+            let i = i as u32;
+            [i, 7 * i + 1, !i, 0xA5A5_0000 | i]
+        };
+        let data: Vec<[u32; 4]> = (0..count).map(entry).collect();
+        let array = || TetArray::new(&ctx.device, &limits, "test", chunking, count as u64, 16);
+        let (computed, sliced, whole) = (array(), array(), array());
+        assert_eq!(whole.buffer_count(), 3);
+        let pieces = Uploader {
+            piece: 48,
+            ..ctx.uploader()
+        };
+        computed.write_with(pieces, count, entry);
+        sliced.write(pieces, &data);
+        for (buffer, part) in whole.buffers.iter().zip(data.chunks(40)) {
+            ctx.queue
+                .write_buffer(buffer, 0, bytemuck::cast_slice(part));
+        }
+        for b in 0..3 {
+            let expected = contents(&ctx, &whole.buffers[b]);
+            assert_eq!(contents(&ctx, &computed.buffers[b]), expected, "buffer {b}");
+            assert_eq!(contents(&ctx, &sliced.buffers[b]), expected, "buffer {b}");
+        }
+        let words: Vec<u32> = data.iter().flatten().copied().collect();
+        let plain = || storage_buffer(&ctx.device, "test", 4 * words.len() as u64);
+        let (pieced, one) = (plain(), plain());
+        let part = &words[5..50];
+        let small = Uploader { piece: 8, ..pieces };
+        small.entries(&pieced, 20, part.len(), |k| part[k]);
+        ctx.queue.write_buffer(&one, 20, bytemuck::cast_slice(part));
+        assert_eq!(contents(&ctx, &pieced), contents(&ctx, &one));
     }
 }

@@ -21,6 +21,7 @@ pub mod gpu_data;
 pub(crate) mod h200;
 pub mod iso;
 pub mod mesh;
+pub(crate) mod pieces;
 pub mod raycast;
 pub mod shaders;
 pub mod shells;

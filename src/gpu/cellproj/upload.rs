@@ -37,10 +37,11 @@ impl CellProjRenderer {
         };
         self.queue
             .write_buffer(&self.cellproj_buf, 0, bytemuck::bytes_of(&constants));
-        (self.order_buf).write_with(&self.queue, order.len(), |k| m.tets[order[k] as usize]);
+        let up = self.mesh.uploader();
+        (self.order_buf).write_with(up, order.len(), |k| m.tets[order[k] as usize]);
         if let (Some(buf), Some(cells)) = (&self.order_cells, m.cells.as_ref()) {
             let value = |k: usize| m.gpu_value(cells[order[k] as usize]);
-            buf.write_with(&self.queue, order.len(), value);
+            buf.write_with(up, order.len(), value);
         }
         Ok(())
     }

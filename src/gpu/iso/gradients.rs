@@ -162,20 +162,14 @@ impl GradientStage {
                     _pad: [0; 2],
                 };
                 let storage = wgpu::BufferUsages::STORAGE;
-                let cast = bytemuck::cast_slice;
                 ChunkPass {
                     tets: (first, count),
-                    offsets: upload(
-                        mesh,
-                        "iso vertex-tet offsets",
-                        cast(&adjacency.offsets),
-                        storage,
-                    ),
-                    vertex_tets: upload(mesh, "iso vertex tets", cast(&adjacency.tets), storage),
+                    offsets: upload(mesh, "iso vertex-tet offsets", &adjacency.offsets, storage),
+                    vertex_tets: upload(mesh, "iso vertex tets", &adjacency.tets, storage),
                     flags: upload(
                         mesh,
                         "iso gradient pass",
-                        bytemuck::bytes_of(&flags),
+                        std::slice::from_ref(&flags),
                         wgpu::BufferUsages::UNIFORM,
                     ),
                 }
@@ -237,15 +231,20 @@ impl GradientStage {
     }
 }
 
-/// A buffer of `usage` holding `bytes` (at least 16 bytes).
-fn upload(mesh: &GpuTetMesh, label: &str, bytes: &[u8], usage: wgpu::BufferUsages) -> wgpu::Buffer {
+/// A buffer of `usage` holding `data` (at least 16 bytes), written in pieces.
+fn upload<T: bytemuck::Pod>(
+    mesh: &GpuTetMesh,
+    label: &str,
+    data: &[T],
+    usage: wgpu::BufferUsages,
+) -> wgpu::Buffer {
     let buf = mesh.device().create_buffer(&wgpu::BufferDescriptor {
         label: Some(label),
-        size: (bytes.len() as u64).max(16),
+        size: (size_of_val(data) as u64).max(16),
         usage: usage | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     });
-    mesh.queue().write_buffer(&buf, 0, bytes);
+    mesh.uploader().slice(&buf, 0, data);
     buf
 }
 

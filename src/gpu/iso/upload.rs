@@ -45,7 +45,7 @@ impl IsoRenderer {
             _ => self.upload_selection(visible.is_none())?,
         };
         if let Some(v) = visible.filter(|v| !v.is_empty()) {
-            lists.tets.write(&self.queue, bytemuck::cast_slice(v));
+            lists.tets.write(self.mesh.uploader(), v);
         }
         Ok(lists)
     }
@@ -60,7 +60,7 @@ impl IsoRenderer {
         let tets = self.mesh.tet_array("iso selected tets", chunking, n, 16)?;
         let records = (self.mesh).tet_array("iso tet records", chunking, n, RECORD_BYTES)?;
         if write && !sel.is_empty() {
-            tets.write(&self.queue, bytemuck::cast_slice(sel));
+            tets.write(self.mesh.uploader(), sel);
         }
         if self.gradient_stage.is_some() {
             let vertices = gradients::vertices_of(sel);
@@ -71,8 +71,7 @@ impl IsoRenderer {
                     usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
                     mapped_at_creation: false,
                 });
-                self.queue
-                    .write_buffer(&buf, 0, bytemuck::cast_slice(&vertices));
+                self.mesh.uploader().slice(&buf, 0, &vertices);
                 (vertices, buf)
             });
         }

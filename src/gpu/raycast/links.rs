@@ -58,21 +58,50 @@ pub fn face_code(tet: u32, face: usize) -> u32 {
 
 /// The links of every tet and the boundary faces (as [`face_code`]s).
 pub fn build(tets: &[[u32; 4]]) -> (Vec<TetLinks>, Vec<u32>) {
-    let adjacency = Adjacency::build(tets);
-    let links: Vec<TetLinks> = (tets.par_iter().zip(&adjacency.neighbors))
-        .map(|(tet, neighbors)| TetLinks {
+    let topology = Topology::build(tets);
+    let links = (0..tets.len())
+        .into_par_iter()
+        .map(|t| topology.link(tets, t))
+        .collect();
+    (links, topology.boundary)
+}
+
+/// What the links are computed from, tet by tet ([`Topology::link`]), so that an upload
+/// computes them straight into its staging memory: the face adjacency (16 bytes a tet, half
+/// the links), and the boundary faces (as [`face_code`]s).
+pub struct Topology {
+    /// Per tet, the tet across each local face.
+    neighbors: Vec<[u32; 4]>,
+    /// The boundary faces.
+    pub boundary: Vec<u32>,
+}
+
+impl Topology {
+    /// The face adjacency of `tets` and their boundary faces.
+    pub fn build(tets: &[[u32; 4]]) -> Self {
+        let neighbors = Adjacency::build(tets).neighbors;
+        let boundary = (neighbors.iter().enumerate())
+            .flat_map(|(t, n)| {
+                (0..4)
+                    .filter(|&f| n[f] == NO_NEIGHBOR)
+                    .map(move |f| face_code(t as u32, f))
+            })
+            .collect();
+        Self {
+            neighbors,
+            boundary,
+        }
+    }
+
+    /// The links of tet `t` of `tets` (the tets it was built from).
+    pub fn link(&self, tets: &[[u32; 4]], t: usize) -> TetLinks {
+        let tet = &tets[t];
+        let neighbors = &self.neighbors[t];
+        TetLinks {
             tet: *tet,
             next: std::array::from_fn(|f| across(tets, tet, f, neighbors[f])),
-        })
-        .collect();
-    let boundary = (links.iter().enumerate())
-        .flat_map(|(t, l)| {
-            (0..4)
-                .filter(|&f| l.next[f] == NO_NEIGHBOR)
-                .map(move |f| face_code(t as u32, f))
-        })
-        .collect();
-    (links, boundary)
+        }
+    }
 }
 
 /// The code of the face of `neighbor` that tet `tet` shares through its face `f`: the

@@ -424,8 +424,9 @@ impl RaycastRenderer {
         check_fits(&ctx.limits, nt, nv, &settings)?;
         let chunking = links::chunking(nt, &ctx.limits)?;
         check_cells(&mesh)?;
-        let (links_cpu, boundary_cpu) = links::build(&mesh.read().tets);
-        check_boundary(&ctx.limits, boundary_cpu.len() as u64)?;
+        let m = mesh.read();
+        let topology = links::Topology::build(&m.tets);
+        check_boundary(&ctx.limits, topology.boundary.len() as u64)?;
         let links = mesh.tet_array("raycast links", chunking, nt, links::LINK_BYTES)?;
         // The walk sampler's slices read a textured cage's volume themselves: no textured
         // traversal of the ray caster's own.
@@ -435,10 +436,13 @@ impl RaycastRenderer {
             (true, Some(_)) => Some(SliceField::Texture),
         };
         let own_texture = (!sliced).then_some(textured.as_ref()).flatten();
-        links.write(&ctx.queue, bytemuck::cast_slice(&links_cpu));
-        let boundary = frame::storage(&ctx.device, "raycast boundary", 4 * boundary_cpu.len());
-        ctx.queue
-            .write_buffer(&boundary, 0, bytemuck::cast_slice(&boundary_cpu));
+        // Computed tet by tet into the upload's pieces: no whole copy of the links (3.2 GB
+        // for 100M tets) on the host.
+        links.write_with(mesh.uploader(), nt as usize, |t| topology.link(&m.tets, t));
+        let boundary_faces = topology.boundary.len();
+        let boundary = frame::storage(&ctx.device, "raycast boundary", 4 * boundary_faces);
+        (mesh.uploader()).slice(&boundary, 0, &topology.boundary);
+        drop((topology, m));
         let device = ctx.device.clone();
         let uniform = |label: &str, bytes: usize| uniform_buffer(&device, label, bytes);
         Ok(Self {
@@ -462,7 +466,7 @@ impl RaycastRenderer {
             link_chunk: chunking.chunk,
             verts: frame::storage(&device, "raycast eye-space vertices", 16 * nv as usize),
             boundary,
-            boundary_count: boundary_cpu.len() as u32,
+            boundary_count: boundary_faces as u32,
             psi: frame::storage(&device, "raycast psi table (none yet)", 16),
             preint: frame::storage(&device, "raycast 3D table (none yet)", 16),
             preint_key: None,

@@ -91,13 +91,15 @@ impl GpuTexture {
             .map(|&v| ((v as f64 - lo) / span) as f32)
             .collect();
         let texture = upload_volume(ctx, dims, &texels);
-        let coords: Vec<[f32; 4]> = texcoords
-            .iter()
-            .map(|t| [t.x as f32, t.y as f32, t.z as f32, 0.0])
-            .collect();
-        let buffer = storage(&ctx.device, "cage texture coordinates", 16 * coords.len());
-        ctx.queue
-            .write_buffer(&buffer, 0, bytemuck::cast_slice(&coords));
+        let buffer = storage(
+            &ctx.device,
+            "cage texture coordinates",
+            16 * texcoords.len(),
+        );
+        ctx.uploader().entries(&buffer, 0, texcoords.len(), |v| {
+            let t = texcoords[v];
+            [t.x as f32, t.y as f32, t.z as f32, 0.0]
+        });
         Ok(Self {
             view: texture.create_view(&Default::default()),
             texture,

@@ -78,8 +78,7 @@ impl TexturedIso {
             .write_buffer(&uniforms, 0, bytemuck::bytes_of(&iso));
         let cpu = tet_ranges(cage, texcoords, volume);
         let ranges = storage(&ctx.device, "textured iso tet ranges", 8 * cpu.len());
-        ctx.queue
-            .write_buffer(&ranges, 0, bytemuck::cast_slice(&cpu));
+        ctx.uploader().slice(&ranges, 0, &cpu);
         Ok(Self {
             isovalues,
             uniforms,

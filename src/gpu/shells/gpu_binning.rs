@@ -333,16 +333,15 @@ impl ShellsRenderer {
         if binner.mask_key.as_ref() == Some(&key) {
             return;
         }
-        let tets = self.mesh.tet_count();
-        let mut bits = vec![0u32; tets.div_ceil(32).max(1)];
-        if let (Some(_), Some((_, _, mask))) = (&key, &self.transparent) {
-            for (word, part) in bits.iter_mut().zip(mask.chunks(32)) {
-                *word = (part.iter().enumerate()).fold(0, |w, (i, &m)| w | (m as u32) << i);
-            }
-        }
-        self.ctx
-            .queue
-            .write_buffer(&binner.mask, 0, bytemuck::cast_slice(&bits));
+        let words = self.mesh.tet_count().div_ceil(32).max(1);
+        let mask =
+            (key.as_ref().and(self.transparent.as_ref())).map_or(&[][..], |(_, _, m)| m.as_slice());
+        let word = |w: usize| {
+            let part = mask.get(32 * w..).unwrap_or(&[]).iter().take(32);
+            part.enumerate()
+                .fold(0u32, |b, (i, &m)| b | (m as u32) << i)
+        };
+        self.ctx.uploader().entries(&binner.mask, 0, words, word);
         binner.mask_key = Some(key);
     }
 

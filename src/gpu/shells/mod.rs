@@ -100,6 +100,7 @@ use crate::gpu::assembly::{AssemblyGroups, AssemblyInputs, AssemblyStage, RECORD
 use crate::gpu::frame::{FrameResources, FrameStats, Recorder};
 use crate::gpu::gpu_data::{ShellUniforms, SlicingUniforms, TfPoints, ViewUniforms};
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
+use crate::gpu::pieces::Uploader;
 use crate::gpu::util::{check_image_size, entry, ms_since, settings_error, uniform_buffer};
 use crate::image::Image;
 use crate::mesh::TetMesh;
@@ -553,9 +554,8 @@ struct Passes<'a> {
     instances: InstanceLayout,
     composite_group: wgpu::BindGroup,
     face_indices: &'a wgpu::Buffer,
-    /// The active list, and the mesh's tets (its ids are chunk-local when they exceed a chunk).
+    /// The active list (its ids are chunk-local when the mesh exceeds a chunk).
     active: &'a wgpu::Buffer,
-    tet_count: u32,
     shell_stride: u64,
     chunk_tets: u32,
     /// Colour targets (of 4 slices) per shell.
@@ -654,7 +654,6 @@ impl ShellsRenderer {
             composite_group: self.composite_group(targets),
             face_indices: &self.face_indices,
             active: &self.active_buf,
-            tet_count: self.mesh.tet_count() as u32,
             shell_stride: self.shell_stride,
             chunk_tets: self.chunking.chunk as u32,
             layers,
@@ -881,9 +880,9 @@ fn draw_shells(
             let (dropped, changed) = f.drop_finished(&mask, i + 1);
             term.tets_finished += dropped;
             if let Some((from, to)) = changed {
-                let ids = chunk_local(&f.bin.indices[from..to], p.chunk_tets, p.tet_count);
-                let ids = bytemuck::cast_slice(&ids);
-                rec.queue().write_buffer(p.active, 4 * from as u64, ids);
+                let ids = chunk_local(&f.bin.indices[from..to], p.chunk_tets);
+                let up = Uploader::new(rec.device(), rec.queue());
+                up.entries(p.active, 4 * from as u64, to - from, ids);
             }
             term.checked(i, mask);
         }

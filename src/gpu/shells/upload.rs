@@ -59,7 +59,7 @@ impl ShellsRenderer {
             .write_buffer(&self.tf_buf, 0, bytemuck::bytes_of(&points));
         let drawn = self.drawn_shells(bin);
         self.upload_shells(&drawn, n, plan);
-        self.upload_instances(bin, m.tets.len() as u32)?;
+        self.upload_instances(bin)?;
         Ok(drawn)
     }
 
@@ -96,7 +96,7 @@ impl ShellsRenderer {
     /// and, grown when needed, the face
     /// index pattern: each tet-shell instance is 12 indices of one draw (u32), in an index
     /// buffer grown to a power of two of the instances of a window, at most one buffer.
-    fn upload_instances(&mut self, bin: &Binning, tet_count: u32) -> Result<(), RenderError> {
+    fn upload_instances(&mut self, bin: &Binning) -> Result<(), RenderError> {
         let n = bin.shells.last().map_or(0, |r| r.near.end) as u64;
         self.instances = InstanceLayout::new(n, &self.ctx.limits).ok_or_else(|| {
             settings_error(format!(
@@ -113,22 +113,17 @@ impl ShellsRenderer {
                 }
             });
             let index = wgpu::BufferUsages::INDEX;
-            write_grown(
-                &self.ctx,
-                &mut self.face_indices,
-                bytemuck::cast_slice(&pattern),
-                index,
-            );
+            write_grown(&self.ctx, &mut self.face_indices, &pattern, index);
         }
         if !bin.buckets.is_empty() {
             // Binned on the GPU: the list is already in the active buffer.
             return Ok(());
         }
-        let chunk_tets = self.chunking.chunk as u32;
-        let active = chunk_local(&bin.indices, chunk_tets, tet_count);
+        let active = chunk_local(&bin.indices, self.chunking.chunk as u32);
         let storage = wgpu::BufferUsages::STORAGE;
-        let data = bytemuck::cast_slice(&active);
-        write_grown(&self.ctx, &mut self.active_buf, data, storage);
+        let bytes = 4 * bin.indices.len() as u64;
+        grow(&self.ctx, &mut self.active_buf, bytes, storage);
+        (self.ctx.uploader()).entries(&self.active_buf, 0, bin.indices.len(), active);
         Ok(())
     }
 }
@@ -146,36 +141,33 @@ pub(super) fn shell_uniforms(shell: &DrawnShell, n: u32, plan: &FramePlan) -> Sh
     }
 }
 
-/// The active list as the raster shaders index it: tet ids relative to their chunk's first.
-pub(super) fn chunk_local(ids: &[u32], chunk_tets: u32, tets: u32) -> std::borrow::Cow<'_, [u32]> {
-    if tets <= chunk_tets {
-        ids.into()
-    } else {
-        ids.par_iter()
-            .map(|&t| t % chunk_tets)
-            .collect::<Vec<_>>()
-            .into()
-    }
+/// The active list `ids` as the raster shaders index it, entry by entry: tet ids relative to
+/// their chunk's first (the ids themselves when the mesh is one chunk).
+pub(super) fn chunk_local(ids: &[u32], chunk_tets: u32) -> impl Fn(usize) -> u32 + Sync + '_ {
+    move |k| ids[k] % chunk_tets
 }
 
-/// Writes `data` to `*buf`, first growing it (to a power of two, at most the adapter's largest
-/// buffer) when it is too small.
-pub(super) fn write_grown(
+/// Writes `data` to `*buf` (in pieces), first growing it ([`grow`]) when it is too small.
+pub(super) fn write_grown<T: bytemuck::Pod>(
     ctx: &GpuContext,
     buf: &mut wgpu::Buffer,
-    data: &[u8],
+    data: &[T],
     usage: wgpu::BufferUsages,
 ) {
-    if buf.size() < data.len() as u64 {
+    grow(ctx, buf, size_of_val(data) as u64, usage);
+    ctx.uploader().slice(buf, 0, data);
+}
+
+/// Replaces `*buf` by a buffer of `usage` (and copy destination) of [`grown_size`] when it
+/// holds fewer than `bytes`.
+fn grow(ctx: &GpuContext, buf: &mut wgpu::Buffer, bytes: u64, usage: wgpu::BufferUsages) {
+    if buf.size() < bytes {
         *buf = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("shells per-frame data"),
-            size: grown_size(data.len() as u64, &ctx.limits),
+            size: grown_size(bytes, &ctx.limits),
             usage: usage | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-    }
-    if !data.is_empty() {
-        ctx.queue.write_buffer(buf, 0, data);
     }
 }
 
