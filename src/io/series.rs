@@ -132,13 +132,13 @@ impl Series {
     /// `*` (a numbered series).
     pub fn is_series(path: &Path) -> bool {
         let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
-        name.contains('*') || Path::new(name).extension().is_some_and(|e| e == "pvd")
+        name.contains('*') || is_pvd(Path::new(name))
     }
 
     /// Opens a `.pvd` collection ([`Series::read_pvd`]) or a numbered series
     /// ([`Series::numbered`]), as [`Series::is_series`] tells them apart.
     pub fn open(path: &Path) -> Result<Series, SeriesError> {
-        if path.extension().is_some_and(|e| e == "pvd") {
+        if is_pvd(path) {
             Series::read_pvd(path)
         } else {
             Series::numbered(path)
@@ -369,6 +369,11 @@ fn topology_difference(first: &TetMesh, step: &TetMesh) -> Option<String> {
     ))
 }
 
+/// Whether `path` ends in `.pvd`, in any case (as mesh extensions are matched).
+fn is_pvd(path: &Path) -> bool {
+    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("pvd"))
+}
+
 /// A `DataSet` of a `.pvd`: where it is (byte offset), its timestep and its file as written.
 struct Entry {
     at: usize,
@@ -510,6 +515,20 @@ mod tests {
         assert!(s.steps().iter().all(|s| s.path.starts_with(&dir)));
         assert!(Series::is_series(&path) && Series::is_series(Path::new("d/s_*.vtu")));
         assert!(!Series::is_series(Path::new("d*/mesh.vtu")));
+    }
+
+    #[test]
+    fn pvd_is_recognised_in_any_case() {
+        let dir = folder("pvd-case");
+        touch(&dir, &["a.vtu"]);
+        let lower = pvd(&dir, "<DataSet timestep=\"0\" file=\"a.vtu\"/>\n");
+        for name in ["STEPS.PVD", "steps.Pvd"] {
+            let path = dir.join(name);
+            std::fs::copy(&lower, &path).unwrap();
+            assert!(Series::is_series(&path), "{name}");
+            let s = Series::open(&path).unwrap();
+            assert_eq!(times(&s), [("a.vtu".to_owned(), 0.0)], "{name}");
+        }
     }
 
     #[test]
