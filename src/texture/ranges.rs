@@ -16,19 +16,22 @@ pub(crate) fn tet_ranges(
     texcoords: &[DVec3],
     tets: &[[u32; 4]],
 ) -> Vec<(f64, f64)> {
-    let dims = volume.dims();
-    tets.par_iter()
-        .map(|tet| {
-            let corners = tet.map(|v| texcoords[v as usize]);
-            let lo = corners.iter().copied().fold(DVec3::INFINITY, DVec3::min);
-            let hi = corners
-                .iter()
-                .copied()
-                .fold(DVec3::NEG_INFINITY, DVec3::max);
-            let axis = |a: usize| texel_span(lo[a], hi[a], dims[a]);
-            brick_range(volume, [axis(0), axis(1), axis(2)])
-        })
+    (tets.par_iter())
+        .map(|&tet| tet_range(volume, texcoords, tet))
         .collect()
+}
+
+/// [`tet_ranges`] of one tet, `tet` indexing `texcoords`.
+pub(crate) fn tet_range(volume: &Volume, texcoords: &[DVec3], tet: [u32; 4]) -> (f64, f64) {
+    let dims = volume.dims();
+    let corners = tet.map(|v| texcoords[v as usize]);
+    let lo = corners.iter().copied().fold(DVec3::INFINITY, DVec3::min);
+    let hi = corners
+        .iter()
+        .copied()
+        .fold(DVec3::NEG_INFINITY, DVec3::max);
+    let axis = |a: usize| texel_span(lo[a], hi[a], dims[a]);
+    brick_range(volume, [axis(0), axis(1), axis(2)])
 }
 
 /// The samples along an axis of `n` that trilinear reads at coordinates in `[lo, hi]` use

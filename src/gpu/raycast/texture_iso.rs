@@ -22,6 +22,7 @@ use crate::mesh::TetMesh;
 use crate::reference::iso::IsoImage;
 use crate::render::{RenderError, Timings};
 use crate::texture::Volume;
+use crate::texture::ranges::tet_range;
 
 use super::frame::{mappable, storage};
 use super::texture::{GpuTexture, TextureUse};
@@ -32,23 +33,33 @@ use super::{RaycastRenderer, RaycastSettings};
 pub(super) struct TexturedIso {
     pub(super) isovalues: Vec<(f64, [f32; 3])>,
     pub(super) uniforms: wgpu::Buffer,
-    /// Per tet the least and greatest texel its trilinear field can read ([`tet_ranges`]),
-    /// normalized: the traversal skips a tet whose range holds no isovalue.
+    /// Per tet the least and greatest texel its trilinear field can read
+    /// ([`upload_tet_ranges`]), normalized: the traversal skips a tet whose range holds no
+    /// isovalue.
     pub(super) ranges: wgpu::Buffer,
 }
 
-/// Per tet of `cage` (vertices at `texcoords`), the least and greatest texel the trilinear
-/// field can read inside it ([`crate::texture::ranges::tet_ranges`]), normalized as the texels
-/// (`(v - lo) / span`). Texture coordinates never change, so neither do the ranges when the
-/// cage deforms. A tet whose range holds no isovalue has all its samples on one side of each:
-/// skipping it changes no hit.
-fn tet_ranges(cage: &TetMesh, texcoords: &[DVec3], volume: &Volume) -> Vec<[f32; 2]> {
+/// Uploads per tet of `cage` (vertices at `texcoords`) the least and greatest texel the
+/// trilinear field can read inside it ([`crate::texture::ranges::tet_range`]), normalized as
+/// the texels (`(v - lo) / span`), computed straight into the upload's staging memory. Texture
+/// coordinates never change, so neither do the ranges when the cage deforms. A tet whose range
+/// holds no isovalue has all its samples on one side of each: skipping it changes no hit.
+fn upload_tet_ranges(
+    ctx: &GpuContext,
+    cage: &TetMesh,
+    texcoords: &[DVec3],
+    volume: &Volume,
+) -> wgpu::Buffer {
     let (lo, hi) = volume.range();
     let span = if hi > lo { hi - lo } else { 1.0 };
     let norm = |v: f64| ((v - lo) / span) as f32;
-    (crate::texture::ranges::tet_ranges(volume, texcoords, cage.tets()).iter())
-        .map(|&(least, most)| [norm(least), norm(most)])
-        .collect()
+    let tets = cage.tets();
+    let ranges = storage(&ctx.device, "textured iso tet ranges", 8 * tets.len());
+    ctx.uploader().entries(&ranges, 0, tets.len(), |t| {
+        let (least, most) = tet_range(volume, texcoords, tets[t]);
+        [norm(least), norm(most)]
+    });
+    ranges
 }
 
 impl TexturedIso {
@@ -76,13 +87,10 @@ impl TexturedIso {
         let uniforms = uniform_buffer(&ctx.device, "textured iso", size_of::<IsoUniforms>());
         ctx.queue
             .write_buffer(&uniforms, 0, bytemuck::bytes_of(&iso));
-        let cpu = tet_ranges(cage, texcoords, volume);
-        let ranges = storage(&ctx.device, "textured iso tet ranges", 8 * cpu.len());
-        ctx.uploader().slice(&ranges, 0, &cpu);
         Ok(Self {
             isovalues,
             uniforms,
-            ranges,
+            ranges: upload_tet_ranges(ctx, cage, texcoords, volume),
         })
     }
 }
