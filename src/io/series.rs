@@ -371,7 +371,8 @@ fn topology_difference(first: &TetMesh, step: &TetMesh) -> Option<String> {
 
 /// Whether `path` ends in `.pvd`, in any case (as mesh extensions are matched).
 fn is_pvd(path: &Path) -> bool {
-    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("pvd"))
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("pvd"))
 }
 
 /// A `DataSet` of a `.pvd`: where it is (byte offset), its timestep and its file as written.
