@@ -122,6 +122,9 @@ pub enum SceneError {
     /// The camera defines no rays.
     #[error(transparent)]
     Camera(#[from] CameraError),
+    /// The texture volume cannot be read.
+    #[error(transparent)]
+    Volume(#[from] crate::generate::volume::VolumeError),
 }
 
 fn setting(field: &str, message: impl Into<String>) -> SceneError {
@@ -595,6 +598,19 @@ impl Scene {
         camera.up = c.up.map_or(camera.up, glam::DVec3::from);
         camera.validate()?;
         Ok(camera)
+    }
+
+    /// Checks the settings that need no mesh, so that a command can refuse them before it
+    /// reads one: the camera ([`Self::check_camera`]); the transfer function's preset, file or
+    /// inline points and the unit distance, placed on a stand-in range (where a preset's points
+    /// fall depends on the mesh, whether they are valid does not); the texture volume's header.
+    pub fn check_without_mesh(&self) -> Result<(), SceneError> {
+        self.check_camera()?;
+        self.transfer_function_over((0.0, 1.0), 1.0)?;
+        if let Some(texture) = &self.texture {
+            crate::texture::Volume::check_file(&texture.volume)?;
+        }
+        Ok(())
     }
 
     /// The view, after checking the camera settings that need no mesh (view, field of view,

@@ -1049,11 +1049,10 @@ fn isovalues_are_named_where_they_were_given() {
     );
 }
 
-/// The camera flags need no mesh: a bad one is named before the mesh is read (here a mesh
-/// that does not exist, whose error would come first otherwise), not after minutes of loading.
-#[test]
-fn camera_flags_are_checked_before_the_mesh_is_read() {
-    let dir = out_dir("camera-first");
+/// Runs render, animate (and view) with `flags` on a mesh that does not exist, in `dir`: each
+/// must fail with `expected`, not with the missing mesh, whose error would come first if the
+/// flags were checked only after it is read (minutes for a large mesh).
+fn checked_before_the_mesh(dir: &Path, flags: &[&str], expected: &str) {
     let missing = dir.join("missing.vtu");
     let (png, gif) = (dir.join("x.png"), dir.join("x.gif"));
     let (missing, png, gif) = (
@@ -1061,24 +1060,80 @@ fn camera_flags_are_checked_before_the_mesh_is_read() {
         png.to_str().unwrap(),
         gif.to_str().unwrap(),
     );
+    let commands = [
+        vec!["render", missing, "-o", png],
+        vec!["animate", missing, "-o", gif],
+        #[cfg(feature = "viewer")]
+        vec!["view", missing],
+    ];
+    for command in commands {
+        let stderr = failure(&[&command[..], flags].concat());
+        assert!(
+            stderr.contains(expected) && !stderr.contains("missing.vtu"),
+            "{command:?} {flags:?}: {stderr}"
+        );
+    }
+}
+
+/// The camera flags need no mesh: a bad one is named before the mesh is read.
+#[test]
+fn camera_flags_are_checked_before_the_mesh_is_read() {
+    let dir = out_dir("camera-first");
     for (flags, expected) in [
         (["--fov", "0"], "field of view 0 degrees"),
         (["--distance", "-1"], "eye distance -1 must be a positive"),
         (["--view", "sideways"], "sideways"),
     ] {
-        let commands = [
-            vec!["render", missing, "-o", png],
-            vec!["animate", missing, "-o", gif],
-            #[cfg(feature = "viewer")]
-            vec!["view", missing],
-        ];
-        for command in commands {
-            let stderr = failure(&[&command[..], &flags[..]].concat());
-            assert!(
-                stderr.contains(expected) && !stderr.contains("missing.vtu"),
-                "{command:?} {flags:?}: {stderr}"
-            );
-        }
+        checked_before_the_mesh(&dir, &flags, expected);
+    }
+}
+
+/// `--tf` needs no mesh to be found and parsed (only to be placed on its scalar range): an
+/// unknown preset or a bad file is named before the mesh is read.
+#[test]
+fn the_transfer_function_is_checked_before_the_mesh_is_read() {
+    let dir = out_dir("tf-first");
+    let bad = dir.join("bad-tf.json");
+    std::fs::write(&bad, r#"{"points": [[0, 0.5, 0.5, 0.5, 2]]}"#).unwrap();
+    for (flags, expected) in [
+        (
+            ["--tf", "viridian"],
+            "'viridian' is neither a transfer function preset",
+        ),
+        (
+            ["--tf", bad.to_str().unwrap()],
+            "bad-tf.json: points[0]: colour or opacity 2 is outside [0, 1]",
+        ),
+    ] {
+        checked_before_the_mesh(&dir, &flags, expected);
+    }
+}
+
+/// `--unit-distance` must be positive and finite, which needs no mesh.
+#[test]
+fn the_unit_distance_is_checked_before_the_mesh_is_read() {
+    let dir = out_dir("unit-distance-first");
+    for value in ["0", "inf"] {
+        let expected = format!("unit distance {value} must be positive and finite");
+        checked_before_the_mesh(&dir, &["--unit-distance", value], &expected);
+    }
+}
+
+/// `--texture`'s file is checked from its header before the mesh is read: a missing file, and
+/// one that is no NIfTI-1 volume (a header's 348 bytes of zeros: `sizeof_hdr` 0).
+#[test]
+fn the_texture_is_checked_before_the_mesh_is_read() {
+    let dir = out_dir("texture-first");
+    let (gone, zeros) = (dir.join("gone.nii"), dir.join("zeros.nii"));
+    std::fs::write(&zeros, [0u8; 400]).unwrap();
+    for (path, expected) in [
+        (&gone, "gone.nii: cannot read it as NIfTI-1"),
+        (
+            &zeros,
+            "zeros.nii: not a NIfTI-1 volume tetvr can read: sizeof_hdr is 0",
+        ),
+    ] {
+        checked_before_the_mesh(&dir, &["--texture", path.to_str().unwrap()], expected);
     }
 }
 

@@ -43,7 +43,7 @@ pub(super) fn animate(args: AnimateArgs) -> Result<(), CliError> {
         .unwrap_or(Path::new("tetvr.gif"));
     check_output(output, &["gif", "png"])?;
     unused_mode_flags(&args.render, args.render.mode)?;
-    of_flags(&args.render)?.check_camera()?;
+    of_flags(&args.render)?.check_without_mesh()?;
     if Series::is_series(&args.render.mesh.mesh) {
         if args.deform.is_some() || args.amplitude.is_some() || args.frames.is_some() {
             return Err(CliError::Usage(

@@ -170,7 +170,7 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
     if let Some(path) = &cmd.save_scene {
         check_output(path, &["json"])?;
     }
-    scene.check_camera()?;
+    scene.check_without_mesh()?;
     let Loaded { mesh, .. } = scene.load_mesh(&read_limits(&args.mesh))?;
     if scene.texture.is_none() {
         require_scalars(&mesh, &scene.mesh)?;

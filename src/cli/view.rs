@@ -22,7 +22,7 @@ pub fn view(cmd: ViewCommand, matches: &ArgMatches) -> Result<(), CliError> {
         check_output(path, &["png"])?;
     }
     let mut scene = resolve_flags(cmd.scene.as_deref(), r, matches)?;
-    scene.check_camera()?;
+    scene.check_without_mesh()?;
     let limits = read_limits(&r.mesh);
     // A series opens on its first step; the viewer loads the others as it plays them.
     let series = match Series::is_series(&scene.mesh) {

@@ -237,13 +237,8 @@ pub fn nifti_to_tets(path: impl AsRef<Path>, opts: &VolumeToTets) -> Result<TetM
     let path = path.as_ref();
     let name = path.display().to_string();
     check_options(&name, opts)?;
-    let io_error = |e: io::Error| VolumeError::Read {
-        path: name.clone(),
-        message: e.to_string(),
-    };
-    let file = File::open(path).map_err(io_error)?;
-    let len = file.metadata().map_err(io_error)?.len();
-    convert(BufReader::new(file), len, &name, opts)
+    let (file, len) = open(path, &name)?;
+    convert(file, len, &name, opts)
 }
 
 /// [`nifti_to_tets`] for a file already in memory; `name` stands for the file in messages.
@@ -288,30 +283,50 @@ fn convert(
 pub(crate) fn read_samples_file(path: &Path, opts: &VolumeToTets) -> Result<Samples, VolumeError> {
     let name = path.display().to_string();
     check_options(&name, opts)?;
-    let io_error = |e: io::Error| read_error(&name, e);
+    let (file, len) = open(path, &name)?;
+    read_any(file, len, &name, opts)
+}
+
+/// Checks the header of the NIfTI-1 volume at `path` as [`read_samples_file`] does with every
+/// voxel kept, and the file's length against it when it is not gzipped, reading no voxel.
+pub(crate) fn check_header_file(path: &Path) -> Result<(), VolumeError> {
+    let name = path.display().to_string();
+    let (file, len) = open(path, &name)?;
+    let (mut stream, len) = unzipped(file, len, &name)?;
+    read_layout(&mut stream, len, &name, &VolumeToTets::default()).map(|_| ())
+}
+
+/// The file at `path` (`name` in messages) and its length.
+fn open(path: &Path, name: &str) -> Result<(BufReader<File>, u64), VolumeError> {
+    let io_error = |e: io::Error| read_error(name, e);
     let file = File::open(path).map_err(io_error)?;
     let len = file.metadata().map_err(io_error)?.len();
-    read_any(BufReader::new(file), len, &name, opts)
+    Ok((BufReader::new(file), len))
 }
 
 /// Reads a volume from `source` (`len` bytes, gzip told by its magic bytes).
 fn read_any(
-    mut source: impl BufRead,
+    source: impl BufRead,
     len: u64,
     name: &str,
     opts: &VolumeToTets,
 ) -> Result<Samples, VolumeError> {
+    let (mut stream, len) = unzipped(source, len, name)?;
+    read_volume(&mut stream, len, name, opts)
+}
+
+/// The volume's bytes from `source` (`len` bytes), gunzipped when they start with gzip's magic
+/// bytes, and the length its voxels must fit in (unknown behind gzip).
+fn unzipped<'a>(
+    mut source: impl BufRead + 'a,
+    len: u64,
+    name: &str,
+) -> Result<(Stream<Box<dyn Read + 'a>>, Option<u64>), VolumeError> {
     let start = source.fill_buf().map_err(|e| read_error(name, e))?;
-    if start.starts_with(&[0x1f, 0x8b]) {
-        read_volume(
-            &mut Stream::new(MultiGzDecoder::new(source)),
-            None,
-            name,
-            opts,
-        )
-    } else {
-        read_volume(&mut Stream::new(source), Some(len), name, opts)
-    }
+    Ok(match start.starts_with(&[0x1f, 0x8b]) {
+        true => (Stream::new(Box::new(MultiGzDecoder::new(source))), None),
+        false => (Stream::new(Box::new(source)), Some(len)),
+    })
 }
 
 fn read_error(name: &str, e: io::Error) -> VolumeError {
@@ -410,6 +425,24 @@ fn read_volume<R: Read>(
     name: &str,
     opts: &VolumeToTets,
 ) -> Result<Samples, VolumeError> {
+    let (layout, spacing) = read_layout(stream, len, name, opts)?;
+    skip_extensions(stream, &layout, name)?;
+    let (values, dims) = read_samples(stream, &layout, opts.downsample as usize, name)?;
+    Ok(Samples {
+        values,
+        dims,
+        spacing,
+    })
+}
+
+/// Reads and checks the header: its fields, the voxel spacing, the volume's size after `opts`'
+/// downsampling, and the file's length `len` when known; the layout and spacing.
+fn read_layout<R: Read>(
+    stream: &mut Stream<R>,
+    len: Option<u64>,
+    name: &str,
+    opts: &VolumeToTets,
+) -> Result<(Layout, DVec3), VolumeError> {
     let mut buf = Vec::new();
     // A file shorter than a header is no NIfTI file: its "voxel data" has no header to end.
     (stream.read(HEADER_LEN, &mut buf, HEADER_LEN as u64, name)).map_err(|e| match e {
@@ -434,13 +467,7 @@ fn read_volume<R: Read>(
             found,
         });
     }
-    skip_extensions(stream, &layout, name)?;
-    let (values, dims) = read_samples(stream, &layout, opts.downsample as usize, name)?;
-    Ok(Samples {
-        values,
-        dims,
-        spacing,
-    })
+    Ok((layout, spacing))
 }
 
 fn bad_header(name: &str, message: String) -> VolumeError {

@@ -22,7 +22,7 @@ use std::sync::Arc;
 use glam::DVec3;
 
 use crate::cpu::raycast::{CpuRaycastRenderer, CpuRaycastSettings};
-use crate::generate::volume::{VolumeError, VolumeToTets, read_samples_file};
+use crate::generate::volume::{VolumeError, VolumeToTets, check_header_file, read_samples_file};
 use crate::gpu::ShellsRenderer;
 use crate::gpu::raycast::{RaycastRenderer, RaycastSettings};
 use crate::gpu::{GpuContext, GpuError};
@@ -128,6 +128,12 @@ impl Volume {
             spacing: samples.spacing * f,
             values: samples.values.iter().map(|&v| v as f32).collect(),
         })
+    }
+
+    /// Checks that [`Self::load`] can read `path` from its header alone (and its length, when
+    /// not gzipped), reading no voxel: a command refuses a bad volume before its mesh is read.
+    pub fn check_file(path: impl AsRef<Path>) -> Result<(), VolumeError> {
+        check_header_file(path.as_ref())
     }
 
     /// Samples along x, y, z.
