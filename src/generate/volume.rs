@@ -315,13 +315,16 @@ fn read_any(
     read_volume(&mut stream, len, name, opts)
 }
 
+/// A volume's bytes, gunzipped when the file is gzipped.
+type Unzipped<'a> = Stream<Box<dyn Read + 'a>>;
+
 /// The volume's bytes from `source` (`len` bytes), gunzipped when they start with gzip's magic
 /// bytes, and the length its voxels must fit in (unknown behind gzip).
 fn unzipped<'a>(
     mut source: impl BufRead + 'a,
     len: u64,
     name: &str,
-) -> Result<(Stream<Box<dyn Read + 'a>>, Option<u64>), VolumeError> {
+) -> Result<(Unzipped<'a>, Option<u64>), VolumeError> {
     let start = source.fill_buf().map_err(|e| read_error(name, e))?;
     Ok(match start.starts_with(&[0x1f, 0x8b]) {
         true => (Stream::new(Box::new(MultiGzDecoder::new(source))), None),
