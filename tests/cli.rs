@@ -666,6 +666,38 @@ fn generate_takes_negative_thresholds() {
     }
 }
 
+/// The viewer renders the mesh's own scalars: a texture given to it is refused, not ignored
+/// (it showed the cage untextured).
+#[cfg(feature = "viewer")]
+#[test]
+fn view_refuses_a_texture_it_would_ignore() {
+    let dir = out_dir("view-texture");
+    let nii = dir.join("blob.nii");
+    let data = ndarray::Array3::from_shape_fn((4, 4, 4), |(x, y, z)| (x + y + z) as f32);
+    nifti::writer::WriterOptions::new(&nii)
+        .write_nifti(&data)
+        .unwrap();
+    let cage = dir.join("cage.vtu");
+    let o = tetvr(&[
+        "generate",
+        "cage",
+        nii.to_str().unwrap(),
+        "-o",
+        cage.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o).1);
+    let stderr = failure(&[
+        "view",
+        cage.to_str().unwrap(),
+        "--texture",
+        nii.to_str().unwrap(),
+    ]);
+    assert!(
+        stderr.contains("tetvr view does not show textured cages"),
+        "{stderr}"
+    );
+}
+
 #[test]
 fn help_has_examples() {
     let (stdout, _) = text(&tetvr(&["render", "--help"]));

@@ -23,6 +23,14 @@ pub fn view(cmd: ViewCommand, matches: &ArgMatches) -> Result<(), CliError> {
     }
     let mut scene = resolve_flags(cmd.scene.as_deref(), r, matches)?;
     scene.check_without_mesh()?;
+    // The viewer renders the mesh's own scalars: a textured cage would be shown untextured.
+    if scene.texture.is_some() {
+        return Err(CliError::Usage(
+            "tetvr view does not show textured cages yet (--texture, or the scene file's \
+             texture); render them with tetvr render or tetvr animate --texture"
+                .into(),
+        ));
+    }
     let limits = read_limits(&r.mesh);
     // A series opens on its first step; the viewer loads the others as it plays them.
     let series = match Series::is_series(&scene.mesh) {
