@@ -12,7 +12,8 @@
 //! for the next frame's submission, as `write_buffer` leaves it, every write until then keeps
 //! its staging copy (200 position updates of a 41k-vertex mesh between two frames held 110 MB
 //! on lavapipe). Submitting only moves the copy earlier in the queue, which runs writes before
-//! any command buffer submitted after them either way.
+//! any command buffer submitted after them either way, and costs about 25 us a write (4 KiB
+//! writes on lavapipe: 33-36 us each against 7-11 us for `write_buffer`), a few per frame.
 
 use std::collections::VecDeque;
 
