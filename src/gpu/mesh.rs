@@ -717,4 +717,23 @@ mod tests {
         assert_eq!(contents(&ctx, &copies[0]), expected, "many pieces");
         assert_eq!(contents(&ctx, &copies[1]), expected, "one piece");
     }
+
+    /// A write wgpu refuses (30 entries from entry 4 of a buffer of 32) is refused
+    /// whole, as `write_buffer` refuses it: a validation error and nothing written, not the
+    /// pieces that fit before the one that does not.
+    #[test]
+    fn a_pieced_write_past_the_end_writes_nothing() {
+        let ctx = GpuContext::new(crate::gpu::AdapterChoice::Auto).expect("an adapter");
+        let entries: Vec<[u32; 4]> = (1..=30u32).map(|i| [i; 4]).collect();
+        let buffer = storage_buffer(&ctx.device, "test", 16 * 32);
+        let small = Uploader {
+            piece: 64,
+            ..ctx.uploader()
+        };
+        let scope = ctx.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        small.entries(&buffer, 16 * 4, entries.len(), |k| entries[k]);
+        small.slice(&buffer, 16 * 4, &entries);
+        assert!(pollster::block_on(scope.pop()).is_some(), "no error");
+        assert!(contents(&ctx, &buffer).iter().all(|&b| b == 0), "written");
+    }
 }

@@ -89,7 +89,9 @@ impl<'a> Uploader<'a> {
     /// piece's staging memory filled by `fill` in parallel tasks of [`TASK`] bytes (and the
     /// rest; `fill` gets the task's memory and its first byte of the `len`); submits each piece
     /// (so that the submission's completion frees its staging memory) and bounds the pieces in
-    /// flight.
+    /// flight. The last piece goes first: a write wgpu refuses (past the buffer's end, a size
+    /// that is no whole word) is then refused before any piece is written, as `write_buffer`
+    /// refuses it whole.
     fn write(
         self,
         buffer: &wgpu::Buffer,
@@ -100,7 +102,7 @@ impl<'a> Uploader<'a> {
     ) {
         let piece = (self.piece as usize / stride).max(1) * stride;
         let mut in_flight = VecDeque::new();
-        for first in (0..len).step_by(piece) {
+        for first in (0..len).step_by(piece).rev() {
             let Some(size) = wgpu::BufferSize::new(piece.min(len - first) as u64) else {
                 return;
             };
