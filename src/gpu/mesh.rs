@@ -685,4 +685,55 @@ mod tests {
         ctx.queue.write_buffer(&one, 20, bytemuck::cast_slice(part));
         assert_eq!(contents(&ctx, &pieced), contents(&ctx, &one));
     }
+
+    /// Writes in many pieces (entries larger than the piece: 16 bytes against 8), in one piece,
+    /// and of nothing (no error, nothing changed) land where `write_buffer` lands: before the
+    /// commands of an encoder recorded earlier and submitted after them, whose copy of the
+    /// buffer therefore holds the written entries. A piece left unwritten, written late or at
+    /// a wrong offset changes the copy.
+    #[test]
+    fn piecewise_writes_precede_an_encoder_submitted_after_them() {
+        let ctx = GpuContext::new(crate::gpu::AdapterChoice::Auto).expect("an adapter");
+        let entries: Vec<[u32; 4]> = (0..30u32).map(|i| [i, !i, 3 * i + 1, i << 16]).collect();
+        let plain = || storage_buffer(&ctx.device, "test", 16 * 32);
+        let (pieced, whole, one) = (plain(), plain(), plain());
+        let copies = [plain(), plain(), plain()];
+        let mut encoder = (ctx.device).create_command_encoder(&Default::default());
+        for (buffer, copy) in [&pieced, &whole, &one].into_iter().zip(&copies) {
+            encoder.copy_buffer_to_buffer(buffer, 0, copy, 0, buffer.size());
+        }
+        let small = Uploader {
+            piece: 8,
+            ..ctx.uploader()
+        };
+        small.entries(&pieced, 32, entries.len(), |k| entries[k]);
+        small.entries(&pieced, 0, 0, |k| entries[k]);
+        ctx.uploader().slice(&whole, 32, &entries);
+        ctx.uploader().slice::<u32>(&whole, 16, &[]);
+        (ctx.queue).write_buffer(&one, 32, bytemuck::cast_slice(&entries));
+        ctx.queue.submit([encoder.finish()]);
+        let expected = contents(&ctx, &copies[2]);
+        assert_eq!(&expected[32..512], bytemuck::cast_slice::<_, u8>(&entries));
+        assert_eq!(contents(&ctx, &copies[0]), expected, "many pieces");
+        assert_eq!(contents(&ctx, &copies[1]), expected, "one piece");
+    }
+
+    /// A write wgpu refuses (30 entries from entry 4 of a buffer of 32) is refused
+    /// whole, as `write_buffer` refuses it: a validation error and nothing written, not the
+    /// pieces that fit before the one that does not.
+    #[test]
+    fn a_pieced_write_past_the_end_writes_nothing() {
+        let ctx = GpuContext::new(crate::gpu::AdapterChoice::Auto).expect("an adapter");
+        let entries: Vec<[u32; 4]> = (1..=30u32).map(|i| [i; 4]).collect();
+        let buffer = storage_buffer(&ctx.device, "test", 16 * 32);
+        let small = Uploader {
+            piece: 64,
+            ..ctx.uploader()
+        };
+        let scope = ctx.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        small.entries(&buffer, 16 * 4, entries.len(), |k| entries[k]);
+        small.slice(&buffer, 16 * 4, &entries);
+        assert!(pollster::block_on(scope.pop()).is_some(), "no error");
+        assert!(contents(&ctx, &buffer).iter().all(|&b| b == 0), "written");
+    }
 }
