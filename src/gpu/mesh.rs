@@ -63,12 +63,12 @@ pub struct MeshData {
 
 impl MeshData {
     fn new(mesh: &TetMesh) -> Result<Self, RenderError> {
-        let positions = mesh.positions().to_vec();
-        let scalars = mesh.scalars()?.to_vec();
-        let tets = mesh.tets().to_vec();
+        let positions = par_copy(mesh.positions());
+        let scalars = par_copy(mesh.scalars()?);
+        let tets = par_copy(mesh.tets());
         let bounds = bounding_box(&positions);
         let (origin, radius) = sphere_of(bounds);
-        let cells = mesh.cell_scalars().map(<[f64]>::to_vec);
+        let cells = mesh.cell_scalars().map(par_copy);
         let (scalar_min, scalar_span) = match &cells {
             Some(c) => scalar_frame(&[scalars.as_slice(), c].concat()),
             None => scalar_frame(&scalars),
@@ -120,6 +120,15 @@ impl MeshData {
     pub(crate) fn gpu_value(&self, s: f64) -> f32 {
         ((s - self.scalar_min) / self.scalar_span) as f32
     }
+}
+
+/// A copy of `values` made in parallel: the mesh's arrays are copied once per GPU mesh, mostly
+/// faulting in fresh pages. The 11.7M-tet MNI brain's positions, scalars and tets (250 MB):
+/// 95-98 ms serially, 50-61 ms in parallel on 2 cores (5 interleaved runs each).
+fn par_copy<T: Copy + Send + Sync>(values: &[T]) -> Vec<T> {
+    let mut copy = Vec::with_capacity(values.len());
+    copy.par_extend(values.par_iter().copied());
+    copy
 }
 
 /// The error of a per-vertex scalar update on a mesh whose field is constant per tet: the

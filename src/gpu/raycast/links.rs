@@ -79,16 +79,14 @@ pub struct Topology {
 impl Topology {
     /// The face adjacency of `tets` and their boundary faces.
     pub fn build(tets: &[[u32; 4]]) -> Self {
-        let neighbors = Adjacency::build(tets).neighbors;
-        let boundary = (neighbors.iter().enumerate())
-            .flat_map(|(t, n)| {
-                (0..4)
-                    .filter(|&f| n[f] == NO_NEIGHBOR)
-                    .map(move |f| face_code(t as u32, f))
-            })
+        // The adjacency lists its boundary faces by tet, then face: the same order as a scan
+        // of the neighbours, without a second (serial) pass over them.
+        let adjacency = Adjacency::build(tets);
+        let boundary = (adjacency.boundary.iter())
+            .map(|b| face_code(b.tet, b.face as usize))
             .collect();
         Self {
-            neighbors,
+            neighbors: adjacency.neighbors,
             boundary,
         }
     }
