@@ -158,9 +158,7 @@ impl Camera {
         if self.width == 0 || self.height == 0 {
             return Err(CameraError::EmptyImage(self.width, self.height));
         }
-        if !(self.fov_y_deg > 0.0 && self.fov_y_deg < 180.0) {
-            return Err(CameraError::BadFov(self.fov_y_deg));
-        }
+        check_fov(self.fov_y_deg)?;
         let f = self.target - self.eye;
         if f.length_squared() == 0.0 {
             return Err(CameraError::EyeAtTarget);
@@ -201,6 +199,15 @@ impl Camera {
         let u = (2.0 * (x as f64 + 0.5) / self.width as f64 - 1.0) * th * self.aspect();
         let v = (1.0 - 2.0 * (y as f64 + 0.5) / self.height as f64) * th;
         (forward + right * u + up * v).normalize()
+    }
+}
+
+/// An error unless the field of view `fov` (degrees) is in (0, 180): [`Camera::validate`]'s
+/// rule, also checked on its own before a camera exists (a scene's, before its mesh is read).
+pub(crate) fn check_fov(fov: f64) -> Result<(), CameraError> {
+    match fov > 0.0 && fov < 180.0 {
+        true => Ok(()),
+        false => Err(CameraError::BadFov(fov)),
     }
 }
 

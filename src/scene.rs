@@ -617,9 +617,7 @@ impl Scene {
     /// distance), so that a command can refuse them before it reads one.
     pub fn check_camera(&self) -> Result<View, SceneError> {
         let c = &self.camera;
-        if !(c.fov > 0.0 && c.fov < 180.0) {
-            return Err(CameraError::BadFov(c.fov).into());
-        }
+        crate::camera::check_fov(c.fov)?;
         if !(c.distance > 0.0 && c.distance.is_finite()) {
             return Err(CameraError::BadDistance(c.distance).into());
         }
