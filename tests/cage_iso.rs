@@ -220,13 +220,39 @@ fn bending_moves_the_textured_isosurfaces() {
     assert!(gpu.update_scalars(&vec![0.0; mesh.vertex_count()]).is_err());
 }
 
-/// The command as a user runs it: `render --texture --mode iso --iso V` on a cage written by
-/// `generate cage` draws the library's GPU picture (to 8-bit rounding, 1/255).
+/// `tetvr` run with `args`.
 #[cfg(feature = "cli")]
-#[test]
-fn render_textured_iso_from_the_command_line() {
-    use std::process::Command;
-    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("cage_iso");
+fn tetvr_cli(args: &[&std::ffi::OsStr]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_tetvr"))
+        .args(args)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .unwrap()
+}
+
+/// The stdout of a `tetvr` run that must succeed.
+#[cfg(feature = "cli")]
+fn succeeded(out: std::process::Output) -> String {
+    let text = |b: &[u8]| String::from_utf8_lossy(b).into_owned();
+    assert!(
+        out.status.success(),
+        "{}{}",
+        text(&out.stdout),
+        text(&out.stderr)
+    );
+    text(&out.stdout)
+}
+
+#[cfg(feature = "cli")]
+fn os(s: &str) -> &std::ffi::OsStr {
+    std::ffi::OsStr::new(s)
+}
+
+/// In `target/tmp/<name>`: the blob volume as a NIfTI file (anisotropic voxels) and a
+/// 162-tet cage over it written by `generate cage`; their paths.
+#[cfg(feature = "cli")]
+fn cli_cage(name: &str) -> (std::path::PathBuf, std::path::PathBuf) {
+    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
     std::fs::create_dir_all(&dir).unwrap();
     let volume = blob_volume();
     let data =
@@ -240,24 +266,8 @@ fn render_textured_iso_from_the_command_line() {
         .reference_header(&header)
         .write_nifti(&data)
         .unwrap();
-    let (cage_path, png) = (dir.join("cage.vtu"), dir.join("iso.png"));
-    let run = |args: &[&std::ffi::OsStr]| {
-        let out = Command::new(env!("CARGO_BIN_EXE_tetvr"))
-            .args(args)
-            .env("XDG_RUNTIME_DIR", std::env::temp_dir())
-            .output()
-            .unwrap();
-        let text = |b: &[u8]| String::from_utf8_lossy(b).into_owned();
-        assert!(
-            out.status.success(),
-            "{}{}",
-            text(&out.stdout),
-            text(&out.stderr)
-        );
-        text(&out.stdout)
-    };
-    let os = |s: &'static str| std::ffi::OsStr::new(s);
-    run(&[
+    let cage_path = dir.join("cage.vtu");
+    succeeded(tetvr_cli(&[
         os("generate"),
         os("cage"),
         nii.as_os_str(),
@@ -265,23 +275,46 @@ fn render_textured_iso_from_the_command_line() {
         os("162"),
         os("-o"),
         cage_path.as_os_str(),
-    ]);
-    let out = run(&[
+    ]));
+    (nii, cage_path)
+}
+
+/// `render --texture cage --mode iso --iso value --size size -o png`.
+#[cfg(feature = "cli")]
+fn render_iso(
+    cage: &std::path::Path,
+    nii: &std::path::Path,
+    value: f64,
+    size: &str,
+    png: &std::path::Path,
+) -> std::process::Output {
+    let value = value.to_string();
+    tetvr_cli(&[
         os("render"),
-        cage_path.as_os_str(),
+        cage.as_os_str(),
         os("--texture"),
         nii.as_os_str(),
         os("--mode"),
         os("iso"),
         os("--iso"),
-        os("10"),
+        os(&value),
         os("--size"),
-        os("32x32"),
+        os(size),
         os("--background"),
         os("none"),
         os("-o"),
         png.as_os_str(),
-    ]);
+    ])
+}
+
+/// The command as a user runs it: `render --texture --mode iso --iso V` on a cage written by
+/// `generate cage` draws the library's GPU picture (to 8-bit rounding, 1/255).
+#[cfg(feature = "cli")]
+#[test]
+fn render_textured_iso_from_the_command_line() {
+    let (nii, cage_path) = cli_cage("cage_iso");
+    let png = cage_path.with_file_name("iso.png");
+    let out = succeeded(render_iso(&cage_path, &nii, 10.0, "32x32", &png));
     assert!(out.contains("mode iso, textured with"), "{out}");
     let mesh = tetvr::io::load(&cage_path).unwrap().mesh;
     let loaded = Volume::load(&nii, 1).unwrap();
@@ -305,45 +338,31 @@ fn render_textured_iso_from_the_command_line() {
         .compare(&expected.color)
         .unwrap();
     assert!(m.max_abs <= 1.0 / 255.0 + 1e-6, "{m}");
+}
 
-    // The isovalue check takes the volume's range, not the cage's vertex samples': a value above
-    // every vertex sample but inside the volume renders, one above the volume is refused.
+/// The command's isovalue check takes the volume's range, not the cage's vertex samples': a
+/// value above every vertex sample but inside the volume renders, one above the volume is
+/// refused.
+#[cfg(feature = "cli")]
+#[test]
+fn textured_isovalues_are_checked_against_the_volume_range() {
+    let (nii, cage_path) = cli_cage("cage_iso_range");
+    let png = cage_path.with_file_name("iso.png");
+    let mesh = tetvr::io::load(&cage_path).unwrap().mesh;
+    let (_, hi) = Volume::load(&nii, 1).unwrap().range();
     let (_, cage_hi) = mesh.active_array().and_then(|a| a.range()).unwrap();
     assert!(
         cage_hi < hi,
         "the blob's peak {hi} lies between the cage's vertices ({cage_hi})"
     );
-    let iso_run = |value: f64| {
-        let value = std::ffi::OsString::from(value.to_string());
-        let args = [
-            os("render"),
-            cage_path.as_os_str(),
-            os("--texture"),
-            nii.as_os_str(),
-        ];
-        let flags = [
-            os("--mode"),
-            os("iso"),
-            os("--iso"),
-            &value,
-            os("--size"),
-            os("8x8"),
-        ];
-        Command::new(env!("CARGO_BIN_EXE_tetvr"))
-            .args(args.iter().chain(&flags))
-            .arg("-o")
-            .arg(&png)
-            .env("XDG_RUNTIME_DIR", std::env::temp_dir())
-            .output()
-            .unwrap()
-    };
-    let inside = iso_run(0.5 * (cage_hi + hi));
-    assert!(
-        inside.status.success(),
-        "{}",
-        String::from_utf8_lossy(&inside.stderr)
-    );
-    let above = iso_run(hi + 1.0);
+    succeeded(render_iso(
+        &cage_path,
+        &nii,
+        0.5 * (cage_hi + hi),
+        "8x8",
+        &png,
+    ));
+    let above = render_iso(&cage_path, &nii, hi + 1.0, "8x8", &png);
     let stderr = String::from_utf8_lossy(&above.stderr);
     assert!(stderr.contains("is outside the scalar range"), "{stderr}");
 }
