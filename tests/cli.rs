@@ -995,6 +995,16 @@ fn out_of_range_numbers_are_named_with_what_to_write() {
         let stderr = failure(&[&render[..], mode, flags].concat());
         assert!(stderr.contains(expected), "{flags:?}: {stderr}");
     }
+    // The viewer refuses it too, before opening a window (its isovalue slider clamps what it
+    // shows to the range, so the value would have been changed silently).
+    #[cfg(feature = "viewer")]
+    {
+        let stderr = failure(&["view", LOX, "--mode", "iso", "--iso", "1e9"]);
+        assert!(
+            stderr.contains("--iso 1000000000 is outside the scalar range"),
+            "{stderr}"
+        );
+    }
     let stderr = failure(&["animate", LOX, "--amplitude", "nan", "-o", "x.gif"]);
     assert!(
         stderr.contains("--amplitude must be a finite number"),

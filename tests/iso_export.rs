@@ -463,3 +463,26 @@ fn errors_name_the_path_or_the_range() {
         "{stderr}"
     );
 }
+
+/// An isovalue outside the scalar range has no surface: `tetvr iso-export` refuses it, naming
+/// the value and the range, as `tetvr render --mode iso` does, and writes nothing (it wrote an
+/// empty .glb and printed "0 triangles").
+#[test]
+fn cli_refuses_an_isovalue_outside_the_range() {
+    let mesh = generate::fields::grid(generate::Field::Linear, UVec3::splat(2), "l").unwrap();
+    let (mesh_path, dir) = write_temp_mesh("linear-outside", &mesh);
+    let (lo, hi) = mesh.active_array().and_then(|a| a.range()).unwrap();
+    let out = dir.join("outside.glb");
+    let _ = std::fs::remove_file(&out);
+    let run = Command::new(env!("CARGO_BIN_EXE_tetvr"))
+        .args(["iso-export", mesh_path.to_str().unwrap(), "--iso", "0.5,99"])
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .expect("run tetvr");
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{stderr}");
+    let expected = format!("--iso 99 is outside the scalar range [{lo}, {hi}]");
+    assert!(stderr.contains(&expected), "{stderr}");
+    assert!(!out.exists(), "a .glb was written");
+}

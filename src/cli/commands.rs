@@ -183,14 +183,8 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
         Some(t) => scene.transfer_function_over(t.volume.range(), mesh.diagonal() / 100.0)?,
         None => scene.transfer_function(&mesh)?,
     };
-    if scene.mode == tetvr::scene::Mode::Iso {
-        // Given on the command line, or else by the scene file.
-        let from = match (args.iso.is_empty(), &cmd.scene) {
-            (true, Some(file)) => format!("{}: settings.iso", file.display()),
-            _ => "--iso".to_owned(),
-        };
-        check_isovalues(&scene.settings.iso, &from, &mesh, textured.as_ref())?;
-    }
+    let file = cmd.scene.as_deref();
+    check_scene_isovalues(&scene, args, file, &mesh, textured.as_ref())?;
     let (mode, gpu) = open_scene_mode(&scene, &mesh, &tf)?;
     // A textured cage keeps `auto` for its own rule (texture::textured_renderer).
     let (mode, bar) = match (cmd.frames, &textured) {
@@ -257,6 +251,25 @@ pub(super) fn check_isovalues(
         ))),
         None => Ok(()),
     }
+}
+
+/// [`check_isovalues`] for a scene drawn in iso mode (`tetvr render`, `tetvr view`): its
+/// isovalues were given by `--iso` in `flags`, or else by the scene file `file`.
+pub(super) fn check_scene_isovalues(
+    scene: &Scene,
+    flags: &RenderArgs,
+    file: Option<&Path>,
+    mesh: &TetMesh,
+    textured: Option<&Textured>,
+) -> Result<(), CliError> {
+    if scene.mode != tetvr::scene::Mode::Iso {
+        return Ok(());
+    }
+    let from = match (flags.iso.is_empty(), file) {
+        (true, Some(file)) => format!("{}: settings.iso", file.display()),
+        _ => "--iso".to_owned(),
+    };
+    check_isovalues(&scene.settings.iso, &from, mesh, textured)
 }
 
 /// The renderer of `mode` for `mesh`, textured when `textured` is given, and how the lines
@@ -438,6 +451,7 @@ fn iso_export(args: IsoExportArgs) -> Result<(), CliError> {
     check_output(&args.output, &["glb"])?;
     let Loaded { mesh, .. } = load_mesh(&args.mesh)?;
     require_scalars(&mesh, &args.mesh.mesh)?;
+    check_isovalues(&args.iso, "--iso", &mesh, None)?;
     let range = mesh
         .active_array()
         .and_then(|a| a.range())

@@ -6,7 +6,9 @@ use tetvr::io::series::Series;
 use tetvr::viewer::{ViewerSetup, WindowOptions};
 
 use super::ViewCommand;
-use super::commands::{CliError, check_output, read_limits, require_scalars};
+use super::commands::{
+    CliError, check_output, check_scene_isovalues, read_limits, require_scalars,
+};
 use super::scene::resolve_flags;
 
 pub fn view(cmd: ViewCommand, matches: &ArgMatches) -> Result<(), CliError> {
@@ -43,6 +45,7 @@ pub fn view(cmd: ViewCommand, matches: &ArgMatches) -> Result<(), CliError> {
     }
     let Loaded { mesh, .. } = scene.load_mesh(&limits)?;
     require_scalars(&mesh, &scene.mesh)?;
+    check_scene_isovalues(&scene, r, cmd.scene.as_deref(), &mesh, None)?;
     let tf = scene.transfer_function(&mesh)?;
     let camera = scene.camera(&mesh)?;
     let mode = scene.mode_settings(&mesh, &tf)?;
