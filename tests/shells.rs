@@ -927,7 +927,8 @@ fn bytes_per_tet_count_the_records_tets_vertices_and_active_list() {
 #[test]
 fn the_compute_sampler_draws_a_chunked_mesh_as_it_draws_it_whole() {
     // The same adapter told it may bind only 256 KiB per storage binding: lox's 8,750 records
-    // (700 KB) become 3 chunks of 3,072 tets (a multiple of the 256-byte offset alignment).
+    // (700 KB) become 3 chunks, of 3,264 tets with a 16- or 32-byte offset alignment (NVIDIA,
+    // lavapipe) and of 3,072 with 256, the largest an adapter may require.
     // Each shell then runs one coarse and fine pass per chunk holding some of its tets, the
     // slices carried between passes under MAX, so the picture must be bit-identical to the
     // unchunked one (bound 0), with the eye outside and inside. 16 slices per shell at 64x64

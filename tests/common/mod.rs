@@ -138,6 +138,19 @@ pub fn with_storage_binding_limit(
     c
 }
 
+/// The chunks `tets` per-tet records take on `ctx` declared to bind at most `binding` bytes
+/// per storage buffer ([`with_storage_binding_limit`]): as many records as a binding holds,
+/// rounded down to a multiple of the adapter's offset alignment (`gpu::mesh::chunk_tets`), so
+/// the count depends on the adapter. Lox's 8,750 records of 80 bytes in 64 KiB: chunks of 800
+/// (lavapipe's 32-byte alignment) or 816 (NVIDIA's 16), 11 of them; of 768 (256 bytes), 12.
+pub fn record_chunks(ctx: &tetvr::gpu::GpuContext, tets: u64, binding: u64) -> u64 {
+    let align = ctx.limits.min_storage_buffer_offset_alignment as u64;
+    let max = binding.min(ctx.limits.max_buffer_size);
+    let chunk = tetvr::gpu::mesh::chunk_tets(tets, max, align)
+        .unwrap_or_else(|| panic!("{binding} bytes hold no aligned group of records"));
+    tets.div_ceil(chunk)
+}
+
 /// A new device on `ctx`'s adapter opened to bind at most `bytes` per storage buffer: unlike
 /// [`with_storage_binding_limit`], wgpu then refuses any binding beyond it, as a driver whose
 /// limit is not a power of two does (the H200's 2147483644 bytes).
