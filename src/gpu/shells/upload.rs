@@ -188,9 +188,12 @@ pub(super) fn grown_size(bytes: u64, limits: &wgpu::Limits) -> u64 {
 /// frame of 16M instances makes 64 draws more, in the same order, so the picture is the same.
 const MAX_BATCH: u64 = 1 << 18;
 
-/// The most instances one window of the active list holds: a draw of faces starts at base
-/// vertex 4 x its batch's first instance (an `i32`), and a near draw's vertices are 6 per
-/// instance (a `u32`), so both stay in range for windows of at most 2^29 instances.
+/// The most instances one window of the active list holds, the whole list or a binding's part
+/// of it: a draw of faces starts at base vertex 4 x its batch's first instance (an `i32`), and
+/// a near draw's vertices are 6 per instance from the window's start (a `u32`), so both stay
+/// in range for windows of at most 2^29 instances (faces: vertices up to 2^31 - 1; near:
+/// 6 x 2^29 < 2^32). A multiple of every offset alignment (at most 256 bytes, 64 entries), so
+/// windows capped at it start aligned.
 const MAX_WINDOW: u64 = 1 << 29;
 
 /// How a frame's tet-shell instances are drawn: the active list bound in windows of `window`
@@ -218,12 +221,12 @@ impl InstanceLayout {
             return None;
         }
         let align = (limits.min_storage_buffer_offset_alignment as u64 / 4).max(1);
-        // Vertex indices (4 per instance, with the draw's base vertex) stay below 2^31, also
-        // where one binding holds more (Metal binds up to its largest buffer).
+        // Vertex indices stay in range ([`MAX_WINDOW`]), also where one binding holds more
+        // (Metal binds up to its largest buffer).
         let window = if n * 4 <= max_binding && n <= MAX_WINDOW {
             n.max(1)
         } else {
-            (max_binding / 4 / align * align).min(1 << 28)
+            (max_binding / 4 / align * align).min(MAX_WINDOW)
         };
         let batch = (window.min(n).max(1).next_power_of_two())
             .min(MAX_BATCH)
@@ -398,12 +401,13 @@ mod tests {
         assert_eq!(grown_size(4 * n, &limits), 1 << 31);
         assert!(grown_size(4 * n, &limits) > binding);
         assert_eq!(assert_bindings_fit(n, &limits).windows, 1);
-        // 600M instances, 2.4 GB: windows of 2^28 instances (vertex indices below 2^31).
-        let three = assert_bindings_fit(600_000_000, &limits);
-        assert_eq!((three.window, three.windows), (1 << 28, 3));
+        // 600M instances, 2.4 GB: windows of what one binding holds, rounded down to whole
+        // 256-byte offsets (536,870,848 instances, under MAX_WINDOW).
+        let two = assert_bindings_fit(600_000_000, &limits);
+        assert_eq!((two.window, two.windows), (536_870_848, 2));
         // More than the compute sampler binds: 536,870,911 entries.
         assert_eq!(InstanceLayout::most_in_one_binding(&limits), binding / 4);
-        assert!(three.entries > binding / 4);
+        assert!(two.entries > binding / 4);
         // Beyond one 4292870144-byte buffer: refused (an error naming the way out).
         assert_eq!(InstanceLayout::new(1_073_217_537, &limits), None);
         assert_bindings_fit(0, &limits);
@@ -440,7 +444,7 @@ mod tests {
             ..wgpu::Limits::default()
         };
         let layout = assert_bindings_fit(1_000_000_000, &limits);
-        assert_eq!((layout.window, layout.windows), (1 << 28, 4));
+        assert_eq!((layout.window, layout.windows), (1 << 29, 2));
         assert_draws_in_range(&layout);
         // The compute sampler, which draws no vertices, still binds them whole.
         assert!(layout.entries <= InstanceLayout::most_in_one_binding(&limits));
