@@ -158,11 +158,11 @@ fn growth_per_window(mut window: impl FnMut()) -> Vec<u64> {
 }
 
 /// The median growth of a window must stay under 4 MB. A leak grows resident memory by the
-/// same amount in every window; what the warm-up left to do (allocator arenas of the
-/// rasterizer's threads, lavapipe's shader caches) grows it once, in any window. Measured on
-/// lavapipe (2 cores, other builds running; 10 runs of 7 windows of 20 updates and 2 frames):
-/// single windows of up to 32 MB, at most 1 of the 7 over 4 MB in a run (2 of 5 in 10 runs of
-/// 5 windows), medians 0-12 KB; windows of updates alone grew 0-256 KB. The growth over the
+/// same amount in every window; what the warm-up left undone (allocator pools, lavapipe's
+/// caches and threads) grows it once, in any window. Measured on lavapipe (2 cores, other
+/// builds running; 15 runs of 7 windows of 20 updates and 2 frames): single windows of up to
+/// 32 MB, at most 1 of the 7 over 4 MB in a run (at most 2 in 10 earlier runs of 5 windows),
+/// medians 0-632 KB; windows of updates alone grew 0-256 KB. The growth over the
 /// whole run, bounded at 16 MB before, measured 0.05-9.1 MB and once over 16. A leak of more
 /// than 4 MB a window is caught whenever it shows in at least 4 of the 7 windows (tried:
 /// keeping each upload's data fails both tests, medians 12.8 and 25.6 MB; pieces left
