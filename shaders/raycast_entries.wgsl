@@ -1,8 +1,9 @@
 // Ray caster stage 3, entries (one workgroup per boundary face in `main`, one thread per face in
 // `per_thread` on software adapters): every pixel whose ray enters the
 // mesh through the face gets the hit (t, 4 * tet + face) in its list; rays leave and re-enter a
-// non-convex mesh through as many faces as they cross. A list that is full counts the hit as an
-// overflow and the CPU renders the frame again with longer lists; nothing is dropped silently.
+// non-convex mesh through as many faces as they cross. A hit beyond a full list is not stored:
+// `counters[2]` keeps the longest list any pixel needed (its hits so far, `atomicMax`), and the
+// CPU renders the frame once again with lists that long; nothing is dropped silently.
 // The faces' pixels and hits: raycast_cover.wgsl. The other entry method, depth peeling:
 // raycast_peel.wgsl.
 
@@ -17,7 +18,7 @@ fn record(pixel: u32, t: f32, code: u32) {
     if slot < params.capacity {
         entries[pixel * params.capacity + slot] = vec2<u32>(bitcast<u32>(t), code);
     } else {
-        atomicAdd(&counters[2], 1u);
+        atomicMax(&counters[2], slot + 1u);
     }
 }
 

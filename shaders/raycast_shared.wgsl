@@ -66,6 +66,7 @@ struct TetLinks {
 struct Counters {
     flat_tets: u32,
     eye_tet: u32,
+    // The longest entry list a pixel needed when one overflowed; 0 when none did.
     overflow: u32,
     step_limit: u32,
 }

@@ -5,7 +5,8 @@
 // the tiles it leaves out (later layers keep what earlier ones wrote there). When an entry
 // list overflowed (`counters[2]`), it lists no tile: the frame runs again with longer lists
 // (`frame.rs`), so this run's traversal would be thrown away. On the 11.7M-tet MNI brain at
-// 512 x 512 (lavapipe, lists of 4 grown to 32: three reruns) that traversal took 1.8 s a run.
+// 512 x 512 (lavapipe, lists of 4 grown to 32, then in three reruns) that traversal took 1.8 s
+// a run.
 //
 // The list (`tiles`, cleared to zero before): the indirect dispatch (x, y, z) in rows of
 // MAX_GROUPS workgroups, the list's length, then the tiles' indices (row-major).

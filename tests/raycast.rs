@@ -259,9 +259,9 @@ fn deformed_mesh_matches_reference() {
 }
 
 /// Entry lists one hit long overflow on the box with a hole (rays cross up to 3 entering
-/// faces): the frame is rendered again with longer lists, and the picture is the one lists
-/// long enough from the start give, bit for bit. A step limit of 5 stops rays, and they are
-/// counted.
+/// faces): the frame is rendered once again with lists as long as the longest needed, and the
+/// picture is the one lists long enough from the start give, bit for bit. A step limit of 5
+/// stops rays, and they are counted.
 #[test]
 fn list_overflow_reruns_and_step_limit_is_counted() {
     let mesh = generate::shapes::box_with_hole(20_000, Field::Gaussians).unwrap();
@@ -279,7 +279,7 @@ fn list_overflow_reruns_and_step_limit_is_counted() {
         ..Default::default()
     });
     assert_eq!(counter(&long.timings, "list overflow reruns"), 0);
-    assert!(counter(&short.timings, "list overflow reruns") >= 1);
+    assert_eq!(counter(&short.timings, "list overflow reruns"), 1);
     assert_eq!(short.image.compare(&long.image).unwrap().max_abs, 0.0);
     let stopped = render(RaycastSettings {
         max_steps: Some(5),
@@ -312,11 +312,11 @@ fn comb() -> TetMesh {
 
 /// The eye inside the comb's first tooth, looking along the teeth: the rays start in the
 /// eye's tet, leave the tooth, and re-enter through up to four more teeth (and the base), so
-/// entry lists one hit long overflow and the frame is rendered again with longer ones. The
-/// rerun keeps the first run's eye tet: the picture is the reference's within [`BOUNDS`]
-/// (measured on lavapipe: 2 reruns to lists of 4, rmse 2.7e-7, max_abs 9.8e-7; a rerun that
-/// lost the eye's tet would drop the first tooth's segment, far beyond them) and, bit for bit,
-/// the one lists long enough from the start give.
+/// entry lists one hit long overflow and the frame is rendered once again with lists of 4 (the
+/// longest list needed, 3 or 4, rounded up to a power of two). The rerun keeps the first run's
+/// eye tet: the picture is the reference's within [`BOUNDS`] (measured on lavapipe: rmse
+/// 2.7e-7, max_abs 9.8e-7; a rerun that lost the eye's tet would drop the first tooth's
+/// segment, far beyond them) and, bit for bit, the one lists long enough from the start give.
 #[test]
 fn list_overflow_reruns_with_the_eye_inside() {
     let mesh = comb();
@@ -337,9 +337,9 @@ fn list_overflow_reruns_with_the_eye_inside() {
         framed(&mesh, &camera, &tf, settings)
     };
     let short = render(1);
-    assert!(counter(&short.timings, "list overflow reruns") >= 1);
-    // Rays along the teeth cross four entering faces: lists of 2 overflow too.
-    assert!(counter(&short.timings, "entry list length") >= 4);
+    assert_eq!(counter(&short.timings, "list overflow reruns"), 1);
+    // Rays along the teeth cross four entering faces: lists of 2 would overflow too.
+    assert_eq!(counter(&short.timings, "entry list length"), 4);
     assert_eq!(counter(&short.timings, "eye in a tet"), 1);
     assert_eq!(counter(&short.timings, "rays at step limit"), 0);
     let expected = reference_image(&mesh, &camera, &tf);
@@ -348,6 +348,58 @@ fn list_overflow_reruns_with_the_eye_inside() {
     let long = render(16);
     assert_eq!(counter(&long.timings, "list overflow reruns"), 0);
     assert_eq!(bits(&short), bits(&long));
+}
+
+/// Twenty slabs in a row: the even x-slabs of a 39 x 4 x 4 grid of [-1, 1]^3 (6 tets a cell),
+/// each a convex box a ray enters at most once.
+fn slabs() -> TetMesh {
+    let grid = generate::box_grid(
+        DVec3::splat(-1.0),
+        DVec3::ONE,
+        glam::UVec3::new(39, 4, 4),
+        "gaussians",
+        |p| Field::Gaussians.eval(p),
+    );
+    let p = grid.positions();
+    let even_slab = |t: &&[u32; 4]| {
+        let c = t.iter().map(|&v| p[v as usize]).sum::<DVec3>() / 4.0;
+        (((c.x + 1.0) * 19.5) as u32).is_multiple_of(2)
+    };
+    let tets = grid.tets().iter().filter(even_slab).copied().collect();
+    let (mesh, _) = TetMesh::new(p.to_vec(), tets, grid.arrays().to_vec()).unwrap();
+    mesh
+}
+
+/// Seen along the row of [`slabs`], the middle rays enter all 20 slabs: lists of the default
+/// 4 hits overflow, and the frame is rendered exactly once more, with lists of 32 (20 rounded
+/// up to a power of two; doubling took three reruns, 4 -> 8 -> 16 -> 32). The picture is the
+/// one lists of 32 from the start give, bit for bit (bound: 0 differing bits; only the lists'
+/// length differs). The eye is off the grid's axis so no pixel's ray runs exactly along an edge.
+#[test]
+fn lists_needing_32_entries_rerun_exactly_once() {
+    let mesh = slabs();
+    let (tf, _) = default_view(&mesh, 64);
+    let camera = Camera {
+        eye: DVec3::new(-3.0, 0.0131, 0.0217),
+        target: DVec3::new(1.0, 0.0131, 0.0217),
+        up: DVec3::Y,
+        fov_y_deg: 30.0,
+        width: 64,
+        height: 64,
+    };
+    let render = |list_capacity| {
+        let settings = RaycastSettings {
+            list_capacity,
+            ..Default::default()
+        };
+        framed(&mesh, &camera, &tf, settings)
+    };
+    let first = render(RaycastSettings::default().list_capacity);
+    assert_eq!(counter(&first.timings, "list overflow reruns"), 1);
+    assert_eq!(counter(&first.timings, "entry list length"), 32);
+    let long = render(32);
+    assert_eq!(counter(&long.timings, "list overflow reruns"), 0);
+    assert_eq!(bits(&first), bits(&long));
 }
 
 /// The links span at most four storage bindings (`links::LINK_BINDINGS`) and the entry lists

@@ -29,7 +29,7 @@ use crate::gpu::gpu_data::TetRecord;
 use crate::gpu::pieces::Uploader;
 use crate::gpu::util::{scalar_frame, settings_error, sphere_of};
 use crate::gpu::{GpuContext, GpuError};
-use crate::mesh::{TetMesh, bounding_box, check_values, checked_bounds, tet_ranges};
+use crate::mesh::{TetMesh, bounding_box, check_values, checked_bounds, field_ranges};
 use crate::render::RenderError;
 
 /// The CPU side of a [`GpuTetMesh`]: the mesh as the per-frame CPU stages read it, and the
@@ -53,8 +53,8 @@ pub struct MeshData {
     pub scalar_span: f64,
     /// The field's value per tet when it is constant per tet ([`TetMesh::cell_scalars`]).
     pub cells: Option<Vec<f64>>,
-    /// Each tet's (min, max) scalar, for transfer-function culling (its one value for cells).
-    pub ranges: Vec<(f64, f64)>,
+    /// Each tet's (min, max) scalar once a reader asked ([`Self::ranges`]).
+    ranges: OnceLock<Vec<(f64, f64)>>,
     /// Counts the position updates: what was derived from older positions is stale.
     pub positions_version: u64,
     /// Counts the scalar updates.
@@ -74,7 +74,7 @@ impl MeshData {
             None => scalar_frame(&scalars),
         };
         Ok(Self {
-            ranges: mesh.tet_scalar_ranges()?,
+            ranges: OnceLock::new(),
             cells,
             positions,
             scalars,
@@ -87,6 +87,15 @@ impl MeshData {
             positions_version: 0,
             scalars_version: 0,
         })
+    }
+
+    /// Each tet's (min, max) scalar (its one value for cells), for transfer-function culling:
+    /// computed on first use, since only the modes that cull read them (cellproj's sort, the
+    /// shells' raster and compute samplers' binning); the ray caster and the walk sampler never
+    /// do (the 11.7M-tet MNI brain's: 52 ms of the renderer's build on lavapipe, 2 cores).
+    pub fn ranges(&self) -> &[(f64, f64)] {
+        self.ranges
+            .get_or_init(|| field_ranges(&self.tets, &self.scalars, self.cells.as_deref()))
     }
 
     /// The vertex positions as the GPU stages read them: relative to `origin`, f32, `w = 1`.
@@ -324,9 +333,9 @@ impl GpuTetMesh {
         Ok(())
     }
 
-    /// New values of the active scalar array (same count, finite): recomputes the scalar frame
-    /// and the per-tet ranges and uploads them (one buffer write). A cell-data mesh refuses
-    /// ([`cell_update_error`]).
+    /// New values of the active scalar array (same count, finite): recomputes the scalar frame,
+    /// drops the per-tet ranges (recomputed when next read) and uploads the scalars (one buffer
+    /// write). A cell-data mesh refuses ([`cell_update_error`]).
     pub fn update_scalars(&self, scalars: &[f64]) -> Result<(), RenderError> {
         let mut data = self.data.write().unwrap_or_else(PoisonError::into_inner);
         if data.cells.is_some() {
@@ -335,7 +344,7 @@ impl GpuTetMesh {
         check_values("scalars", scalars, data.scalars.len())?;
         data.scalars.copy_from_slice(scalars);
         (data.scalar_min, data.scalar_span) = scalar_frame(&data.scalars);
-        data.ranges = tet_ranges(&data.tets, &data.scalars);
+        data.ranges = OnceLock::new();
         data.scalars_version += 1;
         self.upload_scalars(&data);
         Ok(())
@@ -629,6 +638,50 @@ mod tests {
                 assert!(local + count <= per_buffer, "a window crosses buffers");
             }
         }
+    }
+
+    /// The per-tet scalar ranges are built when first read, and only their readers read them:
+    /// on one shared mesh, a frame of the walk sampler and one of the ray caster build none;
+    /// a frame of the shells' raster sampler (its TF culling) builds them, equal to the mesh's
+    /// own; after `update_scalars` they are the new scalars' ranges, not the old ones (the
+    /// field doubled: every range whose ends are not 0 changes).
+    #[test]
+    fn tet_ranges_are_built_for_their_readers_only_and_follow_the_scalars() {
+        use crate::gpu::{RaycastRenderer, Sampler, ShellSettings, ShellsRenderer};
+        use crate::{Camera, Renderer, TransferFunction, View, generate};
+        let ctx = GpuContext::new(crate::gpu::AdapterChoice::Auto).expect("an adapter");
+        let (lo, hi) = (DVec3::splat(-1.0), DVec3::ONE);
+        let mesh = generate::box_grid(lo, hi, glam::UVec3::splat(4), "x", |p| p.x);
+        let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 16, 16);
+        let tf = TransferFunction::default_for_range(-1.0, 1.0, mesh.diagonal() / 100.0).unwrap();
+        let gpu = GpuTetMesh::new(&ctx, &mesh).expect("mesh");
+        let built = || gpu.read().ranges.get().is_some();
+        let shells = |sampler| {
+            let settings = ShellSettings {
+                sampler,
+                ..ShellSettings::default()
+            };
+            ShellsRenderer::with_mesh(&ctx, Arc::clone(&gpu), settings).expect("shells")
+        };
+        shells(Sampler::Walk)
+            .render(&camera, &tf)
+            .expect("walk frame");
+        let settings = Default::default();
+        let mut raycast = RaycastRenderer::with_mesh(&ctx, Arc::clone(&gpu), settings).unwrap();
+        raycast.render(&camera, &tf).expect("raycast frame");
+        assert!(!built(), "the walk or the ray caster built the ranges");
+        shells(Sampler::Raster)
+            .render(&camera, &tf)
+            .expect("raster frame");
+        assert!(built(), "the raster sampler's TF culling reads the ranges");
+        assert_eq!(gpu.read().ranges(), mesh.tet_scalar_ranges().unwrap());
+        let doubled: Vec<f64> = mesh.scalars().unwrap().iter().map(|s| 2.0 * s).collect();
+        gpu.update_scalars(&doubled).unwrap();
+        assert!(!built());
+        let expected: Vec<(f64, f64)> = (mesh.tet_scalar_ranges().unwrap().iter())
+            .map(|&(lo, hi)| (2.0 * lo, 2.0 * hi))
+            .collect();
+        assert_eq!(gpu.read().ranges(), expected);
     }
 
     /// The bytes of `buffer` (a copy source), read back.

@@ -420,10 +420,16 @@ impl TetMesh {
     /// (min, max) of the field over each tet: over its four vertices' active scalars, or its one
     /// value when the field is constant per tet ([`TetMesh::cell_scalars`]).
     pub fn tet_scalar_ranges(&self) -> Result<Vec<(f64, f64)>, MeshError> {
-        match &self.cell_values {
-            Some(c) => Ok(c.iter().map(|&v| (v, v)).collect()),
-            None => Ok(tet_ranges(&self.tets, self.scalars()?)),
-        }
+        // A cell field's ranges read no vertex scalars.
+        let scalars = match &self.cell_values {
+            Some(_) => &[][..],
+            None => self.scalars()?,
+        };
+        Ok(field_ranges(
+            &self.tets,
+            scalars,
+            self.cell_values.as_deref(),
+        ))
     }
 
     /// Face adjacency (each tet's four neighbours) and boundary faces.
@@ -575,6 +581,19 @@ pub(crate) fn bounding_box(positions: &[DVec3]) -> (DVec3, DVec3) {
             || (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
             |a, b| (a.0.min(b.0), a.1.max(b.1)),
         )
+}
+
+/// (min, max) of the field over each tet: its one value where the field is constant per tet
+/// (`cells`, [`TetMesh::cell_scalars`]; `scalars` then unread), else [`tet_ranges`].
+pub(crate) fn field_ranges(
+    tets: &[[u32; 4]],
+    scalars: &[f64],
+    cells: Option<&[f64]>,
+) -> Vec<(f64, f64)> {
+    match cells {
+        Some(c) => c.par_iter().map(|&v| (v, v)).collect(),
+        None => tet_ranges(tets, scalars),
+    }
 }
 
 /// Each tet's (smallest, largest) vertex scalar.

@@ -302,8 +302,9 @@ impl CellProjRenderer {
             .settings
             .frustum
             .then(|| view.to_eye_space(&m.positions));
+        let ranges = m.ranges();
         let order = back_to_front(&m.positions, spheres, &keys, |t| {
-            let (lo, hi) = m.ranges[t];
+            let (lo, hi) = ranges[t];
             let outside = (codes.as_ref()).is_some_and(|c| ViewFrame::outside(c, &m.tets[t]));
             !outside && !tf.is_transparent_on(lo, hi)
         });

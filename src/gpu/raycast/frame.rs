@@ -125,9 +125,10 @@ impl RaycastRenderer {
         Ok(Frame { image, timings })
     }
 
-    /// Runs the stages, again with longer entry lists while a list overflowed; the last run,
-    /// the reruns and the targets the last run drew into. A rerun's stage times start with the first run's vertices and planes, which
-    /// it keeps rather than runs.
+    /// Runs the stages, and once more with entry lists as long as the longest one needed when a
+    /// list overflowed ([`Self::rerun_capacity`]); the last run, the reruns and the targets the
+    /// last run drew into. A rerun's stage times start with the first run's vertices and
+    /// planes, which it keeps rather than runs.
     fn runs(&mut self, camera: &Camera) -> Result<(Run, u64, Targets), RenderError> {
         let mut kept = Vec::new();
         let mut reruns = 0;
@@ -141,13 +142,27 @@ impl RaycastRenderer {
             } else {
                 run.stages.splice(0..0, kept.iter().copied());
             }
-            if run.counters[2] == 0 {
+            let needed = run.counters[2];
+            if needed == 0 {
                 return Ok((run, reruns, targets));
             }
-            self.capacity *= 2;
+            self.capacity = self.rerun_capacity(needed, &targets);
             self.write_params();
             reruns += 1;
         }
+    }
+
+    /// The entry-list length after a list overflowed wanting `needed` hits (more than the
+    /// current length): the next power of two at or above it, so a nearby view's lists of a few
+    /// more hits need no rerun of their own, but no longer than one storage binding holds at the
+    /// image's size while `needed` itself fits (an image whose lists of `needed` hits do not
+    /// fit is refused by [`Self::ensure_targets`], never truncated).
+    fn rerun_capacity(&self, needed: u32, t: &Targets) -> u32 {
+        let pixels = t.width as u64 * t.height as u64;
+        let max = (self.limits.max_storage_buffer_binding_size).min(self.limits.max_buffer_size);
+        let fits = (max / (8 * pixels)).min(u32::MAX as u64) as u32;
+        let rounded = needed.checked_next_power_of_two().unwrap_or(needed);
+        rounded.min(fits).max(needed)
     }
 
     fn count(&self, timings: &mut Timings, run: &Run, reruns: u64) {
@@ -304,12 +319,13 @@ impl RaycastRenderer {
         }
         check_image_size(&self.limits, width, height)?;
         let pixels = width as u64 * height as u64;
-        let (per_pixel, what) = match entry {
+        let (per_pixel, what, or) = match entry {
             Entry::Lists => (
                 self.capacity as u64 * 8,
                 format!("entry lists of {} boundary-face hits", self.capacity),
+                " or find entries by depth peeling (--entry peel)",
             ),
-            Entry::Peel => (RAY_STATE_BYTES, "depth-peeling ray states".to_string()),
+            Entry::Peel => (RAY_STATE_BYTES, "depth-peeling ray states".to_string(), ""),
         };
         let bytes = pixels * per_pixel;
         let max = (self.limits.max_storage_buffer_binding_size).min(self.limits.max_buffer_size);
@@ -317,7 +333,7 @@ impl RaycastRenderer {
             return Err(settings_error(format!(
                 "the ray caster's {what} per pixel at {width}x{height} need {bytes} bytes, \
                  more than one storage binding of this adapter holds ({max}); render a smaller \
-                 image"
+                 image{or}"
             )));
         }
         let format = wgpu::TextureFormat::Rgba32Float;

@@ -17,8 +17,8 @@
 //!    tolerances), or when the thin tets were not counted since the positions last changed;
 //! 4. entries, [`Entry::Lists`] (`shaders/raycast_entries.wgsl`): once per boundary face, its
 //!    hit (t, face) into the list of every pixel whose ray enters the mesh through it
-//!    (watertight edge tests, `raycast_cover.wgsl`); a full list counts an overflow and the
-//!    frame is rendered again with longer lists;
+//!    (watertight edge tests, `raycast_cover.wgsl`); a full list records the longest list a
+//!    pixel needed and the frame is rendered once again with lists that long;
 //! 5. tiles (`shaders/raycast_tiles.wgsl`): the 8 x 8 pixel tiles where some ray has an entry
 //!    (all when the eye is in a tet) into a list, the traversal's indirect dispatch: an empty
 //!    tile costs the traversal nothing;
@@ -157,8 +157,9 @@ pub const TILE: u32 = 8;
 /// Bytes of a ray's state between depth-peeling layers (WGSL `RayState`).
 pub const RAY_STATE_BYTES: u64 = 32;
 
-/// The counters the stages write (u32 each): thin tets (see [`twin::THIN`]), the eye's tet (`u32::MAX`: none),
-/// list overflows, rays stopped by the step limit.
+/// The counters the stages write (u32 each): thin tets (see [`twin::THIN`]), the eye's tet
+/// (`u32::MAX`: none), the longest entry list a pixel needed when one overflowed (0: none
+/// overflowed), rays stopped by the step limit.
 pub const COUNTERS: usize = 4;
 
 /// Bytes read back after each layer: the counters, the tiles run, the layer's progress.
@@ -171,8 +172,9 @@ pub struct RaycastSettings {
     pub segments: Segments,
     /// How rays find their entries.
     pub entry: Entry,
-    /// With [`Entry::Lists`]: boundary-face hits each pixel's entry list starts with (doubled
-    /// and the frame rendered again while a list overflows; kept for later frames).
+    /// With [`Entry::Lists`]: boundary-face hits each pixel's entry list starts with (when a
+    /// list overflows, grown to the next power of two at or above the longest list needed and
+    /// the frame rendered once again; kept for later frames).
     pub list_capacity: u32,
     /// Whether the traversal skips the tiles where no ray has an entry (on by default; off
     /// only to measure what the skip saves: the picture is the same).

@@ -142,7 +142,10 @@ impl ShellsRenderer {
         let stale = |(t, v, _): &(TransferFunction, u64, Vec<bool>)| t != tf || *v != version;
         if self.settings.skips.tf_cull && self.transparent.as_ref().is_none_or(stale) {
             // A textured cage's tets span the volume's values over them, not their vertices'.
-            let ranges = self.texture.as_ref().map_or(&m.ranges, |t| &t.ranges);
+            let ranges = match &self.texture {
+                Some(t) => &t.ranges,
+                None => m.ranges(),
+            };
             let mask = (ranges.par_iter())
                 .map(|&(lo, hi)| tf.is_transparent_on(lo, hi))
                 .collect();
