@@ -55,7 +55,7 @@ fn exit(pl: TetPlanes, entry: u32, d: vec3<f32>, t_in: f32) -> vec2<f32> {
             steep = f;
             steep_den = den;
         }
-        if den > 0.0 && !runs_along(p, den) {
+        if den > 0.0 && !(abs(den) <= PARALLEL * pl.norm[f]) {
             let t = crossing(p, den);
             if t < best_t {
                 best = f;
