@@ -37,36 +37,53 @@ fn finished(trans: f32) -> bool {
     return stopped || (params.shell_slices == 0u && trans < params.terminate);
 }
 
-// The face the ray leaves a tet by and the t it leaves at (at least t_in): the nearest
-// crossing among the faces it moves outward through, not along, other than `entry`; when there
-// is none (a flat tet), the face it moves most outward through, at t_in.
-fn exit(pl: TetPlanes, entry: u32, d: vec3<f32>, t_in: f32) -> vec2<f32> {
-    var best = NO_FACE;
-    var best_t = 3.0e38;
-    var steep = NO_FACE;
-    var steep_den = -3.0e38;
-    for (var f = 0u; f < 4u; f++) {
-        if f == entry {
-            continue;
-        }
-        let p = pl.face[f];
-        let den = dot(p.xyz, d);
-        if den > steep_den {
-            steep = f;
-            steep_den = den;
-        }
-        if den > 0.0 && !(abs(den) <= PARALLEL * pl.norm[f]) {
-            let t = crossing(p, den);
-            if t < best_t {
-                best = f;
-                best_t = t;
-            }
-        }
+// Where a ray leaves a tet: the face (NO_FACE: none found) and the t.
+struct Exit {
+    face: u32,
+    t: f32,
+}
+
+// twin::exit's t before any face is found.
+const FAR: f32 = 3.0e38;
+
+// dot(n, d) of each of the tet's face planes: the ray moves outward through the faces where
+// it is positive.
+fn crossings(pl: TetPlanes, d: vec3<f32>) -> vec4<f32> {
+    return vec4<f32>(dot(pl.face[0].xyz, d), dot(pl.face[1].xyz, d), dot(pl.face[2].xyz, d),
+        dot(pl.face[3].xyz, d));
+}
+
+// The first set lane of `m`, NO_FACE when none is.
+fn first_lane(m: vec4<bool>) -> u32 {
+    return select(select(select(select(NO_FACE, 3u, m.w), 2u, m.z), 1u, m.y), 0u, m.x);
+}
+
+// The faces other than `entry` (all four for NO_FACE).
+fn others(entry: u32) -> vec4<bool> {
+    return vec4<u32>(0u, 1u, 2u, 3u) != vec4<u32>(entry);
+}
+
+// The face the ray leaves a tet by and the t it leaves at (at least t_in), from the ray's
+// crossings `den` with its planes: the nearest crossing among the faces it moves outward
+// through, not along, other than `entry` (the first face on a tie); when there is none (a flat
+// tet), the face it moves most outward through (the first on a tie), at t_in. All four faces
+// at once, as the CPU ray caster does (cpu::raycast::trace::exit_by_planes): no loop, no
+// dynamic index into the planes, no branch per face; the same face and t as twin::exit's loop.
+fn exit(pl: TetPlanes, den: vec4<f32>, entry: u32, t_in: f32) -> Exit {
+    let w = vec4<f32>(pl.face[0].w, pl.face[1].w, pl.face[2].w, pl.face[3].w);
+    let t = -w / den;
+    let open = others(entry);
+    let ahead = open & (den > vec4<f32>(0.0)) & !(abs(den) <= PARALLEL * pl.norm)
+        & (t < vec4<f32>(FAR));
+    let near = select(vec4<f32>(FAR), t, ahead);
+    let t_best = min(min(near.x, near.y), min(near.z, near.w));
+    if t_best < FAR {
+        return Exit(first_lane(ahead & (near == vec4<f32>(t_best))), max(t_in, t_best));
     }
-    if best == NO_FACE {
-        return vec2<f32>(f32(steep), t_in);
-    }
-    return vec2<f32>(f32(best), max(t_in, best_t));
+    let outward = open & (den > vec4<f32>(-FAR));
+    let steep = select(vec4<f32>(-FAR), den, outward);
+    let most = max(max(steep.x, steep.y), max(steep.z, steep.w));
+    return Exit(first_lane(outward & (steep == vec4<f32>(most))), t_in);
 }
 
 // The exit of a thin tet (its scalar gradient exactly 0, `tet_planes`), whose planes' outward
@@ -75,7 +92,7 @@ fn exit(pl: TetPlanes, entry: u32, d: vec3<f32>, t_in: f32) -> vec2<f32> {
 // the same way in every tet sharing an edge; a face passed strictly inside before one passed
 // on an edge. It leaves at the face's plane crossing (at least t_in; t_in where the ray runs
 // along it). NO_FACE when no face passes (then the planes decide).
-fn exit_by_edges(ids: vec4<u32>, entry: u32, d: vec3<f32>, t_in: f32) -> vec2<f32> {
+fn exit_by_edges(ids: vec4<u32>, entry: u32, d: vec3<f32>, t_in: f32) -> Exit {
     var best = NO_FACE;
     var strict = false;
     var plane = vec4<f32>(0.0);
@@ -92,18 +109,26 @@ fn exit_by_edges(ids: vec4<u32>, entry: u32, d: vec3<f32>, t_in: f32) -> vec2<f3
     }
     let den = dot(plane.xyz, d);
     if best == NO_FACE || runs_along(plane, den) {
-        return vec2<f32>(f32(best), t_in);
+        return Exit(best, t_in);
     }
-    return vec2<f32>(f32(best), max(t_in, crossing(plane, den)));
+    return Exit(best, max(t_in, crossing(plane, den)));
 }
 
 // Whether the ray moves outward through `entry`, the face it came in by (NO_FACE: none): the
 // tet lies behind that face, folded back over the tet the ray left (an inverted tet of the
 // data, reoriented on load, overlaps its neighbours). Its planes have no exit ahead of the ray;
 // it is left by its edges (exit_by_edges: the other face the ray line passes, crossed at or
-// before t_in, so its segment is empty) into the tet beyond that face. twin::folded.
-fn folded(pl: TetPlanes, entry: u32, d: vec3<f32>) -> bool {
-    return entry < NO_FACE && dot(pl.face[entry].xyz, d) > 0.0;
+// before t_in, so its segment is empty) into the tet beyond that face; `den`: the ray's
+// crossings with the tet's planes. twin::folded.
+fn folded(den: vec4<f32>, entry: u32) -> bool {
+    return any(!others(entry) & (den > vec4<f32>(0.0)));
+}
+
+// Lane i of v (as links.next[f] across face f): a select on the lane, not a dynamic index
+// into the vector; a lane beyond 3 (NO_FACE, from NaN planes only) reads lane 3, as the
+// clamped index it replaces did.
+fn lane_of(v: vec4<u32>, i: u32) -> u32 {
+    return select(select(select(v.w, v.z, i == 2u), v.y, i == 1u), v.x, i == 0u);
 }
 
 // The normalized scalar at t along d, clamped to [0, 1].
@@ -171,22 +196,22 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
         steps++;
         let l = link(tet);
         let pl = tet_planes(l.tet);
-        var out = vec2<f32>(f32(NO_FACE), t);
-        if all(pl.scalar.xyz == vec3<f32>(0.0)) || folded(pl, entry, d) {
+        let den = crossings(pl, d);
+        var out = Exit(NO_FACE, t);
+        if all(pl.scalar.xyz == vec3<f32>(0.0)) || folded(den, entry) {
             out = exit_by_edges(l.tet, entry, d, t);
         }
-        if u32(out.x) == NO_FACE {
-            out = exit(pl, entry, d, t);
+        if out.face == NO_FACE {
+            out = exit(pl, den, entry, t);
         }
-        let f = u32(out.x);
         trans_in = acc.trans;
-        let seg = tet_segment(tet, l.tet, pl, d, t, out.y);
+        let seg = tet_segment(tet, l.tet, pl, d, t, out.t);
         acc = Acc(acc.color + acc.trans * seg.color, acc.trans * seg.trans);
         if finished(acc.trans) {
             break;
         }
-        t = out.y;
-        let next = l.next[f];
+        t = out.t;
+        let next = lane_of(l.next, out.face);
         tet = select(next >> 2u, NO_NEIGHBOR, next == NO_NEIGHBOR);
         entry = next & 3u;
     }
