@@ -128,9 +128,9 @@ fn plane(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -> vec4<f32> {
     return vec4<f32>(n, -dot(n, a));
 }
 
-// The plane of face (a, b, c) with global indices (ia, ib, ic), its vertices sorted by global
-// index first (a compare-and-swap network on values).
-fn face_plane(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>, ia: u32, ib: u32, ic: u32) -> vec4<f32> {
+// Face corners a, b, c with global indices ia, ib, ic, sorted by global index (a
+// compare-and-swap network on values).
+fn sorted_corners(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>, ia: u32, ib: u32, ic: u32) -> array<vec3<f32>, 3> {
     let s1 = ia > ib;
     let a1 = select(a, b, s1);
     let b1 = select(b, a, s1);
@@ -140,7 +140,14 @@ fn face_plane(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>, ia: u32, ib: u32, ic: u3
     let b2 = select(b1, c, s2);
     let c2 = select(c, b1, s2);
     let s3 = ia1 > min(ib1, ic);
-    return plane(select(a1, b2, s3), select(b2, a1, s3), c2);
+    return array<vec3<f32>, 3>(select(a1, b2, s3), select(b2, a1, s3), c2);
+}
+
+// The plane of face (a, b, c) with global indices (ia, ib, ic), its vertices sorted by global
+// index first.
+fn face_plane(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>, ia: u32, ib: u32, ic: u32) -> vec4<f32> {
+    let s = sorted_corners(a, b, c, ia, ib, ic);
+    return plane(s[0], s[1], s[2]);
 }
 
 // Face (a, b, c)'s plane turned outward: the opposite vertex o on its negative side.
@@ -217,26 +224,30 @@ struct Face {
     edge: array<vec3<f32>, 3>,
 }
 
+// Face f's vertex indices (FACE_VERTICES), by a select on f rather than an index into a
+// private copy of the table.
+fn face_ids(ids: vec4<u32>, f: u32) -> vec3<u32> {
+    return select(select(select(ids.xzy, ids.xyw, f == 2u), ids.xwz, f == 1u), ids.yzw, f == 0u);
+}
+
+// Face f of the tet with vertices `ids` and corners `c` (no load; selects on f, no dynamic
+// index).
+fn face_corners(ids: vec4<u32>, c: Corners, f: u32) -> Face {
+    let p0 = c.v0.xyz;
+    let p1 = c.v1.xyz;
+    let p2 = c.v2.xyz;
+    let p3 = c.v3.xyz;
+    let a = select(p0, p1, f == 0u);
+    let b = select(select(select(p2, p1, f == 2u), p3, f == 1u), p2, f == 0u);
+    let e = select(select(select(p1, p3, f == 2u), p2, f == 1u), p3, f == 0u);
+    let v = face_ids(ids, f);
+    let s = sorted_corners(a, b, e, v.x, v.y, v.z);
+    return Face(s, array<vec3<f32>, 3>(cross(s[0], s[1]), cross(s[1], s[2]), cross(s[0], s[2])));
+}
+
+// Face f of the tet with vertices `ids`, its corners loaded from `verts`.
 fn face_of(ids: vec4<u32>, f: u32) -> Face {
-    var fv = FACE_VERTICES;
-    var v = vec3<u32>(ids[fv[3u * f]], ids[fv[3u * f + 1u]], ids[fv[3u * f + 2u]]);
-    if v.x > v.y {
-        v = v.yxz;
-    }
-    if v.y > v.z {
-        v = v.xzy;
-    }
-    if v.x > v.y {
-        v = v.yxz;
-    }
-    var out: Face;
-    for (var i = 0u; i < 3u; i++) {
-        out.corner[i] = verts[v[i]].xyz;
-    }
-    out.edge[0] = cross(out.corner[0], out.corner[1]);
-    out.edge[1] = cross(out.corner[1], out.corner[2]);
-    out.edge[2] = cross(out.corner[0], out.corner[2]);
-    return out;
+    return face_corners(ids, load_corners(ids), f);
 }
 
 // The Pluecker products dot(cross(a, b), d) of ray d with the face's edges, cycle c0 -> c1 ->

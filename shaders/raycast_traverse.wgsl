@@ -91,13 +91,14 @@ fn exit(pl: TetPlanes, den: vec4<f32>, entry: u32, t_in: f32) -> Exit {
 // through, from the edges' Pluecker products (Platis & Theoharis 2003), which are computed
 // the same way in every tet sharing an edge; a face passed strictly inside before one passed
 // on an edge. It leaves at the face's plane crossing (at least t_in; t_in where the ray runs
-// along it). NO_FACE when no face passes (then the planes decide).
-fn exit_by_edges(ids: vec4<u32>, entry: u32, d: vec3<f32>, t_in: f32) -> Exit {
+// along it). NO_FACE when no face passes (then the planes decide). `c`: the tet's corners, so
+// its faces need no load.
+fn exit_by_edges(ids: vec4<u32>, c: Corners, entry: u32, d: vec3<f32>, t_in: f32) -> Exit {
     var best = NO_FACE;
     var strict = false;
     var plane = vec4<f32>(0.0);
     for (var f = 0u; f < 4u; f++) {
-        let face = face_of(ids, f);
+        let face = face_corners(ids, c, f);
         let e = edge_products(face, d);
         if f == entry || !passes(e) || strict {
             continue;
@@ -229,7 +230,7 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
         let den = crossings(pl, d);
         var out = Exit(NO_FACE, t);
         if all(pl.scalar.xyz == vec3<f32>(0.0)) || folded(den, entry) {
-            out = exit_by_edges(l.tet, entry, d, t);
+            out = exit_by_edges(ids, corners, entry, d, t);
         }
         if out.face == NO_FACE {
             out = exit(pl, den, entry, t);
