@@ -20,9 +20,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
         return;
     }
     let inside = vec4<f32>(pl.face[0].w, pl.face[1].w, pl.face[2].w, pl.face[3].w);
-    let norms = vec4<f32>(length(pl.face[0].xyz), length(pl.face[1].xyz),
-        length(pl.face[2].xyz), length(pl.face[3].xyz));
-    if all(inside <= params.eye_tol * norms) {
+    if all(inside <= params.eye_tol * pl.norm) {
         atomicMin(&counters[1], t);
     }
 }

@@ -52,6 +52,8 @@ struct Raycast {
 struct TetPlanes {
     face: array<vec4<f32>, 4>,
     scalar: vec4<f32>,
+    // |n| of each face plane.
+    norm: vec4<f32>,
     thin: bool,
 }
 
@@ -127,39 +129,32 @@ fn plane(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -> vec4<f32> {
     return vec4<f32>(n, -dot(n, a));
 }
 
-// Face f's plane with its vertices sorted by global index (a compare-and-swap network on
-// values: no dynamic index into a private array, which software adapters spill to memory).
-fn face_plane(p: array<vec3<f32>, 4>, ids: vec4<u32>, f: u32) -> vec4<f32> {
-    var fv = FACE_VERTICES;
-    var a = p[fv[3u * f]];
-    var b = p[fv[3u * f + 1u]];
-    var c = p[fv[3u * f + 2u]];
-    var ia = ids[fv[3u * f]];
-    var ib = ids[fv[3u * f + 1u]];
-    var ic = ids[fv[3u * f + 2u]];
-    var swap = ia > ib;
-    let a1 = select(a, b, swap);
-    b = select(b, a, swap);
-    a = a1;
+// Face corners a, b, c with global indices ia, ib, ic, sorted by global index (a
+// compare-and-swap network on values).
+fn sorted_corners(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>, ia: u32, ib: u32, ic: u32) -> array<vec3<f32>, 3> {
+    let s1 = ia > ib;
+    let a1 = select(a, b, s1);
+    let b1 = select(b, a, s1);
     let ia1 = min(ia, ib);
-    ib = max(ia, ib);
-    ia = ia1;
-    swap = ib > ic;
-    let b1 = select(b, c, swap);
-    c = select(c, b, swap);
-    b = b1;
-    ib = min(ib, ic);
-    swap = ia > ib;
-    let a2 = select(a, b, swap);
-    b = select(b, a, swap);
-    a = a2;
-    return plane(a, b, c);
+    let ib1 = max(ia, ib);
+    let s2 = ib1 > ic;
+    let b2 = select(b1, c, s2);
+    let c2 = select(c, b1, s2);
+    let s3 = ia1 > min(ib1, ic);
+    return array<vec3<f32>, 3>(select(a1, b2, s3), select(b2, a1, s3), c2);
 }
 
-// Face f's plane turned outward: the opposite vertex p[f] on its negative side.
-fn outward_plane(p: array<vec3<f32>, 4>, ids: vec4<u32>, f: u32) -> vec4<f32> {
-    let q = face_plane(p, ids, f);
-    let side = dot(q.xyz, p[f]) + q.w;
+// The plane of face (a, b, c) with global indices (ia, ib, ic), its vertices sorted by global
+// index first.
+fn face_plane(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>, ia: u32, ib: u32, ic: u32) -> vec4<f32> {
+    let s = sorted_corners(a, b, c, ia, ib, ic);
+    return plane(s[0], s[1], s[2]);
+}
+
+// Face (a, b, c)'s plane turned outward: the opposite vertex o on its negative side.
+fn outward_plane(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>, ids: vec3<u32>, o: vec3<f32>) -> vec4<f32> {
+    let q = face_plane(a, b, c, ids.x, ids.y, ids.z);
+    let side = dot(q.xyz, o) + q.w;
     return select(q, -q, side > 0.0);
 }
 
@@ -171,29 +166,49 @@ fn outward_plane(p: array<vec3<f32>, 4>, ids: vec4<u32>, f: u32) -> vec4<f32> {
 // traversal to leave it by its edges instead of its planes).
 const THIN: f32 = 1e-5;
 
+// A tet's four corners in eye space with their normalized scalars (`verts`), in local order.
+struct Corners {
+    v0: vec4<f32>,
+    v1: vec4<f32>,
+    v2: vec4<f32>,
+    v3: vec4<f32>,
+}
+
+// The corners of the tet with vertices `ids`, loaded from `verts`.
+fn load_corners(ids: vec4<u32>) -> Corners {
+    return Corners(verts[ids.x], verts[ids.y], verts[ids.z], verts[ids.w]);
+}
+
 // The planes of the tet with vertices `ids` (CPU twin: twin::planes). Face planes come from
 // the face's three vertices taken in the order of their global indices, then turned outward by
 // the side of the opposite vertex: the two tets sharing a face compute the same plane negated,
 // bit for bit, so a ray leaves one at exactly the t where it enters the other.
 fn tet_planes(ids: vec4<u32>) -> TetPlanes {
-    var p: array<vec3<f32>, 4>;
-    var s: vec4<f32>;
-    for (var i = 0u; i < 4u; i++) {
-        let v = verts[ids[i]];
-        p[i] = v.xyz;
-        s[i] = v.w;
-    }
+    return corner_planes(ids, load_corners(ids));
+}
+
+// tet_planes from the tet's corners `c`. Written out face by face (FACE_VERTICES) with
+// constant indices: no loop and no dynamic index into a private array or vector, which
+// compilers may place in memory (NVIDIA's local memory, off-chip) unless they unroll.
+fn corner_planes(ids: vec4<u32>, c: Corners) -> TetPlanes {
+    let p0 = c.v0.xyz;
+    let p1 = c.v1.xyz;
+    let p2 = c.v2.xyz;
+    let p3 = c.v3.xyz;
     var out: TetPlanes;
-    var height = vec4<f32>(0.0);
-    var largest = 0.0;
-    for (var f = 0u; f < 4u; f++) {
-        let q = outward_plane(p, ids, f);
-        out.face[f] = q;
-        height[f] = dot(q.xyz, p[f]) + q.w;
-        largest = max(largest, length(q.xyz));
-    }
+    out.face[0] = outward_plane(p1, p2, p3, ids.yzw, p0);
+    out.face[1] = outward_plane(p0, p3, p2, ids.xwz, p1);
+    out.face[2] = outward_plane(p0, p1, p3, ids.xyw, p2);
+    out.face[3] = outward_plane(p0, p2, p1, ids.xzy, p3);
+    let height = vec4<f32>(dot(out.face[0].xyz, p0) + out.face[0].w,
+        dot(out.face[1].xyz, p1) + out.face[1].w, dot(out.face[2].xyz, p2) + out.face[2].w,
+        dot(out.face[3].xyz, p3) + out.face[3].w);
+    out.norm = vec4<f32>(length(out.face[0].xyz), length(out.face[1].xyz),
+        length(out.face[2].xyz), length(out.face[3].xyz));
+    let largest = max(max(max(max(0.0, out.norm.x), out.norm.y), out.norm.z), out.norm.w);
     // Scalar: sum_f s_f lambda_f with lambda_f = plane_f(x) / plane_f(p_f).
     out.thin = !all(height < vec4<f32>(-THIN * largest * sqrt(largest)));
+    let s = vec4<f32>(c.v0.w, c.v1.w, c.v2.w, c.v3.w);
     if out.thin {
         out.scalar = vec4<f32>(0.0, 0.0, 0.0, 0.25 * (s.x + s.y + s.z + s.w));
     } else {
@@ -210,26 +225,30 @@ struct Face {
     edge: array<vec3<f32>, 3>,
 }
 
+// Face f's vertex indices (FACE_VERTICES), by a select on f rather than an index into a
+// private copy of the table.
+fn face_ids(ids: vec4<u32>, f: u32) -> vec3<u32> {
+    return select(select(select(ids.xzy, ids.xyw, f == 2u), ids.xwz, f == 1u), ids.yzw, f == 0u);
+}
+
+// Face f of the tet with vertices `ids` and corners `c` (no load; selects on f, no dynamic
+// index).
+fn face_corners(ids: vec4<u32>, c: Corners, f: u32) -> Face {
+    let p0 = c.v0.xyz;
+    let p1 = c.v1.xyz;
+    let p2 = c.v2.xyz;
+    let p3 = c.v3.xyz;
+    let a = select(p0, p1, f == 0u);
+    let b = select(select(select(p2, p1, f == 2u), p3, f == 1u), p2, f == 0u);
+    let e = select(select(select(p1, p3, f == 2u), p2, f == 1u), p3, f == 0u);
+    let v = face_ids(ids, f);
+    let s = sorted_corners(a, b, e, v.x, v.y, v.z);
+    return Face(s, array<vec3<f32>, 3>(cross(s[0], s[1]), cross(s[1], s[2]), cross(s[0], s[2])));
+}
+
+// Face f of the tet with vertices `ids`, its corners loaded from `verts`.
 fn face_of(ids: vec4<u32>, f: u32) -> Face {
-    var fv = FACE_VERTICES;
-    var v = vec3<u32>(ids[fv[3u * f]], ids[fv[3u * f + 1u]], ids[fv[3u * f + 2u]]);
-    if v.x > v.y {
-        v = v.yxz;
-    }
-    if v.y > v.z {
-        v = v.xzy;
-    }
-    if v.x > v.y {
-        v = v.yxz;
-    }
-    var out: Face;
-    for (var i = 0u; i < 3u; i++) {
-        out.corner[i] = verts[v[i]].xyz;
-    }
-    out.edge[0] = cross(out.corner[0], out.corner[1]);
-    out.edge[1] = cross(out.corner[1], out.corner[2]);
-    out.edge[2] = cross(out.corner[0], out.corner[2]);
-    return out;
+    return face_corners(ids, load_corners(ids), f);
 }
 
 // The Pluecker products dot(cross(a, b), d) of ray d with the face's edges, cycle c0 -> c1 ->

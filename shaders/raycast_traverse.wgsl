@@ -37,36 +37,53 @@ fn finished(trans: f32) -> bool {
     return stopped || (params.shell_slices == 0u && trans < params.terminate);
 }
 
-// The face the ray leaves a tet by and the t it leaves at (at least t_in): the nearest
-// crossing among the faces it moves outward through, not along, other than `entry`; when there
-// is none (a flat tet), the face it moves most outward through, at t_in.
-fn exit(pl: TetPlanes, entry: u32, d: vec3<f32>, t_in: f32) -> vec2<f32> {
-    var best = NO_FACE;
-    var best_t = 3.0e38;
-    var steep = NO_FACE;
-    var steep_den = -3.0e38;
-    for (var f = 0u; f < 4u; f++) {
-        if f == entry {
-            continue;
-        }
-        let p = pl.face[f];
-        let den = dot(p.xyz, d);
-        if den > steep_den {
-            steep = f;
-            steep_den = den;
-        }
-        if den > 0.0 && !runs_along(p, den) {
-            let t = crossing(p, den);
-            if t < best_t {
-                best = f;
-                best_t = t;
-            }
-        }
+// Where a ray leaves a tet: the face (NO_FACE: none found) and the t.
+struct Exit {
+    face: u32,
+    t: f32,
+}
+
+// twin::exit's t before any face is found.
+const FAR: f32 = 3.0e38;
+
+// dot(n, d) of each of the tet's face planes: the ray moves outward through the faces where
+// it is positive.
+fn crossings(pl: TetPlanes, d: vec3<f32>) -> vec4<f32> {
+    return vec4<f32>(dot(pl.face[0].xyz, d), dot(pl.face[1].xyz, d), dot(pl.face[2].xyz, d),
+        dot(pl.face[3].xyz, d));
+}
+
+// The first set lane of `m`, NO_FACE when none is.
+fn first_lane(m: vec4<bool>) -> u32 {
+    return select(select(select(select(NO_FACE, 3u, m.w), 2u, m.z), 1u, m.y), 0u, m.x);
+}
+
+// The faces other than `entry` (all four for NO_FACE).
+fn others(entry: u32) -> vec4<bool> {
+    return vec4<u32>(0u, 1u, 2u, 3u) != vec4<u32>(entry);
+}
+
+// The face the ray leaves a tet by and the t it leaves at (at least t_in), from the ray's
+// crossings `den` with its planes: the nearest crossing among the faces it moves outward
+// through, not along, other than `entry` (the first face on a tie); when there is none (a flat
+// tet), the face it moves most outward through (the first on a tie), at t_in. All four faces
+// at once, as the CPU ray caster does (cpu::raycast::trace::exit_by_planes): no loop, no
+// dynamic index into the planes, no branch per face; the same face and t as twin::exit's loop.
+fn exit(pl: TetPlanes, den: vec4<f32>, entry: u32, t_in: f32) -> Exit {
+    let w = vec4<f32>(pl.face[0].w, pl.face[1].w, pl.face[2].w, pl.face[3].w);
+    let t = -w / den;
+    let open = others(entry);
+    let ahead = open & (den > vec4<f32>(0.0)) & !(abs(den) <= PARALLEL * pl.norm)
+        & (t < vec4<f32>(FAR));
+    let near = select(vec4<f32>(FAR), t, ahead);
+    let t_best = min(min(near.x, near.y), min(near.z, near.w));
+    if t_best < FAR {
+        return Exit(first_lane(ahead & (near == vec4<f32>(t_best))), max(t_in, t_best));
     }
-    if best == NO_FACE {
-        return vec2<f32>(f32(steep), t_in);
-    }
-    return vec2<f32>(f32(best), max(t_in, best_t));
+    let outward = open & (den > vec4<f32>(-FAR));
+    let steep = select(vec4<f32>(-FAR), den, outward);
+    let most = max(max(steep.x, steep.y), max(steep.z, steep.w));
+    return Exit(first_lane(outward & (steep == vec4<f32>(most))), t_in);
 }
 
 // The exit of a thin tet (its scalar gradient exactly 0, `tet_planes`), whose planes' outward
@@ -74,13 +91,14 @@ fn exit(pl: TetPlanes, entry: u32, d: vec3<f32>, t_in: f32) -> vec2<f32> {
 // through, from the edges' Pluecker products (Platis & Theoharis 2003), which are computed
 // the same way in every tet sharing an edge; a face passed strictly inside before one passed
 // on an edge. It leaves at the face's plane crossing (at least t_in; t_in where the ray runs
-// along it). NO_FACE when no face passes (then the planes decide).
-fn exit_by_edges(ids: vec4<u32>, entry: u32, d: vec3<f32>, t_in: f32) -> vec2<f32> {
+// along it). NO_FACE when no face passes (then the planes decide). `c`: the tet's corners, so
+// its faces need no load.
+fn exit_by_edges(ids: vec4<u32>, c: Corners, entry: u32, d: vec3<f32>, t_in: f32) -> Exit {
     var best = NO_FACE;
     var strict = false;
     var plane = vec4<f32>(0.0);
     for (var f = 0u; f < 4u; f++) {
-        let face = face_of(ids, f);
+        let face = face_corners(ids, c, f);
         let e = edge_products(face, d);
         if f == entry || !passes(e) || strict {
             continue;
@@ -92,18 +110,44 @@ fn exit_by_edges(ids: vec4<u32>, entry: u32, d: vec3<f32>, t_in: f32) -> vec2<f3
     }
     let den = dot(plane.xyz, d);
     if best == NO_FACE || runs_along(plane, den) {
-        return vec2<f32>(f32(best), t_in);
+        return Exit(best, t_in);
     }
-    return vec2<f32>(f32(best), max(t_in, crossing(plane, den)));
+    return Exit(best, max(t_in, crossing(plane, den)));
 }
 
 // Whether the ray moves outward through `entry`, the face it came in by (NO_FACE: none): the
 // tet lies behind that face, folded back over the tet the ray left (an inverted tet of the
 // data, reoriented on load, overlaps its neighbours). Its planes have no exit ahead of the ray;
 // it is left by its edges (exit_by_edges: the other face the ray line passes, crossed at or
-// before t_in, so its segment is empty) into the tet beyond that face. twin::folded.
-fn folded(pl: TetPlanes, entry: u32, d: vec3<f32>) -> bool {
-    return entry < NO_FACE && dot(pl.face[entry].xyz, d) > 0.0;
+// before t_in, so its segment is empty) into the tet beyond that face; `den`: the ray's
+// crossings with the tet's planes. twin::folded.
+fn folded(den: vec4<f32>, entry: u32) -> bool {
+    return any(!others(entry) & (den > vec4<f32>(0.0)));
+}
+
+// Lane i of v (as links.next[f] across face f): a select on the lane, not a dynamic index
+// into the vector; a lane beyond 3 (NO_FACE, from NaN planes only) reads lane 3, as the
+// clamped index it replaces did.
+fn lane_of(v: vec4<u32>, i: u32) -> u32 {
+    return select(select(select(v.w, v.z, i == 2u), v.y, i == 1u), v.x, i == 0u);
+}
+
+// The corner of the previous tet (vertices `ids`, corners `c`) with vertex `id`: the first
+// three lanes by compare, else the last.
+fn shared_corner(id: u32, ids: vec4<u32>, c: Corners) -> vec4<f32> {
+    return select(select(select(c.v3, c.v2, id == ids.z), c.v1, id == ids.y), c.v0, id == ids.x);
+}
+
+// The corners of the tet with vertices `ids` that the ray entered by face `entry` from the tet
+// with vertices `prev_ids` and corners `prev`: the three corners of the face they share are
+// the previous tet's (the same vertices: the links pair faces by their vertex indices), so
+// only the corner opposite the entry is loaded; one load of `verts` a step instead of four.
+fn step_corners(ids: vec4<u32>, entry: u32, prev_ids: vec4<u32>, prev: Corners) -> Corners {
+    let fresh = verts[lane_of(ids, entry)];
+    return Corners(select(shared_corner(ids.x, prev_ids, prev), fresh, entry == 0u),
+        select(shared_corner(ids.y, prev_ids, prev), fresh, entry == 1u),
+        select(shared_corner(ids.z, prev_ids, prev), fresh, entry == 2u),
+        select(shared_corner(ids.w, prev_ids, prev), fresh, entry == 3u));
 }
 
 // The normalized scalar at t along d, clamped to [0, 1].
@@ -152,6 +196,11 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
     var last = start.last;
     // Whether the ray left the mesh and found no entry (this layer).
     var waits = false;
+    // The current tet's vertices and corners, and whether the ray stepped into it from the
+    // tet before (not from the eye or an entry), whose corners it then reuses.
+    var ids = vec4<u32>(0u);
+    var corners: Corners;
+    var walked = false;
     loop {
         if tet == NO_NEIGHBOR {
             let e = next_entry(pixel, t, last);
@@ -163,6 +212,7 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
             tet = e.x >> 2u;
             entry = e.x & 3u;
             t = bitcast<f32>(e.y);
+            walked = false;
         }
         if steps == params.max_steps {
             atomicAdd(&counters[3], 1u);
@@ -170,25 +220,32 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
         }
         steps++;
         let l = link(tet);
-        let pl = tet_planes(l.tet);
-        var out = vec2<f32>(f32(NO_FACE), t);
-        if all(pl.scalar.xyz == vec3<f32>(0.0)) || folded(pl, entry, d) {
-            out = exit_by_edges(l.tet, entry, d, t);
+        if walked {
+            corners = step_corners(l.tet, entry, ids, corners);
+        } else {
+            corners = load_corners(l.tet);
         }
-        if u32(out.x) == NO_FACE {
-            out = exit(pl, entry, d, t);
+        ids = l.tet;
+        let pl = corner_planes(ids, corners);
+        let den = crossings(pl, d);
+        var out = Exit(NO_FACE, t);
+        if all(pl.scalar.xyz == vec3<f32>(0.0)) || folded(den, entry) {
+            out = exit_by_edges(ids, corners, entry, d, t);
         }
-        let f = u32(out.x);
+        if out.face == NO_FACE {
+            out = exit(pl, den, entry, t);
+        }
         trans_in = acc.trans;
-        let seg = tet_segment(tet, l.tet, pl, d, t, out.y);
+        let seg = tet_segment(tet, l.tet, pl, d, t, out.t);
         acc = Acc(acc.color + acc.trans * seg.color, acc.trans * seg.trans);
         if finished(acc.trans) {
             break;
         }
-        t = out.y;
-        let next = l.next[f];
+        t = out.t;
+        let next = lane_of(l.next, out.face);
         tet = select(next >> 2u, NO_NEIGHBOR, next == NO_NEIGHBOR);
         entry = next & 3u;
+        walked = true;
     }
     ray_end(px, pixel, RayState(acc.color, acc.trans, t, steps, last), waits);
 }

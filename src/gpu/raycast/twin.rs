@@ -108,7 +108,8 @@ fn runs_along(p: Vec4, den: f32) -> bool {
 }
 
 /// The face the ray leaves by and the t it leaves at (at least `t_in`), never `entry` (4:
-/// none); WGSL `exit`.
+/// none); WGSL `exit`, which takes the four faces at once (lane masks, the first lane of the
+/// least t or of the steepest face) to the same face and t as this loop.
 pub fn exit(pl: &TetPlanes, entry: usize, d: Vec3, t_in: f32) -> (usize, f32) {
     let (mut best, mut best_t) = (4, 3.0e38f32);
     let (mut steep, mut steep_den) = (4, -3.0e38f32);
