@@ -402,6 +402,42 @@ fn lists_needing_32_entries_rerun_exactly_once() {
     assert_eq!(bits(&first), bits(&long));
 }
 
+/// Entry lists longer than one binding holds are refused, and not kept: with 256 KiB
+/// bindings a 64 x 64 image holds lists of at most 8 hits (8 bytes each), so the view along
+/// [`slabs`] (lists of 20) is refused, naming the 20 hits and what to do. The same renderer
+/// then draws a view from above, whose rays (at most 10 degrees off the vertical, over the
+/// slabs' depth of 2) cross at most 5 slabs, with lists that fit; kept at 20, every later
+/// frame of that size was refused too.
+#[test]
+fn lists_too_long_for_a_binding_are_refused_and_not_kept() {
+    let mesh = slabs();
+    let (tf, _) = default_view(&mesh, 64);
+    let small = common::with_storage_binding_limit(ctx(), 256 << 10);
+    let mut r = RaycastRenderer::new(&small, &mesh, RaycastSettings::default()).unwrap();
+    let along = Camera {
+        eye: DVec3::new(-3.0, 0.0131, 0.0217),
+        target: DVec3::new(1.0, 0.0131, 0.0217),
+        up: DVec3::Y,
+        fov_y_deg: 30.0,
+        width: 64,
+        height: 64,
+    };
+    let msg = r.render(&along, &tf).expect_err("refused").to_string();
+    assert!(
+        msg.contains("entry lists of 20 ") && msg.contains("--entry peel"),
+        "{msg}"
+    );
+    let above = Camera {
+        eye: DVec3::new(0.0131, 0.0217, 6.0),
+        target: DVec3::new(0.0131, 0.0217, 0.0),
+        fov_y_deg: 14.0,
+        ..along
+    };
+    let frame = r.render(&above, &tf).expect("a view needing short lists");
+    assert!(counter(&frame.timings, "entry list length") <= 8);
+    assert!(frame.image.pixels.iter().any(|p| p[3] > 0.01), "empty");
+}
+
 /// The links span at most four storage bindings (`links::LINK_BINDINGS`) and the entry lists
 /// one: a mesh or an image beyond them is refused with a message that names the sizes and what
 /// to do (no panic, no wrong picture). lox's 8,750 tets need 280,000 bytes of links, five

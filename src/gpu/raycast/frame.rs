@@ -128,12 +128,15 @@ impl RaycastRenderer {
     /// Runs the stages, and once more with entry lists as long as the longest one needed when a
     /// list overflowed ([`Self::rerun_capacity`]); the last run, the reruns and the targets the
     /// last run drew into. A rerun's stage times start with the first run's vertices and
-    /// planes, which it keeps rather than runs.
+    /// planes, which it keeps rather than runs. Lists refused as too long for the image are
+    /// not kept: the next frame starts from the length this one started with.
     fn runs(&mut self, camera: &Camera) -> Result<(Run, u64, Targets), RenderError> {
         let mut kept = Vec::new();
         let mut reruns = 0;
+        let capacity = self.capacity;
         loop {
-            let targets = self.ensure_targets(camera.width, camera.height)?;
+            let targets = (self.ensure_targets(camera.width, camera.height))
+                .inspect_err(|_| self.capacity = capacity)?;
             let mut run = self.record(&targets, reruns > 0)?;
             if reruns == 0 {
                 kept = (run.stages.iter().copied())

@@ -174,7 +174,8 @@ pub struct RaycastSettings {
     pub entry: Entry,
     /// With [`Entry::Lists`]: boundary-face hits each pixel's entry list starts with (when a
     /// list overflows, grown to the next power of two at or above the longest list needed and
-    /// the frame rendered once again; kept for later frames).
+    /// the frame rendered once again; kept for later frames, unless one binding cannot hold
+    /// them at the image's size: that frame is refused and the length is not kept).
     pub list_capacity: u32,
     /// Whether the traversal skips the tiles where no ray has an entry (on by default; off
     /// only to measure what the skip saves: the picture is the same).
