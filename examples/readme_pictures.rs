@@ -1,7 +1,7 @@
-//! Renders the README's pictures: a mesh in `shells` mode beside the exact reference and their
-//! difference (x10), with the error figures printed and written as the row of the shells table
-//! (`target/test-output/readme/shells/`, which `scripts/test-tables.py` puts in
-//! docs/performance.md). Needs a GPU adapter (lavapipe will do).
+//! Renders the shells pictures of the README and docs/performance.md: a mesh in `shells` mode
+//! beside the exact reference and their difference (x10), with the error figures printed and
+//! written as the row of the shells table (`target/test-output/readme/shells/`, which
+//! `scripts/test-tables.py` puts in docs/performance.md). Needs a GPU adapter (lavapipe will do).
 //!
 //! ```sh
 //! cargo run --example readme_pictures -- assets/bluntfin_tet.vtu shock 0.8 docs/images/bluntfin-shells-reference-diff.png
