@@ -1,7 +1,7 @@
-//! Measures `--mode cellproj` on one mesh and writes its README picture: median stage times of
-//! both integrators, their error against the exact reference, the table's error and build time
-//! against its size, the power sort's wrong pairs and how much of the error lies on the rays
-//! that have one. Needs a GPU adapter (lavapipe will do).
+//! Measures `--mode cellproj` on one mesh and writes its picture in docs/performance.md: median
+//! stage times of both integrators, their error against the exact reference, the table's error
+//! and build time against its size, the power sort's wrong pairs and how much of the error lies
+//! on the rays that have one. Needs a GPU adapter (lavapipe will do).
 //!
 //! ```sh
 //! cargo run --release --example cellproj_report -- ../shared/data/bluntfin_tet.vtk shock 0.8 docs/images/bluntfin-cellproj.png

@@ -1,7 +1,7 @@
-//! Renders the README's pictures: a mesh in `shells` mode beside the exact reference and their
-//! difference (x10), with the error figures printed and written as the README's row of the
-//! shells table (`target/test-output/readme/shells/`, which `scripts/test-tables.py` puts in
-//! the README). Needs a GPU adapter (lavapipe will do).
+//! Renders the shells pictures of the README and docs/performance.md: a mesh in `shells` mode
+//! beside the exact reference and their difference (x10), with the error figures printed and
+//! written as the row of the shells table (`target/test-output/readme/shells/`, which
+//! `scripts/test-tables.py` puts in docs/performance.md). Needs a GPU adapter (lavapipe will do).
 //!
 //! ```sh
 //! cargo run --example readme_pictures -- assets/bluntfin_tet.vtu shock 0.8 docs/images/bluntfin-shells-reference-diff.png
@@ -71,7 +71,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     Ok(())
 }
 
-/// Writes the README's row of this picture (mesh, TF, distance; size and error figures).
+/// Writes the shells table's row of this picture (mesh, TF, distance; size and error figures).
 fn readme_row(
     mesh: &str,
     tf: &str,

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Puts `tetvr bench` results into the README's tables.
+"""Puts `tetvr bench` results into the tables of README.md and docs/**/*.md.
 
 Each table sits between two markers that say where its figures come from:
 
@@ -29,7 +29,7 @@ import re
 import sys
 
 root = pathlib.Path(__file__).resolve().parent.parent
-readme = root / "README.md"
+documents = [root / "README.md"] + sorted((root / "docs").rglob("*.md"))
 marker = re.compile(r"<!-- bench-table (csv=.*?) -->\n(.*?)<!-- bench-table end -->", re.S)
 
 
@@ -158,15 +158,15 @@ def table(spec):
     return "\n".join(lines) + "\n"
 
 
-text = readme.read_text()
-count = 0
-
-
 def replace(m):
-    global count
-    count += 1
     return f"<!-- bench-table {m.group(1)} -->\n{table(spec_of(m.group(1)))}<!-- bench-table end -->"
 
 
-readme.write_text(marker.sub(replace, text))
-print(f"README: {count} bench tables")
+for doc in documents:
+    text = doc.read_text()
+    new, count = marker.subn(replace, text)
+    if count == 0:
+        continue
+    if new != text:
+        doc.write_text(new)
+    print(f"{doc.relative_to(root)}: {count} bench tables{'' if new != text else ', unchanged'}")

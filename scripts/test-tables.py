@@ -1,12 +1,13 @@
 #!/usr/bin/env python3
-"""Puts the rows the tests measured into the README's tables.
+"""Puts the rows the tests measured into the tables of README.md and docs/**/*.md.
 
 Each table sits between `<!-- test-table NAME begin -->` and `<!-- test-table NAME end -->`.
 The tests write one row per case to target/test-output/readme/NAME/ (`common::readme_row`):
 `cargo test --test NAME` the `stress`, `reference`, `cellproj` and `iso` tables, and
-`cargo run --example readme_pictures` the `shells` table's rows as it draws the pictures. Each table's rows are replaced by the measured ones, keeping the README's order of cases and
-appending new ones. A table whose folder does not exist (its test has not run) is left as it
-is, and said so; a case of the table without a measured row fails. A caption under each table
+`cargo run --example readme_pictures` the `shells` table's rows as it draws the pictures.
+Each table's rows are replaced by the measured ones, keeping the file's order of cases and
+appending new ones; every markdown file that holds a table's markers gets them. A table whose
+folder does not exist (its test has not run) is left as it is, and said so; a case of the table without a measured row fails. A caption under each table
 says when (the newest row's date, UTC) and on what machine (this one's CPU, where the tests ran;
 the GPU modes ran on the adapter `tetvr gpu-info` names there).
 """
@@ -17,7 +18,7 @@ import sys
 
 root = pathlib.Path(__file__).resolve().parent.parent
 rows_root = root / "target" / "test-output" / "readme"
-readme = root / "README.md"
+documents = [root / "README.md"] + sorted((root / "docs").rglob("*.md"))
 marker = re.compile(r"<!-- test-table (\S+) begin -->\n(.*?)<!-- test-table \1 end -->", re.S)
 
 
@@ -65,4 +66,11 @@ def replace(m):
     return f"<!-- test-table {name} begin -->\n{table(name, m.group(2))}<!-- test-table {name} end -->"
 
 
-readme.write_text(marker.sub(replace, readme.read_text()))
+for doc in documents:
+    text = doc.read_text()
+    new, count = marker.subn(replace, text)
+    if count == 0:
+        continue
+    if new != text:
+        doc.write_text(new)
+    print(f"{doc.relative_to(root)}: {count} test tables{'' if new != text else ', unchanged'}")

@@ -51,7 +51,7 @@ impl AutoPath {
     /// The path for the adapter `auto` opened (its type; `None`: no adapter). The rule is
     /// measured, not guessed: on lavapipe (2 cores) the CPU ray caster renders the blunt fin
     /// and the oxygen post at 512x512 in a fraction of the time of lavapipe's fastest volume
-    /// mode (`tetvr bench --modes raycast,raycast-cpu`, figures in the README), and a
+    /// mode (`tetvr bench --modes raycast,raycast-cpu`, figures in docs/performance.md), and a
     /// software adapter runs on the same cores, so the ratio does not depend on their number.
     pub fn of(adapter: Option<wgpu::DeviceType>) -> Self {
         match adapter {

@@ -235,7 +235,7 @@ pub enum SliceFormatChoice {
     /// 32-bit floats where the adapter blends them, else 16-bit.
     #[default]
     Auto,
-    /// 16-bit floats: half the target memory, about 20 dB less accuracy (README).
+    /// 16-bit floats: half the target memory, about 20 dB less accuracy (docs/performance.md).
     F16,
     /// 32-bit floats; an error on adapters that cannot blend them.
     F32,

@@ -49,7 +49,8 @@ fn render(mesh: &TetMesh, integrate: Integrate, camera: &Camera, tf: &TransferFu
 }
 
 /// Renders with both integrators and checks each against the reference, then the table
-/// against the exact integrator; the README's row `what` gets both against the reference.
+/// against the exact integrator; the cellproj table's row `what` (docs/performance.md) gets
+/// both against the reference.
 #[allow(clippy::too_many_arguments)]
 fn check_both(
     name: &str,
@@ -75,7 +76,8 @@ fn check_both(
     );
 }
 
-/// The README's row `what`: rmse / max_abs against the reference of each integrator measured.
+/// The cellproj table's row `what`: rmse / max_abs against the reference of each integrator
+/// measured.
 fn row(what: &str, exact: Option<&ErrorMetrics>, table: Option<&ErrorMetrics>) {
     let cell = |m: Option<&ErrorMetrics>| {
         m.map_or(String::new(), |m| {

@@ -136,7 +136,8 @@ fn max_pixel_diff(a: &[[f64; 4]], b: &[[f64; 4]]) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// The README's row of a check: what it measures, the worst difference found, the bound.
+/// The reference table's row of a check (docs/performance.md): what it measures, the worst
+/// difference found, the bound.
 fn row(check: &str, worst: f64, bound: f64) {
     common::readme_row(
         "reference",

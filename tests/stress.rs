@@ -16,7 +16,7 @@
 //! and a case overrides it where the stress costs accuracy, with a comment saying why.
 //!
 //! `cargo test --test stress -- --nocapture` prints one markdown row per case and mode: the
-//! README's table.
+//! stress table of docs/performance.md.
 //!
 //! A new mode joins with one line in [`MODES`].
 
@@ -74,8 +74,8 @@ struct ModeDef {
 
 /// The modes. Bounds:
 /// - reference: 1e-9, the f64 rounding of a picture whose integrals are computed in a
-///   different order (the twin's tets are cut differently); the README measures 1e-15 on
-///   closed forms.
+///   different order (the twin's tets are cut differently); docs/performance.md measures
+///   1e-15 on closed forms.
 /// - shells: 512 samples across the cube's depth with the default f32 slices; its point
 ///   sampling error on the benign 6^3 grid with this TF is 5e-4 rmse at 64x64 (measured), and
 ///   the bound is twice that.
@@ -446,7 +446,7 @@ fn check(case: Case) {
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
-/// A README cell: the rmse with its bound in brackets, and the holes where there are any.
+/// A stress table cell: the rmse with its bound in brackets, and the holes where there are any.
 fn readme_cell(m: &tetvr::ErrorMetrics, max_rmse: f64) -> String {
     let rmse = if m.rmse == 0.0 {
         "0".to_string()
@@ -461,7 +461,7 @@ fn readme_cell(m: &tetvr::ErrorMetrics, max_rmse: f64) -> String {
     format!("{rmse} ({max_rmse:.0e}){holes}")
 }
 
-/// Writes the README's row for `case`: a cell per mode of [`MODES`], then the NaN pixels
+/// Writes the stress table's row for `case`: a cell per mode of [`MODES`], then the NaN pixels
 /// ([`common::readme_row`]).
 fn write_readme_row(case: &str, cells: &[String], nan: usize) {
     let row: Vec<String> = std::iter::once(case.to_string())

@@ -77,10 +77,10 @@ pub fn test_output_dir() -> PathBuf {
     dir
 }
 
-/// Writes one row of a README table that the tests measure (`cells[0]` names the case) to
+/// Writes one row of a markdown table that the tests measure (`cells[0]` names the case) to
 /// `target/test-output/readme/<table>/`, where `scripts/test-tables.py` puts the rows between
-/// the README's `test-table <table>` markers: those tables are what the tests measured, never
-/// typed by hand.
+/// the `test-table <table>` markers of README.md or docs/*.md: those tables are what the tests
+/// measured, never typed by hand.
 pub fn readme_row(table: &str, cells: &[String]) {
     let dir = test_output_dir().join("readme").join(table);
     std::fs::create_dir_all(&dir).expect("create the README rows folder");

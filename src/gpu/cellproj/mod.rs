@@ -78,7 +78,7 @@ pub struct CellProjSettings {
     /// How a fragment integrates its segment (default [`Integrate::Table`]). The table is
     /// rebuilt on the CPU when the transfer function changes (about 40 ms at the default size)
     /// and blurs narrow opaque TF bands; `Exact` has neither, at about the same frame time on
-    /// lavapipe (README, cell projection).
+    /// lavapipe (docs/performance.md, cell projection).
     pub integrate: Integrate,
     /// Table samples along each scalar axis (front, back), at least 2.
     pub table_size: u32,

@@ -45,7 +45,7 @@
 //! blunt fin ([`RaycastRenderer::bytes_per_tet`]). Planes are not stored: the traversal (and
 //! an entry stage, for a boundary face's plane) computes a tet's four planes from its vertices
 //! where it needs them (storing them, 80 bytes per tet more, was no faster on lavapipe;
-//! README, "The ray caster's memory").
+//! docs/performance.md, "The ray caster's memory").
 //!
 //! **Robustness in f32.** The two tets sharing a face compute its plane from the same three
 //! vertices in the same (global index) order, so the ray leaves one at exactly the t where it

@@ -15,7 +15,7 @@ pub(super) struct TargetFormats {
     pub(super) slices: wgpu::TextureFormat,
     /// The accumulation target's format: 32-bit floats wherever the adapter blends them, even
     /// under 16-bit slices (the rounding of every blend into it would cost more than the
-    /// slices' quantization, README).
+    /// slices' quantization; docs/performance.md, 16-bit slices).
     pub(super) accum: wgpu::TextureFormat,
     /// Layers of the slice texture: the colour targets of the largest count in use.
     pub(super) layers: u32,
