@@ -2,7 +2,8 @@
 // listed 8 x 8 pixel tile, raycast_tiles.wgsl): the ray starts in the eye's tet (when the eye
 // is inside the mesh) or at its first entry, steps from tet to tet through the face it leaves by
 // (the nearest face plane it crosses moving outward; the face it came in by never; the planes
-// computed from the tet's vertices, `tet_planes`), integrates each segment front to back
+// computed from the tet's corners, `corner_planes`, three of them carried from the tet before,
+// `step_corners`), integrates each segment front to back
 // (`tet_segment`, from the integrator composed in front of this file: the tet's linear scalar
 // into `segment`, exact or partial with integrate_segment.wgsl, or the 3D table,
 // raycast_table.wgsl; or, for a textured cage, stepping through the volume texture,

@@ -291,7 +291,8 @@ fn trace(sc: &Scene, tf: &NormalizedTf, d: Vec3, max_steps: u32) -> [f32; 4] {
             break;
         }
         t = t_out;
-        let next = sc.links[tet as usize].next[f];
+        // WGSL `lane_of`: a face beyond 3 (4, from NaN planes only) reads lane 3.
+        let next = sc.links[tet as usize].next[f.min(3)];
         (tet, entry) = if next == NO_NEIGHBOR {
             (NO_NEIGHBOR, 4)
         } else {
@@ -429,6 +430,55 @@ mod tests {
         // The other face the line passes, crossed before t_in: an empty segment.
         assert!(f != 3 && passes(edge_products(faces[f], d)));
         assert_eq!(t, t_in);
+    }
+
+    #[test]
+    fn nan_planes_step_across_face_3_as_the_shader_does() {
+        // Tet 0 (the eye's) has NaN planes (coordinates overflowing f32), so no face is its
+        // exit (face 4); the shader's `lane_of` then reads lane 3 of its links, into tet 1 (the
+        // unit tet, scalar 1: opaque), and so must the twin.
+        let p = unit();
+        let ids = [4, 5, 6, 7];
+        let (unit_planes, _) = planes(p, ids, [1.0; 4]);
+        let nan = TetPlanes {
+            face: [[f32::NAN; 4]; 4],
+            scalar: [f32::NAN; 4],
+        };
+        let link = |tet: [u32; 4], next: [u32; 4]| crate::gpu::raycast::TetLinks { tet, next };
+        let sc = Scene {
+            planes: vec![nan, unit_planes],
+            faces: vec![
+                [[Vec3::NAN; 3]; 4],
+                std::array::from_fn(|f| sorted_face(ids, f).map(|i| p[i])),
+            ],
+            links: vec![
+                link(
+                    [0, 1, 2, 3],
+                    [
+                        NO_NEIGHBOR,
+                        NO_NEIGHBOR,
+                        NO_NEIGHBOR,
+                        links::face_code(1, 3),
+                    ],
+                ),
+                link(ids, [NO_NEIGHBOR; 4]),
+            ],
+            boundary: Vec::new(),
+            eye_tet: 0,
+            eye_tol: 0.0,
+        };
+        let white = |s| crate::tf::ControlPoint {
+            s,
+            color: [1.0; 3],
+            opacity: 0.5,
+        };
+        let tf = TransferFunction::new(vec![white(0.0), white(1.0)], 1.0).unwrap();
+        let d = Vec3::new(0.1, 0.1, 1.0).normalize();
+        let px = trace(&sc, &NormalizedTf::new(&tf, 0.0, 1.0), d, 8);
+        // Tet 1 from t = 0 (tet 0's exit) to its face 0 near t = 2.5: opacity 0.5 per unit
+        // length gathered over 2.5 units leaves alpha 1 - 0.5^2.5 = 0.82; above 0.5 whatever
+        // the rounding.
+        assert!(px[3] > 0.5, "{px:?}");
     }
 
     #[test]
