@@ -26,7 +26,7 @@ use tetvr::mesh::ScalarArray;
 use tetvr::reference::ReferenceRenderer;
 use tetvr::{Camera, Image, ModeSettings, Renderer, TetMesh, TransferFunction, View};
 
-use common::{Bounds, assert_images_close, lox, reference_image};
+use common::{Bounds, assert_images_close, bounds, lox, reference_image};
 
 fn ctx() -> &'static GpuContext {
     static CTX: OnceLock<GpuContext> = OnceLock::new();
@@ -189,15 +189,6 @@ fn renderers(mesh: &TetMesh, b: &SceneBounds) -> Vec<(String, Box<dyn Renderer>,
         out.push((format!("raycast-cpu-{segments:?}"), Box::new(r), RAYCAST));
     }
     out
-}
-
-const fn bounds(max_rmse: f64, max_abs: f64) -> Bounds {
-    Bounds {
-        max_rmse,
-        max_abs,
-        max_holes: 0,
-        max_spill: 0,
-    }
 }
 
 /// A picture that ignored the cell values (rendered the vertex average) would be within the

@@ -17,10 +17,12 @@ use tetvr::deform::Deformation;
 use tetvr::generate::{self, fields::Field};
 use tetvr::gpu::raycast::{Entry, EntryLanes, Segments, twin};
 use tetvr::gpu::{AdapterChoice, GpuContext, GpuTetMesh, RaycastRenderer, RaycastSettings};
-use tetvr::tf::ControlPoint;
 use tetvr::{Camera, Frame, Renderer, TetMesh, TransferFunction};
 
-use common::{Bounds, assert_images_close, counter, default_view, gaussians, lox, reference_image};
+use common::{
+    Bounds, assert_images_close, bounds, counter, default_view, gaussians, lox, reference_image,
+    sharp_tf,
+};
 
 fn ctx() -> &'static GpuContext {
     static CTX: OnceLock<GpuContext> = OnceLock::new();
@@ -63,15 +65,6 @@ const TABLE_LOX: Bounds = bounds(7e-5, 1e-3);
 /// With the sharp TF (a step, optically deep pieces, blurred by the interpolation across the
 /// step) measured rmse 3.5e-4, max 2.3e-3; bounds about 3x.
 const TABLE_SHARP: Bounds = bounds(1e-3, 7e-3);
-
-const fn bounds(max_rmse: f64, max_abs: f64) -> Bounds {
-    Bounds {
-        max_rmse,
-        max_abs,
-        max_holes: 0,
-        max_spill: 0,
-    }
-}
 
 /// Renders `mesh` with both integrators and both entry methods, checks each against the
 /// reference within `b`, that no ray hit the step limit, and that depth peeling gives entry
@@ -539,23 +532,6 @@ fn sharp_tf_on_a_grid() {
     check("sharp", &mesh, &camera, &sharp_tf(&mesh), BOUNDS);
 }
 
-/// A TF with a step and opacity up to 0.8 per unit distance over `mesh`'s scalar range.
-fn sharp_tf(mesh: &TetMesh) -> TransferFunction {
-    let (lo, hi) = mesh.active_array().and_then(|a| a.range()).unwrap();
-    let cp = |u: f64, color, opacity| ControlPoint {
-        s: lo + (hi - lo) * u,
-        color,
-        opacity,
-    };
-    let points = vec![
-        cp(0.0, [0.1, 0.2, 0.9], 0.0),
-        cp(0.45, [0.2, 0.9, 0.3], 0.5),
-        cp(0.45, [0.9, 0.2, 0.1], 0.05),
-        cp(1.0, [1.0, 0.9, 0.1], 0.8),
-    ];
-    TransferFunction::new(points, mesh.diagonal() / 100.0).unwrap()
-}
-
 /// The blunt fin (187,395 tets, 77 with coincident corners: thin, left by their edges), seen
 /// from outside with the default and the `shock` TF, and with the eye inside the mesh.
 #[test]
@@ -566,8 +542,7 @@ fn bluntfin_outside_and_eye_inside() {
     let (tf, outside) = default_view(&mesh, 96);
     let got = check("bluntfin", &mesh, &outside, &tf, BOUNDS);
     assert_eq!(counter(&got.timings, "thin tets"), 77);
-    let range = mesh.active_array().and_then(|a| a.range()).unwrap();
-    let shock = tetvr::tf::file::load_tf("shock", range, mesh.diagonal() / 100.0).unwrap();
+    let shock = common::shock_tf(&mesh);
     // The shock TF's narrow opaque bands turn f32 scalar rounding into colour: measured rmse
     // 8.4e-6, max 4.3e-4; rmse bound about 4x, max_abs the target.
     check(
@@ -577,15 +552,7 @@ fn bluntfin_outside_and_eye_inside() {
         &shock,
         bounds(3e-5, 1e-3),
     );
-    let (lo, hi) = mesh.bounds();
-    let inside = Camera {
-        eye: lo + (hi - lo) * DVec3::new(0.6, 0.5, 0.5),
-        target: lo + (hi - lo) * DVec3::new(0.1, 0.4, 0.3),
-        up: DVec3::Z,
-        fov_y_deg: 60.0,
-        width: 96,
-        height: 96,
-    };
+    let inside = common::bluntfin_inside(&mesh);
     let got = check("bluntfin-inside", &mesh, &inside, &tf, BOUNDS);
     assert_eq!(counter(&got.timings, "eye in a tet"), 1);
 }

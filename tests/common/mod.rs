@@ -98,6 +98,16 @@ pub struct Bounds {
     pub max_spill: usize,
 }
 
+/// Bounds of `max_rmse` and `max_abs` with no holes and no spill.
+pub const fn bounds(max_rmse: f64, max_abs: f64) -> Bounds {
+    Bounds {
+        max_rmse,
+        max_abs,
+        max_holes: 0,
+        max_spill: 0,
+    }
+}
+
 /// Compares `actual` with `expected`; on failure writes actual/expected/diff PNGs to
 /// `target/test-output/<name>-*.png` and panics with the metrics. Non-finite pixels always fail.
 pub fn assert_images_close(
@@ -216,6 +226,40 @@ pub fn gaussians(cells: u32) -> TetMesh {
         "gaussians",
     )
     .expect("grid")
+}
+
+/// A TF with a step and opacity up to 0.8 per unit distance (diagonal / 100) over `mesh`'s
+/// scalar range: optically deep pieces, the opposite of the default.
+pub fn sharp_tf(mesh: &TetMesh) -> TransferFunction {
+    let (lo, hi) = mesh.active_array().and_then(|a| a.range()).unwrap();
+    let cp = |u: f64, color, opacity| tetvr::tf::ControlPoint {
+        s: lo + (hi - lo) * u,
+        color,
+        opacity,
+    };
+    let points = vec![
+        cp(0.0, [0.1, 0.2, 0.9], 0.0),
+        cp(0.45, [0.2, 0.9, 0.3], 0.5),
+        cp(0.45, [0.9, 0.2, 0.1], 0.05),
+        cp(1.0, [1.0, 0.9, 0.1], 0.8),
+    ];
+    TransferFunction::new(points, mesh.diagonal() / 100.0).unwrap()
+}
+
+/// The `shock` preset over `mesh`'s scalar range, unit distance diagonal / 100.
+pub fn shock_tf(mesh: &TetMesh) -> TransferFunction {
+    let range = mesh.active_array().and_then(|a| a.range()).unwrap();
+    tetvr::tf::file::load_tf("shock", range, mesh.diagonal() / 100.0).unwrap()
+}
+
+/// A 96x96 view from inside the blunt fin (`mesh`'s bounding box at (0.6, 0.5, 0.5)), looking
+/// towards (0.1, 0.4, 0.3) of it, 60 degrees: the eye lies in a tet.
+pub fn bluntfin_inside(mesh: &TetMesh) -> Camera {
+    use glam::DVec3;
+    let (lo, hi) = mesh.bounds();
+    let at = |u: DVec3| lo + (hi - lo) * u;
+    let (eye, target) = (at(DVec3::new(0.6, 0.5, 0.5)), at(DVec3::new(0.1, 0.4, 0.3)));
+    camera(eye, target, DVec3::Z, 60.0, 96)
 }
 
 /// A test scene: a mesh, its default TF and a camera.
