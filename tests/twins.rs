@@ -663,6 +663,40 @@ fn sweep_tfs() -> Vec<Vec<ControlPoint>> {
     ]
 }
 
+/// The twin's evaluation equals TransferFunction::eval (f32 rounding aside) for the sweep's
+/// TFs: points outside the data range, close together, a single point, a step, and many.
+#[test]
+fn twin_tf_eval_matches_the_transfer_function() {
+    let (lo, span) = (-3.0, 8.0);
+    for points in sweep_tfs() {
+        let tf = TransferFunction::new(points, 0.5).unwrap();
+        let block = tf_points(&tf, lo, span).unwrap();
+        let pts = &block.points[..tf.points().len()];
+        let eval = |u: f64| {
+            let t = tf.eval(lo + u * span);
+            Vec4::new(
+                t.color[0] as f32,
+                t.color[1] as f32,
+                t.color[2] as f32,
+                t.tau as f32,
+            )
+        };
+        for i in 0..=40_000 {
+            let u = (i as f64 / 40_000.0 * 1.4 - 0.2) as f32;
+            let got = twin::tf_eval(pts, u);
+            // Exact up to f32 rounding of u and of the control points (an ulp of u <= 1.2
+            // is 1.2e-7): the result lies between the TF at u -/+ 2e-7 (which also spans a
+            // step at u), give or take a few ulps of values up to ~9 (tau of 0.9 over 0.5).
+            let (a, b) = (eval(u as f64 - 2e-7), eval(u as f64 + 2e-7));
+            let (lo_v, hi_v) = (a.min(b) - Vec4::splat(1e-5), a.max(b) + Vec4::splat(1e-5));
+            assert!(
+                got.cmpge(lo_v).all() && got.cmple(hi_v).all(),
+                "u {u}: {got} not in [{a}, {b}]"
+            );
+        }
+    }
+}
+
 /// The normalized scalars of the sweep over `points`: a dense sweep beyond both ends, each
 /// control point and its f32 neighbours, and -1 (an empty sample's e - 1).
 fn tf_inputs(points: &[TfPoint]) -> Vec<f32> {
