@@ -285,20 +285,26 @@ fn list_overflow_reruns_and_step_limit_is_counted() {
 /// A comb: a 9 x 6 x 6 grid of [-1, 1]^3 (6 tets a cell) whose odd x-slabs of cells are cut
 /// away above the bottom layer, leaving five teeth (x-slabs 0, 2, 4, 6, 8) on a common base.
 fn comb() -> TetMesh {
-    let grid = generate::box_grid(
-        DVec3::splat(-1.0),
-        DVec3::ONE,
-        glam::UVec3::new(9, 6, 6),
-        "gaussians",
-        |p| Field::Gaussians.eval(p),
-    );
-    let p = grid.positions();
-    let tooth_or_base = |t: &&[u32; 4]| {
-        let c = t.iter().map(|&v| p[v as usize]).sum::<DVec3>() / 4.0;
+    grid_keeping(glam::UVec3::new(9, 6, 6), |c| {
         let (x, y) = (((c.x + 1.0) * 4.5) as u32, ((c.y + 1.0) * 3.0) as u32);
         x % 2 == 0 || y == 0
-    };
-    let tets = grid.tets().iter().filter(tooth_or_base).copied().collect();
+    })
+}
+
+/// A `cells` grid of [-1, 1]^3 (6 tets a cell) of the Gaussians, only the tets whose centroid
+/// passes `keep`.
+fn grid_keeping(cells: glam::UVec3, keep: impl Fn(DVec3) -> bool) -> TetMesh {
+    let grid = generate::box_grid(DVec3::splat(-1.0), DVec3::ONE, cells, "gaussians", |p| {
+        Field::Gaussians.eval(p)
+    });
+    let p = grid.positions();
+    let centroid = |t: &[u32; 4]| t.iter().map(|&v| p[v as usize]).sum::<DVec3>() / 4.0;
+    let tets = grid
+        .tets()
+        .iter()
+        .filter(|t| keep(centroid(t)))
+        .copied()
+        .collect();
     let (mesh, _) = TetMesh::new(p.to_vec(), tets, grid.arrays().to_vec()).unwrap();
     mesh
 }
@@ -346,21 +352,9 @@ fn list_overflow_reruns_with_the_eye_inside() {
 /// Twenty slabs in a row: the even x-slabs of a 39 x 4 x 4 grid of [-1, 1]^3 (6 tets a cell),
 /// each a convex box a ray enters at most once.
 fn slabs() -> TetMesh {
-    let grid = generate::box_grid(
-        DVec3::splat(-1.0),
-        DVec3::ONE,
-        glam::UVec3::new(39, 4, 4),
-        "gaussians",
-        |p| Field::Gaussians.eval(p),
-    );
-    let p = grid.positions();
-    let even_slab = |t: &&[u32; 4]| {
-        let c = t.iter().map(|&v| p[v as usize]).sum::<DVec3>() / 4.0;
+    grid_keeping(glam::UVec3::new(39, 4, 4), |c| {
         (((c.x + 1.0) * 19.5) as u32).is_multiple_of(2)
-    };
-    let tets = grid.tets().iter().filter(even_slab).copied().collect();
-    let (mesh, _) = TetMesh::new(p.to_vec(), tets, grid.arrays().to_vec()).unwrap();
-    mesh
+    })
 }
 
 /// Seen along the row of [`slabs`], the middle rays enter all 20 slabs: lists of the default
