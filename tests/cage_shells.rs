@@ -6,18 +6,16 @@
 
 mod common;
 
-use std::sync::{Arc, OnceLock};
+use std::sync::Arc;
 
 use glam::DVec3;
 use tetvr::gpu::gpu_data::TetRecord;
-use tetvr::gpu::{
-    AdapterChoice, BinningMode, GpuContext, Sampler, ShellSettings, ShellsRenderer, Skips,
-};
+use tetvr::gpu::{BinningMode, GpuContext, Sampler, ShellSettings, ShellsRenderer, Skips};
 use tetvr::texture::{CageOptions, DEFAULT_TEXCOORDS, TexturedReference, Volume, cage, texcoords};
 use tetvr::tf::ControlPoint;
 use tetvr::{Camera, Image, Renderer, TetMesh, TransferFunction, View};
 
-use common::{Bounds, assert_images_close, counter};
+use common::{Bounds, assert_images_close, counter, ctx};
 
 /// Voxels per axis of the synthetic volume, and its spacing.
 const N: usize = 16;
@@ -62,15 +60,6 @@ fn view(volume: &Volume, mesh: &TetMesh, size: u32) -> (TransferFunction, Camera
 fn bent(mesh: &TetMesh) -> Vec<DVec3> {
     let (lo, hi) = mesh.bounds();
     tetvr::deform::Deformation::Bend.apply(mesh.positions(), lo, hi, 0.2, 0.25)
-}
-
-fn ctx() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| {
-        GpuContext::new(AdapterChoice::Auto).unwrap_or_else(|e| {
-            panic!("the textured shells tests need a GPU adapter (Mesa's lavapipe will do): {e}")
-        })
-    })
 }
 
 fn textured_shells(

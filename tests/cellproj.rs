@@ -8,27 +8,18 @@
 
 mod common;
 
-use std::sync::OnceLock;
-
 use glam::{DVec3, UVec3};
 use tetvr::deform::Deformation;
 use tetvr::generate::{self, fields::Field};
 use tetvr::gpu::cellproj::sort::sort_check;
-use tetvr::gpu::{AdapterChoice, CellProjRenderer, CellProjSettings, GpuContext, Integrate};
+use tetvr::gpu::{CellProjRenderer, CellProjSettings, GpuContext, Integrate};
 use tetvr::reference::ReferenceRenderer;
 use tetvr::tf::ControlPoint;
 use tetvr::{Camera, ErrorMetrics, Image, Renderer, TetMesh, TransferFunction, View};
 
-use common::{Bounds, assert_images_close, bounds, default_view, load_asset, lox, reference_image};
-
-fn ctx() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| {
-        GpuContext::new(AdapterChoice::Auto).unwrap_or_else(|e| {
-            panic!("the cellproj tests need a GPU adapter (Mesa's lavapipe will do): {e}")
-        })
-    })
-}
+use common::{
+    Bounds, assert_images_close, bounds, ctx, default_view, load_asset, lox, reference_image,
+};
 
 fn gaussians() -> TetMesh {
     generate::fields::grid(Field::Gaussians, UVec3::splat(16), "gaussians").expect("grid")

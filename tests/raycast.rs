@@ -10,28 +10,17 @@
 
 mod common;
 
-use std::sync::OnceLock;
-
 use glam::DVec3;
 use tetvr::deform::Deformation;
 use tetvr::generate::{self, fields::Field};
 use tetvr::gpu::raycast::{Entry, EntryLanes, Segments, twin};
-use tetvr::gpu::{AdapterChoice, GpuContext, GpuTetMesh, RaycastRenderer, RaycastSettings};
+use tetvr::gpu::{GpuContext, GpuTetMesh, RaycastRenderer, RaycastSettings};
 use tetvr::{Camera, Frame, Renderer, TetMesh, TransferFunction};
 
 use common::{
-    Bounds, assert_images_close, bounds, counter, default_view, gaussians, lox, reference_image,
-    sharp_tf,
+    Bounds, assert_images_close, bounds, counter, ctx, default_view, gaussians, lox,
+    reference_image, sharp_tf,
 };
-
-fn ctx() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| {
-        GpuContext::new(AdapterChoice::Auto).unwrap_or_else(|e| {
-            panic!("the raycast tests need a GPU adapter (Mesa's lavapipe will do): {e}")
-        })
-    })
-}
 
 fn with(segments: Segments, entry: Entry) -> RaycastSettings {
     RaycastSettings {

@@ -7,26 +7,13 @@
 
 mod common;
 
-use std::sync::OnceLock;
-
 use glam::{DVec3, UVec3};
 use tetvr::generate::fields::Field;
-use tetvr::gpu::{
-    AdapterChoice, GpuContext, Sampler, ShellSettings, ShellsRenderer, Skips, SliceFormat,
-};
+use tetvr::gpu::{GpuContext, Sampler, ShellSettings, ShellsRenderer, Skips, SliceFormat};
 use tetvr::tf::ControlPoint;
 use tetvr::{Camera, Image, Renderer, TetMesh, TransferFunction, View, generate};
 
-use common::{Bounds, assert_images_close, counter, lox, reference_image};
-
-fn ctx() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| {
-        GpuContext::new(AdapterChoice::Auto).unwrap_or_else(|e| {
-            panic!("the shells tests need a GPU adapter (Mesa's lavapipe will do): {e}")
-        })
-    })
-}
+use common::{Bounds, assert_images_close, counter, ctx, lox, reference_image};
 
 /// A TF over [lo, hi] with three colours and an opacity bump, unit distance `d_u`.
 fn tf3(lo: f64, hi: f64, d_u: f64) -> TransferFunction {

@@ -7,22 +7,11 @@
 
 mod common;
 
-use std::sync::OnceLock;
-
 use glam::DVec3;
-use tetvr::gpu::{AdapterChoice, BinningMode, GpuContext, Sampler, ShellSettings, ShellsRenderer};
+use tetvr::gpu::{BinningMode, Sampler, ShellSettings, ShellsRenderer};
 use tetvr::{Camera, Image, Renderer, TetMesh, TransferFunction, View};
 
-use common::{Bounds, Scene, assert_images_close, counter, lox};
-
-fn ctx() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| {
-        GpuContext::new(AdapterChoice::Auto).unwrap_or_else(|e| {
-            panic!("the shells binning tests need a GPU adapter (Mesa's lavapipe will do): {e}")
-        })
-    })
-}
+use common::{Bounds, Scene, assert_images_close, counter, ctx, lox};
 
 fn framed(mesh: TetMesh, view: &str, size: u32) -> Scene {
     let (tf, _) = common::default_view(&mesh, size);

@@ -6,26 +6,17 @@
 
 mod common;
 
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::{Arc, Mutex};
 
 use glam::UVec3;
 use tetvr::generate::fields::Field;
 use tetvr::gpu::{
-    AdapterChoice, GpuContext, GpuTetMesh, Sampler, ShellSettings, ShellsRenderer, SliceFormat,
-    TimingSource, TuneCache, TunedShells,
+    GpuTetMesh, Sampler, ShellSettings, ShellsRenderer, SliceFormat, TimingSource, TuneCache,
+    TunedShells,
 };
 use tetvr::{Camera, Frame, Image, Renderer, TetMesh, TransferFunction, Tuning, View};
 
-use common::{Bounds, assert_images_close, lox, reference_image};
-
-fn ctx() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| {
-        GpuContext::new(AdapterChoice::Auto).unwrap_or_else(|e| {
-            panic!("the shells tuning tests need a GPU adapter (Mesa's lavapipe will do): {e}")
-        })
-    })
-}
+use common::{Bounds, assert_images_close, ctx, lox, reference_image};
 
 /// The default TF over the mesh's scalar range, unit distance 1/100 of the diagonal.
 fn default_tf(mesh: &TetMesh) -> TransferFunction {

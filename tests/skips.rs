@@ -6,24 +6,13 @@
 
 mod common;
 
-use std::sync::OnceLock;
-
 use glam::UVec3;
 use tetvr::generate::fields::{Field, grid};
-use tetvr::gpu::{AdapterChoice, GpuContext, ShellSettings, ShellsRenderer, Skip, Skips};
+use tetvr::gpu::{ShellSettings, ShellsRenderer, Skip, Skips};
 use tetvr::tf::ControlPoint;
 use tetvr::{Camera, Frame, Image, Renderer, TetMesh, TransferFunction, View};
 
-use common::{Bounds, assert_images_close, counter, reference_image};
-
-fn ctx() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| {
-        GpuContext::new(AdapterChoice::Auto).unwrap_or_else(|e| {
-            panic!("the skips tests need a GPU adapter (Mesa's lavapipe will do): {e}")
-        })
-    })
-}
+use common::{Bounds, assert_images_close, counter, ctx, reference_image};
 
 fn render(mesh: &TetMesh, skips: Skips, camera: &Camera, tf: &TransferFunction) -> Frame {
     let settings = ShellSettings {

@@ -16,7 +16,7 @@
 //! rays lying in a face plane, the eye at or near a vertex, samples on slice boundaries, and
 //! transfer-function control points (and their f32 neighbours) as scalar values.
 
-use std::sync::OnceLock;
+mod common;
 
 use glam::{Vec3, Vec4};
 use tetvr::gpu::cellproj::twin as cellproj_twin;
@@ -24,18 +24,10 @@ use tetvr::gpu::gpu_data::{ShellUniforms, SlicingUniforms, TetRecord, TfPoint, V
 use tetvr::gpu::shaders;
 use tetvr::gpu::shells::twin;
 use tetvr::gpu::tf_points;
-use tetvr::gpu::{AdapterChoice, GpuContext};
 use tetvr::tf::{ControlPoint, TransferFunction};
 use wgpu::util::DeviceExt;
 
-fn ctx() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| {
-        GpuContext::new(AdapterChoice::Auto).unwrap_or_else(|e| {
-            panic!("the twin tests need a GPU adapter (Mesa's lavapipe will do): {e}")
-        })
-    })
-}
+use common::ctx;
 
 // ---------------------------------------------------------------------------------------------
 // Running WGSL on the adapter

@@ -159,6 +159,18 @@ pub fn assert_images_close(
     m
 }
 
+/// The GPU context of the tests (one per test binary), on the adapter `AdapterChoice::Auto`
+/// picks; without one the test fails, saying that Mesa's lavapipe will do.
+pub fn ctx() -> &'static tetvr::gpu::GpuContext {
+    use tetvr::gpu::{AdapterChoice, GpuContext};
+    static CTX: std::sync::OnceLock<GpuContext> = std::sync::OnceLock::new();
+    CTX.get_or_init(|| {
+        GpuContext::new(AdapterChoice::Auto).unwrap_or_else(|e| {
+            panic!("these tests need a GPU adapter (Mesa's lavapipe will do): {e}")
+        })
+    })
+}
+
 /// The same adapter and device as `ctx`, declared to bind at most `bytes` per storage buffer:
 /// the renderers then split their per-tet records into chunks as they would on an adapter
 /// with that limit, so chunking is tested with small meshes.
