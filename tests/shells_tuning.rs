@@ -16,7 +16,7 @@ use tetvr::gpu::{
 };
 use tetvr::{Camera, Frame, Image, Renderer, TetMesh, TransferFunction, Tuning, View};
 
-use common::{Bounds, assert_images_close, ctx, lox, reference_image};
+use common::{Bounds, assert_images_close, bounds, ctx, lox, reference_image};
 
 /// The default TF over the mesh's scalar range, unit distance 1/100 of the diagonal.
 fn default_tf(mesh: &TetMesh) -> TransferFunction {
@@ -75,12 +75,7 @@ fn shells(
 /// scenes. The gaussians' figure is above their f32 bound (tests/shells.rs: 1.2e-4), so f32
 /// stays the default. The bound is twice the largest figure measured with either
 /// accumulation, and holds no hole and no spill.
-const F16_BOUNDS: Bounds = Bounds {
-    max_rmse: 1.5e-3,
-    max_abs: 1.8e-2,
-    max_holes: 0,
-    max_spill: 0,
-};
+const F16_BOUNDS: Bounds = bounds(1.5e-3, 1.8e-2);
 
 #[test]
 fn sixteen_bit_slices_stay_within_their_bound_of_the_reference() {
@@ -143,12 +138,7 @@ fn tuned(cache: &Arc<TuneCache>, log: &Log) -> (TunedShells, TetMesh, Camera) {
 
 /// lox's bounds against the reference at 512 samples (tests/shells.rs, LOX_BOUNDS: twice the
 /// measured point-sampling error), which every candidate configuration must meet.
-const LOX_BOUNDS: Bounds = Bounds {
-    max_rmse: 1.2e-3,
-    max_abs: 2e-2,
-    max_holes: 0,
-    max_spill: 0,
-};
+const LOX_BOUNDS: Bounds = bounds(1.2e-3, 2e-2);
 
 #[test]
 fn tuning_keeps_what_measures_faster_never_what_measured_slower_and_stays() {
