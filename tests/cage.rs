@@ -10,12 +10,14 @@ use std::sync::{Arc, OnceLock};
 use glam::DVec3;
 use tetvr::generate::volume::{VolumeToTets, nifti_to_tets};
 use tetvr::gpu::raycast::Entry;
-use tetvr::gpu::{AdapterChoice, GpuContext, RaycastRenderer, RaycastSettings};
+use tetvr::gpu::{RaycastRenderer, RaycastSettings};
 use tetvr::reference::ReferenceRenderer;
 use tetvr::texture::{
     CageError, CageOptions, DEFAULT_TEXCOORDS, TexturedReference, Volume, cage, texcoords,
 };
 use tetvr::{Camera, Image, Renderer, TetMesh, TransferFunction, View};
+
+use common::ctx;
 
 /// Voxels per axis of the synthetic volume, and its spacing.
 const N: usize = 16;
@@ -197,17 +199,6 @@ fn bent_cage_moves_the_volume_in_the_reference() {
     r.update_positions(mesh.positions()).unwrap();
     let back = r.render(&camera, &tf).unwrap().image;
     assert_eq!(back.pixels, rest.pixels);
-}
-
-fn ctx() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| {
-        GpuContext::new(AdapterChoice::Auto).unwrap_or_else(|e| {
-            panic!(
-                "the textured ray caster's tests need a GPU adapter (Mesa's lavapipe will do): {e}"
-            )
-        })
-    })
 }
 
 fn textured_raycast(mesh: &TetMesh, volume: &Volume, entry: Entry) -> RaycastRenderer {

@@ -3,16 +3,20 @@
 //! isosurface integrator, `shaders/raycast_texture_iso.wgsl`) against it, undeformed and bent.
 //! The volume is a synthetic 16^3 grid of two Gaussian blobs made here: no shared data needed.
 
-use std::sync::{Arc, OnceLock};
+mod common;
+
+use std::sync::Arc;
 
 use glam::DVec3;
 use tetvr::gpu::iso::IsoSettings;
 use tetvr::gpu::raycast::Entry;
-use tetvr::gpu::{AdapterChoice, GpuContext, RaycastRenderer, RaycastSettings};
+use tetvr::gpu::{RaycastRenderer, RaycastSettings};
 use tetvr::reference::iso::IsoImage;
 use tetvr::texture::iso::BISECTIONS;
 use tetvr::texture::{CageOptions, DEFAULT_TEXCOORDS, TexturedReference, Volume, cage, texcoords};
 use tetvr::{Camera, Renderer, TetMesh, View};
+
+use common::ctx;
 
 /// Voxels per axis, and the spacing.
 const N: usize = 16;
@@ -58,15 +62,6 @@ fn bent(mesh: &TetMesh) -> Vec<DVec3> {
 fn reference(mesh: &TetMesh, volume: &Arc<Volume>, step: Option<f64>) -> TexturedReference {
     let tc = texcoords(mesh, DEFAULT_TEXCOORDS).unwrap();
     TexturedReference::new(mesh, tc, volume.clone(), step).unwrap()
-}
-
-fn ctx() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| {
-        GpuContext::new(AdapterChoice::Auto).unwrap_or_else(|e| {
-            panic!("the textured iso tests need a GPU adapter (Mesa's lavapipe will do): {e}")
-        })
-    })
 }
 
 fn gpu_iso(mesh: &TetMesh, volume: &Volume, entry: Entry) -> RaycastRenderer {

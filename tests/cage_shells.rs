@@ -6,18 +6,16 @@
 
 mod common;
 
-use std::sync::{Arc, OnceLock};
+use std::sync::Arc;
 
 use glam::DVec3;
 use tetvr::gpu::gpu_data::TetRecord;
-use tetvr::gpu::{
-    AdapterChoice, BinningMode, GpuContext, Sampler, ShellSettings, ShellsRenderer, Skips,
-};
+use tetvr::gpu::{BinningMode, GpuContext, Sampler, ShellSettings, ShellsRenderer, Skips};
 use tetvr::texture::{CageOptions, DEFAULT_TEXCOORDS, TexturedReference, Volume, cage, texcoords};
 use tetvr::tf::ControlPoint;
 use tetvr::{Camera, Image, Renderer, TetMesh, TransferFunction, View};
 
-use common::{Bounds, assert_images_close, counter};
+use common::{Bounds, assert_images_close, bounds, counter, ctx};
 
 /// Voxels per axis of the synthetic volume, and its spacing.
 const N: usize = 16;
@@ -64,15 +62,6 @@ fn bent(mesh: &TetMesh) -> Vec<DVec3> {
     tetvr::deform::Deformation::Bend.apply(mesh.positions(), lo, hi, 0.2, 0.25)
 }
 
-fn ctx() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| {
-        GpuContext::new(AdapterChoice::Auto).unwrap_or_else(|e| {
-            panic!("the textured shells tests need a GPU adapter (Mesa's lavapipe will do): {e}")
-        })
-    })
-}
-
 fn textured_shells(
     ctx: &GpuContext,
     mesh: &TetMesh,
@@ -114,24 +103,14 @@ fn reference(
 /// the gaussians (rmse 1.2e-4, max 2e-3). Bound: rmse 5e-4, max 1e-2, no holes or spill
 /// (measured on lavapipe, 48x48, raster and compute alike: rmse 1.08e-4 and max 1.6e-3
 /// undeformed, rmse 1.14e-4 and max 1.7e-3 bent).
-const REFERENCE_BOUNDS: Bounds = Bounds {
-    max_rmse: 5e-4,
-    max_abs: 1e-2,
-    max_holes: 0,
-    max_spill: 0,
-};
+const REFERENCE_BOUNDS: Bounds = bounds(5e-4, 1e-2);
 
 /// The compute sampler against the raster sampler: the same samples (shells_span.wgsl,
 /// shells_texture.wgsl) and composite, so they differ only where the rasterizer's coverage of
 /// a tet's snapped faces and the compute sampler's barycentric test decide a sample the other
 /// way (as `tests/shells.rs`'s SAMPLER_BOUNDS: one sample's alpha at most). Bound: rmse 1e-4,
 /// max 2e-2 (measured on lavapipe: bit-identical, undeformed and bent).
-const SAMPLER_BOUNDS: Bounds = Bounds {
-    max_rmse: 1e-4,
-    max_abs: 2e-2,
-    max_holes: 0,
-    max_spill: 0,
-};
+const SAMPLER_BOUNDS: Bounds = bounds(1e-4, 2e-2);
 
 /// The walk sampler against the raster sampler, textured: the same slices and the same
 /// texture coordinate (linear in the tet) at each, but each sample taken by the one tet whose
@@ -142,12 +121,7 @@ const SAMPLER_BOUNDS: Bounds = Bounds {
 /// WALK_BOUNDS (measured on lavapipe, 48x48: rmse 5.5e-5 and max 2.7e-3 undeformed, rmse
 /// 4.5e-5 and max 2.3e-3 bent; against the reference the walk measured rmse 1.08e-4 and
 /// 1.14e-4, as the raster).
-const WALK_BOUNDS: Bounds = Bounds {
-    max_rmse: 3.2e-4,
-    max_abs: 2e-2,
-    max_holes: 0,
-    max_spill: 0,
-};
+const WALK_BOUNDS: Bounds = bounds(3.2e-4, 2e-2);
 
 /// The three samplers, undeformed and bent (one `update_positions` of the cage), against the
 /// reference moved the same way, and against the raster sampler.

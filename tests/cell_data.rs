@@ -12,30 +12,19 @@
 
 mod common;
 
-use std::sync::OnceLock;
-
 use glam::DVec3;
 use tetvr::cpu::raycast::{CpuRaycastRenderer, CpuRaycastSettings, Segments as CpuSegments};
 use tetvr::deform::Deformation;
 use tetvr::gpu::raycast::{Entry, Segments};
 use tetvr::gpu::{
-    AdapterChoice, CellProjRenderer, CellProjSettings, GpuContext, Integrate, IsoSettings,
-    RaycastRenderer, RaycastSettings, Sampler, ShellSettings, ShellsRenderer,
+    CellProjRenderer, CellProjSettings, Integrate, IsoSettings, RaycastRenderer, RaycastSettings,
+    Sampler, ShellSettings, ShellsRenderer,
 };
 use tetvr::mesh::ScalarArray;
 use tetvr::reference::ReferenceRenderer;
 use tetvr::{Camera, Image, ModeSettings, Renderer, TetMesh, TransferFunction, View};
 
-use common::{Bounds, assert_images_close, lox, reference_image};
-
-fn ctx() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| {
-        GpuContext::new(AdapterChoice::Auto).unwrap_or_else(|e| {
-            panic!("the cell data tests need a GPU adapter (Mesa's lavapipe will do): {e}")
-        })
-    })
-}
+use common::{Bounds, assert_images_close, bounds, ctx, lox, reference_image};
 
 /// A value per tet with visible jumps: a 3D checkerboard of the tet centroids (5 squares
 /// across the mesh's box) scaled to [0, 0.7], plus 0.3 times a per-tet pseudo-random
@@ -189,15 +178,6 @@ fn renderers(mesh: &TetMesh, b: &SceneBounds) -> Vec<(String, Box<dyn Renderer>,
         out.push((format!("raycast-cpu-{segments:?}"), Box::new(r), RAYCAST));
     }
     out
-}
-
-const fn bounds(max_rmse: f64, max_abs: f64) -> Bounds {
-    Bounds {
-        max_rmse,
-        max_abs,
-        max_holes: 0,
-        max_spill: 0,
-    }
 }
 
 /// A picture that ignored the cell values (rendered the vertex average) would be within the

@@ -8,27 +8,18 @@
 
 mod common;
 
-use std::sync::OnceLock;
-
 use glam::{DVec3, UVec3};
 use tetvr::deform::Deformation;
 use tetvr::generate::{self, fields::Field};
 use tetvr::gpu::cellproj::sort::sort_check;
-use tetvr::gpu::{AdapterChoice, CellProjRenderer, CellProjSettings, GpuContext, Integrate};
+use tetvr::gpu::{CellProjRenderer, CellProjSettings, GpuContext, Integrate};
 use tetvr::reference::ReferenceRenderer;
 use tetvr::tf::ControlPoint;
 use tetvr::{Camera, ErrorMetrics, Image, Renderer, TetMesh, TransferFunction, View};
 
-use common::{Bounds, assert_images_close, default_view, load_asset, lox, reference_image};
-
-fn ctx() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| {
-        GpuContext::new(AdapterChoice::Auto).unwrap_or_else(|e| {
-            panic!("the cellproj tests need a GPU adapter (Mesa's lavapipe will do): {e}")
-        })
-    })
-}
+use common::{
+    Bounds, assert_images_close, bounds, ctx, default_view, load_asset, lox, reference_image,
+};
 
 fn gaussians() -> TetMesh {
     generate::fields::grid(Field::Gaussians, UVec3::splat(16), "gaussians").expect("grid")
@@ -85,15 +76,6 @@ fn row(what: &str, exact: Option<&ErrorMetrics>, table: Option<&ErrorMetrics>) {
         })
     };
     common::readme_row("cellproj", &[what.to_string(), cell(exact), cell(table)]);
-}
-
-const fn bounds(max_rmse: f64, max_abs: f64) -> Bounds {
-    Bounds {
-        max_rmse,
-        max_abs,
-        max_holes: 0,
-        max_spill: 0,
-    }
 }
 
 /// A grid is Delaunay (cubes split into six tets sharing the cube's circumsphere; the centroid
@@ -163,32 +145,12 @@ fn bluntfin_matches_reference() {
     assert!(t.get("sort").is_some());
 }
 
-/// A TF with a step and high opacity, the opposite of the default.
-fn sharp_tf(mesh: &TetMesh) -> TransferFunction {
-    let (lo, hi) = mesh.active_array().and_then(|a| a.range()).unwrap();
-    let cp = |u: f64, color, opacity| ControlPoint {
-        s: lo + (hi - lo) * u,
-        color,
-        opacity,
-    };
-    TransferFunction::new(
-        vec![
-            cp(0.0, [0.1, 0.2, 0.9], 0.0),
-            cp(0.45, [0.2, 0.9, 0.3], 0.5),
-            cp(0.45, [0.9, 0.2, 0.1], 0.05),
-            cp(1.0, [1.0, 0.9, 0.1], 0.8),
-        ],
-        mesh.diagonal() / 100.0,
-    )
-    .unwrap()
-}
-
 /// Changing the TF rebuilds the table (and only then), and the new picture is the new TF's.
 #[test]
 fn tf_change_rebuilds_the_table() {
     let mesh = gaussians();
     let (tf, camera) = default_view(&mesh, 96);
-    let sharp = sharp_tf(&mesh);
+    let sharp = common::sharp_tf(&mesh);
     let mut r = CellProjRenderer::new(ctx(), &mesh, settings(Integrate::Table)).unwrap();
     let rebuilt = |f: &tetvr::Frame| {
         f.timings

@@ -31,6 +31,20 @@ fn text(o: &Output) -> (String, String) {
     )
 }
 
+/// The stdout of a run that must succeed; the test fails with its stderr otherwise.
+fn stdout_of(o: &Output) -> String {
+    let (stdout, stderr) = text(o);
+    assert!(o.status.success(), "{stderr}");
+    stdout
+}
+
+/// The stderr of a run that must fail.
+fn stderr_of_failure(o: &Output) -> String {
+    let (_, stderr) = text(o);
+    assert!(!o.status.success(), "{stderr}");
+    stderr
+}
+
 fn out_dir(name: &str) -> PathBuf {
     let d = Path::new(env!("CARGO_TARGET_TMPDIR"))
         .join("cli")
@@ -72,8 +86,7 @@ fn render_lox(mode: &str) -> String {
         "--timings",
     ];
     let o = tetvr(&args);
-    let (stdout, stderr) = text(&o);
-    assert!(o.status.success(), "{stderr}");
+    let stdout = stdout_of(&o);
     assert!(
         stdout.contains("wrote") && stdout.contains("96x80"),
         "{stdout}"
@@ -118,8 +131,7 @@ fn raycast_takes_depth_peeling_and_other_modes_refuse_it() {
     let args = ["render", LOX, "--size", "32x32", "--timings", "-o", png_arg];
     let peel = ["--mode", "raycast", "--entry", "peel"];
     let o = tetvr(&[&args[..], &peel].concat());
-    let (stdout, stderr) = text(&o);
-    assert!(o.status.success(), "{stderr}");
+    let stdout = stdout_of(&o);
     for line in ["depth peeling", "peel layers", "tiles run"] {
         assert!(stdout.contains(line), "no {line} in {stdout}");
     }
@@ -224,8 +236,7 @@ fn cellproj_render_prints_the_sort_stage_and_checks_the_order() {
         "--sort-check",
     ];
     let o = tetvr(&[&args[..], &["--size", "64x64", "-o", png_arg]].concat());
-    let (stdout, stderr) = text(&o);
-    assert!(o.status.success(), "{stderr}");
+    let stdout = stdout_of(&o);
     assert!(
         stdout.contains("exact segments") && stdout.contains("power-sort check"),
         "{stdout}"
@@ -260,8 +271,7 @@ fn iso_render_draws_the_surfaces_asked_for() {
         "smooth",
     ];
     let o = tetvr(&[&args[..], &["--size", "64x64", "--timings", "-o", png_arg]].concat());
-    let (stdout, stderr) = text(&o);
-    assert!(o.status.success(), "{stderr}");
+    let stdout = stdout_of(&o);
     assert!(
         stdout.contains("mode iso at 0.9, 1.2") && stdout.contains("tets selected"),
         "{stdout}"
@@ -304,8 +314,7 @@ fn without_vulkan_auto_falls_back_in_one_line_and_shells_names_the_package() {
         "-o",
         png.to_str().unwrap(),
     ]);
-    let (_, stderr) = text(&o);
-    assert!(!o.status.success());
+    let stderr = stderr_of_failure(&o);
     assert!(
         stderr.starts_with("error: no GPU adapter") && stderr.contains("mesa-vulkan-drivers"),
         "{stderr}"
@@ -315,8 +324,7 @@ fn without_vulkan_auto_falls_back_in_one_line_and_shells_names_the_package() {
 #[test]
 fn info_reports_counts_degenerate_and_reoriented_tets() {
     let o = tetvr(&["info", common::asset("bluntfin_tet.vtu").to_str().unwrap()]);
-    let (stdout, stderr) = text(&o);
-    assert!(o.status.success(), "{stderr}");
+    let stdout = stdout_of(&o);
     for needle in ["40,960", "187,395", "zero-volume", "77", "duplicate"] {
         assert!(stdout.contains(needle), "no '{needle}' in\n{stdout}");
     }
@@ -349,8 +357,7 @@ fn info_obeys_max_memory_and_prints_file_names_escaped() {
         assert!(stderr.contains(part), "'{part}' missing from: {stderr}");
     }
     let o = tetvr(&["info", path, "--max-memory", "1G"]);
-    let (stdout, stderr) = text(&o);
-    assert!(o.status.success(), "{stderr}");
+    let stdout = stdout_of(&o);
     assert!(
         stdout.contains("* \\u{1b}[2J  1: 7 .. 7") && !stdout.contains('\u{1b}'),
         "{stdout}"
@@ -591,8 +598,7 @@ fn animate_writes_a_gif_whose_frames_move() {
         "animate", LOX, "--deform", "twist", "--frames", "3", "--size", "40x40",
     ];
     let o = tetvr(&[&args[..], &["-o", gif.to_str().unwrap()]].concat());
-    let (stdout, stderr) = text(&o);
-    assert!(o.status.success(), "{stderr}");
+    let stdout = stdout_of(&o);
     assert!(
         stdout.contains("3 frames")
             && stdout.contains("deform ")
@@ -720,11 +726,10 @@ fn help_has_examples() {
     }
 }
 
-#[test]
-fn no_skip_turns_skips_off_and_unknown_skips_are_named() {
-    // With early ray termination off its counters are absent; with it on they are printed.
-    let png = out_dir("no-skip").join("lox.png");
-    let png_arg = png.to_str().unwrap();
+/// `tetvr render` of lox in the shells mode at 48x40 with `--timings`, written to `png`, with
+/// `extra` arguments.
+fn render_lox_shells(png: &Path, extra: &[&str]) -> Output {
+    let png = png.to_str().unwrap();
     let base = [
         "render",
         LOX,
@@ -733,33 +738,30 @@ fn no_skip_turns_skips_off_and_unknown_skips_are_named() {
         "--size",
         "48x40",
         "-o",
-        png_arg,
+        png,
         "--timings",
     ];
-    let on = tetvr(&[&base[..], &["--ert-threshold", "0.99"]].concat());
-    let (stdout, stderr) = text(&on);
-    assert!(on.status.success(), "{stderr}");
+    tetvr(&[&base[..], extra].concat())
+}
+
+#[test]
+fn no_skip_turns_skips_off_and_unknown_skips_are_named() {
+    // With early ray termination off its counters are absent; with it on they are printed.
+    let png = out_dir("no-skip").join("lox.png");
+    let on = render_lox_shells(&png, &["--ert-threshold", "0.99"]);
+    let stdout = stdout_of(&on);
     assert!(stdout.contains("pixels finished"), "{stdout}");
-    let off = tetvr(
-        &[
-            &base[..],
-            &["--no-skip", "early-termination,tf-cull,frustum"],
-        ]
-        .concat(),
-    );
-    let (stdout, stderr) = text(&off);
-    assert!(off.status.success(), "{stderr}");
+    let off = render_lox_shells(&png, &["--no-skip", "early-termination,tf-cull,frustum"]);
+    let stdout = stdout_of(&off);
     assert!(!stdout.contains("pixels finished"), "{stdout}");
-    let bad = tetvr(&[&base[..], &["--no-skip", "frustrum"]].concat());
-    let (_, stderr) = text(&bad);
-    assert!(!bad.status.success());
+    let bad = render_lox_shells(&png, &["--no-skip", "frustrum"]);
+    let stderr = stderr_of_failure(&bad);
     assert!(
         stderr.contains("frustrum") && stderr.contains("early-termination"),
         "{stderr}"
     );
-    let bad = tetvr(&[&base[..], &["--ert-threshold", "1.5"]].concat());
-    let (_, stderr) = text(&bad);
-    assert!(!bad.status.success());
+    let bad = render_lox_shells(&png, &["--ert-threshold", "1.5"]);
+    let stderr = stderr_of_failure(&bad);
     assert!(stderr.contains("threshold"), "{stderr}");
 }
 
@@ -788,18 +790,6 @@ fn adaptive_slices_can_be_turned_off_and_a_fixed_count_overrides_them() {
     // The chosen count is printed with the timings; an explicit --slices-per-shell is used
     // as given whether or not adaptive slices are on.
     let png = out_dir("no-skip-adaptive").join("lox.png");
-    let png_arg = png.to_str().unwrap();
-    let base = [
-        "render",
-        LOX,
-        "--mode",
-        "shells",
-        "--size",
-        "48x40",
-        "-o",
-        png_arg,
-        "--timings",
-    ];
     let slices = |stdout: &str| -> u32 {
         let line = stdout
             .lines()
@@ -811,14 +801,12 @@ fn adaptive_slices_can_be_turned_off_and_a_fixed_count_overrides_them() {
         &["--slices-per-shell", "8"][..],
         &["--slices-per-shell", "8", "--no-skip", "adaptive-slices"][..],
     ] {
-        let out = tetvr(&[&base[..], extra].concat());
-        let (stdout, stderr) = text(&out);
-        assert!(out.status.success(), "{stderr}");
+        let out = render_lox_shells(&png, extra);
+        let stdout = stdout_of(&out);
         assert_eq!(slices(&stdout), 8, "{stdout}");
     }
-    let off = tetvr(&[&base[..], &["--no-skip", "adaptive-slices"]].concat());
-    let (stdout, stderr) = text(&off);
-    assert!(off.status.success(), "{stderr}");
+    let off = render_lox_shells(&png, &["--no-skip", "adaptive-slices"]);
+    let stdout = stdout_of(&off);
     // Off, the count is the adapter's fixed default: whole colour targets of 4 slices.
     assert_eq!(slices(&stdout) % 4, 0, "{stdout}");
 }
@@ -831,20 +819,8 @@ fn sampler_compute_renders_the_raster_samplers_picture_and_bad_samplers_are_name
     let dir = out_dir("sampler");
     let run = |sampler: &str| {
         let png = dir.join(format!("{sampler}.png"));
-        let args = [
-            "render",
-            LOX,
-            "--mode",
-            "shells",
-            "--size",
-            "48x40",
-            "--timings",
-            "--sampler",
-            sampler,
-        ];
-        let o = tetvr(&[&args[..], &["-o", png.to_str().unwrap()]].concat());
-        let (stdout, stderr) = text(&o);
-        assert!(o.status.success(), "{stderr}");
+        let o = render_lox_shells(&png, &["--sampler", sampler]);
+        let stdout = stdout_of(&o);
         (stdout, Image::load_png(&png).unwrap())
     };
     let (stdout, compute) = run("compute");
@@ -871,8 +847,7 @@ fn sampler_compute_renders_the_raster_samplers_picture_and_bad_samplers_are_name
     let m = walk.compare(&raster).unwrap();
     assert!(m.max_abs <= 6.0 / 255.0 && m.holes == 0, "{m}");
     let bad = tetvr(&["render", LOX, "--sampler", "fragment"]);
-    let (_, stderr) = text(&bad);
-    assert!(!bad.status.success());
+    let stderr = stderr_of_failure(&bad);
     assert!(
         stderr.contains("fragment") && stderr.contains("compute"),
         "{stderr}"
@@ -900,12 +875,10 @@ fn tune_and_slice_format_render_and_say_what_was_chosen() {
         png.to_str().unwrap(),
     ];
     let o = tetvr(&[&args[..], &more[..]].concat());
-    let (stdout, stderr) = text(&o);
-    assert!(o.status.success(), "{stderr}");
+    let stdout = stdout_of(&o);
     assert!(stdout.contains("tuned on this adapter: "), "{stdout}");
     let bad = tetvr(&["render", LOX, "--slice-format", "f8"]);
-    let (_, stderr) = text(&bad);
-    assert!(!bad.status.success());
+    let stderr = stderr_of_failure(&bad);
     assert!(stderr.contains("f8") && stderr.contains("f16"), "{stderr}");
 }
 

@@ -8,7 +8,7 @@ use tetvr::gpu::{AdapterChoice, GpuContext, ShellSettings, ShellsRenderer, Skip,
 use tetvr::reference::ReferenceRenderer;
 use tetvr::{Camera, Renderer, TetMesh, TransferFunction, View};
 
-use common::{Bounds, assert_images_close};
+use common::{Bounds, assert_images_close, bounds};
 
 /// Held by every test here for its whole run: the memory test reads the process's resident
 /// memory, which the other tests' renderers, running on other threads, would grow (measured:
@@ -24,12 +24,7 @@ fn one_at_a_time() -> std::sync::MutexGuard<'static, ()> {
 /// The shells mode's bound on the lox subset (tests/shells.rs, LOX_BOUNDS): first-order
 /// sampling error at 512 samples per diameter measured 6e-4 rmse at 128x128; the twist only
 /// moves the same tets, so the same bound holds.
-const LOX_BOUNDS: Bounds = Bounds {
-    max_rmse: 1.2e-3,
-    max_abs: 2e-2,
-    max_holes: 0,
-    max_spill: 0,
-};
+const LOX_BOUNDS: Bounds = bounds(1.2e-3, 2e-2);
 
 /// A shipped mesh (assets/), the default TF over its scalars, and the default view at `size` squared.
 fn scene(file: &str, size: u32) -> (TetMesh, TransferFunction, Camera) {
@@ -76,12 +71,7 @@ fn shells_and_reference_after_updates_match_the_deformed_mesh() {
     assert_images_close("deform-shells-twist", &after, &expected, LOX_BOUNDS);
     // The updated reference renderer is the same exact computation: f32 image rounding only.
     let updated = reference.render(&camera, &tf).unwrap().image;
-    let exact = Bounds {
-        max_rmse: 1e-7,
-        max_abs: 1e-6,
-        max_holes: 0,
-        max_spill: 0,
-    };
+    let exact = bounds(1e-7, 1e-6);
     assert_images_close("deform-reference-updated", &updated, &expected, exact);
     // And the motion is visible: the rest pose differs from the twisted one by far more than
     // the bound.

@@ -8,26 +8,18 @@
 
 mod common;
 
-use std::sync::OnceLock;
 use tetvr::gpu::gpu_data::TetRecord;
 use tetvr::gpu::iso::gradients::{VertexTets, vertex_gradients_twin};
 
 use glam::{DVec3, UVec3};
 use tetvr::generate::{self, fields::Field};
+use tetvr::gpu::GpuContext;
 use tetvr::gpu::iso::{IsoImage, IsoRenderer, IsoSettings, Shading};
-use tetvr::gpu::{AdapterChoice, GpuContext};
 use tetvr::reference::ReferenceRenderer;
 use tetvr::reference::iso::IsoReference;
 use tetvr::{Camera, TetMesh, View};
 
-fn ctx() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| {
-        GpuContext::new(AdapterChoice::Auto).unwrap_or_else(|e| {
-            panic!("the iso tests need a GPU adapter (Mesa's lavapipe will do): {e}")
-        })
-    })
-}
+use common::ctx;
 
 /// Error figures of a GPU isosurface image against the reference.
 #[derive(Debug, Default)]

@@ -10,26 +10,17 @@
 
 mod common;
 
-use std::sync::OnceLock;
-
 use glam::DVec3;
 use tetvr::deform::Deformation;
 use tetvr::generate::{self, fields::Field};
 use tetvr::gpu::raycast::{Entry, EntryLanes, Segments, twin};
-use tetvr::gpu::{AdapterChoice, GpuContext, GpuTetMesh, RaycastRenderer, RaycastSettings};
-use tetvr::tf::ControlPoint;
+use tetvr::gpu::{GpuContext, GpuTetMesh, RaycastRenderer, RaycastSettings};
 use tetvr::{Camera, Frame, Renderer, TetMesh, TransferFunction};
 
-use common::{Bounds, assert_images_close, counter, default_view, gaussians, lox, reference_image};
-
-fn ctx() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| {
-        GpuContext::new(AdapterChoice::Auto).unwrap_or_else(|e| {
-            panic!("the raycast tests need a GPU adapter (Mesa's lavapipe will do): {e}")
-        })
-    })
-}
+use common::{
+    Bounds, assert_images_close, bounds, counter, ctx, default_view, gaussians, lox,
+    reference_image, sharp_tf,
+};
 
 fn with(segments: Segments, entry: Entry) -> RaycastSettings {
     RaycastSettings {
@@ -63,15 +54,6 @@ const TABLE_LOX: Bounds = bounds(7e-5, 1e-3);
 /// With the sharp TF (a step, optically deep pieces, blurred by the interpolation across the
 /// step) measured rmse 3.5e-4, max 2.3e-3; bounds about 3x.
 const TABLE_SHARP: Bounds = bounds(1e-3, 7e-3);
-
-const fn bounds(max_rmse: f64, max_abs: f64) -> Bounds {
-    Bounds {
-        max_rmse,
-        max_abs,
-        max_holes: 0,
-        max_spill: 0,
-    }
-}
 
 /// Renders `mesh` with both integrators and both entry methods, checks each against the
 /// reference within `b`, that no ray hit the step limit, and that depth peeling gives entry
@@ -243,18 +225,9 @@ fn head_on_grid_has_no_holes() {
 fn deformed_mesh_matches_reference() {
     let mut mesh = lox();
     let (tf, camera) = default_view(&mesh, 96);
-    let (lo, hi) = mesh.bounds();
-    let mut r = RaycastRenderer::new(ctx(), &mesh, RaycastSettings::default()).unwrap();
-    let rest = r.render(&camera, &tf).unwrap().image;
-    let moved = Deformation::Bend.apply(mesh.positions(), lo, hi, 0.4, 0.3);
-    r.update_positions(&moved).unwrap();
-    let got = r.render(&camera, &tf).unwrap().image;
-    // The bend moves the picture far more than any bound here (measured rmse 3e-2).
-    assert!(got.compare(&rest).unwrap().rmse > 1e-3);
-    mesh.set_positions(moved).unwrap();
-    // Same positions, origin and arithmetic: the same bits.
-    let fresh = frame(&mesh, &camera, &tf, Segments::Partial).image;
-    assert_eq!(got.compare(&fresh).unwrap().max_abs, 0.0);
+    common::assert_bent_draws_as_built_bent(&mut mesh, (&camera, &tf), |m| {
+        RaycastRenderer::new(ctx(), m, RaycastSettings::default()).unwrap()
+    });
     check("bent", &mesh, &camera, &tf, BOUNDS);
 }
 
@@ -292,20 +265,26 @@ fn list_overflow_reruns_and_step_limit_is_counted() {
 /// A comb: a 9 x 6 x 6 grid of [-1, 1]^3 (6 tets a cell) whose odd x-slabs of cells are cut
 /// away above the bottom layer, leaving five teeth (x-slabs 0, 2, 4, 6, 8) on a common base.
 fn comb() -> TetMesh {
-    let grid = generate::box_grid(
-        DVec3::splat(-1.0),
-        DVec3::ONE,
-        glam::UVec3::new(9, 6, 6),
-        "gaussians",
-        |p| Field::Gaussians.eval(p),
-    );
-    let p = grid.positions();
-    let tooth_or_base = |t: &&[u32; 4]| {
-        let c = t.iter().map(|&v| p[v as usize]).sum::<DVec3>() / 4.0;
+    grid_keeping(glam::UVec3::new(9, 6, 6), |c| {
         let (x, y) = (((c.x + 1.0) * 4.5) as u32, ((c.y + 1.0) * 3.0) as u32);
         x % 2 == 0 || y == 0
-    };
-    let tets = grid.tets().iter().filter(tooth_or_base).copied().collect();
+    })
+}
+
+/// A `cells` grid of [-1, 1]^3 (6 tets a cell) of the Gaussians, only the tets whose centroid
+/// passes `keep`.
+fn grid_keeping(cells: glam::UVec3, keep: impl Fn(DVec3) -> bool) -> TetMesh {
+    let grid = generate::box_grid(DVec3::splat(-1.0), DVec3::ONE, cells, "gaussians", |p| {
+        Field::Gaussians.eval(p)
+    });
+    let p = grid.positions();
+    let centroid = |t: &[u32; 4]| t.iter().map(|&v| p[v as usize]).sum::<DVec3>() / 4.0;
+    let tets = grid
+        .tets()
+        .iter()
+        .filter(|t| keep(centroid(t)))
+        .copied()
+        .collect();
     let (mesh, _) = TetMesh::new(p.to_vec(), tets, grid.arrays().to_vec()).unwrap();
     mesh
 }
@@ -353,21 +332,9 @@ fn list_overflow_reruns_with_the_eye_inside() {
 /// Twenty slabs in a row: the even x-slabs of a 39 x 4 x 4 grid of [-1, 1]^3 (6 tets a cell),
 /// each a convex box a ray enters at most once.
 fn slabs() -> TetMesh {
-    let grid = generate::box_grid(
-        DVec3::splat(-1.0),
-        DVec3::ONE,
-        glam::UVec3::new(39, 4, 4),
-        "gaussians",
-        |p| Field::Gaussians.eval(p),
-    );
-    let p = grid.positions();
-    let even_slab = |t: &&[u32; 4]| {
-        let c = t.iter().map(|&v| p[v as usize]).sum::<DVec3>() / 4.0;
+    grid_keeping(glam::UVec3::new(39, 4, 4), |c| {
         (((c.x + 1.0) * 19.5) as u32).is_multiple_of(2)
-    };
-    let tets = grid.tets().iter().filter(even_slab).copied().collect();
-    let (mesh, _) = TetMesh::new(p.to_vec(), tets, grid.arrays().to_vec()).unwrap();
-    mesh
+    })
 }
 
 /// Seen along the row of [`slabs`], the middle rays enter all 20 slabs: lists of the default
@@ -575,23 +542,6 @@ fn sharp_tf_on_a_grid() {
     check("sharp", &mesh, &camera, &sharp_tf(&mesh), BOUNDS);
 }
 
-/// A TF with a step and opacity up to 0.8 per unit distance over `mesh`'s scalar range.
-fn sharp_tf(mesh: &TetMesh) -> TransferFunction {
-    let (lo, hi) = mesh.active_array().and_then(|a| a.range()).unwrap();
-    let cp = |u: f64, color, opacity| ControlPoint {
-        s: lo + (hi - lo) * u,
-        color,
-        opacity,
-    };
-    let points = vec![
-        cp(0.0, [0.1, 0.2, 0.9], 0.0),
-        cp(0.45, [0.2, 0.9, 0.3], 0.5),
-        cp(0.45, [0.9, 0.2, 0.1], 0.05),
-        cp(1.0, [1.0, 0.9, 0.1], 0.8),
-    ];
-    TransferFunction::new(points, mesh.diagonal() / 100.0).unwrap()
-}
-
 /// The blunt fin (187,395 tets, 77 with coincident corners: thin, left by their edges), seen
 /// from outside with the default and the `shock` TF, and with the eye inside the mesh.
 #[test]
@@ -602,8 +552,7 @@ fn bluntfin_outside_and_eye_inside() {
     let (tf, outside) = default_view(&mesh, 96);
     let got = check("bluntfin", &mesh, &outside, &tf, BOUNDS);
     assert_eq!(counter(&got.timings, "thin tets"), 77);
-    let range = mesh.active_array().and_then(|a| a.range()).unwrap();
-    let shock = tetvr::tf::file::load_tf("shock", range, mesh.diagonal() / 100.0).unwrap();
+    let shock = common::shock_tf(&mesh);
     // The shock TF's narrow opaque bands turn f32 scalar rounding into colour: measured rmse
     // 8.4e-6, max 4.3e-4; rmse bound about 4x, max_abs the target.
     check(
@@ -613,15 +562,7 @@ fn bluntfin_outside_and_eye_inside() {
         &shock,
         bounds(3e-5, 1e-3),
     );
-    let (lo, hi) = mesh.bounds();
-    let inside = Camera {
-        eye: lo + (hi - lo) * DVec3::new(0.6, 0.5, 0.5),
-        target: lo + (hi - lo) * DVec3::new(0.1, 0.4, 0.3),
-        up: DVec3::Z,
-        fov_y_deg: 60.0,
-        width: 96,
-        height: 96,
-    };
+    let inside = common::bluntfin_inside(&mesh);
     let got = check("bluntfin-inside", &mesh, &inside, &tf, BOUNDS);
     assert_eq!(counter(&got.timings, "eye in a tet"), 1);
 }

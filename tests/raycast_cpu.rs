@@ -8,12 +8,12 @@ mod common;
 use glam::DVec3;
 use tetvr::cpu::raycast::Segments;
 use tetvr::cpu::raycast::{CpuRaycastRenderer, CpuRaycastSettings};
-use tetvr::deform::Deformation;
 use tetvr::generate::{self, fields::Field};
-use tetvr::tf::ControlPoint;
 use tetvr::{Camera, Frame, Renderer, TetMesh, TransferFunction};
 
-use common::{Bounds, assert_images_close, counter, default_view, gaussians, lox, reference_image};
+use common::{
+    Bounds, assert_images_close, bounds, counter, default_view, gaussians, lox, reference_image,
+};
 
 fn renderer(mesh: &TetMesh, segments: Segments) -> CpuRaycastRenderer {
     let settings = CpuRaycastSettings {
@@ -27,15 +27,6 @@ fn renderer(mesh: &TetMesh, segments: Segments) -> CpuRaycastRenderer {
 /// 3e-6 is about 10x the figures measured here (rmse 1.8e-7 to 3.5e-7, max_abs up to 9.5e-5
 /// on lox at 512x512), f32 planes, scalars and integration.
 const BOUNDS: Bounds = bounds(3e-6, 1e-3);
-
-const fn bounds(max_rmse: f64, max_abs: f64) -> Bounds {
-    Bounds {
-        max_rmse,
-        max_abs,
-        max_holes: 0,
-        max_spill: 0,
-    }
-}
 
 /// Renders `mesh` with both integrators, checks each against the reference within `b` and
 /// that no ray hit the step limit; returns the exact frame. The psi table's interpolation
@@ -89,20 +80,9 @@ fn head_on_grid_has_no_holes() {
 fn deformed_mesh_matches_reference() {
     let mut mesh = lox();
     let (tf, camera) = default_view(&mesh, 96);
-    let (lo, hi) = mesh.bounds();
-    let mut r = renderer(&mesh, Segments::Partial);
-    let rest = r.render(&camera, &tf).unwrap().image;
-    let moved = Deformation::Bend.apply(mesh.positions(), lo, hi, 0.4, 0.3);
-    r.update_positions(&moved).unwrap();
-    let got = r.render(&camera, &tf).unwrap().image;
-    // The bend moves the picture far more than any bound here (measured rmse 3e-2 on the GPU).
-    assert!(got.compare(&rest).unwrap().rmse > 1e-3);
-    mesh.set_positions(moved).unwrap();
-    let fresh = renderer(&mesh, Segments::Partial)
-        .render(&camera, &tf)
-        .unwrap()
-        .image;
-    assert_eq!(got.compare(&fresh).unwrap().max_abs, 0.0);
+    common::assert_bent_draws_as_built_bent(&mut mesh, (&camera, &tf), |m| {
+        renderer(m, Segments::Partial)
+    });
     check("bent", &mesh, &camera, &tf, BOUNDS);
 }
 
@@ -136,19 +116,7 @@ fn step_limit_is_counted_and_bad_updates_are_refused() {
 fn sharp_tf_on_a_grid() {
     let mesh = gaussians(16);
     let (_, camera) = default_view(&mesh, 96);
-    let (lo, hi) = mesh.active_array().and_then(|a| a.range()).unwrap();
-    let cp = |u: f64, color, opacity| ControlPoint {
-        s: lo + (hi - lo) * u,
-        color,
-        opacity,
-    };
-    let points = vec![
-        cp(0.0, [0.1, 0.2, 0.9], 0.0),
-        cp(0.45, [0.2, 0.9, 0.3], 0.5),
-        cp(0.45, [0.9, 0.2, 0.1], 0.05),
-        cp(1.0, [1.0, 0.9, 0.1], 0.8),
-    ];
-    let tf = TransferFunction::new(points, mesh.diagonal() / 100.0).unwrap();
+    let tf = common::sharp_tf(&mesh);
     check("sharp", &mesh, &camera, &tf, BOUNDS);
 }
 
@@ -162,8 +130,7 @@ fn bluntfin_outside_and_eye_inside() {
     let (tf, outside) = default_view(&mesh, 96);
     let got = check("bluntfin", &mesh, &outside, &tf, BOUNDS);
     assert_eq!(counter(&got.timings, "thin tets"), 77);
-    let range = mesh.active_array().and_then(|a| a.range()).unwrap();
-    let shock = tetvr::tf::file::load_tf("shock", range, mesh.diagonal() / 100.0).unwrap();
+    let shock = common::shock_tf(&mesh);
     // The shock TF's narrow opaque bands turn f32 scalar rounding into colour (GPU: rmse
     // 8.4e-6, max 4.3e-4): the GPU test's bound.
     check(
@@ -173,15 +140,7 @@ fn bluntfin_outside_and_eye_inside() {
         &shock,
         bounds(3e-5, 1e-3),
     );
-    let (lo, hi) = mesh.bounds();
-    let inside = Camera {
-        eye: lo + (hi - lo) * DVec3::new(0.6, 0.5, 0.5),
-        target: lo + (hi - lo) * DVec3::new(0.1, 0.4, 0.3),
-        up: DVec3::Z,
-        fov_y_deg: 60.0,
-        width: 96,
-        height: 96,
-    };
+    let inside = common::bluntfin_inside(&mesh);
     let got = check("bluntfin-inside", &mesh, &inside, &tf, BOUNDS);
     assert_eq!(counter(&got.timings, "eye in a tet"), 1);
 }

@@ -12,7 +12,7 @@ use tetvr::render::RenderError;
 use tetvr::tf::{ControlPoint, opacity_to_tau};
 use tetvr::{Camera, Image, Renderer, TetMesh, TransferFunction, View};
 
-use common::{Bounds, assert_images_close, load_asset};
+use common::{Bounds, assert_images_close, bounds, load_asset};
 
 // ---------------------------------------------------------------------------------------------
 // Helpers
@@ -434,12 +434,7 @@ fn translation_far_from_the_origin_changes_nothing() {
             height: 24,
             pixels: base.iter().map(|p| p.map(|v| v as f32)).collect(),
         };
-        let b = Bounds {
-            max_rmse: bound + 1e-7,
-            max_abs: bound + 1e-7,
-            max_holes: 0,
-            max_spill: 0,
-        };
+        let b = bounds(bound + 1e-7, bound + 1e-7);
         assert_images_close(&format!("reference-offset-{offset:e}"), &image, &want, b);
     }
 }

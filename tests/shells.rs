@@ -7,26 +7,13 @@
 
 mod common;
 
-use std::sync::OnceLock;
-
 use glam::{DVec3, UVec3};
 use tetvr::generate::fields::Field;
-use tetvr::gpu::{
-    AdapterChoice, GpuContext, Sampler, ShellSettings, ShellsRenderer, Skips, SliceFormat,
-};
+use tetvr::gpu::{GpuContext, Sampler, ShellSettings, ShellsRenderer, Skips, SliceFormat};
 use tetvr::tf::ControlPoint;
 use tetvr::{Camera, Image, Renderer, TetMesh, TransferFunction, View, generate};
 
-use common::{Bounds, assert_images_close, counter, lox, reference_image};
-
-fn ctx() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| {
-        GpuContext::new(AdapterChoice::Auto).unwrap_or_else(|e| {
-            panic!("the shells tests need a GPU adapter (Mesa's lavapipe will do): {e}")
-        })
-    })
-}
+use common::{Bounds, assert_images_close, bounds, counter, ctx, lox, reference_image};
 
 /// A TF over [lo, hi] with three colours and an opacity bump, unit distance `d_u`.
 fn tf3(lo: f64, hi: f64, d_u: f64) -> TransferFunction {
@@ -182,12 +169,7 @@ fn linear(p: DVec3) -> f64 {
 /// TF colour by the TF slope times that; over ~600 samples the accumulated colour error stays
 /// below 1e-4 (measured ~1e-5). Ambiguous pixels (a sample within 1e-4 of the mesh boundary,
 /// where f32 and f64 may disagree on one sample) are excluded and counted.
-const LINEAR_BOUNDS: Bounds = Bounds {
-    max_rmse: 2e-5,
-    max_abs: 2e-4,
-    max_holes: 0,
-    max_spill: 0,
-};
+const LINEAR_BOUNDS: Bounds = bounds(2e-5, 2e-4);
 
 #[test]
 fn constant_field_in_a_box_matches_the_closed_form() {
@@ -449,12 +431,7 @@ fn far_from_the_origin_renders_the_same_picture() {
     let tf = tf3(-1.6, 1.6, 0.05);
     let (near_img, _, _) = render(&mesh, ShellSettings::default(), &camera, &tf);
     let (far_img, _, _) = render(&far, ShellSettings::default(), &moved, &tf);
-    let bounds = Bounds {
-        max_rmse: 1e-6,
-        max_abs: 1e-4,
-        max_holes: 0,
-        max_spill: 0,
-    };
+    let bounds = bounds(1e-6, 1e-4);
     assert_images_close("shells-far-from-origin", &far_img, &near_img, bounds);
 }
 
@@ -662,28 +639,13 @@ fn gaussians(cells: u32) -> TetMesh {
 /// adapters' rasterization and f32 rounding. Holes: a pixel whose exact alpha exceeds 0.01 has a
 /// chord through the mesh well above dz at this spacing (at most one sample could be missed at
 /// grazing silhouettes; 64 samples per diameter shows 50 such pixels on lox, 512 shows none).
-const LOX_BOUNDS: Bounds = Bounds {
-    max_rmse: 1.2e-3,
-    max_abs: 2e-2,
-    max_holes: 0,
-    max_spill: 0,
-};
-const GAUSSIAN_BOUNDS: Bounds = Bounds {
-    max_rmse: 1.2e-4,
-    max_abs: 2e-3,
-    max_holes: 0,
-    max_spill: 0,
-};
+const LOX_BOUNDS: Bounds = bounds(1.2e-3, 2e-2);
+const GAUSSIAN_BOUNDS: Bounds = bounds(1.2e-4, 2e-3);
 
 /// The blunt fin from the side at 512 samples, 128x128: point-sampling error as for lox,
 /// measured on lavapipe as rmse 1.79e-4 (raster) and 1.73e-4 (compute, the samplers differ
 /// where their coverage decisions do, see SAMPLER_BOUNDS), max 5.8e-3 both; bounds twice that.
-const BLUNTFIN_BOUNDS: Bounds = Bounds {
-    max_rmse: 3.6e-4,
-    max_abs: 1.2e-2,
-    max_holes: 0,
-    max_spill: 0,
-};
+const BLUNTFIN_BOUNDS: Bounds = bounds(3.6e-4, 1.2e-2);
 
 #[test]
 fn real_mesh_matches_the_reference() {
@@ -813,35 +775,47 @@ fn a_mesh_beyond_one_storage_binding_is_drawn_in_chunks() {
     let base = ctx();
     let small = common::with_storage_binding_limit(base, 64 << 10);
     let mesh = lox();
-    let (lo, hi) = mesh.bounds();
-    let tf = default_tf(&mesh);
-    let outside = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 96, 96);
-    let inside = Camera {
-        eye: outside.target + 0.1 * (outside.eye - outside.target),
-        ..outside
-    };
     let settings = ShellSettings {
         samples: 256,
         ..Default::default()
     };
-    let mut whole = ShellsRenderer::new(base, &mesh, settings).expect("unchunked renderer");
-    let mut chunked = ShellsRenderer::new(&small, &mesh, settings).expect("chunked renderer");
+    let tf = default_tf(&mesh);
+    chunked_draws_whole(&small, &mesh, &tf, (96, settings), |n| n >= 11);
+}
+
+/// `mesh` framed at `size` x `size` from outside and from a tenth of the way from the target
+/// to the eye, drawn with `settings` on the unrestricted adapter and on `small` (which splits
+/// the records into chunks): each chunked frame's number of record chunks passes `chunks`, its
+/// picture is the unchunked one bit for bit, and the scene is not empty. Returns the chunked
+/// renderer.
+fn chunked_draws_whole(
+    small: &GpuContext,
+    mesh: &TetMesh,
+    tf: &TransferFunction,
+    (size, settings): (u32, ShellSettings),
+    chunks: impl Fn(u64) -> bool,
+) -> ShellsRenderer {
+    let (lo, hi) = mesh.bounds();
+    let outside = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, size, size);
+    let inside = Camera {
+        eye: outside.target + 0.1 * (outside.eye - outside.target),
+        ..outside
+    };
+    let mut whole = ShellsRenderer::new(ctx(), mesh, settings).expect("unchunked renderer");
+    let mut chunked = ShellsRenderer::new(small, mesh, settings).expect("chunked renderer");
     for camera in [&outside, &inside] {
-        let a = whole.render(camera, &tf).expect("unchunked frame").image;
-        let frame = chunked.render(camera, &tf).expect("chunked frame");
-        assert!(
-            counter(&frame.timings, "record chunks") >= 11,
-            "{}",
-            frame.timings
-        );
-        let b = frame.image;
-        let m = b.compare(&a).expect("same size");
+        let a = whole.render(camera, tf).expect("unchunked frame").image;
+        let frame = chunked.render(camera, tf).expect("chunked frame");
+        let n = counter(&frame.timings, "record chunks");
+        assert!(chunks(n), "{n} record chunks\n{}", frame.timings);
+        let m = frame.image.compare(&a).expect("same size");
         assert_eq!(m.max_abs, 0.0, "chunked differs from unchunked: {m:?}");
         assert!(
             a.pixels.iter().any(|p| p[3] > 0.01),
             "the scene is not empty"
         );
     }
+    chunked
 }
 
 #[test]
@@ -936,36 +910,14 @@ fn the_compute_sampler_draws_a_chunked_mesh_as_it_draws_it_whole() {
     let base = ctx();
     let small = common::with_storage_binding_limit(base, 256 << 10);
     let mesh = lox();
-    let (lo, hi) = mesh.bounds();
     let tf = default_tf(&mesh);
-    let outside = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 64, 64);
-    let inside = Camera {
-        eye: outside.target + 0.1 * (outside.eye - outside.target),
-        ..outside
-    };
     let settings = ShellSettings {
         samples: 256,
         slices_per_shell: Some(16),
         ..with_sampler(Sampler::Compute)
     };
-    let mut whole = ShellsRenderer::new(base, &mesh, settings).expect("unchunked renderer");
-    let mut chunked = ShellsRenderer::new(&small, &mesh, settings).expect("chunked renderer");
-    for camera in [&outside, &inside] {
-        let a = whole.render(camera, &tf).expect("unchunked frame").image;
-        let frame = chunked.render(camera, &tf).expect("chunked frame");
-        assert_eq!(
-            counter(&frame.timings, "record chunks"),
-            3,
-            "{}",
-            frame.timings
-        );
-        let m = frame.image.compare(&a).expect("same size");
-        assert_eq!(m.max_abs, 0.0, "chunked differs from unchunked: {m:?}");
-        assert!(
-            a.pixels.iter().any(|p| p[3] > 0.01),
-            "the scene is not empty"
-        );
-    }
+    let mut chunked = chunked_draws_whole(&small, &mesh, &tf, (64, settings), |n| n == 3);
+    let (lo, hi) = mesh.bounds();
     // At 128x128 the carried slices (1 MiB) exceed the binding: an error naming the way out,
     // not a wrong picture.
     let large = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 128, 128);
@@ -983,12 +935,7 @@ fn the_compute_sampler_draws_a_chunked_mesh_as_it_draws_it_whole() {
 /// samples across the bounding-sphere diameter, which is the diagonal). Measured on lavapipe:
 /// lox bit-identical, blunt fin rmse 4.5e-5 and max 4.5e-3 from outside, 3.4e-6 and 7.6e-4
 /// from inside; the bound allows twice the rmse.
-const SAMPLER_BOUNDS: Bounds = Bounds {
-    max_rmse: 1e-4,
-    max_abs: 2e-2,
-    max_holes: 0,
-    max_spill: 0,
-};
+const SAMPLER_BOUNDS: Bounds = bounds(1e-4, 2e-2);
 
 /// The walk sampler against the raster sampler: the same slices, scalars, TF and composite,
 /// but each sample taken by the one tet whose segment holds it (t0 <= t_k < t1: never twice
@@ -1006,12 +953,7 @@ const SAMPLER_BOUNDS: Bounds = Bounds {
 /// epsilon 0: the tolerance band is most of it); blunt fin 6.3e-5, 4.5e-3, 37 pixels;
 /// from inside 3.2e-5, 1.2e-3, 30 pixels. The bound allows twice lox's rmse, and a pixel
 /// in 100 differing by more than 1e-3 (measured at most 0.3%).
-const WALK_BOUNDS: Bounds = Bounds {
-    max_rmse: 3.2e-4,
-    max_abs: 2e-2,
-    max_holes: 0,
-    max_spill: 0,
-};
+const WALK_BOUNDS: Bounds = bounds(3.2e-4, 2e-2);
 
 /// At most one pixel in this many may differ by more than 1e-3 between the walk and the raster
 /// sampler (WALK_BOUNDS).
@@ -1197,12 +1139,7 @@ const THRESHOLD_CHANGE: f64 = 0.05;
 /// 2e-2 (one, at 6.5e-2, while the walk checked only at a shell's first slice, which a ray
 /// may skip between leaving the mesh and re-entering it). The bound allows 0.7 for at most
 /// MAX_FLIPPED pixels.
-const THRESHOLD_WALK_BOUNDS: Bounds = Bounds {
-    max_rmse: 1e-3,
-    max_abs: 0.7,
-    max_holes: 0,
-    max_spill: 0,
-};
+const THRESHOLD_WALK_BOUNDS: Bounds = bounds(1e-3, 0.7);
 
 /// Pixels that THRESHOLD_WALK_BOUNDS lets differ beyond WALK_BOUNDS (measured 0).
 const MAX_FLIPPED: usize = 4;

@@ -7,22 +7,11 @@
 
 mod common;
 
-use std::sync::OnceLock;
-
 use glam::DVec3;
-use tetvr::gpu::{AdapterChoice, BinningMode, GpuContext, Sampler, ShellSettings, ShellsRenderer};
+use tetvr::gpu::{BinningMode, Sampler, ShellSettings, ShellsRenderer};
 use tetvr::{Camera, Image, Renderer, TetMesh, TransferFunction, View};
 
-use common::{Bounds, Scene, assert_images_close, counter, lox};
-
-fn ctx() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| {
-        GpuContext::new(AdapterChoice::Auto).unwrap_or_else(|e| {
-            panic!("the shells binning tests need a GPU adapter (Mesa's lavapipe will do): {e}")
-        })
-    })
-}
+use common::{Bounds, Scene, assert_images_close, bounds, counter, ctx, lox};
 
 fn framed(mesh: TetMesh, view: &str, size: u32) -> Scene {
     let (tf, _) = common::default_view(&mesh, size);
@@ -67,12 +56,7 @@ fn render(mesh: &TetMesh, s: ShellSettings, camera: &Camera, tf: &TransferFuncti
 /// sample, so order does not matter; early termination drops finished tets only from the
 /// CPU's lists, which changes no picture either. Measured on lavapipe: identical bits
 /// (max_abs 0) on every scene and sampler; the bound leaves f32 rounding room.
-const SAME: Bounds = Bounds {
-    max_rmse: 1e-6,
-    max_abs: 1e-5,
-    max_holes: 0,
-    max_spill: 0,
-};
+const SAME: Bounds = bounds(1e-6, 1e-5);
 
 #[test]
 fn gpu_binning_draws_the_cpu_binnings_pictures_with_both_samplers() {

@@ -15,7 +15,7 @@ use tetvr::reference::ReferenceRenderer;
 use tetvr::tf::file::load_tf;
 use tetvr::{Camera, Renderer, View};
 
-use common::{Bounds, assert_images_close};
+use common::{Bounds, assert_images_close, bounds};
 
 #[test]
 fn bluntfin_same_view_same_picture_whatever_came_before() {
@@ -53,12 +53,7 @@ fn bluntfin_same_view_same_picture_whatever_came_before() {
     // Every pixel is the same sequence of float operations in every frame (MAX blending of
     // the slices is order-independent, the shells composite in a fixed order), so the
     // pictures are bit-identical: all bounds 0.
-    let identical = Bounds {
-        max_rmse: 0.0,
-        max_abs: 0.0,
-        max_holes: 0,
-        max_spill: 0,
-    };
+    let identical = bounds(0.0, 0.0);
     assert_images_close("shells-determinism-again", &again, &first, identical);
     assert_images_close(
         "shells-determinism-after-other",

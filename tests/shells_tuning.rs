@@ -6,26 +6,17 @@
 
 mod common;
 
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::{Arc, Mutex};
 
 use glam::UVec3;
 use tetvr::generate::fields::Field;
 use tetvr::gpu::{
-    AdapterChoice, GpuContext, GpuTetMesh, Sampler, ShellSettings, ShellsRenderer, SliceFormat,
-    TimingSource, TuneCache, TunedShells,
+    GpuTetMesh, Sampler, ShellSettings, ShellsRenderer, SliceFormat, TimingSource, TuneCache,
+    TunedShells,
 };
 use tetvr::{Camera, Frame, Image, Renderer, TetMesh, TransferFunction, Tuning, View};
 
-use common::{Bounds, assert_images_close, lox, reference_image};
-
-fn ctx() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| {
-        GpuContext::new(AdapterChoice::Auto).unwrap_or_else(|e| {
-            panic!("the shells tuning tests need a GPU adapter (Mesa's lavapipe will do): {e}")
-        })
-    })
-}
+use common::{Bounds, assert_images_close, bounds, ctx, lox, reference_image};
 
 /// The default TF over the mesh's scalar range, unit distance 1/100 of the diagonal.
 fn default_tf(mesh: &TetMesh) -> TransferFunction {
@@ -84,12 +75,7 @@ fn shells(
 /// scenes. The gaussians' figure is above their f32 bound (tests/shells.rs: 1.2e-4), so f32
 /// stays the default. The bound is twice the largest figure measured with either
 /// accumulation, and holds no hole and no spill.
-const F16_BOUNDS: Bounds = Bounds {
-    max_rmse: 1.5e-3,
-    max_abs: 1.8e-2,
-    max_holes: 0,
-    max_spill: 0,
-};
+const F16_BOUNDS: Bounds = bounds(1.5e-3, 1.8e-2);
 
 #[test]
 fn sixteen_bit_slices_stay_within_their_bound_of_the_reference() {
@@ -152,12 +138,7 @@ fn tuned(cache: &Arc<TuneCache>, log: &Log) -> (TunedShells, TetMesh, Camera) {
 
 /// lox's bounds against the reference at 512 samples (tests/shells.rs, LOX_BOUNDS: twice the
 /// measured point-sampling error), which every candidate configuration must meet.
-const LOX_BOUNDS: Bounds = Bounds {
-    max_rmse: 1.2e-3,
-    max_abs: 2e-2,
-    max_holes: 0,
-    max_spill: 0,
-};
+const LOX_BOUNDS: Bounds = bounds(1.2e-3, 2e-2);
 
 #[test]
 fn tuning_keeps_what_measures_faster_never_what_measured_slower_and_stays() {

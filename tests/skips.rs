@@ -6,24 +6,13 @@
 
 mod common;
 
-use std::sync::OnceLock;
-
 use glam::UVec3;
 use tetvr::generate::fields::{Field, grid};
-use tetvr::gpu::{AdapterChoice, GpuContext, ShellSettings, ShellsRenderer, Skip, Skips};
+use tetvr::gpu::{ShellSettings, ShellsRenderer, Skip, Skips};
 use tetvr::tf::ControlPoint;
 use tetvr::{Camera, Frame, Image, Renderer, TetMesh, TransferFunction, View};
 
-use common::{Bounds, assert_images_close, counter, reference_image};
-
-fn ctx() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| {
-        GpuContext::new(AdapterChoice::Auto).unwrap_or_else(|e| {
-            panic!("the skips tests need a GPU adapter (Mesa's lavapipe will do): {e}")
-        })
-    })
-}
+use common::{Bounds, assert_images_close, bounds, counter, ctx, reference_image};
 
 fn render(mesh: &TetMesh, skips: Skips, camera: &Camera, tf: &TransferFunction) -> Frame {
     let settings = ShellSettings {
@@ -83,23 +72,13 @@ fn default_tf(mesh: &TetMesh) -> TransferFunction {
 /// Shells against the reference on this scene family, as in tests/shells.rs (gaussians at 512
 /// samples per diameter; measured here on lavapipe RMSE 5.4e-5 to 8.7e-5, max 8.4e-4 to
 /// 1.8e-3); the bounds allow about twice that for other adapters' rasterization and rounding.
-const REFERENCE_BOUNDS: Bounds = Bounds {
-    max_rmse: 1.2e-4,
-    max_abs: 2e-3,
-    max_holes: 0,
-    max_spill: 0,
-};
+const REFERENCE_BOUNDS: Bounds = bounds(1.2e-4, 2e-3);
 
 /// A skip that drops only work contributing nothing leaves the picture unchanged up to f32
 /// noise: a dropped transparent tet's samples could only have replaced (under MAX) an equal
 /// scalar at a shared face, up to the barycentric tolerance epsilon = 1e-4 times the field's
 /// slope, which the TF maps to a colour change far below 1e-4 (measured: 0 on lavapipe).
-const UNCHANGED: Bounds = Bounds {
-    max_rmse: 1e-6,
-    max_abs: 1e-4,
-    max_holes: 0,
-    max_spill: 0,
-};
+const UNCHANGED: Bounds = bounds(1e-6, 1e-4);
 
 /// Every skip on, with adaptive slices off unless `skip` is adaptive slices: another skip
 /// changes the tets binned and so may change the chosen count of slices per shell, whose
@@ -220,21 +199,11 @@ fn early_termination_on_an_opaque_scene_loses_at_most_the_threshold() {
     let threshold = Skips::ALL.ert_threshold as f64;
     // A finished pixel's remaining transmittance is below 1 - threshold and colours are at most
     // 1, so it loses at most that much per channel; 1e-5 covers f32 accumulation noise.
-    let between = Bounds {
-        max_rmse: 1.0 - threshold,
-        max_abs: 1.0 - threshold + 1e-5,
-        max_holes: 0,
-        max_spill: 0,
-    };
+    let between = bounds(1.0 - threshold, 1.0 - threshold + 1e-5);
     // The steep TF makes the sampling error larger than on smooth TFs (a first-order phase
     // error at every entry into the opaque region): measured RMSE 2.0e-4, max 2.5e-2 on
     // lavapipe, on and off; both pictures get twice that for other adapters.
-    let opaque_bounds = Bounds {
-        max_rmse: 5e-4,
-        max_abs: 5e-2,
-        max_holes: 0,
-        max_spill: 0,
-    };
+    let opaque_bounds = bounds(5e-4, 5e-2);
     let ert = Skip::EarlyTermination;
     let on = render(&mesh, all_for(ert), &cam, &opaque);
     let off = render(&mesh, all_for(ert).without(ert), &cam, &opaque);
@@ -257,12 +226,7 @@ fn early_termination_changes_nothing_where_no_pixel_finishes() {
     let cam = camera(&mesh, 1.0);
     let tf = default_tf(&mesh);
     let g = reference_image(&mesh, &cam, &tf);
-    let exact = Bounds {
-        max_rmse: 0.0,
-        max_abs: 0.0,
-        max_holes: 0,
-        max_spill: 0,
-    };
+    let exact = bounds(0.0, 0.0);
     let (on, _) = on_and_off(
         "skips-ert-default",
         Skip::EarlyTermination,
@@ -340,12 +304,7 @@ fn a_new_transfer_function_recomputes_the_culled_tets() {
     let mut r = ShellsRenderer::new(ctx(), &mesh, ShellSettings::default()).expect("renderer");
     let first = r.render(&cam, &low).expect("frame");
     let second = r.render(&cam, &high).expect("frame");
-    let exact = Bounds {
-        max_rmse: 0.0,
-        max_abs: 0.0,
-        max_holes: 0,
-        max_spill: 0,
-    };
+    let exact = bounds(0.0, 0.0);
     let fresh = |tf| render(&mesh, Skips::ALL, &cam, tf);
     assert_images_close(
         "skips-tf-change-low",
@@ -384,12 +343,7 @@ fn adaptive_slices_follow_the_tets_depth_and_change_the_picture_only_by_rounding
     // accumulated colour (measured on lavapipe: max 3.7e-6, RMSE 1.1e-8 on the slab, choosing
     // 8 slices per shell; max 4.6e-7, RMSE 3.3e-8 on the gaussians, choosing 24; the fixed
     // default there is 16). The bounds allow about three times that.
-    let rounding = Bounds {
-        max_rmse: 1e-6,
-        max_abs: 1e-5,
-        max_holes: 0,
-        max_spill: 0,
-    };
+    let rounding = bounds(1e-6, 1e-5);
     let slices = |f: &Frame| counter(&f.timings, "slices per shell");
     // Deep tets: the gaussians grid, against the exact reference as well.
     let mesh = gaussians();

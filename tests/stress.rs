@@ -22,16 +22,14 @@
 
 mod common;
 
-use std::sync::OnceLock;
-
 use glam::{DVec3, UVec3};
 use tetvr::cpu::raycast::{CpuRaycastRenderer, CpuRaycastSettings};
 use tetvr::generate;
 use tetvr::gpu::gpu_data::TetRecord;
 use tetvr::gpu::raycast::Segments;
 use tetvr::gpu::{
-    AdapterChoice, CellProjRenderer, CellProjSettings, GpuContext, Integrate, IsoRenderer,
-    IsoSettings, RaycastRenderer, RaycastSettings, Sampler, ShellSettings, ShellsRenderer,
+    CellProjRenderer, CellProjSettings, GpuContext, Integrate, IsoRenderer, IsoSettings,
+    RaycastRenderer, RaycastSettings, Sampler, ShellSettings, ShellsRenderer,
 };
 use tetvr::reference::ReferenceRenderer;
 use tetvr::reference::iso::{IsoReference, Shading};
@@ -39,14 +37,7 @@ use tetvr::render::{RenderError, Renderer};
 use tetvr::tf::ControlPoint;
 use tetvr::{Camera, Image, ScalarArray, TetMesh, TransferFunction};
 
-fn ctx() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| {
-        GpuContext::new(AdapterChoice::Auto).unwrap_or_else(|e| {
-            panic!("the stress suite needs a GPU adapter (Mesa's lavapipe will do): {e}")
-        })
-    })
-}
+use common::ctx;
 
 /// What a mode's picture is compared with.
 #[derive(Clone, Copy, PartialEq)]

@@ -16,7 +16,7 @@
 //! rays lying in a face plane, the eye at or near a vertex, samples on slice boundaries, and
 //! transfer-function control points (and their f32 neighbours) as scalar values.
 
-use std::sync::OnceLock;
+mod common;
 
 use glam::{Vec3, Vec4};
 use tetvr::gpu::cellproj::twin as cellproj_twin;
@@ -24,18 +24,10 @@ use tetvr::gpu::gpu_data::{ShellUniforms, SlicingUniforms, TetRecord, TfPoint, V
 use tetvr::gpu::shaders;
 use tetvr::gpu::shells::twin;
 use tetvr::gpu::tf_points;
-use tetvr::gpu::{AdapterChoice, GpuContext};
 use tetvr::tf::{ControlPoint, TransferFunction};
 use wgpu::util::DeviceExt;
 
-fn ctx() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| {
-        GpuContext::new(AdapterChoice::Auto).unwrap_or_else(|e| {
-            panic!("the twin tests need a GPU adapter (Mesa's lavapipe will do): {e}")
-        })
-    })
-}
+use common::ctx;
 
 // ---------------------------------------------------------------------------------------------
 // Running WGSL on the adapter
@@ -661,6 +653,40 @@ fn sweep_tfs() -> Vec<Vec<ControlPoint>> {
         ],
         many,
     ]
+}
+
+/// The twin's evaluation equals TransferFunction::eval (f32 rounding aside) for the sweep's
+/// TFs: points outside the data range, close together, a single point, a step, and many.
+#[test]
+fn twin_tf_eval_matches_the_transfer_function() {
+    let (lo, span) = (-3.0, 8.0);
+    for points in sweep_tfs() {
+        let tf = TransferFunction::new(points, 0.5).unwrap();
+        let block = tf_points(&tf, lo, span).unwrap();
+        let pts = &block.points[..tf.points().len()];
+        let eval = |u: f64| {
+            let t = tf.eval(lo + u * span);
+            Vec4::new(
+                t.color[0] as f32,
+                t.color[1] as f32,
+                t.color[2] as f32,
+                t.tau as f32,
+            )
+        };
+        for i in 0..=40_000 {
+            let u = (i as f64 / 40_000.0 * 1.4 - 0.2) as f32;
+            let got = twin::tf_eval(pts, u);
+            // Exact up to f32 rounding of u and of the control points (an ulp of u <= 1.2
+            // is 1.2e-7): the result lies between the TF at u -/+ 2e-7 (which also spans a
+            // step at u), give or take a few ulps of values up to ~9 (tau of 0.9 over 0.5).
+            let (a, b) = (eval(u as f64 - 2e-7), eval(u as f64 + 2e-7));
+            let (lo_v, hi_v) = (a.min(b) - Vec4::splat(1e-5), a.max(b) + Vec4::splat(1e-5));
+            assert!(
+                got.cmpge(lo_v).all() && got.cmple(hi_v).all(),
+                "u {u}: {got} not in [{a}, {b}]"
+            );
+        }
+    }
 }
 
 /// The normalized scalars of the sweep over `points`: a dense sweep beyond both ends, each

@@ -460,32 +460,10 @@ fn series_playback_steps_change_the_picture() {
     h.frame(vec![space.clone()]);
     h.wait_for_step(1);
     h.frame(vec![space]);
-    assert!(
-        h.viewer.status.contains("scalars updated"),
-        "{}",
-        h.viewer.status
-    );
-    h.settle();
-    let (_, step1) = h.shown();
-    let rmse = step1.compare(&step0).unwrap().rmse;
-    assert!(
-        rmse > 1e-3,
-        "step 1 barely changed the picture: RMSE {rmse}"
-    );
+    let step1 = h.settled_change(1, "scalars updated", &step0);
     h.viewer.show_step(2);
     h.wait_for_step(2);
-    assert!(
-        h.viewer.status.contains("other tets: renderer rebuilt"),
-        "{}",
-        h.viewer.status
-    );
-    h.settle();
-    let (_, step2) = h.shown();
-    let rmse = step2.compare(&step1).unwrap().rmse;
-    assert!(
-        rmse > 1e-3,
-        "step 2 barely changed the picture: RMSE {rmse}"
-    );
+    h.settled_change(2, "other tets: renderer rebuilt", &step1);
     assert!(h.viewer.scene().mesh.ends_with("step_2.vtu"));
 }
 
@@ -500,6 +478,24 @@ impl Harness {
             std::thread::sleep(std::time::Duration::from_millis(10));
         }
         panic!("step {index} never came: {}", self.viewer.status);
+    }
+
+    /// Once step `index` is shown and the status says `status`: the settled picture, which
+    /// differs from `before` by RMSE over 1e-3.
+    fn settled_change(&mut self, index: usize, status: &str, before: &Image) -> Image {
+        assert!(
+            self.viewer.status.contains(status),
+            "{}",
+            self.viewer.status
+        );
+        self.settle();
+        let (_, shown) = self.shown();
+        let rmse = shown.compare(before).unwrap().rmse;
+        assert!(
+            rmse > 1e-3,
+            "step {index} barely changed the picture: RMSE {rmse}"
+        );
+        shown
     }
 }
 

@@ -209,10 +209,22 @@ pub(crate) fn compute_entry(
     entry: &str,
 ) -> wgpu::ComputePipeline {
     let module = wgsl_module(device, label, source);
+    let layout = pipeline_layout_for(device, layout);
+    compute_pipeline(device, label, &layout, &module, entry)
+}
+
+/// The compute pipeline of `module`'s `entry` with `layout`, no pipeline constants.
+pub(crate) fn compute_pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::PipelineLayout,
+    module: &wgpu::ShaderModule,
+    entry: &str,
+) -> wgpu::ComputePipeline {
     device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
         label: Some(label),
-        layout: Some(&pipeline_layout_for(device, layout)),
-        module: &module,
+        layout: Some(layout),
+        module,
         entry_point: Some(entry),
         compilation_options: Default::default(),
         cache: None,

@@ -128,16 +128,7 @@ fn read_points(c: &mut Cursor, h: NodeHeader) -> Result<Points, LoadError> {
             Some(&describe),
         )?;
         p.positions.push(DVec3::new(xyz[0], xyz[1], xyz[2]));
-        let describe =
-            |k: usize, x: f64| format!("attribute {k} of point {idx} is not finite ({x})");
-        let a = c.values(
-            nattr,
-            Scalar::F64,
-            None,
-            "the point attributes",
-            Some(&describe),
-        )?;
-        p.attrs.extend_from_slice(&a);
+        read_attributes(c, nattr, ("point", idx as u64), &mut p.attrs)?;
         for _ in 0..h.boundary_markers {
             c.parse::<i64>("a boundary marker")?;
         }
@@ -146,6 +137,21 @@ fn read_points(c: &mut Cursor, h: NodeHeader) -> Result<Points, LoadError> {
         return Err(c.err(c.pos, format!("unexpected data after the {n} points")));
     }
     Ok(p)
+}
+
+/// The `count` attributes of point or tetrahedron (`kind`) `index` of the file, each a finite
+/// number, appended to `out`.
+fn read_attributes(
+    c: &mut Cursor,
+    count: usize,
+    (kind, index): (&str, u64),
+    out: &mut Vec<f64>,
+) -> Result<(), LoadError> {
+    let describe =
+        |k: usize, x: f64| format!("attribute {k} of {kind} {index} is not finite ({x})");
+    let section = format!("the {kind} attributes");
+    out.extend(c.values(count, Scalar::F64, None, &section, Some(&describe))?);
+    Ok(())
 }
 
 /// The index of the `i`th point line: the first sets the numbering `base` (0 or 1), the
@@ -199,16 +205,7 @@ fn read_tets(e: &mut Cursor, base: usize, asm: &mut Assembler) -> Result<TetAttr
         for id in ids.iter_mut().take(kind.vertex_count()) {
             *id = e.parse::<i64>("a point index")?.saturating_sub(base as i64);
         }
-        let describe =
-            |k: usize, x: f64| format!("attribute {k} of tetrahedron {tag} is not finite ({x})");
-        let a = e.values(
-            eattr,
-            Scalar::F64,
-            None,
-            "the tetrahedron attributes",
-            Some(&describe),
-        )?;
-        attrs.values.extend_from_slice(&a);
+        read_attributes(e, eattr, ("tetrahedron", tag), &mut attrs.values)?;
         asm.cell(kind, &ids[..kind.vertex_count()], |msg| {
             LoadError::malformed(
                 name,

@@ -45,6 +45,29 @@ pub fn reference_image(mesh: &TetMesh, camera: &Camera, tf: &TransferFunction) -
         .expect("reference image")
 }
 
+/// Bends `mesh` (`Deformation::Bend`, 0.4 and 0.3) by `update_positions` of a renderer that
+/// `build` made for it at rest: the picture moves, and it is, bit for bit, what a renderer
+/// `build` makes for the bent mesh draws (the same positions, origin and arithmetic). Leaves
+/// `mesh` bent.
+pub fn assert_bent_draws_as_built_bent<R: tetvr::Renderer>(
+    mesh: &mut TetMesh,
+    (camera, tf): (&Camera, &TransferFunction),
+    build: impl Fn(&TetMesh) -> R,
+) {
+    let (lo, hi) = mesh.bounds();
+    let mut r = build(mesh);
+    let rest = r.render(camera, tf).unwrap().image;
+    let moved = tetvr::deform::Deformation::Bend.apply(mesh.positions(), lo, hi, 0.4, 0.3);
+    r.update_positions(&moved).unwrap();
+    let got = r.render(camera, tf).unwrap().image;
+    // The bend moves the picture far more than any bound here (measured rmse 3e-2 on lox with
+    // the GPU ray caster).
+    assert!(got.compare(&rest).unwrap().rmse > 1e-3);
+    mesh.set_positions(moved).unwrap();
+    let fresh = build(mesh).render(camera, tf).unwrap().image;
+    assert_eq!(got.compare(&fresh).unwrap().max_abs, 0.0);
+}
+
 /// The counter `name` of a frame's timings; a missing counter fails the test, naming them all.
 pub fn counter(t: &Timings, name: &str) -> u64 {
     t.counters
@@ -98,6 +121,16 @@ pub struct Bounds {
     pub max_spill: usize,
 }
 
+/// Bounds of `max_rmse` and `max_abs` with no holes and no spill.
+pub const fn bounds(max_rmse: f64, max_abs: f64) -> Bounds {
+    Bounds {
+        max_rmse,
+        max_abs,
+        max_holes: 0,
+        max_spill: 0,
+    }
+}
+
 /// Compares `actual` with `expected`; on failure writes actual/expected/diff PNGs to
 /// `target/test-output/<name>-*.png` and panics with the metrics. Non-finite pixels always fail.
 pub fn assert_images_close(
@@ -124,6 +157,18 @@ pub fn assert_images_close(
     }
     eprintln!("{name}: {m}");
     m
+}
+
+/// The GPU context of the tests (one per test binary), on the adapter `AdapterChoice::Auto`
+/// picks; without one the test fails, saying that Mesa's lavapipe will do.
+pub fn ctx() -> &'static tetvr::gpu::GpuContext {
+    use tetvr::gpu::{AdapterChoice, GpuContext};
+    static CTX: std::sync::OnceLock<GpuContext> = std::sync::OnceLock::new();
+    CTX.get_or_init(|| {
+        GpuContext::new(AdapterChoice::Auto).unwrap_or_else(|e| {
+            panic!("these tests need a GPU adapter (Mesa's lavapipe will do): {e}")
+        })
+    })
 }
 
 /// The same adapter and device as `ctx`, declared to bind at most `bytes` per storage buffer:
@@ -216,6 +261,40 @@ pub fn gaussians(cells: u32) -> TetMesh {
         "gaussians",
     )
     .expect("grid")
+}
+
+/// A TF with a step and opacity up to 0.8 per unit distance (diagonal / 100) over `mesh`'s
+/// scalar range: optically deep pieces, the opposite of the default.
+pub fn sharp_tf(mesh: &TetMesh) -> TransferFunction {
+    let (lo, hi) = mesh.active_array().and_then(|a| a.range()).unwrap();
+    let cp = |u: f64, color, opacity| tetvr::tf::ControlPoint {
+        s: lo + (hi - lo) * u,
+        color,
+        opacity,
+    };
+    let points = vec![
+        cp(0.0, [0.1, 0.2, 0.9], 0.0),
+        cp(0.45, [0.2, 0.9, 0.3], 0.5),
+        cp(0.45, [0.9, 0.2, 0.1], 0.05),
+        cp(1.0, [1.0, 0.9, 0.1], 0.8),
+    ];
+    TransferFunction::new(points, mesh.diagonal() / 100.0).unwrap()
+}
+
+/// The `shock` preset over `mesh`'s scalar range, unit distance diagonal / 100.
+pub fn shock_tf(mesh: &TetMesh) -> TransferFunction {
+    let range = mesh.active_array().and_then(|a| a.range()).unwrap();
+    tetvr::tf::file::load_tf("shock", range, mesh.diagonal() / 100.0).unwrap()
+}
+
+/// A 96x96 view from inside the blunt fin (`mesh`'s bounding box at (0.6, 0.5, 0.5)), looking
+/// towards (0.1, 0.4, 0.3) of it, 60 degrees: the eye lies in a tet.
+pub fn bluntfin_inside(mesh: &TetMesh) -> Camera {
+    use glam::DVec3;
+    let (lo, hi) = mesh.bounds();
+    let at = |u: DVec3| lo + (hi - lo) * u;
+    let (eye, target) = (at(DVec3::new(0.6, 0.5, 0.5)), at(DVec3::new(0.1, 0.4, 0.3)));
+    camera(eye, target, DVec3::Z, 60.0, 96)
 }
 
 /// A test scene: a mesh, its default TF and a camera.

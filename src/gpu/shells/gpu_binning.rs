@@ -24,8 +24,8 @@ use crate::gpu::gpu_data::{BinChunk, BinUniforms};
 use crate::gpu::mesh::{MeshData, TetArray};
 use crate::gpu::shaders;
 use crate::gpu::util::{
-    bind_group_layout, buffer_entry, entry, pipeline_layout_for, read_mapped, settings_error,
-    uniform_buffer, wgsl_module,
+    bind_group_layout, buffer_entry, compute_pipeline, entry, pipeline_layout_for, read_mapped,
+    settings_error, uniform_buffer, wgsl_module,
 };
 use crate::render::RenderError;
 use crate::tf::TransferFunction;
@@ -101,14 +101,13 @@ impl GpuBinner {
         let pipeline_layout = pipeline_layout_for(device, &layout);
         let module = wgsl_module(device, "shells_bin", shaders::shells_bin());
         let pipeline = |entry| {
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some("shells gpu binning"),
-                layout: Some(&pipeline_layout),
-                module: &module,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                cache: None,
-            })
+            compute_pipeline(
+                device,
+                "shells gpu binning",
+                &pipeline_layout,
+                &module,
+                entry,
+            )
         };
         let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
         let (chunk_stride, chunk_uniforms) = chunk_uniforms(ctx, &chunks);

@@ -5,7 +5,9 @@
 
 use crate::gpu::gpu_data::ShellUniforms;
 use crate::gpu::shaders::{self, SHELLS_TILE};
-use crate::gpu::util::{bind_group_layout, buffer_entry, pipeline_layout_for, wgsl_module};
+use crate::gpu::util::{
+    bind_group_layout, buffer_entry, compute_pipeline, pipeline_layout_for, wgsl_module,
+};
 
 /// Invocations per workgroup of `count` and `scatter` (one per tet).
 const TETS_PER_GROUP: u32 = 64;
@@ -59,16 +61,8 @@ impl TilePipelines {
         let layout = bind_group_layout(device, "shells compute sampler", &entries);
         let pipeline_layout = pipeline_layout_for(device, &layout);
         let module = wgsl_module(device, "shells_tiles", shaders::shells_tiles());
-        let pipeline = |entry| {
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some("shells tiles"),
-                layout: Some(&pipeline_layout),
-                module: &module,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                cache: None,
-            })
-        };
+        let pipeline =
+            |entry| compute_pipeline(device, "shells tiles", &pipeline_layout, &module, entry);
         Self {
             count: pipeline("count"),
             scan: pipeline("scan"),

@@ -288,64 +288,6 @@ mod tests {
         }
     }
 
-    /// The composite's evaluation equals TransferFunction::eval (f32 rounding aside) for TFs
-    /// with points outside the data range, close together, a single point, and a step.
-    #[test]
-    fn tf_eval_matches_the_transfer_function() {
-        use crate::gpu::tf::tf_points;
-        use crate::tf::{ControlPoint, TransferFunction};
-        let cp = |s: f64, r: f64, a: f64| ControlPoint {
-            s,
-            color: [r, 1.0 - r, 0.5 * r],
-            opacity: a,
-        };
-        let (lo, span) = (-3.0, 8.0);
-        let tfs = [
-            vec![cp(-3.0, 0.0, 0.0), cp(5.0, 1.0, 0.9)],
-            vec![
-                cp(-4.0, 0.2, 0.1),
-                cp(0.0, 0.9, 0.5),
-                cp(0.0, 0.1, 0.05),
-                cp(1.3, 0.4, 0.7),
-                cp(9.0, 1.0, 0.2),
-            ],
-            vec![cp(1.0, 0.5, 0.5)],
-            vec![
-                cp(0.0, 0.1, 0.1),
-                cp(0.001, 0.9, 0.8),
-                cp(0.002, 0.2, 0.3),
-                cp(2.0, 0.5, 0.5),
-            ],
-        ];
-        for points in tfs {
-            let tf = TransferFunction::new(points, 0.5).unwrap();
-            let block = tf_points(&tf, lo, span).unwrap();
-            let pts = &block.points[..tf.points().len()];
-            let eval = |u: f64| {
-                let t = tf.eval(lo + u * span);
-                Vec4::new(
-                    t.color[0] as f32,
-                    t.color[1] as f32,
-                    t.color[2] as f32,
-                    t.tau as f32,
-                )
-            };
-            for i in 0..=40_000 {
-                let u = (i as f64 / 40_000.0 * 1.4 - 0.2) as f32;
-                let got = tf_eval(pts, u);
-                // Exact up to f32 rounding of u and of the control points (an ulp of u <= 1.2
-                // is 1.2e-7): the result lies between the TF at u -/+ 2e-7 (which also spans a
-                // step at u), give or take a few ulps of values up to ~9 (tau of 0.9 over 0.5).
-                let (a, b) = (eval(u as f64 - 2e-7), eval(u as f64 + 2e-7));
-                let (lo_v, hi_v) = (a.min(b) - Vec4::splat(1e-5), a.max(b) + Vec4::splat(1e-5));
-                assert!(
-                    got.cmpge(lo_v).all() && got.cmple(hi_v).all(),
-                    "u {u}: {got} not in [{a}, {b}]"
-                );
-            }
-        }
-    }
-
     #[test]
     fn degenerate_tets_are_refused_without_nan() {
         let f = frame(Vec3::new(0.0, -5.0, 0.0));
