@@ -273,6 +273,7 @@ mod tests {
     use super::*;
     use crate::camera::{Camera, View};
     use crate::generate::{Field, grid};
+    use crate::mesh::MeshError;
 
     fn scene() -> (TetMesh, Camera, TransferFunction) {
         let mesh = grid(Field::Gaussians, UVec3::splat(3), "f").unwrap();
@@ -299,6 +300,42 @@ mod tests {
     }
 
     /// The GPU only on hardware; a software adapter and none take the CPU ray caster.
+    /// `auto` refuses a mesh beyond [`crate::mesh::F32_RADII`] as the f32 mode it resolves to
+    /// does, pointing at the reference, which renders it: auto promises the fast path, and the
+    /// reference can be orders of magnitude slower on a large mesh, so the user chooses.
+    #[test]
+    fn auto_refuses_an_extent_beyond_f32_and_names_the_reference() {
+        let (mesh, camera, tf) = scene();
+        let reference = ModeSettings::Reference(ReferenceSettings::default());
+        let near = reference.build(None, &mesh).unwrap().render(&camera, &tf);
+        let mut far = mesh.clone();
+        far.set_positions(mesh.positions().iter().map(|p| *p * 1e20).collect())
+            .unwrap();
+        let auto = ModeSettings::Auto(ShellSettings::default());
+        let e = auto.build(None, &far).err().expect("a refusal");
+        assert!(
+            matches!(e, RenderError::Mesh(MeshError::ExtentOutOfF32Range { .. })),
+            "{e}"
+        );
+        assert!(e.to_string().contains("--mode reference"), "{e}");
+        // The same scene scaled by 1e20 (camera and unit distance alike): the f64 reference's
+        // picture, to rounding (1e-9 as in the stress suite).
+        let far_camera = Camera {
+            eye: camera.eye * 1e20,
+            target: camera.target * 1e20,
+            ..camera
+        };
+        let far_tf = tf.with_unit_distance(tf.unit_distance() * 1e20).unwrap();
+        let far_frame = reference
+            .build(None, &far)
+            .unwrap()
+            .render(&far_camera, &far_tf);
+        let m = (far_frame.unwrap().image)
+            .compare(&near.unwrap().image)
+            .unwrap();
+        assert!(m.rmse <= 1e-9, "{m}");
+    }
+
     #[test]
     fn auto_takes_the_gpu_only_on_hardware() {
         use wgpu::DeviceType as D;

@@ -31,6 +31,7 @@ use tetvr::gpu::{
     CellProjRenderer, CellProjSettings, GpuContext, Integrate, IsoRenderer, IsoSettings,
     RaycastRenderer, RaycastSettings, Sampler, ShellSettings, ShellsRenderer,
 };
+use tetvr::mesh::{F32_RADII, MeshError};
 use tetvr::reference::ReferenceRenderer;
 use tetvr::reference::iso::{IsoReference, Shading};
 use tetvr::render::{RenderError, Renderer};
@@ -649,19 +650,105 @@ fn far_from_the_origin_and_extreme_scales() {
         }
         check(case);
     }
-    for scale in [1e-6, 1e6] {
-        let scaled_cam = Camera {
-            eye: cam.eye * scale,
-            target: cam.target * scale,
-            ..cam
-        };
-        let mut stressed = scene(moved(&g, |p| p * scale), scaled_cam);
-        stressed.tf = tf(0.3 * scale);
-        check(Case::new(
-            format!("scaled by {scale:.0e}"),
-            stressed,
-            Some(scene(g.clone(), cam)),
-        ));
+    // 1e-6 and 1e6, and the extents just inside what the f32 modes accept (F32_RADII), where
+    // every mode keeps its usual bound.
+    let (lo, hi) = (F32_RADII.0 / CUBE_RADIUS, F32_RADII.1 / CUBE_RADIUS);
+    for (name, scale) in [
+        ("scaled by 1e-6", 1e-6),
+        ("scaled by 1e6", 1e6),
+        ("radius 1.001e-9 (just inside F32_RADII)", 1.001 * lo),
+        ("radius 0.999e9 (just inside F32_RADII)", 0.999 * hi),
+    ] {
+        check(Case::new(name, scaled(scale), Some(scene(g.clone(), cam))));
+    }
+}
+
+/// The bounding-sphere radius of the cube [-1, 1]^3: sqrt(3).
+const CUBE_RADIUS: f64 = 1.732_050_807_568_877_2;
+
+/// The stress grid and its outside view scaled by `scale` about the origin, with the unit
+/// distance: the same exact picture.
+fn scaled(scale: f64) -> Scene {
+    let cam = outside();
+    let scaled_cam = Camera {
+        eye: cam.eye * scale,
+        target: cam.target * scale,
+        ..cam
+    };
+    let mut stressed = scene(moved(&grid(), |p| p * scale), scaled_cam);
+    stressed.tf = tf(0.3 * scale);
+    stressed
+}
+
+#[test]
+fn extents_outside_the_f32_range_are_refused() {
+    // Beyond F32_RADII the f32 modes' planes overflow or underflow (scaled by 1e20 raycast and
+    // raycast-cpu rendered the cube blank, 2293 holes, with no error): each refuses the mesh
+    // at build and a deforming mesh's update to it, naming the radius and the way out; the f64
+    // reference renders it as the unscaled cube (its usual bound, 1e-9).
+    let (lo, hi) = (F32_RADII.0 / CUBE_RADIUS, F32_RADII.1 / CUBE_RADIUS);
+    let benign = Case::new("", scene(grid(), outside()), None);
+    let mut worst_reference = 0.0f64;
+    for scale in [1e-20, 0.999 * lo, 1.001 * hi, 1e20] {
+        let stressed = scaled(scale);
+        let radius = CUBE_RADIUS * scale;
+        for mode in MODES {
+            let built = (mode.build)(&stressed.mesh, ISOVALUE);
+            if mode.name == "reference" {
+                let image = built.and_then(|mut r| r.render(&stressed.camera, &stressed.tf));
+                let m = (image.unwrap().image)
+                    .compare(&truth_image(&benign, Truth::Volume))
+                    .unwrap();
+                assert!(
+                    m.rmse <= 1e-9 && m.non_finite == 0,
+                    "scaled by {scale:e}: {m}"
+                );
+                worst_reference = worst_reference.max(m.rmse);
+                continue;
+            }
+            let what = format!("{} scaled by {scale:e}", mode.name);
+            expect_refused(&what, built.map(|_| ()), radius);
+            refused_update(mode, &benign, stressed.mesh.positions(), radius, &what);
+        }
+    }
+    let mut cells = vec!["clear error".to_string(); MODES.len()];
+    cells[0] = match worst_reference {
+        0.0 => "0 (1e-9)".to_string(),
+        r => format!("{r:.1e} (1e-9)"),
+    };
+    let name = "radius outside F32_RADII (0.999e-9, 1.001e9; scaled by 1e-20 and 1e20)";
+    write_readme_row(name, &cells, 0);
+}
+
+/// `mode` built for `benign`'s mesh refuses `positions` (of radius `radius`) as an update and
+/// still renders `benign` within its bound: the refused update changed nothing.
+fn refused_update(mode: &ModeDef, benign: &Case, positions: &[DVec3], radius: f64, what: &str) {
+    let s = &benign.stressed;
+    let mut r = (mode.build)(&s.mesh, ISOVALUE).unwrap();
+    let update = r.update_positions(positions);
+    expect_refused(&format!("{what}, as an update"), update, radius);
+    let image = r.render(&s.camera, &s.tf).unwrap().image;
+    let m = image.compare(&truth_image(benign, mode.truth)).unwrap();
+    assert!(
+        m.rmse <= mode.bound.0,
+        "{what}: after the refused update: {m}"
+    );
+}
+
+/// Asserts that `result` is the refusal of a mesh of bounding-sphere radius about `radius`,
+/// with a message that says what to do.
+fn expect_refused(what: &str, result: Result<(), RenderError>, radius: f64) {
+    match result {
+        Err(RenderError::Mesh(e @ MeshError::ExtentOutOfF32Range { radius: r })) => {
+            // The radius is computed from the f64 box: the scaled cube's to rounding.
+            assert!((r / radius - 1.0).abs() < 1e-12, "{what}: radius {r:e}");
+            let msg = e.to_string();
+            for part in ["rescale the coordinates", "--mode reference"] {
+                assert!(msg.to_lowercase().contains(part), "{what}: {msg}");
+            }
+        }
+        Err(e) => panic!("{what}: refused for another reason: {e}"),
+        Ok(()) => panic!("{what}: accepted"),
     }
 }
 

@@ -67,7 +67,7 @@ impl MeshData {
         let scalars = par_copy(mesh.scalars()?);
         let tets = par_copy(mesh.tets());
         let bounds = bounding_box(&positions);
-        let (origin, radius) = sphere_of(bounds);
+        let (origin, radius) = sphere_of(bounds)?;
         let cells = mesh.cell_scalars().map(par_copy);
         let (scalar_min, scalar_span) = match &cells {
             Some(c) => scalar_frame(&[scalars.as_slice(), c].concat()),
@@ -313,15 +313,16 @@ impl GpuTetMesh {
         })
     }
 
-    /// New vertex positions (same count, finite): recomputes the frame of reference and
-    /// uploads them (one buffer write). Three parallel passes over the vertices and nothing
-    /// else: the check and the box together, the copy, the conversion to f32 straight into the
-    /// upload (what a deforming mesh pays per frame; topology, per-tet arrays and scalars are
+    /// New vertex positions (same count, finite, an extent within [`crate::mesh::F32_RADII`];
+    /// else an error and the mesh is unchanged): recomputes the frame of reference and uploads
+    /// them (one buffer write). Three parallel passes over the vertices and nothing else: the
+    /// check and the box together, the copy, the conversion to f32 straight into the upload (what a deforming mesh pays per frame; topology, per-tet arrays and scalars are
     /// untouched).
     pub fn update_positions(&self, positions: &[DVec3]) -> Result<(), RenderError> {
         let mut data = self.data.write().unwrap_or_else(PoisonError::into_inner);
-        data.bounds = checked_bounds(positions, data.positions.len())?;
-        (data.origin, data.radius) = sphere_of(data.bounds);
+        let bounds = checked_bounds(positions, data.positions.len())?;
+        (data.origin, data.radius) = sphere_of(bounds)?;
+        data.bounds = bounds;
         /// Vertices copied per task.
         const COPY: usize = 1 << 14;
         data.positions

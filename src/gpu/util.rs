@@ -5,17 +5,19 @@ use std::time::Instant;
 use glam::DVec3;
 
 use crate::gpu::GpuError;
+use crate::mesh::{F32_RADII, MeshError};
 use crate::render::RenderError;
 
-/// Milliseconds since `t`.
-/// The GPU modes' frame of reference for positions whose bounding box is `(lo, hi)`: the box's
-/// centre (GPU positions and the eye are relative to it) and the bounding-sphere radius about
-/// it.
-pub(crate) fn sphere_of((lo, hi): (DVec3, DVec3)) -> (DVec3, f64) {
-    (
-        (lo + hi) * 0.5,
-        ((hi - lo).length() * 0.5).max(f64::MIN_POSITIVE),
-    )
+/// The f32 modes' frame of reference for positions whose bounding box is `(lo, hi)`: the
+/// box's centre (GPU positions and the eye are relative to it) and the bounding-sphere radius
+/// about it; an error when the radius is outside [`F32_RADII`] (a single point, radius 0,
+/// included), whose pictures would be wrong.
+pub(crate) fn sphere_of((lo, hi): (DVec3, DVec3)) -> Result<(DVec3, f64), MeshError> {
+    let radius = (hi - lo).length() * 0.5;
+    if !(F32_RADII.0..=F32_RADII.1).contains(&radius) {
+        return Err(MeshError::ExtentOutOfF32Range { radius });
+    }
+    Ok(((lo + hi) * 0.5, radius))
 }
 
 /// The GPU modes' frame for scalars, normalized as `(s - min) / span`: `(min, span)`, with
@@ -74,6 +76,7 @@ pub(crate) fn readback_buffer(
     (buffer, padded_row)
 }
 
+/// Milliseconds since `t`.
 pub(crate) fn ms_since(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }

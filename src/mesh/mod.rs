@@ -49,6 +49,19 @@ pub struct BuildReport {
     pub reoriented: usize,
 }
 
+/// The bounding-sphere radii (world units) the f32 modes accept; outside them they refuse the
+/// mesh ([`MeshError::ExtentOutOfF32Range`]) rather than render a wrong picture. Measured on
+/// the stress suite's 6^3 grid scaled by powers of ten (docs/performance.md): the ray caster's
+/// plane arithmetic (raycast, raycast-cpu, the shells walk sampler) fails first, blank above a
+/// radius of 3.5e10 (a face normal's squared length, the fourth power of an edge, overflows)
+/// and below 1.7e-12 (a corner's height above its face, the cube of an edge, goes subnormal);
+/// iso fails above 5e17, cellproj and the shells raster and compute samplers at 1.7e20. The
+/// upper limit holds for any mesh: an edge is at most twice the radius, so a normal's squared
+/// length is at most 16 r^4 = 1.6e37 at r = 1e9, under f32's 3.4e38. The lower limit leaves a
+/// factor 1000 for meshes whose tets are that much finer than the grid's (heights scale with
+/// the cube of the edge).
+pub const F32_RADII: (f64, f64) = (1e-9, 1e9);
+
 /// Problems that make a set of arrays not a tetrahedral mesh. Readers wrap these with the file
 /// name (see [`crate::io::LoadError`]).
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
@@ -121,6 +134,20 @@ pub enum MeshError {
         tet: usize,
         /// The value.
         value: f64,
+    },
+    /// The mesh's extent is outside what the f32 modes compute with ([`F32_RADII`]).
+    #[error(
+        "the mesh's bounding-sphere radius is {radius:e}, outside [{:e}, {:e}], the extents the \
+         f32 modes (auto, shells, iso, cellproj, raycast, raycast-cpu) render correctly: their \
+         face planes multiply up to four coordinates, which overflows or underflows f32 beyond \
+         that. Rescale the coordinates into the range (e.g. to kilometres or millimetres, with \
+         the camera and unit distance alike), or render with --mode reference (exact, f64)",
+        F32_RADII.0,
+        F32_RADII.1
+    )]
+    ExtentOutOfF32Range {
+        /// Bounding-sphere radius about the bounding-box centre (world units).
+        radius: f64,
     },
     /// More vertices than 32-bit indices can name.
     #[error("the mesh has {count} vertices; tetvr indexes vertices with 32 bits (at most {max})")]

@@ -148,7 +148,7 @@ impl CpuRaycastRenderer {
             view: None,
             texture: None,
         };
-        r.set_positions(mesh.positions(), mesh.bounds());
+        r.set_positions(mesh.positions(), mesh.bounds())?;
         r.normalize_scalars();
         Ok(r)
     }
@@ -194,11 +194,17 @@ impl CpuRaycastRenderer {
         self.settings
     }
 
-    /// `positions`, whose bounding box is `bounds`, relative to the box's centre.
-    fn set_positions(&mut self, positions: &[DVec3], bounds: (DVec3, DVec3)) {
-        (self.origin, self.radius) = sphere_of(bounds);
+    /// `positions`, whose bounding box is `bounds`, relative to the box's centre; an error,
+    /// and nothing changed, when their extent is outside [`crate::mesh::F32_RADII`].
+    fn set_positions(
+        &mut self,
+        positions: &[DVec3],
+        bounds: (DVec3, DVec3),
+    ) -> Result<(), RenderError> {
+        (self.origin, self.radius) = sphere_of(bounds)?;
         let o = self.origin;
         self.positions = positions.par_iter().map(|&p| (p - o).as_vec3()).collect();
+        Ok(())
     }
 
     /// Normalizes the vertex scalars and any cell values into [0, 1] over both's range.
@@ -358,7 +364,7 @@ impl Renderer for CpuRaycastRenderer {
 
     fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {
         let bounds = checked_bounds(positions, self.positions.len())?;
-        self.set_positions(positions, bounds);
+        self.set_positions(positions, bounds)?;
         self.view = None;
         Ok(())
     }
