@@ -935,6 +935,14 @@ const MALFORMED: &[(&str, &str)] = &[
         "nan_point.node: line 5: point 3 has the non-finite coordinate inf",
     ),
     (
+        "nan_attribute.node",
+        "nan_attribute.node: line 5: attribute 0 of point 3 is not finite (inf)",
+    ),
+    (
+        "nan_tet_attribute.ele",
+        "nan_tet_attribute.ele: line 3: attribute 1 of tetrahedron 2 is not finite (NaN)",
+    ),
+    (
         "overflow_index.ele",
         "overflow_index.ele: element 0 (tag 1): vertex index -9223372036854775808 of the tetrahedron is out of range",
     ),

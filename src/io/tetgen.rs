@@ -128,7 +128,8 @@ fn read_points(c: &mut Cursor, h: NodeHeader) -> Result<Points, LoadError> {
             Some(&describe),
         )?;
         p.positions.push(DVec3::new(xyz[0], xyz[1], xyz[2]));
-        read_attributes(c, nattr, ("point", idx as u64), &mut p.attrs)?;
+        let section = (nattr, "the point attributes");
+        read_attributes(c, section, ("point", idx as u64), &mut p.attrs)?;
         for _ in 0..h.boundary_markers {
             c.parse::<i64>("a boundary marker")?;
         }
@@ -140,17 +141,17 @@ fn read_points(c: &mut Cursor, h: NodeHeader) -> Result<Points, LoadError> {
 }
 
 /// The `count` attributes of point or tetrahedron (`kind`) `index` of the file, each a finite
-/// number, appended to `out`.
+/// number, appended to `out`. `section` names them in a parse error: a literal, as this runs
+/// once per line of the file and a message is only formatted on an error.
 fn read_attributes(
     c: &mut Cursor,
-    count: usize,
+    (count, section): (usize, &str),
     (kind, index): (&str, u64),
     out: &mut Vec<f64>,
 ) -> Result<(), LoadError> {
     let describe =
         |k: usize, x: f64| format!("attribute {k} of {kind} {index} is not finite ({x})");
-    let section = format!("the {kind} attributes");
-    out.extend(c.values(count, Scalar::F64, None, &section, Some(&describe))?);
+    out.extend(c.values(count, Scalar::F64, None, section, Some(&describe))?);
     Ok(())
 }
 
@@ -205,7 +206,8 @@ fn read_tets(e: &mut Cursor, base: usize, asm: &mut Assembler) -> Result<TetAttr
         for id in ids.iter_mut().take(kind.vertex_count()) {
             *id = e.parse::<i64>("a point index")?.saturating_sub(base as i64);
         }
-        read_attributes(e, eattr, ("tetrahedron", tag), &mut attrs.values)?;
+        let section = (eattr, "the tetrahedron attributes");
+        read_attributes(e, section, ("tetrahedron", tag), &mut attrs.values)?;
         asm.cell(kind, &ids[..kind.vertex_count()], |msg| {
             LoadError::malformed(
                 name,
