@@ -6,13 +6,13 @@
 //! mesh.
 //!
 //! **Cell data** ([`TetMesh::cell_scalars`]): the field is constant per tet. The mesh then also
-//! holds one normalized value per tet ([`GpuTetMesh::cells`], 4 bytes a tet, uploaded when a
+//! holds one normalized value per tet (`GpuTetMesh::cells`, 4 bytes a tet, uploaded when a
 //! mode first asks), and every mode's stage that builds a tet's linear scalar from its four
 //! vertex values takes the tet's value instead, with gradient exactly 0 (the assembly's
 //! `main_cells`, the ray caster's traversal with `CELLS`). The scalar frame spans the vertex
 //! and the cell values, so both normalize into [0, 1]. The per-vertex scalars stay (the
 //! vertex-averaged field, which iso renders). Such a mesh's values change only with the
-//! mesh: [`GpuTetMesh::update_scalars`] refuses it ([`cell_update_error`]).
+//! mesh: [`GpuTetMesh::update_scalars`] refuses it (`cell_update_error`).
 //!
 //! A renderer holds an `Arc<GpuTetMesh>`; several renderers may share one. Positions and
 //! scalars change through [`GpuTetMesh::update_positions`] and
@@ -336,7 +336,7 @@ impl GpuTetMesh {
 
     /// New values of the active scalar array (same count, finite): recomputes the scalar frame,
     /// drops the per-tet ranges (recomputed when next read) and uploads the scalars (one buffer
-    /// write). A cell-data mesh refuses ([`cell_update_error`]).
+    /// write). A cell-data mesh refuses (`cell_update_error`).
     pub fn update_scalars(&self, scalars: &[f64]) -> Result<(), RenderError> {
         let mut data = self.data.write().unwrap_or_else(PoisonError::into_inner);
         if data.cells.is_some() {

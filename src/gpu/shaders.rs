@@ -206,7 +206,7 @@ pub fn raycast_stages() -> [(&'static str, String); 17] {
 
 /// The shells' walk sampler's traversals, with entry lists and with depth peeling (entry point
 /// `main` in each): each segment composites the slices it holds (`raycast_slices.wgsl`), the TF
-/// evaluated as the shells composite does for `tf_points` control points ([`tf_eval`]:
+/// evaluated as the shells composite does for `tf_points` control points (`tf_eval`:
 /// constant indices up to [`UNROLLED_TF_POINTS`], measured 1.6 times faster than the loop on
 /// lavapipe, else a loop; 0 selects the loop); `textured`: at the volume texture of a textured
 /// cage (`raycast_slices_texture.wgsl`, bindings 17 and 18) instead of the mesh's field.
@@ -228,7 +228,7 @@ pub fn raycast_slices(tf_points: u32, textured: bool) -> (String, String) {
     (name, source)
 }
 
-/// The TF variant of [`tf_eval`] a transfer function of `points` control points uses: its
+/// The TF variant of `tf_eval` a transfer function of `points` control points uses: its
 /// count when unrolled, else 0 (the loop).
 pub fn tf_variant(points: u32) -> u32 {
     if points <= UNROLLED_TF_POINTS {

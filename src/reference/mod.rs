@@ -274,7 +274,7 @@ impl Renderer for ReferenceRenderer {
         Ok(())
     }
 
-    /// Refuses a cell-data mesh ([`crate::gpu::mesh::cell_update_error`]): its per-vertex
+    /// Refuses a cell-data mesh (`gpu::mesh::cell_update_error`): its per-vertex
     /// values are only the average of what is rendered.
     fn update_scalars(&mut self, scalars: &[f64]) -> Result<(), RenderError> {
         if self.mesh.cell_scalars().is_some() {

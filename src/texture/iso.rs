@@ -15,7 +15,7 @@
 //! The normal is the texture's gradient: central differences one texel apart of the trilinear
 //! texture in texture space, `g_t`, mapped to world space through the tet's texture-coordinate
 //! Jacobian `J = d tc / dx` (from the current positions): `grad_x = J^T g_t`. Where it
-//! vanishes the surface faces the viewer. Shading is iso mode's ([`shade`]).
+//! vanishes the surface faces the viewer. Shading is iso mode's ([`shade`](crate::reference::iso::shade)).
 
 use glam::DVec3;
 

@@ -8,7 +8,7 @@
 //! **Texture coordinates** are normalized, as a GPU sampler reads them: sample `i` of an axis
 //! with `n` samples has its centre at `(i + 0.5) / n`. World positions map to the voxel grid as
 //! `tetvr generate nifti` places it (voxel `(i, j, k)` at `(i, j, k) * pixdim[1..4]`, the
-//! qform/sform affine not applied), so an undeformed cage ([`cage`]) covers the same box as the
+//! qform/sform affine not applied), so an undeformed cage ([`cage()`]) covers the same box as the
 //! volume's tet mesh from [`crate::generate::volume::nifti_to_tets`].
 
 pub mod cage;

@@ -8,7 +8,7 @@ use crate::tf::TransferFunction;
 
 /// A mode the viewer renders with: every GPU mode, and the CPU ray caster for machines whose
 /// only adapter is slow. The exact reference is not one: it runs behind the view instead
-/// ([`super::readout`]).
+/// (`readout`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ViewMode {
     /// Barycentric shell sampling.

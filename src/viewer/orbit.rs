@@ -43,7 +43,7 @@ impl CameraController {
     /// Turns the eye about the target: `dx` points of horizontal drag about the up axis,
     /// `dy` about the camera's right axis (a drag down raises the eye), [`DEGREES_PER_POINT`]
     /// each; the tilt stops
-    /// [`POLE_MARGIN_DEG`] short of the up axis.
+    /// `POLE_MARGIN_DEG` short of the up axis.
     pub fn orbit(&mut self, dx: f64, dy: f64) {
         let c = &mut self.camera;
         let up = c.up.normalize();

@@ -24,7 +24,7 @@
 //! Cell data ([`TetMesh::cell_scalars`]): each segment takes its tet's normalized value at both
 //! ends (the GPU traversal's `CELLS`); the planes, and so the walk, are those of the per-vertex
 //! field as for point data. Such a renderer refuses [`Renderer::update_scalars`]
-//! ([`crate::gpu::mesh::cell_update_error`]).
+//! (`gpu::mesh::cell_update_error`).
 //!
 //! The robustness rules are the GPU's (see [`crate::gpu::raycast`]); the exit and plane
 //! arithmetic is its CPU twin's ([`crate::gpu::raycast::twin`]), so both paths walk the same tets.

@@ -220,7 +220,7 @@ fn near_tol(radius: f64) -> f32 {
 }
 
 /// The eye's tet is searched for only when the eye lies in the mesh's bounding box grown by
-/// this many eye tolerances ([`near_tol`]). The search takes a tet whose four planes each lie
+/// this many eye tolerances (`near_tol`). The search takes a tet whose four planes each lie
 /// at most the tolerance from the eye: the tet scaled about its incentre, which reaches
 /// `tolerance R / r` beyond a corner at distance `R` from the incentre (`r`: the inradius;
 /// R / r is 3 for a regular tet, under 5 for a grid's); 64 leaves room for worse shapes and

@@ -1,5 +1,5 @@
 //! `--tune on`: the shells configuration chosen from timings taken on the adapter in use, not
-//! from cost models fitted elsewhere ([`super::adaptive::CostModel`] was fitted on lavapipe and
+//! from cost models fitted elsewhere (`adaptive::CostModel` was fitted on lavapipe and
 //! picks slower counts on an H200, issue 15).
 //!
 //! What is chosen: with `--binning auto`, where the tets are binned (CPU or GPU, tried first:
