@@ -239,9 +239,9 @@ pub fn load_with(path: &Path, limits: &ReadLimits) -> Result<Loaded, LoadError> 
         let name = p.display().to_string();
         let io = |e| LoadError::new(&name, None, LoadErrorKind::Io(e));
         // The file's bytes are the first charge on the budget: refuse before reading them.
-        let len = std::fs::metadata(p).map_err(io)?.len();
-        Budget::new(&name, limits).charge(len, || "the file itself".into())?;
-        std::fs::read(p).map_err(io)
+        let meta = std::fs::metadata(p).map_err(io)?;
+        Budget::new(&name, limits).charge(meta.len(), || "the file itself".into())?;
+        read_file(p, &meta).map_err(io)
     };
     if format == Format::TetGen {
         let node: PathBuf = path.with_extension("node");
@@ -251,6 +251,30 @@ pub fn load_with(path: &Path, limits: &ReadLimits) -> Result<Loaded, LoadError> 
         return tetgen_with_budget(&nb, &node, &eb, &ele, limits);
     }
     load_bytes_with(&read(path)?, format, &shown, limits)
+}
+
+/// The bytes of the file `p` (whose metadata is `meta`). A large regular file is read in
+/// parallel chunks: one thread copying hundreds of megabytes from the page cache, and faulting
+/// in the pages they land on, was a visible part of reading a large mesh.
+fn read_file(p: &Path, meta: &std::fs::Metadata) -> std::io::Result<Vec<u8>> {
+    read_in_chunks(p, meta, 16 << 20)
+}
+
+/// [`read_file`] with chunks of `chunk` bytes, for a regular file of at least four of them
+/// (on Unix); any other file in one piece. A file shorter than `meta` says is an error.
+fn read_in_chunks(p: &Path, meta: &std::fs::Metadata, chunk: usize) -> std::io::Result<Vec<u8>> {
+    #[cfg(unix)]
+    if meta.is_file() && meta.len() >= 4 * chunk as u64 {
+        use std::os::unix::fs::FileExt;
+        let file = std::fs::File::open(p)?;
+        let mut bytes = vec![0; meta.len() as usize];
+        (bytes.par_chunks_mut(chunk).enumerate())
+            .try_for_each(|(i, c)| file.read_exact_at(c, (i * chunk) as u64))?;
+        return Ok(bytes);
+    }
+    #[cfg(not(unix))]
+    let _ = (meta, chunk);
+    std::fs::read(p)
 }
 
 /// Reads a mesh from memory within the default [`ReadLimits`]; `name` is what errors call the
@@ -774,5 +798,22 @@ mod tests {
         let bytes: Vec<u8> = (0..100_000i32).flat_map(|x| (-x).to_le_bytes()).collect();
         let want: Vec<i64> = (0..100_000).map(|x| -x).collect();
         assert_eq!(Scalar::I32.decode_ints(&bytes, false).unwrap(), want);
+    }
+
+    #[test]
+    fn chunked_reads_match_the_file_and_refuse_a_short_one() {
+        let dir = std::env::temp_dir().join(format!("tetvr-read-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("bytes.bin");
+        let bytes: Vec<u8> = (0..1000u32).map(|i| (i * 7 % 251) as u8).collect();
+        std::fs::write(&path, &bytes).unwrap();
+        let meta = std::fs::metadata(&path).unwrap();
+        // Chunks of 7 bytes: 143 of them, the last one short.
+        assert_eq!(read_in_chunks(&path, &meta, 7).unwrap(), bytes);
+        // The file shrank after its size was taken: an error, not zeros.
+        std::fs::write(&path, &bytes[..500]).unwrap();
+        #[cfg(unix)]
+        assert!(read_in_chunks(&path, &meta, 7).is_err());
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }
