@@ -106,9 +106,32 @@ fn reference_render_writes_a_picture_of_the_mesh() {
     assert!(stdout.contains("trace"), "{stdout}");
 }
 
+/// Checks that `stdout` has `--timings`' startup lines (reading the file, opening the adapter,
+/// building the renderer, the first frame), each a time in milliseconds, and that they come
+/// before the frame's own stages where those are printed.
+fn assert_startup_lines(stdout: &str) {
+    for name in ["read file", "open adapter", "build renderer", "first frame"] {
+        let line = (stdout.lines())
+            .find(|l| l.trim_start().starts_with(name))
+            .unwrap_or_else(|| panic!("no {name} line in {stdout}"));
+        let ms: f64 = line[line.find(name).unwrap() + name.len()..]
+            .trim()
+            .trim_end_matches(" ms")
+            .parse()
+            .unwrap_or_else(|e| panic!("{line}: {e}"));
+        // A wall-clock time: never negative, and a 96x80 picture of the bundled mesh is far
+        // from a minute even on lavapipe.
+        assert!((0.0..60e3).contains(&ms), "{line}");
+    }
+    if let Some(stages) = stdout.find("stage timings") {
+        assert!(stdout.find("startup").unwrap() < stages, "{stdout}");
+    }
+}
+
 #[test]
 fn raycast_render_prints_its_stages_and_counters() {
     let stdout = render_lox("raycast");
+    assert_startup_lines(&stdout);
     for line in [
         "vertices",
         "planes",
@@ -615,6 +638,16 @@ fn animate_writes_a_gif_whose_frames_move() {
     assert_eq!(frames.len(), 3);
     // Phase 0 is the rest pose and phase 1/3 is twisted: the pictures differ.
     assert_ne!(frames[0].buffer().as_raw(), frames[1].buffer().as_raw());
+}
+
+#[test]
+fn animate_timings_print_the_startup_apart_from_the_frames() {
+    let gif = out_dir("animate-timings").join("lox.gif");
+    let args = ["animate", LOX, "--frames", "1", "--size", "24x24"];
+    let o = tetvr(&[&args[..], &["--timings", "-o", gif.to_str().unwrap()]].concat());
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stderr}");
+    assert_startup_lines(&stdout);
 }
 
 /// The output check takes `.GIF` and `.PNG` (any case); so must the writer, which refused

@@ -22,7 +22,7 @@ use super::commands::{
     CliError, Textured, build_renderer, camera, check_isovalues, check_output, load_mesh, median,
     ms, open_mode, read_limits, require_scalars, transfer_function_for,
 };
-use super::scene::{of_flags, unused_mode_flags};
+use super::scene::{Startup, of_flags, unused_mode_flags};
 use super::{AnimateArgs, RenderArgs};
 
 pub(super) fn animate(args: AnimateArgs) -> Result<(), CliError> {
@@ -59,7 +59,9 @@ pub(super) fn animate(args: AnimateArgs) -> Result<(), CliError> {
 
 /// One mesh under `--deform`, one period in `--frames` frames.
 fn deform(args: &AnimateArgs) -> Result<(), CliError> {
+    let read = Instant::now();
     let mesh = load_mesh(&args.render.mesh)?.mesh;
+    let read_ms = ms(read);
     if args.render.texture.is_none() {
         require_scalars(&mesh, &args.render.mesh.mesh)?;
     }
@@ -68,7 +70,7 @@ fn deform(args: &AnimateArgs) -> Result<(), CliError> {
         args.deform.unwrap_or(Deformation::Twist),
         args.amplitude.unwrap_or(0.5),
     );
-    let mut play = Playback::open(args, &mesh, frames as u64)?;
+    let mut play = Playback::open(args, &mesh, frames as u64, read_ms)?;
     let (lo, hi) = mesh.bounds();
     // One buffer for every frame's positions: a fresh one per frame costs its page faults.
     let mut moved = Vec::new();
@@ -95,11 +97,14 @@ fn play_series(args: &AnimateArgs) -> Result<(), CliError> {
         // Each step warped by its own array; a cell array plays averaged to the vertices.
         mesh.prepare(m.array.as_deref(), CellDataMode::Points, warp)
     };
+    let read = Instant::now();
     let first = series.load_prepared(0, &limits, prepare)?;
+    let read_ms = ms(read);
     if args.render.texture.is_none() {
         require_scalars(&first, &series.steps()[0].path)?;
     }
-    let mut play = Playback::open(args, &first, series.steps().len() as u64)?;
+    let steps = series.steps().len() as u64;
+    let mut play = Playback::open(args, &first, steps, read_ms)?;
     play.frame(|_| Ok(()))?;
     for i in 1..series.steps().len() {
         let step = play.prepare(|| series.load_like(i, &first, &limits, prepare))?;
@@ -120,6 +125,9 @@ struct Playback {
     sink: FrameSink,
     what: String,
     bar: ProgressBar,
+    /// The first mesh's reading, the adapter's opening and the renderer's building, printed
+    /// with `--timings`.
+    startup: Option<Startup>,
     /// What each frame does before it touches the renderer (deform, or load a step).
     prepare_ms: Vec<f64>,
     update_ms: Vec<f64>,
@@ -127,7 +135,13 @@ struct Playback {
 }
 
 impl Playback {
-    fn open(args: &AnimateArgs, mesh: &TetMesh, frames: u64) -> Result<Self, CliError> {
+    /// Opens the playback of `frames` frames of `mesh`, which took `read_ms` to read.
+    fn open(
+        args: &AnimateArgs,
+        mesh: &TetMesh,
+        frames: u64,
+        read_ms: f64,
+    ) -> Result<Self, CliError> {
         let r: &RenderArgs = &args.render;
         let textured = Textured::load(of_flags(r)?.texture.as_ref(), mesh)?;
         let tf = transfer_function_for(r, mesh, textured.as_ref())?;
@@ -136,8 +150,16 @@ impl Playback {
             check_isovalues(&r.iso, "--iso", mesh, textured.as_ref())?;
         }
         let camera = camera(r, mesh)?;
+        let open = Instant::now();
         let (mode, gpu) = open_mode(r, mesh, &tf)?;
+        let open_ms = ms(open);
+        let build = Instant::now();
         let (renderer, what) = build_renderer(textured.as_ref(), &mode, gpu.as_ref(), mesh)?;
+        let startup = r.timings.then(|| Startup {
+            read_ms,
+            open_ms,
+            build_ms: ms(build),
+        });
         let output = r.output.clone().unwrap_or_else(|| "tetvr.gif".into());
         let sink = FrameSink::create(&output, r.background.color(), args.fps)?;
         let bar = ProgressBar::new(frames).with_style(
@@ -151,6 +173,7 @@ impl Playback {
             sink,
             what,
             bar,
+            startup,
             prepare_ms: Vec::new(),
             update_ms: Vec::new(),
             render_ms: Vec::new(),
@@ -183,10 +206,14 @@ impl Playback {
     }
 
     /// Ends the output and prints what was written and the median times, the preparation's
-    /// as `prepared` (none when no frame had one: a series of one step).
+    /// as `prepared` (none when no frame had one: a series of one step); with `--timings`, what
+    /// came before the first frame.
     fn finish(mut self, prepared: &str) -> Result<(), CliError> {
         self.bar.finish_and_clear();
         let written = self.sink.finish()?;
+        if let (Some(startup), Some(&first)) = (self.startup, self.render_ms.first()) {
+            print!("{}", startup.report(first));
+        }
         let prepare = if self.prepare_ms.is_empty() {
             String::new()
         } else {

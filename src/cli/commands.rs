@@ -26,7 +26,7 @@ use tetvr::tf::TransferFunction;
 use tetvr::tf::file::{TfFileError, load_tf};
 use tetvr::{TetMesh, generate};
 
-use super::scene::{of_flags, resolve, unused_mode_flags, warm_frames};
+use super::scene::{Startup, of_flags, resolve, unused_mode_flags, warm_frames};
 use super::{
     Cli, Command, CompareArgs, GenerateArgs, GenerateShape, InfoArgs, IsoExportArgs, MeshArgs,
     RenderArgs, RenderCommand,
@@ -171,7 +171,12 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
         check_output(path, &["json"])?;
     }
     scene.check_without_mesh()?;
+    let read = Instant::now();
     let Loaded { mesh, .. } = scene.load_mesh(&read_limits(&args.mesh))?;
+    let mut startup = Startup {
+        read_ms: ms(read),
+        ..Startup::default()
+    };
     if scene.texture.is_none() {
         require_scalars(&mesh, &scene.mesh)?;
     }
@@ -185,14 +190,18 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
     };
     let file = cmd.scene.as_deref();
     check_scene_isovalues(&scene, args, file, &mesh, textured.as_ref())?;
+    let open = Instant::now();
     let (mode, gpu) = open_scene_mode(&scene, &mesh, &tf)?;
+    startup.open_ms = ms(open);
     // A textured cage keeps `auto` for its own rule (texture::textured_renderer).
     let (mode, bar) = match (cmd.frames, &textured) {
         (_, Some(_)) => (mode, None),
         (Some(_), None) => (mode.resolve(gpu.as_ref()), None),
         (None, None) => with_row_bar(mode.resolve(gpu.as_ref()), camera.height),
     };
+    let build = Instant::now();
     let (mut renderer, what) = build_renderer(textured.as_ref(), &mode, gpu.as_ref(), &mesh)?;
+    startup.build_ms = ms(build);
     let cold = Instant::now();
     let frame = renderer.render(&camera, &tf)?;
     let cold_ms = ms(cold);
@@ -202,7 +211,7 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
     let image = frame.image;
     let seconds = start.elapsed().as_secs_f64();
     if args.timings {
-        print!("{}", frame.timings);
+        print!("{}{}", startup.report(cold_ms), frame.timings);
     }
     image.save_png(&output, scene.background)?;
     if args.cellproj.sort_check {

@@ -176,7 +176,8 @@ pub struct RenderArgs {
     /// Background the picture is composited over: white, black, none (transparent) or R,G,B in [0,1].
     #[arg(long, default_value = "white", value_parser = args::parse_background)]
     pub background: args::Background,
-    /// Print per-stage timings and work counters.
+    /// Print what came before the first frame (reading the file, opening the adapter, building
+    /// the renderer) and the frame's per-stage timings and work counters.
     #[arg(long)]
     pub timings: bool,
     #[command(flatten)]

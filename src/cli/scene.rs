@@ -139,6 +139,34 @@ pub fn unused_mode_flags(args: &RenderArgs, mode: Mode) -> Result<(), CliError> 
     }
 }
 
+/// What a render does before its first frame, in wall-clock milliseconds: reading the mesh
+/// file (with the array selection and warp), opening the adapter, building the renderer. For a
+/// large mesh these are most of the wait, so `--timings` prints them apart from the frame's.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Startup {
+    pub read_ms: f64,
+    pub open_ms: f64,
+    pub build_ms: f64,
+}
+
+impl Startup {
+    /// The lines `--timings` prints before the frame's stages, the first frame's `first_ms`
+    /// last.
+    pub fn report(&self, first_ms: f64) -> String {
+        let lines = [
+            ("read file", self.read_ms),
+            ("open adapter", self.open_ms),
+            ("build renderer", self.build_ms),
+            ("first frame", first_ms),
+        ];
+        let mut out = "startup (wall clock):\n".to_owned();
+        for (name, ms) in lines {
+            out += &format!("  {name:<18} {ms:>10.2} ms\n");
+        }
+        out
+    }
+}
+
 /// Renders `frames` warm frames with `renderer` and returns a table of their median time and
 /// each stage's median, after the cold frame's time `cold_ms`.
 pub fn warm_frames(

@@ -32,6 +32,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 use glam::DVec3;
+use rayon::prelude::*;
 
 use crate::mesh::split::{CellKind, split_cell};
 use crate::mesh::{CellDataMode, DataArray, MeshError, ScalarArray, TetMesh};
@@ -238,9 +239,9 @@ pub fn load_with(path: &Path, limits: &ReadLimits) -> Result<Loaded, LoadError> 
         let name = p.display().to_string();
         let io = |e| LoadError::new(&name, None, LoadErrorKind::Io(e));
         // The file's bytes are the first charge on the budget: refuse before reading them.
-        let len = std::fs::metadata(p).map_err(io)?.len();
-        Budget::new(&name, limits).charge(len, || "the file itself".into())?;
-        std::fs::read(p).map_err(io)
+        let meta = std::fs::metadata(p).map_err(io)?;
+        Budget::new(&name, limits).charge(meta.len(), || "the file itself".into())?;
+        read_file(p, &meta).map_err(io)
     };
     if format == Format::TetGen {
         let node: PathBuf = path.with_extension("node");
@@ -250,6 +251,30 @@ pub fn load_with(path: &Path, limits: &ReadLimits) -> Result<Loaded, LoadError> 
         return tetgen_with_budget(&nb, &node, &eb, &ele, limits);
     }
     load_bytes_with(&read(path)?, format, &shown, limits)
+}
+
+/// The bytes of the file `p` (whose metadata is `meta`). A large regular file is read in
+/// parallel chunks: one thread copying hundreds of megabytes from the page cache, and faulting
+/// in the pages they land on, was a visible part of reading a large mesh.
+fn read_file(p: &Path, meta: &std::fs::Metadata) -> std::io::Result<Vec<u8>> {
+    read_in_chunks(p, meta, 16 << 20)
+}
+
+/// [`read_file`] with chunks of `chunk` bytes, for a regular file of at least four of them
+/// (on Unix); any other file in one piece. A file shorter than `meta` says is an error.
+fn read_in_chunks(p: &Path, meta: &std::fs::Metadata, chunk: usize) -> std::io::Result<Vec<u8>> {
+    #[cfg(unix)]
+    if meta.is_file() && meta.len() >= 4 * chunk as u64 {
+        use std::os::unix::fs::FileExt;
+        let file = std::fs::File::open(p)?;
+        let mut bytes = vec![0; meta.len() as usize];
+        (bytes.par_chunks_mut(chunk).enumerate())
+            .try_for_each(|(i, c)| file.read_exact_at(c, (i * chunk) as u64))?;
+        return Ok(bytes);
+    }
+    #[cfg(not(unix))]
+    let _ = (meta, chunk);
+    std::fs::read(p)
 }
 
 /// Reads a mesh from memory within the default [`ReadLimits`]; `name` is what errors call the
@@ -468,6 +493,32 @@ impl<'a> Assembler<'a> {
         Ok(())
     }
 
+    /// Adds a piece's cells when they are all tetrahedra, their vertex indices `conn` (four per
+    /// cell, in file order) already checked by the reader and moved past `base` here: what
+    /// [`Self::cell`] does for each, in one parallel step. False, with nothing added, when the
+    /// budget refuses them: read cell by cell, the error then names where it runs out.
+    pub(crate) fn tets(&mut self, conn: &[i64], base: usize) -> bool {
+        let n = conn.len() / 4;
+        let new_tets = (self.tets.len() + n).saturating_sub(self.charged);
+        let new_cells = (self.cell_tets.len() + n).saturating_sub(self.cell_tets.capacity());
+        let bytes = new_tets * size_of::<[u32; 4]>() + new_cells;
+        if (self.budget.charge_items(bytes, 1, String::new)).is_err() {
+            return false;
+        }
+        self.charged += new_tets;
+        let moved = |c: &[i64]| [c[0], c[1], c[2], c[3]].map(|v| (v + base as i64) as u32);
+        if n < PAR_MIN_LEN {
+            self.tets.extend(conn.chunks_exact(4).map(moved));
+        } else {
+            (self.tets).par_extend(conn.par_chunks_exact(4).map(moved));
+        }
+        self.cell_tets.reserve_exact(n);
+        self.cell_tets.resize(self.cell_tets.len() + n, 1);
+        const _: () = assert!(matches!(KINDS[0], CellKind::Tetra));
+        self.counts[0] += n;
+        true
+    }
+
     /// Counts a lower-dimensional cell that is ignored.
     pub(crate) fn skip(&mut self) -> Result<(), LoadError> {
         self.skipped_cells += 1;
@@ -584,8 +635,7 @@ pub(crate) fn positions_from(flat: &[f64], budget: &Budget) -> Result<Vec<DVec3>
     budget.charge_items(n, size_of::<DVec3>(), || {
         format!("the positions of {n} points")
     })?;
-    Ok(flat
-        .chunks_exact(3)
+    Ok((flat.par_chunks_exact(3))
         .map(|c| DVec3::new(c[0], c[1], c[2]))
         .collect())
 }
@@ -632,61 +682,85 @@ impl Scalar {
     /// Decodes `bytes` (a whole number of values) to i64 exactly: integers as they are, floats
     /// when they hold an integer. The error is the first value that is not an i64, as text.
     pub(crate) fn decode_ints(self, bytes: &[u8], big_endian: bool) -> Result<Vec<i64>, String> {
-        let it = bytes.chunks_exact(8);
-        match self {
-            Scalar::I64 => Ok(it.map(|c| i64::from_be_bytes(arr(c, big_endian))).collect()),
-            Scalar::U64 => it
-                .map(|c| {
-                    let v = u64::from_be_bytes(arr(c, big_endian));
-                    i64::try_from(v).map_err(|_| v.to_string())
-                })
-                .collect(),
-            Scalar::F32 | Scalar::F64 => self
-                .decode(bytes, big_endian)
-                .into_iter()
-                .map(|x| as_index(x).ok_or_else(|| x.to_string()))
-                .collect(),
-            // Up to 32 bits: exact in f64.
-            _ => Ok(self
-                .decode(bytes, big_endian)
-                .into_iter()
-                .map(|x| x as i64)
-                .collect()),
-        }
+        let b = big_endian;
+        Ok(match self {
+            Scalar::I8 => par_decode(bytes, b, |c: [u8; 1]| c[0] as i8 as i64),
+            Scalar::U8 => par_decode(bytes, b, |c: [u8; 1]| c[0] as i64),
+            Scalar::I16 => par_decode(bytes, b, |c| i16::from_be_bytes(c) as i64),
+            Scalar::U16 => par_decode(bytes, b, |c| u16::from_be_bytes(c) as i64),
+            Scalar::I32 => par_decode(bytes, b, |c| i32::from_be_bytes(c) as i64),
+            Scalar::U32 => par_decode(bytes, b, |c| u32::from_be_bytes(c) as i64),
+            Scalar::I64 => par_decode(bytes, b, i64::from_be_bytes),
+            Scalar::U64 => {
+                // Wrapped, then checked: a value past i64::MAX comes out negative.
+                let v = par_decode(bytes, b, |c| u64::from_be_bytes(c) as i64);
+                if let Some(i) = position_first(&v, |&x| x < 0) {
+                    return Err((v[i] as u64).to_string());
+                }
+                v
+            }
+            Scalar::F32 | Scalar::F64 => {
+                let v = self.decode(bytes, big_endian);
+                let ints: Option<Vec<i64>> = v.par_iter().map(|&x| as_index(x)).collect();
+                match ints {
+                    Some(ints) => ints,
+                    None => {
+                        let bad = v.iter().find(|&&x| as_index(x).is_none());
+                        return Err(bad.map_or_else(String::new, f64::to_string));
+                    }
+                }
+            }
+        })
     }
 
     /// Decodes `bytes` (a whole number of values) to f64.
     pub(crate) fn decode(self, bytes: &[u8], big_endian: bool) -> Vec<f64> {
         // Everything is read as big-endian bytes after `arr`'s swap.
-        let n = self.size();
-        let it = bytes.chunks_exact(n);
+        let b = big_endian;
         match self {
-            Scalar::I8 => it.map(|c| c[0] as i8 as f64).collect(),
-            Scalar::U8 => it.map(|c| c[0] as f64).collect(),
-            Scalar::I16 => it
-                .map(|c| i16::from_be_bytes(arr(c, big_endian)) as f64)
-                .collect(),
-            Scalar::U16 => it
-                .map(|c| u16::from_be_bytes(arr(c, big_endian)) as f64)
-                .collect(),
-            Scalar::I32 => it
-                .map(|c| i32::from_be_bytes(arr(c, big_endian)) as f64)
-                .collect(),
-            Scalar::U32 => it
-                .map(|c| u32::from_be_bytes(arr(c, big_endian)) as f64)
-                .collect(),
-            Scalar::I64 => it
-                .map(|c| i64::from_be_bytes(arr(c, big_endian)) as f64)
-                .collect(),
-            Scalar::U64 => it
-                .map(|c| u64::from_be_bytes(arr(c, big_endian)) as f64)
-                .collect(),
-            Scalar::F32 => it
-                .map(|c| f32::from_be_bytes(arr(c, big_endian)) as f64)
-                .collect(),
-            Scalar::F64 => it.map(|c| f64::from_be_bytes(arr(c, big_endian))).collect(),
+            Scalar::I8 => par_decode(bytes, b, |c: [u8; 1]| c[0] as i8 as f64),
+            Scalar::U8 => par_decode(bytes, b, |c: [u8; 1]| c[0] as f64),
+            Scalar::I16 => par_decode(bytes, b, |c| i16::from_be_bytes(c) as f64),
+            Scalar::U16 => par_decode(bytes, b, |c| u16::from_be_bytes(c) as f64),
+            Scalar::I32 => par_decode(bytes, b, |c| i32::from_be_bytes(c) as f64),
+            Scalar::U32 => par_decode(bytes, b, |c| u32::from_be_bytes(c) as f64),
+            Scalar::I64 => par_decode(bytes, b, |c| i64::from_be_bytes(c) as f64),
+            Scalar::U64 => par_decode(bytes, b, |c| u64::from_be_bytes(c) as f64),
+            Scalar::F32 => par_decode(bytes, b, |c| f32::from_be_bytes(c) as f64),
+            Scalar::F64 => par_decode(bytes, b, f64::from_be_bytes),
         }
     }
+}
+
+/// Values per parallel task in the readers' passes; shorter arrays stay on the calling thread
+/// (a file of 60,000 small arrays paid rayon's hand-off for each).
+pub(crate) const PAR_MIN_LEN: usize = 1 << 14;
+
+/// Values of `N` bytes each in `bytes` (a whole number of them), each given to `value` as
+/// big-endian bytes ([`arr`]), in parallel: one allocation, filled in place, on every core.
+fn par_decode<const N: usize, T: Send>(
+    bytes: &[u8],
+    big_endian: bool,
+    value: impl Fn([u8; N]) -> T + Sync + Send,
+) -> Vec<T> {
+    let value = |c: &[u8]| value(arr(c, big_endian));
+    if bytes.len() < N * PAR_MIN_LEN {
+        return bytes.chunks_exact(N).map(value).collect();
+    }
+    (bytes.par_chunks_exact(N).with_min_len(PAR_MIN_LEN))
+        .map(value)
+        .collect()
+}
+
+/// The first index of `values` where `bad` holds: searched in parallel where there are many.
+pub(crate) fn position_first<T: Sync>(
+    values: &[T],
+    bad: impl Fn(&T) -> bool + Sync + Send,
+) -> Option<usize> {
+    if values.len() < PAR_MIN_LEN {
+        return values.iter().position(bad);
+    }
+    (values.par_iter().with_min_len(PAR_MIN_LEN)).position_first(bad)
 }
 
 /// `N` bytes of a value as big-endian (swapped from little-endian unless `big`).
@@ -701,5 +775,45 @@ fn arr<const N: usize>(c: &[u8], big: bool) -> [u8; N] {
 
 /// Index of the first non-finite value, if any.
 pub(crate) fn first_non_finite(values: &[f64]) -> Option<usize> {
-    values.iter().position(|v| !v.is_finite())
+    position_first(values, |v| !v.is_finite())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parallel_decoding_keeps_order_and_names_the_first_bad_value() {
+        // 100,000 values: several tasks of par_decode's MIN_LEN; the error is the first bad
+        // value in file order, whichever task finds it.
+        let mut u = vec![5u64; 100_000];
+        (u[90_000], u[60_000]) = (u64::MAX, 1 << 63);
+        let bytes: Vec<u8> = u.iter().flat_map(|x| x.to_le_bytes()).collect();
+        let first = Scalar::U64.decode_ints(&bytes, false);
+        assert_eq!(first, Err((1u64 << 63).to_string()));
+        let mut f = vec![3.0f64; 100_000];
+        (f[70_000], f[80_000]) = (0.5, f64::NAN);
+        let bytes: Vec<u8> = f.iter().flat_map(|x| x.to_be_bytes()).collect();
+        assert_eq!(Scalar::F64.decode_ints(&bytes, true), Err("0.5".into()));
+        let bytes: Vec<u8> = (0..100_000i32).flat_map(|x| (-x).to_le_bytes()).collect();
+        let want: Vec<i64> = (0..100_000).map(|x| -x).collect();
+        assert_eq!(Scalar::I32.decode_ints(&bytes, false).unwrap(), want);
+    }
+
+    #[test]
+    fn chunked_reads_match_the_file_and_refuse_a_short_one() {
+        let dir = std::env::temp_dir().join(format!("tetvr-read-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("bytes.bin");
+        let bytes: Vec<u8> = (0..1000u32).map(|i| (i * 7 % 251) as u8).collect();
+        std::fs::write(&path, &bytes).unwrap();
+        let meta = std::fs::metadata(&path).unwrap();
+        // Chunks of 7 bytes: 143 of them, the last one short.
+        assert_eq!(read_in_chunks(&path, &meta, 7).unwrap(), bytes);
+        // The file shrank after its size was taken: an error, not zeros.
+        std::fs::write(&path, &bytes[..500]).unwrap();
+        #[cfg(unix)]
+        assert!(read_in_chunks(&path, &meta, 7).is_err());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

@@ -18,11 +18,12 @@ use std::path::Path;
 
 use base64::Engine;
 use quick_xml::events::{BytesStart, Event};
+use rayon::prelude::*;
 
 use super::vtk::{Class, classify, unsupported_cell};
 use super::{
-    Assembler, Budget, Fields, Format, LoadError, LoadErrorKind, Loaded, Location, Scalar,
-    WriteError, parse_int, positions_from, shown,
+    Assembler, Budget, Fields, Format, LoadError, LoadErrorKind, Loaded, Location, PAR_MIN_LEN,
+    Scalar, WriteError, parse_int, positions_from, shown,
 };
 use crate::mesh::name::shown_name;
 use crate::mesh::{DataArray, TetMesh};
@@ -1077,6 +1078,9 @@ fn read_cells(
         return Ok(());
     }
     let (types, offs, conn) = cell_arrays(file, p, ix)?;
+    if all_tets(&types, &offs, &conn, p.points, base) && asm.tets(&conn, base) {
+        return Ok(());
+    }
     let name = file.name;
     let mut ids: Vec<i64> = Vec::with_capacity(10);
     let mut prev = 0usize;
@@ -1113,6 +1117,39 @@ fn read_cells(
         }
     }
     Ok(())
+}
+
+/// Whether a piece's cells are all valid tetrahedra as VTK writes them: type 10, offsets 4, 8,
+/// ..., each index among the piece's `points` and none repeated within a cell, and every index
+/// moved past `base` within u32. Checked in parallel: such a piece (a large mesh's usual form)
+/// is read in one step ([`Assembler::tets`]), any other cell by cell, which names the first
+/// problem.
+fn all_tets(types: &[i64], offs: &[i64], conn: &[i64], points: usize, base: usize) -> bool {
+    const TETRA: i64 = 10;
+    let fits = base
+        .checked_add(points)
+        .is_some_and(|end| end as u64 <= 1 << 32);
+    let valid = |c: &[i64]| valid_tet(c, points as i64);
+    let offset = |(i, &o): (usize, &i64)| o == 4 * (i as i64 + 1);
+    if !fits || conn.len() != 4 * types.len() {
+        return false;
+    }
+    if types.len() < PAR_MIN_LEN {
+        // A small piece (a file may have thousands): on this thread, without rayon's hand-off.
+        return types.iter().all(|&t| t == TETRA)
+            && offs.iter().enumerate().all(offset)
+            && conn.chunks_exact(4).all(valid);
+    }
+    types.par_iter().all(|&t| t == TETRA)
+        && offs.par_iter().enumerate().all(offset)
+        && conn.par_chunks_exact(4).all(valid)
+}
+
+/// Whether the four indices `c` are among `points` and distinct.
+fn valid_tet(c: &[i64], points: i64) -> bool {
+    let inside = c.iter().all(|&v| (0..points).contains(&v));
+    let [a, b, d, e] = [c[0], c[1], c[2], c[3]];
+    inside && a != b && a != d && a != e && b != d && b != e && d != e
 }
 
 /// A piece's `types`, `offsets` (one per cell) and `connectivity` (up to the last offset).

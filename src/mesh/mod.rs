@@ -267,32 +267,7 @@ impl TetMesh {
         for a in &arrays {
             check_array(a, positions.len())?;
         }
-        let n = positions.len();
-        for (t, tet) in tets.iter().enumerate() {
-            for (i, &v) in tet.iter().enumerate() {
-                if v as usize >= n {
-                    return Err(MeshError::IndexOutOfRange {
-                        tet: t,
-                        index: v as u64,
-                        count: n,
-                    });
-                }
-                if tet[..i].contains(&v) {
-                    return Err(MeshError::RepeatedIndex { tet: t, index: v });
-                }
-            }
-        }
-        let reoriented = tets
-            .par_iter_mut()
-            .map(|t| {
-                if orient(&positions, t) < 0.0 {
-                    t.swap(2, 3);
-                    1
-                } else {
-                    0
-                }
-            })
-            .sum();
+        let reoriented = check_and_orient(&positions, &mut tets)?;
         let active = if arrays.is_empty() { None } else { Some(0) };
         Ok((
             Self {
@@ -465,6 +440,51 @@ impl TetMesh {
     }
 }
 
+/// Checks every tet's indices (below `positions.len()`, distinct) and reorients the inverted
+/// tets, in one parallel pass: the number reoriented, or the error of the first bad tet, the
+/// one a serial check finds.
+fn check_and_orient(positions: &[DVec3], tets: &mut [[u32; 4]]) -> Result<usize, MeshError> {
+    /// Tets per task.
+    const CHUNK: usize = 1 << 14;
+    let (reoriented, first_bad) = (tets.par_chunks_mut(CHUNK).enumerate())
+        .map(|(c, chunk)| {
+            let mut flipped = 0;
+            for (i, t) in chunk.iter_mut().enumerate() {
+                if let Err(e) = check_tet(c * CHUNK + i, t, positions.len()) {
+                    return (flipped, Some(e));
+                }
+                if orient(positions, t) < 0.0 {
+                    t.swap(2, 3);
+                    flipped += 1;
+                }
+            }
+            (flipped, None)
+        })
+        // In order: the left chunk's error is the earlier one.
+        .reduce(|| (0, None), |a, b| (a.0 + b.0, a.1.or(b.1)));
+    match first_bad {
+        Some(e) => Err(e),
+        None => Ok(reoriented),
+    }
+}
+
+/// The indices of tet number `t`: each below `count` (the vertices), none repeated.
+fn check_tet(t: usize, tet: &[u32; 4], count: usize) -> Result<(), MeshError> {
+    for (i, &v) in tet.iter().enumerate() {
+        if v as usize >= count {
+            return Err(MeshError::IndexOutOfRange {
+                tet: t,
+                index: v as u64,
+                count,
+            });
+        }
+        if tet[..i].contains(&v) {
+            return Err(MeshError::RepeatedIndex { tet: t, index: v });
+        }
+    }
+    Ok(())
+}
+
 /// Six times the signed volume of tet `t` in `positions`.
 /// `(b - a) . ((c - a) x (d - a))`, taken on the corners scaled by a power of two
 /// ([`scaled`]): the same value where it is in f64's range, and infinite with the right sign,
@@ -476,6 +496,10 @@ fn orient(positions: &[DVec3], t: &[u32; 4]) -> f64 {
 
 /// `2^e` for any `e`, exact where it is representable (0 below, infinite above f64's range).
 pub(crate) fn pow2(e: i32) -> f64 {
+    if (f64::MIN_EXP - 1..f64::MAX_EXP).contains(&e) {
+        // A normal number: its exponent field, built directly (powi multiplies, per tet).
+        return f64::from_bits(((e + 1023) as u64) << 52);
+    }
     // Two factors, each within f64's exponent range, so no intermediate overflows early.
     let half = e / 2;
     2f64.powi(half) * 2f64.powi(e - half)
@@ -491,15 +515,29 @@ pub(crate) fn scaled(c: [DVec3; 4]) -> ([DVec3; 4], i32) {
         // Nothing to scale, or an infinite corner whose measures are infinite however scaled.
         return (c, 0);
     }
-    let k = largest.log2().floor() as i32 + 1;
+    let k = floor_log2(largest) + 1;
     // In two factors: for subnormal corners 2^-k itself is beyond f64's range (k < -1023),
     // though the scaled corners are not. Each product is exact.
     let (s1, s2) = (pow2(-k / 2), pow2(-k - (-k / 2)));
     (c.map(|p| p * s1 * s2), k)
 }
 
+/// `floor(log2(x))` for a finite `x > 0`, subnormals included: read from its bits, exactly
+/// (libm's `log2` rounds up to the next integer just below a power of two, and costs a call
+/// per tet).
+fn floor_log2(x: f64) -> i32 {
+    let bits = x.to_bits();
+    let exponent = (bits >> 52) as i32 & 0x7ff;
+    if exponent == 0 {
+        // Subnormal: mantissa * 2^-1074, its leading one gives the power.
+        let mantissa = bits & ((1 << 52) - 1);
+        return 63 - mantissa.leading_zeros() as i32 - 1074;
+    }
+    exponent - 1023
+}
+
 fn check_positions(positions: &[DVec3]) -> Result<(), MeshError> {
-    match positions.iter().position(|p| !p.is_finite()) {
+    match positions.par_iter().position_first(|p| !p.is_finite()) {
         Some(v) => {
             let p = positions[v];
             Err(MeshError::NonFiniteCoordinate {
@@ -673,6 +711,43 @@ mod tests {
         assert_eq!(
             s,
             [DVec3::ZERO, DVec3::X * 0.5, DVec3::Y * 0.5, DVec3::Z * 0.5]
+        );
+    }
+
+    #[test]
+    fn floor_log2_and_pow2_are_exact_over_the_whole_range() {
+        // Every power of two f64 holds, subnormals included, and the number just below each:
+        // the exponents `scaled` and `orient` use are exact there, where libm's log2 rounds.
+        for e in -1074..=1023 {
+            let half = e / 2;
+            let p = pow2(e);
+            assert_eq!(p, 2f64.powi(half) * 2f64.powi(e - half), "2^{e}");
+            assert_eq!(floor_log2(p), e, "2^{e}");
+            if e > -1074 {
+                assert_eq!(
+                    floor_log2(f64::from_bits(p.to_bits() - 1)),
+                    e - 1,
+                    "below 2^{e}"
+                );
+            }
+        }
+        assert_eq!((pow2(1024), pow2(-1076)), (f64::INFINITY, 0.0));
+    }
+
+    #[test]
+    fn the_first_bad_tet_is_named_among_many() {
+        // Bad tets in several parallel chunks: the error is the first in order.
+        let mut tets = vec![[0, 1, 2, 3]; 100_000];
+        tets[70_000] = [0, 1, 1, 3];
+        tets[40_000] = [0, 1, 2, 9];
+        let e = TetMesh::new(unit_tet(), tets, vec![]).unwrap_err();
+        assert_eq!(
+            e,
+            MeshError::IndexOutOfRange {
+                tet: 40_000,
+                index: 9,
+                count: 4
+            }
         );
     }
 
