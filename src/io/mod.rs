@@ -507,6 +507,8 @@ impl<'a> Assembler<'a> {
         }
         self.charged += new_tets;
         let moved = |c: &[i64]| [c[0], c[1], c[2], c[3]].map(|v| (v + base as i64) as u32);
+        // Exactly what was charged: extend's own reserve grows a full list to twice its length.
+        self.tets.reserve_exact(n);
         if n < PAR_MIN_LEN {
             self.tets.extend(conn.chunks_exact(4).map(moved));
         } else {
@@ -798,6 +800,21 @@ mod tests {
         let bytes: Vec<u8> = (0..100_000i32).flat_map(|x| (-x).to_le_bytes()).collect();
         let want: Vec<i64> = (0..100_000).map(|x| -x).collect();
         assert_eq!(Scalar::I32.decode_ints(&bytes, false).unwrap(), want);
+    }
+
+    #[test]
+    fn pieces_of_tets_hold_no_more_than_the_budget_was_charged() {
+        // A piece of PAR_MIN_LEN tets (the parallel extend), then one of 10 (the serial one):
+        // the list's capacity stays within the tets paid for. Vec's amortized growth would
+        // double it to 2 * PAR_MIN_LEN for PAR_MIN_LEN + 10 paid, memory --max-memory misses.
+        let limits = ReadLimits::default();
+        let budget = Budget::new("pieces.vtu", &limits);
+        let mut asm = Assembler::new(4, &budget);
+        let conn: Vec<i64> = [0, 1, 2, 3].repeat(PAR_MIN_LEN);
+        assert!(asm.tets(&conn, 0) && asm.tets(&conn[..40], 0));
+        assert_eq!(asm.tets.len(), PAR_MIN_LEN + 10);
+        let (held, paid) = (asm.tets.capacity(), asm.charged);
+        assert!(held <= paid, "{held} tets allocated, {paid} charged");
     }
 
     #[test]
