@@ -701,17 +701,8 @@ impl Scalar {
                 }
                 v
             }
-            Scalar::F32 | Scalar::F64 => {
-                let v = self.decode(bytes, big_endian);
-                let ints: Option<Vec<i64>> = v.par_iter().map(|&x| as_index(x)).collect();
-                match ints {
-                    Some(ints) => ints,
-                    None => {
-                        let bad = v.iter().find(|&&x| as_index(x).is_none());
-                        return Err(bad.map_or_else(String::new, f64::to_string));
-                    }
-                }
-            }
+            Scalar::F32 => float_ints(bytes, b, |c| f32::from_be_bytes(c) as f64)?,
+            Scalar::F64 => float_ints(bytes, b, f64::from_be_bytes)?,
         })
     }
 
@@ -752,6 +743,31 @@ fn par_decode<const N: usize, T: Send>(
     (bytes.par_chunks_exact(N).with_min_len(PAR_MIN_LEN))
         .map(value)
         .collect()
+}
+
+/// Float values of `N` bytes each in `bytes`, each given to `value` as in [`par_decode`], as
+/// the integers they hold ([`as_index`]); the error is the first that holds none, as text.
+/// Checked first, then decoded straight to i64: no f64 copy beside the integers (a parallel
+/// collect into an `Option` would also gather its pieces apart before joining them).
+fn float_ints<const N: usize>(
+    bytes: &[u8],
+    big_endian: bool,
+    value: impl Fn([u8; N]) -> f64 + Sync + Send,
+) -> Result<Vec<i64>, String> {
+    let int = |c: [u8; N]| as_index(value(c));
+    let bad = |c: &[u8]| int(arr(c, big_endian)).is_none();
+    let first_bad = if bytes.len() < N * PAR_MIN_LEN {
+        bytes.chunks_exact(N).position(bad)
+    } else {
+        (bytes.par_chunks_exact(N).with_min_len(PAR_MIN_LEN)).position_first(bad)
+    };
+    if let Some(i) = first_bad {
+        return Err(value(arr(&bytes[i * N..][..N], big_endian)).to_string());
+    }
+    // Every value holds an integer (checked above): the default is never taken.
+    Ok(par_decode(bytes, big_endian, |c| {
+        int(c).unwrap_or_default()
+    }))
 }
 
 /// The first index of `values` where `bad` holds: searched in parallel where there are many.
