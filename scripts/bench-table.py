@@ -24,12 +24,11 @@ With `skips=shells:samples 512` instead of `cols=`, the table has a row per skip
 (`shells:samples 512`) of the same scene and view, and the speedup the skip gives.
 """
 import csv
-import pathlib
 import re
 import sys
 
-root = pathlib.Path(__file__).resolve().parent.parent
-documents = [root / "README.md"] + sorted((root / "docs").rglob("*.md"))
+from doc_tables import fill, root
+
 marker = re.compile(r"<!-- bench-table (csv=.*?) -->\n(.*?)<!-- bench-table end -->", re.S)
 
 
@@ -162,11 +161,4 @@ def replace(m):
     return f"<!-- bench-table {m.group(1)} -->\n{table(spec_of(m.group(1)))}<!-- bench-table end -->"
 
 
-for doc in documents:
-    text = doc.read_text()
-    new, count = marker.subn(replace, text)
-    if count == 0:
-        continue
-    if new != text:
-        doc.write_text(new)
-    print(f"{doc.relative_to(root)}: {count} bench tables{'' if new != text else ', unchanged'}")
+fill(marker, replace, "bench tables")

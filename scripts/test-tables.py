@@ -16,9 +16,9 @@ import pathlib
 import re
 import sys
 
-root = pathlib.Path(__file__).resolve().parent.parent
+from doc_tables import fill, root
+
 rows_root = root / "target" / "test-output" / "readme"
-documents = [root / "README.md"] + sorted((root / "docs").rglob("*.md"))
 marker = re.compile(r"<!-- test-table (\S+) begin -->\n(.*?)<!-- test-table \1 end -->", re.S)
 
 
@@ -66,11 +66,4 @@ def replace(m):
     return f"<!-- test-table {name} begin -->\n{table(name, m.group(2))}<!-- test-table {name} end -->"
 
 
-for doc in documents:
-    text = doc.read_text()
-    new, count = marker.subn(replace, text)
-    if count == 0:
-        continue
-    if new != text:
-        doc.write_text(new)
-    print(f"{doc.relative_to(root)}: {count} test tables{'' if new != text else ', unchanged'}")
+fill(marker, replace, "test tables")
