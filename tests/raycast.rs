@@ -41,6 +41,14 @@ fn framed(mesh: &TetMesh, camera: &Camera, tf: &TransferFunction, s: RaycastSett
     frame
 }
 
+/// The default settings with entry lists `list_capacity` hits long at the start.
+fn with_lists(list_capacity: u32) -> RaycastSettings {
+    RaycastSettings {
+        list_capacity,
+        ..Default::default()
+    }
+}
+
 /// Every scene's bound: max_abs 1e-3 is the target for exact segments; rmse 3e-6 is
 /// about 10x the measured figures (lavapipe: rmse 1.8e-7 to 3.2e-7, max_abs 1e-6 to 1.2e-5 on
 /// lox, the hole, the eye inside, head-on, the bent lox and the blunt fin; 1.4e-6 with the
@@ -243,14 +251,8 @@ fn list_overflow_reruns_and_step_limit_is_counted() {
         let mut r = RaycastRenderer::new(ctx(), &mesh, settings).unwrap();
         r.render(&camera, &tf).unwrap()
     };
-    let long = render(RaycastSettings {
-        list_capacity: 16,
-        ..Default::default()
-    });
-    let short = render(RaycastSettings {
-        list_capacity: 1,
-        ..Default::default()
-    });
+    let long = render(with_lists(16));
+    let short = render(with_lists(1));
     assert_eq!(counter(&long.timings, "list overflow reruns"), 0);
     assert_eq!(counter(&short.timings, "list overflow reruns"), 1);
     assert_eq!(short.image.compare(&long.image).unwrap().max_abs, 0.0);
@@ -308,13 +310,7 @@ fn list_overflow_reruns_with_the_eye_inside() {
         width: 64,
         height: 64,
     };
-    let render = |list_capacity| {
-        let settings = RaycastSettings {
-            list_capacity,
-            ..Default::default()
-        };
-        framed(&mesh, &camera, &tf, settings)
-    };
+    let render = |list_capacity| framed(&mesh, &camera, &tf, with_lists(list_capacity));
     let short = render(1);
     assert_eq!(counter(&short.timings, "list overflow reruns"), 1);
     // Rays along the teeth cross four entering faces: lists of 2 would overflow too.
@@ -337,6 +333,19 @@ fn slabs() -> TetMesh {
     })
 }
 
+/// A 64 x 64 view along the row of [`slabs`], off the grid's axis so that no pixel's ray runs
+/// exactly along an edge.
+fn along_slabs() -> Camera {
+    Camera {
+        eye: DVec3::new(-3.0, 0.0131, 0.0217),
+        target: DVec3::new(1.0, 0.0131, 0.0217),
+        up: DVec3::Y,
+        fov_y_deg: 30.0,
+        width: 64,
+        height: 64,
+    }
+}
+
 /// Seen along the row of [`slabs`], the middle rays enter all 20 slabs: lists of the default
 /// 4 hits overflow, and the frame is rendered exactly once more, with lists of 32 (20 rounded
 /// up to a power of two; doubling took three reruns, 4 -> 8 -> 16 -> 32). The picture is the
@@ -346,21 +355,8 @@ fn slabs() -> TetMesh {
 fn lists_needing_32_entries_rerun_exactly_once() {
     let mesh = slabs();
     let (tf, _) = default_view(&mesh, 64);
-    let camera = Camera {
-        eye: DVec3::new(-3.0, 0.0131, 0.0217),
-        target: DVec3::new(1.0, 0.0131, 0.0217),
-        up: DVec3::Y,
-        fov_y_deg: 30.0,
-        width: 64,
-        height: 64,
-    };
-    let render = |list_capacity| {
-        let settings = RaycastSettings {
-            list_capacity,
-            ..Default::default()
-        };
-        framed(&mesh, &camera, &tf, settings)
-    };
+    let camera = along_slabs();
+    let render = |list_capacity| framed(&mesh, &camera, &tf, with_lists(list_capacity));
     let first = render(RaycastSettings::default().list_capacity);
     assert_eq!(counter(&first.timings, "list overflow reruns"), 1);
     assert_eq!(counter(&first.timings, "entry list length"), 32);
@@ -381,14 +377,7 @@ fn lists_too_long_for_a_binding_are_refused_and_not_kept() {
     let (tf, _) = default_view(&mesh, 64);
     let small = common::with_storage_binding_limit(ctx(), 256 << 10);
     let mut r = RaycastRenderer::new(&small, &mesh, RaycastSettings::default()).unwrap();
-    let along = Camera {
-        eye: DVec3::new(-3.0, 0.0131, 0.0217),
-        target: DVec3::new(1.0, 0.0131, 0.0217),
-        up: DVec3::Y,
-        fov_y_deg: 30.0,
-        width: 64,
-        height: 64,
-    };
+    let along = along_slabs();
     let msg = r.render(&along, &tf).expect_err("refused").to_string();
     assert!(
         msg.contains("entry lists of 20 ") && msg.contains("--entry peel"),
