@@ -76,6 +76,12 @@ pub(crate) fn readback_buffer(
     (buffer, padded_row)
 }
 
+/// The most bytes one storage binding may hold on an adapter with `limits`: its binding limit,
+/// or its largest buffer where that is smaller.
+pub(crate) fn largest_binding(limits: &wgpu::Limits) -> u64 {
+    (limits.max_storage_buffer_binding_size).min(limits.max_buffer_size)
+}
+
 /// Milliseconds since `t`.
 pub(crate) fn ms_since(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3

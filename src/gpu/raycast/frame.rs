@@ -13,7 +13,7 @@ use crate::gpu::gpu_data::LayerUniforms;
 use crate::gpu::mesh::{MeshData, chunk_ranges};
 use crate::gpu::tf::tf_points;
 use crate::gpu::util::{
-    check_image_size, entry, ms_since, read_mapped, settings_error, texture_2d,
+    check_image_size, entry, largest_binding, ms_since, read_mapped, settings_error, texture_2d,
 };
 use crate::gpu::view::ViewFrame;
 use crate::image::Image;
@@ -24,7 +24,7 @@ use super::links::LINK_BINDINGS;
 use super::pipelines::{Groups, encode, linear};
 use super::texture_iso::HitBuffers;
 use super::{
-    COUNTERS, EYE_BOX_GROWTH, Entry, PixelBuffers, RAY_STATE_BYTES, RaycastRenderer,
+    COUNTERS, EYE_BOX_GROWTH, Entry, HIT_BYTES, PixelBuffers, RAY_STATE_BYTES, RaycastRenderer,
     RaycastUniforms, Segments, Slicing, TILE, Targets, default_max_steps, near_tol, psi,
 };
 
@@ -162,8 +162,8 @@ impl RaycastRenderer {
     /// fit is refused by [`Self::ensure_targets`], never truncated).
     fn rerun_capacity(&self, needed: u32, t: &Targets) -> u32 {
         let pixels = t.width as u64 * t.height as u64;
-        let max = (self.limits.max_storage_buffer_binding_size).min(self.limits.max_buffer_size);
-        let fits = (max / (8 * pixels)).min(u32::MAX as u64) as u32;
+        let fits =
+            (largest_binding(&self.limits) / (HIT_BYTES * pixels)).min(u32::MAX as u64) as u32;
         let rounded = needed.checked_next_power_of_two().unwrap_or(needed);
         rounded.min(fits).max(needed)
     }
@@ -258,7 +258,7 @@ impl RaycastRenderer {
         };
         let (n, l) = (self.settings.table_size, self.settings.table_lengths);
         let bytes = 16 * n as u64 * n as u64 * l as u64;
-        let max = (self.limits.max_storage_buffer_binding_size).min(self.limits.max_buffer_size);
+        let max = largest_binding(&self.limits);
         if bytes > max {
             return Err(settings_error(format!(
                 "the pre-integration table of {n} scalars x {n} x {l} lengths needs {bytes} \
@@ -324,14 +324,14 @@ impl RaycastRenderer {
         let pixels = width as u64 * height as u64;
         let (per_pixel, what, or) = match entry {
             Entry::Lists => (
-                self.capacity as u64 * 8,
+                self.capacity as u64 * HIT_BYTES,
                 format!("entry lists of {} boundary-face hits", self.capacity),
                 " or find entries by depth peeling (--entry peel)",
             ),
             Entry::Peel => (RAY_STATE_BYTES, "depth-peeling ray states".to_string(), ""),
         };
         let bytes = pixels * per_pixel;
-        let max = (self.limits.max_storage_buffer_binding_size).min(self.limits.max_buffer_size);
+        let max = largest_binding(&self.limits);
         if bytes > max {
             return Err(settings_error(format!(
                 "the ray caster's {what} per pixel at {width}x{height} need {bytes} bytes, \

@@ -16,7 +16,7 @@
 use rayon::prelude::*;
 
 use crate::gpu::mesh::Chunking;
-use crate::gpu::util::settings_error;
+use crate::gpu::util::{largest_binding, settings_error};
 use crate::mesh::topology::{Adjacency, FACES, NO_NEIGHBOR};
 use crate::render::RenderError;
 
@@ -33,7 +33,7 @@ pub const LINK_BYTES: u64 = size_of::<TetLinks>() as u64;
 /// whole multiples of the offset alignment (in tets, so every window starts aligned). An error
 /// naming the sizes when more than [`LINK_BINDINGS`] windows are needed.
 pub(crate) fn chunking(tets: u64, limits: &wgpu::Limits) -> Result<Chunking, RenderError> {
-    let max = (limits.max_storage_buffer_binding_size).min(limits.max_buffer_size);
+    let max = largest_binding(limits);
     let align = limits.min_storage_buffer_offset_alignment as u64;
     let per_binding = max / LINK_BYTES;
     let chunk = if tets <= per_binding {

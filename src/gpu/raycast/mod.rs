@@ -77,7 +77,7 @@ use crate::gpu::cellproj::preint::{LongestEdge, TableKey};
 use crate::gpu::frame::{FrameResources, ImageReadback};
 use crate::gpu::gpu_data::{LayerUniforms, TfPoints, ViewUniforms};
 use crate::gpu::mesh::{GpuTetMesh, TetArray};
-use crate::gpu::util::{settings_error, uniform_buffer};
+use crate::gpu::util::{largest_binding, settings_error, uniform_buffer};
 use crate::mesh::TetMesh;
 use crate::render::{Frame, RenderError, Renderer};
 use crate::tf::TransferFunction;
@@ -156,6 +156,9 @@ pub const TILE: u32 = 8;
 
 /// Bytes of a ray's state between depth-peeling layers (WGSL `RayState`).
 pub const RAY_STATE_BYTES: u64 = 32;
+
+/// Bytes of one boundary-face hit in a pixel's entry list (WGSL `entries`: a `vec2<u32>`).
+pub const HIT_BYTES: u64 = 8;
 
 /// The counters the stages write (u32 each): thin tets (see [`twin::THIN`]), the eye's tet
 /// (`u32::MAX`: none), the longest entry list a pixel needed when one overflowed (0: none
@@ -538,7 +541,7 @@ fn check_cells(mesh: &GpuTetMesh) -> Result<(), RenderError> {
 /// entry stages read them from (a grid of 100M tets has 0.8M; only a soup of loose tets
 /// comes near a binding).
 fn check_boundary(limits: &wgpu::Limits, faces: u64) -> Result<(), RenderError> {
-    let max = (limits.max_storage_buffer_binding_size).min(limits.max_buffer_size);
+    let max = largest_binding(limits);
     if 4 * faces > max {
         return Err(settings_error(format!(
             "the ray caster (--mode raycast, and shells' --sampler walk) binds the mesh's \
@@ -559,7 +562,7 @@ fn check_fits(
     vertices: u64,
     s: &RaycastSettings,
 ) -> Result<(), RenderError> {
-    let max = (limits.max_storage_buffer_binding_size).min(limits.max_buffer_size);
+    let max = largest_binding(limits);
     if tets >= 1 << 30 {
         return Err(settings_error(format!(
             "the ray caster (--mode raycast, and shells' --sampler walk) numbers faces as 4 tet + face in 32 bits: at most 2^30 tets, not \

@@ -20,7 +20,7 @@ use std::time::Instant;
 
 use crate::gpu::frame::FrameStats;
 use crate::gpu::gpu_data::{CHUNK_LOAD, CHUNK_STORE, ShellUniforms};
-use crate::gpu::util::{entry, ms_since, read_mapped, settings_error};
+use crate::gpu::util::{entry, largest_binding, ms_since, read_mapped, settings_error};
 use crate::image::Image;
 use crate::render::RenderError;
 use crate::tf::TransferFunction;
@@ -175,8 +175,7 @@ impl ShellsRenderer {
             .max()
             .unwrap_or(0);
         let want = needed.max(4 * most).max(MIN_CAPACITY);
-        let binding =
-            (self.ctx.limits.max_storage_buffer_binding_size).min(self.ctx.limits.max_buffer_size);
+        let binding = largest_binding(&self.ctx.limits);
         // List entries are 8 bytes (a tet id and its pixel box in the tile).
         let max = binding / 8;
         if needed > max {

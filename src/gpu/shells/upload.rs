@@ -10,7 +10,7 @@ use crate::gpu::GpuContext;
 use crate::gpu::gpu_data::{ShellUniforms, SlicingUniforms};
 use crate::gpu::mesh::MeshData;
 use crate::gpu::tf::tf_points;
-use crate::gpu::util::settings_error;
+use crate::gpu::util::{largest_binding, settings_error};
 use crate::mesh::topology::FACES;
 use crate::render::RenderError;
 use crate::tf::TransferFunction;
@@ -216,7 +216,7 @@ impl InstanceLayout {
     /// does not fit one buffer.
     pub(super) fn new(n: u64, limits: &wgpu::Limits) -> Option<Self> {
         let max_buffer = limits.max_buffer_size;
-        let max_binding = limits.max_storage_buffer_binding_size.min(max_buffer);
+        let max_binding = largest_binding(limits);
         if n * 4 > max_buffer {
             return None;
         }
