@@ -40,7 +40,10 @@ struct Raycast {
     // walk's integrator where a shell of shell_slices slices ends (raycast_slices.wgsl).
     terminate: f32,
     shell_slices: u32,
-    _pad0: u32,
+    // A textured cage's traversals (raycast_texture.wgsl, raycast_texture_iso.wgsl): the
+    // distance between samples along the ray (gpu::raycast::texture::GpuTexture::step in the
+    // mesh's frame); 0 otherwise.
+    step: f32,
     _pad1: u32,
     _pad2: u32,
 }

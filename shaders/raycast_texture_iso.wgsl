@@ -1,7 +1,7 @@
 // The traversal's isosurface integrator for a textured cage (`--mode iso --texture`, issue 12;
 // Georgii & Westermann 2006, section 3 and their figure 9): the first crossing of an isovalue
 // of the trilinear textured field along the ray. Inside each tet segment the field is sampled
-// at n + 1 equally spaced points, both ends included (n = ceil(L / STEP), the textured ray
+// at n + 1 equally spaced points, both ends included (n = ceil(L / params.step), the textured ray
 // caster's step), so a crossing on a face between two tets is seen by both samples there. At
 // the first pair of samples on either side of an isovalue, the crossing is refined by
 // BISECTIONS bisections of that piece and a last linear interpolation (regula falsi) inside
@@ -136,7 +136,7 @@ fn tet_segment(tet: u32, ids: vec4<u32>, pl: TetPlanes, d: vec3<f32>, t0: f32, t
         return none;
     }
     let tc = segment_texcoords(ids, pl, d, t0, t1);
-    let n = max(ceil(len / STEP), 1.0);
+    let n = max(ceil(len / params.step), 1.0);
     // The first piece (k - 1, k] with a crossing; the refinement after the loop keeps the
     // loop small (a software adapter pays for every live value in it).
     var prev = below(trilinear(tc[0]));

@@ -13,9 +13,6 @@
 @group(0) @binding(17) var<storage, read> texcoords: array<vec4<f32>>;
 @group(0) @binding(18) var volume: texture_3d<f32>;
 
-// World units between samples along the ray (texture::gpu::GpuTexture::step).
-override STEP: f32 = 1.0;
-
 // The texture coordinates at the ends t0, t1 of the segment in the tet with vertices `ids`:
 // sum_f tc_f lambda_f, lambda_f = plane_f(x) / plane_f(p_f) as `tet_planes` builds the scalar;
 // a thin tet (its planes' heights are rounding) takes its corners' mean.

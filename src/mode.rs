@@ -268,7 +268,7 @@ pub fn iso_surfaces(tf: &TransferFunction, isovalues: &[f64]) -> Vec<(f64, [f32;
 mod tests {
     use std::sync::Mutex;
 
-    use glam::UVec3;
+    use glam::{DVec3, UVec3};
 
     use super::*;
     use crate::camera::{Camera, View};
@@ -300,40 +300,40 @@ mod tests {
     }
 
     /// The GPU only on hardware; a software adapter and none take the CPU ray caster.
-    /// `auto` refuses a mesh beyond [`crate::mesh::F32_RADII`] as the f32 mode it resolves to
-    /// does, pointing at the reference, which renders it: auto promises the fast path, and the
-    /// reference can be orders of magnitude slower on a large mesh, so the user chooses.
+    /// `auto` renders a mesh in any units as the f32 mode it resolves to does (it scales the
+    /// mesh to its f32 frame): scaled by 1e20, camera and unit distance alike, the picture is
+    /// the unscaled one's to f32 rounding (1e-6: the two scalings differ in the last bits of
+    /// the f64 positions and unit distance, a few f32 ulps of the picture). A mesh with no
+    /// extent (every vertex at one point) it refuses, pointing at the reference.
     #[test]
-    fn auto_refuses_an_extent_beyond_f32_and_names_the_reference() {
+    fn auto_renders_any_scale_and_refuses_a_point() {
         let (mesh, camera, tf) = scene();
-        let reference = ModeSettings::Reference(ReferenceSettings::default());
-        let near = reference.build(None, &mesh).unwrap().render(&camera, &tf);
+        let auto = ModeSettings::Auto(ShellSettings::default());
+        let near = auto.build(None, &mesh).unwrap().render(&camera, &tf);
         let mut far = mesh.clone();
         far.set_positions(mesh.positions().iter().map(|p| *p * 1e20).collect())
             .unwrap();
-        let auto = ModeSettings::Auto(ShellSettings::default());
-        let e = auto.build(None, &far).err().expect("a refusal");
-        assert!(
-            matches!(e, RenderError::Mesh(MeshError::ExtentOutOfF32Range { .. })),
-            "{e}"
-        );
-        assert!(e.to_string().contains("--mode reference"), "{e}");
-        // The same scene scaled by 1e20 (camera and unit distance alike): the f64 reference's
-        // picture, to rounding (1e-9 as in the stress suite).
         let far_camera = Camera {
             eye: camera.eye * 1e20,
             target: camera.target * 1e20,
             ..camera
         };
         let far_tf = tf.with_unit_distance(tf.unit_distance() * 1e20).unwrap();
-        let far_frame = reference
-            .build(None, &far)
-            .unwrap()
-            .render(&far_camera, &far_tf);
+        let far_frame = auto.build(None, &far).unwrap().render(&far_camera, &far_tf);
         let m = (far_frame.unwrap().image)
             .compare(&near.unwrap().image)
             .unwrap();
-        assert!(m.rmse <= 1e-9, "{m}");
+        assert!(m.rmse <= 1e-6 && m.non_finite == 0, "{m}");
+        let mut point = mesh.clone();
+        point
+            .set_positions(vec![DVec3::splat(0.5); mesh.positions().len()])
+            .unwrap();
+        let e = auto.build(None, &point).err().expect("a refusal");
+        assert!(
+            matches!(e, RenderError::Mesh(MeshError::ExtentNotScalable { .. })),
+            "{e}"
+        );
+        assert!(e.to_string().contains("--mode reference"), "{e}");
     }
 
     #[test]

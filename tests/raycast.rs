@@ -97,7 +97,7 @@ fn lox_subset_matches_reference() {
 fn twin_check(name: &str, mesh: &TetMesh, camera: &Camera, tf: &TransferFunction) {
     let got = frame(mesh, camera, tf, Segments::Exact).image;
     let gpu = GpuTetMesh::new(ctx(), mesh).unwrap();
-    let cpu = twin::render(&gpu.read(), camera, tf);
+    let cpu = twin::render(&gpu.read(), camera, tf).unwrap();
     eprintln!("{name}: shaders vs twin: {}", got.compare(&cpu).unwrap());
     // The same f32 operations; lavapipe may fuse multiply-adds where Rust does not, and the
     // twin integrates in f64: measured rmse 1.3e-7 to 1.4e-7, max 6.6e-7 to 2.0e-6; bounds

@@ -31,7 +31,7 @@ use tetvr::gpu::{
     CellProjRenderer, CellProjSettings, GpuContext, Integrate, IsoRenderer, IsoSettings,
     RaycastRenderer, RaycastSettings, Sampler, ShellSettings, ShellsRenderer,
 };
-use tetvr::mesh::{F32_RADII, MeshError};
+use tetvr::mesh::MeshError;
 use tetvr::reference::ReferenceRenderer;
 use tetvr::reference::iso::{IsoReference, Shading};
 use tetvr::render::{RenderError, Renderer};
@@ -650,21 +650,23 @@ fn far_from_the_origin_and_extreme_scales() {
         }
         check(case);
     }
-    // 1e-6 and 1e6, and the extents just inside what the f32 modes accept (F32_RADII), where
-    // every mode keeps its usual bound.
-    let (lo, hi) = (F32_RADII.0 / CUBE_RADIUS, F32_RADII.1 / CUBE_RADIUS);
-    for (name, scale) in [
-        ("scaled by 1e-6", 1e-6),
-        ("scaled by 1e6", 1e6),
-        ("radius 1.001e-9 (just inside F32_RADII)", 1.001 * lo),
-        ("radius 0.999e9 (just inside F32_RADII)", 0.999 * hi),
-    ] {
+    // Every f32 mode scales the mesh by a power of two to a radius about 1 (its f32 frame), so
+    // any extent keeps its usual bound: built at the scale, and built at scale 1 and moved
+    // there by update_positions (the frame follows the positions). Without the frame the
+    // modes' planes overflowed or underflowed beyond radii of 3.5e10 and 1.7e-12 (raycast and
+    // raycast-cpu rendered the cube scaled by 1e20 blank, 2293 holes).
+    for scale in [1e-30, 1e-20, 1e-10, 1e10, 1e20, 1e30] {
+        let name = format!("scaled by {scale:.0e}");
         check(Case::new(name, scaled(scale), Some(scene(g.clone(), cam))));
     }
+    for scale in [1e-30, 1e30] {
+        let mut stressed = scaled(scale);
+        stressed.update = Some(stressed.mesh.positions().to_vec());
+        stressed.mesh = grid();
+        let name = format!("scaled by {scale:.0e} by update_positions");
+        check(Case::new(name, stressed, Some(scene(g.clone(), cam))));
+    }
 }
-
-/// The bounding-sphere radius of the cube [-1, 1]^3: sqrt(3).
-const CUBE_RADIUS: f64 = 1.732_050_807_568_877_2;
 
 /// The stress grid and its outside view scaled by `scale` about the origin, with the unit
 /// distance: the same exact picture.
@@ -681,52 +683,44 @@ fn scaled(scale: f64) -> Scene {
 }
 
 #[test]
-fn extents_outside_the_f32_range_are_refused() {
-    // Beyond F32_RADII the f32 modes' planes overflow or underflow (scaled by 1e20 raycast and
-    // raycast-cpu rendered the cube blank, 2293 holes, with no error): each refuses the mesh
-    // at build and a deforming mesh's update to it, naming the radius and the way out; the f64
-    // reference renders it as the unscaled cube (its usual bound, 1e-9).
-    let (lo, hi) = (F32_RADII.0 / CUBE_RADIUS, F32_RADII.1 / CUBE_RADIUS);
+fn extents_without_a_frame_are_refused() {
+    // A mesh whose vertices all coincide (radius 0) has no frame to scale to, nor has one whose
+    // extent overflows f64 (corners at -1e308 and 1e308: the box's diagonal is infinite):
+    // every f32 mode refuses it at build and as a deforming mesh's update, naming the radius
+    // and the reference, and the refused update changes nothing.
     let benign = Case::new("", scene(grid(), outside()), None);
-    let mut worst_reference = 0.0f64;
-    for scale in [1e-20, 0.999 * lo, 1.001 * hi, 1e20] {
-        let stressed = scaled(scale);
-        let radius = CUBE_RADIUS * scale;
-        for mode in MODES {
-            let built = (mode.build)(&stressed.mesh, ISOVALUE);
-            if mode.name == "reference" {
-                let image = built.and_then(|mut r| r.render(&stressed.camera, &stressed.tf));
-                let m = (image.unwrap().image)
-                    .compare(&truth_image(&benign, Truth::Volume))
-                    .unwrap();
-                assert!(
-                    m.rmse <= 1e-9 && m.non_finite == 0,
-                    "scaled by {scale:e}: {m}"
-                );
-                worst_reference = worst_reference.max(m.rmse);
-                continue;
-            }
-            let what = format!("{} scaled by {scale:e}", mode.name);
-            expect_refused(&what, built.map(|_| ()), radius);
-            refused_update(mode, &benign, stressed.mesh.positions(), radius, &what);
+    let g = grid();
+    for (what, positions) in [
+        (
+            "every vertex at one point",
+            vec![DVec3::new(0.5, -2.0, 1e3); g.positions().len()],
+        ),
+        (
+            "an extent beyond f64",
+            (g.positions().iter()).map(|&p| p * 1e308).collect(),
+        ),
+    ] {
+        let mut stressed = g.clone();
+        stressed.set_positions(positions.clone()).unwrap();
+        for mode in MODES.iter().filter(|m| m.name != "reference") {
+            let what = format!("{}: {what}", mode.name);
+            expect_refused(&what, (mode.build)(&stressed, ISOVALUE).map(|_| ()));
+            refused_update(mode, &benign, &positions, &what);
         }
     }
     let mut cells = vec!["clear error".to_string(); MODES.len()];
-    cells[0] = match worst_reference {
-        0.0 => "0 (1e-9)".to_string(),
-        r => format!("{r:.1e} (1e-9)"),
-    };
-    let name = "radius outside F32_RADII (0.999e-9, 1.001e9; scaled by 1e-20 and 1e20)";
+    cells[0] = "n/a".to_string();
+    let name = "no extent to scale (every vertex at one point; corners at -1e308 and 1e308)";
     write_readme_row(name, &cells, 0);
 }
 
-/// `mode` built for `benign`'s mesh refuses `positions` (of radius `radius`) as an update and
-/// still renders `benign` within its bound: the refused update changed nothing.
-fn refused_update(mode: &ModeDef, benign: &Case, positions: &[DVec3], radius: f64, what: &str) {
+/// `mode` built for `benign`'s mesh refuses `positions` as an update and still renders
+/// `benign` within its bound: the refused update changed nothing.
+fn refused_update(mode: &ModeDef, benign: &Case, positions: &[DVec3], what: &str) {
     let s = &benign.stressed;
     let mut r = (mode.build)(&s.mesh, ISOVALUE).unwrap();
     let update = r.update_positions(positions);
-    expect_refused(&format!("{what}, as an update"), update, radius);
+    expect_refused(&format!("{what}, as an update"), update);
     let image = r.render(&s.camera, &s.tf).unwrap().image;
     let m = image.compare(&truth_image(benign, mode.truth)).unwrap();
     assert!(
@@ -735,15 +729,17 @@ fn refused_update(mode: &ModeDef, benign: &Case, positions: &[DVec3], radius: f6
     );
 }
 
-/// Asserts that `result` is the refusal of a mesh of bounding-sphere radius about `radius`,
-/// with a message that says what to do.
-fn expect_refused(what: &str, result: Result<(), RenderError>, radius: f64) {
+/// Asserts that `result` is the refusal of a mesh without a scalable extent, with a message
+/// that says what to do.
+fn expect_refused(what: &str, result: Result<(), RenderError>) {
     match result {
-        Err(RenderError::Mesh(e @ MeshError::ExtentOutOfF32Range { radius: r })) => {
-            // The radius is computed from the f64 box: the scaled cube's to rounding.
-            assert!((r / radius - 1.0).abs() < 1e-12, "{what}: radius {r:e}");
+        Err(RenderError::Mesh(e @ MeshError::ExtentNotScalable { radius })) => {
+            assert!(
+                radius == 0.0 || radius.is_infinite(),
+                "{what}: radius {radius:e}"
+            );
             let msg = e.to_string();
-            for part in ["rescale the coordinates", "--mode reference"] {
+            for part in ["check the coordinates", "--mode reference"] {
                 assert!(msg.to_lowercase().contains(part), "{what}: {msg}");
             }
         }

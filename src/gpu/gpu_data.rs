@@ -297,8 +297,11 @@ pub struct RaycastUniforms {
     /// integrators). The walk sampler's slice count per shell: its integrator checks it only
     /// where a shell ends, as the raster and compute samplers do.
     pub shell_slices: u32,
+    /// A textured cage's traversal: the distance between samples along a ray (in the mesh's
+    /// f32 frame, so per frame: the frame follows the positions); 0 without a texture.
+    pub step: f32,
     /// Zero: pads the struct to a multiple of 16 bytes.
-    pub _pad: [u32; 3],
+    pub _pad: [u32; 2],
 }
 const _: () = assert!(size_of::<RaycastUniforms>() == 64);
 

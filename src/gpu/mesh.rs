@@ -1,5 +1,6 @@
 //! The mesh's GPU side, built once per mesh and shared by every mode ([`GpuTetMesh`]): the f64
-//! frame of reference (bounding-box centre, bounding-sphere radius, scalar frame), the CPU
+//! frame of reference (the power-of-two scale of [`F32Frame`], bounding-box centre,
+//! bounding-sphere radius, scalar frame), the CPU
 //! copies the per-frame CPU stages read, the vertex buffers (positions, scalars), and per-tet
 //! arrays cut into chunks that each fit one storage binding and spread over as
 //! many buffers as the adapter's largest buffer needs, so no single buffer's limit caps the
@@ -27,25 +28,29 @@ use rayon::prelude::*;
 
 use crate::gpu::gpu_data::TetRecord;
 use crate::gpu::pieces::Uploader;
-use crate::gpu::util::{scalar_frame, settings_error, sphere_of};
+use crate::gpu::util::{F32Frame, scalar_frame, settings_error, sphere_of};
 use crate::gpu::{GpuContext, GpuError};
-use crate::mesh::{TetMesh, bounding_box, check_values, checked_bounds, field_ranges};
+use crate::mesh::{TetMesh, check_values, checked_bounds, field_ranges};
 use crate::render::RenderError;
 
 /// The CPU side of a [`GpuTetMesh`]: the mesh as the per-frame CPU stages read it, and the
-/// frame of reference of the GPU copies.
+/// frame of reference of the GPU copies. Positions, bounds, origin and radius are in the f32
+/// frame's units (world times `frame.scale`, exactly): a renderer converts the camera, the
+/// transfer function and its length settings with `frame` before it compares them to these.
 pub struct MeshData {
-    /// Vertex positions (world, f64).
+    /// World to frame units ([`F32Frame`]).
+    pub frame: F32Frame,
+    /// Vertex positions (frame units, f64).
     pub positions: Vec<DVec3>,
     /// The active scalar per vertex (data units).
     pub scalars: Vec<f64>,
     /// Vertex indices per tet.
     pub tets: Vec<[u32; 4]>,
-    /// The positions' bounding box (world, lower and upper corner).
+    /// The positions' bounding box (frame units, lower and upper corner).
     pub bounds: (DVec3, DVec3),
     /// Bounding-box centre: GPU positions and the eye are relative to it.
     pub origin: DVec3,
-    /// Bounding-sphere radius about `origin`.
+    /// Bounding-sphere radius about `origin` (frame units, in [0.5, 1)).
     pub radius: f64,
     /// Smallest scalar: GPU scalars are `(s - scalar_min) / scalar_span`.
     pub scalar_min: f64,
@@ -63,11 +68,13 @@ pub struct MeshData {
 
 impl MeshData {
     fn new(mesh: &TetMesh) -> Result<Self, RenderError> {
-        let positions = par_copy(mesh.positions());
+        let world = mesh.bounds();
+        let frame = F32Frame::of(world)?;
+        let positions = par_scaled(mesh.positions(), frame);
         let scalars = par_copy(mesh.scalars()?);
         let tets = par_copy(mesh.tets());
-        let bounds = bounding_box(&positions);
-        let (origin, radius) = sphere_of(bounds)?;
+        let bounds = (frame.point(world.0), frame.point(world.1));
+        let (origin, radius) = sphere_of(bounds);
         let cells = mesh.cell_scalars().map(par_copy);
         let (scalar_min, scalar_span) = match &cells {
             Some(c) => scalar_frame(&[scalars.as_slice(), c].concat()),
@@ -75,6 +82,7 @@ impl MeshData {
         };
         Ok(Self {
             ranges: OnceLock::new(),
+            frame,
             cells,
             positions,
             scalars,
@@ -129,6 +137,14 @@ impl MeshData {
     pub(crate) fn gpu_value(&self, s: f64) -> f32 {
         ((s - self.scalar_min) / self.scalar_span) as f32
     }
+}
+
+/// `positions` in `frame`, copied in parallel as [`par_copy`] does (scaling by a power of two is
+/// exact).
+fn par_scaled(positions: &[DVec3], frame: F32Frame) -> Vec<DVec3> {
+    let mut copy = Vec::with_capacity(positions.len());
+    copy.par_extend(positions.par_iter().map(|&p| frame.point(p)));
+    copy
 }
 
 /// A copy of `values` made in parallel: the mesh's arrays are copied once per GPU mesh, mostly
@@ -211,6 +227,12 @@ impl GpuTetMesh {
     /// may call them while it holds this one.
     pub fn read(&self) -> RwLockReadGuard<'_, MeshData> {
         self.data.read().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// The f32 frame of the current positions: renderers convert each frame's camera and
+    /// transfer function with it.
+    pub(crate) fn frame(&self) -> F32Frame {
+        self.read().frame
     }
 
     /// The device the buffers live on.
@@ -313,22 +335,30 @@ impl GpuTetMesh {
         })
     }
 
-    /// New vertex positions (same count, finite, an extent within [`crate::mesh::F32_RADII`];
-    /// else an error and the mesh is unchanged): recomputes the frame of reference and uploads
+    /// New vertex positions (same count, finite, an extent the frame can scale, see
+    /// [`F32Frame::of`]; else an error and the mesh is unchanged): recomputes the frame of
+    /// reference (its scale too: a renderer converts each frame's camera with the current one)
+    /// and uploads
     /// them (one buffer write). Three parallel passes over the vertices and nothing else: the
     /// check and the box together, the copy, the conversion to f32 straight into the upload (what a deforming mesh pays per frame; topology, per-tet arrays and scalars are
     /// untouched).
     pub fn update_positions(&self, positions: &[DVec3]) -> Result<(), RenderError> {
         let mut data = self.data.write().unwrap_or_else(PoisonError::into_inner);
-        let bounds = checked_bounds(positions, data.positions.len())?;
-        (data.origin, data.radius) = sphere_of(bounds)?;
-        data.bounds = bounds;
+        let world = checked_bounds(positions, data.positions.len())?;
+        let frame = F32Frame::of(world)?;
+        data.frame = frame;
+        data.bounds = (frame.point(world.0), frame.point(world.1));
+        (data.origin, data.radius) = sphere_of(data.bounds);
         /// Vertices copied per task.
         const COPY: usize = 1 << 14;
         data.positions
             .par_chunks_mut(COPY)
             .zip(positions.par_chunks(COPY))
-            .for_each(|(to, from)| to.copy_from_slice(from));
+            .for_each(|(to, from)| {
+                for (t, &p) in to.iter_mut().zip(from) {
+                    *t = frame.point(p);
+                }
+            });
         data.positions_version += 1;
         self.upload_positions(&data);
         Ok(())

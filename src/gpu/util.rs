@@ -4,20 +4,81 @@ use std::time::Instant;
 
 use glam::DVec3;
 
+use crate::camera::Camera;
 use crate::gpu::GpuError;
-use crate::mesh::{F32_RADII, MeshError};
+use crate::mesh::MeshError;
 use crate::render::RenderError;
+use crate::tf::TransferFunction;
 
-/// The f32 modes' frame of reference for positions whose bounding box is `(lo, hi)`: the
-/// box's centre (GPU positions and the eye are relative to it) and the bounding-sphere radius
-/// about it; an error when the radius is outside [`F32_RADII`] (a single point, radius 0,
-/// included), whose pictures would be wrong.
-pub(crate) fn sphere_of((lo, hi): (DVec3, DVec3)) -> Result<(DVec3, f64), MeshError> {
-    let radius = (hi - lo).length() * 0.5;
-    if !(F32_RADII.0..=F32_RADII.1).contains(&radius) {
-        return Err(MeshError::ExtentOutOfF32Range { radius });
+/// The f32 modes' frame of reference: a world point `p` is `p * scale` in it, `scale` the
+/// power of two that brings the mesh's bounding-sphere radius into [0.5, 1). Scaling by a power
+/// of two is exact in floating point, so the frame loses nothing, and in it the f32 stages'
+/// products of coordinates (a face normal's squared length is an edge to the fourth, a
+/// corner's height an edge cubed) stay far from f32's overflow and subnormals whatever the
+/// mesh's units: before the frame they broke above a radius of 3.5e10 and below 1.7e-12. Every
+/// world quantity the f32 stages read is converted on the way in: positions ([`Self::point`]),
+/// the camera ([`Self::camera`]), lengths ([`Self::length`]: slice spacing, texture step) and
+/// the transfer function's unit distance ([`Self::tf`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct F32Frame {
+    /// Frame units per world unit (a power of two).
+    pub scale: f64,
+}
+
+impl F32Frame {
+    /// The frame for positions whose bounding box is `(lo, hi)`; an error when the
+    /// bounding-sphere radius is 0 (every vertex at one point), not finite, or so far from 1
+    /// (beyond 1e-300 or 1e300) that the box scaled to the frame would leave f64's range.
+    pub fn of((lo, hi): (DVec3, DVec3)) -> Result<Self, MeshError> {
+        let radius = (hi - lo).length() * 0.5;
+        let refused = MeshError::ExtentNotScalable { radius };
+        if !(1e-300..=1e300).contains(&radius) {
+            return Err(refused);
+        }
+        // 2^-k with 2^(k-1) <= radius < 2^k, k within f64's normal exponents here; built from
+        // its bits, so exactly a power of two.
+        let k = radius.log2().floor() as i64 + 1;
+        let frame = Self {
+            scale: f64::from_bits(((1023 - k) as u64) << 52),
+        };
+        let ok = frame.point(lo).is_finite() && frame.point(hi).is_finite();
+        ok.then_some(frame).ok_or(refused)
     }
-    Ok(((lo + hi) * 0.5, radius))
+
+    /// World point `p` in the frame.
+    pub fn point(&self, p: DVec3) -> DVec3 {
+        p * self.scale
+    }
+
+    /// World length `l` in the frame.
+    pub fn length(&self, l: f64) -> f64 {
+        l * self.scale
+    }
+
+    /// Frame length `l` in world units.
+    pub fn world_length(&self, l: f64) -> f64 {
+        l / self.scale
+    }
+
+    /// `camera` with its eye and target in the frame (directions and the image unchanged).
+    pub fn camera(&self, camera: &Camera) -> Camera {
+        Camera {
+            eye: self.point(camera.eye),
+            target: self.point(camera.target),
+            ..*camera
+        }
+    }
+
+    /// `tf` with its unit distance in the frame: the same opacity over the same stretch of
+    /// the mesh, so the same picture (extinction per frame unit is the world's over `scale`).
+    pub fn tf(&self, tf: &TransferFunction) -> Result<TransferFunction, RenderError> {
+        Ok(tf.with_unit_distance(self.length(tf.unit_distance()))?)
+    }
+}
+
+/// The bounding-box centre and the bounding-sphere radius about it of the box `(lo, hi)`.
+pub(crate) fn sphere_of((lo, hi): (DVec3, DVec3)) -> (DVec3, f64) {
+    ((lo + hi) * 0.5, (hi - lo).length() * 0.5)
 }
 
 /// The GPU modes' frame for scalars, normalized as `(s - min) / span`: `(min, span)`, with

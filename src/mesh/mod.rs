@@ -49,19 +49,6 @@ pub struct BuildReport {
     pub reoriented: usize,
 }
 
-/// The bounding-sphere radii (world units) the f32 modes accept; outside them they refuse the
-/// mesh ([`MeshError::ExtentOutOfF32Range`]) rather than render a wrong picture. Measured on
-/// the stress suite's 6^3 grid scaled by powers of ten (docs/performance.md): the ray caster's
-/// plane arithmetic (raycast, raycast-cpu, the shells walk sampler) fails first, blank above a
-/// radius of 3.5e10 (a face normal's squared length, the fourth power of an edge, overflows)
-/// and below 1.7e-12 (a corner's height above its face, the cube of an edge, goes subnormal);
-/// iso fails above 5e17, cellproj and the shells raster and compute samplers at 1.7e20. The
-/// upper limit holds for any mesh: an edge is at most twice the radius, so a normal's squared
-/// length is at most 16 r^4 = 1.6e37 at r = 1e9, under f32's 3.4e38. The lower limit leaves a
-/// factor 1000 for meshes whose tets are that much finer than the grid's (heights scale with
-/// the cube of the edge).
-pub const F32_RADII: (f64, f64) = (1e-9, 1e9);
-
 /// Problems that make a set of arrays not a tetrahedral mesh. Readers wrap these with the file
 /// name (see [`crate::io::LoadError`]).
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
@@ -135,17 +122,15 @@ pub enum MeshError {
         /// The value.
         value: f64,
     },
-    /// The mesh's extent is outside what the f32 modes compute with ([`F32_RADII`]).
+    /// The mesh has no extent the f32 modes can scale to their frame of radius about 1: all
+    /// its vertices at one point, or coordinates near the limits of f64.
     #[error(
-        "the mesh's bounding-sphere radius is {radius:e}, outside [{:e}, {:e}], the extents the \
-         f32 modes (auto, shells, iso, cellproj, raycast, raycast-cpu) render correctly: their \
-         face planes multiply up to four coordinates, which overflows or underflows f32 beyond \
-         that. Rescale the coordinates into the range (e.g. to kilometres or millimetres, with \
-         the camera and unit distance alike), or render with --mode reference (exact, f64)",
-        F32_RADII.0,
-        F32_RADII.1
+        "the mesh's bounding-sphere radius is {radius:e}: the f32 modes (auto, shells, iso, \
+         cellproj, raycast, raycast-cpu) scale the mesh by a power of two to a radius about 1, \
+         which needs a finite radius between 1e-300 and 1e300 (a radius of 0 means every \
+         vertex is at one point). Check the coordinates, or render with --mode reference"
     )]
-    ExtentOutOfF32Range {
+    ExtentNotScalable {
         /// Bounding-sphere radius about the bounding-box centre (world units).
         radius: f64,
     },

@@ -46,7 +46,7 @@ use crate::camera::Camera;
 use crate::gpu::gpu_data::ViewUniforms;
 use crate::gpu::mesh::cell_update_error;
 use crate::gpu::raycast::{default_max_steps, links};
-use crate::gpu::util::{ms_since, scalar_frame, sphere_of};
+use crate::gpu::util::{F32Frame, ms_since, scalar_frame, sphere_of};
 use crate::gpu::view::ViewFrame;
 use crate::image::Image;
 use crate::mesh::{TetMesh, check_values, checked_bounds};
@@ -82,7 +82,9 @@ pub struct CpuRaycastSettings {
 /// The CPU ray caster; see the module docs.
 pub struct CpuRaycastRenderer {
     settings: CpuRaycastSettings,
-    /// The positions' frame: bounding-box centre and bounding-sphere radius.
+    /// The positions' frame: the f32 frame's scale, and in it the bounding-box centre and the
+    /// bounding-sphere radius.
+    f32_frame: F32Frame,
     origin: DVec3,
     radius: f64,
     /// Positions relative to `origin` in f32, as the GPU reads them.
@@ -128,6 +130,7 @@ impl CpuRaycastRenderer {
         let (links, boundary) = links::build(&tet_ids);
         let mut r = Self {
             settings,
+            f32_frame: F32Frame { scale: 1.0 },
             origin: DVec3::ZERO,
             radius: 0.0,
             positions: Vec::new(),
@@ -184,7 +187,7 @@ impl CpuRaycastRenderer {
         r.texture = Some(CpuTexture {
             volume,
             texcoords: texcoords.iter().map(|t| t.as_vec3()).collect(),
-            step: step as f32,
+            step,
         });
         Ok(r)
     }
@@ -194,16 +197,21 @@ impl CpuRaycastRenderer {
         self.settings
     }
 
-    /// `positions`, whose bounding box is `bounds`, relative to the box's centre; an error,
-    /// and nothing changed, when their extent is outside [`crate::mesh::F32_RADII`].
+    /// `positions`, whose bounding box is `bounds`, in their f32 frame relative to the box's
+    /// centre, as the GPU has them; an error, and nothing changed, when the frame cannot hold
+    /// them ([`F32Frame::of`]).
     fn set_positions(
         &mut self,
         positions: &[DVec3],
         bounds: (DVec3, DVec3),
     ) -> Result<(), RenderError> {
-        (self.origin, self.radius) = sphere_of(bounds)?;
+        let frame = F32Frame::of(bounds)?;
+        self.f32_frame = frame;
+        (self.origin, self.radius) = sphere_of((frame.point(bounds.0), frame.point(bounds.1)));
         let o = self.origin;
-        self.positions = positions.par_iter().map(|&p| (p - o).as_vec3()).collect();
+        self.positions = (positions.par_iter())
+            .map(|&p| (frame.point(p) - o).as_vec3())
+            .collect();
         Ok(())
     }
 
@@ -273,6 +281,7 @@ impl CpuRaycastRenderer {
         let t = Instant::now();
         let field = self.texture.as_ref().map(|texture| TexturedField {
             texture,
+            step: self.f32_frame.length(texture.step) as f32,
             tf,
             eye: &self.eye,
         });
@@ -359,7 +368,8 @@ impl Renderer for CpuRaycastRenderer {
 
     fn render(&mut self, camera: &Camera, tf: &TransferFunction) -> Result<Frame, RenderError> {
         camera.validate()?;
-        Ok(self.frame(camera, tf))
+        let tf = self.f32_frame.tf(tf)?;
+        Ok(self.frame(&self.f32_frame.camera(camera), &tf))
     }
 
     fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {

@@ -19,12 +19,14 @@ pub struct CpuTexture {
     pub volume: Arc<Volume>,
     pub texcoords: Vec<Vec3>,
     /// World units between samples along a ray.
-    pub step: f32,
+    pub step: f64,
 }
 
 /// What a frame's rays read of the texture.
 pub struct TexturedField<'a> {
     pub texture: &'a CpuTexture,
+    /// The texture's step in the mesh's f32 frame.
+    pub step: f32,
     pub tf: &'a TransferFunction,
     /// Eye-space vertex positions.
     pub eye: &'a [Vec3],
@@ -39,7 +41,7 @@ impl TexturedField<'_> {
             return (Vec3::ZERO, 1.0);
         }
         let [a, b] = self.ends(here, ids, d, t0, t1);
-        let n = (len / self.texture.step).ceil().max(1.0);
+        let n = (len / self.step).ceil().max(1.0);
         let dz = (len / n) as f64;
         let (mut color, mut trans) = (DVec3::ZERO, 1.0f64);
         for k in 0..n as u32 {

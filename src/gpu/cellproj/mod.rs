@@ -288,6 +288,7 @@ impl Renderer for CellProjRenderer {
         let mut timings = Timings::default();
         let mesh = Arc::clone(&self.mesh);
         let m = mesh.read();
+        let (camera, tf) = (&m.frame.camera(camera), &m.frame.tf(tf)?);
 
         // 1. Sort.
         let t0 = Instant::now();

@@ -259,8 +259,8 @@ impl IsoRenderer {
         Ok(())
     }
 
-    /// The vertex positions as the GPU stages read them: relative to the mesh's bounding-box
-    /// centre, f32, `w = 1`.
+    /// The vertex positions as the GPU stages read them: in the mesh's f32 frame (scaled by a
+    /// power of two to a radius about 1), relative to its bounding-box centre, f32, `w = 1`.
     pub fn gpu_positions(&self) -> Vec<[f32; 4]> {
         self.mesh.read().gpu_positions()
     }
@@ -312,6 +312,8 @@ impl IsoRenderer {
         let mut timings = Timings::default();
         let mesh = Arc::clone(&self.mesh);
         let m = mesh.read();
+        let frame = m.frame;
+        let camera = &frame.camera(camera);
         let view = ViewFrame::new(camera);
 
         // 1. Selection (cached until the scalars or isovalues change), frustum culling.
@@ -335,7 +337,8 @@ impl IsoRenderer {
             .iter()
             .map(|g| {
                 if g[3] >= 0.0 {
-                    (g[3], [g[0], g[1], g[2]])
+                    let depth = frame.world_length(g[3] as f64) as f32;
+                    (depth, [g[0], g[1], g[2]])
                 } else {
                     (f32::INFINITY, [0.0; 3])
                 }

@@ -88,8 +88,9 @@ struct BindGroups {
 }
 
 impl RaycastRenderer {
-    /// Renders one frame; see the module docs. `tf`: `None` only for a textured cage's
-    /// isosurfaces, which do not read it.
+    /// Renders one frame; see the module docs. `camera` and `tf` are in the mesh's f32 frame
+    /// ([`crate::gpu::util::F32Frame`]); `tf`: `None` only for a textured cage's isosurfaces,
+    /// which do not read it.
     pub(super) fn frame(
         &mut self,
         camera: &Camera,
@@ -299,7 +300,8 @@ impl RaycastRenderer {
             slices: slicing.count,
             terminate: slicing.terminate,
             shell_slices: slicing.shell_slices,
-            _pad: [0; 3],
+            step: (self.texture.as_ref()).map_or(0.0, |t| self.mesh.frame().length(t.step) as f32),
+            _pad: [0; 2],
         };
         self.queue
             .write_buffer(&self.params_buf, 0, bytemuck::bytes_of(&params));

@@ -382,7 +382,8 @@ impl RaycastRenderer {
         Ok(r)
     }
 
-    /// A frame of the walk sampler ([`Self::sliced`]) with the slices of `slicing`.
+    /// A frame of the walk sampler ([`Self::sliced`]) with the slices of `slicing`; `camera`,
+    /// `tf` and the slices in the mesh's f32 frame, as the shells renderer has them.
     pub(crate) fn render_slices(
         &mut self,
         camera: &Camera,
@@ -395,7 +396,7 @@ impl RaycastRenderer {
             ));
         }
         self.slicing = Some(slicing);
-        self.render(camera, tf)
+        self.frame(camera, Some(tf))
     }
 
     /// The ray caster of a textured cage (issue 12): `cage`'s vertices carry `texcoords`, and
@@ -456,7 +457,7 @@ impl RaycastRenderer {
                 &device,
                 nt.div_ceil(chunking.chunk).max(1),
                 mesh.has_cells(),
-                own_texture.map(|(t, used)| (t.step, *used)),
+                own_texture.map(|(_, used)| *used),
                 field,
                 (settings.entry_lanes).unwrap_or_else(|| EntryLanes::for_adapter(ctx)),
             ),
@@ -599,7 +600,8 @@ impl Renderer for RaycastRenderer {
     /// colours come with the isovalues).
     fn render(&mut self, camera: &Camera, tf: &TransferFunction) -> Result<Frame, RenderError> {
         camera.validate()?;
-        self.frame(camera, Some(tf))
+        let frame = self.mesh.frame();
+        self.frame(&frame.camera(camera), Some(&frame.tf(tf)?))
     }
 
     fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {

@@ -142,14 +142,15 @@ fn textured_iso_entries(entry: Entry) -> Vec<wgpu::BindGroupLayoutEntry> {
 impl Pipelines {
     /// Compiles the stages for a mesh whose links take `windows` windows (WGSL
     /// `LINK_WINDOWS`) and whose field is constant per tet when `cells` (WGSL `CELLS`); with
-    /// `texture`, also the textured traversals of that use sampling every that many world units;
+    /// `texture`, also the textured traversals of that use (sampling every `step` of the
+    /// constants, [`crate::gpu::gpu_data::RaycastUniforms`]);
     /// with `slices`, the walk sampler's traversals of that field later
     /// ([`Self::ensure_slices`]); the entries stage with `entry_lanes`.
     pub fn new(
         device: &wgpu::Device,
         windows: u64,
         cells: bool,
-        texture: Option<(f32, TextureUse)>,
+        texture: Option<TextureUse>,
         slices: Option<SliceField>,
         entry_lanes: EntryLanes,
     ) -> Self {
@@ -209,8 +210,7 @@ impl Pipelines {
                     [peel_exact, peel_partial, peel_table].map(|s| stage(s, &layers)),
                 ]
             }),
-            textured: texture.map(|(step, used)| {
-                let constants = [constants[0], constants[1], ("STEP", step as f64)];
+            textured: texture.map(|used| {
                 let textured =
                     |s, e| stage_with(device, s, &textured_entries(e), &constants, "main");
                 let iso =

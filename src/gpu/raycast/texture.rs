@@ -36,8 +36,9 @@ pub struct GpuTexture {
     /// The volume's smallest sample and range: texels are `(v - lo) / span`.
     pub(crate) lo: f64,
     pub(crate) span: f64,
-    /// World units between samples along a ray (WGSL `STEP`).
-    pub(super) step: f32,
+    /// World units between samples along a ray (WGSL `params.step` takes it in the mesh's
+    /// frame).
+    pub(super) step: f64,
 }
 
 impl GpuTexture {
@@ -106,7 +107,7 @@ impl GpuTexture {
             texcoords: buffer,
             lo,
             span,
-            step: step as f32,
+            step,
         })
     }
 

@@ -180,10 +180,14 @@ impl RaycastRenderer {
                  RaycastRenderer::textured_iso",
             ));
         }
-        let frame = self.frame(camera, None)?;
+        let frame = self.frame(&self.mesh.frame().camera(camera), None)?;
         let hits = (self.targets.as_ref()).and_then(|t| t.hits.as_ref());
         let hits = hits.ok_or(RenderError::Internal("the iso hit buffers are missing"))?;
-        let (depth, normal) = hits.read(&self.device)?;
+        let (mut depth, normal) = hits.read(&self.device)?;
+        let f32_frame = self.mesh.frame();
+        for d in depth.iter_mut().filter(|d| d.is_finite()) {
+            *d = f32_frame.world_length(*d as f64) as f32;
+        }
         let surface = IsoImage {
             color: frame.image,
             depth,

@@ -15,6 +15,7 @@ use crate::gpu::mesh::MeshData;
 use crate::gpu::view::ViewFrame;
 use crate::image::Image;
 use crate::mesh::topology::{FACES, NO_NEIGHBOR};
+use crate::render::RenderError;
 use crate::tf::TransferFunction;
 
 use super::{default_max_steps, links, near_tol};
@@ -308,8 +309,10 @@ fn trace(sc: &Scene, tf: &NormalizedTf, d: Vec3, max_steps: u32) -> [f32; 4] {
 }
 
 /// The frame the ray caster renders, traced on the CPU (one ray per pixel, every boundary face
-/// tested per ray: for small test meshes).
-pub fn render(m: &MeshData, camera: &Camera, tf: &TransferFunction) -> Image {
+/// tested per ray: for small test meshes). `camera` and `tf` in world units, converted to the
+/// mesh's frame as the ray caster does; an error when the unit distance does not fit it.
+pub fn render(m: &MeshData, camera: &Camera, tf: &TransferFunction) -> Result<Image, RenderError> {
+    let (camera, tf) = (&m.frame.camera(camera), &m.frame.tf(tf)?);
     let view = ViewFrame::new(camera);
     let f = view.uniforms(m.origin, 0.0, near_tol(m.radius), m.tets.len() as u32);
     let sc = scene(m, &f, near_tol(m.radius));
@@ -323,7 +326,7 @@ pub fn render(m: &MeshData, camera: &Camera, tf: &TransferFunction) -> Image {
             trace(&sc, &ntf, ray_of(&f, px), max_steps)
         })
         .collect();
-    image
+    Ok(image)
 }
 
 #[cfg(test)]

@@ -446,14 +446,17 @@ impl ShellsRenderer {
 
     /// Slice spacing in world units.
     pub fn dz(&self) -> f64 {
-        self.dz_for(&self.mesh.read())
+        let m = self.mesh.read();
+        m.frame.world_length(self.dz_for(&m))
     }
 
     /// Where this renderer puts the slices for `camera`: `(t_first, dz)`, slice `k` at distance
     /// `t_first + k dz` from the eye. `t_first` is half a slice beyond the mesh's bounding
     /// sphere (or beyond the eye, when the eye is inside the sphere).
     pub fn slice_positions(&self, camera: &Camera) -> (f64, f64) {
-        self.slices_for(&self.mesh.read(), camera)
+        let m = self.mesh.read();
+        let (t_first, dz) = self.slices_for(&m, &m.frame.camera(camera));
+        (m.frame.world_length(t_first), m.frame.world_length(dz))
     }
 
     /// The targets of a `width` x `height` frame: the kept ones when the size holds, else
@@ -897,6 +900,8 @@ impl Renderer for ShellsRenderer {
 
     fn render(&mut self, camera: &Camera, tf: &TransferFunction) -> Result<Frame, RenderError> {
         camera.validate()?;
+        let frame = self.mesh.frame();
+        let (camera, tf) = (&frame.camera(camera), &frame.tf(tf)?);
         if self.walk.is_some() {
             return self.render_walk(camera, tf);
         }

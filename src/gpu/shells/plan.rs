@@ -64,10 +64,10 @@ pub(super) fn slice_count(m: &MeshData, camera: &Camera, t_first: f64, dz: f64) 
 }
 
 impl ShellsRenderer {
-    /// The slice spacing over the mesh `m` (see [`ShellsRenderer::dz`]).
+    /// The slice spacing over the mesh `m` in its frame (see [`ShellsRenderer::dz`]).
     pub(super) fn dz_for(&self, m: &MeshData) -> f64 {
-        self.settings
-            .dz
+        (self.settings.dz)
+            .map(|dz| m.frame.length(dz))
             .unwrap_or(2.0 * m.radius / self.settings.samples as f64)
             .max(f64::MIN_POSITIVE)
     }
