@@ -30,7 +30,14 @@ impl F32Frame {
     /// bounding-sphere radius is 0 (every vertex at one point), not finite, or so far from 1
     /// (beyond 1e-300 or 1e300) that the box scaled to the frame would leave f64's range.
     pub fn of((lo, hi): (DVec3, DVec3)) -> Result<Self, MeshError> {
-        let radius = (hi - lo).length() * 0.5;
+        // The diagonal over its largest component first: squared, a diagonal below 1e-154 or
+        // above 1e154 would underflow to 0 or overflow.
+        let d = hi - lo;
+        let largest = d.abs().max_element();
+        let radius = match largest > 0.0 && largest.is_finite() {
+            true => 0.5 * largest * (d / largest).length(),
+            false => 0.5 * largest,
+        };
         let refused = MeshError::ExtentNotScalable { radius };
         if !(1e-300..=1e300).contains(&radius) {
             return Err(refused);
@@ -76,7 +83,8 @@ impl F32Frame {
     }
 }
 
-/// The bounding-box centre and the bounding-sphere radius about it of the box `(lo, hi)`.
+/// The bounding-box centre and the bounding-sphere radius about it of the box `(lo, hi)` (in
+/// the f32 frame: radius about 1).
 pub(crate) fn sphere_of((lo, hi): (DVec3, DVec3)) -> (DVec3, f64) {
     ((lo + hi) * 0.5, (hi - lo).length() * 0.5)
 }
@@ -348,4 +356,38 @@ pub(crate) fn texture_2d(
         usage,
         view_formats: &[],
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Radii from 1e-300 to 1e300 map into [0.5, 1) by an exact power of two; none, infinite or
+    /// beyond f64's range of squares (1e-200, 1e200: the diagonal's square leaves f64) too.
+    #[test]
+    fn the_frame_scales_any_radius_to_about_one_by_a_power_of_two() {
+        for r in [
+            1e-300, 1e-200, 1e-30, 1e-12, 0.5, 1.0, 3.0, 1e10, 1e30, 1e200, 1e300,
+        ] {
+            let half = DVec3::splat(r / 3f64.sqrt());
+            let frame = F32Frame::of((-half, half)).unwrap();
+            let scaled = frame.length(r);
+            assert!(
+                (0.5..1.0 + 1e-15).contains(&scaled),
+                "radius {r:e}: {scaled}"
+            );
+            let bits = frame.scale.to_bits();
+            assert_eq!(
+                bits & ((1 << 52) - 1),
+                0,
+                "radius {r:e}: not a power of two"
+            );
+        }
+        let point = (DVec3::splat(2.0), DVec3::splat(2.0));
+        let beyond = (DVec3::splat(-1e308), DVec3::splat(1e308));
+        for bounds in [point, beyond] {
+            let e = F32Frame::of(bounds).unwrap_err();
+            assert!(matches!(e, MeshError::ExtentNotScalable { .. }), "{e}");
+        }
+    }
 }
