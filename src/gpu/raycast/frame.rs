@@ -89,7 +89,7 @@ struct BindGroups {
 
 impl RaycastRenderer {
     /// Renders one frame; see the module docs. `camera` and `tf` are in the mesh's f32 frame
-    /// ([`crate::gpu::util::F32Frame`]); `tf`: `None` only for a textured cage's isosurfaces,
+    /// ([`crate::gpu::F32Frame`]); `tf`: `None` only for a textured cage's isosurfaces,
     /// which do not read it.
     pub(super) fn frame(
         &mut self,
