@@ -1,10 +1,9 @@
 //! The mesh's GPU side, built once per mesh and shared by every mode ([`GpuTetMesh`]): the f64
 //! frame of reference (the power-of-two scale of [`F32Frame`], bounding-box centre,
-//! bounding-sphere radius, scalar frame), the CPU
-//! copies the per-frame CPU stages read, the vertex buffers (positions, scalars), and per-tet
-//! arrays cut into chunks that each fit one storage binding and spread over as
-//! many buffers as the adapter's largest buffer needs, so no single buffer's limit caps the
-//! mesh.
+//! bounding-sphere radius, scalar frame), the CPU copies the per-frame CPU stages read, the
+//! vertex buffers (positions, scalars), and per-tet arrays cut into chunks that each fit one
+//! storage binding and spread over as many buffers as the adapter's largest buffer needs, so
+//! no single buffer's limit caps the mesh.
 //!
 //! **Cell data** ([`TetMesh::cell_scalars`]): the field is constant per tet. The mesh then also
 //! holds one normalized value per tet (`GpuTetMesh::cells`, 4 bytes a tet, uploaded when a
@@ -338,10 +337,10 @@ impl GpuTetMesh {
     /// New vertex positions (same count, finite, an extent the frame can scale, see
     /// [`F32Frame::of`]; else an error and the mesh is unchanged): recomputes the frame of
     /// reference (its scale too: a renderer converts each frame's camera with the current one)
-    /// and uploads
-    /// them (one buffer write). Three parallel passes over the vertices and nothing else: the
-    /// check and the box together, the copy, the conversion to f32 straight into the upload (what a deforming mesh pays per frame; topology, per-tet arrays and scalars are
-    /// untouched).
+    /// and uploads them (one buffer write). Three parallel passes over the vertices and nothing
+    /// else: the check and the box together, the copy into the frame, the conversion to f32
+    /// straight into the upload (what a deforming mesh pays per frame; topology, per-tet arrays
+    /// and scalars are untouched).
     pub fn update_positions(&self, positions: &[DVec3]) -> Result<(), RenderError> {
         let mut data = self.data.write().unwrap_or_else(PoisonError::into_inner);
         let world = checked_bounds(positions, data.positions.len())?;
