@@ -96,8 +96,10 @@ impl TransferFunction {
     }
 
     /// The default: a perceptual colour map (viridis) over `[lo, hi]` with opacity ramping
-    /// linearly from 0 at `lo` to [`DEFAULT_MAX_OPACITY`] at `hi`.
+    /// linearly from 0 at `lo` to [`DEFAULT_MAX_OPACITY`] at `hi` (for constant data,
+    /// `lo == hi`, over a range around the value: see `tf::file`).
     pub fn default_for_range(lo: f64, hi: f64, unit_distance: f64) -> Result<Self, TfError> {
+        let (lo, hi) = placement_range(lo, hi);
         let n = VIRIDIS.len() - 1;
         let points = VIRIDIS
             .iter()
@@ -167,6 +169,20 @@ impl TransferFunction {
                 .zip(&self.taus)
                 .all(|(p, &t)| t == 0.0 || p.s <= lo || p.s >= hi)
     }
+}
+
+/// The range a preset, a normalized file or the default is placed on: the data range, or
+/// around constant data (`lo == hi`) the value plus and minus half of `max(1, |value|)`,
+/// clamped to the finite f64s. Placed on a single value, every point would fall on it as one step, which the modes
+/// took from different sides (the reference and the ray casters from the last point, cellproj and
+/// the shells' culling from the first): the same constant field drawn by some and empty in
+/// others. Widened, the value sits in the middle of the map.
+pub(crate) fn placement_range(lo: f64, hi: f64) -> (f64, f64) {
+    if lo != hi {
+        return (lo, hi);
+    }
+    let half = 0.5 * lo.abs().max(1.0);
+    ((lo - half).max(f64::MIN), (hi + half).min(f64::MAX))
 }
 
 /// Extinction per world unit for opacity `a` gathered over `unit_distance`.
