@@ -960,6 +960,14 @@ fn outputs_are_checked_before_any_work_and_nothing_is_written() {
         stderr.contains("does not exist; create it first"),
         "{stderr}"
     );
+    // An existing file named as the folder: not "does not exist", which it does.
+    let file_as_folder = at("file-as-folder/picture.png");
+    std::fs::write(at("file-as-folder"), "not a folder").unwrap();
+    let stderr = failure(&[&mesh[..], &["-o", &file_as_folder]].concat());
+    assert!(
+        stderr.contains("file-as-folder is a file, not a folder"),
+        "{stderr}"
+    );
     let scene = at("no-such-folder/scene.json");
     let _ = std::fs::remove_file(dir.join("x.png"));
     let stderr = failure(&[&mesh[..], &["-o", &at("x.png"), "--save-scene", &scene]].concat());
@@ -1210,12 +1218,37 @@ fn flags_of_another_mode_are_refused_not_ignored() {
             &["--mode", "raycast-cpu", "--iso", "1"],
             "--iso belongs to --mode iso",
         ),
+        // Flags with a default were ignored whatever they said: a ray cast, not the walk
+        // sampler, a flat cell projection, not a smooth one.
+        (
+            &["--mode", "raycast", "--sampler", "walk"],
+            "--sampler belongs to --mode shells",
+        ),
+        (
+            &["--mode", "iso", "--binning", "gpu"],
+            "--binning belongs to --mode shells",
+        ),
+        (
+            &["--mode", "cellproj", "--shading", "smooth"],
+            "--shading belongs to --mode iso",
+        ),
+        (
+            &["--mode", "raycast-cpu", "--table-size", "64"],
+            "--table-size belongs to --mode cellproj or raycast",
+        ),
     ] {
         let stderr = failure(&[&render[..], flags].concat());
         assert!(stderr.contains(expected), "{flags:?}: {stderr}");
     }
     let stderr = failure(&["animate", LOX, "--iso", "1", "-o", "x.gif"]);
     assert!(stderr.contains("--iso belongs to --mode iso"), "{stderr}");
+    let stderr = failure(&[
+        "animate", LOX, "--mode", "iso", "--tune", "on", "-o", "x.gif",
+    ]);
+    assert!(
+        stderr.contains("--tune belongs to --mode shells"),
+        "{stderr}"
+    );
     // The flags with their own mode still render.
     let o = tetvr(
         &[
@@ -1224,5 +1257,7 @@ fn flags_of_another_mode_are_refused_not_ignored() {
         ]
         .concat(),
     );
+    assert!(o.status.success(), "{}", text(&o).1);
+    let o = tetvr(&[&render[..], &["--mode", "iso", "--shading", "smooth"]].concat());
     assert!(o.status.success(), "{}", text(&o).1);
 }

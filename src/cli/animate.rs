@@ -8,6 +8,7 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use clap::ArgMatches;
 use indicatif::{ProgressBar, ProgressStyle};
 use tetvr::camera::Camera;
 use tetvr::deform::Deformation;
@@ -25,7 +26,7 @@ use super::commands::{
 use super::scene::{Startup, of_flags, unused_mode_flags};
 use super::{AnimateArgs, RenderArgs};
 
-pub(super) fn animate(args: AnimateArgs) -> Result<(), CliError> {
+pub(super) fn animate(args: AnimateArgs, matches: &ArgMatches) -> Result<(), CliError> {
     if args.frames == Some(0) || args.fps == 0 {
         return Err(CliError::Usage(
             "--frames and --fps must be at least 1".into(),
@@ -42,7 +43,7 @@ pub(super) fn animate(args: AnimateArgs) -> Result<(), CliError> {
         .as_deref()
         .unwrap_or(Path::new("tetvr.gif"));
     check_output(output, &["gif", "png"])?;
-    unused_mode_flags(&args.render, args.render.mode)?;
+    unused_mode_flags(&args.render, args.render.mode, matches)?;
     of_flags(&args.render)?.check_without_mesh()?;
     if Series::is_series(&args.render.mesh.mesh) {
         if args.deform.is_some() || args.amplitude.is_some() || args.frames.is_some() {

@@ -90,7 +90,12 @@ pub fn run(cli: Cli, matches: &ArgMatches) -> Result<(), CliError> {
                 "the render command's arguments are missing".into(),
             )),
         },
-        Command::Animate(args) => super::animate::animate(*args),
+        Command::Animate(args) => match matches.subcommand_matches("animate") {
+            Some(m) => super::animate::animate(*args, m),
+            None => Err(CliError::Usage(
+                "the animate command's arguments are missing".into(),
+            )),
+        },
         Command::Info(args) => info(args),
         Command::IsoExport(args) => iso_export(args),
         Command::GpuInfo => {
@@ -125,8 +130,12 @@ pub(super) fn check_output(path: &Path, extensions: &[&str]) -> Result<(), CliEr
     }
     let folder = path.parent().filter(|f| !f.as_os_str().is_empty());
     if let Some(folder) = folder.filter(|f| !f.is_dir()) {
+        let why = match folder.exists() {
+            true => "is a file, not a folder; name a folder",
+            false => "does not exist; create it first",
+        };
         return Err(CliError::Usage(format!(
-            "{}: the folder {} does not exist; create it first",
+            "{}: the folder {} {why}",
             path.display(),
             folder.display()
         )));
@@ -164,7 +173,7 @@ pub(super) fn read_limits(args: &MeshArgs) -> io::ReadLimits {
 fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
     let scene = resolve(&cmd, matches)?;
     let args = &cmd.render;
-    unused_mode_flags(args, scene.mode)?;
+    unused_mode_flags(args, scene.mode, matches)?;
     let output = args.output.clone().unwrap_or_else(|| "tetvr.png".into());
     check_output(&output, &["png"])?;
     if let Some(path) = &cmd.save_scene {
