@@ -17,7 +17,7 @@ use tetvr::io::{self, LoadError, Loaded};
 use tetvr::mesh::MeshError;
 use tetvr::mesh::name::shown_list;
 use tetvr::mesh::stats::MeshStats;
-use tetvr::mode::{ModeSettings, ReferenceSettings};
+use tetvr::mode::{ModeSettings, ReferenceSettings, show_value};
 use tetvr::reference::ReferenceRenderer;
 use tetvr::render::{Progress, RenderError};
 use tetvr::scene::{Scene, SceneError, SceneTexture};
@@ -263,9 +263,12 @@ pub(super) fn check_isovalues(
         return Err(MeshError::NoScalars.into());
     };
     match (isovalues.iter()).find(|v| v.is_finite() && !(lo..=hi).contains(*v)) {
-        Some(v) => Err(CliError::Usage(format!(
-            "{from} {v} is outside the scalar range [{lo}, {hi}], so no surface would be drawn; \
-             choose values inside the range"
+        Some(&v) => Err(CliError::Usage(format!(
+            "{from} {} is outside the scalar range [{}, {}], so no surface would be drawn; \
+             choose values inside the range",
+            show_value(v),
+            show_value(lo),
+            show_value(hi)
         ))),
         None => Ok(()),
     }
@@ -495,7 +498,7 @@ fn iso_export(args: IsoExportArgs) -> Result<(), CliError> {
     for s in &surfaces {
         println!(
             "  isovalue {}: {} vertices, {} triangles",
-            s.isovalue,
+            show_value(s.isovalue),
             s.positions.len(),
             s.triangles.len()
         );
