@@ -136,11 +136,12 @@ impl TransferFunction {
         Self::new(self.points.clone(), unit_distance)
     }
 
-    /// Colour and extinction at scalar `s`.
+    /// Colour and extinction at scalar `s`. At a step (points at one `s`) the value is the
+    /// last point's there, as the reference's integrator takes it, the first step included.
     pub fn eval(&self, s: f64) -> TfSample {
         let p = &self.points;
         let last = p.len() - 1;
-        let (i, w) = if s <= p[0].s {
+        let (i, w) = if s < p[0].s {
             (0, 0.0)
         } else if s >= p[last].s {
             (last, 0.0)
@@ -233,6 +234,26 @@ mod tests {
         let mid = tf.eval(0.25);
         assert!((mid.tau - 0.25 * tau1).abs() < 1e-15);
         assert!((mid.color[1] - 0.25).abs() < 1e-15);
+    }
+
+    #[test]
+    fn a_step_is_taken_from_its_last_point_at_the_first_point_too() {
+        // A constant field on a step at the TF's first value: the reference integrates the
+        // step's last point (opaque), so culling by eval must not call it transparent.
+        let tf = TransferFunction::new(
+            vec![cp(1.0, 0.0, 0.0), cp(1.0, 1.0, 0.5), cp(2.0, 1.0, 0.5)],
+            1.0,
+        )
+        .unwrap();
+        assert_eq!(tf.eval(1.0).color[1], 1.0);
+        assert!(!tf.is_transparent_on(1.0, 1.0));
+        let inner = TransferFunction::new(
+            vec![cp(0.0, 0.0, 0.0), cp(1.0, 0.0, 0.0), cp(1.0, 1.0, 0.5)],
+            1.0,
+        )
+        .unwrap();
+        assert_eq!(inner.eval(1.0).color[1], 1.0);
+        assert_eq!(inner.eval(0.0).tau, 0.0);
     }
 
     #[test]
