@@ -1261,3 +1261,44 @@ fn flags_of_another_mode_are_refused_not_ignored() {
     let o = tetvr(&[&render[..], &["--mode", "iso", "--shading", "smooth"]].concat());
     assert!(o.status.success(), "{}", text(&o).1);
 }
+
+/// A mesh whose vertices all lie at one point: said so, not "the eye and the target are the
+/// same point" (render, animate) or "unit distance 0" (iso-export), which named what the user
+/// never gave.
+#[test]
+fn a_mesh_without_extent_is_named_as_such() {
+    let dir = out_dir("no-extent");
+    let mesh = dir.join("point.vtk");
+    let text = "# vtk DataFile Version 3.0\npoint\nASCII\nDATASET UNSTRUCTURED_GRID\n\
+                POINTS 4 double\n1 2 3\n1 2 3\n1 2 3\n1 2 3\nCELLS 1 5\n4 0 1 2 3\n\
+                CELL_TYPES 1\n10\nPOINT_DATA 4\nSCALARS s double 1\nLOOKUP_TABLE default\n\
+                0\n1\n2\n3\n";
+    std::fs::write(&mesh, text).unwrap();
+    let mesh = mesh.to_str().unwrap();
+    let (png, gif, glb) = (dir.join("x.png"), dir.join("x.gif"), dir.join("x.glb"));
+    for args in [
+        vec![
+            "render",
+            mesh,
+            "--mode",
+            "reference",
+            "-o",
+            png.to_str().unwrap(),
+        ],
+        vec![
+            "animate",
+            mesh,
+            "--mode",
+            "reference",
+            "-o",
+            gif.to_str().unwrap(),
+        ],
+        vec!["iso-export", mesh, "-o", glb.to_str().unwrap()],
+    ] {
+        let stderr = failure(&args);
+        assert!(
+            stderr.contains("all 4 vertices are at (1, 2, 3): the mesh has no extent"),
+            "{args:?}: {stderr}"
+        );
+    }
+}

@@ -21,7 +21,7 @@ use tetvr::{Image, TetMesh};
 
 use super::commands::{
     CliError, Textured, build_renderer, camera, check_isovalues, check_output, load_mesh, median,
-    ms, open_mode, read_limits, require_scalars, transfer_function_for,
+    ms, open_mode, read_limits, require_renderable, transfer_function_for,
 };
 use super::scene::{Startup, of_flags, unused_mode_flags};
 use super::{AnimateArgs, RenderArgs};
@@ -64,7 +64,7 @@ fn deform(args: &AnimateArgs) -> Result<(), CliError> {
     let mesh = load_mesh(&args.render.mesh)?.mesh;
     let read_ms = ms(read);
     if args.render.texture.is_none() {
-        require_scalars(&mesh, &args.render.mesh.mesh)?;
+        require_renderable(&mesh, &args.render.mesh.mesh)?;
     }
     let frames = args.frames.unwrap_or(24);
     let (deformation, amplitude) = (
@@ -102,7 +102,7 @@ fn play_series(args: &AnimateArgs) -> Result<(), CliError> {
     let first = series.load_prepared(0, &limits, prepare)?;
     let read_ms = ms(read);
     if args.render.texture.is_none() {
-        require_scalars(&first, &series.steps()[0].path)?;
+        require_renderable(&first, &series.steps()[0].path)?;
     }
     let steps = series.steps().len() as u64;
     let mut play = Playback::open(args, &first, steps, read_ms)?;

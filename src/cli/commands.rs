@@ -150,8 +150,22 @@ pub(super) fn load_mesh(args: &MeshArgs) -> Result<Loaded, CliError> {
     Ok(loaded)
 }
 
-/// Every mode renders an active scalar array: its lack named with the file, before any work.
-pub(super) fn require_scalars(mesh: &TetMesh, path: &Path) -> Result<(), CliError> {
+/// Every mode renders an active scalar array over some extent: the lack of either named with
+/// the file, before any work (a mesh whose vertices all lie at one point has no volume to draw,
+/// no framing and no unit distance, which the camera and the transfer function reported in
+/// their own words).
+pub(super) fn require_renderable(mesh: &TetMesh, path: &Path) -> Result<(), CliError> {
+    let (lo, hi) = mesh.bounds();
+    if lo == hi {
+        return Err(CliError::Usage(format!(
+            "{}: all {} vertices are at ({}, {}, {}): the mesh has no extent, nothing to render",
+            path.display(),
+            mesh.vertex_count(),
+            lo.x,
+            lo.y,
+            lo.z
+        )));
+    }
     match mesh.active_array() {
         Some(_) => Ok(()),
         None => Err(CliError::MeshIn {
@@ -187,7 +201,7 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
         ..Startup::default()
     };
     if scene.texture.is_none() {
-        require_scalars(&mesh, &scene.mesh)?;
+        require_renderable(&mesh, &scene.mesh)?;
     }
     let camera = scene.camera(&mesh)?;
 
@@ -471,7 +485,7 @@ fn iso_export(args: IsoExportArgs) -> Result<(), CliError> {
     }
     check_output(&args.output, &["glb"])?;
     let Loaded { mesh, .. } = load_mesh(&args.mesh)?;
-    require_scalars(&mesh, &args.mesh.mesh)?;
+    require_renderable(&mesh, &args.mesh.mesh)?;
     check_isovalues(&args.iso, "--iso", &mesh, None)?;
     let range = mesh
         .active_array()
