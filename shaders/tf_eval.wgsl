@@ -4,7 +4,8 @@
 // and the generated `tf_eval(u)` (gpu::shaders::tf_eval) calls these functions.
 
 // The transfer function, piecewise linear between control points and constant beyond the
-// ends, exactly as tf::TransferFunction::eval: the generated tf_eval(u) starts from point 0,
+// ends, exactly as tf::TransferFunction::eval (a step, points at one s, takes its last point
+// there, the first point's step too): the generated tf_eval(u) starts from point 0,
 // lets every segment k (points k, k + 1) replace the value where u lies on it, and ends with
 // tf_last. Small TFs get these calls with constant k (the points become loop-invariant
 // broadcasts); larger ones a loop.
@@ -17,7 +18,7 @@ fn tf_value(k: u32) -> vec4<f32> {
 fn tf_segment(out: vec4<f32>, u: f32, k: u32) -> vec4<f32> {
     let a = tf.points[k];
     let b = tf.points[k + 1u];
-    let on = u > tf.points[0].s && u >= a.s && u < b.s;
+    let on = u >= a.s && u < b.s;
     let piece = mix(vec4<f32>(a.rgb, a.tau), vec4<f32>(b.rgb, b.tau), (u - a.s) * a.inv_width);
     return select(out, piece, on);
 }

@@ -211,7 +211,7 @@ impl ModeSettings {
                 format!("mode shells ({sampler}, {} samples) on {on}", s.samples)
             }
             Self::Iso(s) => {
-                let values: Vec<String> = s.isovalues.iter().map(|(v, _)| v.to_string()).collect();
+                let values: Vec<String> = s.isovalues.iter().map(|(v, _)| show_value(*v)).collect();
                 format!("mode iso at {} on {on}", values.join(", "))
             }
             Self::CellProj(s) => {
@@ -262,6 +262,15 @@ pub fn iso_surfaces(tf: &TransferFunction, isovalues: &[f64]) -> Vec<(f64, [f32;
         .iter()
         .map(|&v| (v, tf.eval(v).color.map(|c| c as f32)))
         .collect()
+}
+
+/// A data value (an isovalue, a range's end) for people: the shortest digits that read back
+/// as `v`, in exponent form outside `[1e-4, 1e15)` (`1e300`, not three hundred digits).
+pub fn show_value(v: f64) -> String {
+    match v.abs() {
+        a if a == 0.0 || (1e-4..1e15).contains(&a) || !a.is_finite() => v.to_string(),
+        _ => format!("{v:e}"),
+    }
 }
 
 #[cfg(test)]
@@ -397,6 +406,21 @@ mod tests {
         for (&(v, color), want) in surfaces.iter().zip([0.25, 0.75]) {
             assert_eq!(v, want);
             assert_eq!(color, tf.eval(want).color.map(|c| c as f32));
+        }
+    }
+
+    #[test]
+    fn values_for_people_read_back_and_stay_short() {
+        for (v, shown) in [
+            (0.5, "0.5"),
+            (-1234.25, "-1234.25"),
+            (0.0, "0"),
+            (1e300, "1e300"),
+            (-7.911953017285715e299, "-7.911953017285715e299"),
+            (2.5e-7, "2.5e-7"),
+        ] {
+            assert_eq!(show_value(v), shown);
+            assert_eq!(show_value(v).parse::<f64>().unwrap(), v);
         }
     }
 }

@@ -960,6 +960,14 @@ fn outputs_are_checked_before_any_work_and_nothing_is_written() {
         stderr.contains("does not exist; create it first"),
         "{stderr}"
     );
+    // An existing file named as the folder: not "does not exist", which it does.
+    let file_as_folder = at("file-as-folder/picture.png");
+    std::fs::write(at("file-as-folder"), "not a folder").unwrap();
+    let stderr = failure(&[&mesh[..], &["-o", &file_as_folder]].concat());
+    assert!(
+        stderr.contains("file-as-folder is a file, not a folder"),
+        "{stderr}"
+    );
     let scene = at("no-such-folder/scene.json");
     let _ = std::fs::remove_file(dir.join("x.png"));
     let stderr = failure(&[&mesh[..], &["-o", &at("x.png"), "--save-scene", &scene]].concat());
@@ -1210,12 +1218,37 @@ fn flags_of_another_mode_are_refused_not_ignored() {
             &["--mode", "raycast-cpu", "--iso", "1"],
             "--iso belongs to --mode iso",
         ),
+        // Flags with a default were ignored whatever they said: a ray cast, not the walk
+        // sampler, a flat cell projection, not a smooth one.
+        (
+            &["--mode", "raycast", "--sampler", "walk"],
+            "--sampler belongs to --mode shells",
+        ),
+        (
+            &["--mode", "iso", "--binning", "gpu"],
+            "--binning belongs to --mode shells",
+        ),
+        (
+            &["--mode", "cellproj", "--shading", "smooth"],
+            "--shading belongs to --mode iso",
+        ),
+        (
+            &["--mode", "raycast-cpu", "--table-size", "64"],
+            "--table-size belongs to --mode cellproj or raycast",
+        ),
     ] {
         let stderr = failure(&[&render[..], flags].concat());
         assert!(stderr.contains(expected), "{flags:?}: {stderr}");
     }
     let stderr = failure(&["animate", LOX, "--iso", "1", "-o", "x.gif"]);
     assert!(stderr.contains("--iso belongs to --mode iso"), "{stderr}");
+    let stderr = failure(&[
+        "animate", LOX, "--mode", "iso", "--tune", "on", "-o", "x.gif",
+    ]);
+    assert!(
+        stderr.contains("--tune belongs to --mode shells"),
+        "{stderr}"
+    );
     // The flags with their own mode still render.
     let o = tetvr(
         &[
@@ -1225,4 +1258,47 @@ fn flags_of_another_mode_are_refused_not_ignored() {
         .concat(),
     );
     assert!(o.status.success(), "{}", text(&o).1);
+    let o = tetvr(&[&render[..], &["--mode", "iso", "--shading", "smooth"]].concat());
+    assert!(o.status.success(), "{}", text(&o).1);
+}
+
+/// A mesh whose vertices all lie at one point: said so, not "the eye and the target are the
+/// same point" (render, animate) or "unit distance 0" (iso-export), which named what the user
+/// never gave.
+#[test]
+fn a_mesh_without_extent_is_named_as_such() {
+    let dir = out_dir("no-extent");
+    let mesh = dir.join("point.vtk");
+    let text = "# vtk DataFile Version 3.0\npoint\nASCII\nDATASET UNSTRUCTURED_GRID\n\
+                POINTS 4 double\n1 2 3\n1 2 3\n1 2 3\n1 2 3\nCELLS 1 5\n4 0 1 2 3\n\
+                CELL_TYPES 1\n10\nPOINT_DATA 4\nSCALARS s double 1\nLOOKUP_TABLE default\n\
+                0\n1\n2\n3\n";
+    std::fs::write(&mesh, text).unwrap();
+    let mesh = mesh.to_str().unwrap();
+    let (png, gif, glb) = (dir.join("x.png"), dir.join("x.gif"), dir.join("x.glb"));
+    for args in [
+        vec![
+            "render",
+            mesh,
+            "--mode",
+            "reference",
+            "-o",
+            png.to_str().unwrap(),
+        ],
+        vec![
+            "animate",
+            mesh,
+            "--mode",
+            "reference",
+            "-o",
+            gif.to_str().unwrap(),
+        ],
+        vec!["iso-export", mesh, "-o", glb.to_str().unwrap()],
+    ] {
+        let stderr = failure(&args);
+        assert!(
+            stderr.contains("all 4 vertices are at (1, 2, 3): the mesh has no extent"),
+            "{args:?}: {stderr}"
+        );
+    }
 }

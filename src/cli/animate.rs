@@ -8,6 +8,7 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use clap::ArgMatches;
 use indicatif::{ProgressBar, ProgressStyle};
 use tetvr::camera::Camera;
 use tetvr::deform::Deformation;
@@ -20,12 +21,12 @@ use tetvr::{Image, TetMesh};
 
 use super::commands::{
     CliError, Textured, build_renderer, camera, check_isovalues, check_output, load_mesh, median,
-    ms, open_mode, read_limits, require_scalars, transfer_function_for,
+    ms, open_mode, read_limits, require_renderable, transfer_function_for,
 };
 use super::scene::{Startup, of_flags, unused_mode_flags};
 use super::{AnimateArgs, RenderArgs};
 
-pub(super) fn animate(args: AnimateArgs) -> Result<(), CliError> {
+pub(super) fn animate(args: AnimateArgs, matches: &ArgMatches) -> Result<(), CliError> {
     if args.frames == Some(0) || args.fps == 0 {
         return Err(CliError::Usage(
             "--frames and --fps must be at least 1".into(),
@@ -42,7 +43,7 @@ pub(super) fn animate(args: AnimateArgs) -> Result<(), CliError> {
         .as_deref()
         .unwrap_or(Path::new("tetvr.gif"));
     check_output(output, &["gif", "png"])?;
-    unused_mode_flags(&args.render, args.render.mode)?;
+    unused_mode_flags(&args.render, args.render.mode, matches)?;
     of_flags(&args.render)?.check_without_mesh()?;
     if Series::is_series(&args.render.mesh.mesh) {
         if args.deform.is_some() || args.amplitude.is_some() || args.frames.is_some() {
@@ -63,7 +64,7 @@ fn deform(args: &AnimateArgs) -> Result<(), CliError> {
     let mesh = load_mesh(&args.render.mesh)?.mesh;
     let read_ms = ms(read);
     if args.render.texture.is_none() {
-        require_scalars(&mesh, &args.render.mesh.mesh)?;
+        require_renderable(&mesh, &args.render.mesh.mesh)?;
     }
     let frames = args.frames.unwrap_or(24);
     let (deformation, amplitude) = (
@@ -101,7 +102,7 @@ fn play_series(args: &AnimateArgs) -> Result<(), CliError> {
     let first = series.load_prepared(0, &limits, prepare)?;
     let read_ms = ms(read);
     if args.render.texture.is_none() {
-        require_scalars(&first, &series.steps()[0].path)?;
+        require_renderable(&first, &series.steps()[0].path)?;
     }
     let steps = series.steps().len() as u64;
     let mut play = Playback::open(args, &first, steps, read_ms)?;

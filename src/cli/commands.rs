@@ -17,7 +17,7 @@ use tetvr::io::{self, LoadError, Loaded};
 use tetvr::mesh::MeshError;
 use tetvr::mesh::name::shown_list;
 use tetvr::mesh::stats::MeshStats;
-use tetvr::mode::{ModeSettings, ReferenceSettings};
+use tetvr::mode::{ModeSettings, ReferenceSettings, show_value};
 use tetvr::reference::ReferenceRenderer;
 use tetvr::render::{Progress, RenderError};
 use tetvr::scene::{Scene, SceneError, SceneTexture};
@@ -90,7 +90,12 @@ pub fn run(cli: Cli, matches: &ArgMatches) -> Result<(), CliError> {
                 "the render command's arguments are missing".into(),
             )),
         },
-        Command::Animate(args) => super::animate::animate(*args),
+        Command::Animate(args) => match matches.subcommand_matches("animate") {
+            Some(m) => super::animate::animate(*args, m),
+            None => Err(CliError::Usage(
+                "the animate command's arguments are missing".into(),
+            )),
+        },
         Command::Info(args) => info(args),
         Command::IsoExport(args) => iso_export(args),
         Command::GpuInfo => {
@@ -125,8 +130,12 @@ pub(super) fn check_output(path: &Path, extensions: &[&str]) -> Result<(), CliEr
     }
     let folder = path.parent().filter(|f| !f.as_os_str().is_empty());
     if let Some(folder) = folder.filter(|f| !f.is_dir()) {
+        let why = match folder.exists() {
+            true => "is a file, not a folder; name a folder",
+            false => "does not exist; create it first",
+        };
         return Err(CliError::Usage(format!(
-            "{}: the folder {} does not exist; create it first",
+            "{}: the folder {} {why}",
             path.display(),
             folder.display()
         )));
@@ -141,8 +150,22 @@ pub(super) fn load_mesh(args: &MeshArgs) -> Result<Loaded, CliError> {
     Ok(loaded)
 }
 
-/// Every mode renders an active scalar array: its lack named with the file, before any work.
-pub(super) fn require_scalars(mesh: &TetMesh, path: &Path) -> Result<(), CliError> {
+/// Every mode renders an active scalar array over some extent: the lack of either named with
+/// the file, before any work (a mesh whose vertices all lie at one point has no volume to draw,
+/// no framing and no unit distance, which the camera and the transfer function reported in
+/// their own words).
+pub(super) fn require_renderable(mesh: &TetMesh, path: &Path) -> Result<(), CliError> {
+    let (lo, hi) = mesh.bounds();
+    if lo == hi {
+        return Err(CliError::Usage(format!(
+            "{}: all {} vertices are at ({}, {}, {}): the mesh has no extent, nothing to render",
+            path.display(),
+            mesh.vertex_count(),
+            lo.x,
+            lo.y,
+            lo.z
+        )));
+    }
     match mesh.active_array() {
         Some(_) => Ok(()),
         None => Err(CliError::MeshIn {
@@ -164,7 +187,7 @@ pub(super) fn read_limits(args: &MeshArgs) -> io::ReadLimits {
 fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
     let scene = resolve(&cmd, matches)?;
     let args = &cmd.render;
-    unused_mode_flags(args, scene.mode)?;
+    unused_mode_flags(args, scene.mode, matches)?;
     let output = args.output.clone().unwrap_or_else(|| "tetvr.png".into());
     check_output(&output, &["png"])?;
     if let Some(path) = &cmd.save_scene {
@@ -178,7 +201,7 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
         ..Startup::default()
     };
     if scene.texture.is_none() {
-        require_scalars(&mesh, &scene.mesh)?;
+        require_renderable(&mesh, &scene.mesh)?;
     }
     let camera = scene.camera(&mesh)?;
 
@@ -254,9 +277,12 @@ pub(super) fn check_isovalues(
         return Err(MeshError::NoScalars.into());
     };
     match (isovalues.iter()).find(|v| v.is_finite() && !(lo..=hi).contains(*v)) {
-        Some(v) => Err(CliError::Usage(format!(
-            "{from} {v} is outside the scalar range [{lo}, {hi}], so no surface would be drawn; \
-             choose values inside the range"
+        Some(&v) => Err(CliError::Usage(format!(
+            "{from} {} is outside the scalar range [{}, {}], so no surface would be drawn; \
+             choose values inside the range",
+            show_value(v),
+            show_value(lo),
+            show_value(hi)
         ))),
         None => Ok(()),
     }
@@ -459,7 +485,7 @@ fn iso_export(args: IsoExportArgs) -> Result<(), CliError> {
     }
     check_output(&args.output, &["glb"])?;
     let Loaded { mesh, .. } = load_mesh(&args.mesh)?;
-    require_scalars(&mesh, &args.mesh.mesh)?;
+    require_renderable(&mesh, &args.mesh.mesh)?;
     check_isovalues(&args.iso, "--iso", &mesh, None)?;
     let range = mesh
         .active_array()
@@ -486,7 +512,7 @@ fn iso_export(args: IsoExportArgs) -> Result<(), CliError> {
     for s in &surfaces {
         println!(
             "  isovalue {}: {} vertices, {} triangles",
-            s.isovalue,
+            show_value(s.isovalue),
             s.positions.len(),
             s.triangles.len()
         );

@@ -105,13 +105,23 @@ fn check(args: &RenderArgs, scene: &Scene, entry_given: bool) -> Result<(), CliE
 
 /// Flags given on the command line for a mode other than `mode`, which it would ignore: the
 /// picture would not be what they ask for. (`view` takes them: its window switches modes.)
-pub fn unused_mode_flags(args: &RenderArgs, mode: Mode) -> Result<(), CliError> {
+/// `matches` tell the flags with a default (`--sampler`, `--shading`, ...) given from not.
+pub fn unused_mode_flags(
+    args: &RenderArgs,
+    mode: Mode,
+    matches: &ArgMatches,
+) -> Result<(), CliError> {
+    let given = |id: &str| matches.value_source(id) == Some(ValueSource::CommandLine);
     let shells = &args.shells;
     let shell_flag = [
         (shells.samples.is_some(), "--samples"),
         (shells.dz.is_some(), "--dz"),
         (shells.slices_per_shell.is_some(), "--slices-per-shell"),
         (shells.ert_threshold.is_some(), "--ert-threshold"),
+        (given("sampler"), "--sampler"),
+        (given("slice_format"), "--slice-format"),
+        (given("binning"), "--binning"),
+        (given("tune"), "--tune"),
     ]
     .into_iter()
     .find_map(|(given, flag)| given.then_some(flag));
@@ -122,11 +132,17 @@ pub fn unused_mode_flags(args: &RenderArgs, mode: Mode) -> Result<(), CliError> 
         _ if !args.iso.is_empty() && mode != Mode::Iso => {
             Some("--iso belongs to --mode iso (isovalues of its surfaces)".to_owned())
         }
+        _ if given("shading") && mode != Mode::Iso => {
+            Some("--shading belongs to --mode iso (how its surfaces are lit)".to_owned())
+        }
         _ if args.cellproj.integrate.is_some()
             && !matches!(mode, Mode::Cellproj | Mode::Raycast | Mode::RaycastCpu) =>
         {
             Some("--integrate belongs to --mode cellproj, raycast or raycast-cpu".to_owned())
         }
+        _ if given("table_size") && !matches!(mode, Mode::Cellproj | Mode::Raycast) => Some(
+            "--table-size belongs to --mode cellproj or raycast (--integrate table)".to_owned(),
+        ),
         _ => None,
     };
     match refused {

@@ -7,7 +7,7 @@ use tetvr::viewer::{ViewerSetup, WindowOptions};
 
 use super::ViewCommand;
 use super::commands::{
-    CliError, check_output, check_scene_isovalues, read_limits, require_scalars,
+    CliError, check_output, check_scene_isovalues, read_limits, require_renderable,
 };
 use super::scene::resolve_flags;
 
@@ -44,7 +44,7 @@ pub fn view(cmd: ViewCommand, matches: &ArgMatches) -> Result<(), CliError> {
         scene.mesh = s.steps()[0].path.clone();
     }
     let Loaded { mesh, .. } = scene.load_mesh(&limits)?;
-    require_scalars(&mesh, &scene.mesh)?;
+    require_renderable(&mesh, &scene.mesh)?;
     check_scene_isovalues(&scene, r, cmd.scene.as_deref(), &mesh, None)?;
     let tf = scene.transfer_function(&mesh)?;
     let camera = scene.camera(&mesh)?;

@@ -99,7 +99,9 @@ impl Accumulator {
         if len.is_nan() || len <= 0.0 {
             return;
         }
-        let interval = TfInterval::around(tf, 0.5 * (s0 + s1));
+        // Halved before the sum: scalars near f64::MAX must not overflow to infinity (which
+        // would take the TF's last interval for every piece).
+        let interval = TfInterval::around(tf, 0.5 * s0 + 0.5 * s1);
         let (tau_a, c_a) = interval.at(s0);
         let (tau_b, c_b) = interval.at(s1);
         let (c, t) = integrate_piece(tau_a, tau_b, c_a, c_b, len, max_sub_depth);
@@ -299,6 +301,34 @@ mod tests {
         assert!(c.iter().all(|&c| (c - 0.25).abs() < 1e-15));
         for len in [0.0, -1.0, f64::NAN, f64::INFINITY] {
             assert_eq!(integrate_segment(&tf, 0.0, 1.0, len), ([0.0; 3], 1.0));
+        }
+    }
+
+    #[test]
+    fn scalars_near_the_largest_f64_integrate_as_the_same_field_near_zero() {
+        // The same TF and segments placed at [0, 0.7] and at 1e308 + 1e308 x [0, 0.7] (the
+        // range of a field a user scaled by 1e308): the pictures must agree. The midpoint of two
+        // scalars near 1.7e308 overflows when summed first, which took the TF's last interval.
+        let points = [
+            (0.0, [0.1, 0.9, 0.2], 0.0),
+            (0.35, [1.0, 0.2, 0.0], 0.6),
+            (0.7, [0.0, 0.4, 1.0], 0.3),
+        ];
+        let big = |s: f64| 1e308 + s * 1e308;
+        let near = tf(&points, 0.1);
+        let far = tf(&points.map(|(s, c, a)| (big(s), c, a)), 0.1);
+        for (s_in, s_out) in [(0.1, 0.69), (0.6, 0.65), (0.7, 0.2)] {
+            let (c0, t0) = integrate_segment(&near, s_in, s_out, 0.3);
+            let (c1, t1) = integrate_segment(&far, big(s_in), big(s_out), 0.3);
+            // Only the scalars' rounding differs (relative 1e-16 of 1e308, 1e-16 of the span):
+            // 1e-12 leaves room for it and is far below a wrong interval's error (above 0.05).
+            assert!((t0 - t1).abs() < 1e-12, "transmittance {t0} against {t1}");
+            for k in 0..3 {
+                assert!(
+                    (c0[k] - c1[k]).abs() < 1e-12,
+                    "colour {c0:?} against {c1:?}"
+                );
+            }
         }
     }
 }

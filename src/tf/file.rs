@@ -7,7 +7,8 @@
 //!   "name": "...", "description": "..." }
 //! ```
 //! `s` is in data units, or in `[0, 1]` of the data range when `"normalized": true` (the
-//! presets use this). `r, g, b` are colour and `a` the opacity gathered over one unit distance,
+//! presets use this; constant data, a range of one value, is placed on that value plus and
+//! minus half of `max(1, |value|)`). `r, g, b` are colour and `a` the opacity gathered over one unit distance,
 //! all in `[0, 1]`, as in [`ControlPoint`]. Only `points` is required; without
 //! `unit_distance` the caller's default applies. Other keys are errors (a typo would otherwise
 //! be ignored silently).
@@ -28,7 +29,7 @@ use std::path::Path;
 
 use serde_json::{Map, Value};
 
-use super::{ControlPoint, DEFAULT_MAX_OPACITY, TfError, TransferFunction};
+use super::{ControlPoint, DEFAULT_MAX_OPACITY, TfError, TransferFunction, placement_range};
 
 /// Names of the built-in presets, for [`load_tf`] and `--help`.
 pub fn preset_names() -> &'static [&'static str] {
@@ -124,6 +125,16 @@ pub enum TfFileError {
         /// The range's maximum.
         hi: f64,
     },
+    /// The data range's width `hi - lo` overflows f64, so no point can be placed within it.
+    #[error(
+        "the data range [{lo:e}, {hi:e}] is wider than an f64 holds (hi - lo overflows): rescale the array (e.g. divide it by 1e10) to place a transfer function on it"
+    )]
+    RangeTooWide {
+        /// The range's minimum.
+        lo: f64,
+        /// The range's maximum.
+        hi: f64,
+    },
 }
 
 /// Loads a transfer function for data in `data_range`: `spec` is a preset name (see
@@ -165,6 +176,10 @@ pub fn parse_tf_json(
     if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
         return Err(TfFileError::BadDataRange { lo, hi });
     }
+    if !(hi - lo).is_finite() {
+        return Err(TfFileError::RangeTooWide { lo, hi });
+    }
+    let (lo, hi) = placement_range(lo, hi);
     let value: Value = serde_json::from_str(text).map_err(|e| {
         let position = format!(" at line {} column {}", e.line(), e.column());
         TfFileError::Json {
@@ -342,10 +357,8 @@ impl Ctx<'_> {
                 let color = lerp_at(&colors, s, right);
                 let opacity = match &opacities {
                     Some(o) => lerp_at(o, s, right)[0],
-                    None if self.hi > self.lo => {
-                        DEFAULT_MAX_OPACITY * ((s - self.lo) / (self.hi - self.lo))
-                    }
-                    None => DEFAULT_MAX_OPACITY,
+                    // parse_tf_json placed the range: hi > lo.
+                    None => DEFAULT_MAX_OPACITY * ((s - self.lo) / (self.hi - self.lo)),
                 };
                 let point = ControlPoint { s, color, opacity };
                 if !right || points.last() != Some(&point) {

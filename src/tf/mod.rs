@@ -96,8 +96,10 @@ impl TransferFunction {
     }
 
     /// The default: a perceptual colour map (viridis) over `[lo, hi]` with opacity ramping
-    /// linearly from 0 at `lo` to [`DEFAULT_MAX_OPACITY`] at `hi`.
+    /// linearly from 0 at `lo` to [`DEFAULT_MAX_OPACITY`] at `hi` (for constant data,
+    /// `lo == hi`, over a range around the value: see `tf::file`).
     pub fn default_for_range(lo: f64, hi: f64, unit_distance: f64) -> Result<Self, TfError> {
+        let (lo, hi) = placement_range(lo, hi);
         let n = VIRIDIS.len() - 1;
         let points = VIRIDIS
             .iter()
@@ -134,11 +136,12 @@ impl TransferFunction {
         Self::new(self.points.clone(), unit_distance)
     }
 
-    /// Colour and extinction at scalar `s`.
+    /// Colour and extinction at scalar `s`. At a step (points at one `s`) the value is the
+    /// last point's there, as the reference's integrator takes it, the first step included.
     pub fn eval(&self, s: f64) -> TfSample {
         let p = &self.points;
         let last = p.len() - 1;
-        let (i, w) = if s <= p[0].s {
+        let (i, w) = if s < p[0].s {
             (0, 0.0)
         } else if s >= p[last].s {
             (last, 0.0)
@@ -167,6 +170,20 @@ impl TransferFunction {
                 .zip(&self.taus)
                 .all(|(p, &t)| t == 0.0 || p.s <= lo || p.s >= hi)
     }
+}
+
+/// The range a preset, a normalized file or the default is placed on: the data range, or
+/// around constant data (`lo == hi`) the value plus and minus half of `max(1, |value|)`,
+/// clamped to the finite f64s. Placed on a single value, every point would fall on it as one step, which the modes
+/// took from different sides (the reference and the ray casters from the last point, cellproj and
+/// the shells' culling from the first): the same constant field drawn by some and empty in
+/// others. Widened, the value sits in the middle of the map.
+pub(crate) fn placement_range(lo: f64, hi: f64) -> (f64, f64) {
+    if lo != hi {
+        return (lo, hi);
+    }
+    let half = 0.5 * lo.abs().max(1.0);
+    ((lo - half).max(f64::MIN), (hi + half).min(f64::MAX))
 }
 
 /// Extinction per world unit for opacity `a` gathered over `unit_distance`.
@@ -217,6 +234,26 @@ mod tests {
         let mid = tf.eval(0.25);
         assert!((mid.tau - 0.25 * tau1).abs() < 1e-15);
         assert!((mid.color[1] - 0.25).abs() < 1e-15);
+    }
+
+    #[test]
+    fn a_step_is_taken_from_its_last_point_at_the_first_point_too() {
+        // A constant field on a step at the TF's first value: the reference integrates the
+        // step's last point (opaque), so culling by eval must not call it transparent.
+        let tf = TransferFunction::new(
+            vec![cp(1.0, 0.0, 0.0), cp(1.0, 1.0, 0.5), cp(2.0, 1.0, 0.5)],
+            1.0,
+        )
+        .unwrap();
+        assert_eq!(tf.eval(1.0).color[1], 1.0);
+        assert!(!tf.is_transparent_on(1.0, 1.0));
+        let inner = TransferFunction::new(
+            vec![cp(0.0, 0.0, 0.0), cp(1.0, 0.0, 0.0), cp(1.0, 1.0, 0.5)],
+            1.0,
+        )
+        .unwrap();
+        assert_eq!(inner.eval(1.0).color[1], 1.0);
+        assert_eq!(inner.eval(0.0).tau, 0.0);
     }
 
     #[test]

@@ -142,7 +142,7 @@ pub fn tf_eval(tf: &[TfPoint], u: f32) -> Vec4 {
     let mut out = at(first);
     for w in tf.windows(2) {
         let (a, b) = (&w[0], &w[1]);
-        if u > first.s && u >= a.s && u < b.s {
+        if u >= a.s && u < b.s {
             out = at(a).lerp(at(b), (u - a.s) * a.inv_width);
         }
     }
