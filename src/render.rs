@@ -29,6 +29,23 @@ pub enum RenderError {
     /// No adapter, or the adapter refused or failed the work (limits, device loss).
     #[error(transparent)]
     Gpu(#[from] GpuError),
+    /// The eye is farther from the mesh than an f32 mode keeps its accuracy
+    /// ([`crate::gpu::far_eye`]): `radii` and `limit` in bounding-sphere radii from the
+    /// bounding-box centre.
+    #[error(
+        "the eye is {radii:.3e} mesh radii from the mesh's centre, beyond the {limit:.0e} radii \
+         up to which {mode} keeps its accuracy in f32 (farther, its picture degrades: \
+         docs/performance.md, \"Meshes at extreme scales\"); move the eye closer and widen \
+         --fov to keep the framing, or render with --mode reference"
+    )]
+    EyeTooFar {
+        /// The mode, as the CLI spells it (with its sampler).
+        mode: &'static str,
+        /// The eye's distance from the mesh's centre, in mesh radii.
+        radii: f64,
+        /// The farthest distance the mode accepts, in mesh radii.
+        limit: f64,
+    },
     /// The mode's settings do not fit the mesh or adapter; the message names the setting.
     #[error("{0}")]
     Settings(String),

@@ -29,7 +29,7 @@ use tetvr::gpu::gpu_data::TetRecord;
 use tetvr::gpu::raycast::Segments;
 use tetvr::gpu::{
     CellProjRenderer, CellProjSettings, GpuContext, Integrate, IsoRenderer, IsoSettings,
-    RaycastRenderer, RaycastSettings, Sampler, ShellSettings, ShellsRenderer,
+    RaycastRenderer, RaycastSettings, Sampler, ShellSettings, ShellsRenderer, far_eye,
 };
 use tetvr::mesh::MeshError;
 use tetvr::reference::ReferenceRenderer;
@@ -62,6 +62,8 @@ struct ModeDef {
     build: fn(&TetMesh, f64) -> Built,
     /// Default (rmse, holes) bound against the truth.
     bound: (f64, usize),
+    /// Farthest eye it renders, in mesh radii ([`far_eye`]).
+    far_eye: f64,
 }
 
 /// The modes. Bounds:
@@ -95,6 +97,7 @@ static MODES: &[ModeDef] = &[
         truth: Truth::Volume,
         build: |mesh, _| Ok(Box::new(ReferenceRenderer::new(mesh)?)),
         bound: (1e-9, 0),
+        far_eye: f64::INFINITY,
     },
     ModeDef {
         name: "shells",
@@ -107,6 +110,7 @@ static MODES: &[ModeDef] = &[
             )?))
         },
         bound: (1e-3, 0),
+        far_eye: far_eye::SHELLS,
     },
     ModeDef {
         name: "shells compute",
@@ -119,6 +123,7 @@ static MODES: &[ModeDef] = &[
             Ok(Box::new(ShellsRenderer::new(ctx(), mesh, settings)?))
         },
         bound: (1e-3, 0),
+        far_eye: far_eye::SHELLS,
     },
     ModeDef {
         name: "shells walk",
@@ -131,6 +136,7 @@ static MODES: &[ModeDef] = &[
             Ok(Box::new(ShellsRenderer::new(ctx(), mesh, settings)?))
         },
         bound: (1e-3, 0),
+        far_eye: far_eye::WALK,
     },
     ModeDef {
         name: "iso",
@@ -144,6 +150,7 @@ static MODES: &[ModeDef] = &[
             Ok(Box::new(IsoRenderer::new(ctx(), mesh, settings)?))
         },
         bound: (2e-6, 0),
+        far_eye: far_eye::ISO,
     },
     ModeDef {
         name: "cellproj",
@@ -156,6 +163,7 @@ static MODES: &[ModeDef] = &[
             Ok(Box::new(CellProjRenderer::new(ctx(), mesh, settings)?))
         },
         bound: (5e-5, 0),
+        far_eye: far_eye::CELLPROJ,
     },
     ModeDef {
         name: "raycast",
@@ -165,6 +173,7 @@ static MODES: &[ModeDef] = &[
             Ok(Box::new(RaycastRenderer::new(ctx(), mesh, settings)?))
         },
         bound: (3e-6, 0),
+        far_eye: far_eye::RAYCAST,
     },
     ModeDef {
         name: "raycast table",
@@ -177,6 +186,7 @@ static MODES: &[ModeDef] = &[
             Ok(Box::new(RaycastRenderer::new(ctx(), mesh, settings)?))
         },
         bound: (3e-4, 0),
+        far_eye: far_eye::RAYCAST,
     },
     ModeDef {
         name: "raycast-cpu",
@@ -186,6 +196,7 @@ static MODES: &[ModeDef] = &[
             Ok(Box::new(CpuRaycastRenderer::new(mesh, settings)?))
         },
         bound: (3e-6, 0),
+        far_eye: far_eye::RAYCAST,
     },
 ];
 
@@ -1227,4 +1238,63 @@ fn non_finite_input_is_a_clear_error_in_every_mode() {
     }
     let cells = vec!["clear error".to_string(); MODES.len()];
     write_readme_row("NaN / inf coordinates and scalars", &cells, 0);
+}
+
+/// The outside view moved `radii` cube radii from the cube's centre, its fov shrunk so that the
+/// cube's bounding sphere just fits it, as a telephoto lens frames a far mesh.
+fn far(radii: f64) -> Camera {
+    let cam = outside();
+    let dir = (cam.eye - cam.target).normalize();
+    let target = DVec3::ZERO;
+    let fov = 2.0 * (1.0 / radii).asin().to_degrees();
+    look(target + dir * radii * 3f64.sqrt(), target, DVec3::Z, fov)
+}
+
+#[test]
+fn a_far_eye_is_within_the_bound_or_refused() {
+    // f32 eye-space arithmetic loses precision as D * 6e-8 at a distance D from the eye, while
+    // the mesh keeps its size: every f32 mode's error grows about linearly with the eye's
+    // distance in mesh radii (measured, docs/performance.md "Meshes at extreme scales";
+    // raycast 6.3e-7 rmse at 10 radii, 5.1e-6 at 100, 4.8e-4 at 1e4, holes at 1e5). Each mode
+    // accepts an eye up to its limit, where it was measured at most 7.7e-4 rmse (shells) with
+    // no hole and no flipped iso hit: held here to 1e-3 (a quarter of an 8-bit level; iso to
+    // its default bound). Half again farther, it refuses the frame naming the distance, the
+    // limit and what to do, rather than draw a degraded picture.
+    let g = grid();
+    for mode in MODES.iter().filter(|m| m.far_eye.is_finite()) {
+        // Just inside the limit (the eye's distance is rounded).
+        let near = Case::new("", scene(g.clone(), far(0.999 * mode.far_eye)), None);
+        let s = &near.stressed;
+        let mut r = (mode.build)(&s.mesh, ISOVALUE).unwrap();
+        let image = r.render(&s.camera, &s.tf).unwrap().image;
+        let m = image.compare(&truth_image(&near, mode.truth)).unwrap();
+        let max_rmse = mode.bound.0.max(1e-3);
+        println!(
+            "| far eye {:.0e} radii | {} | {m} |",
+            mode.far_eye, mode.name
+        );
+        assert!(
+            m.rmse <= max_rmse && m.holes == 0 && m.non_finite == 0,
+            "{}: at {:e} radii: {m}; bound rmse {max_rmse:e}, no holes",
+            mode.name,
+            mode.far_eye
+        );
+        let farther = 1.5 * mode.far_eye;
+        match r.render(&far(farther), &s.tf) {
+            Err(e @ RenderError::EyeTooFar { radii, limit, .. }) => {
+                assert!(
+                    (radii / farther - 1.0).abs() < 1e-9,
+                    "{}: {radii}",
+                    mode.name
+                );
+                assert_eq!(limit, mode.far_eye, "{}", mode.name);
+                let msg = e.to_string();
+                for part in ["mesh radii", "--fov", "--mode reference"] {
+                    assert!(msg.contains(part), "{}: {msg}", mode.name);
+                }
+            }
+            Err(e) => panic!("{}: refused for another reason: {e}", mode.name),
+            Ok(_) => panic!("{}: rendered an eye {farther:e} radii away", mode.name),
+        }
+    }
 }

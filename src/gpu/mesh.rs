@@ -25,9 +25,10 @@ use std::sync::{Arc, OnceLock, PoisonError, RwLock, RwLockReadGuard};
 use glam::DVec3;
 use rayon::prelude::*;
 
+use crate::camera::Camera;
 use crate::gpu::gpu_data::TetRecord;
 use crate::gpu::pieces::Uploader;
-use crate::gpu::util::{F32Frame, scalar_frame, settings_error, sphere_of};
+use crate::gpu::util::{F32Frame, far_eye, scalar_frame, settings_error, sphere_of};
 use crate::gpu::{GpuContext, GpuError};
 use crate::mesh::{TetMesh, check_values, checked_bounds, field_ranges};
 use crate::render::RenderError;
@@ -103,6 +104,17 @@ impl MeshData {
     pub fn ranges(&self) -> &[(f64, f64)] {
         self.ranges
             .get_or_init(|| field_ranges(&self.tets, &self.scalars, self.cells.as_deref()))
+    }
+
+    /// An error when the eye of `camera` (in the frame) is farther from the mesh than
+    /// `limit` radii ([`far_eye::check`]), naming `mode`.
+    pub(crate) fn check_eye(
+        &self,
+        mode: &'static str,
+        limit: f64,
+        camera: &Camera,
+    ) -> Result<(), RenderError> {
+        far_eye::check(mode, limit, camera.eye, (self.origin, self.radius))
     }
 
     /// The vertex positions as the GPU stages read them: relative to `origin`, f32, `w = 1`.

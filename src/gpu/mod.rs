@@ -41,4 +41,4 @@ pub use shells::skips::{Skip, Skips};
 pub use shells::tune::{TimingSource, TuneCache, TunedShells, WallClock, describe};
 pub use shells::{AUTO_GPU_TETS, BinningMode, Sampler, ShellSettings, ShellsRenderer, SliceFormat};
 pub use tf::tf_points;
-pub use util::F32Frame;
+pub use util::{F32Frame, far_eye};

@@ -83,6 +83,52 @@ impl F32Frame {
     }
 }
 
+/// How far the eye may be from the mesh in each f32 mode, in mesh radii (bounding-sphere
+/// radii from the bounding-box centre), and the check every f32 renderer makes per frame.
+///
+/// The f32 modes compute eye-space positions (or distances from the eye), whose absolute
+/// rounding grows with the eye's distance D while the mesh keeps its size: measured on the
+/// stress cube at 65x65 with the fov shrunk to keep the framing, each mode's rmse against the
+/// reference grows about linearly with D (raycast: 5e-8 D) until pixels flip or holes open.
+/// Each limit is the farthest measured distance at which the mode's rmse stays at most 1e-3
+/// (a quarter of an 8-bit level) with no hole and, for iso, no flipped hit: the table of
+/// docs/performance.md ("Meshes at extreme scales"). Farther, the mode refuses the frame
+/// ([`RenderError::EyeTooFar`]) rather than draw a silently wrong picture.
+pub mod far_eye {
+    use glam::DVec3;
+
+    use crate::render::RenderError;
+
+    /// `raycast` and `raycast-cpu` (every integration; measured 4.8e-4 at 1e4, 1.0e-3 at 2e4,
+    /// holes from 1e5).
+    pub const RAYCAST: f64 = 1e4;
+    /// `shells` with the raster or compute sampler (7.7e-4 at 3e3, 9.4e-4 at 5e3, 1.5e-3 at
+    /// 1e4).
+    pub const SHELLS: f64 = 3e3;
+    /// `shells` with the walk sampler (7.3e-4 at 1e4; it refuses its slices' f32 distances by
+    /// itself a little farther).
+    pub const WALK: f64 = 1e4;
+    /// `cellproj` (4.0e-4 at 3e3, 6.5e-4 at 5e3, 1.3e-3 at 1e4).
+    pub const CELLPROJ: f64 = 3e3;
+    /// `iso` (exact to 5e-8 at 3e2; at 1e3 one pixel's hit lands on the wrong side).
+    pub const ISO: f64 = 3e2;
+
+    /// An error when `eye` is more than `limit` radii from the sphere `(centre, radius)` of the
+    /// mesh (all in the same units, the f32 frame's), naming `mode`.
+    pub(crate) fn check(
+        mode: &'static str,
+        limit: f64,
+        eye: DVec3,
+        (centre, radius): (DVec3, f64),
+    ) -> Result<(), RenderError> {
+        let radii = (eye - centre).length() / radius;
+        match radii <= limit {
+            true => Ok(()),
+            false => Err(RenderError::EyeTooFar { mode, radii, limit }),
+        }
+    }
+}
+
 /// The bounding-box centre and the bounding-sphere radius about it of the box `(lo, hi)` (in
 /// the f32 frame: radius about 1).
 pub(crate) fn sphere_of((lo, hi): (DVec3, DVec3)) -> (DVec3, f64) {

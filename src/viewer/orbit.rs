@@ -15,6 +15,13 @@ const ZOOM_PER_POINT: f64 = 0.002;
 /// target itself may be inside the mesh, so the eye may be too).
 const MIN_DISTANCE: f64 = 1e-4;
 
+/// The eye never goes farther from the target than this multiple of the mesh's diagonal: 100
+/// mesh radii, where a 30-degree view shows the mesh across 2% of its height, and inside every
+/// f32 mode's far-eye limit (`crate::gpu::far_eye`, iso's 300 radii the smallest), so zooming
+/// out never reaches a refused frame. A pan that carries the target away from the mesh can
+/// still; the viewer then shows the refusal's message in place of the picture.
+const MAX_DISTANCE: f64 = 50.0;
+
 /// Furthest the eye may tilt towards the up axis, in degrees from it, so that up never becomes
 /// parallel to the viewing direction.
 const POLE_MARGIN_DEG: f64 = 1.0;
@@ -73,12 +80,13 @@ impl CameraController {
     }
 
     /// Moves the eye towards the target (positive `scroll`, in points) or away from it, by a
-    /// constant fraction per point.
+    /// constant fraction per point, between `MIN_DISTANCE` and `MAX_DISTANCE` diagonals.
     pub fn zoom(&mut self, scroll: f64) {
         let c = &mut self.camera;
         let offset = c.eye - c.target;
-        let min = MIN_DISTANCE * (self.hi - self.lo).length();
-        let distance = (offset.length() * (-scroll * ZOOM_PER_POINT).exp()).max(min);
+        let diagonal = (self.hi - self.lo).length();
+        let distance = (offset.length() * (-scroll * ZOOM_PER_POINT).exp())
+            .clamp(MIN_DISTANCE * diagonal, MAX_DISTANCE * diagonal);
         c.eye = c.target + offset.normalize() * distance;
     }
 
@@ -148,5 +156,18 @@ mod tests {
         assert!(d > 0.0 && d <= MIN_DISTANCE * 3f64.sqrt() * (1.0 + 1e-12));
         c.reset();
         assert_eq!(c.camera, start);
+    }
+
+    /// Zooming out stops at `MAX_DISTANCE` diagonals, inside the strictest f32 mode's far-eye
+    /// limit (iso's), so no zoom leads to a refused frame.
+    #[test]
+    fn zoom_out_stops_inside_every_far_eye_limit() {
+        let mut c = controller();
+        c.zoom(-1e6);
+        let diagonal = 3f64.sqrt();
+        let d = (c.camera.eye - c.camera.target).length();
+        assert!((d / diagonal - MAX_DISTANCE).abs() < 1e-9, "{d}");
+        let radii = (c.camera.eye - DVec3::splat(0.5)).length() / (diagonal / 2.0);
+        assert!(radii <= crate::gpu::far_eye::ISO, "{radii}");
     }
 }

@@ -46,7 +46,7 @@ use crate::camera::Camera;
 use crate::gpu::gpu_data::ViewUniforms;
 use crate::gpu::mesh::cell_update_error;
 use crate::gpu::raycast::{default_max_steps, links};
-use crate::gpu::util::{F32Frame, ms_since, scalar_frame, sphere_of};
+use crate::gpu::util::{F32Frame, far_eye, ms_since, scalar_frame, sphere_of};
 use crate::gpu::view::ViewFrame;
 use crate::image::Image;
 use crate::mesh::{TetMesh, check_values, checked_bounds};
@@ -369,7 +369,10 @@ impl Renderer for CpuRaycastRenderer {
     fn render(&mut self, camera: &Camera, tf: &TransferFunction) -> Result<Frame, RenderError> {
         camera.validate()?;
         let tf = self.f32_frame.tf(tf)?;
-        Ok(self.frame(&self.f32_frame.camera(camera), &tf))
+        let camera = self.f32_frame.camera(camera);
+        let sphere = (self.origin, self.radius);
+        far_eye::check("raycast-cpu", far_eye::RAYCAST, camera.eye, sphere)?;
+        Ok(self.frame(&camera, &tf))
     }
 
     fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {

@@ -55,7 +55,7 @@ use crate::gpu::frame::{FrameResources, FrameStats, ImageReadback};
 pub use crate::gpu::gpu_data::CellProjUniforms;
 use crate::gpu::gpu_data::{TfPoints, ViewUniforms};
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
-use crate::gpu::util::{entry, ms_since, uniform_buffer};
+use crate::gpu::util::{entry, far_eye, ms_since, uniform_buffer};
 use crate::image::Image;
 use crate::mesh::TetMesh;
 use crate::render::{Frame, RenderError, Renderer, Timings};
@@ -289,6 +289,7 @@ impl Renderer for CellProjRenderer {
         let mesh = Arc::clone(&self.mesh);
         let m = mesh.read();
         let (camera, tf) = (&m.frame.camera(camera), &m.frame.tf(tf)?);
+        m.check_eye("cellproj", far_eye::CELLPROJ, camera)?;
 
         // 1. Sort.
         let t0 = Instant::now();

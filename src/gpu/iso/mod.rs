@@ -53,7 +53,7 @@ use crate::gpu::frame::{FrameResources, FrameStats, ImageReadback, Timestamps};
 use crate::gpu::gpu_data::ViewUniforms;
 pub use crate::gpu::gpu_data::{IsoUniforms, MAX_ISOVALUES};
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
-use crate::gpu::util::{ms_since, read_mapped, settings_error, uniform_buffer};
+use crate::gpu::util::{far_eye, ms_since, read_mapped, settings_error, uniform_buffer};
 use crate::gpu::view::ViewFrame;
 use crate::image::Image;
 use crate::mesh::TetMesh;
@@ -314,6 +314,7 @@ impl IsoRenderer {
         let m = mesh.read();
         let frame = m.frame;
         let camera = &frame.camera(camera);
+        m.check_eye("iso", far_eye::ISO, camera)?;
         let view = ViewFrame::new(camera);
 
         // 1. Selection (cached until the scalars or isovalues change), frustum culling.

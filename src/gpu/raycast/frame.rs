@@ -13,7 +13,8 @@ use crate::gpu::gpu_data::LayerUniforms;
 use crate::gpu::mesh::{MeshData, chunk_ranges};
 use crate::gpu::tf::tf_points;
 use crate::gpu::util::{
-    check_image_size, entry, largest_binding, ms_since, read_mapped, settings_error, texture_2d,
+    check_image_size, entry, far_eye, largest_binding, ms_since, read_mapped, settings_error,
+    texture_2d,
 };
 use crate::gpu::view::ViewFrame;
 use crate::image::Image;
@@ -96,6 +97,8 @@ impl RaycastRenderer {
         camera: &Camera,
         tf: Option<&TransferFunction>,
     ) -> Result<Frame, RenderError> {
+        let mode = if self.iso.is_some() { "iso" } else { "raycast" };
+        (self.mesh.read()).check_eye(mode, far_eye::RAYCAST, camera)?;
         let start = Instant::now();
         let mut timings = Timings::default();
         let t = Instant::now();

@@ -101,7 +101,9 @@ use crate::gpu::frame::{FrameResources, FrameStats, Recorder};
 use crate::gpu::gpu_data::{ShellUniforms, SlicingUniforms, TfPoints, ViewUniforms};
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
 use crate::gpu::pieces::Uploader;
-use crate::gpu::util::{check_image_size, entry, ms_since, settings_error, uniform_buffer};
+use crate::gpu::util::{
+    check_image_size, entry, far_eye, ms_since, settings_error, uniform_buffer,
+};
 use crate::image::Image;
 use crate::mesh::TetMesh;
 use crate::render::{Frame, RenderError, Renderer, Timings};
@@ -902,6 +904,11 @@ impl Renderer for ShellsRenderer {
         camera.validate()?;
         let frame = self.mesh.frame();
         let (camera, tf) = (&frame.camera(camera), &frame.tf(tf)?);
+        let (mode, limit) = match self.walk {
+            Some(_) => ("shells (walk sampler)", far_eye::WALK),
+            None => ("shells", far_eye::SHELLS),
+        };
+        self.mesh.read().check_eye(mode, limit, camera)?;
         if self.walk.is_some() {
             return self.render_walk(camera, tf);
         }
