@@ -16,7 +16,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 pub use arrays::{CellDataMode, Component, DataArray, Per, cell_to_point, warp_by_vector};
-pub use topology::{Adjacency, BoundaryFace, NO_NEIGHBOR};
+pub use topology::{Adjacency, BoundaryFace, FaceAdjacency, NO_NEIGHBOR};
 
 /// A named per-vertex scalar field.
 #[derive(Clone, Debug, PartialEq)]

@@ -38,30 +38,45 @@ pub struct Adjacency {
     pub non_manifold_faces: usize,
 }
 
-impl Adjacency {
+/// The face adjacency with the face across each face: what [`Adjacency`] holds, but per tet
+/// and local face the partner's face code `4 * tet + face` instead of its tet, so a reader
+/// that needs the partner's face (the ray caster's links) does not search the neighbour's
+/// vertices for it.
+#[derive(Clone, Debug)]
+pub struct FaceAdjacency {
+    /// Per tet, the code `4 * tet + face` of the face across each local face
+    /// ([`NO_NEIGHBOR`] where there is none).
+    pub across: Vec<[u32; 4]>,
+    /// Every face with no neighbour across it, as in [`Adjacency::boundary`].
+    pub boundary: Vec<BoundaryFace>,
+    /// Faces shared by more than two tets, as in [`Adjacency::non_manifold_faces`].
+    pub non_manifold_faces: usize,
+}
+
+impl FaceAdjacency {
     /// Matches faces by their sorted vertex triples. A face's partner shares its smallest
     /// vertex, so the faces are bucketed by it with a counting sort (two passes over the tets,
     /// atomic counters) and matched within each bucket (some 20 to 25 faces in a tet mesh: four
     /// per tet, five or six tets per vertex). Two
     /// faces with the same vertices are neighbours; a face alone, or one of three or more with
-    /// the same vertices (counted once in [`Adjacency::non_manifold_faces`]), is a boundary
-    /// face. [`Adjacency::boundary`] lists boundary faces by tet, then local face. Face slots
+    /// the same vertices (counted once in [`Self::non_manifold_faces`]), is a boundary
+    /// face. [`Self::boundary`] lists boundary faces by tet, then local face. Face slots
     /// are numbered `4 * tet + face` in 32 bits: at most 2^30 tets
     /// ([`crate::generate::MAX_GENERATED_TETS`]).
     pub fn build(tets: &[[u32; 4]]) -> Self {
         let buckets = FaceBuckets::build(tets);
-        let neighbors: Vec<[AtomicU32; 4]> = (0..tets.len())
+        let across: Vec<[AtomicU32; 4]> = (0..tets.len())
             .into_par_iter()
             .with_min_len(CHUNK)
             .map(|_| [const { AtomicU32::new(NO_NEIGHBOR) }; 4])
             .collect();
-        let non_manifold_faces = buckets.match_faces(tets, &neighbors);
+        let non_manifold_faces = buckets.match_faces(tets, &across);
         // Same layout: collects in place, without a second allocation.
-        let neighbors: Vec<[u32; 4]> = neighbors
+        let across: Vec<[u32; 4]> = across
             .into_iter()
             .map(|n| n.map(AtomicU32::into_inner))
             .collect();
-        let boundary = neighbors
+        let boundary = across
             .par_iter()
             .enumerate()
             .with_min_len(CHUNK)
@@ -76,7 +91,26 @@ impl Adjacency {
             })
             .collect();
         Self {
-            neighbors,
+            across,
+            boundary,
+            non_manifold_faces,
+        }
+    }
+}
+
+impl Adjacency {
+    /// The [`FaceAdjacency`] of `tets` with each face code turned into its tet, in place.
+    pub fn build(tets: &[[u32; 4]]) -> Self {
+        let FaceAdjacency {
+            mut across,
+            boundary,
+            non_manifold_faces,
+        } = FaceAdjacency::build(tets);
+        across.par_iter_mut().with_min_len(CHUNK).for_each(|n| {
+            *n = n.map(|c| if c == NO_NEIGHBOR { c } else { c / 4 });
+        });
+        Self {
+            neighbors: across,
             boundary,
             non_manifold_faces,
         }
@@ -188,9 +222,9 @@ impl FaceBuckets {
         Self { ends, slots }
     }
 
-    /// Pairs the faces of each bucket with equal vertex triples, recording each pair in
-    /// `neighbors`; returns the number of triples shared by more than two faces.
-    fn match_faces(&self, tets: &[[u32; 4]], neighbors: &[[AtomicU32; 4]]) -> usize {
+    /// Pairs the faces of each bucket with equal vertex triples, recording each face's partner
+    /// in `across`; returns the number of triples shared by more than two faces.
+    fn match_faces(&self, tets: &[[u32; 4]], across: &[[AtomicU32; 4]]) -> usize {
         (0..self.ends.len())
             .into_par_iter()
             .with_min_len(CHUNK / 4)
@@ -205,22 +239,23 @@ impl FaceBuckets {
                 let slots = &self.slots[lo..hi];
                 faces.extend(slots.iter().map(|s| face_key(tets, s.load(Relaxed))));
                 faces.sort_unstable();
-                match_sorted(faces, neighbors)
+                match_sorted(faces, across)
             })
             .sum()
     }
 }
 
-/// Records the pairs among `faces` (sorted by key) in `neighbors`; returns the number of keys
-/// held by more than two faces, which stay boundary faces.
-fn match_sorted(faces: &[u128], neighbors: &[[AtomicU32; 4]]) -> usize {
+/// Records the pairs among `faces` (sorted by key) in `across`, each face's partner slot
+/// (its face code) under the other; returns the number of keys held by more than two faces,
+/// which stay boundary faces.
+fn match_sorted(faces: &[u128], across: &[[AtomicU32; 4]]) -> usize {
     let mut non_manifold = 0;
     for group in faces.chunk_by(|x, y| x >> 32 == y >> 32) {
         match group {
             [a, b] => {
-                let (a, b) = (*a as u32 as usize, *b as u32 as usize);
-                neighbors[a / 4][a % 4].store((b / 4) as u32, Relaxed);
-                neighbors[b / 4][b % 4].store((a / 4) as u32, Relaxed);
+                let (a, b) = (*a as u32, *b as u32);
+                across[a as usize / 4][a as usize % 4].store(b, Relaxed);
+                across[b as usize / 4][b as usize % 4].store(a, Relaxed);
             }
             [_] => {}
             _ => non_manifold += 1,
@@ -300,8 +335,8 @@ mod tests {
     }
 
     /// The adjacency as the old sort-based build defined it, from a hash map of sorted face
-    /// triples: the tet across each face shared by exactly two faces, the boundary slots
-    /// ascending, the number of triples held by three or more faces.
+    /// triples: the face code `4 * tet + face` across each face shared by exactly two faces,
+    /// the boundary slots ascending, the number of triples held by three or more faces.
     fn hashed(tets: &[[u32; 4]]) -> (Vec<[u32; 4]>, Vec<(u32, u8)>, usize) {
         let mut faces: HashMap<[u32; 3], Vec<(usize, usize)>> = HashMap::new();
         for (t, tet) in tets.iter().enumerate() {
@@ -311,13 +346,13 @@ mod tests {
                 faces.entry(k).or_default().push((t, f));
             }
         }
-        let mut neighbors = vec![[NO_NEIGHBOR; 4]; tets.len()];
+        let mut across = vec![[NO_NEIGHBOR; 4]; tets.len()];
         let mut non_manifold = 0;
         for slots in faces.values() {
             match slots[..] {
                 [(t, f), (u, g)] => {
-                    neighbors[t][f] = u as u32;
-                    neighbors[u][g] = t as u32;
+                    across[t][f] = (4 * u + g) as u32;
+                    across[u][g] = (4 * t + f) as u32;
                 }
                 [_] => {}
                 _ => non_manifold += 1,
@@ -332,7 +367,7 @@ mod tests {
             })
             .map(|(t, f)| (t as u32, f as u8))
             .collect();
-        (neighbors, boundary, non_manifold)
+        (across, boundary, non_manifold)
     }
 
     /// Random tets over a few vertices, so that faces are often shared by two tets and
@@ -351,8 +386,15 @@ mod tests {
     proptest! {
         #[test]
         fn build_matches_a_hash_map_of_faces(tets in tets_strategy()) {
+            let faces = FaceAdjacency::build(&tets);
             let adj = Adjacency::build(&tets);
-            let (neighbors, boundary, non_manifold) = hashed(&tets);
+            let (across, boundary, non_manifold) = hashed(&tets);
+            prop_assert_eq!(&faces.across, &across);
+            prop_assert_eq!(&faces.boundary, &adj.boundary);
+            prop_assert_eq!(faces.non_manifold_faces, adj.non_manifold_faces);
+            let neighbors: Vec<[u32; 4]> = (across.iter())
+                .map(|n| n.map(|c| if c == NO_NEIGHBOR { c } else { c / 4 }))
+                .collect();
             prop_assert_eq!(&adj.neighbors, &neighbors);
             let slots: Vec<(u32, u8)> = adj.boundary.iter().map(|b| (b.tet, b.face)).collect();
             prop_assert_eq!(slots, boundary);
