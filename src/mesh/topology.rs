@@ -38,30 +38,45 @@ pub struct Adjacency {
     pub non_manifold_faces: usize,
 }
 
-impl Adjacency {
+/// The face adjacency with the face across each face: what [`Adjacency`] holds, but per tet
+/// and local face the partner's face code `4 * tet + face` instead of its tet, so a reader
+/// that needs the partner's face (the ray caster's links) does not search the neighbour's
+/// vertices for it.
+#[derive(Clone, Debug)]
+pub struct FaceAdjacency {
+    /// Per tet, the code `4 * tet + face` of the face across each local face
+    /// ([`NO_NEIGHBOR`] where there is none).
+    pub across: Vec<[u32; 4]>,
+    /// Every face with no neighbour across it, as in [`Adjacency::boundary`].
+    pub boundary: Vec<BoundaryFace>,
+    /// Faces shared by more than two tets, as in [`Adjacency::non_manifold_faces`].
+    pub non_manifold_faces: usize,
+}
+
+impl FaceAdjacency {
     /// Matches faces by their sorted vertex triples. A face's partner shares its smallest
     /// vertex, so the faces are bucketed by it with a counting sort (two passes over the tets,
     /// atomic counters) and matched within each bucket (some 20 to 25 faces in a tet mesh: four
     /// per tet, five or six tets per vertex). Two
     /// faces with the same vertices are neighbours; a face alone, or one of three or more with
-    /// the same vertices (counted once in [`Adjacency::non_manifold_faces`]), is a boundary
-    /// face. [`Adjacency::boundary`] lists boundary faces by tet, then local face. Face slots
+    /// the same vertices (counted once in [`Self::non_manifold_faces`]), is a boundary
+    /// face. [`Self::boundary`] lists boundary faces by tet, then local face. Face slots
     /// are numbered `4 * tet + face` in 32 bits: at most 2^30 tets
     /// ([`crate::generate::MAX_GENERATED_TETS`]).
     pub fn build(tets: &[[u32; 4]]) -> Self {
         let buckets = FaceBuckets::build(tets);
-        let neighbors: Vec<[AtomicU32; 4]> = (0..tets.len())
+        let across: Vec<[AtomicU32; 4]> = (0..tets.len())
             .into_par_iter()
             .with_min_len(CHUNK)
             .map(|_| [const { AtomicU32::new(NO_NEIGHBOR) }; 4])
             .collect();
-        let non_manifold_faces = buckets.match_faces(tets, &neighbors);
+        let non_manifold_faces = buckets.match_faces(tets, &across);
         // Same layout: collects in place, without a second allocation.
-        let neighbors: Vec<[u32; 4]> = neighbors
+        let across: Vec<[u32; 4]> = across
             .into_iter()
             .map(|n| n.map(AtomicU32::into_inner))
             .collect();
-        let boundary = neighbors
+        let boundary = across
             .par_iter()
             .enumerate()
             .with_min_len(CHUNK)
@@ -76,7 +91,26 @@ impl Adjacency {
             })
             .collect();
         Self {
-            neighbors,
+            across,
+            boundary,
+            non_manifold_faces,
+        }
+    }
+}
+
+impl Adjacency {
+    /// The [`FaceAdjacency`] of `tets` with each face code turned into its tet, in place.
+    pub fn build(tets: &[[u32; 4]]) -> Self {
+        let FaceAdjacency {
+            mut across,
+            boundary,
+            non_manifold_faces,
+        } = FaceAdjacency::build(tets);
+        across.par_iter_mut().with_min_len(CHUNK).for_each(|n| {
+            *n = n.map(|c| if c == NO_NEIGHBOR { c } else { c / 4 });
+        });
+        Self {
+            neighbors: across,
             boundary,
             non_manifold_faces,
         }
@@ -136,16 +170,18 @@ impl Adjacency {
 /// Tets per parallel work item in [`Adjacency::build`].
 const CHUNK: usize = 4096;
 
-/// Face slots (`4 * tet + face`) bucketed by their smallest vertex (modulo the bucket count):
-/// bucket `b` is `slots[ends[b - 1]..ends[b]]` (from 0 for the first), in no particular order.
+/// The faces of the tets bucketed by their smallest vertex (modulo the bucket count), in two
+/// entries a tet ([`Self::push_keys`]): `2 * tet` for its three faces through its smallest vertex,
+/// `2 * tet + 1` for the fourth, which goes under its second smallest. Bucket `b` is
+/// `entries[ends[b - 1]..ends[b]]` (from 0 for the first), in no particular order. Half the
+/// entries of one per face: half the memory, and half the reads of tets in the matching.
 struct FaceBuckets {
     ends: Vec<AtomicUsize>,
-    slots: Vec<AtomicU32>,
+    entries: Vec<AtomicU32>,
 }
 
 impl FaceBuckets {
-    /// A counting sort of the faces of `tets` by smallest vertex. A tet's three faces through
-    /// its smallest vertex share a bucket; the fourth goes under its second smallest.
+    /// A counting sort of the faces of `tets` by smallest vertex.
     fn build(tets: &[[u32; 4]]) -> Self {
         let max_vertex = tets
             .par_iter()
@@ -159,7 +195,7 @@ impl FaceBuckets {
         let ends: Vec<AtomicUsize> = (0..count).map(|_| AtomicUsize::new(0)).collect();
         tets.par_iter().with_min_len(CHUNK).for_each(|t| {
             let (lowest, second) = lowest_corner(t);
-            ends[bucket(t[lowest])].fetch_add(3, Relaxed);
+            ends[bucket(t[lowest])].fetch_add(1, Relaxed);
             ends[bucket(second)].fetch_add(1, Relaxed);
         });
         // Each bucket's start, which the fill below advances to its end.
@@ -167,9 +203,9 @@ impl FaceBuckets {
         for e in &ends {
             start += e.swap(start, Relaxed);
         }
-        let slots: Vec<AtomicU32> = (0..tets.len() * 4)
+        let entries: Vec<AtomicU32> = (0..tets.len() * 2)
             .into_par_iter()
-            .with_min_len(4 * CHUNK)
+            .with_min_len(2 * CHUNK)
             .map(|_| AtomicU32::new(0))
             .collect();
         tets.par_iter()
@@ -177,20 +213,33 @@ impl FaceBuckets {
             .with_min_len(CHUNK)
             .for_each(|(t, tet)| {
                 let (lowest, second) = lowest_corner(tet);
-                let at = ends[bucket(tet[lowest])].fetch_add(3, Relaxed);
-                let others = (0..4u32).filter(|&f| f as usize != lowest);
-                for (k, f) in others.enumerate() {
-                    slots[at + k].store(4 * t as u32 + f, Relaxed);
-                }
+                let at = ends[bucket(tet[lowest])].fetch_add(1, Relaxed);
+                entries[at].store(2 * t as u32, Relaxed);
                 let at = ends[bucket(second)].fetch_add(1, Relaxed);
-                slots[at].store(4 * t as u32 + lowest as u32, Relaxed);
+                entries[at].store(2 * t as u32 + 1, Relaxed);
             });
-        Self { ends, slots }
+        Self { ends, entries }
     }
 
-    /// Pairs the faces of each bucket with equal vertex triples, recording each pair in
-    /// `neighbors`; returns the number of triples shared by more than two faces.
-    fn match_faces(&self, tets: &[[u32; 4]], neighbors: &[[AtomicU32; 4]]) -> usize {
+    /// Pushes the keys ([`face_key`]) of the faces entry `entry` stands for: the tet's three
+    /// faces through its smallest vertex (an even entry) or the one opposite it (an odd one).
+    fn push_keys(tets: &[[u32; 4]], entry: u32, keys: &mut Vec<u128>) {
+        let t = entry / 2;
+        let tet = &tets[t as usize];
+        let lowest = lowest_corner(tet).0 as u32;
+        if entry % 2 == 1 {
+            keys.push(face_key(tet, 4 * t + lowest));
+        } else {
+            // Three faces in any order (the bucket is sorted), without a branch on which.
+            for k in 1..4 {
+                keys.push(face_key(tet, 4 * t + (lowest + k) % 4));
+            }
+        }
+    }
+
+    /// Pairs the faces of each bucket with equal vertex triples, recording each face's partner
+    /// in `across`; returns the number of triples shared by more than two faces.
+    fn match_faces(&self, tets: &[[u32; 4]], across: &[[AtomicU32; 4]]) -> usize {
         (0..self.ends.len())
             .into_par_iter()
             .with_min_len(CHUNK / 4)
@@ -202,25 +251,27 @@ impl FaceBuckets {
                 };
                 let hi = self.ends[b].load(Relaxed);
                 faces.clear();
-                let slots = &self.slots[lo..hi];
-                faces.extend(slots.iter().map(|s| face_key(tets, s.load(Relaxed))));
+                for e in &self.entries[lo..hi] {
+                    Self::push_keys(tets, e.load(Relaxed), faces);
+                }
                 faces.sort_unstable();
-                match_sorted(faces, neighbors)
+                match_sorted(faces, across)
             })
             .sum()
     }
 }
 
-/// Records the pairs among `faces` (sorted by key) in `neighbors`; returns the number of keys
-/// held by more than two faces, which stay boundary faces.
-fn match_sorted(faces: &[u128], neighbors: &[[AtomicU32; 4]]) -> usize {
+/// Records the pairs among `faces` (sorted by key) in `across`, each face's partner slot
+/// (its face code) under the other; returns the number of keys held by more than two faces,
+/// which stay boundary faces.
+fn match_sorted(faces: &[u128], across: &[[AtomicU32; 4]]) -> usize {
     let mut non_manifold = 0;
     for group in faces.chunk_by(|x, y| x >> 32 == y >> 32) {
         match group {
             [a, b] => {
-                let (a, b) = (*a as u32 as usize, *b as u32 as usize);
-                neighbors[a / 4][a % 4].store((b / 4) as u32, Relaxed);
-                neighbors[b / 4][b % 4].store((a / 4) as u32, Relaxed);
+                let (a, b) = (*a as u32, *b as u32);
+                across[a as usize / 4][a as usize % 4].store(b, Relaxed);
+                across[b as usize / 4][b as usize % 4].store(a, Relaxed);
             }
             [_] => {}
             _ => non_manifold += 1,
@@ -229,11 +280,10 @@ fn match_sorted(faces: &[u128], neighbors: &[[AtomicU32; 4]]) -> usize {
     non_manifold
 }
 
-/// The sorted vertices of face slot `4 * tet + face` packed from the high bits down, then
-/// the slot in the low 32 bits.
-fn face_key(tets: &[[u32; 4]], slot: u32) -> u128 {
-    let (t, f) = ((slot / 4) as usize, (slot % 4) as usize);
-    let mut k = FACES[f].map(|i| tets[t][i]);
+/// The sorted vertices of face slot `4 * tet + face` (of the tet `tet`) packed from the high
+/// bits down, then the slot in the low 32 bits.
+fn face_key(tet: &[u32; 4], slot: u32) -> u128 {
+    let mut k = FACES[slot as usize % 4].map(|i| tet[i]);
     k.sort_unstable();
     (k[0] as u128) << 96 | (k[1] as u128) << 64 | (k[2] as u128) << 32 | slot as u128
 }
@@ -300,8 +350,8 @@ mod tests {
     }
 
     /// The adjacency as the old sort-based build defined it, from a hash map of sorted face
-    /// triples: the tet across each face shared by exactly two faces, the boundary slots
-    /// ascending, the number of triples held by three or more faces.
+    /// triples: the face code `4 * tet + face` across each face shared by exactly two faces,
+    /// the boundary slots ascending, the number of triples held by three or more faces.
     fn hashed(tets: &[[u32; 4]]) -> (Vec<[u32; 4]>, Vec<(u32, u8)>, usize) {
         let mut faces: HashMap<[u32; 3], Vec<(usize, usize)>> = HashMap::new();
         for (t, tet) in tets.iter().enumerate() {
@@ -311,13 +361,13 @@ mod tests {
                 faces.entry(k).or_default().push((t, f));
             }
         }
-        let mut neighbors = vec![[NO_NEIGHBOR; 4]; tets.len()];
+        let mut across = vec![[NO_NEIGHBOR; 4]; tets.len()];
         let mut non_manifold = 0;
         for slots in faces.values() {
             match slots[..] {
                 [(t, f), (u, g)] => {
-                    neighbors[t][f] = u as u32;
-                    neighbors[u][g] = t as u32;
+                    across[t][f] = (4 * u + g) as u32;
+                    across[u][g] = (4 * t + f) as u32;
                 }
                 [_] => {}
                 _ => non_manifold += 1,
@@ -332,7 +382,7 @@ mod tests {
             })
             .map(|(t, f)| (t as u32, f as u8))
             .collect();
-        (neighbors, boundary, non_manifold)
+        (across, boundary, non_manifold)
     }
 
     /// Random tets over a few vertices, so that faces are often shared by two tets and
@@ -351,8 +401,15 @@ mod tests {
     proptest! {
         #[test]
         fn build_matches_a_hash_map_of_faces(tets in tets_strategy()) {
+            let faces = FaceAdjacency::build(&tets);
             let adj = Adjacency::build(&tets);
-            let (neighbors, boundary, non_manifold) = hashed(&tets);
+            let (across, boundary, non_manifold) = hashed(&tets);
+            prop_assert_eq!(&faces.across, &across);
+            prop_assert_eq!(&faces.boundary, &adj.boundary);
+            prop_assert_eq!(faces.non_manifold_faces, adj.non_manifold_faces);
+            let neighbors: Vec<[u32; 4]> = (across.iter())
+                .map(|n| n.map(|c| if c == NO_NEIGHBOR { c } else { c / 4 }))
+                .collect();
             prop_assert_eq!(&adj.neighbors, &neighbors);
             let slots: Vec<(u32, u8)> = adj.boundary.iter().map(|b| (b.tet, b.face)).collect();
             prop_assert_eq!(slots, boundary);

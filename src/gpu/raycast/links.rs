@@ -17,7 +17,7 @@ use rayon::prelude::*;
 
 use crate::gpu::mesh::Chunking;
 use crate::gpu::util::{largest_binding, settings_error};
-use crate::mesh::topology::{Adjacency, FACES, NO_NEIGHBOR};
+use crate::mesh::topology::FaceAdjacency;
 use crate::render::RenderError;
 
 use super::TetLinks;
@@ -67,11 +67,11 @@ pub fn build(tets: &[[u32; 4]]) -> (Vec<TetLinks>, Vec<u32>) {
 }
 
 /// What the links are computed from, tet by tet ([`Topology::link`]), so that an upload
-/// computes them straight into its staging memory: the face adjacency (16 bytes a tet, half
-/// the links), and the boundary faces (as [`face_code`]s).
+/// computes them straight into its staging memory: the face across each face (16 bytes a tet,
+/// half the links), and the boundary faces (as [`face_code`]s).
 pub struct Topology {
-    /// Per tet, the tet across each local face.
-    neighbors: Vec<[u32; 4]>,
+    /// Per tet, the [`face_code`] across each local face.
+    across: Vec<[u32; 4]>,
     /// The boundary faces.
     pub boundary: Vec<u32>,
 }
@@ -81,45 +81,30 @@ impl Topology {
     pub fn build(tets: &[[u32; 4]]) -> Self {
         // The adjacency lists its boundary faces by tet, then face: the same order as a scan
         // of the neighbours, without a second (serial) pass over them.
-        let adjacency = Adjacency::build(tets);
+        let adjacency = FaceAdjacency::build(tets);
         let boundary = (adjacency.boundary.iter())
             .map(|b| face_code(b.tet, b.face as usize))
             .collect();
         Self {
-            neighbors: adjacency.neighbors,
+            across: adjacency.across,
             boundary,
         }
     }
 
-    /// The links of tet `t` of `tets` (the tets it was built from).
+    /// The links of tet `t` of `tets` (the tets it was built from): the face adjacency's
+    /// partner codes as they are, with no read of the neighbour's vertices.
     pub fn link(&self, tets: &[[u32; 4]], t: usize) -> TetLinks {
-        let tet = &tets[t];
-        let neighbors = &self.neighbors[t];
         TetLinks {
-            tet: *tet,
-            next: std::array::from_fn(|f| across(tets, tet, f, neighbors[f])),
+            tet: tets[t],
+            next: self.across[t],
         }
-    }
-}
-
-/// The code of the face of `neighbor` that tet `tet` shares through its face `f`: the
-/// neighbour's face opposite its one vertex not on that face. `NO_NEIGHBOR` on the boundary
-/// (and where the neighbour does not hold the face, which `Adjacency` never gives).
-fn across(tets: &[[u32; 4]], tet: &[u32; 4], f: usize, neighbor: u32) -> u32 {
-    if neighbor == NO_NEIGHBOR {
-        return NO_NEIGHBOR;
-    }
-    let shared = FACES[f].map(|i| tet[i]);
-    let other = tets[neighbor as usize];
-    match (0..4).find(|&g| !shared.contains(&other[g])) {
-        Some(g) => face_code(neighbor, g),
-        None => NO_NEIGHBOR,
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mesh::topology::NO_NEIGHBOR;
 
     #[test]
     fn two_tets_link_through_their_shared_face() {
