@@ -192,12 +192,12 @@ mod tests {
         assert!(at_limit(0.01, &mut r) > 100);
     }
 
-    /// The walk refuses slices too far from the eye for f32 naming the spacing as the user gave
-    /// it, in world units, not the mesh's f32 frame's: the 2^3 grid scaled by 1e10 (frame scale
-    /// 2^-35) with `dz` 1000 has 3.5e7 slices, the last 8.4e7 slices from the eye (the limit
-    /// is 2^22); the message said `dz = 0.0000000291`, the spacing in the frame.
+    /// A refused slice spacing is named as the user gave it, in world units, not in the mesh's
+    /// f32 frame: the 2^3 grid scaled by 1e10 (frame scale 2^-35) with `dz` 1000 has 3.5e7
+    /// slices, the last 8.4e7 slices from the eye, beyond the walk's 2^22, and more shells
+    /// than the raster sampler's 2^16; the messages said `dz = 0.0000000291`, the frame's.
     #[test]
-    fn the_walk_names_a_refused_dz_in_world_units() {
+    fn a_refused_dz_is_named_in_world_units() {
         let (ctx, mut mesh, camera) = grid_scene(2, 8);
         let far: Vec<DVec3> = mesh.positions().iter().map(|&p| p * 1e10).collect();
         mesh.set_positions(far).unwrap();
@@ -206,17 +206,22 @@ mod tests {
             target: camera.target * 1e10,
             ..camera
         };
-        let settings = ShellSettings {
-            sampler: Sampler::Walk,
-            dz: Some(1000.0),
-            ..ShellSettings::default()
-        };
-        let mut r = ShellsRenderer::new(&ctx, &mesh, settings).expect("walk renderer");
-        let e = r
-            .render(&camera, &grey_tf(0.5, 1e8))
-            .err()
-            .expect("a refusal");
-        assert!(e.to_string().contains("dz = 1000 puts"), "{e}");
+        for (sampler, message) in [
+            (Sampler::Walk, "dz = 1000 puts"),
+            (Sampler::Raster, "dz = 1000 makes"),
+        ] {
+            let settings = ShellSettings {
+                sampler,
+                dz: Some(1000.0),
+                ..ShellSettings::default()
+            };
+            let mut r = ShellsRenderer::new(&ctx, &mesh, settings).expect("renderer");
+            let e = r
+                .render(&camera, &grey_tf(0.5, 1e8))
+                .err()
+                .expect("a refusal");
+            assert!(e.to_string().contains(message), "{e}");
+        }
     }
 
     /// The walk builds none of what only the raster and compute samplers use: no records, no
