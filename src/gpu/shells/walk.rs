@@ -218,8 +218,7 @@ mod tests {
             let mut r = ShellsRenderer::new(&ctx, &mesh, settings).expect("renderer");
             let e = r
                 .render(&camera, &grey_tf(0.5, 1e8))
-                .err()
-                .expect("a refusal");
+                .expect_err("a refusal");
             assert!(e.to_string().contains(message), "{e}");
         }
     }
