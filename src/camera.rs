@@ -5,6 +5,8 @@
 
 use glam::DVec3;
 
+use crate::mesh::{box_diagonal, length_of};
+
 /// A perspective camera: eye, target, up, vertical field of view, image size in pixels.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Camera {
@@ -134,7 +136,7 @@ impl Camera {
         height: u32,
     ) -> Self {
         let target = (lo + hi) * 0.5;
-        let radius = ((hi - lo).length() * 0.5).max(f64::MIN_POSITIVE);
+        let radius = (box_diagonal(lo, hi) * 0.5).max(f64::MIN_POSITIVE);
         let distance = radius / (fov_y_deg.to_radians() * 0.5).sin() * distance_factor;
         Self {
             eye: target + view.direction() * distance,
@@ -160,10 +162,13 @@ impl Camera {
         }
         check_fov(self.fov_y_deg)?;
         let f = self.target - self.eye;
-        if f.length_squared() == 0.0 {
+        if f == DVec3::ZERO {
             return Err(CameraError::EyeAtTarget);
         }
-        if f.normalize().cross(self.up).length() < 1e-9 {
+        if !f.is_finite() {
+            return Err(CameraError::NotFinite);
+        }
+        if self.forward().cross(self.up).length() < 1e-9 {
             return Err(CameraError::BadUp);
         }
         Ok(())
@@ -172,10 +177,18 @@ impl Camera {
     /// Orthonormal camera basis `(right, up, forward)`; `forward` points from the eye into the
     /// scene, `right` to the image's +x and `up` to the image's -y. Assumes [`Self::validate`].
     pub fn basis(&self) -> (DVec3, DVec3, DVec3) {
-        let forward = (self.target - self.eye).normalize();
+        let forward = self.forward();
         let right = forward.cross(self.up).normalize();
         let up = right.cross(forward);
         (right, up, forward)
+    }
+
+    /// The unit vector from the eye to the target at any scale: the difference over its
+    /// length taken without squaring it ([`length_of`]; squared, eye and target 1e-160 or
+    /// 1e160 apart made it NaN or zero).
+    fn forward(&self) -> DVec3 {
+        let f = self.target - self.eye;
+        f / length_of(f)
     }
 
     /// `tan(fov_y / 2)`: the image plane's half height at distance 1.
@@ -223,6 +236,36 @@ mod tests {
             fov_y_deg: 90.0,
             width: w,
             height: h,
+        }
+    }
+
+    #[test]
+    fn a_camera_at_any_scale_is_valid_and_frames_its_box() {
+        // Eye, target and box scaled by a power of ten: the same rays (to rounding, 1e-15)
+        // and the eye framing the scaled box at the scaled distance. Squared, the view
+        // direction was zero above 1e154 (refused as a bad up vector) and its length 0 below
+        // 1e-154 (refused as an eye at the target), and the framing's radius infinite or 0.
+        let c = cam(4, 4);
+        let framed = Camera::framing(-DVec3::ONE, DVec3::ONE, View::ISO, 1.0, 45.0, 4, 4);
+        for scale in [1e-300, 1e-200, 1e200, 1e300] {
+            let s = Camera {
+                eye: c.eye * scale,
+                target: c.target * scale,
+                ..c
+            };
+            s.validate().unwrap();
+            assert!(
+                (s.ray_dir(1, 2) - c.ray_dir(1, 2)).length() < 1e-15,
+                "{scale:e}"
+            );
+            let (lo, hi) = (-DVec3::ONE * scale, DVec3::ONE * scale);
+            let f = Camera::framing(lo, hi, View::ISO, 1.0, 45.0, 4, 4);
+            f.validate().unwrap();
+            let error = f.eye / scale - framed.eye;
+            assert!(
+                error.length() < 1e-14 * framed.eye.length(),
+                "{scale:e}: {f:?}"
+            );
         }
     }
 

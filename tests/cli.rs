@@ -101,6 +101,48 @@ fn render_lox(mode: &str) -> String {
 }
 
 #[test]
+fn a_mesh_scaled_beyond_1e154_renders_with_the_default_camera_and_unit_distance() {
+    // The bundled mesh scaled by 2^665 (1.3e200) and 2^-665: the default framing and unit
+    // distance (1/100 of the diagonal) scale with it exactly (a power of two), and so does the
+    // f32 mode's frame, so raycast-cpu draws the unscaled picture pixel for pixel. Squared,
+    // the diagonal was infinite (0) there: the unit distance was refused, and the default
+    // camera with it (a bad up vector, an eye at the target).
+    let dir = out_dir("scaled");
+    let mut m = tetvr::io::load(Path::new(LOX)).unwrap().mesh;
+    let rest = m.positions().to_vec();
+    let mut pixels = Vec::new();
+    for (name, scale) in [
+        ("unscaled", 1.0),
+        ("up", 2f64.powi(665)),
+        ("down", 2f64.powi(-665)),
+    ] {
+        m.set_positions(rest.iter().map(|&p| p * scale).collect())
+            .unwrap();
+        let (vtu, png) = (
+            dir.join(format!("{name}.vtu")),
+            dir.join(format!("{name}.png")),
+        );
+        tetvr::io::write_vtu(&m, &vtu).unwrap();
+        let (vtu, png_arg) = (vtu.to_str().unwrap(), png.to_str().unwrap());
+        let args = [
+            "render",
+            vtu,
+            "--mode",
+            "raycast-cpu",
+            "--size",
+            "48x40",
+            "-o",
+            png_arg,
+        ];
+        stdout_of(&tetvr(&args));
+        pixels.push(Image::load_png(&png).unwrap().pixels);
+    }
+    assert!(pixels[0] == pixels[1], "scaled up: another picture");
+    assert!(pixels[0] == pixels[2], "scaled down: another picture");
+    assert!(covered_fraction(&dir.join("unscaled.png")) > 0.1);
+}
+
+#[test]
 fn reference_render_writes_a_picture_of_the_mesh() {
     let stdout = render_lox("reference");
     assert!(stdout.contains("trace"), "{stdout}");

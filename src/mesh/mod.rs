@@ -381,10 +381,11 @@ impl TetMesh {
         bounding_box(&self.positions)
     }
 
-    /// Length of the bounding-box diagonal (the default TF unit distance is 1/100 of it).
+    /// Length of the bounding-box diagonal (the default TF unit distance is 1/100 of it),
+    /// without overflow or underflow at any scale ([`box_diagonal`]).
     pub fn diagonal(&self) -> f64 {
         let (lo, hi) = self.bounds();
-        (hi - lo).length()
+        box_diagonal(lo, hi)
     }
 
     /// The field renderers integrate is constant per tet when this is `Some`: one value per tet,
@@ -478,6 +479,29 @@ fn check_tet(t: usize, tet: &[u32; 4], count: usize) -> Result<(), MeshError> {
 fn orient(positions: &[DVec3], t: &[u32; 4]) -> f64 {
     let ([a, b, c, d], k) = scaled(t.map(|v| positions[v as usize]));
     (b - a).dot((c - a).cross(d - a)) * pow2(3 * k)
+}
+
+/// The length of the box diagonal `hi - lo`, taken on the corners scaled by a power of two so
+/// that it is infinite only when the length itself is beyond f64's range, and 0 only for a
+/// point (squared, a diagonal above 1e154 overflowed and one below 1e-154 underflowed).
+pub fn box_diagonal(lo: DVec3, hi: DVec3) -> f64 {
+    let largest = lo.abs().max_element().max(hi.abs().max_element());
+    if largest == 0.0 || !largest.is_finite() {
+        return (hi - lo).length();
+    }
+    let k = largest.log2().floor() as i32 + 1;
+    (hi * pow2(-k) - lo * pow2(-k)).length() * pow2(k)
+}
+
+/// The length of `v` taken on `v` over its largest component, so that it is infinite only
+/// when the length itself is beyond f64's range and 0 only for the zero vector (squared, it
+/// overflowed above 1e154 and underflowed below 1e-154).
+pub fn length_of(v: DVec3) -> f64 {
+    let largest = v.abs().max_element();
+    if !(largest > 0.0 && largest.is_finite()) {
+        return v.length();
+    }
+    largest * (v / largest).length()
 }
 
 /// `2^e` for any `e`, exact where it is representable (0 below, infinite above f64's range).
@@ -738,6 +762,26 @@ mod tests {
                 count: 4
             }
         );
+    }
+
+    #[test]
+    fn the_diagonal_holds_at_any_scale() {
+        // The unit tet's diagonal is sqrt(3); scaled by a power of ten it is that times the
+        // scale to rounding (a few ulps: 1e-15 relative). Squared, it was infinite at 1e200
+        // and 0 at 1e-200, and the CLI's default unit distance (1/100 of it) with it.
+        for scale in [1e-300, 1e-200, 1e-100, 1.0, 1e100, 1e200, 1e300] {
+            let p = unit_tet().iter().map(|&p| p * scale).collect();
+            let (m, _) = TetMesh::new(p, vec![[0, 1, 2, 3]], vec![]).unwrap();
+            let expected = 3f64.sqrt() * scale;
+            let d = m.diagonal();
+            assert!((d / expected - 1.0).abs() < 1e-15, "{scale:e}: {d:e}");
+            let l = length_of(DVec3::splat(scale));
+            assert!((l / expected - 1.0).abs() < 1e-15, "{scale:e}: {l:e}");
+        }
+        assert_eq!(length_of(DVec3::ZERO), 0.0);
+        assert_eq!(box_diagonal(DVec3::ONE, DVec3::ONE), 0.0);
+        let beyond = box_diagonal(DVec3::splat(-1e308), DVec3::splat(1e308));
+        assert_eq!(beyond, f64::INFINITY);
     }
 
     #[test]

@@ -32,7 +32,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::name::shown_name;
-use super::{DataArray, TetMesh, pow2, scaled};
+use super::{DataArray, TetMesh, box_diagonal, pow2, scaled};
 
 /// Quality below which a (nonzero-volume) tet counts as near-degenerate; see the module docs.
 pub const NEAR_DEGENERATE_QUALITY: f64 = 1e-6;
@@ -394,7 +394,7 @@ impl MeshStats {
             vertices: mesh.vertex_count(),
             tets,
             bounds: (lo, hi),
-            diagonal: diagonal(lo, hi),
+            diagonal: box_diagonal(lo, hi),
             arrays: array_stats(mesh),
             point_vectors: (mesh.point_vectors().iter())
                 .map(|a| DataStats::of(a, None))
@@ -429,17 +429,6 @@ impl MeshStats {
 /// |V| of a tet in units of `2^top` (`top` at least its `exp3`): no overflow.
 fn relative_to(m: &TetMeasure, top: i32) -> f64 {
     m.scaled_volume.abs() * pow2(m.exp3 - top)
-}
-
-/// The length of the box diagonal `hi - lo`, taken on the corners scaled by a power of two so
-/// that it is infinite only when the length itself is beyond f64's range.
-fn diagonal(lo: DVec3, hi: DVec3) -> f64 {
-    let largest = lo.abs().max_element().max(hi.abs().max_element());
-    if largest == 0.0 {
-        return 0.0;
-    }
-    let k = largest.log2().floor() as i32 + 1;
-    (hi * pow2(-k) - lo * pow2(-k)).length() * pow2(k)
 }
 
 fn array_stats(mesh: &TetMesh) -> Vec<ArrayStats> {

@@ -95,6 +95,7 @@ impl ShellsRenderer {
         .collect();
         if allowed.is_empty() {
             let n = self.fixed_slices.unwrap_or(4 * self.formats.layers);
+            let dz = m.frame.world_length(dz);
             return Err(settings_error(format!(
                 "dz = {dz} makes {} shells of {n} slices across the mesh; at most \
                  {MAX_SHELLS} are allowed: use fewer samples or a larger dz",

@@ -96,11 +96,13 @@ impl ShellsRenderer {
         let m = self.mesh.read();
         let (t_first, dz) = self.slices_for(&m, camera);
         let count = super::plan::slice_count(&m, camera, t_first, dz);
+        // The user's dz, in world units (`dz` is in the mesh's f32 frame).
+        let world_dz = m.frame.world_length(dz);
         drop(m);
         let reach = t_first / dz + count as f64;
         if reach > MAX_SLICES {
             return Err(settings_error(format!(
-                "dz = {dz} puts the last of {count} slices {reach:.0} slices from the eye; \
+                "dz = {world_dz} puts the last of {count} slices {reach:.0} slices from the eye; \
                  --sampler walk places slices in f32 up to {MAX_SLICES} slices from the eye: \
                  use fewer samples, move the camera closer, or use --sampler raster"
             )));
@@ -188,6 +190,37 @@ mod tests {
         };
         assert_eq!(at_limit(0.9999, &mut r), 0);
         assert!(at_limit(0.01, &mut r) > 100);
+    }
+
+    /// A refused slice spacing is named as the user gave it, in world units, not in the mesh's
+    /// f32 frame: the 2^3 grid scaled by 1e10 (frame scale 2^-35) with `dz` 1000 has 3.5e7
+    /// slices, the last 8.4e7 slices from the eye, beyond the walk's 2^22, and more shells
+    /// than the raster sampler's 2^16; the messages said `dz = 0.0000000291`, the frame's.
+    #[test]
+    fn a_refused_dz_is_named_in_world_units() {
+        let (ctx, mut mesh, camera) = grid_scene(2, 8);
+        let far: Vec<DVec3> = mesh.positions().iter().map(|&p| p * 1e10).collect();
+        mesh.set_positions(far).unwrap();
+        let camera = Camera {
+            eye: camera.eye * 1e10,
+            target: camera.target * 1e10,
+            ..camera
+        };
+        for (sampler, message) in [
+            (Sampler::Walk, "dz = 1000 puts"),
+            (Sampler::Raster, "dz = 1000 makes"),
+        ] {
+            let settings = ShellSettings {
+                sampler,
+                dz: Some(1000.0),
+                ..ShellSettings::default()
+            };
+            let mut r = ShellsRenderer::new(&ctx, &mesh, settings).expect("renderer");
+            let e = r
+                .render(&camera, &grey_tf(0.5, 1e8))
+                .expect_err("a refusal");
+            assert!(e.to_string().contains(message), "{e}");
+        }
     }
 
     /// The walk builds none of what only the raster and compute samplers use: no records, no
