@@ -582,6 +582,64 @@ fn mixed_variants() -> Vec<(String, Vec<u8>, Format)> {
     v
 }
 
+/// Three tets among the mixed fixture's points, the cell's vertices replaced by `bad` in
+/// cell 1 when given, in every binary VTU encoding.
+fn all_tet_variants(bad: Option<[usize; 4]>) -> Vec<(String, Vec<u8>)> {
+    use encode::{Layout, Vtu};
+    let mut f = mixed();
+    f.cells = vec![
+        (10, vec![0, 1, 3, 4]),
+        (10, bad.map_or(vec![1, 2, 3, 6], Vec::from)),
+        (10, vec![5, 6, 10, 11]),
+    ];
+    let mut v = Vec::new();
+    for layout in [Layout::Inline, Layout::AppendedRaw, Layout::AppendedBase64] {
+        for (header64, big, zlib) in [(false, false, false), (true, true, true)] {
+            let o = Vtu {
+                layout,
+                header64,
+                big,
+                zlib,
+            };
+            v.push((format!("{o:?}"), encode::vtu(&f, o)));
+        }
+    }
+    v
+}
+
+#[test]
+fn all_tet_vtu_pieces_read_in_place_and_still_name_a_bad_cell() {
+    // An all-tet binary piece is decoded straight into tets; one bad cell sends it down the
+    // cell-by-cell path, whose message names the cell and the problem, in every encoding.
+    for (label, bytes) in all_tet_variants(None) {
+        let l = load_bytes(&bytes, Format::Vtu, &label).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(
+            l.mesh.tets(),
+            [[0, 1, 3, 4], [1, 2, 3, 6], [5, 6, 10, 11]],
+            "{label}"
+        );
+        let c = l.mesh.cell_array("cellid").unwrap();
+        assert_eq!(c.values, [0.0, 1.0, 2.0], "{label}");
+    }
+    for (bad, want) in [
+        (
+            [1, 2, 12, 6],
+            "cell 1: vertex index 12 is out of range (its piece has 12 points)",
+        ),
+        (
+            [1, 2, 1, 6],
+            "cell 1: the tetrahedron repeats vertex 1; a cell needs distinct vertices",
+        ),
+    ] {
+        for (label, bytes) in all_tet_variants(Some(bad)) {
+            let e = load_bytes(&bytes, Format::Vtu, &label)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(want), "{label}: {e}");
+        }
+    }
+}
+
 /// Asserts the tets are conforming (every interior face shared by exactly two tets), fill
 /// `volume`, and have `boundary` faces on the outer surface.
 fn assert_conforming(m: &tetvr::TetMesh, volume: f64, boundary: usize, label: &str) {

@@ -119,6 +119,12 @@ impl<'a> Budget<'a> {
         Ok(())
     }
 
+    /// Gives back `bytes` charged for memory that was never kept (a fast path that found the
+    /// file needs the general one): what is charged stays what is held.
+    pub(crate) fn refund(&self, bytes: u64) {
+        self.used.set(self.used.get().saturating_sub(bytes));
+    }
+
     /// Charges `count` items of `size` bytes each.
     pub(crate) fn charge_items(
         &self,
@@ -153,5 +159,9 @@ mod tests {
         let e = b.charge(21, || "POINTS".into()).unwrap_err().to_string();
         assert!(e.starts_with("f.vtk: POINTS needs 21 bytes"), "{e}");
         assert!(b.charge(20, || "b".into()).is_ok());
+        // 100 of 100 used: a refund of 30 makes room for 30 more, not 31.
+        b.refund(30);
+        assert!(b.charge(31, || "c".into()).is_err());
+        assert!(b.charge(30, || "c".into()).is_ok());
     }
 }

@@ -493,26 +493,41 @@ impl<'a> Assembler<'a> {
         Ok(())
     }
 
-    /// Adds a piece's cells when they are all tetrahedra, their vertex indices `conn` (four per
-    /// cell, in file order) already checked by the reader and moved past `base` here: what
-    /// [`Self::cell`] does for each, in one parallel step. False, with nothing added, when the
-    /// budget refuses them: read cell by cell, the error then names where it runs out.
-    pub(crate) fn tets(&mut self, conn: &[i64], base: usize) -> bool {
-        let n = conn.len() / 4;
-        let new_tets = (self.tets.len() + n).saturating_sub(self.charged);
+    /// Adds a piece of `n` tetrahedra that `decode` makes (four distinct vertex indices each,
+    /// checked and moved past the pieces before it): what [`Self::cell`] does for each, in one
+    /// step. The list is charged before `decode` runs; the first piece's list becomes the
+    /// assembler's, a later one is appended. False, with nothing added and nothing charged,
+    /// when the budget refuses it or `decode` finds a cell that is not such a tet: read cell by
+    /// cell, the error then names the cell, or where the budget runs out.
+    pub(crate) fn tets(
+        &mut self,
+        n: usize,
+        decode: impl FnOnce() -> Option<Vec<[u32; 4]>>,
+    ) -> bool {
+        let adopt = self.tets.is_empty();
+        // Appended: the decoded list, and the assembler's own list grown to hold it.
+        let grown = if adopt {
+            0
+        } else {
+            (self.tets.len() + n).saturating_sub(self.charged)
+        };
         let new_cells = (self.cell_tets.len() + n).saturating_sub(self.cell_tets.capacity());
-        let bytes = new_tets * size_of::<[u32; 4]>() + new_cells;
-        if (self.budget.charge_items(bytes, 1, String::new)).is_err() {
+        let bytes = (n + grown) as u64 * size_of::<[u32; 4]>() as u64 + new_cells as u64;
+        if (self.budget.charge(bytes, String::new)).is_err() {
             return false;
         }
-        self.charged += new_tets;
-        let moved = |c: &[i64]| [c[0], c[1], c[2], c[3]].map(|v| (v + base as i64) as u32);
-        // Exactly what was charged: extend's own reserve grows a full list to twice its length.
-        self.tets.reserve_exact(n);
-        if n < PAR_MIN_LEN {
-            self.tets.extend(conn.chunks_exact(4).map(moved));
+        let Some(tets) = decode().filter(|t| t.len() == n) else {
+            self.budget.refund(bytes);
+            return false;
+        };
+        if adopt {
+            self.tets = tets;
+            self.charged += n;
         } else {
-            (self.tets).par_extend(conn.par_chunks_exact(4).map(moved));
+            // Exactly what was charged: extend's own reserve grows a full list to twice its length.
+            self.tets.reserve_exact(n);
+            self.tets.extend_from_slice(&tets);
+            self.charged += grown;
         }
         self.cell_tets.reserve_exact(n);
         self.cell_tets.resize(self.cell_tets.len() + n, 1);
@@ -706,6 +721,107 @@ impl Scalar {
         })
     }
 
+    /// The integer a value holds (its big-endian bytes, as many as [`Self::size`]), if i64
+    /// holds it exactly: what [`Self::decode_ints`] gives for it.
+    fn int_of(self, c: &[u8]) -> Option<i64> {
+        Some(match self {
+            Scalar::I8 => c[0] as i8 as i64,
+            Scalar::U8 => c[0] as i64,
+            Scalar::I16 => i16::from_be_bytes(c.try_into().ok()?) as i64,
+            Scalar::U16 => u16::from_be_bytes(c.try_into().ok()?) as i64,
+            Scalar::I32 => i32::from_be_bytes(c.try_into().ok()?) as i64,
+            Scalar::U32 => u32::from_be_bytes(c.try_into().ok()?) as i64,
+            Scalar::I64 => i64::from_be_bytes(c.try_into().ok()?),
+            Scalar::U64 => i64::try_from(u64::from_be_bytes(c.try_into().ok()?)).ok()?,
+            Scalar::F32 => as_index(f32::from_be_bytes(c.try_into().ok()?) as f64)?,
+            Scalar::F64 => as_index(f64::from_be_bytes(c.try_into().ok()?))?,
+        })
+    }
+
+    /// Whether every value of `bytes` (a whole number of them) is an integer `v` at index `i`
+    /// for which `ok(i, v)` holds: checked in place, in parallel, nothing decoded into memory.
+    pub(crate) fn all_ints(
+        self,
+        bytes: &[u8],
+        big_endian: bool,
+        ok: impl Fn(usize, i64) -> bool + Sync + Send,
+    ) -> bool {
+        match self.size() {
+            1 => self.all_ints_of::<1>(bytes, big_endian, ok),
+            2 => self.all_ints_of::<2>(bytes, big_endian, ok),
+            4 => self.all_ints_of::<4>(bytes, big_endian, ok),
+            _ => self.all_ints_of::<8>(bytes, big_endian, ok),
+        }
+    }
+
+    fn all_ints_of<const N: usize>(
+        self,
+        bytes: &[u8],
+        big_endian: bool,
+        ok: impl Fn(usize, i64) -> bool + Sync + Send,
+    ) -> bool {
+        let ok = |(i, c): (usize, &[u8])| {
+            (self.int_of(&arr::<N>(c, big_endian))).is_some_and(|v| ok(i, v))
+        };
+        if bytes.len() < N * PAR_MIN_LEN {
+            return bytes.chunks_exact(N).enumerate().all(ok);
+        }
+        (bytes.par_chunks_exact(N).with_min_len(PAR_MIN_LEN))
+            .enumerate()
+            .all(ok)
+    }
+
+    /// `bytes` (four values a cell) as tetrahedra, when every value is an index below `points`
+    /// and the four of each cell are distinct: each moved past `base` (`base + points` must
+    /// not pass 2^32). Decoded in parallel straight into the list, without an integer copy;
+    /// None for any other cell.
+    pub(crate) fn decode_tets(
+        self,
+        bytes: &[u8],
+        big_endian: bool,
+        points: usize,
+        base: usize,
+    ) -> Option<Vec<[u32; 4]>> {
+        let at = (big_endian, points, base);
+        match self.size() {
+            1 => self.decode_tets_of::<1>(bytes, at),
+            2 => self.decode_tets_of::<2>(bytes, at),
+            4 => self.decode_tets_of::<4>(bytes, at),
+            _ => self.decode_tets_of::<8>(bytes, at),
+        }
+    }
+
+    fn decode_tets_of<const N: usize>(
+        self,
+        bytes: &[u8],
+        (big_endian, points, base): (bool, usize, usize),
+    ) -> Option<Vec<[u32; 4]>> {
+        let index = |c: &[u8]| {
+            (self.int_of(&arr::<N>(c, big_endian)))
+                .filter(|&v| v >= 0 && (v as u64) < points as u64)
+                .map(|v| (v as u64 + base as u64) as u32)
+        };
+        // A cell that is no tet becomes [0; 4], which no tet is (its vertices are distinct).
+        let tet = |c: &[u8]| match [0, 1, 2, 3].map(|k| index(&c[k * N..][..N])) {
+            [Some(a), Some(b), Some(d), Some(e)]
+                if a != b && a != d && a != e && b != d && b != e && d != e =>
+            {
+                [a, b, d, e]
+            }
+            _ => [0; 4],
+        };
+        let tets: Vec<[u32; 4]> = if bytes.len() < 4 * N * PAR_MIN_LEN {
+            bytes.chunks_exact(4 * N).map(tet).collect()
+        } else {
+            (bytes.par_chunks_exact(4 * N).with_min_len(PAR_MIN_LEN))
+                .map(tet)
+                .collect()
+        };
+        position_first(&tets, |t| t[0] == t[1])
+            .is_none()
+            .then_some(tets)
+    }
+
     /// Decodes `bytes` (a whole number of values) to f64.
     pub(crate) fn decode(self, bytes: &[u8], big_endian: bool) -> Vec<f64> {
         // Everything is read as big-endian bytes after `arr`'s swap.
@@ -826,11 +942,63 @@ mod tests {
         let limits = ReadLimits::default();
         let budget = Budget::new("pieces.vtu", &limits);
         let mut asm = Assembler::new(4, &budget);
-        let conn: Vec<i64> = [0, 1, 2, 3].repeat(PAR_MIN_LEN);
-        assert!(asm.tets(&conn, 0) && asm.tets(&conn[..40], 0));
+        let piece = |n: usize| move || Some(vec![[0, 1, 2, 3]; n]);
+        assert!(asm.tets(PAR_MIN_LEN, piece(PAR_MIN_LEN)) && asm.tets(10, piece(10)));
         assert_eq!(asm.tets.len(), PAR_MIN_LEN + 10);
         let (held, paid) = (asm.tets.capacity(), asm.charged);
         assert!(held <= paid, "{held} tets allocated, {paid} charged");
+    }
+
+    #[test]
+    fn a_piece_that_is_not_all_tets_gives_its_charge_back() {
+        // 1,000 tets cost 16 bytes each and one byte of the cell-to-tet table: 17,000 bytes,
+        // the whole budget. A piece refused by its decoder first must leave all of it.
+        let limits = ReadLimits { max_memory: 17_000 };
+        let budget = Budget::new("refund.vtu", &limits);
+        let mut asm = Assembler::new(4, &budget);
+        assert!(!asm.tets(1000, || None));
+        assert!(asm.tets.is_empty() && asm.cell_tets.is_empty());
+        assert!(asm.tets(1000, || Some(vec![[0, 1, 2, 3]; 1000])));
+        assert!(
+            !asm.tets(1, || Some(vec![[0, 1, 2, 3]])),
+            "the budget is spent"
+        );
+    }
+
+    #[test]
+    fn tets_decode_in_place_and_refuse_a_bad_index_or_a_repeat() {
+        // 2 * PAR_MIN_LEN tets of Int32 big-endian (the parallel decoder), then one cell
+        // spoiled each way: past the piece's 5 points, negative, a repeated vertex.
+        let n = 2 * PAR_MIN_LEN;
+        let conn: Vec<i32> = (0..n)
+            .flat_map(|i| [0, 1, 2, 3].map(|v| (v + i as i32) % 5))
+            .collect();
+        let bytes = |c: &[i32]| c.iter().flat_map(|x| x.to_be_bytes()).collect::<Vec<u8>>();
+        let tets = Scalar::I32.decode_tets(&bytes(&conn), true, 5, 7).unwrap();
+        assert_eq!(
+            (tets.len(), tets[1], tets[n - 1]),
+            (n, [8, 9, 10, 11], [9, 10, 11, 7])
+        );
+        for (at, v) in [(4 * n - 1, 5), (9, -1), (4 * 1000 + 2, conn[4 * 1000])] {
+            let mut bad = conn.clone();
+            bad[at] = v;
+            assert_eq!(
+                Scalar::I32.decode_tets(&bytes(&bad), true, 5, 7),
+                None,
+                "{at}: {v}"
+            );
+        }
+        // The same values as UInt8 and Float64 (integers held by floats are indices too).
+        let u8s: Vec<u8> = conn.iter().map(|&v| v as u8).collect();
+        assert_eq!(
+            Scalar::U8.decode_tets(&u8s, false, 5, 7).as_ref(),
+            Some(&tets)
+        );
+        let f64s: Vec<u8> = conn
+            .iter()
+            .flat_map(|&v| (v as f64).to_le_bytes())
+            .collect();
+        assert_eq!(Scalar::F64.decode_tets(&f64s, false, 5, 7), Some(tets));
     }
 
     #[test]

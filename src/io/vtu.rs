@@ -413,6 +413,42 @@ impl File<'_> {
         self.bytes(a, &check)
     }
 
+    /// The type and binary bytes of an array of `count` integers in `binary` or `appended`
+    /// format, for reading in place. Bytes the file does not hold as they are (base64,
+    /// compressed) are charged to the budget and added to `held`, for the caller to give
+    /// back when it drops them. None for an ascii array, or when anything is wrong: the
+    /// general path then names it.
+    fn raw_ints(
+        &self,
+        a: &Array,
+        count: usize,
+        held: &std::cell::Cell<u64>,
+    ) -> Option<(Scalar, Cow<'_, [u8]>)> {
+        let ty = self.scalar(a).ok()?;
+        if self.format(a).ok()? == "ascii" {
+            return None;
+        }
+        let check = |bytes: u64| {
+            if bytes != (count as u64).saturating_mul(ty.size() as u64) {
+                return Err(self.err(a.at, String::new()));
+            }
+            if self.owns_bytes(a) {
+                self.budget.charge(bytes, String::new)?;
+                held.set(held.get() + bytes);
+            }
+            Ok(())
+        };
+        Some((ty, self.bytes(a, &check).ok()?))
+    }
+
+    /// Whether an array's binary bytes are decoded into memory of their own (base64,
+    /// compressed) rather than read where they are in the file.
+    fn owns_bytes(&self, a: &Array) -> bool {
+        self.compressed
+            || a.attr("format") == Some("binary")
+            || self.appended.is_some_and(|(_, base64)| base64)
+    }
+
     /// How many tokens of an ascii array to read, at most: `want.count + 1` (one more tells
     /// that there are too many), or all the text can hold. Checks that the text can hold
     /// `want.count` numbers, and charges the decoded values to the budget.
@@ -1077,8 +1113,17 @@ fn read_cells(
     if p.cells == 0 {
         return Ok(());
     }
+    let fits = base
+        .checked_add(p.points)
+        .is_some_and(|end| end as u64 <= 1 << 32);
+    if fits && asm.tets(p.cells, || binary_tets(file, p, ix, base)) {
+        return Ok(());
+    }
     let (types, offs, conn) = cell_arrays(file, p, ix)?;
-    if all_tets(&types, &offs, &conn, p.points, base) && asm.tets(&conn, base) {
+    if fits
+        && all_tets(&types, &offs, &conn, p.points)
+        && asm.tets(p.cells, || Some(moved_tets(&conn, base)))
+    {
         return Ok(());
     }
     let name = file.name;
@@ -1119,19 +1164,58 @@ fn read_cells(
     Ok(())
 }
 
-/// Whether a piece's cells are all valid tetrahedra as VTK writes them: type 10, offsets 4, 8,
-/// ..., each index among the piece's `points` and none repeated within a cell, and every index
-/// moved past `base` within u32. Checked in parallel: such a piece (a large mesh's usual form)
-/// is read in one step ([`Assembler::tets`]), any other cell by cell, which names the first
-/// problem.
-fn all_tets(types: &[i64], offs: &[i64], conn: &[i64], points: usize, base: usize) -> bool {
+/// A binary piece's cells, when they are all valid tetrahedra as VTK writes them (type 10,
+/// offsets 4, 8, ..., each index among the piece's points and none repeated within a cell):
+/// types and offsets checked in place, the connectivity decoded straight into the tets, moved
+/// past `base` (which must leave every index within u32), in parallel. Such a piece (a large
+/// mesh's usual form) takes no integer copy of its arrays; any other piece, or any problem
+/// with its arrays, gives None: read cell by cell, the first problem is then named.
+fn binary_tets(file: &File, p: &Piece, ix: &PieceIndex, base: usize) -> Option<Vec<[u32; 4]>> {
+    let held = std::cell::Cell::new(0);
+    let tets = tets_in_place(file, p, ix, base, &held);
+    // The arrays' decoded bytes are dropped here: no longer held.
+    file.budget.refund(held.get());
+    tets
+}
+
+/// [`binary_tets`], adding to `held` the bytes its arrays take beside the file.
+fn tets_in_place(
+    file: &File,
+    p: &Piece,
+    ix: &PieceIndex,
+    base: usize,
+    held: &std::cell::Cell<u64>,
+) -> Option<Vec<[u32; 4]>> {
+    let cells = p.cells;
+    let types = file.raw_ints(ix.cells.get("types")?, cells, held)?;
+    if !types.0.all_ints(&types.1, file.big_endian, |_, t| t == 10) {
+        return None;
+    }
+    let offs = file.raw_ints(ix.cells.get("offsets")?, cells, held)?;
+    let offset = |i: usize, o: i64| o as u64 == 4 * (i as u64 + 1);
+    if !offs.0.all_ints(&offs.1, file.big_endian, offset) {
+        return None;
+    }
+    let conn = file.raw_ints(ix.cells.get("connectivity")?, cells.checked_mul(4)?, held)?;
+    (conn.0).decode_tets(&conn.1, file.big_endian, p.points, base)
+}
+
+/// A piece's tets from its checked connectivity, moved past `base`.
+fn moved_tets(conn: &[i64], base: usize) -> Vec<[u32; 4]> {
+    let moved = |c: &[i64]| [c[0], c[1], c[2], c[3]].map(|v| (v + base as i64) as u32);
+    if conn.len() < 4 * PAR_MIN_LEN {
+        return conn.chunks_exact(4).map(moved).collect();
+    }
+    conn.par_chunks_exact(4).map(moved).collect()
+}
+
+/// Whether a piece's cells (decoded as integers) are all valid tetrahedra as VTK writes them,
+/// as [`binary_tets`] checks them. Checked in parallel.
+fn all_tets(types: &[i64], offs: &[i64], conn: &[i64], points: usize) -> bool {
     const TETRA: i64 = 10;
-    let fits = base
-        .checked_add(points)
-        .is_some_and(|end| end as u64 <= 1 << 32);
     let valid = |c: &[i64]| valid_tet(c, points as i64);
     let offset = |(i, &o): (usize, &i64)| o == 4 * (i as i64 + 1);
-    if !fits || conn.len() != 4 * types.len() {
+    if conn.len() != 4 * types.len() {
         return false;
     }
     if types.len() < PAR_MIN_LEN {
