@@ -36,7 +36,8 @@ pub enum RenderError {
         "the eye is {radii:.3e} mesh radii from the mesh's centre, beyond the {limit:.0e} radii \
          up to which {mode} keeps its accuracy in f32 (farther, its picture degrades: \
          docs/performance.md, \"Meshes at extreme scales\"); move the eye closer and widen \
-         --fov to keep the framing, or render with --mode reference"
+         --fov to keep the framing{}",
+        or_reference(mode)
     )]
     EyeTooFar {
         /// The mode, as the CLI spells it (with its sampler).
@@ -56,6 +57,15 @@ pub enum RenderError {
          that caused it"
     )]
     Internal(&'static str),
+}
+
+/// The far-eye refusal's second remedy: the f64 reference draws the same volume at any
+/// distance, but not iso's surfaces (the CLI's reference renders no isosurfaces).
+fn or_reference(mode: &str) -> &'static str {
+    match mode {
+        "iso" => "",
+        _ => ", or render with --mode reference",
+    }
 }
 
 /// Per-stage wall or GPU times and work counters of one frame, in the order they happened.
@@ -174,6 +184,30 @@ pub enum Tuning {
 mod tests {
     use super::*;
     use crate::gpu::GpuError;
+
+    /// The far-eye refusal offers the reference for the volume modes, not for iso, whose
+    /// surfaces the reference does not draw.
+    #[test]
+    fn a_far_eye_is_sent_to_the_reference_only_from_volume_modes() {
+        for (mode, reference) in [
+            ("raycast", true),
+            ("shells (walk sampler)", true),
+            ("iso", false),
+        ] {
+            let msg = RenderError::EyeTooFar {
+                mode,
+                radii: 1234.5,
+                limit: 300.0,
+            }
+            .to_string();
+            assert!(
+                msg.contains("1.234e3 mesh radii") && msg.contains("3e2 radii"),
+                "{msg}"
+            );
+            assert!(msg.contains("widen --fov"), "{msg}");
+            assert_eq!(msg.contains("--mode reference"), reference, "{msg}");
+        }
+    }
 
     /// An internal state reads as tetvr's bug, with what to report, not as a setting to change.
     #[test]

@@ -1304,6 +1304,23 @@ fn flags_of_another_mode_are_refused_not_ignored() {
             &["--mode", "raycast-cpu", "--table-size", "64"],
             "--table-size belongs to --mode cellproj or raycast",
         ),
+        // The ray caster integrates partial by default and cellproj can integrate exact: neither
+        // builds a table then.
+        (
+            &["--mode", "raycast", "--table-size", "64"],
+            "--table-size belongs to --integrate table",
+        ),
+        (
+            &[
+                "--mode",
+                "cellproj",
+                "--integrate",
+                "exact",
+                "--table-size",
+                "64",
+            ],
+            "--table-size belongs to --integrate table",
+        ),
     ] {
         let stderr = failure(&[&render[..], flags].concat());
         assert!(stderr.contains(expected), "{flags:?}: {stderr}");
@@ -1327,6 +1344,16 @@ fn flags_of_another_mode_are_refused_not_ignored() {
     );
     assert!(o.status.success(), "{}", text(&o).1);
     let o = tetvr(&[&render[..], &["--mode", "iso", "--shading", "smooth"]].concat());
+    assert!(o.status.success(), "{}", text(&o).1);
+    let table = [
+        "--mode",
+        "raycast",
+        "--integrate",
+        "table",
+        "--table-size",
+        "16",
+    ];
+    let o = tetvr(&[&render[..], &table].concat());
     assert!(o.status.success(), "{}", text(&o).1);
 }
 

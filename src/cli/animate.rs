@@ -43,7 +43,8 @@ pub(super) fn animate(args: AnimateArgs, matches: &ArgMatches) -> Result<(), Cli
         .as_deref()
         .unwrap_or(Path::new("tetvr.gif"));
     check_output(output, &["gif", "png"])?;
-    unused_mode_flags(&args.render, args.render.mode, matches)?;
+    let integrate = args.render.cellproj.integrate;
+    unused_mode_flags(&args.render, args.render.mode, integrate, matches)?;
     of_flags(&args.render)?.check_without_mesh()?;
     if Series::is_series(&args.render.mesh.mesh) {
         if args.deform.is_some() || args.amplitude.is_some() || args.frames.is_some() {

@@ -187,7 +187,7 @@ pub(super) fn read_limits(args: &MeshArgs) -> io::ReadLimits {
 fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
     let scene = resolve(&cmd, matches)?;
     let args = &cmd.render;
-    unused_mode_flags(args, scene.mode, matches)?;
+    unused_mode_flags(args, scene.mode, scene.settings.integrate, matches)?;
     let output = args.output.clone().unwrap_or_else(|| "tetvr.png".into());
     check_output(&output, &["png"])?;
     if let Some(path) = &cmd.save_scene {

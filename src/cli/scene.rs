@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use clap::parser::ValueSource;
 use clap::{ArgMatches, ValueEnum};
-use tetvr::scene::{Mode, Scene, SceneTexture, TfSpec, Warp};
+use tetvr::scene::{Integration, Mode, Scene, SceneTexture, TfSpec, Warp};
 use tetvr::{Camera, Renderer, TransferFunction, Tuning};
 
 use super::commands::{CliError, median};
@@ -105,10 +105,12 @@ fn check(args: &RenderArgs, scene: &Scene, entry_given: bool) -> Result<(), CliE
 
 /// Flags given on the command line for a mode other than `mode`, which it would ignore: the
 /// picture would not be what they ask for. (`view` takes them: its window switches modes.)
-/// `matches` tell the flags with a default (`--sampler`, `--shading`, ...) given from not.
+/// `matches` tell the flags with a default (`--sampler`, `--shading`, ...) given from not;
+/// `integrate` is the integration the render uses (the scene's, or `--integrate`).
 pub fn unused_mode_flags(
     args: &RenderArgs,
     mode: Mode,
+    integrate: Option<Integration>,
     matches: &ArgMatches,
 ) -> Result<(), CliError> {
     let given = |id: &str| matches.value_source(id) == Some(ValueSource::CommandLine);
@@ -143,6 +145,11 @@ pub fn unused_mode_flags(
         _ if given("table_size") && !matches!(mode, Mode::Cellproj | Mode::Raycast) => Some(
             "--table-size belongs to --mode cellproj or raycast (--integrate table)".to_owned(),
         ),
+        _ if given("table_size") && !builds_table(mode, integrate) => Some(
+            "--table-size belongs to --integrate table (cellproj's default; raycast's with \
+             --integrate table), which this render does not use"
+                .to_owned(),
+        ),
         _ => None,
     };
     match refused {
@@ -152,6 +159,16 @@ pub fn unused_mode_flags(
                 .map_or_else(String::new, |v| v.get_name().to_owned())
         ))),
         None => Ok(()),
+    }
+}
+
+/// Whether `mode` integrating with `integrate` (its default when `None`) builds the
+/// pre-integration table that `--table-size` sizes.
+fn builds_table(mode: Mode, integrate: Option<Integration>) -> bool {
+    match mode {
+        Mode::Cellproj => integrate != Some(Integration::Exact),
+        Mode::Raycast => integrate == Some(Integration::Table),
+        _ => false,
     }
 }
 

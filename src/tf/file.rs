@@ -7,8 +7,9 @@
 //!   "name": "...", "description": "..." }
 //! ```
 //! `s` is in data units, or in `[0, 1]` of the data range when `"normalized": true` (the
-//! presets use this; constant data, a range of one value, is placed on that value plus and
-//! minus half of `max(1, |value|)`). `r, g, b` are colour and `a` the opacity gathered over one unit distance,
+//! presets use this; constant data, a range of one value or of a few ulps of rounding noise,
+//! is placed on that value plus and minus half of `max(1, |value|)`). `r, g, b` are colour and
+//! `a` the opacity gathered over one unit distance,
 //! all in `[0, 1]`, as in [`ControlPoint`]. Only `points` is required; without
 //! `unit_distance` the caller's default applies. Other keys are errors (a typo would otherwise
 //! be ignored silently).

@@ -80,13 +80,18 @@ impl CameraController {
     }
 
     /// Moves the eye towards the target (positive `scroll`, in points) or away from it, by a
-    /// constant fraction per point, between `MIN_DISTANCE` and `MAX_DISTANCE` diagonals.
+    /// constant fraction per point, between `MIN_DISTANCE` and `MAX_DISTANCE` diagonals, or
+    /// as far as the starting camera when it lies outside them (a scene's telephoto view, which
+    /// the ray caster renders up to 1e4 radii): zooming in from there goes one step in, not to
+    /// the bound, and zooming out comes back to it.
     pub fn zoom(&mut self, scroll: f64) {
+        let home = (self.home.eye - self.home.target).length();
         let c = &mut self.camera;
         let offset = c.eye - c.target;
         let diagonal = (self.hi - self.lo).length();
-        let distance = (offset.length() * (-scroll * ZOOM_PER_POINT).exp())
-            .clamp(MIN_DISTANCE * diagonal, MAX_DISTANCE * diagonal);
+        let near = (MIN_DISTANCE * diagonal).min(home);
+        let far = (MAX_DISTANCE * diagonal).max(home);
+        let distance = (offset.length() * (-scroll * ZOOM_PER_POINT).exp()).clamp(near, far);
         c.eye = c.target + offset.normalize() * distance;
     }
 
@@ -169,5 +174,31 @@ mod tests {
         assert!((d / diagonal - MAX_DISTANCE).abs() < 1e-9, "{d}");
         let radii = (c.camera.eye - DVec3::splat(0.5)).length() / (diagonal / 2.0);
         assert!(radii <= crate::gpu::far_eye::ISO, "{radii}");
+    }
+
+    /// An eye that starts beyond `MAX_DISTANCE` (a telephoto scene) zooms in by one step's
+    /// fraction, not to the bound, and back out to where it started; likewise the other way for
+    /// one that starts inside `MIN_DISTANCE`.
+    #[test]
+    fn zoom_from_beyond_the_bounds_moves_only_the_way_asked() {
+        let (lo, hi) = (DVec3::ZERO, DVec3::ONE);
+        // 2000 framing distances: 3900 diagonals; 1e-6: 2e-6 diagonals.
+        for (factor, toward) in [(2000.0, 1.0), (1e-6, -1.0)] {
+            let camera = Camera::framing(lo, hi, View::ISO, factor, 30.0, 64, 48);
+            let mut c = CameraController::new(camera, lo, hi);
+            let distance = |c: &CameraController| (c.camera.eye - c.camera.target).length();
+            let d0 = distance(&c);
+            c.zoom(toward);
+            // One point: exp(-+0.002) of the distance, to f64 rounding: 1e-12 relative, and 1e-15
+            // absolute for the eye's coordinates rounded next to the target's (0.5; the step
+            // itself is 7e-9 at 3e-6 diagonals).
+            let tol = 1e-12 * d0 + 1e-15;
+            let want = d0 * (-toward * ZOOM_PER_POINT).exp();
+            let d1 = distance(&c);
+            assert!((d1 - want).abs() < tol, "{factor}: {d0} -> {d1}");
+            c.zoom(-toward);
+            let d2 = distance(&c);
+            assert!((d2 - d0).abs() < tol, "{factor}: {d1} -> {d2}");
+        }
     }
 }

@@ -6,7 +6,7 @@
 use eframe::egui::{self, Color32, Pos2, Rect, Sense, Stroke, Vec2};
 
 use crate::tf::file::{load_tf, preset_names, save_tf_json};
-use crate::tf::{ControlPoint, TransferFunction};
+use crate::tf::{ControlPoint, TransferFunction, placement_range};
 
 /// Bins of the histogram.
 pub const HISTOGRAM_BINS: usize = 64;
@@ -35,7 +35,8 @@ pub fn histogram(values: &[f64], range: (f64, f64)) -> Vec<u32> {
 /// The editor's state beside the transfer function it edits.
 pub struct TfEditor {
     histogram: Vec<u32>,
-    /// The scalar range the curve spans (the data's, widened when it is a single value).
+    /// The scalar range the curve spans: the data's, or around a single value the range the
+    /// presets and the default are placed on ([`crate::tf::placement_range`]).
     range: (f64, f64),
     /// Log scale for the histogram.
     pub log: bool,
@@ -52,11 +53,7 @@ pub struct TfEditor {
 impl TfEditor {
     /// An editor over scalars `values` with range `range`.
     pub fn new(values: &[f64], range: (f64, f64)) -> Self {
-        let range = if range.1 > range.0 {
-            range
-        } else {
-            (range.0 - 0.5, range.1 + 0.5)
-        };
+        let range = placement_range(range.0, range.1);
         Self {
             histogram: histogram(values, range),
             range,
@@ -316,6 +313,19 @@ fn color32(c: [f64; 3]) -> Color32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// On constant data the curve spans the range the default TF is placed on, so its points
+    /// sit on the curve's ends rather than clamped there (the editor widened by 0.5: 999.5 to
+    /// 1000.5 against the TF's 500 to 1500, and at 1e17 not at all, a range of width 0).
+    #[test]
+    fn constant_data_s_curve_spans_the_default_tf() {
+        for v in [0.25, 1000.0, 1e17] {
+            let editor = TfEditor::new(&[v, v], (v, v));
+            let tf = TransferFunction::default_for_range(v, v, 1.0).unwrap();
+            let p = tf.points();
+            assert_eq!(editor.range, (p[0].s, p[p.len() - 1].s), "{v}");
+        }
+    }
 
     #[test]
     fn histogram_counts_every_finite_value_once() {
