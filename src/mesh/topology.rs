@@ -60,9 +60,10 @@ impl FaceAdjacency {
     /// per tet, five or six tets per vertex). Two
     /// faces with the same vertices are neighbours; a face alone, or one of three or more with
     /// the same vertices (counted once in [`Self::non_manifold_faces`]), is a boundary
-    /// face. [`Self::boundary`] lists boundary faces by tet, then local face. Face slots
-    /// are numbered `4 * tet + face` in 32 bits: at most 2^30 tets
-    /// ([`crate::generate::MAX_GENERATED_TETS`]).
+    /// face. [`Self::boundary`] lists boundary faces by tet, then local face. Faces are coded
+    /// `4 * tet + face` in 32 bits, and [`NO_NEIGHBOR`] is the code of face 3 of tet
+    /// 2^30 - 1: fewer than 2^30 tets (the ray casters refuse 2^30 or more); with 2^30, a face
+    /// across that one would read as a boundary face.
     pub fn build(tets: &[[u32; 4]]) -> Self {
         let buckets = FaceBuckets::build(tets);
         let across: Vec<[AtomicU32; 4]> = (0..tets.len())
@@ -99,7 +100,8 @@ impl FaceAdjacency {
 }
 
 impl Adjacency {
-    /// The [`FaceAdjacency`] of `tets` with each face code turned into its tet, in place.
+    /// The [`FaceAdjacency`] of `tets` with each face code turned into its tet, in place
+    /// (so, as it, for fewer than 2^30 tets).
     pub fn build(tets: &[[u32; 4]]) -> Self {
         let FaceAdjacency {
             mut across,

@@ -4,6 +4,7 @@
 use glam::{DQuat, DVec3};
 
 use crate::camera::{Camera, View};
+use crate::mesh::{box_diagonal, length_of, pow2, scaled};
 
 /// Degrees the eye turns per point (logical pixel) of a left drag.
 pub const DEGREES_PER_POINT: f64 = 0.4;
@@ -55,23 +56,25 @@ impl CameraController {
         let c = &mut self.camera;
         let up = c.up.normalize();
         let yaw = DQuat::from_axis_angle(up, -(dx * DEGREES_PER_POINT).to_radians());
-        let offset = yaw * (c.eye - c.target);
+        let (offset, k) = exact_scaled(c.eye - c.target);
+        let offset = yaw * offset;
         let from_up = offset.angle_between(up).to_degrees();
         let pitch = (dy * DEGREES_PER_POINT)
             .clamp(from_up - 180.0 + POLE_MARGIN_DEG, from_up - POLE_MARGIN_DEG)
             .to_radians();
         let right = up.cross(offset).normalize_or_zero();
         let offset = DQuat::from_axis_angle(right, -pitch) * offset;
-        c.eye = c.target + offset;
+        c.eye = c.target + offset * pow2(k);
     }
 
     /// Moves eye and target across the view so the point under the cursor follows a drag of
     /// (`dx`, `dy`) points in a view `view_height` points tall.
     pub fn pan(&mut self, dx: f64, dy: f64, view_height: f64) {
         let c = &mut self.camera;
-        let forward = c.target - c.eye;
-        let scale =
-            2.0 * forward.length() * (c.fov_y_deg.to_radians() / 2.0).tan() / view_height.max(1.0);
+        let (forward, k) = exact_scaled(c.target - c.eye);
+        let scale = 2.0 * forward.length() * (c.fov_y_deg.to_radians() / 2.0).tan()
+            / view_height.max(1.0)
+            * pow2(k);
         let right = forward.cross(c.up).normalize_or_zero();
         let true_up = right.cross(forward).normalize_or_zero();
         let shift = (-dx * right + dy * true_up) * scale;
@@ -85,13 +88,14 @@ impl CameraController {
     /// the ray caster renders up to 1e4 radii): zooming in from there goes one step in, not to
     /// the bound, and zooming out comes back to it.
     pub fn zoom(&mut self, scroll: f64) {
-        let home = (self.home.eye - self.home.target).length();
+        let home = length_of(self.home.eye - self.home.target);
         let c = &mut self.camera;
-        let offset = c.eye - c.target;
-        let diagonal = (self.hi - self.lo).length();
+        let (offset, k) = exact_scaled(c.eye - c.target);
+        let diagonal = box_diagonal(self.lo, self.hi);
         let near = (MIN_DISTANCE * diagonal).min(home);
         let far = (MAX_DISTANCE * diagonal).max(home);
-        let distance = (offset.length() * (-scroll * ZOOM_PER_POINT).exp()).clamp(near, far);
+        let distance =
+            (offset.length() * pow2(k) * (-scroll * ZOOM_PER_POINT).exp()).clamp(near, far);
         c.eye = c.target + offset.normalize() * distance;
     }
 
@@ -112,6 +116,15 @@ impl CameraController {
     }
 }
 
+/// `v` times `2^-k` and `k`, for the `k` that brings its largest component into [0.5, 1)
+/// ([`scaled`]): exact, so lengths, directions and rotations taken on it are those of `v`,
+/// bit for bit, up to the factor `2^k`, without their squares overflowing (`v` beyond 1e154)
+/// or underflowing (below 1e-154).
+fn exact_scaled(v: DVec3) -> (DVec3, i32) {
+    let ([v, ..], k) = scaled([v; 4]);
+    (v, k)
+}
+
 /// The named views of the View panel and the number keys, in key order (1 to 6, then 0).
 pub const NAMED_VIEWS: [(&str, &str); 7] = [
     ("+x", "1"),
@@ -126,6 +139,7 @@ pub const NAMED_VIEWS: [(&str, &str); 7] = [
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mesh::length_of;
 
     fn controller() -> CameraController {
         let (lo, hi) = (DVec3::ZERO, DVec3::ONE);
@@ -161,6 +175,49 @@ mod tests {
         assert!(d > 0.0 && d <= MIN_DISTANCE * 3f64.sqrt() * (1.0 + 1e-12));
         c.reset();
         assert_eq!(c.camera, start);
+    }
+
+    /// Orbit, pan and zoom over a box 1e-300 or 1e300 wide move the camera as over the unit
+    /// box, scaled: eye and target within 1e-12 of the unit box's (they differ by the rounding
+    /// of a scale that is not a power of two, some ulps per step, on coordinates below 3), the
+    /// camera valid after each step, and the zoom's limits the same multiples of the diagonal.
+    /// Squared, the eye's distance overflowed above 1e154 (the eye NaN or at the target) and
+    /// underflowed below 1e-154.
+    #[test]
+    fn orbit_pan_and_zoom_at_extreme_scales_move_as_at_unit_scale() {
+        let steps: [fn(&mut CameraController); 5] = [
+            |c| c.orbit(37.0, -12.0),
+            |c| c.orbit(0.0, 10_000.0),
+            |c| c.pan(10.0, 5.0, 48.0),
+            |c| c.zoom(300.0),
+            |c| c.zoom(-200.0),
+        ];
+        let mut unit = controller();
+        for scale in [1e-300, 1e300] {
+            let (lo, hi) = (DVec3::ZERO, DVec3::splat(scale));
+            let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 64, 48);
+            let mut c = CameraController::new(camera, lo, hi);
+            unit.reset();
+            for step in steps {
+                step(&mut unit);
+                step(&mut c);
+                c.camera.validate().unwrap();
+                for (got, want) in [
+                    (c.camera.eye, unit.camera.eye),
+                    (c.camera.target, unit.camera.target),
+                ] {
+                    let error = (got / scale - want).abs().max_element();
+                    assert!(error < 1e-12, "{scale:e}: {got} vs {want}");
+                }
+            }
+            for (scroll, limit) in [(-1e6, MAX_DISTANCE), (1e6, MIN_DISTANCE)] {
+                c.zoom(scroll);
+                c.camera.validate().unwrap();
+                let diagonal = box_diagonal(lo, hi);
+                let d = length_of(c.camera.eye - c.camera.target) / diagonal;
+                assert!((d / limit - 1.0).abs() < 1e-12, "{scale:e}: {d} diagonals");
+            }
+        }
     }
 
     /// Zooming out stops at `MAX_DISTANCE` diagonals, inside the strictest f32 mode's far-eye
