@@ -17,9 +17,8 @@ use crate::mesh::{MeshError, ScalarArray, TetMesh};
 
 pub use fields::{Field, grid};
 
-/// The most tets a generator makes. Face slots are numbered `4 * tet + face` in 32 bits
-/// ([`crate::mesh::Adjacency::build`]), so a mesh with more tets could not be traversed.
-pub const MAX_GENERATED_TETS: u64 = 1 << 30;
+/// The most tets a generator makes: as many as a mesh holds ([`crate::mesh::MAX_TETS`]).
+pub const MAX_GENERATED_TETS: u64 = crate::mesh::MAX_TETS;
 
 /// Why a generator could not make a mesh.
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]

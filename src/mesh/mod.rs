@@ -142,6 +142,17 @@ pub enum MeshError {
         /// The most tetvr indexes.
         max: u64,
     },
+    /// More tets than 32-bit face codes (`4 * tet + face`) can name.
+    #[error(
+        "the mesh has {count} tets; tetvr numbers their faces 4 x tet + face in 32 bits, so at \
+         most {max} tets; split the mesh into parts (a .pvtu's pieces, or a series) and render them apart"
+    )]
+    TooManyTets {
+        /// Tets in the mesh.
+        count: usize,
+        /// The most tetvr numbers.
+        max: u64,
+    },
     /// The array asked for (`--array`) is not in the mesh.
     #[error("no array named '{}'; the mesh has: {available}", name::shown_name(.name))]
     NoSuchArray {
@@ -248,6 +259,7 @@ impl TetMesh {
                 max: u32::MAX as u64,
             });
         }
+        check_tet_count(tets.len())?;
         check_positions(&positions)?;
         for a in &arrays {
             check_array(a, positions.len())?;
@@ -424,6 +436,22 @@ impl TetMesh {
     pub fn adjacency(&self) -> Adjacency {
         Adjacency::build(&self.tets)
     }
+}
+
+/// The most tets a mesh holds: face `f` of tet `t` is coded `4 t + f` in 32 bits
+/// ([`Adjacency::build`]), and `u32::MAX`, the code of face 3 of tet 2^30 - 1, means no
+/// neighbour ([`NO_NEIGHBOR`]), so tet 2^30 - 1 is the last one.
+pub const MAX_TETS: u64 = (1 << 30) - 1;
+
+/// An error when `count` tets are more than [`MAX_TETS`].
+fn check_tet_count(count: usize) -> Result<(), MeshError> {
+    if count as u64 > MAX_TETS {
+        return Err(MeshError::TooManyTets {
+            count,
+            max: MAX_TETS,
+        });
+    }
+    Ok(())
 }
 
 /// Checks every tet's indices (below `positions.len()`, distinct) and reorients the inverted
@@ -706,6 +734,23 @@ mod tests {
 
     fn unit_tet() -> Vec<DVec3> {
         vec![DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z]
+    }
+
+    /// 2^30 - 1 tets are the most: with 2^30 the last tet's face 3 would be coded u32::MAX,
+    /// which reads as no neighbour. (The count alone is checked: 2^30 tets are 16 GiB.)
+    #[test]
+    fn tets_up_to_2_pow_30_minus_1_are_counted_in_32_bit_face_codes() {
+        assert_eq!(4 * MAX_TETS + 3, u32::MAX as u64);
+        assert!(check_tet_count(MAX_TETS as usize).is_ok());
+        let e = check_tet_count(1 << 30).unwrap_err();
+        assert_eq!(
+            e,
+            MeshError::TooManyTets {
+                count: 1 << 30,
+                max: MAX_TETS
+            }
+        );
+        assert!(e.to_string().contains("1073741823 tets"), "{e}");
     }
 
     #[test]

@@ -62,8 +62,8 @@ impl FaceAdjacency {
     /// the same vertices (counted once in [`Self::non_manifold_faces`]), is a boundary
     /// face. [`Self::boundary`] lists boundary faces by tet, then local face. Faces are coded
     /// `4 * tet + face` in 32 bits, and [`NO_NEIGHBOR`] is the code of face 3 of tet
-    /// 2^30 - 1: fewer than 2^30 tets (the ray casters refuse 2^30 or more); with 2^30, a face
-    /// across that one would read as a boundary face.
+    /// 2^30 - 1: fewer than 2^30 tets ([`crate::mesh::MAX_TETS`], which meshes hold); with
+    /// 2^30, a face across that one would read as a boundary face.
     pub fn build(tets: &[[u32; 4]]) -> Self {
         let buckets = FaceBuckets::build(tets);
         let across: Vec<[AtomicU32; 4]> = (0..tets.len())

@@ -115,16 +115,9 @@ pub struct CpuRaycastRenderer {
 }
 
 impl CpuRaycastRenderer {
-    /// Copies `mesh` (its active scalars) and builds its links; errors when it has no scalars
-    /// or too many tets for face codes in a u32.
+    /// Copies `mesh` (its active scalars) and builds its links; errors when it has no scalars.
+    /// (A mesh's tets fit its face codes in a u32: [`crate::mesh::MAX_TETS`].)
     pub fn new(mesh: &TetMesh, settings: CpuRaycastSettings) -> Result<Self, RenderError> {
-        if mesh.tets().len() >= 1 << 30 {
-            return Err(RenderError::Settings(format!(
-                "--mode raycast-cpu numbers faces as 4 x tet in 32 bits, so at most 2^30 tets; \
-                 this mesh has {}",
-                mesh.tets().len()
-            )));
-        }
         let order = order::Renumbering::morton(mesh.positions(), mesh.tets());
         let tet_ids = order.apply(mesh.tets());
         let (links, boundary) = links::build(&tet_ids);

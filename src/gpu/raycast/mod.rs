@@ -428,7 +428,7 @@ impl RaycastRenderer {
         let nv = mesh.read().positions.len() as u64;
         // The limits first, then the face adjacency (seconds on a mesh of tens of millions of
         // tets), so a mesh that does not fit is refused at once.
-        check_fits(&ctx.limits, nt, nv, &settings)?;
+        check_fits(&ctx.limits, nv, &settings)?;
         let chunking = links::chunking(nt, &ctx.limits)?;
         check_cells(&mesh)?;
         let m = mesh.read();
@@ -554,22 +554,14 @@ fn check_boundary(limits: &wgpu::Limits, faces: u64) -> Result<(), RenderError> 
     Ok(())
 }
 
-/// An error unless face codes (`4 tet + face`) fit a u32, the eye-space vertices fit one
-/// storage binding, and the table has at least 2 samples per axis (the links:
-/// [`links::chunking`]; the table's size: `frame.rs`).
+/// An error unless the eye-space vertices fit one storage binding and the table has at least
+/// 2 samples per axis (the links: [`links::chunking`]; the table's size: `frame.rs`).
 fn check_fits(
     limits: &wgpu::Limits,
-    tets: u64,
     vertices: u64,
     s: &RaycastSettings,
 ) -> Result<(), RenderError> {
     let max = largest_binding(limits);
-    if tets >= 1 << 30 {
-        return Err(settings_error(format!(
-            "the ray caster (--mode raycast, and shells' --sampler walk) numbers faces as 4 tet + face in 32 bits: at most 2^30 tets, not \
-             {tets}; use --mode cellproj, or shells' --sampler raster, for this mesh"
-        )));
-    }
     if vertices * 16 > max {
         return Err(settings_error(format!(
             "the ray caster (--mode raycast, and shells' --sampler walk) keeps its {vertices} vertices' eye-space positions (16 bytes each) \
@@ -660,10 +652,10 @@ mod tests {
     fn the_100m_grid_fits_the_ray_caster_under_the_h200_s_limits() {
         let limits = h200::limits();
         let settings = RaycastSettings::default();
-        check_fits(&limits, GRID_100M_TETS, GRID_100M_VERTICES, &settings).unwrap();
+        check_fits(&limits, GRID_100M_VERTICES, &settings).unwrap();
         // Eye-space vertices in one binding of 2147483644 bytes: 134,217,727 at most.
-        assert!(check_fits(&limits, GRID_100M_TETS, 134_217_727, &settings).is_ok());
-        assert!(check_fits(&limits, GRID_100M_TETS, 134_217_728, &settings).is_err());
+        assert!(check_fits(&limits, 134_217_727, &settings).is_ok());
+        assert!(check_fits(&limits, 134_217_728, &settings).is_err());
         // The grid's boundary: 6 sides of 255 x 255 squares of 2 triangles (3 MB); a binding
         // holds 536,870,911 faces, not one more.
         check_boundary(&limits, 6 * 255 * 255 * 2).unwrap();
