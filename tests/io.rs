@@ -1005,6 +1005,10 @@ const MALFORMED: &[(&str, &str)] = &[
         "overflow_index.ele: element 0 (tag 1): vertex index -9223372036854775808 of the tetrahedron is out of range",
     ),
     (
+        "huge_cells.vtu",
+        "huge_cells.vtu: byte 608: Piece has 18446744073709551615 cells, but 1 types",
+    ),
+    (
         "huge_points.vtu",
         "huge_points.vtu: byte 163: Piece announces 18446744073709551615 points, more than any file holds",
     ),

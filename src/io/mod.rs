@@ -505,14 +505,23 @@ impl<'a> Assembler<'a> {
         decode: impl FnOnce() -> Option<Vec<[u32; 4]>>,
     ) -> bool {
         let adopt = self.tets.is_empty();
-        // Appended: the decoded list, and the assembler's own list grown to hold it.
+        // Appended: the decoded list, and the assembler's own list grown to hold it. In u64,
+        // saturating: `n` is the file's NumberOfCells, not yet checked against its arrays.
         let grown = if adopt {
             0
         } else {
-            (self.tets.len() + n).saturating_sub(self.charged)
+            (self.tets.len() as u64)
+                .saturating_add(n as u64)
+                .saturating_sub(self.charged as u64)
         };
-        let new_cells = (self.cell_tets.len() + n).saturating_sub(self.cell_tets.capacity());
-        let bytes = (n + grown) as u64 * size_of::<[u32; 4]>() as u64 + new_cells as u64;
+        let tet = size_of::<[u32; 4]>() as u64;
+        let new_cells = (self.cell_tets.len() as u64)
+            .saturating_add(n as u64)
+            .saturating_sub(self.cell_tets.capacity() as u64);
+        let bytes = (n as u64)
+            .saturating_add(grown)
+            .saturating_mul(tet)
+            .saturating_add(new_cells);
         if (self.budget.charge(bytes, String::new)).is_err() {
             return false;
         }
@@ -520,6 +529,7 @@ impl<'a> Assembler<'a> {
             self.budget.refund(bytes);
             return false;
         };
+        // `decode` made the list, so `n` and `grown` (at most `n` more) are counts in memory.
         if adopt {
             self.tets = tets;
             self.charged += n;
@@ -527,7 +537,7 @@ impl<'a> Assembler<'a> {
             // Exactly what was charged: extend's own reserve grows a full list to twice its length.
             self.tets.reserve_exact(n);
             self.tets.extend_from_slice(&tets);
-            self.charged += grown;
+            self.charged += grown as usize;
         }
         self.cell_tets.reserve_exact(n);
         self.cell_tets.resize(self.cell_tets.len() + n, 1);
