@@ -496,9 +496,10 @@ impl<'a> Assembler<'a> {
     /// Adds a piece of `n` tetrahedra that `decode` makes (four distinct vertex indices each,
     /// checked and moved past the pieces before it): what [`Self::cell`] does for each, in one
     /// step. The list is charged before `decode` runs; the first piece's list becomes the
-    /// assembler's, a later one is appended. False, with nothing added and nothing charged,
-    /// when the budget refuses it or `decode` finds a cell that is not such a tet: read cell by
-    /// cell, the error then names the cell, or where the budget runs out.
+    /// assembler's, a later one is appended and its own list's charge given back. False, with
+    /// nothing added and nothing charged, when the budget refuses it or `decode` finds a cell
+    /// that is not such a tet: read cell by cell, the error then names the cell, or where the
+    /// budget runs out.
     pub(crate) fn tets(
         &mut self,
         n: usize,
@@ -538,6 +539,8 @@ impl<'a> Assembler<'a> {
             self.tets.reserve_exact(n);
             self.tets.extend_from_slice(&tets);
             self.charged += grown as usize;
+            // The decoded list is dropped here: what stays charged is what is held.
+            self.budget.refund(n as u64 * tet);
         }
         self.cell_tets.reserve_exact(n);
         self.cell_tets.resize(self.cell_tets.len() + n, 1);
@@ -973,6 +976,22 @@ mod tests {
             !asm.tets(1, || Some(vec![[0, 1, 2, 3]])),
             "the budget is spent"
         );
+    }
+
+    #[test]
+    fn a_later_piece_keeps_charged_only_what_is_held() {
+        // Two pieces of 1,000 tets. The second is decoded into a list of its own (16,000
+        // bytes) and appended to the first, whose list grows to 2,000 tets (16,000 bytes
+        // more), with 1,000 bytes more of the cell-to-tet table: 50,000 bytes at the peak, the
+        // whole budget. Once appended, its own list is dropped: 34,000 bytes stay charged, so
+        // exactly 16,000 more fit.
+        let limits = ReadLimits { max_memory: 50_000 };
+        let budget = Budget::new("pieces.vtu", &limits);
+        let mut asm = Assembler::new(4, &budget);
+        let piece = || Some(vec![[0, 1, 2, 3]; 1000]);
+        assert!(asm.tets(1000, piece) && asm.tets(1000, piece));
+        assert!(budget.charge(16_001, String::new).is_err());
+        assert!(budget.charge(16_000, String::new).is_ok());
     }
 
     #[test]
