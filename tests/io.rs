@@ -640,6 +640,103 @@ fn all_tet_vtu_pieces_read_in_place_and_still_name_a_bad_cell() {
     }
 }
 
+/// A piece for [`appended_vtu`]: its points' count, Float64 connectivity, offsets, types.
+type RawPiece = (usize, Vec<f64>, Vec<i64>, Vec<u8>);
+
+/// A VTU of `pieces` in raw appended binary (UInt64 headers, little endian), the points at
+/// the origin: the arrays exactly as given, however they lie.
+fn appended_vtu(pieces: &[RawPiece]) -> Vec<u8> {
+    let (mut xml, mut data) = (String::new(), Vec::new());
+    let mut array = |xml: &mut String, attrs: &str, bytes: Vec<u8>| {
+        let at = data.len();
+        xml.push_str(&format!(
+            "<DataArray {attrs} format=\"appended\" offset=\"{at}\"/>"
+        ));
+        data.extend((bytes.len() as u64).to_le_bytes());
+        data.extend(bytes);
+    };
+    for (points, conn, offs, types) in pieces {
+        let cells = types.len().max(offs.len());
+        xml.push_str(&format!(
+            "<Piece NumberOfPoints=\"{points}\" NumberOfCells=\"{cells}\"><Points>"
+        ));
+        let coords = vec![0u8; 24 * points];
+        array(&mut xml, r#"type="Float64" NumberOfComponents="3""#, coords);
+        xml.push_str("</Points><Cells>");
+        let le = |v: &[f64]| v.iter().flat_map(|x| x.to_le_bytes()).collect();
+        array(&mut xml, r#"type="Float64" Name="connectivity""#, le(conn));
+        let offs = offs.iter().flat_map(|x| x.to_le_bytes()).collect();
+        array(&mut xml, r#"type="Int64" Name="offsets""#, offs);
+        array(&mut xml, r#"type="UInt8" Name="types""#, types.clone());
+        xml.push_str("</Cells></Piece>");
+    }
+    let mut f = format!(
+        "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" \
+         header_type=\"UInt64\"><UnstructuredGrid>{xml}</UnstructuredGrid>\
+         <AppendedData encoding=\"raw\">_"
+    )
+    .into_bytes();
+    f.extend(data);
+    f.extend(b"</AppendedData></VTKFile>");
+    f
+}
+
+#[test]
+fn lying_all_tet_arrays_get_the_cell_by_cell_messages() {
+    // A second piece (cells 2 and 3, after 5 points and 2 cells) whose last Float64 index is
+    // no index (1e300 is printed in full) or lies outside the piece, or whose counts and
+    // offsets lie: the in-place reader must refuse every one (the cell-by-cell reader then
+    // names it), never wrap or round an index into the mesh.
+    let tet = |d: f64| vec![0.0, 1.0, 2.0, 3.0, 1.0, 2.0, 3.0, d];
+    let ok = (5, tet(4.0), vec![4, 8], vec![10, 10]);
+    let range =
+        |v: &str| format!("cell 3: vertex index {v} is out of range (its piece has 5 points)");
+    let cases: Vec<(RawPiece, String)> = vec![
+        (
+            (5, tet(f64::NAN), vec![4, 8], vec![10, 10]),
+            "NaN is not an integer".into(),
+        ),
+        (
+            (5, tet(1e300), vec![4, 8], vec![10, 10]),
+            "000 is not an integer".into(),
+        ),
+        (
+            (5, tet(-0.5), vec![4, 8], vec![10, 10]),
+            "-0.5 is not an integer".into(),
+        ),
+        (
+            (5, tet(4294967297.0), vec![4, 8], vec![10, 10]),
+            range("4294967297"),
+        ),
+        ((5, tet(5.0), vec![4, 8], vec![10, 10]), range("5")),
+        ((5, tet(-1.0), vec![4, 8], vec![10, 10]), range("-1")),
+        (
+            (5, tet(4.0), vec![3, 8], vec![10, 10]),
+            "cell 2: a tetrahedron has 4 vertices, the file gives 3".into(),
+        ),
+        (
+            (5, tet(4.0), vec![4, 8], vec![10]),
+            "Piece has 2 cells, but 1 types".into(),
+        ),
+        (
+            (5, tet(4.0)[..7].to_vec(), vec![4, 8], vec![10, 10]),
+            "connectivity has 7 entries, but the offsets end at 8".into(),
+        ),
+    ];
+    for (piece, want) in cases {
+        let bytes = appended_vtu(&[ok.clone(), piece]);
+        let e = load_bytes(&bytes, Format::Vtu, "lie.vtu").unwrap_err();
+        assert!(e.to_string().contains(&want), "{e}\nexpected {want}");
+    }
+    // The same pieces told the truth: the second's tets moved past the first's 5 points.
+    let l = load_bytes(&appended_vtu(&[ok.clone(), ok]), Format::Vtu, "two.vtu").unwrap();
+    let moved = [[5, 6, 7, 8], [6, 7, 8, 9]];
+    assert_eq!(
+        l.mesh.tets(),
+        [[0, 1, 2, 3], [1, 2, 3, 4], moved[0], moved[1]]
+    );
+}
+
 /// Asserts the tets are conforming (every interior face shared by exactly two tets), fill
 /// `volume`, and have `boundary` faces on the outer surface.
 fn assert_conforming(m: &tetvr::TetMesh, volume: f64, boundary: usize, label: &str) {
@@ -1003,6 +1100,10 @@ const MALFORMED: &[(&str, &str)] = &[
     (
         "overflow_index.ele",
         "overflow_index.ele: element 0 (tag 1): vertex index -9223372036854775808 of the tetrahedron is out of range",
+    ),
+    (
+        "huge_cells.vtu",
+        "huge_cells.vtu: byte 608: Piece has 18446744073709551615 cells, but 1 types",
     ),
     (
         "huge_points.vtu",

@@ -496,23 +496,33 @@ impl<'a> Assembler<'a> {
     /// Adds a piece of `n` tetrahedra that `decode` makes (four distinct vertex indices each,
     /// checked and moved past the pieces before it): what [`Self::cell`] does for each, in one
     /// step. The list is charged before `decode` runs; the first piece's list becomes the
-    /// assembler's, a later one is appended. False, with nothing added and nothing charged,
-    /// when the budget refuses it or `decode` finds a cell that is not such a tet: read cell by
-    /// cell, the error then names the cell, or where the budget runs out.
+    /// assembler's, a later one is appended and its own list's charge given back. False, with
+    /// nothing added and nothing charged, when the budget refuses it or `decode` finds a cell
+    /// that is not such a tet: read cell by cell, the error then names the cell, or where the
+    /// budget runs out.
     pub(crate) fn tets(
         &mut self,
         n: usize,
         decode: impl FnOnce() -> Option<Vec<[u32; 4]>>,
     ) -> bool {
         let adopt = self.tets.is_empty();
-        // Appended: the decoded list, and the assembler's own list grown to hold it.
+        // Appended: the decoded list, and the assembler's own list grown to hold it. In u64,
+        // saturating: `n` is the file's NumberOfCells, not yet checked against its arrays.
         let grown = if adopt {
             0
         } else {
-            (self.tets.len() + n).saturating_sub(self.charged)
+            (self.tets.len() as u64)
+                .saturating_add(n as u64)
+                .saturating_sub(self.charged as u64)
         };
-        let new_cells = (self.cell_tets.len() + n).saturating_sub(self.cell_tets.capacity());
-        let bytes = (n + grown) as u64 * size_of::<[u32; 4]>() as u64 + new_cells as u64;
+        let tet = size_of::<[u32; 4]>() as u64;
+        let new_cells = (self.cell_tets.len() as u64)
+            .saturating_add(n as u64)
+            .saturating_sub(self.cell_tets.capacity() as u64);
+        let bytes = (n as u64)
+            .saturating_add(grown)
+            .saturating_mul(tet)
+            .saturating_add(new_cells);
         if (self.budget.charge(bytes, String::new)).is_err() {
             return false;
         }
@@ -520,6 +530,7 @@ impl<'a> Assembler<'a> {
             self.budget.refund(bytes);
             return false;
         };
+        // `decode` made the list, so `n` and `grown` (at most `n` more) are counts in memory.
         if adopt {
             self.tets = tets;
             self.charged += n;
@@ -527,7 +538,9 @@ impl<'a> Assembler<'a> {
             // Exactly what was charged: extend's own reserve grows a full list to twice its length.
             self.tets.reserve_exact(n);
             self.tets.extend_from_slice(&tets);
-            self.charged += grown;
+            self.charged += grown as usize;
+            // The decoded list is dropped here: what stays charged is what is held.
+            self.budget.refund(n as u64 * tet);
         }
         self.cell_tets.reserve_exact(n);
         self.cell_tets.resize(self.cell_tets.len() + n, 1);
@@ -963,6 +976,22 @@ mod tests {
             !asm.tets(1, || Some(vec![[0, 1, 2, 3]])),
             "the budget is spent"
         );
+    }
+
+    #[test]
+    fn a_later_piece_keeps_charged_only_what_is_held() {
+        // Two pieces of 1,000 tets. The second is decoded into a list of its own (16,000
+        // bytes) and appended to the first, whose list grows to 2,000 tets (16,000 bytes
+        // more), with 1,000 bytes more of the cell-to-tet table: 50,000 bytes at the peak, the
+        // whole budget. Once appended, its own list is dropped: 34,000 bytes stay charged, so
+        // exactly 16,000 more fit.
+        let limits = ReadLimits { max_memory: 50_000 };
+        let budget = Budget::new("pieces.vtu", &limits);
+        let mut asm = Assembler::new(4, &budget);
+        let piece = || Some(vec![[0, 1, 2, 3]; 1000]);
+        assert!(asm.tets(1000, piece) && asm.tets(1000, piece));
+        assert!(budget.charge(16_001, String::new).is_err());
+        assert!(budget.charge(16_000, String::new).is_ok());
     }
 
     #[test]
