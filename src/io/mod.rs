@@ -875,7 +875,8 @@ fn par_decode<const N: usize, T: Send>(
 }
 
 /// Float values of `N` bytes each in `bytes`, each given to `value` as in [`par_decode`], as
-/// the integers they hold ([`as_index`]); the error is the first that holds none, as text.
+/// the integers they hold ([`as_index`]); the error is the first that holds none, as text
+/// (`1e300`, not three hundred digits).
 /// Checked first, then decoded straight to i64: no f64 copy beside the integers (a parallel
 /// collect into an `Option` would also gather its pieces apart before joining them).
 fn float_ints<const N: usize>(
@@ -891,7 +892,10 @@ fn float_ints<const N: usize>(
         (bytes.par_chunks_exact(N).with_min_len(PAR_MIN_LEN)).position_first(bad)
     };
     if let Some(i) = first_bad {
-        return Err(value(arr(&bytes[i * N..][..N], big_endian)).to_string());
+        return Err(crate::mode::show_value(value(arr(
+            &bytes[i * N..][..N],
+            big_endian,
+        ))));
     }
     // Every value holds an integer (checked above): the default is never taken.
     Ok(par_decode(bytes, big_endian, |c| {
