@@ -439,6 +439,68 @@ fn translation_far_from_the_origin_changes_nothing() {
     }
 }
 
+#[test]
+fn any_scale_and_inverted_tets_change_nothing() {
+    // The mesh, camera and unit distance scaled alike: the same exact picture. Without the
+    // reference's frame (translate to the box centre, scale by a power of two to a radius
+    // about 1) its volumes and face normals, products of three and two lengths, underflowed or
+    // overflowed: every tet looked flat at 1e-300 and 1e300, and at 1e-110 (det ~ 1e-330).
+    // Deformed so that every tet is inside out (mirrored by update_positions), each scale must
+    // give the mirrored picture at scale 1. Scaling by a power of ten rounds each coordinate by
+    // 2^-53 relative (1.1e-16 of the unit cube): with tau <= 7 and ~20 faces per ray the RGBA
+    // moves by a few times 20 * 7 * 1.1e-16 = 1.6e-14 (measured 2.3e-14). Bound: 1e-12.
+    let m = jittered_grid(13, 4, 0.1);
+    let tf = random_tf(14, 0.1);
+    let (lo, hi) = m.bounds();
+    let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 24, 24);
+    let mirrored: Vec<DVec3> = m
+        .positions()
+        .iter()
+        .map(|&p| p * DVec3::new(-1.0, 1.0, 1.0))
+        .collect();
+    let mut flipped = ReferenceRenderer::new(&m).unwrap();
+    flipped.update_positions(&mirrored).unwrap();
+    let base = trace_pixels(&ReferenceRenderer::new(&m).unwrap(), &camera, &tf);
+    let mirror_cam = Camera {
+        eye: camera.eye * DVec3::new(-1.0, 1.0, 1.0),
+        target: camera.target * DVec3::new(-1.0, 1.0, 1.0),
+        ..camera
+    };
+    let base_mirrored = trace_pixels(&flipped, &mirror_cam, &tf);
+    assert!(
+        base.iter().any(|p| p[3] > 0.5) && base_mirrored.iter().any(|p| p[3] > 0.5),
+        "the view must see the mesh"
+    );
+    let mut worst: f64 = 0.0;
+    for scale in [1e-300, 1e-110, 1e300] {
+        let cam = |c: &Camera| Camera {
+            eye: c.eye * scale,
+            target: c.target * scale,
+            ..*c
+        };
+        let scaled_tf = tf.with_unit_distance(tf.unit_distance() * scale).unwrap();
+        let at = |p: &[DVec3]| p.iter().map(|&p| p * scale).collect::<Vec<_>>();
+        let small = mesh(
+            at(m.positions()),
+            m.tets().to_vec(),
+            m.scalars().unwrap().to_vec(),
+        );
+        let mut r = ReferenceRenderer::new(&small).unwrap();
+        let diff = max_pixel_diff(&trace_pixels(&r, &cam(&camera), &scaled_tf), &base);
+        r.update_positions(&at(&mirrored)).unwrap();
+        let got = trace_pixels(&r, &cam(&mirror_cam), &scaled_tf);
+        let diff_mirrored = max_pixel_diff(&got, &base_mirrored);
+        eprintln!("scale {scale:e}: max difference {diff:.2e}, inverted {diff_mirrored:.2e}");
+        assert!(diff < 1e-12 && diff_mirrored < 1e-12, "scale {scale:e}");
+        worst = worst.max(diff).max(diff_mirrored);
+    }
+    row(
+        "Mesh, camera, unit distance scaled by 1e-300, 1e-110, 1e300 (and inverted)",
+        worst,
+        1e-12,
+    );
+}
+
 // ---------------------------------------------------------------------------------------------
 // 5. Refinement invariance
 

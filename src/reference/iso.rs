@@ -211,7 +211,9 @@ impl<'a> IsoReference<'a> {
         }
         let vertex_gradients = match shading {
             Shading::Flat => Vec::new(),
-            Shading::Smooth => vertex_gradients(mesh.positions(), mesh.tets(), scalars),
+            // In the traversal's frame: a gradient's direction does not change under a
+            // translation and a uniform scale, and its products of lengths stay within f64.
+            Shading::Smooth => vertex_gradients(reference.frame_positions(), mesh.tets(), scalars),
         };
         Ok(Self {
             reference,
@@ -243,7 +245,7 @@ impl<'a> IsoReference<'a> {
             let Some((t, iso)) = best else { continue };
             let tet = seg.tet as usize;
             let ids = mesh.tets()[tet];
-            let p = mesh.tet_corners(tet);
+            let p = self.reference.frame_corners(tet);
             let s = ids.map(|i| self.scalars[i as usize]);
             // The clipper keeps only tets of non-zero volume, so the gradient exists; a
             // segment whose tet has none is skipped rather than given a made-up normal.
@@ -253,7 +255,8 @@ impl<'a> IsoReference<'a> {
             let grad = match self.shading {
                 Shading::Flat => flat,
                 Shading::Smooth => {
-                    let l = barycentric(p, origin + t * dir).unwrap_or([0.25; 4]);
+                    let x = self.reference.frame().point(origin + t * dir);
+                    let l = barycentric(p, x).unwrap_or([0.25; 4]);
                     let g: DVec3 = (0..4)
                         .map(|i| l[i] * self.vertex_gradients[ids[i] as usize])
                         .sum();

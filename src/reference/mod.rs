@@ -34,12 +34,18 @@
 //! closed form `C = c (1 - T)`, `T = exp(-tau L)`, exactly. The isosurfaces of [`iso`] are
 //! those of the per-vertex field (for cell data, its average to the vertices).
 //!
+//! **Any scale** (`frame.rs`): the mesh is traversed in its own frame, translated to the box
+//! centre and scaled by a power of two to a radius about 1, so that volumes and face normals
+//! neither underflow nor overflow; segments come back in world units (exactly), so the picture
+//! does not depend on the mesh's extent.
+//!
 //! **Termination.** A ray stops when its transmittance falls below [`MIN_TRANSMITTANCE`]
 //! (1e-9): everything behind can add at most that transmittance to alpha and to each colour
 //! channel (colours are at most 1), far below the 1e-6 accuracy DESIGN asks for.
 
 mod bvh;
 mod clip;
+mod frame;
 mod integrate;
 pub mod iso;
 
@@ -58,6 +64,7 @@ use crate::tf::TransferFunction;
 
 use bvh::{BoxRay, Bvh};
 pub use clip::Segment;
+pub(crate) use frame::ExactFrame;
 pub use integrate::integrate_segment;
 
 /// Transmittance below which a ray stops (see the module docs for why it keeps 1e-6).
@@ -67,6 +74,11 @@ pub const MIN_TRANSMITTANCE: f64 = 1e-9;
 #[derive(Clone, Debug)]
 pub struct ReferenceRenderer {
     mesh: TetMesh,
+    /// World to the frame the traversal works in (see the module docs).
+    frame: ExactFrame,
+    /// The mesh's positions in `frame`.
+    positions: Vec<DVec3>,
+    /// Over `positions`.
     bvh: Bvh,
     /// Time of the last BVH build, reported (once) by the next [`Renderer::render`].
     bvh_ms: Option<f64>,
@@ -87,9 +99,12 @@ impl ReferenceRenderer {
     pub fn new(mesh: &TetMesh) -> Result<Self, RenderError> {
         mesh.scalars()?;
         let start = Instant::now();
-        let bvh = build_bvh(mesh);
+        let (frame, positions) = framed(mesh);
+        let bvh = build_bvh(&positions, mesh.tets());
         Ok(Self {
             mesh: mesh.clone(),
+            frame,
+            positions,
             bvh,
             bvh_ms: Some(elapsed_ms(start)),
             progress: None,
@@ -105,6 +120,21 @@ impl ReferenceRenderer {
     /// The mesh being rendered (with any updated positions or scalars).
     pub fn mesh(&self) -> &TetMesh {
         &self.mesh
+    }
+
+    /// World to the frame the traversal works in.
+    pub(crate) fn frame(&self) -> ExactFrame {
+        self.frame
+    }
+
+    /// The mesh's positions in [`Self::frame`].
+    pub(crate) fn frame_positions(&self) -> &[DVec3] {
+        &self.positions
+    }
+
+    /// The corners of tet `t` in [`Self::frame`].
+    pub(crate) fn frame_corners(&self, t: usize) -> [DVec3; 4] {
+        self.mesh.tets()[t].map(|v| self.positions[v as usize])
     }
 
     /// Renders the image of `camera` with pixel-centre rays ([`Camera::ray_dir_in`]), rows in
@@ -191,10 +221,11 @@ impl ReferenceRenderer {
     fn collect_segments(&self, origin: DVec3, dir: DVec3, scratch: &mut Scratch) {
         scratch.raw.clear();
         scratch.segments.clear();
+        let origin = self.frame.point(origin);
         if !(origin.is_finite() && dir.is_finite()) {
             return;
         }
-        let (positions, tets) = (self.mesh.positions(), self.mesh.tets());
+        let (positions, tets) = (&self.positions, self.mesh.tets());
         // `new` and the update methods guarantee an active array.
         let Ok(scalars) = self.mesh.scalars() else {
             return;
@@ -234,12 +265,17 @@ impl ReferenceRenderer {
             if seg.t_out <= covered {
                 continue;
             }
-            scratch.segments.push(if seg.t_in < covered {
+            let seg = if seg.t_in < covered {
                 seg.starting_at(covered)
             } else {
                 *seg
-            });
+            };
             covered = seg.t_out;
+            scratch.segments.push(Segment {
+                t_in: self.frame.world_length(seg.t_in),
+                t_out: self.frame.world_length(seg.t_out),
+                ..seg
+            });
         }
     }
 }
@@ -269,7 +305,8 @@ impl Renderer for ReferenceRenderer {
     fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {
         self.mesh.set_positions(positions.to_vec())?;
         let start = Instant::now();
-        self.bvh = build_bvh(&self.mesh);
+        (self.frame, self.positions) = framed(&self.mesh);
+        self.bvh = build_bvh(&self.positions, self.mesh.tets());
         self.bvh_ms = Some(elapsed_ms(start));
         Ok(())
     }
@@ -286,10 +323,19 @@ impl Renderer for ReferenceRenderer {
     }
 }
 
-fn build_bvh(mesh: &TetMesh) -> Bvh {
-    let positions = mesh.positions();
-    let boxes: Vec<(DVec3, DVec3)> = mesh
-        .tets()
+/// The frame of `mesh` and its positions in it.
+fn framed(mesh: &TetMesh) -> (ExactFrame, Vec<DVec3>) {
+    let frame = ExactFrame::of(mesh.bounds());
+    let positions = mesh
+        .positions()
+        .par_iter()
+        .map(|&p| frame.point(p))
+        .collect();
+    (frame, positions)
+}
+
+fn build_bvh(positions: &[DVec3], tets: &[[u32; 4]]) -> Bvh {
+    let boxes: Vec<(DVec3, DVec3)> = tets
         .par_iter()
         .map(|tet| {
             let p = tet.map(|v| positions[v as usize]);

@@ -17,7 +17,7 @@ use super::Volume;
 use crate::camera::Camera;
 use crate::image::Image;
 use crate::mesh::{MeshError, TetMesh};
-use crate::reference::{MIN_TRANSMITTANCE, ReferenceRenderer, Segment};
+use crate::reference::{ExactFrame, MIN_TRANSMITTANCE, ReferenceRenderer, Segment};
 use crate::render::{Frame, RenderError, Renderer, Timings};
 use crate::tf::TransferFunction;
 
@@ -125,11 +125,11 @@ impl TexturedReference {
     }
 
     /// The affine map from world position to texture coordinate inside tet `t`; `None` for a
-    /// tet of zero volume (which no ray segment crosses).
+    /// tet of zero volume (which no ray segment crosses). Built in the traversal's frame, where
+    /// the determinant's product of three lengths stays within f64 at any scale.
     pub(super) fn texcoord_map(&self, t: u32) -> Option<TexcoordMap> {
-        let mesh = self.traversal.mesh();
-        let ids = mesh.tets()[t as usize].map(|v| v as usize);
-        let p = ids.map(|v| mesh.positions()[v]);
+        let ids = self.traversal.mesh().tets()[t as usize].map(|v| v as usize);
+        let p = self.traversal.frame_corners(t as usize);
         let tc = ids.map(|v| self.texcoords[v]);
         let m = DMat3::from_cols(p[1] - p[0], p[2] - p[0], p[3] - p[0]);
         if m.determinant() == 0.0 {
@@ -137,6 +137,7 @@ impl TexturedReference {
         }
         let j = DMat3::from_cols(tc[1] - tc[0], tc[2] - tc[0], tc[3] - tc[0]) * m.inverse();
         Some(TexcoordMap {
+            frame: self.traversal.frame(),
             origin: p[0],
             at_origin: tc[0],
             jacobian: j,
@@ -150,17 +151,20 @@ struct Acc {
     trans: f64,
 }
 
-/// `tc(x) = at_origin + jacobian (x - origin)` inside one tet.
+/// `tc(x) = at_origin + jacobian (frame(x) - origin)` inside one tet, `x` in world units.
 pub(super) struct TexcoordMap {
+    frame: ExactFrame,
+    /// The tet's first corner, in `frame`.
     origin: DVec3,
     at_origin: DVec3,
-    /// `d tc / dx`, constant in the tet.
+    /// `d tc / dx` in `frame` (the world's over the frame's power-of-two scale: the same
+    /// direction), constant in the tet.
     pub(super) jacobian: DMat3,
 }
 
 impl TexcoordMap {
     pub(super) fn at(&self, x: DVec3) -> DVec3 {
-        self.at_origin + self.jacobian * (x - self.origin)
+        self.at_origin + self.jacobian * (self.frame.point(x) - self.origin)
     }
 }
 

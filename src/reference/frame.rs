@@ -1,0 +1,83 @@
+//! The reference's own frame of reference (it shares no code with the f32 modes' frame): the
+//! mesh translated to its bounding-box centre and scaled by a power of two to a radius in
+//! [0.5, 1). The clipper, gradients and barycentrics take products of two or three lengths
+//! (face normals, volumes), which underflow or overflow f64 for meshes whose extent is beyond
+//! about 1e-100 or 1e100 (scaled by 1e-200 the reference drew nothing); in the frame they are
+//! of order 1 whatever the mesh's extent. Ray parameters are distances, unchanged by the
+//! translation and divided back by the power of two exactly, so segments, depths and the TF's
+//! unit distance stay in world units.
+//!
+//! The translation rounds each coordinate at most to the ulp of its distance from the centre
+//! (exactly nothing, by Sterbenz' lemma, for a mesh far from the origin compared with its size);
+//! a mesh and its rays are translated alike, so shared faces stay bitwise shared.
+
+use glam::DVec3;
+
+use crate::mesh::box_diagonal;
+
+/// World to frame: `frame = (world - centre) * scale`, `scale` a power of two.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct ExactFrame {
+    centre: DVec3,
+    scale: f64,
+}
+
+impl ExactFrame {
+    /// The frame of positions whose bounding box is `(lo, hi)`; the identity where the radius
+    /// is 0 or beyond f64 (nothing to scale: every tet is flat, or the box has no finite
+    /// centre).
+    pub(crate) fn of((lo, hi): (DVec3, DVec3)) -> Self {
+        let radius = 0.5 * box_diagonal(lo, hi);
+        if !(radius > 0.0 && radius.is_finite()) {
+            return Self {
+                centre: DVec3::ZERO,
+                scale: 1.0,
+            };
+        }
+        // 2^-k with 2^(k-1) <= radius < 2^k, kept a normal number (k in [-1022, 1023]).
+        let k = (radius.log2().floor() as i64 + 1).clamp(-1022, 1023);
+        Self {
+            centre: lo * 0.5 + hi * 0.5,
+            scale: f64::from_bits(((1023 - k) as u64) << 52),
+        }
+    }
+
+    /// World point `p` in the frame.
+    pub(crate) fn point(&self, p: DVec3) -> DVec3 {
+        (p - self.centre) * self.scale
+    }
+
+    /// ExactFrame distance `l` in world units (exact: a division by a power of two).
+    pub(crate) fn world_length(&self, l: f64) -> f64 {
+        l / self.scale
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn radius_scaled_into_half_to_one_by_a_power_of_two() {
+        for s in [1e-300, 1e-100, 1.0, 3.0, 1e100, 1e300] {
+            let (lo, hi) = (
+                DVec3::new(-1.0, 2.0, 0.5) * s,
+                DVec3::new(1.0, 4.0, 2.5) * s,
+            );
+            let f = ExactFrame::of((lo, hi));
+            assert_eq!(
+                f.scale.to_bits() & ((1 << 52) - 1),
+                0,
+                "{s}: not a power of two"
+            );
+            let r = 0.5 * box_diagonal(f.point(lo), f.point(hi));
+            assert!((0.5..1.0).contains(&r), "{s}: radius {r}");
+            assert_eq!(f.point(lo * 0.5 + hi * 0.5), DVec3::ZERO);
+        }
+        let flat = ExactFrame::of((DVec3::ONE, DVec3::ONE));
+        assert_eq!(
+            (flat.point(DVec3::ONE), flat.world_length(2.0)),
+            (DVec3::ONE, 2.0)
+        );
+    }
+}
