@@ -27,15 +27,21 @@ impl ExactFrame {
     /// is 0 or beyond f64 (nothing to scale: every tet is flat, or the box has no finite
     /// centre).
     pub(crate) fn of((lo, hi): (DVec3, DVec3)) -> Self {
-        let radius = 0.5 * box_diagonal(lo, hi);
+        // A finite box whose diagonal overflows (wider than f64::MAX / 2) takes the largest
+        // scale-down below, 2^-1022, which brings it to a radius of at most 4 sqrt(3).
+        let radius = match 0.5 * box_diagonal(lo, hi) {
+            r if r == f64::INFINITY && lo.is_finite() && hi.is_finite() => f64::MAX,
+            r => r,
+        };
         if !(radius > 0.0 && radius.is_finite()) {
             return Self {
                 centre: DVec3::ZERO,
                 scale: 1.0,
             };
         }
-        // 2^-k with 2^(k-1) <= radius < 2^k, kept a normal number (k in [-1022, 1023]).
-        let k = (radius.log2().floor() as i64 + 1).clamp(-1022, 1023);
+        // 2^-k with 2^(k-1) <= radius < 2^k, kept a normal number: the biased exponent
+        // 1023 - k in [1, 2046], so k in [-1023, 1022] (k = 1023 would make the scale 0).
+        let k = (radius.log2().floor() as i64 + 1).clamp(-1023, 1022);
         Self {
             centre: lo * 0.5 + hi * 0.5,
             scale: f64::from_bits(((1023 - k) as u64) << 52),
@@ -73,6 +79,13 @@ mod tests {
             let r = 0.5 * box_diagonal(f.point(lo), f.point(hi));
             assert!((0.5..1.0).contains(&r), "{s}: radius {r}");
             assert_eq!(f.point(lo * 0.5 + hi * 0.5), DVec3::ZERO);
+        }
+        // Radii from 2^1022 (scale 0 before: k = 1023) to past f64::MAX (the diagonal
+        // overflowing: the identity before): scale 2^-1022.
+        for hi in [3e307, 1e308, f64::MAX].map(DVec3::splat) {
+            let f = ExactFrame::of((-hi, hi));
+            assert_eq!(f.scale, 2f64.powi(-1022), "{hi}");
+            assert!(f.point(hi).is_finite() && f.world_length(1.0).is_finite());
         }
         let flat = ExactFrame::of((DVec3::ONE, DVec3::ONE));
         assert_eq!(
