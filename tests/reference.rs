@@ -501,6 +501,49 @@ fn any_scale_and_inverted_tets_change_nothing() {
     );
 }
 
+#[test]
+fn a_far_eye_on_the_same_ray_changes_nothing() {
+    // Rays along -z, so the eye at z = 3 and at z = 1e10 (1.2e10 mesh radii, a telephoto view)
+    // lie on exactly the same lines. Measured from the far eye, parameters round to ulp(1e10)
+    // = 1.9e-6, which on every segment's length (~0.25) moved the RGBA by 3.6e-6; the reference
+    // starts such rays near the mesh and integrates frame lengths, leaving rounding of 1e-16
+    // per face: with tau <= 7 and ~20 faces, ~1e-14. Bound: 1e-12. The segments' world
+    // parameters differ by the eyes' distance to within two of its ulps (4e-6), bound 1e-5;
+    // their scalars (~1) by rounding, bound 1e-12.
+    let m = jittered_grid(15, 4, 0.1);
+    let tf = random_tf(16, 0.1);
+    let r = ReferenceRenderer::new(&m).unwrap();
+    let (near, far) = (3.0, 1e10);
+    let (mut worst, mut seen) = (0.0f64, 0);
+    for i in 0..25 {
+        let (x, y) = (0.1 + 0.2 * (i % 5) as f64, 0.1 + 0.2 * (i / 5) as f64);
+        let eye = |z| DVec3::new(x, y, z);
+        let want = r.trace(eye(near), -DVec3::Z, &tf);
+        seen += usize::from(want[3] > 0.01);
+        worst = worst.max(max_diff(r.trace(eye(far), -DVec3::Z, &tf), want));
+        let (a, b) = (
+            r.segments(eye(near), -DVec3::Z),
+            r.segments(eye(far), -DVec3::Z),
+        );
+        assert_eq!(a.len(), b.len(), "({x}, {y})");
+        for (a, b) in a.iter().zip(&b) {
+            // Scalars from barycentric weights at other frame parameters: rounding apart.
+            let ds = (a.s_in - b.s_in).abs().max((a.s_out - b.s_out).abs());
+            assert!(a.tet == b.tet && ds < 1e-12, "({x}, {y}): {a:?} {b:?}");
+            let moved = b.t_in - a.t_in - (far - near);
+            assert!(moved.abs() < 1e-5, "({x}, {y}): t_in off by {moved:e}");
+        }
+    }
+    assert!(seen >= 15, "only {seen} of 25 rays see the mesh");
+    eprintln!("far eye: max difference {worst:.2e}");
+    row(
+        "Eye moved 1e10 radii back along the same rays",
+        worst,
+        1e-12,
+    );
+    assert!(worst < 1e-12, "{worst:e}");
+}
+
 // ---------------------------------------------------------------------------------------------
 // 5. Refinement invariance
 

@@ -57,6 +57,23 @@ impl ExactFrame {
     pub(crate) fn world_length(&self, l: f64) -> f64 {
         l / self.scale
     }
+
+    /// Where the traversal starts the ray `origin + t dir` (world, `dir` unit): `(o, t0)`, `o`
+    /// the frame point of `origin + t0 dir`, `t0 >= 0` in world units. An eye farther than the
+    /// mesh's sphere (radius below `1 / scale`) is moved along the ray to `4 / scale` before
+    /// its nearest approach to the centre, so frame parameters stay of order 1: from the eye
+    /// they would round to its distance's ulp (2e-6 of the radius at 1e10 radii, on every
+    /// segment's length). The margin also covers `t0`'s own rounding, 2e-14 of the distance:
+    /// beyond about 1e14 radii that term keeps the start far from the mesh, as the ray itself
+    /// is then uncertain across it by its origin's ulp. Where the margin overflows (a box wider
+    /// than f64::MAX / 2, radius up to `7 / scale`) the eye stays.
+    pub(crate) fn ray_start(&self, origin: DVec3, dir: DVec3) -> (DVec3, f64) {
+        let d = origin - self.centre;
+        let margin = 4.0 / self.scale + 2e-14 * d.abs().max_element();
+        // NaN (a non-finite eye) or an infinite margin: no move.
+        let t0 = (-d.dot(dir) - margin).max(0.0);
+        ((d + t0 * dir) * self.scale, t0)
+    }
 }
 
 #[cfg(test)]

@@ -37,7 +37,9 @@
 //! **Any scale** (`frame.rs`): the mesh is traversed in its own frame, translated to the box
 //! centre and scaled by a power of two to a radius about 1, so that volumes and face normals
 //! neither underflow nor overflow; segments come back in world units (exactly), so the picture
-//! does not depend on the mesh's extent.
+//! does not depend on the mesh's extent. An eye far outside the mesh's sphere starts its rays
+//! near it ([`ExactFrame::ray_start`]) and segments are integrated with their frame lengths,
+//! so a telephoto view's far eye does not round them to its distance's ulp.
 //!
 //! **Termination.** A ray stops when its transmittance falls below [`MIN_TRANSMITTANCE`]
 //! (1e-9): everything behind can add at most that transmittance to alpha and to each colour
@@ -90,7 +92,10 @@ pub struct ReferenceRenderer {
 #[derive(Default)]
 struct Scratch {
     raw: Vec<Segment>,
+    /// The ray's segments in the frame, parameters from `start` (see `collect_segments`).
     segments: Vec<Segment>,
+    /// Where the frame's parameters start along the ray, in world units from the eye.
+    start: f64,
 }
 
 impl ReferenceRenderer {
@@ -192,7 +197,16 @@ impl ReferenceRenderer {
     pub fn segments(&self, origin: DVec3, dir: DVec3) -> Vec<Segment> {
         let mut scratch = Scratch::default();
         self.collect_segments(origin, dir, &mut scratch);
-        scratch.segments
+        let world = |t| scratch.start + self.frame.world_length(t);
+        scratch
+            .segments
+            .iter()
+            .map(|seg| Segment {
+                t_in: world(seg.t_in),
+                t_out: world(seg.t_out),
+                ..*seg
+            })
+            .collect()
     }
 
     fn trace_with(
@@ -206,7 +220,9 @@ impl ReferenceRenderer {
         let mut color = [0.0; 3];
         let mut transmittance = 1.0;
         for seg in &scratch.segments {
-            let (c, t) = integrate_segment(tf, seg.s_in, seg.s_out, seg.length());
+            // The frame's length: from a far eye, world parameters would round it.
+            let length = self.frame.world_length(seg.length());
+            let (c, t) = integrate_segment(tf, seg.s_in, seg.s_out, length);
             for (acc, c) in color.iter_mut().zip(c) {
                 *acc += transmittance * c;
             }
@@ -218,10 +234,13 @@ impl ReferenceRenderer {
         [color[0], color[1], color[2], 1.0 - transmittance]
     }
 
+    /// The ray's segments into `scratch.segments`, in the frame: parameters in frame units
+    /// from `scratch.start` ([`ExactFrame::ray_start`]: a far eye moved near the mesh).
     fn collect_segments(&self, origin: DVec3, dir: DVec3, scratch: &mut Scratch) {
         scratch.raw.clear();
         scratch.segments.clear();
-        let origin = self.frame.point(origin);
+        let (origin, start) = self.frame.ray_start(origin, dir);
+        scratch.start = start;
         if !(origin.is_finite() && dir.is_finite()) {
             return;
         }
@@ -271,11 +290,7 @@ impl ReferenceRenderer {
                 *seg
             };
             covered = seg.t_out;
-            scratch.segments.push(Segment {
-                t_in: self.frame.world_length(seg.t_in),
-                t_out: self.frame.world_length(seg.t_out),
-                ..seg
-            });
+            scratch.segments.push(seg);
         }
     }
 }
