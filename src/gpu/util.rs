@@ -30,14 +30,8 @@ impl F32Frame {
     /// bounding-sphere radius is 0 (every vertex at one point), not finite, or so far from 1
     /// (beyond 1e-300 or 1e300) that the box scaled to the frame would leave f64's range.
     pub fn of((lo, hi): (DVec3, DVec3)) -> Result<Self, MeshError> {
-        // The diagonal over its largest component first: squared, a diagonal below 1e-154 or
-        // above 1e154 would underflow to 0 or overflow.
-        let d = hi - lo;
-        let largest = d.abs().max_element();
-        let radius = match largest > 0.0 && largest.is_finite() {
-            true => 0.5 * largest * (d / largest).length(),
-            false => 0.5 * largest,
-        };
+        // Not squared: a diagonal below 1e-154 or above 1e154 would underflow or overflow.
+        let radius = 0.5 * crate::mesh::length_of(hi - lo);
         let refused = MeshError::ExtentNotScalable { radius };
         if !(1e-300..=1e300).contains(&radius) {
             return Err(refused);
