@@ -53,7 +53,7 @@ impl ExactFrame {
         (p - self.centre) * self.scale
     }
 
-    /// ExactFrame distance `l` in world units (exact: a division by a power of two).
+    /// Frame distance `l` in world units (exact: a division by a power of two).
     pub(crate) fn world_length(&self, l: f64) -> f64 {
         l / self.scale
     }
