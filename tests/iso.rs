@@ -58,7 +58,7 @@ fn compare(gpu: &IsoImage, reference: &IsoImage, depth_tol: f64, angle_tol_deg: 
         match (g.is_finite(), r.is_finite()) {
             (true, true) => {
                 e.matched += 1;
-                let d = (g as f64 - r as f64).abs();
+                let d = (g - r).abs();
                 e.depth_max = e.depth_max.max(d);
                 e.depth_mean += d;
                 e.depth_outliers += (d > depth_tol) as usize;
@@ -233,7 +233,7 @@ fn plane_on_grid_vertices_head_on_has_no_cracks() {
                         expected_hits += 1;
                         let i = (y * camera.width + x) as usize;
                         assert!(
-                            (image.depth[i] as f64 - t).abs() <= 1e-5,
+                            (image.depth[i] - t).abs() <= 1e-5,
                             "{name}: crack or wrong depth at pixel ({x}, {y}): {} vs {t}",
                             image.depth[i]
                         );
@@ -273,7 +273,7 @@ fn constant_fields_give_no_nan() {
     );
     assert_eq!(e.non_finite, 0);
     assert_eq!(e.matched + e.mismatches, 0, "{e:?}");
-    assert!(image.depth.iter().all(|d| *d == f32::INFINITY));
+    assert!(image.depth.iter().all(|d| *d == f64::INFINITY));
 
     let plateau = generate::box_grid(
         DVec3::splat(-1.0),
@@ -353,7 +353,7 @@ fn eye_inside_mesh_matches_reference() {
             let (cx, cy) = (camera.width / 2, camera.height / 2);
             let d = camera.ray_dir(cx, cy);
             let t = 3.0 * (-0.42 - (eye.x + eye.y + eye.z) / 3.0) / (d.x + d.y + d.z);
-            let got = image.depth[(cy * camera.width + cx) as usize] as f64;
+            let got = image.depth[(cy * camera.width + cx) as usize];
             assert!(
                 (got - t).abs() <= 1e-5,
                 "{name}: centre depth {got}, expected {t}"
@@ -429,9 +429,10 @@ fn smooth_shading_over_several_bindings_is_bit_identical() {
             .expect("smooth shading has gradients");
         let values = (image.color.pixels.iter().flatten())
             .chain(image.normal.iter().flatten())
-            .chain(&image.depth)
-            .chain(gradients.iter().flat_map(|(_, g)| g));
-        values.map(|v| v.to_bits()).collect::<Vec<u32>>()
+            .chain(gradients.iter().flat_map(|(_, g)| g))
+            .map(|&v| v as f64)
+            .chain(image.depth.iter().copied());
+        values.map(f64::to_bits).collect::<Vec<u64>>()
     };
     let whole = run(ctx());
     let parts = run(&common::with_storage_binding_limit(ctx(), binding));
@@ -671,10 +672,11 @@ fn selections_beyond_one_storage_binding_are_drawn_in_chunks() {
     );
 }
 
-/// The Gaussians grid in any units: scaled by 1e-30 and 1e30 with its camera, iso renders the
+/// The Gaussians grid in any units: scaled by 1e-200 to 1e200 with its camera, iso renders the
 /// unscaled surfaces (it scales the mesh back by a power of two, its f32 frame, and its depths
-/// back to world units): the same hits, depths `s` times the unscaled ones to 1e-5 relative,
-/// colours to rmse 1e-6. What differs is f64 rounding of the scaled positions (1e30 is no
+/// back to world units in f64: in f32 they were infinite, a miss, beyond 3e38 and 0 below
+/// 1e-45): the same hits, depths `s` times the unscaled ones to 1e-5 relative, colours to rmse
+/// 1e-6; the reference's depths `s` times its unscaled ones to 1e-12. What differs is f64 rounding of the scaled positions (1e30 is no
 /// power of two, so a few f32 positions move by an ulp, and a hit's f32 depth by some ulps);
 /// measured on lavapipe: depths to 9.3e-7 relative, colours to rmse 3.2e-8.
 #[test]
@@ -692,7 +694,13 @@ fn any_scale_renders_the_unscaled_surfaces_and_depths() {
         r.render_surface(c).expect("frame").0
     };
     let unscaled = surface(&mesh, &camera);
-    for s in [1e-30, 1e30] {
+    let reference = |m: &TetMesh, c: &Camera| {
+        let r = ReferenceRenderer::new(m).expect("reference");
+        let q = IsoReference::new(&r, &[0.3, 0.6], Shading::Flat).expect("iso reference");
+        q.render_surface(c, &[RED, BLUE]).expect("reference frame")
+    };
+    let reference_unscaled = reference(&mesh, &camera);
+    for s in [1e-200, 1e-30, 1e30, 1e200] {
         let mut scaled = mesh.clone();
         let positions = mesh.positions().iter().map(|&p| p * s).collect();
         scaled.set_positions(positions).expect("positions");
@@ -707,7 +715,7 @@ fn any_scale_renders_the_unscaled_surfaces_and_depths() {
         assert_eq!(hits(&image), hits(&unscaled), "scaled by {s:e}: other hits");
         let depth_error = (image.depth.iter().zip(&unscaled.depth))
             .filter(|(_, u)| u.is_finite())
-            .map(|(&d, &u)| (d as f64 / (s * u as f64) - 1.0).abs())
+            .map(|(&d, &u)| (d / (s * u) - 1.0).abs())
             .fold(0.0, f64::max);
         eprintln!("scaled by {s:e}: colour {m}, depth relative error {depth_error:e}");
         assert!(
@@ -715,5 +723,12 @@ fn any_scale_renders_the_unscaled_surfaces_and_depths() {
             "scaled by {s:e}: depth {depth_error:e}"
         );
         assert!(m.rmse <= 1e-6, "scaled by {s:e}: {m}");
+        let exact = reference(&scaled, &c);
+        assert_eq!(hits(&exact), hits(&reference_unscaled), "reference {s:e}");
+        let exact_error = (exact.depth.iter().zip(&reference_unscaled.depth))
+            .filter(|(_, u)| u.is_finite())
+            .map(|(&d, &u)| (d / (s * u) - 1.0).abs())
+            .fold(0.0, f64::max);
+        assert!(exact_error <= 1e-12, "reference {s:e}: {exact_error:e}");
     }
 }

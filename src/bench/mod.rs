@@ -1199,8 +1199,9 @@ pub fn truth_image(
 }
 
 /// The truth of a textured cage: the [`TexturedReference`] of the cage as rendered, at
-/// [`Texture::reference_step`]; for iso its first hits of the isovalue (bisected to 1e-10,
-/// shaded with the texture's gradient whatever the shading asked: textured iso has one).
+/// [`Texture::reference_step`]; for iso its first hits of the isovalue (bisected to 1e-10 of
+/// the cage's size, shaded with the texture's gradient whatever the shading asked: textured
+/// iso has one).
 fn textured_truth(
     scene: &Scene,
     t: &Texture,

@@ -68,8 +68,10 @@ pub(crate) struct IsoHit {
 pub struct IsoImage {
     /// Shaded colour, premultiplied RGBA; transparent black where the ray misses.
     pub color: Image,
-    /// Distance from the eye to the hit along the pixel's ray; `f32::INFINITY` on a miss.
-    pub depth: Vec<f32>,
+    /// Distance from the eye to the hit along the pixel's ray, in world units; `f64::INFINITY`
+    /// on a miss. In f64, not f32: a mesh beyond about 1e38 (or below 1e-45) in extent has
+    /// hits whose f32 distance is infinite, a miss (or 0).
+    pub depth: Vec<f64>,
     /// Unit world-space normal (scalar gradient direction); `[0, 0, 0]` on a miss.
     pub normal: Vec<[f32; 3]>,
 }
@@ -84,18 +86,16 @@ impl IsoImage {
     ) -> Self {
         let (right, up, forward) = camera.basis();
         let (w, h) = (camera.width as usize, camera.height as usize);
-        let pixels: Vec<([f32; 4], f32, [f32; 3])> = (0..w * h)
+        let pixels: Vec<([f32; 4], f64, [f32; 3])> = (0..w * h)
             .into_par_iter()
             .map(|i| {
                 let (x, y) = ((i % w) as u32, (i / w) as u32);
                 let dir = camera.ray_dir_in(right, up, forward, x, y);
                 match hit(dir) {
-                    Some((base, t, normal)) => (
-                        shade(base, normal, dir),
-                        t as f32,
-                        normal.as_vec3().to_array(),
-                    ),
-                    None => ([0.0; 4], f32::INFINITY, [0.0; 3]),
+                    Some((base, t, normal)) => {
+                        (shade(base, normal, dir), t, normal.as_vec3().to_array())
+                    }
+                    None => ([0.0; 4], f64::INFINITY, [0.0; 3]),
                 }
             })
             .collect();

@@ -6,8 +6,8 @@
 //! points `t_in + k L / n`, `n = ceil(L / step)`, both ends included, so a crossing on a face
 //! is seen by the samples on either side of it. The first pair of consecutive samples on
 //! either side of an isovalue holds the hit; it is refined by bisection until the bracket is
-//! below [`TOLERANCE`] world units (or [`MAX_BISECTIONS`]), then by the linear interpolation
-//! inside the last bracket. Where several isovalues cross in that piece, the nearest crossing
+//! below [`TOLERANCE`] of the cage's size (or [`MAX_BISECTIONS`]), then by the linear
+//! interpolation inside the last bracket. Where several isovalues cross in that piece, the nearest crossing
 //! wins. A crossing pair closer together than the step can be missed: the step is a setting,
 //! and `tests/cage_iso.rs` shows the hits converged (halving the step changes them by less
 //! than its bound).
@@ -24,7 +24,10 @@ use crate::camera::Camera;
 use crate::reference::iso::IsoImage;
 use crate::render::RenderError;
 
-/// Bisection stops when the bracket is below this many world units.
+/// Bisection stops when the bracket is below this many units of the traversal's frame (a power
+/// of two from the cage's bounding radius to twice it, `crate::reference`'s frame): relative,
+/// so that a cage in any units is refined alike (in world units, 1e-10 stopped a cage scaled by
+/// 1e-200 before its first bisection, and never stopped one scaled by 1e200).
 pub const TOLERANCE: f64 = 1e-10;
 /// At most this many bisections per hit.
 pub const MAX_BISECTIONS: u32 = 60;
@@ -60,9 +63,10 @@ impl Ray<'_> {
 
     /// The crossing of `v` inside `[a, b]`, whose ends lie on either side of it.
     fn refine(&self, v: f64, mut a: f64, mut b: f64) -> f64 {
+        let tolerance = self.reference.traversal().frame().world_length(TOLERANCE);
         let (mut fa, mut fb) = (self.field(a) - v, self.field(b) - v);
         for _ in 0..MAX_BISECTIONS {
-            if b - a <= TOLERANCE {
+            if b - a <= tolerance {
                 break;
             }
             let m = 0.5 * (a + b);

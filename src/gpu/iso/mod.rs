@@ -338,10 +338,11 @@ impl IsoRenderer {
             .iter()
             .map(|g| {
                 if g[3] >= 0.0 {
-                    let depth = frame.world_length(g[3] as f64) as f32;
+                    // In f64: a world distance may be beyond f32's range.
+                    let depth = frame.world_length(g[3] as f64);
                     (depth, [g[0], g[1], g[2]])
                 } else {
-                    (f32::INFINITY, [0.0; 3])
+                    (f64::INFINITY, [0.0; 3])
                 }
             })
             .unzip();

@@ -120,8 +120,8 @@ impl HitBuffers {
         self.hits.size() + self.readback.size()
     }
 
-    /// Each pixel's distance (infinite on a miss) and unit world normal (zero on a miss), from
-    /// the last copy.
+    /// Each pixel's distance in the f32 frame (infinite on a miss) and unit world normal (zero
+    /// on a miss), from the last copy.
     fn read(&self, device: &wgpu::Device) -> Result<(Vec<f32>, Vec<[f32; 3]>), RenderError> {
         let out = {
             let data = read_mapped(device, &self.readback, "the textured iso hits")?;
@@ -183,11 +183,15 @@ impl RaycastRenderer {
         let frame = self.frame(&self.mesh.frame().camera(camera), None)?;
         let hits = (self.targets.as_ref()).and_then(|t| t.hits.as_ref());
         let hits = hits.ok_or(RenderError::Internal("the iso hit buffers are missing"))?;
-        let (mut depth, normal) = hits.read(&self.device)?;
+        let (depth, normal) = hits.read(&self.device)?;
         let f32_frame = self.mesh.frame();
-        for d in depth.iter_mut().filter(|d| d.is_finite()) {
-            *d = f32_frame.world_length(*d as f64) as f32;
-        }
+        // World units in f64: beyond f32's range for a cage of extent past about 1e38.
+        let depth = (depth.iter())
+            .map(|&d| match d.is_finite() {
+                true => f32_frame.world_length(d as f64),
+                false => f64::INFINITY,
+            })
+            .collect();
         let surface = IsoImage {
             color: frame.image,
             depth,
