@@ -253,11 +253,61 @@ pub fn load_with(path: &Path, limits: &ReadLimits) -> Result<Loaded, LoadError> 
     load_bytes_with(&read(path)?, format, &shown, limits)
 }
 
-/// The bytes of the file `p` (whose metadata is `meta`). A large regular file is read in
-/// parallel chunks: one thread copying hundreds of megabytes from the page cache, and faulting
-/// in the pages they land on, was a visible part of reading a large mesh.
-fn read_file(p: &Path, meta: &std::fs::Metadata) -> std::io::Result<Vec<u8>> {
-    read_in_chunks(p, meta, 16 << 20)
+/// A mesh file's bytes: mapped from the page cache, or read into memory.
+enum FileBytes {
+    Mapped(memmap2::Mmap),
+    Read(Vec<u8>),
+}
+
+impl std::ops::Deref for FileBytes {
+    type Target = [u8];
+
+    fn deref(&self) -> &[u8] {
+        match self {
+            Self::Mapped(map) => map,
+            Self::Read(bytes) => bytes,
+        }
+    }
+}
+
+/// Files of at least this many bytes are mapped (or, where mapping fails, read in parallel
+/// chunks of a quarter of it); smaller ones read in one piece.
+const MAP_BYTES: u64 = 64 << 20;
+
+/// The bytes of the file `p` (whose metadata is `meta`). A large regular file is mapped: the
+/// readers parse it in place, on all their threads, where a copy first cost one pass over
+/// hundreds of megabytes, the zeroing of as much fresh memory, and on dropping it a serial
+/// unmap of that memory (the 11.7M-tet MNI brain's 545 MB: see docs/performance.md, "Large
+/// meshes"). Where the system refuses to map it, it is read in parallel chunks.
+fn read_file(p: &Path, meta: &std::fs::Metadata) -> std::io::Result<FileBytes> {
+    read_or_map(p, meta, MAP_BYTES)
+}
+
+/// [`read_file`] mapping files of at least `map_bytes` bytes. A file whose size is no longer
+/// what `meta` says is an error.
+fn read_or_map(p: &Path, meta: &std::fs::Metadata, map_bytes: u64) -> std::io::Result<FileBytes> {
+    if meta.is_file() && meta.len() >= map_bytes {
+        let file = std::fs::File::open(p)?;
+        // SAFETY: the map is only read, and only while the file is loaded; like any reader of a
+        // mapped file, a file truncated by another process during that time may end the
+        // process (SIGBUS), and one rewritten then may read as a mix of both versions (which
+        // the readers check like any other input).
+        if let Ok(map) = unsafe { memmap2::Mmap::map(&file) } {
+            if map.len() as u64 != meta.len() {
+                return Err(changed_size(p));
+            }
+            return Ok(FileBytes::Mapped(map));
+        }
+    }
+    read_in_chunks(p, meta, (map_bytes / 4) as usize).map(FileBytes::Read)
+}
+
+/// The error for a file whose size changed after it was taken.
+fn changed_size(p: &Path) -> std::io::Error {
+    std::io::Error::new(
+        std::io::ErrorKind::UnexpectedEof,
+        format!("{} changed size while it was read", p.display()),
+    )
 }
 
 /// [`read_file`] with chunks of `chunk` bytes, for a regular file of at least four of them
@@ -1048,6 +1098,33 @@ mod tests {
         std::fs::write(&path, &bytes[..500]).unwrap();
         #[cfg(unix)]
         assert!(read_in_chunks(&path, &meta, 7).is_err());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn mapped_files_match_the_file_and_refuse_a_changed_size() {
+        let dir = std::env::temp_dir().join(format!("tetvr-map-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("bytes.bin");
+        let bytes: Vec<u8> = (0..1000u32).map(|i| (i * 7 % 251) as u8).collect();
+        std::fs::write(&path, &bytes).unwrap();
+        let meta = std::fs::metadata(&path).unwrap();
+        // Mapped from 1000 bytes on: this file is; from 1001 on it is read.
+        let mapped = read_or_map(&path, &meta, 1000).unwrap();
+        assert!(matches!(mapped, FileBytes::Mapped(_)));
+        assert_eq!(*mapped, bytes[..]);
+        drop(mapped);
+        let read = read_or_map(&path, &meta, 1001).unwrap();
+        assert!(matches!(read, FileBytes::Read(_)));
+        assert_eq!(*read, bytes[..]);
+        // The file shrank, or grew, after its size was taken (and charged on the budget): an
+        // error, not the bytes that are there now.
+        for len in [500, 1500] {
+            let other: Vec<u8> = bytes.iter().copied().cycle().take(len).collect();
+            std::fs::write(&path, &other).unwrap();
+            let err = read_or_map(&path, &meta, 1000).err().unwrap();
+            assert_eq!(err.kind(), std::io::ErrorKind::UnexpectedEof, "{err}");
+        }
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
