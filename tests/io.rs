@@ -1130,6 +1130,10 @@ const MALFORMED: &[(&str, &str)] = &[
         "cell_data_count.vtu: byte 122: DataArray 'c' has 3 values, expected 1 cells x 1 components",
     ),
     (
+        "duplicate_tet.vtk",
+        "duplicate_tet.vtk: tets 0 and 2 have the same four vertices (0, 1, 2, 3): the mesh lists one tetrahedron twice",
+    ),
+    (
         "bad_index.ele",
         "bad_index.ele: element 4 (tag 5): vertex index 8 of the tetrahedron is out of range (the mesh has 8 points)",
     ),
