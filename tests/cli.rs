@@ -419,6 +419,11 @@ fn info_reports_counts_degenerate_and_reoriented_tets() {
     for needle in ["40,960", "187,395", "zero-volume", "77", "duplicate"] {
         assert!(stdout.contains(needle), "no '{needle}' in\n{stdout}");
     }
+    // The last line ends as the others do: the shell's prompt came right after it.
+    assert!(
+        stdout.ends_with("(rays may leave and re-enter the mesh)\n"),
+        "{stdout:?}"
+    );
     let o = tetvr(&[
         "info",
         common::asset("combustor_subset_tet.vtu").to_str().unwrap(),
@@ -1210,6 +1215,19 @@ fn camera_flags_are_checked_before_the_mesh_is_read() {
     ] {
         checked_before_the_mesh(&dir, &flags, expected);
     }
+}
+
+/// An isovalue that is no number is named as the flag that gave it (it was named as a scene
+/// file's `settings.iso`), before the mesh is read.
+#[test]
+fn isovalues_that_are_no_numbers_are_refused_before_the_mesh_is_read() {
+    let dir = out_dir("iso-first");
+    let flags = ["--mode", "iso", "--iso", "1,nan"];
+    checked_before_the_mesh(
+        &dir,
+        &flags,
+        "--iso: isovalues must be finite numbers, not NaN",
+    );
 }
 
 /// `--tf` needs no mesh to be found and parsed (only to be placed on its scalar range): an

@@ -961,6 +961,41 @@ fn tetgen_pair_loads_from_either_file() {
     }
 }
 
+/// A UTF-8 byte order mark at the start of a text file (Windows editors write one) is skipped
+/// by every text reader: the legacy VTK and Gmsh readers refused such files with "found
+/// '$MeshFormat'", the mark invisible in the message.
+#[test]
+fn text_files_starting_with_a_byte_order_mark_load_as_without() {
+    const BOM: &[u8] = b"\xEF\xBB\xBF";
+    let with_bom = |bytes: &[u8]| [BOM, bytes].concat();
+    for (file, format) in [
+        ("valid/mixed.vtk", Format::VtkLegacy),
+        ("valid/mixed.msh", Format::Gmsh),
+        ("valid/mixed41.msh", Format::Gmsh),
+        ("valid/views22.msh", Format::Gmsh),
+    ] {
+        let plain = load(&corpus(file)).unwrap();
+        let bytes = with_bom(&std::fs::read(corpus(file)).unwrap());
+        let marked = load_bytes(&bytes, format, file).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(marked.mesh.tets(), plain.mesh.tets(), "{file}");
+        assert_eq!(marked.mesh.positions(), plain.mesh.positions(), "{file}");
+        assert_eq!(marked.mesh.arrays(), plain.mesh.arrays(), "{file}");
+    }
+    // TetGen's pair, each file with the mark.
+    let dir = std::env::temp_dir().join(format!("tetvr-io-bom-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for ext in ["node", "ele"] {
+        let bytes = std::fs::read(corpus(&format!("valid/cube.{ext}"))).unwrap();
+        std::fs::write(dir.join(format!("cube.{ext}")), with_bom(&bytes)).unwrap();
+    }
+    let marked = load(&dir.join("cube.node"));
+    std::fs::remove_dir_all(&dir).unwrap();
+    let marked = marked.unwrap_or_else(|e| panic!("{e}"));
+    let plain = load(&corpus("valid/cube.node")).unwrap();
+    assert_eq!(marked.mesh.tets(), plain.mesh.tets());
+    assert_eq!(marked.mesh.arrays(), plain.mesh.arrays());
+}
+
 #[test]
 fn write_vtu_round_trips_exactly() {
     let mut m = tetvr::generate::box_grid(
@@ -1128,6 +1163,10 @@ const MALFORMED: &[(&str, &str)] = &[
     (
         "cell_data_count.vtu",
         "cell_data_count.vtu: byte 122: DataArray 'c' has 3 values, expected 1 cells x 1 components",
+    ),
+    (
+        "duplicate_tet.vtk",
+        "duplicate_tet.vtk: tets 0 and 2 have the same four vertices (0, 1, 2, 3): the mesh lists one tetrahedron twice",
     ),
     (
         "bad_index.ele",

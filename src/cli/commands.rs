@@ -551,7 +551,7 @@ fn info(args: InfoArgs) -> Result<(), CliError> {
             shown_list(report.skipped_arrays.iter().map(String::as_str))
         );
     }
-    print!("{}", MeshStats::compute(&mesh, Some(report.reoriented)));
+    println!("{}", MeshStats::compute(&mesh, Some(report.reoriented)));
     Ok(())
 }
 

@@ -87,8 +87,14 @@ fn overlay(scene: &mut Scene, a: &RenderArgs, given: &dyn Fn(&str) -> bool) {
     }
 }
 
-/// Flags that belong to one mode, given with another.
+/// Flags that belong to one mode, given with another, and isovalues that are no numbers
+/// (named as the flag, before the mesh is read).
 fn check(args: &RenderArgs, scene: &Scene, entry_given: bool) -> Result<(), CliError> {
+    if let Some(v) = args.iso.iter().find(|v| !v.is_finite()) {
+        return Err(CliError::Usage(format!(
+            "--iso: isovalues must be finite numbers, not {v}"
+        )));
+    }
     if args.cellproj.sort_check && scene.mode != Mode::Cellproj {
         return Err(CliError::Usage(
             "--sort-check checks the cell projection's order: use it with --mode cellproj".into(),

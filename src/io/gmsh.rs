@@ -247,8 +247,12 @@ struct Sections<'b> {
 }
 
 pub(super) fn read(data: &[u8], name: &str, budget: &Budget) -> Result<Loaded, LoadError> {
-    let start = data.iter().take_while(|b| b.is_ascii_whitespace()).count();
-    let mut r = mesh_format(Cursor::new(data, name, None, budget))?;
+    let c = Cursor::new(data, name, None, budget);
+    let start = c.pos
+        + (data[c.pos..].iter())
+            .take_while(|b| b.is_ascii_whitespace())
+            .count();
+    let mut r = mesh_format(c)?;
     r.expect_end("$EndMeshFormat")?;
     let mut s = Sections::default();
     s.spans.insert(MESH_SECTIONS[0], (start, r.c.pos));

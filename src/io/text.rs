@@ -17,10 +17,16 @@ pub(crate) struct Cursor<'a> {
 }
 
 impl<'a> Cursor<'a> {
+    /// A cursor at the start of `data`, past a UTF-8 byte order mark (which editors on Windows
+    /// write at the start of text files); errors still count lines and bytes from the start.
     pub fn new(data: &'a [u8], name: &'a str, comment: Option<u8>, budget: &'a Budget<'a>) -> Self {
         Self {
             data,
-            pos: 0,
+            pos: if data.starts_with(b"\xEF\xBB\xBF") {
+                3
+            } else {
+                0
+            },
             name,
             budget,
             comment,

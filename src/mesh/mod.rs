@@ -2,8 +2,8 @@
 //! per-vertex scalar arrays of which one is active.
 //!
 //! A [`TetMesh`] is always valid once built: every index is in range, no tet repeats a vertex,
-//! every coordinate and scalar is finite, and every tet is positively oriented
-//! (`(b - a) . ((c - a) x (d - a)) >= 0`, VTK's convention). [`TetMesh::new`] enforces this and
+//! no two tets have the same four vertices, every coordinate and scalar is finite, and every
+//! tet is positively oriented (`(b - a) . ((c - a) x (d - a)) >= 0`, VTK's convention). [`TetMesh::new`] enforces this and
 //! reports what it had to repair in a [`BuildReport`].
 
 pub mod arrays;
@@ -73,6 +73,22 @@ pub enum MeshError {
         tet: usize,
         /// The repeated vertex index.
         index: u32,
+    },
+    /// Two tets have the same four vertices: one tetrahedron listed twice. The modes would
+    /// disagree on it (the ray casters find no boundary face on the pair and draw nothing, cell
+    /// projection draws it twice, the reference and shells once), so it is refused.
+    #[error(
+        "tets {first} and {second} have the same four vertices ({}, {}, {}, {}): the mesh lists \
+         one tetrahedron twice; remove one of them",
+        .vertices[0], .vertices[1], .vertices[2], .vertices[3]
+    )]
+    DuplicateTet {
+        /// 0-based index of the earlier tet.
+        first: usize,
+        /// 0-based index of the later one (the first repeat a serial scan meets).
+        second: usize,
+        /// Their vertices, ascending.
+        vertices: [u32; 4],
     },
     /// A vertex position is NaN or infinite.
     #[error("vertex {vertex} has a non-finite coordinate ({x}, {y}, {z})")]
@@ -265,6 +281,7 @@ impl TetMesh {
             check_array(a, positions.len())?;
         }
         let reoriented = check_and_orient(&positions, &mut tets)?;
+        check_distinct_tets(&tets, positions.len())?;
         let active = if arrays.is_empty() { None } else { Some(0) };
         Ok((
             Self {
@@ -479,6 +496,58 @@ fn check_and_orient(positions: &[DVec3], tets: &mut [[u32; 4]]) -> Result<usize,
     match first_bad {
         Some(e) => Err(e),
         None => Ok(reoriented),
+    }
+}
+
+/// An error when two of `tets` (with indices below `vertex_count`) have the same vertex set:
+/// the pair whose later tet comes first. Equal tets share their smallest vertex, so the tets
+/// are bucketed by it (a counting sort: 4 bytes per tet and 4 per vertex) and only each
+/// bucket's few tets (some 20 in a tet mesh) are compared, in parallel: linear time.
+fn check_distinct_tets(tets: &[[u32; 4]], vertex_count: usize) -> Result<(), MeshError> {
+    let sorted = |t: u32| {
+        let mut k = tets[t as usize];
+        k.sort_unstable();
+        k
+    };
+    let lowest = |t: &[u32; 4]| *t.iter().min().expect("four vertices") as usize;
+    // ends[v]: the end of vertex v's bucket in `order` once filled (its start until then).
+    let mut ends = vec![0u32; vertex_count];
+    for t in tets {
+        ends[lowest(t)] += 1;
+    }
+    let mut start = 0;
+    for e in &mut ends {
+        start += std::mem::replace(e, start);
+    }
+    let mut order = vec![0u32; tets.len()];
+    for (i, t) in tets.iter().enumerate() {
+        let e = &mut ends[lowest(t)];
+        order[*e as usize] = i as u32;
+        *e += 1;
+    }
+    let first = (0..vertex_count)
+        .into_par_iter()
+        .with_min_len(1 << 12)
+        .map_init(Vec::new, |keys, v| {
+            let lo = if v == 0 { 0 } else { ends[v - 1] as usize };
+            keys.clear();
+            keys.extend(order[lo..ends[v] as usize].iter().map(|&t| (sorted(t), t)));
+            keys.sort_unstable();
+            // Each repeat's earliest equal tet is the one before it in the sorted bucket.
+            keys.windows(2)
+                .filter(|w| w[0].0 == w[1].0)
+                .map(|w| (w[1].1, w[0].1))
+                .min()
+        })
+        .flatten()
+        .min();
+    match first {
+        Some((second, first)) => Err(MeshError::DuplicateTet {
+            first: first as usize,
+            second: second as usize,
+            vertices: sorted(second),
+        }),
+        None => Ok(()),
     }
 }
 
@@ -834,6 +903,38 @@ mod tests {
         let (m, r) = TetMesh::new(unit_tet(), vec![[0, 2, 1, 3]], vec![]).unwrap();
         assert_eq!(r.reoriented, 1);
         assert!((m.signed_volume(0) - 1.0 / 6.0).abs() < 1e-15);
+    }
+
+    /// A tet listed twice (in any vertex order, either orientation) is refused, naming the
+    /// first repeat: the ray casters drew nothing of such a pair (no boundary face) and cell
+    /// projection drew it twice. Tets sharing three vertices are neighbours, not repeats.
+    #[test]
+    fn a_tet_listed_twice_is_an_error_naming_both() {
+        let mut p = unit_tet();
+        p.push(DVec3::ONE);
+        let neighbours = vec![[0, 1, 2, 3], [1, 2, 3, 4]];
+        assert!(TetMesh::new(p.clone(), neighbours, vec![]).is_ok());
+        let tets = vec![
+            [1, 2, 3, 4],
+            [0, 1, 2, 3],
+            [3, 2, 4, 1],
+            [2, 1, 0, 3],
+            [0, 3, 2, 1],
+        ];
+        let e = TetMesh::new(p, tets, vec![]).unwrap_err();
+        assert_eq!(
+            e,
+            MeshError::DuplicateTet {
+                first: 0,
+                second: 2,
+                vertices: [1, 2, 3, 4]
+            }
+        );
+        assert_eq!(
+            e.to_string(),
+            "tets 0 and 2 have the same four vertices (1, 2, 3, 4): the mesh lists one \
+             tetrahedron twice; remove one of them"
+        );
     }
 
     #[test]
