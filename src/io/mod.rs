@@ -223,8 +223,22 @@ pub fn load(path: &Path) -> Result<Loaded, LoadError> {
     load_with(path, &ReadLimits::default())
 }
 
-/// [`load`] within `limits`.
+/// [`load`] within `limits`. A file of 64 MiB or more is mapped, not copied (see
+/// [`read_file`]): if another process truncates it while it is read, the process ends with
+/// SIGBUS, as any reader of a mapped file would; [`load_copied`] reads it into memory instead.
 pub fn load_with(path: &Path, limits: &ReadLimits) -> Result<Loaded, LoadError> {
+    load_from(path, limits, MAP_BYTES)
+}
+
+/// [`load_with`] reading the file into memory whatever its size, never mapping it: for files
+/// another process may rewrite while they are read (a series' steps, written by a running
+/// simulation), where a truncation must be an error, not the end of the process.
+pub fn load_copied(path: &Path, limits: &ReadLimits) -> Result<Loaded, LoadError> {
+    load_from(path, limits, u64::MAX)
+}
+
+/// [`load_with`] mapping files of at least `map_bytes` bytes.
+fn load_from(path: &Path, limits: &ReadLimits, map_bytes: u64) -> Result<Loaded, LoadError> {
     let shown = path.display().to_string();
     let format = Format::from_path(path).ok_or_else(|| {
         LoadError::new(
@@ -241,7 +255,7 @@ pub fn load_with(path: &Path, limits: &ReadLimits) -> Result<Loaded, LoadError> 
         // The file's bytes are the first charge on the budget: refuse before reading them.
         let meta = std::fs::metadata(p).map_err(io)?;
         Budget::new(&name, limits).charge(meta.len(), || "the file itself".into())?;
-        read_file(p, &meta).map_err(io)
+        read_or_map(p, &meta, map_bytes).map_err(io)
     };
     if format == Format::TetGen {
         let node: PathBuf = path.with_extension("node");
@@ -274,17 +288,14 @@ impl std::ops::Deref for FileBytes {
 /// chunks of a quarter of it); smaller ones read in one piece.
 const MAP_BYTES: u64 = 64 << 20;
 
-/// The bytes of the file `p` (whose metadata is `meta`). A large regular file is mapped: the
+/// The bytes of the file `p` (whose metadata is `meta`). A regular file of at least
+/// `map_bytes` bytes ([`MAP_BYTES`] for [`load_with`]) is mapped: the
 /// readers parse it in place, on all their threads, where a copy first cost one pass over
 /// hundreds of megabytes, the zeroing of as much fresh memory, and on dropping it a serial
 /// unmap of that memory (the 11.7M-tet MNI brain's 545 MB: see docs/performance.md, "Large
 /// meshes"). Where the system refuses to map it, it is read in parallel chunks.
-fn read_file(p: &Path, meta: &std::fs::Metadata) -> std::io::Result<FileBytes> {
-    read_or_map(p, meta, MAP_BYTES)
-}
-
-/// [`read_file`] mapping files of at least `map_bytes` bytes. A file whose size is no longer
-/// what `meta` says is an error.
+/// [`load_copied`] passes `u64::MAX`: nothing is mapped, large files are read in parallel chunks.
+/// A file whose size is no longer what `meta` says is an error.
 fn read_or_map(p: &Path, meta: &std::fs::Metadata, map_bytes: u64) -> std::io::Result<FileBytes> {
     if meta.is_file() && meta.len() >= map_bytes {
         let file = std::fs::File::open(p)?;
@@ -299,7 +310,7 @@ fn read_or_map(p: &Path, meta: &std::fs::Metadata, map_bytes: u64) -> std::io::R
             return Ok(FileBytes::Mapped(map));
         }
     }
-    read_in_chunks(p, meta, (map_bytes / 4) as usize).map(FileBytes::Read)
+    read_in_chunks(p, meta, (map_bytes.min(MAP_BYTES) / 4) as usize).map(FileBytes::Read)
 }
 
 /// The error for a file whose size changed after it was taken.
@@ -1117,6 +1128,10 @@ mod tests {
         let read = read_or_map(&path, &meta, 1001).unwrap();
         assert!(matches!(read, FileBytes::Read(_)));
         assert_eq!(*read, bytes[..]);
+        // load_copied's bound (a series' steps): never mapped.
+        let copied = read_or_map(&path, &meta, u64::MAX).unwrap();
+        assert!(matches!(copied, FileBytes::Read(_)));
+        assert_eq!(*copied, bytes[..]);
         // The file shrank, or grew, after its size was taken (and charged on the budget): an
         // error, not the bytes that are there now.
         for len in [500, 1500] {

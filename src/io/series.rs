@@ -22,7 +22,7 @@ use std::path::{Path, PathBuf};
 
 use quick_xml::events::Event;
 
-use super::{LoadError, LoadErrorKind, Loaded, ReadLimits, load_with};
+use super::{LoadError, LoadErrorKind, Loaded, ReadLimits, load_copied};
 use crate::mesh::name::{shown_list, shown_name};
 use crate::mesh::{MeshError, TetMesh};
 
@@ -263,9 +263,11 @@ impl Series {
         &self.steps
     }
 
-    /// Loads step `index` (0-based, below `steps().len()`) as a mesh of its own.
+    /// Loads step `index` (0-based, below `steps().len()`) as a mesh of its own, read into
+    /// memory, not mapped ([`load_copied`]): a running simulation may rewrite a step while it
+    /// plays.
     pub fn load(&self, index: usize, limits: &ReadLimits) -> Result<Loaded, SeriesError> {
-        load_with(&self.steps[index].path, limits).map_err(|e| self.step_error(index, e.into()))
+        load_copied(&self.steps[index].path, limits).map_err(|e| self.step_error(index, e.into()))
     }
 
     /// Loads step `index` and applies `prepare` to it (e.g. choosing the rendered array);
