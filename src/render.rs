@@ -47,6 +47,29 @@ pub enum RenderError {
         /// The farthest distance the mode accepts, in mesh radii.
         limit: f64,
     },
+    /// A textured cage's sampling step is so small against the cage that a ray would take
+    /// more than `limit` samples ([`crate::texture::MAX_SAMPLES_PER_RAY`]): `samples` is the cage's
+    /// bounding-box `diagonal` over the `step`, `smallest` the least step allowed (all in world
+    /// units but the counts).
+    #[error(
+        "the texture step of {step:e} world units would sample a ray across the cage's \
+         bounding-box diagonal of {diagonal:e} {samples:.3e} times, beyond the {limit:.0} \
+         samples a ray may take; use a step of at least {smallest:e} world units (the command \
+         line's step is a quarter of the volume's smallest sample spacing: give the cage the \
+         volume's units)"
+    )]
+    TextureStep {
+        /// The step, world units.
+        step: f64,
+        /// The cage's bounding-box diagonal, world units.
+        diagonal: f64,
+        /// `diagonal / step`.
+        samples: f64,
+        /// The most samples allowed.
+        limit: f64,
+        /// `diagonal / limit`: the smallest step allowed.
+        smallest: f64,
+    },
     /// The mode's settings do not fit the mesh or adapter; the message names the setting.
     #[error("{0}")]
     Settings(String),

@@ -51,12 +51,7 @@ impl TexturedReference {
             }
             .into());
         }
-        let step = step.unwrap_or(DEFAULT_STEP_FRACTION * volume.spacing().min_element());
-        if !(step.is_finite() && step > 0.0) {
-            return Err(RenderError::Settings(format!(
-                "textured reference step {step} must be a positive number of world units"
-            )));
-        }
+        let step = super::sampling_step(step, &volume, cage)?;
         Ok(Self {
             traversal: ReferenceRenderer::new(cage)?,
             texcoords,
@@ -197,8 +192,12 @@ impl Renderer for TexturedReference {
         Ok(Frame { image, timings })
     }
 
-    /// Moves the cage; the volume moves with it (texture coordinates unchanged).
+    /// Moves the cage; the volume moves with it (texture coordinates unchanged). Refused, and
+    /// nothing moved, where the step would sample the moved cage too finely
+    /// ([`super::check_step`]).
     fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {
+        let count = self.traversal.mesh().vertex_count();
+        super::check_step(self.step, positions, count)?;
         self.traversal.update_positions(positions)
     }
 
