@@ -30,13 +30,15 @@ pub enum RenderError {
     #[error(transparent)]
     Gpu(#[from] GpuError),
     /// The eye is farther from the mesh than an f32 mode keeps its accuracy
-    /// ([`crate::gpu::far_eye`]): `radii` and `limit` in bounding-sphere radii from the
+    /// ([`crate::gpu::far_eye`]), or than the f64 reference's rays stay on their pixels
+    /// ([`crate::reference::FAR_EYE`]): `radii` and `limit` in bounding-sphere radii from the
     /// bounding-box centre.
     #[error(
         "the eye is {radii:.3e} mesh radii from the mesh's centre, beyond the {limit:.0e} radii \
-         up to which {mode} keeps its accuracy in f32 (farther, its picture degrades: \
+         up to which {mode} keeps its accuracy in {} (farther, its picture degrades: \
          docs/performance.md, \"Meshes at extreme scales\"); move the eye closer and widen \
          --fov to keep the framing{}",
+        precision(mode),
         or_reference(mode)
     )]
     EyeTooFar {
@@ -86,8 +88,16 @@ pub enum RenderError {
 /// distance, but not iso's surfaces (the CLI's reference renders no isosurfaces).
 fn or_reference(mode: &str) -> &'static str {
     match mode {
-        "iso" => "",
+        "iso" | "reference" => "",
         _ => ", or render with --mode reference",
+    }
+}
+
+/// The arithmetic whose rounding limits `mode`'s distance.
+fn precision(mode: &str) -> &'static str {
+    match mode {
+        "reference" => "f64",
+        _ => "f32",
     }
 }
 
@@ -216,6 +226,7 @@ mod tests {
             ("raycast", true),
             ("shells (walk sampler)", true),
             ("iso", false),
+            ("reference", false),
         ] {
             let msg = RenderError::EyeTooFar {
                 mode,
@@ -229,6 +240,7 @@ mod tests {
             );
             assert!(msg.contains("widen --fov"), "{msg}");
             assert_eq!(msg.contains("--mode reference"), reference, "{msg}");
+            assert_eq!(msg.contains("in f64"), mode == "reference", "{msg}");
         }
     }
 

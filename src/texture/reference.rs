@@ -169,7 +169,7 @@ impl Renderer for TexturedReference {
     }
 
     fn render(&mut self, camera: &Camera, tf: &TransferFunction) -> Result<Frame, RenderError> {
-        camera.validate()?;
+        self.traversal.check_camera(camera)?;
         let start = Instant::now();
         let (right, up, forward) = camera.basis();
         let mut image = Image::new(camera.width, camera.height);
