@@ -93,9 +93,11 @@ pub struct ReferenceRenderer {
 /// whose components round by about 1.1e-16 each, in the camera's basis and in the
 /// normalization (a few such roundings: at most about 1e-15 of the direction), so at D radii
 /// the ray passes the mesh up to D * 1e-15 radii sideways of the pixel's true ray: at 1e16
-/// radii a whole radius, and a tiny mesh framed from there drew blank. At 1e7 radii the rays
-/// are off by at most 1e-8 radii, which moves a pixel by far less than DESIGN's 1e-6 for any
-/// picture that changes by less than 100 per radius; and 1e7 is a thousand times beyond the
+/// radii by radii (a grid framed from there at 24x24 drew 144 pixels where 173 see it). At
+/// 1e7 radii the rays are off by at most 1e-8 radii, which moves a pixel by at most 1e-7, a
+/// tenth of DESIGN's 1e-6, for a picture that changes by up to 10 per radius (measured: the
+/// test's grid just inside the limit within 1.5e-7 of the picture from half as far, which
+/// includes the perspectives' own difference); and 1e7 is a thousand times beyond the
 /// farthest eye an f32 mode accepts ([`crate::gpu::far_eye`]), so their refusal's remedy,
 /// `--mode reference`, holds wherever they refuse.
 pub const FAR_EYE: f64 = 1e7;
