@@ -30,13 +30,15 @@ pub enum RenderError {
     #[error(transparent)]
     Gpu(#[from] GpuError),
     /// The eye is farther from the mesh than an f32 mode keeps its accuracy
-    /// ([`crate::gpu::far_eye`]): `radii` and `limit` in bounding-sphere radii from the
+    /// ([`crate::gpu::far_eye`]), or than the f64 reference's rays stay on their pixels
+    /// ([`crate::reference::FAR_EYE`]): `radii` and `limit` in bounding-sphere radii from the
     /// bounding-box centre.
     #[error(
         "the eye is {radii:.3e} mesh radii from the mesh's centre, beyond the {limit:.0e} radii \
-         up to which {mode} keeps its accuracy in f32 (farther, its picture degrades: \
+         up to which {mode} keeps its accuracy in {} (farther, its picture degrades: \
          docs/performance.md, \"Meshes at extreme scales\"); move the eye closer and widen \
          --fov to keep the framing{}",
+        precision(mode),
         or_reference(mode)
     )]
     EyeTooFar {
@@ -46,6 +48,29 @@ pub enum RenderError {
         radii: f64,
         /// The farthest distance the mode accepts, in mesh radii.
         limit: f64,
+    },
+    /// A textured cage's sampling step is so small against the cage that a ray would take
+    /// more than `limit` samples ([`crate::texture::MAX_SAMPLES_PER_RAY`]): `samples` is the cage's
+    /// bounding-box `diagonal` over the `step`, `smallest` the least step allowed (all in world
+    /// units but the counts).
+    #[error(
+        "the texture step of {step:e} world units would sample a ray across the cage's \
+         bounding-box diagonal of {diagonal:e} {samples:.3e} times, beyond the {limit:.0} \
+         samples a ray may take; use a step of at least {smallest:e} world units (the command \
+         line's step is a quarter of the volume's smallest sample spacing: give the cage the \
+         volume's units)"
+    )]
+    TextureStep {
+        /// The step, world units.
+        step: f64,
+        /// The cage's bounding-box diagonal, world units.
+        diagonal: f64,
+        /// `diagonal / step`.
+        samples: f64,
+        /// The most samples allowed.
+        limit: f64,
+        /// `diagonal / limit`: the smallest step allowed.
+        smallest: f64,
     },
     /// The mode's settings do not fit the mesh or adapter; the message names the setting.
     #[error("{0}")]
@@ -63,8 +88,16 @@ pub enum RenderError {
 /// distance, but not iso's surfaces (the CLI's reference renders no isosurfaces).
 fn or_reference(mode: &str) -> &'static str {
     match mode {
-        "iso" => "",
+        "iso" | "reference" => "",
         _ => ", or render with --mode reference",
+    }
+}
+
+/// The arithmetic whose rounding limits `mode`'s distance.
+fn precision(mode: &str) -> &'static str {
+    match mode {
+        "reference" => "f64",
+        _ => "f32",
     }
 }
 
@@ -193,6 +226,7 @@ mod tests {
             ("raycast", true),
             ("shells (walk sampler)", true),
             ("iso", false),
+            ("reference", false),
         ] {
             let msg = RenderError::EyeTooFar {
                 mode,
@@ -206,6 +240,7 @@ mod tests {
             );
             assert!(msg.contains("widen --fov"), "{msg}");
             assert_eq!(msg.contains("--mode reference"), reference, "{msg}");
+            assert_eq!(msg.contains("in f64"), mode == "reference", "{msg}");
         }
     }
 

@@ -460,3 +460,101 @@ fn a_textured_cage_renders_the_same_at_any_scale() {
         }
     }
 }
+
+/// A step too fine for the cage is refused before any frame, at build and by
+/// `update_positions` (which then keeps the cage), by every renderer that steps through the
+/// texture: the cage scaled by 1e200 against its volume at the default step (a quarter voxel)
+/// would take 1e202 samples per ray. Unchecked, the reference built it and a 2x2 frame ran for
+/// minutes without end (the loops ran to `n as u64`, `n as u32`, or an f32 counter that stops
+/// counting at 2^24). A step of exactly the cage's diagonal over `MAX_SAMPLES_PER_RAY` is
+/// taken; the next smaller f64 is not.
+#[test]
+fn a_step_too_fine_for_the_cage_is_refused_before_rendering() {
+    use tetvr::RenderError;
+    use tetvr::cpu::raycast::{CpuRaycastRenderer, CpuRaycastSettings};
+    use tetvr::gpu::iso::IsoSettings;
+    use tetvr::texture::MAX_SAMPLES_PER_RAY;
+    let (volume, mesh) = blob_cage();
+    let tc = texcoords(&mesh, DEFAULT_TEXCOORDS).unwrap();
+    let mut huge = mesh.clone();
+    let scaled: Vec<DVec3> = mesh.positions().iter().map(|&p| p * 1e200).collect();
+    huge.set_positions(scaled.clone()).unwrap();
+    type Build<'a> =
+        Box<dyn Fn(&TetMesh, Option<f64>) -> Result<Box<dyn Renderer>, RenderError> + 'a>;
+    let builds: [(&str, Build); 4] = [
+        (
+            "reference",
+            Box::new(|m, step| {
+                let r = TexturedReference::new(m, tc.clone(), volume.clone(), step)?;
+                Ok(Box::new(r))
+            }),
+        ),
+        (
+            "raycast-cpu",
+            Box::new(|m, step| {
+                let s = CpuRaycastSettings::default();
+                let r = CpuRaycastRenderer::textured(m, &tc, volume.clone(), step, s)?;
+                Ok(Box::new(r))
+            }),
+        ),
+        (
+            "raycast",
+            Box::new(|m, step| {
+                let s = RaycastSettings::default();
+                Ok(Box::new(RaycastRenderer::textured(
+                    ctx(),
+                    m,
+                    &tc,
+                    &volume,
+                    step,
+                    s,
+                )?))
+            }),
+        ),
+        (
+            "iso",
+            Box::new(|m, step| {
+                let (s, iso) = (RaycastSettings::default(), IsoSettings::default());
+                let r = RaycastRenderer::textured_iso(ctx(), m, &tc, &volume, step, s, &iso)?;
+                Ok(Box::new(r))
+            }),
+        ),
+    ];
+    let (tf, camera) = view(&volume, &mesh, 8);
+    let too_fine = |e: RenderError, what: &str| {
+        let msg = e.to_string();
+        assert!(
+            matches!(e, RenderError::TextureStep { .. }),
+            "{what}: {msg}"
+        );
+        for part in ["texture step of", "diagonal of", "use a step of at least"] {
+            assert!(msg.contains(part), "{what}: {msg}");
+        }
+    };
+    let diagonal = mesh.diagonal();
+    let smallest = diagonal / MAX_SAMPLES_PER_RAY;
+    for (name, build) in &builds {
+        too_fine(build(&huge, None).err().expect(name), name);
+        build(&mesh, Some(smallest)).expect(name);
+        let below = f64::from_bits(smallest.to_bits() - 1);
+        too_fine(build(&mesh, Some(below)).err().expect(name), name);
+        let mut r = build(&mesh, None).expect(name);
+        let before = r.render(&camera, &tf).unwrap().image;
+        too_fine(r.update_positions(&scaled).expect_err(name), name);
+        let after = r.render(&camera, &tf).unwrap().image;
+        assert_eq!(before.pixels, after.pixels, "{name}: the cage moved");
+    }
+    let e = TexturedReference::new(&huge, tc.clone(), volume.clone(), None).unwrap_err();
+    let RenderError::TextureStep {
+        step,
+        diagonal: d,
+        samples,
+        smallest: s,
+        ..
+    } = e
+    else {
+        panic!("{e}");
+    };
+    assert_eq!((step, d), (0.1875, huge.diagonal()));
+    assert_eq!((samples, s), (d / step, d / MAX_SAMPLES_PER_RAY));
+}

@@ -13,13 +13,15 @@
 
 use glam::DVec3;
 
-use crate::mesh::box_diagonal;
+use crate::mesh::{box_diagonal, length_of};
 
 /// World to frame: `frame = (world - centre) * scale`, `scale` a power of two.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct ExactFrame {
     centre: DVec3,
     scale: f64,
+    /// The box's bounding-sphere radius in the frame (0 where the box has no extent to scale).
+    radius: f64,
 }
 
 impl ExactFrame {
@@ -37,14 +39,26 @@ impl ExactFrame {
             return Self {
                 centre: DVec3::ZERO,
                 scale: 1.0,
+                radius: 0.0,
             };
         }
         // 2^-k with 2^(k-1) <= radius < 2^k, kept a normal number: the biased exponent
         // 1023 - k in [1, 2046], so k in [-1023, 1022] (k = 1023 would make the scale 0).
         let k = (radius.log2().floor() as i64 + 1).clamp(-1023, 1022);
+        let scale = f64::from_bits(((1023 - k) as u64) << 52);
         Self {
             centre: lo * 0.5 + hi * 0.5,
-            scale: f64::from_bits(((1023 - k) as u64) << 52),
+            scale,
+            radius: radius * scale,
+        }
+    }
+
+    /// The distance of world point `eye` from the box centre in bounding-sphere radii (0 for
+    /// a box with no extent: nothing to be far from; infinite where it is beyond f64).
+    pub(crate) fn radii(&self, eye: DVec3) -> f64 {
+        match self.radius > 0.0 {
+            true => length_of(self.point(eye)) / self.radius,
+            false => 0.0,
         }
     }
 

@@ -284,7 +284,7 @@ impl<'a> IsoReference<'a> {
         camera: &Camera,
         colors: &[[f32; 3]],
     ) -> Result<IsoImage, RenderError> {
-        camera.validate()?;
+        self.reference.check_camera(camera)?;
         Ok(IsoImage::trace(camera, |dir| {
             let hit = self.first_hit(camera.eye, dir)?;
             let base = colors.get(hit.iso).copied().unwrap_or([1.0; 3]);

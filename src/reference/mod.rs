@@ -88,6 +88,20 @@ pub struct ReferenceRenderer {
     progress: Option<Progress>,
 }
 
+/// The farthest eye, in mesh radii (bounding-sphere radii from the bounding-box centre), from
+/// which the reference draws a camera's picture. A pixel's ray is the eye and a unit direction
+/// whose components round by about 1.1e-16 each, in the camera's basis and in the
+/// normalization (a few such roundings: at most about 1e-15 of the direction), so at D radii
+/// the ray passes the mesh up to D * 1e-15 radii sideways of the pixel's true ray: at 1e16
+/// radii by radii (a grid framed from there at 24x24 drew 144 pixels where 173 see it). At
+/// 1e7 radii the rays are off by at most 1e-8 radii, which moves a pixel by at most 1e-7, a
+/// tenth of DESIGN's 1e-6, for a picture that changes by up to 10 per radius (measured: the
+/// test's grid just inside the limit within 1.5e-7 of the picture from half as far, which
+/// includes the perspectives' own difference); and 1e7 is a thousand times beyond the
+/// farthest eye an f32 mode accepts ([`crate::gpu::far_eye`]), so their refusal's remedy,
+/// `--mode reference`, holds wherever they refuse.
+pub const FAR_EYE: f64 = 1e7;
+
 /// Per-thread buffers reused across rays.
 #[derive(Default)]
 struct Scratch {
@@ -127,6 +141,22 @@ impl ReferenceRenderer {
         &self.mesh
     }
 
+    /// Checks `camera` ([`Camera::validate`]) and that its eye is at most [`FAR_EYE`] mesh
+    /// radii from the bounding-box centre ([`RenderError::EyeTooFar`]): every picture of the
+    /// reference, volume, iso or textured, is drawn from a camera checked here.
+    pub(crate) fn check_camera(&self, camera: &Camera) -> Result<(), RenderError> {
+        camera.validate()?;
+        let radii = self.frame.radii(camera.eye);
+        match radii <= FAR_EYE {
+            true => Ok(()),
+            false => Err(RenderError::EyeTooFar {
+                mode: "reference",
+                radii,
+                limit: FAR_EYE,
+            }),
+        }
+    }
+
     /// World to the frame the traversal works in.
     pub(crate) fn frame(&self) -> ExactFrame {
         self.frame
@@ -160,7 +190,7 @@ impl ReferenceRenderer {
         tf: &TransferFunction,
         progress: Option<&(dyn Fn(u64, u64) + Sync)>,
     ) -> Result<(Image, u64), RenderError> {
-        camera.validate()?;
+        self.check_camera(camera)?;
         let (right, up, forward) = camera.basis();
         let mut image = Image::new(camera.width, camera.height);
         let total = camera.height as u64;

@@ -148,7 +148,7 @@ impl TexturedReference {
         camera: &Camera,
         isovalues: &[(f64, [f32; 3])],
     ) -> Result<IsoImage, RenderError> {
-        camera.validate()?;
+        self.traversal().check_camera(camera)?;
         if isovalues.len() > 32 || isovalues.iter().any(|(v, _)| !v.is_finite()) {
             return Err(RenderError::Settings(format!(
                 "the textured iso reference takes at most 32 finite isovalues, not {:?}",

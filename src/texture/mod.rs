@@ -26,7 +26,7 @@ use crate::generate::volume::{VolumeError, VolumeToTets, check_header_file, read
 use crate::gpu::ShellsRenderer;
 use crate::gpu::raycast::{RaycastRenderer, RaycastSettings};
 use crate::gpu::{GpuContext, GpuError};
-use crate::mesh::TetMesh;
+use crate::mesh::{TetMesh, box_diagonal, checked_bounds};
 use crate::mode::{AutoPath, ModeSettings};
 use crate::render::{RenderError, Renderer};
 
@@ -366,6 +366,59 @@ pub fn texcoords(mesh: &TetMesh, name: &str) -> Result<Vec<DVec3>, CageError> {
         .tuples()
         .map(|t| DVec3::new(t[0], t[1], t[2]))
         .collect())
+}
+
+/// The most samples a textured renderer's step may take across its cage's bounding-box
+/// diagonal. Every segment of a ray lies in that box, so a ray takes at most this many samples
+/// (plus one per segment): the bound on its time, which without it was unbounded (a cage
+/// scaled by 1e200 against its volume, at the default step of a quarter voxel, took 1e200
+/// samples per ray: every textured renderer hung). Chosen from time: 2^20 is a thousand
+/// times the samples of the default step across the blob and brain cages (1e2 to 1.4e3), room
+/// for convergence studies, while a ray at the limit stays within a second: measured on the
+/// 162-tet blob cage at the limit, 4x4 rays, 3 runs each, 2 cores shared with other builds: the
+/// reference and raycast-cpu 290 to 370 ns per sample (about 0.3 s for a ray of 2^20),
+/// lavapipe 5 to 22 ns. It is a power of two well below 2^24, so the GPU's f32 sample counter
+/// (`k += 1.0`, which stops counting at 2^24) stays exact.
+pub const MAX_SAMPLES_PER_RAY: f64 = (1u64 << 20) as f64;
+
+/// The sampling step of a textured renderer of `cage`: `step`, or by default
+/// [`reference::DEFAULT_STEP_FRACTION`] of `volume`'s smallest sample spacing; checked by
+/// [`check_step`].
+pub(crate) fn sampling_step(
+    step: Option<f64>,
+    volume: &Volume,
+    cage: &TetMesh,
+) -> Result<f64, RenderError> {
+    let step = step.unwrap_or(reference::DEFAULT_STEP_FRACTION * volume.spacing().min_element());
+    check_step(step, cage.positions(), cage.vertex_count())?;
+    Ok(step)
+}
+
+/// Checks a textured renderer's `step` against cage vertex `positions` (at build and before
+/// every `update_positions`, which changes nothing when this refuses): a positive finite
+/// number of world units taking at most [`MAX_SAMPLES_PER_RAY`] samples across the
+/// positions' bounding-box diagonal ([`RenderError::TextureStep`]). The positions must be
+/// `count` finite points (else the error naming the first bad one).
+pub(crate) fn check_step(step: f64, positions: &[DVec3], count: usize) -> Result<(), RenderError> {
+    if !(step.is_finite() && step > 0.0) {
+        return Err(RenderError::Settings(format!(
+            "texture step {step} must be a positive number of world units"
+        )));
+    }
+    let (lo, hi) = checked_bounds(positions, count)?;
+    let diagonal = box_diagonal(lo, hi);
+    // Exact: the limit is a power of two.
+    let smallest = diagonal / MAX_SAMPLES_PER_RAY;
+    if step < smallest {
+        return Err(RenderError::TextureStep {
+            step,
+            diagonal,
+            samples: diagonal / step,
+            limit: MAX_SAMPLES_PER_RAY,
+            smallest,
+        });
+    }
+    Ok(())
 }
 
 #[cfg(test)]

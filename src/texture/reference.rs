@@ -51,12 +51,7 @@ impl TexturedReference {
             }
             .into());
         }
-        let step = step.unwrap_or(DEFAULT_STEP_FRACTION * volume.spacing().min_element());
-        if !(step.is_finite() && step > 0.0) {
-            return Err(RenderError::Settings(format!(
-                "textured reference step {step} must be a positive number of world units"
-            )));
-        }
+        let step = super::sampling_step(step, &volume, cage)?;
         Ok(Self {
             traversal: ReferenceRenderer::new(cage)?,
             texcoords,
@@ -174,7 +169,7 @@ impl Renderer for TexturedReference {
     }
 
     fn render(&mut self, camera: &Camera, tf: &TransferFunction) -> Result<Frame, RenderError> {
-        camera.validate()?;
+        self.traversal.check_camera(camera)?;
         let start = Instant::now();
         let (right, up, forward) = camera.basis();
         let mut image = Image::new(camera.width, camera.height);
@@ -197,8 +192,12 @@ impl Renderer for TexturedReference {
         Ok(Frame { image, timings })
     }
 
-    /// Moves the cage; the volume moves with it (texture coordinates unchanged).
+    /// Moves the cage; the volume moves with it (texture coordinates unchanged). Refused, and
+    /// nothing moved, where the step would sample the moved cage too finely
+    /// ([`super::check_step`]).
     fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {
+        let count = self.traversal.mesh().vertex_count();
+        super::check_step(self.step, positions, count)?;
         self.traversal.update_positions(positions)
     }
 

@@ -52,7 +52,7 @@ use crate::image::Image;
 use crate::mesh::{TetMesh, check_values, checked_bounds};
 use crate::render::{Frame, RenderError, Renderer, Timings};
 use crate::texture::Volume;
-use crate::texture::reference::DEFAULT_STEP_FRACTION;
+use crate::texture::{check_step, sampling_step};
 use crate::tf::TransferFunction;
 
 use integrate::SegmentTf;
@@ -170,12 +170,7 @@ impl CpuRaycastRenderer {
                 cage.vertex_count()
             )));
         }
-        let step = step.unwrap_or(DEFAULT_STEP_FRACTION * volume.spacing().min_element());
-        if !(step.is_finite() && step > 0.0) {
-            return Err(RenderError::Settings(format!(
-                "texture step {step} must be a positive number of world units"
-            )));
-        }
+        let step = sampling_step(step, &volume, cage)?;
         let mut r = Self::new(cage, settings)?;
         r.texture = Some(CpuTexture {
             volume,
@@ -368,7 +363,12 @@ impl Renderer for CpuRaycastRenderer {
         Ok(self.frame(&camera, &tf))
     }
 
+    /// Refused, and nothing moved, where a textured cage's step would sample the moved cage
+    /// too finely ([`check_step`]).
     fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {
+        if let Some(t) = &self.texture {
+            check_step(t.step, positions, self.positions.len())?;
+        }
         let bounds = checked_bounds(positions, self.positions.len())?;
         self.set_positions(positions, bounds)?;
         self.view = None;

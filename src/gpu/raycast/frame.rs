@@ -303,7 +303,8 @@ impl RaycastRenderer {
             slices: slicing.count,
             terminate: slicing.terminate,
             shell_slices: slicing.shell_slices,
-            step: (self.texture.as_ref()).map_or(0.0, |t| self.mesh.frame().length(t.step) as f32),
+            step: (self.texture.as_ref().and_then(|t| t.step))
+                .map_or(0.0, |step| self.mesh.frame().length(step) as f32),
             _pad: [0; 2],
         };
         self.queue

@@ -11,8 +11,7 @@ use crate::gpu::GpuContext;
 use crate::gpu::util::settings_error;
 use crate::mesh::TetMesh;
 use crate::render::RenderError;
-use crate::texture::Volume;
-use crate::texture::reference::DEFAULT_STEP_FRACTION;
+use crate::texture::{Volume, sampling_step};
 
 use super::frame::storage;
 
@@ -37,13 +36,16 @@ pub struct GpuTexture {
     pub(crate) lo: f64,
     pub(crate) span: f64,
     /// World units between samples along a ray (WGSL `params.step` takes it in the mesh's
-    /// frame).
-    pub(super) step: f64,
+    /// frame); `None` for the shells' texture, whose slices sample it instead.
+    pub(super) step: Option<f64>,
 }
 
 impl GpuTexture {
-    /// [`GpuTexture::new`] for `cage`, after checking that it has one texture coordinate per
-    /// vertex and point data.
+    /// [`GpuTexture::new`] for `cage`, sampled along rays every `step` world units (`None`:
+    /// the reference's default,
+    /// [`crate::texture::reference::DEFAULT_STEP_FRACTION`] of the smallest sample spacing),
+    /// after checking that it has one texture coordinate per vertex and point data, and the
+    /// step ([`crate::texture::check_step`]).
     pub(super) fn for_cage(
         ctx: &GpuContext,
         cage: &TetMesh,
@@ -59,18 +61,20 @@ impl GpuTexture {
                 cage.vertex_count()
             )));
         }
-        Self::new(ctx, volume, texcoords, step)
+        let step = sampling_step(step, volume, cage)?;
+        Ok(Self {
+            step: Some(step),
+            ..Self::new(ctx, volume, texcoords)?
+        })
     }
 
-    /// Uploads `volume` and the cage's `texcoords` (one per vertex), sampled along rays every
-    /// `step` world units (`None`: the reference's default, [`DEFAULT_STEP_FRACTION`] of the
-    /// smallest sample spacing). An error when the volume exceeds the adapter's 3D texture
-    /// size ([`Volume::fit_within`] makes it fit).
+    /// Uploads `volume` and the cage's `texcoords` (one per vertex), not stepped along rays
+    /// (the shells' slices sample it; [`GpuTexture::for_cage`] steps). An error when the
+    /// volume exceeds the adapter's 3D texture size ([`Volume::fit_within`] makes it fit).
     pub fn new(
         ctx: &GpuContext,
         volume: &Volume,
         texcoords: &[DVec3],
-        step: Option<f64>,
     ) -> Result<Self, RenderError> {
         let max = ctx.limits.max_texture_dimension_3d;
         let dims = volume.dims();
@@ -78,12 +82,6 @@ impl GpuTexture {
             return Err(settings_error(format!(
                 "the volume's {dims:?} samples exceed this adapter's 3D texture size {max}; \
                  downsample it (Volume::fit_within)"
-            )));
-        }
-        let step = step.unwrap_or(DEFAULT_STEP_FRACTION * volume.spacing().min_element());
-        if !(step.is_finite() && step > 0.0) {
-            return Err(settings_error(format!(
-                "texture step {step} must be a positive number of world units"
             )));
         }
         let (lo, hi) = volume.range();
@@ -107,7 +105,7 @@ impl GpuTexture {
             texcoords: buffer,
             lo,
             span,
-            step,
+            step: None,
         })
     }
 

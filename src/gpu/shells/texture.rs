@@ -42,7 +42,7 @@ impl ShellTexture {
             )));
         }
         Ok(Self {
-            gpu: GpuTexture::new(ctx, volume, texcoords, None)?,
+            gpu: GpuTexture::new(ctx, volume, texcoords)?,
             ranges: tet_ranges(volume, texcoords, cage.tets()),
         })
     }
