@@ -12,6 +12,9 @@ pub mod split;
 pub mod stats;
 pub mod topology;
 
+use std::sync::atomic::AtomicU32;
+use std::sync::atomic::Ordering::Relaxed;
+
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -501,39 +504,62 @@ fn check_and_orient(positions: &[DVec3], tets: &mut [[u32; 4]]) -> Result<usize,
 
 /// An error when two of `tets` (with indices below `vertex_count`) have the same vertex set:
 /// the pair whose later tet comes first. Equal tets share their smallest vertex, so the tets
-/// are bucketed by it (a counting sort: 4 bytes per tet and 4 per vertex) and only each
-/// bucket's few tets (some 20 in a tet mesh) are compared, in parallel: linear time.
+/// are bucketed by it (a counting sort in two parallel passes with atomic counters: 4 bytes per
+/// tet and 4 per vertex; a bucket's order depends on the threads, but each is sorted below)
+/// and only each bucket's few tets (some 20 in a tet mesh) are compared, in parallel: linear
+/// time.
 fn check_distinct_tets(tets: &[[u32; 4]], vertex_count: usize) -> Result<(), MeshError> {
+    const CHUNK: usize = 1 << 12;
     let sorted = |t: u32| {
         let mut k = tets[t as usize];
         k.sort_unstable();
         k
     };
     let lowest = |t: &[u32; 4]| *t.iter().min().expect("four vertices") as usize;
+    let zeros = |n: usize| -> Vec<AtomicU32> {
+        (0..n)
+            .into_par_iter()
+            .with_min_len(CHUNK)
+            .map(|_| AtomicU32::new(0))
+            .collect()
+    };
     // ends[v]: the end of vertex v's bucket in `order` once filled (its start until then).
-    let mut ends = vec![0u32; vertex_count];
-    for t in tets {
-        ends[lowest(t)] += 1;
-    }
+    let ends = zeros(vertex_count);
+    tets.par_iter().with_min_len(CHUNK).for_each(|t| {
+        ends[lowest(t)].fetch_add(1, Relaxed);
+    });
     let mut start = 0;
-    for e in &mut ends {
-        start += std::mem::replace(e, start);
+    for e in &ends {
+        start += e.swap(start, Relaxed);
     }
-    let mut order = vec![0u32; tets.len()];
-    for (i, t) in tets.iter().enumerate() {
-        let e = &mut ends[lowest(t)];
-        order[*e as usize] = i as u32;
-        *e += 1;
-    }
+    let order = zeros(tets.len());
+    tets.par_iter()
+        .enumerate()
+        .with_min_len(CHUNK)
+        .for_each(|(i, t)| {
+            let at = ends[lowest(t)].fetch_add(1, Relaxed);
+            order[at as usize].store(i as u32, Relaxed);
+        });
     let first = (0..vertex_count)
         .into_par_iter()
-        .with_min_len(1 << 12)
+        .with_min_len(CHUNK)
         .map_init(Vec::new, |keys, v| {
-            let lo = if v == 0 { 0 } else { ends[v - 1] as usize };
+            let lo = if v == 0 {
+                0
+            } else {
+                ends[v - 1].load(Relaxed) as usize
+            };
+            let hi = ends[v].load(Relaxed) as usize;
             keys.clear();
-            keys.extend(order[lo..ends[v] as usize].iter().map(|&t| (sorted(t), t)));
+            keys.extend(
+                order[lo..hi]
+                    .iter()
+                    .map(|t| t.load(Relaxed))
+                    .map(|t| (sorted(t), t)),
+            );
             keys.sort_unstable();
-            // Each repeat's earliest equal tet is the one before it in the sorted bucket.
+            // The earliest repeat is the second of its equal tets, and the one before it in
+            // the sorted bucket is the first of them.
             keys.windows(2)
                 .filter(|w| w[0].0 == w[1].0)
                 .map(|w| (w[1].1, w[0].1))
@@ -903,6 +929,65 @@ mod tests {
         let (m, r) = TetMesh::new(unit_tet(), vec![[0, 2, 1, 3]], vec![]).unwrap();
         assert_eq!(r.reoriented, 1);
         assert!((m.signed_volume(0) - 1.0 / 6.0).abs() < 1e-15);
+    }
+
+    /// The parallel bucketing fills each bucket in an order that depends on the threads; the
+    /// reported pair must still be a serial scan's first repeat (and its earliest equal tet).
+    /// Many tets (several parallel chunks) under few lowest vertices, so buckets are large and
+    /// filled by several threads, with repeats (one listed three times) planted in them.
+    #[test]
+    fn the_duplicate_reported_is_the_serial_scans_first() {
+        let mut x = 12345u64;
+        let mut next = |n: u64| {
+            x = x
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((x >> 33) % n) as u32
+        };
+        let mut tets: Vec<[u32; 4]> = (0..60_000)
+            .map(|_| {
+                let a = next(8);
+                [
+                    a,
+                    8 + next(20_000),
+                    20_008 + next(20_000),
+                    40_008 + next(20_000),
+                ]
+            })
+            .collect();
+        let serial_first = |tets: &[[u32; 4]]| {
+            let mut seen = std::collections::HashMap::new();
+            tets.iter().enumerate().find_map(|(i, t)| {
+                let mut k = *t;
+                k.sort_unstable();
+                seen.insert(k, i).map(|first| (first, i, k))
+            })
+        };
+        // Distinct apart from the repeats planted below (a clash of the random tets would only
+        // move the expected pair, which the serial scan finds either way).
+        for (copy, of) in [
+            (50_000, 40_000),
+            (41_000, 30_000),
+            (59_000, 30_000),
+            (45_000, 44_000),
+        ] {
+            let mut t = tets[of];
+            t.rotate_left(copy % 4);
+            tets[copy] = t;
+        }
+        for _ in 0..20 {
+            let (first, second, vertices) = serial_first(&tets).expect("planted repeats");
+            assert_eq!(
+                check_distinct_tets(&tets, 60_008),
+                Err(MeshError::DuplicateTet {
+                    first,
+                    second,
+                    vertices
+                })
+            );
+        }
+        let (first, second, _) = serial_first(&tets).unwrap();
+        assert_eq!((first, second), (30_000, 41_000));
     }
 
     /// A tet listed twice (in any vertex order, either orientation) is refused, naming the
