@@ -26,7 +26,7 @@ use crate::generate::volume::{VolumeError, VolumeToTets, check_header_file, read
 use crate::gpu::ShellsRenderer;
 use crate::gpu::raycast::{RaycastRenderer, RaycastSettings};
 use crate::gpu::{GpuContext, GpuError};
-use crate::mesh::{TetMesh, box_diagonal, checked_bounds};
+use crate::mesh::{TetMesh, box_diagonal};
 use crate::mode::{AutoPath, ModeSettings};
 use crate::render::{RenderError, Renderer};
 
@@ -390,22 +390,21 @@ pub(crate) fn sampling_step(
     cage: &TetMesh,
 ) -> Result<f64, RenderError> {
     let step = step.unwrap_or(reference::DEFAULT_STEP_FRACTION * volume.spacing().min_element());
-    check_step(step, cage.positions(), cage.vertex_count())?;
+    check_step(step, cage.bounds())?;
     Ok(step)
 }
 
-/// Checks a textured renderer's `step` against cage vertex `positions` (at build and before
-/// every `update_positions`, which changes nothing when this refuses): a positive finite
-/// number of world units taking at most [`MAX_SAMPLES_PER_RAY`] samples across the
-/// positions' bounding-box diagonal ([`RenderError::TextureStep`]). The positions must be
-/// `count` finite points (else the error naming the first bad one).
-pub(crate) fn check_step(step: f64, positions: &[DVec3], count: usize) -> Result<(), RenderError> {
+/// Checks a textured renderer's `step` against the cage's bounding box `(lo, hi)` (at build
+/// and before every `update_positions`, which changes nothing when this refuses; there from
+/// [`crate::mesh::checked_bounds`] of the new positions): a positive finite number of world units taking
+/// at most [`MAX_SAMPLES_PER_RAY`] samples across the box's diagonal
+/// ([`RenderError::TextureStep`]).
+pub(crate) fn check_step(step: f64, (lo, hi): (DVec3, DVec3)) -> Result<(), RenderError> {
     if !(step.is_finite() && step > 0.0) {
         return Err(RenderError::Settings(format!(
             "texture step {step} must be a positive number of world units"
         )));
     }
-    let (lo, hi) = checked_bounds(positions, count)?;
     let diagonal = box_diagonal(lo, hi);
     // Exact: the limit is a power of two.
     let smallest = diagonal / MAX_SAMPLES_PER_RAY;

@@ -16,7 +16,7 @@ use rayon::prelude::*;
 use super::Volume;
 use crate::camera::Camera;
 use crate::image::Image;
-use crate::mesh::{MeshError, TetMesh};
+use crate::mesh::{MeshError, TetMesh, checked_bounds};
 use crate::reference::{ExactFrame, MIN_TRANSMITTANCE, ReferenceRenderer, Segment};
 use crate::render::{Frame, RenderError, Renderer, Timings};
 use crate::tf::TransferFunction;
@@ -197,7 +197,7 @@ impl Renderer for TexturedReference {
     /// ([`super::check_step`]).
     fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {
         let count = self.traversal.mesh().vertex_count();
-        super::check_step(self.step, positions, count)?;
+        super::check_step(self.step, checked_bounds(positions, count)?)?;
         self.traversal.update_positions(positions)
     }
 

@@ -366,10 +366,10 @@ impl Renderer for CpuRaycastRenderer {
     /// Refused, and nothing moved, where a textured cage's step would sample the moved cage
     /// too finely ([`check_step`]).
     fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {
-        if let Some(t) = &self.texture {
-            check_step(t.step, positions, self.positions.len())?;
-        }
         let bounds = checked_bounds(positions, self.positions.len())?;
+        if let Some(t) = &self.texture {
+            check_step(t.step, bounds)?;
+        }
         self.set_positions(positions, bounds)?;
         self.view = None;
         Ok(())

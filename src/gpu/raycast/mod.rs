@@ -78,7 +78,7 @@ use crate::gpu::frame::{FrameResources, ImageReadback};
 use crate::gpu::gpu_data::{LayerUniforms, TfPoints, ViewUniforms};
 use crate::gpu::mesh::{GpuTetMesh, TetArray};
 use crate::gpu::util::{largest_binding, settings_error, uniform_buffer};
-use crate::mesh::TetMesh;
+use crate::mesh::{TetMesh, checked_bounds};
 use crate::render::{Frame, RenderError, Renderer};
 use crate::tf::TransferFunction;
 
@@ -601,7 +601,7 @@ impl Renderer for RaycastRenderer {
     fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {
         if let Some(step) = self.texture.as_ref().and_then(|t| t.step) {
             let count = self.mesh.read().positions.len();
-            crate::texture::check_step(step, positions, count)?;
+            crate::texture::check_step(step, checked_bounds(positions, count)?)?;
         }
         self.mesh.update_positions(positions)
     }
