@@ -477,12 +477,19 @@ pub(super) fn median(v: &mut [f64]) -> f64 {
     v[v.len() / 2]
 }
 
-fn iso_export(args: IsoExportArgs) -> Result<(), CliError> {
-    if let Some(v) = args.iso.iter().find(|v| !v.is_finite()) {
-        return Err(CliError::Usage(format!(
+/// An error naming `--iso` when one of the flag's `isovalues` is not a finite number: checked
+/// before the mesh is read (`render`, `view`, `animate` and `iso-export`).
+pub(super) fn finite_iso_flag(isovalues: &[f64]) -> Result<(), CliError> {
+    match isovalues.iter().find(|v| !v.is_finite()) {
+        Some(v) => Err(CliError::Usage(format!(
             "--iso: isovalues must be finite numbers, not {v}"
-        )));
+        ))),
+        None => Ok(()),
     }
+}
+
+fn iso_export(args: IsoExportArgs) -> Result<(), CliError> {
+    finite_iso_flag(&args.iso)?;
     check_output(&args.output, &["glb"])?;
     let Loaded { mesh, .. } = load_mesh(&args.mesh)?;
     require_renderable(&mesh, &args.mesh.mesh)?;

@@ -9,7 +9,7 @@ use clap::{ArgMatches, ValueEnum};
 use tetvr::scene::{Integration, Mode, Scene, SceneTexture, TfSpec, Warp};
 use tetvr::{Camera, Renderer, TransferFunction, Tuning};
 
-use super::commands::{CliError, median};
+use super::commands::{CliError, finite_iso_flag, median};
 use super::{RenderArgs, RenderCommand};
 
 /// The scene `cmd` renders: `--scene`'s file with every flag given on the command line over
@@ -90,11 +90,7 @@ fn overlay(scene: &mut Scene, a: &RenderArgs, given: &dyn Fn(&str) -> bool) {
 /// Flags that belong to one mode, given with another, and isovalues that are no numbers
 /// (named as the flag, before the mesh is read).
 fn check(args: &RenderArgs, scene: &Scene, entry_given: bool) -> Result<(), CliError> {
-    if let Some(v) = args.iso.iter().find(|v| !v.is_finite()) {
-        return Err(CliError::Usage(format!(
-            "--iso: isovalues must be finite numbers, not {v}"
-        )));
-    }
+    finite_iso_flag(&args.iso)?;
     if args.cellproj.sort_check && scene.mode != Mode::Cellproj {
         return Err(CliError::Usage(
             "--sort-check checks the cell projection's order: use it with --mode cellproj".into(),
