@@ -223,8 +223,8 @@ pub fn load(path: &Path) -> Result<Loaded, LoadError> {
     load_with(path, &ReadLimits::default())
 }
 
-/// [`load`] within `limits`. A file of 64 MiB or more is mapped, not copied (see
-/// [`read_file`]): if another process truncates it while it is read, the process ends with
+/// [`load`] within `limits`. A file of 64 MiB or more is mapped, not copied (the readers
+/// parse the page cache in place): if another process truncates it while it is read, the process ends with
 /// SIGBUS, as any reader of a mapped file would; [`load_copied`] reads it into memory instead.
 pub fn load_with(path: &Path, limits: &ReadLimits) -> Result<Loaded, LoadError> {
     load_from(path, limits, MAP_BYTES)
@@ -321,7 +321,7 @@ fn changed_size(p: &Path) -> std::io::Error {
     )
 }
 
-/// [`read_file`] with chunks of `chunk` bytes, for a regular file of at least four of them
+/// [`read_or_map`]'s read, with chunks of `chunk` bytes, for a regular file of at least four of them
 /// (on Unix); any other file in one piece. A file shorter than `meta` says is an error.
 fn read_in_chunks(p: &Path, meta: &std::fs::Metadata, chunk: usize) -> std::io::Result<Vec<u8>> {
     #[cfg(unix)]

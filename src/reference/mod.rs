@@ -38,7 +38,7 @@
 //! centre and scaled by a power of two to a radius about 1, so that volumes and face normals
 //! neither underflow nor overflow; segments come back in world units (exactly), so the picture
 //! does not depend on the mesh's extent. An eye far outside the mesh's sphere starts its rays
-//! near it ([`ExactFrame::ray_start`]) and segments are integrated with their frame lengths,
+//! near it (`ExactFrame::ray_start`) and segments are integrated with their frame lengths,
 //! so a telephoto view's far eye does not round them to its distance's ulp.
 //!
 //! **Termination.** A ray stops when its transmittance falls below [`MIN_TRANSMITTANCE`]

@@ -194,7 +194,7 @@ impl Renderer for TexturedReference {
 
     /// Moves the cage; the volume moves with it (texture coordinates unchanged). Refused, and
     /// nothing moved, where the step would sample the moved cage too finely
-    /// ([`super::check_step`]).
+    /// (`texture::check_step`).
     fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {
         let count = self.traversal.mesh().vertex_count();
         super::check_step(self.step, checked_bounds(positions, count)?)?;

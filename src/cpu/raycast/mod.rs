@@ -364,7 +364,7 @@ impl Renderer for CpuRaycastRenderer {
     }
 
     /// Refused, and nothing moved, where a textured cage's step would sample the moved cage
-    /// too finely ([`check_step`]).
+    /// too finely (`texture::check_step`).
     fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {
         let bounds = checked_bounds(positions, self.positions.len())?;
         if let Some(t) = &self.texture {

@@ -597,7 +597,7 @@ impl Renderer for RaycastRenderer {
     }
 
     /// Refused, and nothing moved, where a textured cage's step would sample the moved cage
-    /// too finely ([`crate::texture::check_step`]).
+    /// too finely (`texture::check_step`).
     fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {
         if let Some(step) = self.texture.as_ref().and_then(|t| t.step) {
             let count = self.mesh.read().positions.len();

@@ -69,7 +69,7 @@ impl GpuTexture {
     }
 
     /// Uploads `volume` and the cage's `texcoords` (one per vertex), not stepped along rays
-    /// (the shells' slices sample it; [`GpuTexture::for_cage`] steps). An error when the
+    /// (the shells' slices sample it; the ray caster's `GpuTexture::for_cage` steps). An error when the
     /// volume exceeds the adapter's 3D texture size ([`Volume::fit_within`] makes it fit).
     pub fn new(
         ctx: &GpuContext,
