@@ -104,6 +104,10 @@ impl RaycastRenderer {
         let t = Instant::now();
         let rebuilt = self.upload(camera, tf)?;
         timings.stage("upload", ms_since(t));
+        let t = Instant::now();
+        if (self.pipelines).prepare(self.settings.entry, self.settings.segments) {
+            timings.stage("pipelines", ms_since(t));
+        }
         let (run, reruns, targets) = self.runs(camera)?;
         if let Some(version) = self.planes.now {
             self.planes.thin = Some((version, run.counters[0]));
@@ -215,7 +219,7 @@ impl RaycastRenderer {
             let points = tf_points(tf, lo, span)?;
             (self.queue).write_buffer(&self.tf_buf, 0, bytemuck::bytes_of(&points));
             let count = tf.points().len() as u32;
-            self.pipelines.ensure_slices(&self.device, count);
+            self.pipelines.select_slices(count);
         }
         self.eye_tol = near_tol(m.radius);
         self.plan_planes(&m, camera.eye);
@@ -470,10 +474,10 @@ impl RaycastRenderer {
             entry(10, &self.counters),
         ]);
         let entry_layout = match self.settings.entry {
-            Entry::Lists => &p.entries.layout,
+            Entry::Lists => &p.entries().layout,
             Entry::Peel => {
                 faces.extend([entry(11, &self.layer_buf), entry(12, &self.progress)]);
-                &p.peel[0].layout
+                &p.peel()[0].layout
             }
         };
         let tiles = self.with_shared([
@@ -520,8 +524,8 @@ impl RaycastRenderer {
         }
         let stage = p.traverse(self.settings.entry, self.settings.segments)?;
         Ok(BindGroups {
-            vertices: self.group(&p.vertices.layout, &vertices),
-            planes: self.group(&p.planes.layout, &planes),
+            vertices: self.group(&p.vertices().layout, &vertices),
+            planes: self.group(&p.planes().layout, &planes),
             entry: self.group(entry_layout, &faces),
             tiles: self.group(&p.tiles(self.settings.entry).layout, &tiles),
             traverse: self.group(&stage.layout, &traverse),
@@ -577,21 +581,21 @@ impl RaycastRenderer {
         let mut passes = Vec::new();
         if first && !run.rerun {
             let (nv, nt) = (self.verts.size() / 16, self.mesh.tet_count() as u64);
-            passes.push(("vertices", &p.vertices, &groups.vertices, linear(nv, max)));
+            passes.push(("vertices", p.vertices(), &groups.vertices, linear(nv, max)));
             if self.planes.now.is_some() {
-                passes.push(("planes", &p.planes, &groups.planes, linear(nt, max)));
+                passes.push(("planes", p.planes(), &groups.planes, linear(nt, max)));
             }
         }
         match &t.pixels {
             PixelBuffers::Lists { counts, .. } => {
                 rec.encoder().clear_buffer(counts, 0, None);
                 let threads = p.entry_lanes.threads() * self.boundary_count as u64;
-                passes.push(("entries", &p.entries, &groups.entry, linear(threads, max)));
+                passes.push(("entries", p.entries(), &groups.entry, linear(threads, max)));
             }
             PixelBuffers::Peel { hits, .. } => {
                 rec.encoder().clear_buffer(hits, 0, None);
                 rec.encoder().clear_buffer(&self.progress, 0, None);
-                for pass in &p.peel {
+                for pass in p.peel() {
                     passes.push(("peel", pass, &groups.entry, faces));
                 }
             }

@@ -1,6 +1,8 @@
 //! The ray caster's compute pipelines (vertices, planes, entries, depth peeling, tiles,
 //! traversal), their bind group layouts and their dispatch.
 
+use std::sync::OnceLock;
+
 use wgpu::BufferBindingType as B;
 use wgpu::ShaderStages as S;
 
@@ -20,34 +22,109 @@ pub struct Stage {
 
 /// The stages: vertices, planes, entries, the two depth-peeling passes (least t, least face
 /// code), the tile list per entry method, and the traversal per entry method and integrator.
+///
+/// Each stage is built on first use and kept (a frame uses one entry method and one
+/// integrator of the 13 stages; building all before the first frame took lavapipe 0.3 s,
+/// `docs/performance.md`): [`Self::prepare`] builds the ones a frame runs, and every
+/// accessor builds its stage when it was not.
 pub struct Pipelines {
-    pub vertices: Stage,
-    pub planes: Stage,
-    pub entries: Stage,
+    device: wgpu::Device,
+    /// The pipeline constants every stage is built with.
+    constants: Constants,
+    /// What the traversal integrates.
+    traversal: Traversal,
     /// The entries stage's threads per face.
     pub entry_lanes: EntryLanes,
-    pub peel: [Stage; 2],
+    vertices: OnceLock<Stage>,
+    planes: OnceLock<Stage>,
+    entries: OnceLock<Stage>,
+    peel: [OnceLock<Stage>; 2],
     /// Indexed by [`Entry`].
-    tiles: [Stage; 2],
-    /// Indexed by [`Entry`], then [`Segments`] (exact, partial, table); not built for a
-    /// textured cage or the walk sampler, which traverse with their own integrators.
-    traverse: Option<[[Stage; 3]; 2]>,
-    /// For a textured cage: the traversal per [`Entry`] that steps through the volume texture
-    /// (whatever the [`Segments`]), integrating it or finding its isosurfaces ([`TextureUse`]).
-    textured: Option<[Stage; 2]>,
-    /// For the shells' walk sampler: the pipeline constants its traversals are built with, and
-    /// the field they read.
-    sliced: Option<(Constants, SliceField)>,
+    tiles: [OnceLock<Stage>; 2],
+    /// With [`Traversal::Own`]: indexed by [`Entry`], then [`segment_index`].
+    traverse: [[OnceLock<Stage>; 3]; 2],
+    /// With [`Traversal::Textured`]: the traversal per [`Entry`] that steps through the volume
+    /// texture (whatever the [`Segments`]).
+    textured: [OnceLock<Stage>; 2],
     /// The walk sampler's traversals that composite the slices each segment holds
     /// (`shaders/raycast_slices.wgsl`), whatever the [`Segments`], by the TF variant each was
-    /// built for ([`shaders::tf_variant`]); built by [`Pipelines::ensure_slices`] on first use
-    /// and kept, so a TF whose point count changes back and forth (the viewer's editor)
-    /// compiles each variant once. Entry lists only: a ray's slice count (`next_slice`) lives
-    /// in one dispatch, which depth-peeling layers would cut; the walk's ray caster is private
-    /// to it and built with entry lists.
+    /// built for ([`shaders::tf_variant`]); built on first use ([`Self::select_slices`],
+    /// [`Self::prepare`]) and kept, so a TF whose point count changes back and forth (the
+    /// viewer's editor) compiles each variant once. Entry lists only: a ray's slice count
+    /// (`next_slice`) lives in one dispatch, which depth-peeling layers would cut; the walk's
+    /// ray caster is private to it and built with entry lists.
     slices: Vec<(u32, Stage)>,
     /// The TF variant of the walk's traversal the next frame records.
     slice_variant: u32,
+}
+
+/// What the traversal integrates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Traversal {
+    /// The mesh's field, by the [`Segments`] integrator.
+    Own,
+    /// A textured cage's volume texture, integrated or searched for isosurfaces.
+    Textured(TextureUse),
+    /// The shells' walk sampler's slices of that field.
+    Slices(SliceField),
+}
+
+/// A stage of [`shaders::raycast_stages`]: which one, so its shader, bindings and slot.
+#[derive(Clone, Copy, Debug)]
+enum Source {
+    Vertices,
+    Planes,
+    Entries,
+    /// The depth-peeling pass: 0 least t, 1 least face code.
+    Peel(usize),
+    Tiles(Entry),
+    Traverse(Entry, Segments),
+    Textured(Entry, TextureUse),
+}
+
+/// Index of `segments` among the traversals of one entry method (exact, partial, table).
+fn segment_index(segments: Segments) -> usize {
+    match segments {
+        Segments::Exact => 0,
+        Segments::Partial => 1,
+        Segments::Table => 2,
+    }
+}
+
+impl Source {
+    /// Its index in [`shaders::raycast_stages`].
+    fn index(self) -> usize {
+        match self {
+            Self::Vertices => 0,
+            Self::Planes => 1,
+            Self::Entries => 2,
+            Self::Peel(pass) => 3 + pass,
+            Self::Tiles(entry) => 5 + entry as usize,
+            Self::Traverse(entry, segments) => 7 + 3 * entry as usize + segment_index(segments),
+            Self::Textured(entry, TextureUse::Volume) => 13 + entry as usize,
+            Self::Textured(entry, TextureUse::Isosurfaces) => 15 + entry as usize,
+        }
+    }
+
+    /// Its bindings.
+    fn bindings(self) -> Vec<wgpu::BindGroupLayoutEntry> {
+        match self {
+            Self::Vertices => layout(RW, &[RO, RO]),
+            Self::Planes => layout(RO, &[RW]),
+            Self::Entries => layout(RO, &[RO, RW, RW, RW]),
+            // The boundary, the hits, the ray states, the counters, the layer, progress.
+            Self::Peel(_) => layout(RO, &[RO, RW, RO, RO, B::Uniform, RW]),
+            Self::Tiles(_) => {
+                // The counters, the per-pixel source, the tile list, the layer, the image.
+                let mut tiles = layout(RO, &[RO, RO, RW, B::Uniform]);
+                tiles.push(image_entry(11));
+                tiles
+            }
+            Self::Traverse(entry, _) => traverse_entries(entry),
+            Self::Textured(entry, TextureUse::Volume) => textured_entries(entry),
+            Self::Textured(entry, TextureUse::Isosurfaces) => textured_iso_entries(entry),
+        }
+    }
 }
 
 /// The traversals' pipeline constants: `LINK_WINDOWS` and `CELLS`.
@@ -140,12 +217,12 @@ fn textured_iso_entries(entry: Entry) -> Vec<wgpu::BindGroupLayoutEntry> {
 }
 
 impl Pipelines {
-    /// Compiles the stages for a mesh whose links take `windows` windows (WGSL
-    /// `LINK_WINDOWS`) and whose field is constant per tet when `cells` (WGSL `CELLS`); with
-    /// `texture`, also the textured traversals of that use (sampling every `step` of the
-    /// constants, [`crate::gpu::gpu_data::RaycastUniforms`]);
-    /// with `slices`, the walk sampler's traversals of that field later
-    /// ([`Self::ensure_slices`]); the entries stage with `entry_lanes`.
+    /// The stages of a mesh whose links take `windows` windows (WGSL `LINK_WINDOWS`) and
+    /// whose field is constant per tet when `cells` (WGSL `CELLS`); with `texture`, the
+    /// textured traversals of that use (sampling every `step` of the constants,
+    /// [`crate::gpu::gpu_data::RaycastUniforms`]); with `slices`, the walk sampler's
+    /// traversals of that field; the entries stage with `entry_lanes`. Builds none yet: each
+    /// is built by the first frame that runs it ([`Self::prepare`]).
     pub fn new(
         device: &wgpu::Device,
         windows: u64,
@@ -155,124 +232,164 @@ impl Pipelines {
         entry_lanes: EntryLanes,
     ) -> Self {
         let cells = if cells { 1.0 } else { 0.0 };
-        let constants = [("LINK_WINDOWS", windows as f64), ("CELLS", cells)];
-        let stage = |shader, entries: &[wgpu::BindGroupLayoutEntry]| {
-            stage_with(device, shader, entries, &constants, "main")
+        let traversal = match (texture, slices) {
+            (Some(used), _) => Traversal::Textured(used),
+            (None, Some(field)) => Traversal::Slices(field),
+            (None, None) => Traversal::Own,
         };
-        let [
-            vertices,
-            planes,
-            entries,
-            least_t,
-            least_face,
-            tiles_lists,
-            tiles_peel,
-            lists_exact,
-            lists_partial,
-            lists_table,
-            peel_exact,
-            peel_partial,
-            peel_table,
-            lists_textured,
-            peel_textured,
-            lists_textured_iso,
-            peel_textured_iso,
-        ] = shaders::raycast_stages();
-        // Peeling: the boundary, the hits, the ray states, the counters, the layer, progress.
-        let u = B::Uniform;
-        let peel = layout(RO, &[RO, RW, RO, RO, u, RW]);
-        // Tiles: the counters, the per-pixel source, the tile list, the layer, the image.
-        let mut tiles = layout(RO, &[RO, RO, RW, u]);
-        tiles.push(image_entry(11));
-        let (lists, layers) = (
-            traverse_entries(Entry::Lists),
-            traverse_entries(Entry::Peel),
-        );
         Self {
-            vertices: stage(vertices, &layout(RW, &[RO, RO])),
-            planes: stage(planes, &layout(RO, &[RW])),
-            entries: stage_with(
-                device,
-                entries,
-                &layout(RO, &[RO, RW, RW, RW]),
-                &constants,
-                entry_lanes.entry_point(),
-            ),
+            device: device.clone(),
+            constants: [("LINK_WINDOWS", windows as f64), ("CELLS", cells)],
+            traversal,
             entry_lanes,
-            peel: [least_t, least_face].map(|s| stage(s, &peel)),
-            tiles: [tiles_lists, tiles_peel].map(|s| stage(s, &tiles)),
-            sliced: slices.map(|field| (constants, field)),
+            vertices: OnceLock::new(),
+            planes: OnceLock::new(),
+            entries: OnceLock::new(),
+            peel: Default::default(),
+            tiles: Default::default(),
+            traverse: Default::default(),
+            textured: Default::default(),
             slices: Vec::new(),
             slice_variant: 0,
-            traverse: (texture.is_none() && slices.is_none()).then(|| {
-                [
-                    [lists_exact, lists_partial, lists_table].map(|s| stage(s, &lists)),
-                    [peel_exact, peel_partial, peel_table].map(|s| stage(s, &layers)),
-                ]
-            }),
-            textured: texture.map(|used| {
-                let textured =
-                    |s, e| stage_with(device, s, &textured_entries(e), &constants, "main");
-                let iso =
-                    |s, e| stage_with(device, s, &textured_iso_entries(e), &constants, "main");
-                match used {
-                    TextureUse::Volume => [
-                        textured(lists_textured, Entry::Lists),
-                        textured(peel_textured, Entry::Peel),
-                    ],
-                    TextureUse::Isosurfaces => [
-                        iso(lists_textured_iso, Entry::Lists),
-                        iso(peel_textured_iso, Entry::Peel),
-                    ],
-                }
-            }),
         }
     }
 
-    /// With the walk sampler's traversals ([`Pipelines::new`]'s `slices`), selects the one
-    /// for a TF of `tf_points` control points, built unless it was for its variant before.
-    pub fn ensure_slices(&mut self, device: &wgpu::Device, tf_points: u32) {
-        let Some((constants, field)) = self.sliced else {
-            return;
-        };
-        let variant = shaders::tf_variant(tf_points);
-        self.slice_variant = variant;
-        if self.slices.iter().any(|(v, _)| *v == variant) {
-            return;
+    /// Builds the stages a frame of `entry` and `segments` runs that were not built before
+    /// (the planes stage too: every frame binds it, and the first runs it; for the walk
+    /// sampler, its traversal of the variant [`Self::select_slices`] selected); whether it
+    /// built any. One after the other: building them on threads side by side measured no
+    /// faster on lavapipe (`docs/performance.md`).
+    pub fn prepare(&mut self, entry: Entry, segments: Segments) -> bool {
+        let mut wanted = vec![Source::Vertices, Source::Planes, Source::Tiles(entry)];
+        match entry {
+            Entry::Lists => wanted.push(Source::Entries),
+            Entry::Peel => wanted.extend([Source::Peel(0), Source::Peel(1)]),
         }
+        match self.traversal {
+            Traversal::Own => wanted.push(Source::Traverse(entry, segments)),
+            Traversal::Textured(used) => wanted.push(Source::Textured(entry, used)),
+            Traversal::Slices(_) => {}
+        }
+        wanted.retain(|&s| self.slot(s).get().is_none());
+        let slices = self.missing_slices();
+        let built = !wanted.is_empty() || slices.is_some();
+        if !wanted.is_empty() {
+            let mut sources = shaders::raycast_stages();
+            for s in wanted {
+                let source = std::mem::take(&mut sources[s.index()]);
+                self.slot(s).get_or_init(|| self.build(s, source));
+            }
+        }
+        if let Some((variant, field)) = slices {
+            let stage = self.build_slices(variant, field);
+            self.slices.push((variant, stage));
+        }
+        built
+    }
+
+    /// With the walk sampler's traversals ([`Pipelines::new`]'s `slices`), selects the one
+    /// for a TF of `tf_points` control points, to be built by [`Self::prepare`] unless it was
+    /// for its variant before.
+    pub fn select_slices(&mut self, tf_points: u32) {
+        self.slice_variant = shaders::tf_variant(tf_points);
+    }
+
+    /// The walk sampler's selected variant and field when its traversal is not built yet.
+    fn missing_slices(&self) -> Option<(u32, SliceField)> {
+        let Traversal::Slices(field) = self.traversal else {
+            return None;
+        };
+        let variant = self.slice_variant;
+        let built = self.slices.iter().any(|(v, _)| *v == variant);
+        (!built).then_some((variant, field))
+    }
+
+    /// The walk sampler's traversal of TF variant `variant` reading `field`.
+    fn build_slices(&self, variant: u32, field: SliceField) -> Stage {
         let textured = field == SliceField::Texture;
         let (name, source) = shaders::raycast_slices(variant, textured);
         let entries = match textured {
             true => textured_entries(Entry::Lists),
             false => traverse_entries(Entry::Lists),
         };
-        let stage = stage_with(device, (&name, source), &entries, &constants, "main");
-        self.slices.push((variant, stage));
+        stage_with(
+            &self.device,
+            (&name, source),
+            &entries,
+            &self.constants,
+            "main",
+        )
+    }
+
+    /// Where stage `s` is kept.
+    fn slot(&self, s: Source) -> &OnceLock<Stage> {
+        match s {
+            Source::Vertices => &self.vertices,
+            Source::Planes => &self.planes,
+            Source::Entries => &self.entries,
+            Source::Peel(pass) => &self.peel[pass],
+            Source::Tiles(entry) => &self.tiles[entry as usize],
+            Source::Traverse(entry, segments) => {
+                &self.traverse[entry as usize][segment_index(segments)]
+            }
+            Source::Textured(entry, _) => &self.textured[entry as usize],
+        }
+    }
+
+    /// Stage `s` from its shader `source` ([`shaders::raycast_stages`]).
+    fn build(&self, s: Source, source: (&str, String)) -> Stage {
+        let entry = match s {
+            Source::Entries => self.entry_lanes.entry_point(),
+            _ => "main",
+        };
+        stage_with(&self.device, source, &s.bindings(), &self.constants, entry)
+    }
+
+    /// Stage `s`, built now unless it was before.
+    fn stage(&self, s: Source) -> &Stage {
+        self.slot(s).get_or_init(|| {
+            let mut sources = shaders::raycast_stages();
+            self.build(s, std::mem::take(&mut sources[s.index()]))
+        })
+    }
+
+    /// The vertices stage.
+    pub fn vertices(&self) -> &Stage {
+        self.stage(Source::Vertices)
+    }
+
+    /// The planes stage.
+    pub fn planes(&self) -> &Stage {
+        self.stage(Source::Planes)
+    }
+
+    /// The entries stage of [`Entry::Lists`].
+    pub fn entries(&self) -> &Stage {
+        self.stage(Source::Entries)
+    }
+
+    /// The depth-peeling passes of [`Entry::Peel`]: least t, then least face code.
+    pub fn peel(&self) -> [&Stage; 2] {
+        [0, 1].map(|pass| self.stage(Source::Peel(pass)))
     }
 
     /// The tile-list stage of `entry`.
     pub fn tiles(&self, entry: Entry) -> &Stage {
-        &self.tiles[entry as usize]
+        self.stage(Source::Tiles(entry))
     }
 
     /// The traversal stage of `entry` and `segments`; for a textured cage, its textured
     /// traversal of `entry`; for the walk sampler, its traversal (entry lists) of the TF
-    /// variant [`Self::ensure_slices`] selected.
+    /// variant [`Self::prepare`] built.
     pub fn traverse(&self, entry: Entry, segments: Segments) -> Result<&Stage, RenderError> {
-        if let Some(textured) = &self.textured {
-            return Ok(&textured[entry as usize]);
+        match self.traversal {
+            Traversal::Own => Ok(self.stage(Source::Traverse(entry, segments))),
+            Traversal::Textured(used) => Ok(self.stage(Source::Textured(entry, used))),
+            Traversal::Slices(_) => (self.slices.iter())
+                .find(|(v, _)| *v == self.slice_variant)
+                .map(|(_, stage)| stage)
+                .ok_or(RenderError::Internal("the walk's traversal was not built")),
         }
-        if let Some((_, slices)) = self.slices.iter().find(|(v, _)| *v == self.slice_variant) {
-            return Ok(slices);
-        }
-        let [exact, partial, table] = (self.traverse.as_ref())
-            .map(|t| &t[entry as usize])
-            .ok_or(RenderError::Internal("the walk's traversal was not built"))?;
-        Ok(match segments {
-            Segments::Exact => exact,
-            Segments::Partial => partial,
-            Segments::Table => table,
-        })
     }
 }
 
@@ -361,5 +478,42 @@ mod tests {
         let (x, y) = linear_groups(10_000_000, 65535);
         assert_eq!((x, y), (65535, 3));
         assert!(x as u64 * y as u64 * 64 >= 10_000_000);
+    }
+
+    /// Each stage's index picks its own shader of `shaders::raycast_stages` (the names say
+    /// which), and no two stages share one.
+    #[test]
+    fn every_stage_builds_its_own_shader() {
+        use Entry::{Lists, Peel};
+        use TextureUse::{Isosurfaces, Volume};
+        let names = shaders::raycast_stages().map(|(name, _)| name);
+        let entries = |e: Entry| if e == Lists { "lists" } else { "peel" };
+        let mut sources = vec![
+            (Source::Vertices, "raycast_vertices".to_string()),
+            (Source::Planes, "raycast_planes".into()),
+            (Source::Entries, "raycast_entries".into()),
+            (Source::Peel(0), "raycast_peel (least t)".into()),
+            (Source::Peel(1), "raycast_peel (least face)".into()),
+            (Source::Tiles(Lists), "raycast_tiles (entry lists)".into()),
+            (Source::Tiles(Peel), "raycast_tiles (peeled hits)".into()),
+        ];
+        for e in [Lists, Peel] {
+            for (s, name) in [
+                (Segments::Exact, "exact"),
+                (Segments::Partial, "partial"),
+                (Segments::Table, "table"),
+            ] {
+                let name = format!("raycast_traverse ({}, {name})", entries(e));
+                sources.push((Source::Traverse(e, s), name));
+            }
+            for (used, name) in [(Volume, "textured"), (Isosurfaces, "textured iso")] {
+                let name = format!("raycast_traverse ({}, {name})", entries(e));
+                sources.push((Source::Textured(e, used), name));
+            }
+        }
+        assert_eq!(sources.len(), names.len());
+        for (source, name) in sources {
+            assert_eq!(names[source.index()], name, "{source:?}");
+        }
     }
 }
