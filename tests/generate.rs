@@ -279,6 +279,24 @@ fn volume_errors_name_the_file_and_the_fix() {
         "{e}"
     );
     assert!(e.to_string().contains("series.nii"), "{e}");
+    // A 2D image (one slice) has no cell at any factor: the error says so, not "use a smaller
+    // factor" (it was already 1), and the texture reader says the same.
+    let slice = scratch("errors").join("slice.nii");
+    write_nifti(&slice, [4, 4, 1], [1.0; 3], value_at);
+    let e = nifti_to_tets(&slice, &VolumeToTets::default()).unwrap_err();
+    assert!(
+        matches!(&e, VolumeError::Flat { dims, .. } if dims == &[4, 4, 1]),
+        "{e}"
+    );
+    let message = e.to_string();
+    assert!(
+        message.contains("slice.nii")
+            && message.contains("2 x 2 x 2")
+            && !message.contains("smaller factor"),
+        "{message}"
+    );
+    let e = tetvr::texture::Volume::load(&slice, 1).unwrap_err();
+    assert!(matches!(e, VolumeError::Flat { .. }), "{e}");
 }
 
 /// The brain's head occupies 22 % of the voxels (intensity >= 10; the background is exactly 0),

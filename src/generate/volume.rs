@@ -147,6 +147,17 @@ pub enum VolumeError {
         /// The factor given.
         factor: u32,
     },
+    /// The volume itself has fewer than 2 voxels along some axis (a 2D image or a line), so no
+    /// cell lies between voxel centres whatever the downsampling.
+    #[error(
+        "{path}: has {dims:?} voxels, fewer than 2 along an axis, so no cell lies between voxel centres; tetvr needs a 3D volume of at least 2 x 2 x 2 voxels (a 2D image cannot be tetrahedralized)"
+    )]
+    Flat {
+        /// The volume file.
+        path: String,
+        /// Voxels along x, y, z.
+        dims: [usize; 3],
+    },
     /// Downsampling leaves no cell along some axis.
     #[error(
         "{path}: downsampling {dims:?} voxels by {factor} leaves fewer than 2 samples along an axis; use a smaller factor"
@@ -587,7 +598,7 @@ fn sample_dims(dims: [usize; 3], factor: usize) -> [usize; 3] {
     dims.map(|d| d / factor)
 }
 
-/// At least 2 samples per axis and at most [`MAX_VOLUME_VERTICES`] in all.
+/// At least 2 voxels and 2 samples per axis and at most [`MAX_VOLUME_VERTICES`] in all.
 fn check_budget(dims: [usize; 3], factor: u32, name: &str) -> Result<(), VolumeError> {
     let vertices = |f: u32| {
         sample_dims(dims, f as usize)
@@ -595,6 +606,12 @@ fn check_budget(dims: [usize; 3], factor: u32, name: &str) -> Result<(), VolumeE
             .map(|&d| d as u64)
             .product::<u64>()
     };
+    if dims.iter().any(|&d| d < 2) {
+        return Err(VolumeError::Flat {
+            path: name.to_owned(),
+            dims,
+        });
+    }
     if sample_dims(dims, factor as usize).iter().any(|&d| d < 2) {
         return Err(VolumeError::TooSmall {
             path: name.to_owned(),
