@@ -500,7 +500,9 @@ impl Scene {
             file: file.clone(),
             source,
         })?;
-        let mut scene: Scene = serde_json::from_str(&text).map_err(|e| {
+        // Editors on Windows may start a UTF-8 file with a byte order mark, which JSON forbids.
+        let json = text.strip_prefix('\u{feff}').unwrap_or(&text);
+        let mut scene: Scene = serde_json::from_str(json).map_err(|e| {
             let position = format!(" at line {} column {}", e.line(), e.column());
             SceneError::Json {
                 file: file.clone(),

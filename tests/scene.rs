@@ -218,6 +218,18 @@ fn a_bad_scene_names_the_file_and_the_field() {
     );
 }
 
+/// A scene file saved by a Windows editor starts with a UTF-8 byte order mark: it loads as the
+/// file without one (before, "line 1 column 1: expected value").
+#[test]
+fn a_scene_with_a_byte_order_mark_loads() {
+    let text = std::fs::read_to_string(example()).unwrap();
+    let dir = out_dir("bom");
+    let (plain, marked) = (dir.join("plain.json"), dir.join("marked.json"));
+    std::fs::write(&plain, &text).unwrap();
+    std::fs::write(&marked, format!("\u{feff}{text}")).unwrap();
+    assert_eq!(Scene::load(&marked).unwrap(), Scene::load(&plain).unwrap());
+}
+
 /// A setting that the scene's mode cannot take is an error naming the field; settings of
 /// other modes are ignored.
 #[test]

@@ -64,6 +64,20 @@ fn saved_files_load_back_identically() {
     }
 }
 
+/// Windows editors (Notepad) start UTF-8 files with a byte order mark; the file reads as
+/// without one, as the mesh readers take it. Before, it failed with "line 1 column 1: not valid
+/// JSON: expected value", which hid the cause.
+#[test]
+fn a_byte_order_mark_is_skipped() {
+    let json = r#"{"points": [[0, 1, 0, 0, 0.5], [1, 0, 0, 1, 0.5]], "normalized": true}"#;
+    let path = scratch("bom.json");
+    std::fs::write(&path, format!("\u{feff}{json}")).unwrap();
+    assert_eq!(
+        load_tf(path.to_str().unwrap(), (2.0, 3.0), 1.0).unwrap(),
+        parse_tf_json(json, "plain.json", (2.0, 3.0), 1.0).unwrap()
+    );
+}
+
 #[test]
 fn unit_distance_comes_from_the_file_or_the_default() {
     let with = r#"{"points": [[0, 0, 0, 0, 0], [10, 1, 1, 1, 0.5]], "unit_distance": 2.5}"#;

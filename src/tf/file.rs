@@ -181,6 +181,8 @@ pub fn parse_tf_json(
         return Err(TfFileError::RangeTooWide { lo, hi });
     }
     let (lo, hi) = placement_range(lo, hi);
+    // Editors on Windows may start a UTF-8 file with a byte order mark, which JSON forbids.
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let value: Value = serde_json::from_str(text).map_err(|e| {
         let position = format!(" at line {} column {}", e.line(), e.column());
         TfFileError::Json {
