@@ -1097,6 +1097,19 @@ fn out_of_range_numbers_are_named_with_what_to_write() {
         stderr.contains("--amplitude must be a finite number"),
         "{stderr}"
     );
+    // What a GIF cannot show is refused, not changed: a transparent background was composited
+    // over white without a word, and --fps 60 made 1/100 s delays that viewers play at 10 fps.
+    // PNG frames keep the transparency.
+    let stderr = failure(&["animate", LOX, "--background", "none", "-o", "x.gif"]);
+    assert!(
+        stderr.contains("x.gif: --background none: a GIF has no partial transparency"),
+        "{stderr}"
+    );
+    let stderr = failure(&["animate", LOX, "--fps", "60", "-o", "x.GIF"]);
+    assert!(
+        stderr.contains("--fps 60: a GIF plays at most 50 frames per second"),
+        "{stderr}"
+    );
     let stderr = failure(&["compare", LOX, LOX, "--scale", "0"]);
     assert!(
         stderr.contains("--scale 0 must be a positive number"),

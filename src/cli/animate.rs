@@ -43,6 +43,7 @@ pub(super) fn animate(args: AnimateArgs, matches: &ArgMatches) -> Result<(), Cli
         .as_deref()
         .unwrap_or(Path::new("tetvr.gif"));
     check_output(output, &["gif", "png"])?;
+    check_gif(output, &args)?;
     let integrate = args.render.cellproj.integrate;
     unused_mode_flags(&args.render, args.render.mode, integrate, matches)?;
     of_flags(&args.render)?.check_without_mesh()?;
@@ -234,6 +235,36 @@ impl Playback {
     }
 }
 
+/// The fastest `--fps` a GIF plays at: its delays are whole hundredths of a second, and
+/// browsers and viewers show a delay under 2 as 10 (a 60 fps GIF would play at 10 fps).
+const GIF_MAX_FPS: u32 = 50;
+
+/// Refuses what a GIF cannot show as asked, before any work: a transparent background (a GIF
+/// has no partial transparency; frames were composited over white without a word) and more
+/// than [`GIF_MAX_FPS`] frames per second.
+fn check_gif(output: &Path, args: &AnimateArgs) -> Result<(), CliError> {
+    let ext = output.extension().and_then(|e| e.to_str());
+    if !ext.is_some_and(|e| e.eq_ignore_ascii_case("gif")) {
+        return Ok(());
+    }
+    if args.render.background.color().is_none() {
+        return Err(CliError::Usage(format!(
+            "{}: --background none: a GIF has no partial transparency; write PNG frames \
+             (-o NAME.png), which keep it, or give the GIF a background colour",
+            output.display()
+        )));
+    }
+    if args.fps > GIF_MAX_FPS {
+        return Err(CliError::Usage(format!(
+            "--fps {}: a GIF plays at most {GIF_MAX_FPS} frames per second (its frame delays \
+             are whole hundredths of a second, and viewers show shorter ones at 10 fps); \
+             use --fps {GIF_MAX_FPS} or less, or write PNG frames (-o NAME.png)",
+            args.fps
+        )));
+    }
+    Ok(())
+}
+
 /// Where frames go as they are rendered: numbered PNGs, or one GIF that the encoder extends
 /// frame by frame. Nothing of a frame is kept once it is written.
 enum FrameSink {
@@ -250,7 +281,8 @@ enum FrameSink {
         encoder: Option<gif::Encoder<BufWriter<File>>>,
         /// Hundredths of a second per frame.
         delay: u16,
-        /// The GIF has no partial transparency: frames are composited (white by default).
+        /// The GIF has no partial transparency: frames are composited over this colour
+        /// (`check_gif` refuses `--background none` for a GIF).
         background: [f32; 3],
     },
 }
