@@ -246,7 +246,12 @@ impl Series {
             )));
         }
         if numbered.is_empty() {
-            return Err(fail(format!("no file in {} matches", dir.display())));
+            // '*' is not a shell wildcard here: `*.vtu` does not match `step_1.vtu`.
+            return Err(fail(format!(
+                "no file in {} is named {prefix}N{suffix} with N a step number (the '*' stands \
+                 for digits only)",
+                dir.display()
+            )));
         }
         let steps = numbered
             .into_iter()
@@ -605,5 +610,12 @@ mod tests {
         assert!(e.contains("one '*'"), "{e}");
         let e = Series::open(&dir.join("u_*.vtu")).unwrap_err().to_string();
         assert!(e.contains("u_*.vtu: no file in"), "{e}");
+        // A shell-like '*' over the whole stem matches no numbered name: the error says what
+        // the '*' stands for (it said only "no file in DIR matches", beside s_2.vtu ...).
+        let e = Series::open(&dir.join("*.vtu")).unwrap_err().to_string();
+        assert!(
+            e.contains("is named N.vtu with N a step number (the '*' stands for digits only)"),
+            "{e}"
+        );
     }
 }
