@@ -192,8 +192,8 @@ pub struct RenderArgs {
     pub shading: ShadingChoice,
     /// Render the mesh as a cage textured with this NIfTI volume (.nii, .nii.gz; see
     /// `generate cage`): the scalar is the volume sampled (trilinear) at each point's texture
-    /// coordinate, and the TF spans the volume's range. --mode raycast (GPU), raycast-cpu or
-    /// reference.
+    /// coordinate, and the TF spans the volume's range. --mode raycast, shells, iso (GPU),
+    /// raycast-cpu or reference.
     #[arg(long)]
     pub texture: Option<PathBuf>,
     /// The cage's 3-component point array of normalized texture coordinates.
