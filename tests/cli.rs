@@ -750,6 +750,40 @@ fn animate_takes_its_output_extensions_in_any_case() {
     }
 }
 
+/// PNG frames over a longer earlier run's: the old frames after the new ones are named, since a
+/// tool taking every NAME-*.png would play them on (they were left without a word).
+#[test]
+fn animate_names_frames_left_from_a_longer_run() {
+    let dir = out_dir("animate-stale");
+    let out = dir.join("run.png");
+    for i in 0..4 {
+        let _ = std::fs::remove_file(dir.join(format!("run-{i:04}.png"))); // an earlier test run
+    }
+    let run = |frames: &str| {
+        let o = tetvr(&[
+            "animate",
+            LOX,
+            "--frames",
+            frames,
+            "--size",
+            "8x8",
+            "--mode",
+            "raycast-cpu",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        let (stdout, stderr) = text(&o);
+        assert!(o.status.success(), "{stderr}");
+        stdout
+    };
+    assert!(!run("3").contains("earlier run"));
+    let stdout = run("2");
+    assert!(
+        stdout.contains("run-0002.png and later frames are from an earlier run"),
+        "{stdout}"
+    );
+}
+
 /// A CT volume's Hounsfield units are negative below water: `--threshold -500` is a value, not
 /// an unknown flag (clap took it for one, with the tip to write `-- -500`).
 #[test]

@@ -356,11 +356,23 @@ impl FrameSink {
     /// Ends the file(s) and says what was written, for the user.
     fn finish(self) -> Result<String, CliError> {
         match self {
-            Self::Png { stem, written, .. } => Ok(format!(
-                "{} .. {}",
-                png_name(&stem, 0).display(),
-                png_name(&stem, written.saturating_sub(1)).display()
-            )),
+            Self::Png { stem, written, .. } => {
+                let mut what = format!(
+                    "{} .. {}",
+                    png_name(&stem, 0).display(),
+                    png_name(&stem, written.saturating_sub(1)).display()
+                );
+                // A longer earlier run's frames are not ours to delete, but a tool that takes
+                // every NAME-*.png would play them after these: say so.
+                let stale = png_name(&stem, written);
+                if stale.exists() {
+                    what.push_str(&format!(
+                        "; {} and later frames are from an earlier run, left as they were",
+                        stale.display()
+                    ));
+                }
+                Ok(what)
+            }
             Self::Gif { path, encoder, .. } => {
                 let encoder = encoder.ok_or_else(|| animation_error(&path, "no frames"))?;
                 let mut file = encoder
