@@ -122,7 +122,7 @@ impl RaycastRenderer {
         timings.clock = if run.gpu_clock {
             "GPU timestamps for vertices, planes (the first run), entries or peel, tiles, \
              traverse (the last run, summed over layers); wall clock for upload (with the 3D table's build), \
-             readback and total"
+             pipelines (the stages built by this frame), readback and total"
         } else {
             run.wall_clock
         };

@@ -8,7 +8,8 @@
 //! 1. upload (`frame.rs`): frame constants, the TF, the ray caster's constants (and, on the
 //!    first `partial` frame, the psi table, [`psi`]; with `table`, the 3D pre-integration
 //!    table when the TF, the scalar range or the longest edge (grown) changed, built by
-//!    cellproj's incremental builder, `gpu::cellproj::preint`);
+//!    cellproj's incremental builder, `gpu::cellproj::preint`); then the stages this frame
+//!    runs that no frame built before (`pipelines.rs`, the `pipelines` stage of the timings);
 //! 2. vertices (`shaders/raycast_vertices.wgsl`): once per vertex, its eye-space position and
 //!    scalar from the current positions (a deforming mesh needs no preprocessing);
 //! 3. planes (`shaders/raycast_planes.wgsl`): once per tet, its face planes from its vertices,
@@ -356,7 +357,8 @@ impl PixelBuffers {
 }
 
 impl RaycastRenderer {
-    /// Builds the pipelines, the links and the boundary over a mesh already on the GPU.
+    /// Builds the links and the boundary over a mesh already on the GPU (the pipelines are
+    /// built by the first frame that runs each, `pipelines.rs`).
     pub fn with_mesh(
         ctx: &GpuContext,
         mesh: Arc<GpuTetMesh>,
@@ -493,7 +495,7 @@ impl RaycastRenderer {
         })
     }
 
-    /// Builds the pipelines and uploads the mesh.
+    /// Uploads the mesh and builds the renderer over it ([`Self::with_mesh`]).
     pub fn new(ctx: &GpuContext, mesh: &TetMesh, s: RaycastSettings) -> Result<Self, RenderError> {
         Self::with_mesh(ctx, GpuTetMesh::new(ctx, mesh)?, s)
     }
