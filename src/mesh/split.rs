@@ -391,9 +391,10 @@ mod tests {
         let pos = |p: &[[f64; 3]]| p.iter().map(|&q| DVec3::from(q)).collect::<Vec<_>>();
         let ints = |p: &[[i32; 3]]| pos(&p.iter().map(|q| q.map(f64::from)).collect::<Vec<_>>());
         use CellKind::*;
-        // (collapsed kind, its nodes as nodes of the true cell, true kind, true cell's
-        // positions, true volume).
-        let cases: [(CellKind, &[u32], CellKind, Vec<DVec3>, f64); 7] = [
+        /// A collapsed kind, its nodes as nodes of the true cell, the true kind, the true
+        /// cell's positions and volume.
+        type Case<'a> = (CellKind, &'a [u32], CellKind, Vec<DVec3>, f64);
+        let cases: [Case; 7] = [
             // A triangle at the bottom and at the top (VTK's `a b c c d e f f`).
             (
                 Hexahedron,
