@@ -107,6 +107,16 @@ pub enum SceneError {
         /// The problem.
         source: Box<SceneError>,
     },
+    /// A problem that a field of a scene file causes, with the file and the field named.
+    #[error("{file}: {field}: {source}")]
+    InField {
+        /// The file.
+        file: String,
+        /// The field, as the file spells it (e.g. `camera.fov`).
+        field: String,
+        /// The problem.
+        source: Box<SceneError>,
+    },
     /// The mesh cannot be loaded.
     #[error(transparent)]
     Load(#[from] LoadError),
@@ -125,6 +135,29 @@ pub enum SceneError {
     /// The texture volume cannot be read.
     #[error(transparent)]
     Volume(#[from] crate::generate::volume::VolumeError),
+}
+
+impl SceneError {
+    /// The scene field that causes the error, as a scene file spells it, where one does and
+    /// the message does not name the file at fault already (a mesh, a texture volume).
+    fn field(&self) -> Option<&str> {
+        Some(match self {
+            SceneError::Setting { field, .. } => field,
+            SceneError::Camera(e) => match e {
+                CameraError::EyeAtTarget => "camera.eye",
+                CameraError::BadUp => "camera.up",
+                CameraError::BadFov(_) => "camera.fov",
+                CameraError::BadDistance(_) => "camera.distance",
+                CameraError::EmptyImage(..) => "size",
+                CameraError::UnknownView(_) => "camera.view",
+                CameraError::NotFinite => "camera",
+            },
+            SceneError::Tf(_) => "tf",
+            SceneError::TfValue(_) => "unit_distance",
+            SceneError::Mesh(_) => "array",
+            _ => return None,
+        })
+    }
 }
 
 fn setting(field: &str, message: impl Into<String>) -> SceneError {
@@ -385,6 +418,23 @@ mod skip_names {
     }
 }
 
+/// Where a scene's settings came from: the file it was read from, and its fields set since
+/// from elsewhere (command-line flags), which the file no longer answers for. No part of the
+/// scene's value: scenes that render the same are equal wherever they came from.
+#[derive(Clone, Debug, Default)]
+struct Origin {
+    /// The scene file, as given to [`Scene::load`].
+    file: Option<String>,
+    /// Fields replaced since, as the file spells them ([`Scene::replaced`]).
+    replaced: Vec<String>,
+}
+
+impl PartialEq for Origin {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
+}
+
 /// A render's whole setup; see the [module docs](self).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -426,6 +476,9 @@ pub struct Scene {
     /// The modes' settings.
     #[serde(default)]
     pub settings: Settings,
+    /// The file the scene was read from, for errors that its settings cause.
+    #[serde(skip)]
+    origin: Origin,
 }
 
 /// `warp` of a [`Scene`]: the 3-component point array and its factor.
@@ -490,6 +543,7 @@ impl Scene {
             background: default_background(),
             mode: Mode::default(),
             settings: Settings::default(),
+            origin: Origin::default(),
         }
     }
 
@@ -512,12 +566,57 @@ impl Scene {
             }
         })?;
         scene.validate().map_err(|e| SceneError::InFile {
-            file,
+            file: file.clone(),
             source: Box::new(e),
         })?;
         let folder = absolute(path.parent().unwrap_or(Path::new("")));
         scene.map_paths(|p| normalize(&folder.join(p)));
+        scene.origin.file = Some(file);
         Ok(scene)
+    }
+
+    /// Notes that `field` (as a scene file spells it: `camera.fov`, `settings.integrate`,
+    /// `tf`, ...) was set since the scene was read (from a command-line flag), so that an error
+    /// it causes does not name the scene file.
+    pub fn replaced(&mut self, field: &str) {
+        self.origin.replaced.push(field.to_owned());
+    }
+
+    /// `f`'s result, an error that a field read from the scene file causes naming the file
+    /// and the field ([`Self::at`]).
+    fn located<T>(&self, f: impl FnOnce() -> Result<T, SceneError>) -> Result<T, SceneError> {
+        f().map_err(|e| match e.field() {
+            Some(field) => {
+                let field = field.to_owned();
+                self.at(&field, e)
+            }
+            None => e,
+        })
+    }
+
+    /// Error `e`, caused by `field`, naming the scene file and the field where the value came
+    /// from the file (not from a flag since).
+    fn at(&self, field: &str, e: SceneError) -> SceneError {
+        let Some(file) = &self.origin.file else {
+            return e;
+        };
+        // A field set since, or one inside it or around it (`camera` and `camera.eye`).
+        let within = |a: &str, b: &str| a == b || a.starts_with(&format!("{b}."));
+        if (self.origin.replaced.iter()).any(|r| within(field, r) || within(r, field)) {
+            return e;
+        }
+        let file = file.clone();
+        match e {
+            SceneError::Setting { .. } => SceneError::InFile {
+                file,
+                source: Box::new(e),
+            },
+            e => SceneError::InField {
+                file,
+                field: field.to_owned(),
+                source: Box::new(e),
+            },
+        }
     }
 
     /// Writes the scene as pretty JSON, its paths relative to `path`'s folder.
@@ -577,29 +676,36 @@ impl Scene {
 
     /// Loads the scene's mesh within `limits` and makes its array the active one.
     pub fn load_mesh(&self, limits: &ReadLimits) -> Result<Loaded, SceneError> {
-        let mut loaded = io::load_with(&self.mesh, limits)?;
-        let warp = self.warp.as_ref().map(|w| (w.array.as_str(), w.scale));
-        (loaded.mesh).prepare(self.array.as_deref(), self.cell_data, warp)?;
-        Ok(loaded)
+        self.located(|| {
+            let mut loaded = io::load_with(&self.mesh, limits)?;
+            // Warped first, as prepare does, so that an error names the field that causes it.
+            if let Some(w) = &self.warp {
+                (loaded.mesh.warp(&w.array, w.scale)).map_err(|e| self.at("warp", e.into()))?;
+            }
+            (loaded.mesh).prepare(self.array.as_deref(), self.cell_data, None)?;
+            Ok(loaded)
+        })
     }
 
     /// The camera for `mesh`: framed from the view and distance, then the target, eye and up
     /// the scene gives.
     pub fn camera(&self, mesh: &TetMesh) -> Result<Camera, SceneError> {
-        let (lo, hi) = mesh.bounds();
-        let c = &self.camera;
-        let [w, h] = self.size;
-        // Checked before framing, which would turn them into a non-finite or mirrored eye.
-        let view = self.check_camera()?;
-        let mut camera = Camera::framing(lo, hi, view, c.distance, c.fov, w, h);
-        if let Some(target) = c.target.map(glam::DVec3::from) {
-            camera.eye += target - camera.target;
-            camera.target = target;
-        }
-        camera.eye = c.eye.map_or(camera.eye, glam::DVec3::from);
-        camera.up = c.up.map_or(camera.up, glam::DVec3::from);
-        camera.validate()?;
-        Ok(camera)
+        self.located(|| {
+            let (lo, hi) = mesh.bounds();
+            let c = &self.camera;
+            let [w, h] = self.size;
+            // Checked before framing, which would turn them into a non-finite or mirrored eye.
+            let view = self.check_camera()?;
+            let mut camera = Camera::framing(lo, hi, view, c.distance, c.fov, w, h);
+            if let Some(target) = c.target.map(glam::DVec3::from) {
+                camera.eye += target - camera.target;
+                camera.target = target;
+            }
+            camera.eye = c.eye.map_or(camera.eye, glam::DVec3::from);
+            camera.up = c.up.map_or(camera.up, glam::DVec3::from);
+            camera.validate()?;
+            Ok(camera)
+        })
     }
 
     /// Checks the settings that need no mesh, so that a command can refuse them before it
@@ -607,23 +713,27 @@ impl Scene {
     /// inline points and the unit distance, placed on a stand-in range (where a preset's points
     /// fall depends on the mesh, whether they are valid does not); the texture volume's header.
     pub fn check_without_mesh(&self) -> Result<(), SceneError> {
-        self.check_camera()?;
-        self.transfer_function_over((0.0, 1.0), 1.0)?;
-        if let Some(texture) = &self.texture {
-            crate::texture::Volume::check_file(&texture.volume)?;
-        }
-        Ok(())
+        self.located(|| {
+            self.check_camera()?;
+            self.transfer_function_over((0.0, 1.0), 1.0)?;
+            if let Some(texture) = &self.texture {
+                crate::texture::Volume::check_file(&texture.volume)?;
+            }
+            Ok(())
+        })
     }
 
     /// The view, after checking the camera settings that need no mesh (view, field of view,
     /// distance), so that a command can refuse them before it reads one.
     pub fn check_camera(&self) -> Result<View, SceneError> {
-        let c = &self.camera;
-        crate::camera::check_fov(c.fov)?;
-        if !(c.distance > 0.0 && c.distance.is_finite()) {
-            return Err(CameraError::BadDistance(c.distance).into());
-        }
-        Ok(View::parse(&c.view)?)
+        self.located(|| {
+            let c = &self.camera;
+            crate::camera::check_fov(c.fov)?;
+            if !(c.distance > 0.0 && c.distance.is_finite()) {
+                return Err(CameraError::BadDistance(c.distance).into());
+            }
+            Ok(View::parse(&c.view)?)
+        })
     }
 
     /// Sets the camera to exactly `camera`: eye, target, up, field of view and size.
@@ -638,11 +748,13 @@ impl Scene {
     /// The transfer function over `mesh`'s active scalar range (unit distance: the scene's,
     /// else the function's own, else 1/100 of the mesh's diagonal).
     pub fn transfer_function(&self, mesh: &TetMesh) -> Result<TransferFunction, SceneError> {
-        let range = mesh
-            .active_array()
-            .and_then(|a| a.range())
-            .ok_or(MeshError::NoScalars)?;
-        self.transfer_function_over(range, mesh.diagonal() / 100.0)
+        self.located(|| {
+            let range = mesh
+                .active_array()
+                .and_then(|a| a.range())
+                .ok_or(MeshError::NoScalars)?;
+            self.transfer_function_over(range, mesh.diagonal() / 100.0)
+        })
     }
 
     /// [`Self::transfer_function`] for scalars spanning `range` (a preset's control points),
@@ -653,13 +765,17 @@ impl Scene {
         range: (f64, f64),
         default_unit: f64,
     ) -> Result<TransferFunction, SceneError> {
-        let tf = match &self.tf {
-            TfSpec::Named(spec) => load_tf(spec, range, default_unit)?,
-            TfSpec::Inline(value) => parse_tf_json(&value.to_string(), "tf", range, default_unit)?,
-        };
-        Ok(match self.unit_distance {
-            Some(u) => tf.with_unit_distance(u)?,
-            None => tf,
+        self.located(|| {
+            let tf = match &self.tf {
+                TfSpec::Named(spec) => load_tf(spec, range, default_unit)?,
+                TfSpec::Inline(value) => {
+                    parse_tf_json(&value.to_string(), "tf", range, default_unit)?
+                }
+            };
+            Ok(match self.unit_distance {
+                Some(u) => tf.with_unit_distance(u)?,
+                None => tf,
+            })
         })
     }
 
@@ -680,45 +796,47 @@ impl Scene {
         mesh: &TetMesh,
         tf: &TransferFunction,
     ) -> Result<ModeSettings, SceneError> {
-        let s = &self.settings;
-        let frustum = !s.no_skip.contains(&Skip::Frustum);
-        Ok(match self.mode {
-            Mode::Auto => ModeSettings::Auto(self.shell_settings()),
-            Mode::Reference => ModeSettings::Reference(ReferenceSettings::default()),
-            Mode::Shells => ModeSettings::Shells(self.shell_settings()),
-            Mode::Iso => ModeSettings::Iso(IsoSettings {
-                isovalues: iso_surfaces(tf, &self.isovalues(mesh)?),
-                shading: match s.shading {
-                    ShadingChoice::Flat => Shading::Flat,
-                    ShadingChoice::Smooth => Shading::Smooth,
-                },
-                frustum,
-                ..IsoSettings::default()
-            }),
-            Mode::Cellproj => ModeSettings::CellProj(CellProjSettings {
-                integrate: self.cellproj_integrate()?,
-                table_size: s.table_size,
-                table_lengths: (s.table_size / 2).max(2),
-                frustum,
-            }),
-            Mode::Raycast => ModeSettings::Raycast(RaycastSettings {
-                segments: match s.integrate {
-                    None | Some(Integration::Partial) => Segments::Partial,
-                    Some(Integration::Exact) => Segments::Exact,
-                    Some(Integration::Table) => Segments::Table,
-                },
-                entry: match s.entry {
-                    None | Some(EntryChoice::Lists) => Entry::Lists,
-                    Some(EntryChoice::Peel) => Entry::Peel,
-                },
-                table_size: s.table_size,
-                table_lengths: (s.table_size / 2).max(2),
-                ..RaycastSettings::default()
-            }),
-            Mode::RaycastCpu => ModeSettings::RaycastCpu(CpuRaycastSettings {
-                segments: self.cpu_segments()?,
-                ..CpuRaycastSettings::default()
-            }),
+        self.located(|| {
+            let s = &self.settings;
+            let frustum = !s.no_skip.contains(&Skip::Frustum);
+            Ok(match self.mode {
+                Mode::Auto => ModeSettings::Auto(self.shell_settings()),
+                Mode::Reference => ModeSettings::Reference(ReferenceSettings::default()),
+                Mode::Shells => ModeSettings::Shells(self.shell_settings()),
+                Mode::Iso => ModeSettings::Iso(IsoSettings {
+                    isovalues: iso_surfaces(tf, &self.isovalues(mesh)?),
+                    shading: match s.shading {
+                        ShadingChoice::Flat => Shading::Flat,
+                        ShadingChoice::Smooth => Shading::Smooth,
+                    },
+                    frustum,
+                    ..IsoSettings::default()
+                }),
+                Mode::Cellproj => ModeSettings::CellProj(CellProjSettings {
+                    integrate: self.cellproj_integrate()?,
+                    table_size: s.table_size,
+                    table_lengths: (s.table_size / 2).max(2),
+                    frustum,
+                }),
+                Mode::Raycast => ModeSettings::Raycast(RaycastSettings {
+                    segments: match s.integrate {
+                        None | Some(Integration::Partial) => Segments::Partial,
+                        Some(Integration::Exact) => Segments::Exact,
+                        Some(Integration::Table) => Segments::Table,
+                    },
+                    entry: match s.entry {
+                        None | Some(EntryChoice::Lists) => Entry::Lists,
+                        Some(EntryChoice::Peel) => Entry::Peel,
+                    },
+                    table_size: s.table_size,
+                    table_lengths: (s.table_size / 2).max(2),
+                    ..RaycastSettings::default()
+                }),
+                Mode::RaycastCpu => ModeSettings::RaycastCpu(CpuRaycastSettings {
+                    segments: self.cpu_segments()?,
+                    ..CpuRaycastSettings::default()
+                }),
+            })
         })
     }
 

@@ -1462,3 +1462,80 @@ fn a_mesh_without_extent_is_named_as_such() {
         );
     }
 }
+
+/// Every error that a field of a scene file causes names the file and the field (camera,
+/// transfer function, unit distance, array, warp and mode settings were named without the file,
+/// the camera's after a flag the user did not write); the same value given by a flag over the
+/// file is named as the flag's, not the file's.
+#[test]
+fn scene_file_errors_name_the_file_and_the_field() {
+    let dir = out_dir("scene-fields");
+    let png = dir.join("x.png");
+    let png = png.to_str().unwrap();
+    let scene = dir.join("s.json");
+    let scene_arg = scene.to_str().unwrap();
+    let tf = dir.join("no-such-tf");
+    let cases = [
+        (
+            serde_json::json!({"camera": {"fov": 500}}),
+            "camera.fov: field of view 500 degrees is outside (0, 180)".to_owned(),
+        ),
+        (
+            serde_json::json!({"camera": {"distance": -1}}),
+            "camera.distance: eye distance -1 must be".to_owned(),
+        ),
+        (
+            serde_json::json!({"camera": {"view": "+w"}}),
+            "camera.view: unknown view '+w'".to_owned(),
+        ),
+        (
+            serde_json::json!({"camera": {"up": [0, 0, 0]}}),
+            "camera.up: the up vector is zero".to_owned(),
+        ),
+        (
+            serde_json::json!({"camera": {"eye": [1, 2, 3], "target": [1, 2, 3]}}),
+            "camera.eye: the eye and the target are the same point".to_owned(),
+        ),
+        (
+            serde_json::json!({"tf": "no-such-tf"}),
+            format!(
+                "tf: '{}' is neither a transfer function preset",
+                tf.display()
+            ),
+        ),
+        (
+            serde_json::json!({"unit_distance": -1}),
+            "unit_distance: unit distance -1 must be positive".to_owned(),
+        ),
+        (
+            serde_json::json!({"array": "nope"}),
+            "array: no array named 'nope'".to_owned(),
+        ),
+        (
+            serde_json::json!({"warp": {"array": "nope"}}),
+            "warp: no array named 'nope'".to_owned(),
+        ),
+        (
+            serde_json::json!({"mode": "cellproj", "settings": {"integrate": "partial"}}),
+            "settings.integrate: partial (--integrate partial) belongs to mode raycast".to_owned(),
+        ),
+    ];
+    for (mut json, want) in cases {
+        json["mesh"] = LOX.into();
+        json["size"] = serde_json::json!([8, 8]);
+        std::fs::write(&scene, json.to_string()).unwrap();
+        let stderr = failure(&["render", "--scene", scene_arg, "-o", png]);
+        assert!(
+            stderr.starts_with(&format!("error: {scene_arg}: {want}")),
+            "{json}: {stderr}"
+        );
+    }
+    // A flag's value over a good file is the flag's: the file is not named.
+    let json = serde_json::json!({"mesh": LOX, "size": [8, 8]});
+    std::fs::write(&scene, json.to_string()).unwrap();
+    let stderr = failure(&["render", "--scene", scene_arg, "--fov", "500", "-o", png]);
+    assert!(
+        stderr.starts_with("error: field of view 500 degrees is outside"),
+        "{stderr}"
+    );
+}

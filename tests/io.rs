@@ -1361,3 +1361,77 @@ fn vtk_files_under_the_other_vtk_extension_name_the_right_one() {
         "{e}"
     );
 }
+
+/// A unit cube cut along its diagonal plane into two wedges, the first written as `first`
+/// (cell type `first_type`), with a tet under the first wedge's bottom triangle.
+fn cube_of_wedges(first: &str, first_type: u32) -> String {
+    let cells = [first, "6 1 2 3 5 6 7", "4 0 1 3 8"];
+    let size: usize = cells.iter().map(|c| c.split_whitespace().count()).sum();
+    format!(
+        "# vtk DataFile Version 3.0\ncube of wedges\nASCII\nDATASET UNSTRUCTURED_GRID\n\
+         POINTS 9 double\n0 0 0 1 0 0 1 1 0 0 1 0 0 0 1 1 0 1 1 1 1 0 1 1 0.25 0.25 -1\n\
+         CELLS 3 {size}\n{}\nCELL_TYPES 3\n{first_type}\n13\n10\n\
+         POINT_DATA 9\nSCALARS s double 1\nLOOKUP_TABLE default\n0 0.1 0.3 0.2 0.5 0.6 1 0.7 0.4\n",
+        cells.join("\n")
+    )
+}
+
+/// A wedge stored as a hexahedron with repeated nodes (`a b c c d e f f`, as VTK writers
+/// store them) loads as the wedge it is: the same tets as the file with the true cell type,
+/// conforming with the true wedge beside it and the tet under it, and the same picture.
+#[test]
+fn collapsed_hexahedron_loads_and_renders_as_the_wedge_it_is() {
+    use tetvr::reference::ReferenceRenderer;
+    use tetvr::tf::ControlPoint;
+    use tetvr::{Camera, Renderer, TransferFunction, View};
+    let collapsed = load_bytes(
+        cube_of_wedges("8 0 1 3 3 4 5 7 7", 12).as_bytes(),
+        Format::VtkLegacy,
+        "collapsed.vtk",
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let true_types = load_bytes(
+        cube_of_wedges("6 0 1 3 4 5 7", 13).as_bytes(),
+        Format::VtkLegacy,
+        "wedges.vtk",
+    )
+    .unwrap();
+    let sorted = |m: &tetvr::TetMesh| {
+        let mut t: Vec<[u32; 4]> = (m.tets().iter())
+            .map(|t| {
+                let mut t = *t;
+                t.sort_unstable();
+                t
+            })
+            .collect();
+        t.sort_unstable();
+        t
+    };
+    assert_eq!(sorted(&collapsed.mesh), sorted(&true_types.mesh));
+    // Cube 1, tet 1/6; the cube's 12 surface triangles but the one under the first wedge, and
+    // the tet's other 3.
+    assert_conforming(&collapsed.mesh, 1.0 + 1.0 / 6.0, 14, "collapsed.vtk");
+    let (lo, hi) = collapsed.mesh.bounds();
+    let camera = Camera::framing(lo, hi, View::ISO, 1.0, 30.0, 32, 32);
+    let cp = |s, color, opacity| ControlPoint { s, color, opacity };
+    let tf = TransferFunction::new(
+        vec![cp(0.0, [0.1, 0.2, 0.9], 0.2), cp(1.0, [0.9, 0.6, 0.1], 0.8)],
+        0.2,
+    )
+    .unwrap();
+    let picture = |m: &tetvr::TetMesh| {
+        let frame = ReferenceRenderer::new(m)
+            .unwrap()
+            .render(&camera, &tf)
+            .unwrap();
+        frame.image.pixels
+    };
+    let (a, b) = (picture(&collapsed.mesh), picture(&true_types.mesh));
+    // The same tets, listed in another order: the reference integrates each ray through the
+    // same intervals, so only the rounding of sums in another order may differ (f32 pixels).
+    let worst = (a.iter().zip(&b))
+        .flat_map(|(p, q)| (0..4).map(move |k| (p[k] - q[k]).abs()))
+        .fold(0.0f32, f32::max);
+    assert!(worst <= 1e-6, "largest difference {worst}");
+    assert!(a.iter().any(|p| p[3] > 0.1), "the mesh is in the picture");
+}

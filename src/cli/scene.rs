@@ -43,12 +43,15 @@ pub fn of_flags(args: &RenderArgs) -> Result<Scene, CliError> {
     Ok(scene)
 }
 
-/// Sets the fields of `scene` whose flags are `given` (by clap id) to the flags' values.
+/// Sets the fields of `scene` whose flags are `given` (by clap id) to the flags' values, and
+/// notes them as [`Scene::replaced`] (an error they cause names the flag's value, not the file).
 fn overlay(scene: &mut Scene, a: &RenderArgs, given: &dyn Fn(&str) -> bool) {
+    let mut replaced = Vec::new();
     macro_rules! set {
         ($($id:literal: $field:expr => $value:expr;)*) => {
             $(if given($id) {
                 $field = $value;
+                replaced.push(scene_field(stringify!($field)));
             })*
         };
     }
@@ -85,6 +88,21 @@ fn overlay(scene: &mut Scene, a: &RenderArgs, given: &dyn Fn(&str) -> bool) {
         "iso": s.iso => a.iso.clone();
         "shading": s.shading => a.shading;
     }
+    for field in replaced {
+        scene.replaced(&field);
+    }
+}
+
+/// A field of `overlay` (`c.fov`, `s.dz`, `scene.tf`) as a scene file spells it (`camera.fov`,
+/// `settings.dz`, `tf`).
+fn scene_field(expr: &str) -> String {
+    let expr = expr.replace(' ', "");
+    for (local, field) in [("c.", "camera."), ("s.", "settings."), ("scene.", "")] {
+        if let Some(rest) = expr.strip_prefix(local) {
+            return format!("{field}{rest}");
+        }
+    }
+    unreachable!("overlay sets fields of c, s and scene")
 }
 
 /// Flags that belong to one mode, given with another, and isovalues that are no numbers

@@ -179,7 +179,8 @@ pub(crate) fn hex_grid_mesh(
         |buf, (out, &i)| {
             let ids = hex(cell_at(i as u64)).map(|v| new_id[v]);
             buf.clear();
-            split_cell(CellKind::Hexahedron, &ids, buf);
+            split_cell(CellKind::Hexahedron, &ids, buf)
+                .expect("a grid cell's eight vertices are distinct");
             out.copy_from_slice(buf);
         },
     );

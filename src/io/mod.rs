@@ -8,7 +8,8 @@
 //! found by name in maps), and memory is charged to a budget with a ceiling,
 //! [`ReadLimits`], before it is taken (see the `limits` module). Array names are kept exactly
 //! as read; show them through [`crate::mesh::name`]. Non-tetrahedral 3D cells (voxels, hexahedra, wedges, pyramids) are split into tets
-//! conformingly by [`crate::mesh::split::split_cell`]; quadratic tets keep their corners;
+//! conformingly by [`crate::mesh::split::split_cell`], collapsed ones (repeated vertex
+//! indices, as a wedge stored as a hexahedron) as the cell they really are; quadratic tets keep their corners;
 //! lower-dimensional cells (vertices, lines, triangles, quads, ...) are skipped and counted.
 //!
 //! Per-vertex arrays become [`ScalarArray`]s; the file's active scalars come first (so they are
@@ -520,6 +521,10 @@ impl<'a> Assembler<'a> {
             )));
         }
         self.ids.clear();
+        // A tet that repeats a vertex is refused; other cells may (collapsed cells, split as
+        // the cell they really are), the first repeat naming the cell if that leaves no volume.
+        let tet = matches!(kind, CellKind::Tetra | CellKind::QuadraticTetra);
+        let mut repeated = None;
         for &id in ids {
             if id < 0 || id as u64 >= self.n_points as u64 {
                 return Err(locate(format!(
@@ -529,11 +534,14 @@ impl<'a> Assembler<'a> {
                 )));
             }
             let id = id as u32;
-            if self.ids.contains(&id) {
-                return Err(locate(format!(
-                    "the {} repeats vertex {id}; a cell needs distinct vertices",
-                    kind_name(kind)
-                )));
+            if repeated.is_none() && self.ids.contains(&id) {
+                if tet {
+                    return Err(locate(format!(
+                        "the {} repeats vertex {id}; a cell needs distinct vertices",
+                        kind_name(kind)
+                    )));
+                }
+                repeated = Some(id);
             }
             self.ids.push(id);
         }
@@ -546,7 +554,10 @@ impl<'a> Assembler<'a> {
             self.charged += more;
         }
         let before = self.tets.len();
-        split_cell(kind, &self.ids, &mut self.tets);
+        split_cell(kind, &self.ids, &mut self.tets).map_err(|e| {
+            let id = repeated.expect("only a cell that repeats a vertex collapses");
+            locate(format!("the {} repeats vertex {id}: {e}", kind_name(kind)))
+        })?;
         self.note_cell(self.tets.len() - before)?;
         if let Some(k) = KINDS.iter().position(|&k| k == kind) {
             self.counts[k] += 1;

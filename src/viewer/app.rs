@@ -139,9 +139,10 @@ impl Viewer {
             camera,
             mode,
             background,
-            scene,
+            mut scene,
             series,
         } = setup;
+        scene.array = Some(active_spec(&mesh, scene.array.as_deref()));
         let range = mesh
             .active_array()
             .and_then(|a| a.range())
@@ -180,10 +181,7 @@ impl Viewer {
             series: series.map(|(s, limits)| SeriesPlayer::start(s, limits)),
             status: String::new(),
             still: StillRender::start(),
-            scene: Scene {
-                array: Some(active_spec(&mesh, scene.array.as_deref())),
-                ..scene
-            },
+            scene,
             mesh,
         })
     }
