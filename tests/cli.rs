@@ -723,6 +723,39 @@ fn animate_timings_print_the_startup_apart_from_the_frames() {
     assert_startup_lines(&stdout);
 }
 
+/// A GIF's frame delay is `--fps` rounded to whole hundredths of a second: --fps 40 (25 hundredths)
+/// plays at 3 hundredths, nearer than 2 (50 fps, which truncation gave for --fps 34 to 49), and
+/// --fps 50, the most a GIF takes, at exactly 2.
+#[test]
+fn animate_gif_delay_is_the_nearest_to_the_fps() {
+    use image::AnimationDecoder;
+    let gif = out_dir("animate-fps").join("fps.gif");
+    for (fps, ms) in [("40", 30), ("50", 20), ("12", 80), ("13", 80)] {
+        let o = tetvr(&[
+            "animate",
+            LOX,
+            "--frames",
+            "1",
+            "--size",
+            "8x8",
+            "--mode",
+            "raycast-cpu",
+            "--fps",
+            fps,
+            "-o",
+            gif.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "--fps {fps}: {}", text(&o).1);
+        let file = std::io::BufReader::new(std::fs::File::open(&gif).unwrap());
+        let frames = image::codecs::gif::GifDecoder::new(file)
+            .unwrap()
+            .into_frames()
+            .collect_frames()
+            .unwrap();
+        assert_eq!(frames[0].delay().numer_denom_ms(), (ms, 1), "--fps {fps}");
+    }
+}
+
 /// The output check takes `.GIF` and `.PNG` (any case); so must the writer, which refused
 /// them once the mesh was loaded and the renderer built.
 #[test]

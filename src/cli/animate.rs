@@ -239,6 +239,13 @@ impl Playback {
 /// browsers and viewers show a delay under 2 as 10 (a 60 fps GIF would play at 10 fps).
 const GIF_MAX_FPS: u32 = 50;
 
+/// The GIF frame delay nearest to `1 / fps` seconds, in whole hundredths. Truncating it played
+/// `--fps 34` to `--fps 49` at 50 fps (delay 2), and `--fps 40` is nearer 33 fps (delay 3).
+fn gif_delay(fps: u32) -> u16 {
+    let fps = u64::from(fps.max(1));
+    ((200 + fps) / (2 * fps)).clamp(1, u16::MAX.into()) as u16
+}
+
 /// Refuses what a GIF cannot show as asked, before any work: a transparent background (a GIF
 /// has no partial transparency; frames were composited over white without a word) and more
 /// than [`GIF_MAX_FPS`] frames per second.
@@ -304,7 +311,7 @@ impl FrameSink {
                     path: output.to_owned(),
                     file: Some(BufWriter::new(file)),
                     encoder: None,
-                    delay: (100 / fps.max(1)).clamp(1, u16::MAX as u32) as u16,
+                    delay: gif_delay(fps),
                     background: background.unwrap_or([1.0; 3]),
                 })
             }
