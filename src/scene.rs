@@ -676,15 +676,16 @@ impl Scene {
 
     /// Loads the scene's mesh within `limits` and makes its array the active one.
     pub fn load_mesh(&self, limits: &ReadLimits) -> Result<Loaded, SceneError> {
-        self.located(|| {
-            let mut loaded = io::load_with(&self.mesh, limits)?;
-            // Warped first, as prepare does, so that an error names the field that causes it.
-            if let Some(w) = &self.warp {
-                (loaded.mesh.warp(&w.array, w.scale)).map_err(|e| self.at("warp", e.into()))?;
-            }
-            (loaded.mesh).prepare(self.array.as_deref(), self.cell_data, None)?;
-            Ok(loaded)
-        })
+        let mut loaded = io::load_with(&self.mesh, limits)?;
+        // Warped first, as prepare does, so that an error names the field that causes it (not
+        // through `located`, which would name `array` for a warp that a flag set).
+        if let Some(w) = &self.warp {
+            (loaded.mesh.warp(&w.array, w.scale)).map_err(|e| self.at("warp", e.into()))?;
+        }
+        (loaded.mesh)
+            .prepare(self.array.as_deref(), self.cell_data, None)
+            .map_err(|e| self.at("array", e.into()))?;
+        Ok(loaded)
     }
 
     /// The camera for `mesh`: framed from the view and distance, then the target, eye and up

@@ -1571,4 +1571,10 @@ fn scene_file_errors_name_the_file_and_the_field() {
         stderr.starts_with("error: field of view 500 degrees is outside"),
         "{stderr}"
     );
+    // Nor is it for a warp array the flag names (it was, as the file's `array`).
+    let stderr = failure(&["render", "--scene", scene_arg, "--warp", "nope", "-o", png]);
+    assert!(
+        stderr.starts_with("error: no array named 'nope'"),
+        "{stderr}"
+    );
 }

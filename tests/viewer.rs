@@ -299,6 +299,15 @@ fn scenes_load_back_and_another_mesh_is_refused() {
         message.contains("view-other-mesh.json") && message.contains("tetvr view --scene"),
         "{message}"
     );
+    // A field's error names the file once, and the field (the file was named twice).
+    let bad = dir.join("view-bad-fov.json");
+    let mut scene = Scene::new(common::asset(MESH));
+    scene.camera.fov = 500.0;
+    scene.save(&bad).unwrap();
+    let message = h.viewer.load_scene(&bad).unwrap_err().to_string();
+    let want = format!("{}: camera.fov: field of view 500 degrees", bad.display());
+    assert!(message.starts_with(&want), "{message}");
+    assert_eq!(message.matches("view-bad-fov.json").count(), 1, "{message}");
 }
 
 /// When the drag stops, the full-quality frame renders on the viewer's render thread: the UI

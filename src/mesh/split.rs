@@ -164,8 +164,13 @@ pub fn split_cell(kind: CellKind, v: &[u32], out: &mut Vec<[u32; 4]>) -> Result<
         if face.contains(&apex) {
             continue;
         }
-        let g: Vec<u32> = face.iter().map(|&i| v[i]).collect();
-        cone(v[apex], &g, out);
+        // On the stack: readers split millions of cells, and a list per face cost more
+        // than the whole check for repeats.
+        let mut g = [0; 4];
+        for (g, &i) in g.iter_mut().zip(face.iter()) {
+            *g = v[i];
+        }
+        cone(v[apex], &g[..face.len()], out);
     }
     Ok(())
 }

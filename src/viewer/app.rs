@@ -719,9 +719,14 @@ impl Viewer {
             (self.select_array(array, scene.cell_data))
                 .map_err(|e| in_file(SceneError::Mesh(e)))?;
         }
-        let tf = scene.transfer_function(&self.mesh).map_err(in_file)?;
-        let camera = scene.camera(&self.mesh).map_err(in_file)?;
-        let mode = scene.mode_settings(&self.mesh, &tf).map_err(in_file)?;
+        // An error of one of the file's fields names the file (and the field) already.
+        let named = |e| match e {
+            SceneError::InFile { .. } | SceneError::InField { .. } => e,
+            e => in_file(e),
+        };
+        let tf = scene.transfer_function(&self.mesh).map_err(named)?;
+        let camera = scene.camera(&self.mesh).map_err(named)?;
+        let mode = scene.mode_settings(&self.mesh, &tf).map_err(named)?;
         let range = self.mesh.active_array().and_then(|a| a.range());
         self.modes = ModeBook::new(&mode, range.unwrap_or((0.0, 1.0)));
         self.controller.camera = camera;
