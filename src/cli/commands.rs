@@ -587,15 +587,29 @@ fn compare(args: CompareArgs) -> Result<(), CliError> {
 fn generate(args: GenerateArgs) -> Result<(), CliError> {
     check_output(&args.output, &["vtu"])?;
     let mesh = match &args.shape {
-        GenerateShape::Grid { tets, field } => generate::grid(
-            parse_field(field)?,
-            generate::cells_for_tet_count(*tets),
-            "field",
-        )?,
-        GenerateShape::Hole { tets, field } => {
-            generate::shapes::box_with_hole(*tets, parse_field(field)?)?
+        GenerateShape::Grid {
+            tets,
+            field,
+            memory,
+        } => {
+            generate::check_target_tets(*tets)?;
+            generate::grid_within(
+                parse_field(field)?,
+                generate::cells_for_tet_count(*tets),
+                "field",
+                memory.bytes(),
+            )?
         }
-        GenerateShape::Ring { tets, field } => generate::shapes::ring(*tets, parse_field(field)?)?,
+        GenerateShape::Hole {
+            tets,
+            field,
+            memory,
+        } => generate::shapes::box_with_hole_within(*tets, parse_field(field)?, memory.bytes())?,
+        GenerateShape::Ring {
+            tets,
+            field,
+            memory,
+        } => generate::shapes::ring_within(*tets, parse_field(field)?, memory.bytes())?,
         GenerateShape::Nifti {
             input,
             downsample,
@@ -611,13 +625,14 @@ fn generate(args: GenerateArgs) -> Result<(), CliError> {
             input,
             tets,
             threshold,
+            memory,
         } => {
             let volume = tetvr::texture::Volume::load(input, 1)?;
             let opts = tetvr::texture::CageOptions {
                 tets: *tets,
                 threshold: *threshold,
             };
-            tetvr::texture::cage(&volume, &opts)?
+            tetvr::texture::cage_within(&volume, &opts, memory.bytes())?
         }
     };
     write(&mesh, &args.output)?;

@@ -30,7 +30,7 @@ use crate::mesh::{TetMesh, box_diagonal};
 use crate::mode::{AutoPath, ModeSettings};
 use crate::render::{RenderError, Renderer};
 
-pub use cage::{CageError, CageOptions, cage};
+pub use cage::{CageError, CageOptions, cage, cage_within};
 pub use reference::TexturedReference;
 
 /// The point array of texture coordinates a cage carries unless told otherwise.
