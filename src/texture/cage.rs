@@ -53,6 +53,13 @@ pub enum CageError {
         /// The point arrays of several components it has.
         available: Vec<String>,
     },
+    /// The array named for the texture coordinates is a scalar point array.
+    #[error(
+        "point array '{0}' is a scalar (one value per vertex); texture coordinates need a point \
+         array of 3 components per vertex (normalized u, v, w), such as the 'texcoords' that \
+         `tetvr generate cage` writes; name one with --texcoords"
+    )]
+    ScalarTexcoords(String),
     /// The texture coordinate array is not 3 components per vertex.
     #[error(
         "point array '{name}' has {components} components per vertex; texture coordinates need 3"
