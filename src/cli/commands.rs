@@ -477,12 +477,20 @@ pub(super) fn median(v: &mut [f64]) -> f64 {
     v[v.len() / 2]
 }
 
-/// An error naming `--iso` when one of the flag's `isovalues` is not a finite number: checked
-/// before the mesh is read (`render`, `view`, `animate` and `iso-export`).
+/// An error naming `--iso` when one of the flag's `isovalues` is not a finite number or is
+/// given twice (it drew, or exported, the same surface twice without a word): checked before
+/// the mesh is read (`render`, `view`, `animate` and `iso-export`).
 pub(super) fn finite_iso_flag(isovalues: &[f64]) -> Result<(), CliError> {
-    match isovalues.iter().find(|v| !v.is_finite()) {
-        Some(v) => Err(CliError::Usage(format!(
+    if let Some(v) = isovalues.iter().find(|v| !v.is_finite()) {
+        return Err(CliError::Usage(format!(
             "--iso: isovalues must be finite numbers, not {v}"
+        )));
+    }
+    match tetvr::mode::repeated_isovalue(isovalues) {
+        Some(v) => Err(CliError::Usage(format!(
+            "--iso: isovalue {} is given more than once; each value draws one surface, give \
+             it once",
+            show_value(v)
         ))),
         None => Ok(()),
     }
