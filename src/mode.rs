@@ -264,6 +264,13 @@ pub fn iso_surfaces(tf: &TransferFunction, isovalues: &[f64]) -> Vec<(f64, [f32;
         .collect()
 }
 
+/// The smallest value given more than once in `isovalues`, if any (`0` and `-0` are one value).
+pub fn repeated_isovalue(isovalues: &[f64]) -> Option<f64> {
+    let mut sorted = isovalues.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    sorted.windows(2).find(|w| w[0] == w[1]).map(|w| w[0])
+}
+
 /// A data value (an isovalue, a range's end) for people: the shortest digits that read back
 /// as `v`, in exponent form outside `[1e-4, 1e15)` (`1e300`, not three hundred digits).
 pub fn show_value(v: f64) -> String {

@@ -875,6 +875,16 @@ impl Scene {
                 format!("isovalues must be finite numbers, not {v}"),
             ));
         }
+        if let Some(v) = crate::mode::repeated_isovalue(&self.settings.iso) {
+            return Err(setting(
+                "settings.iso",
+                format!(
+                    "isovalue {} is given more than once; each value draws one surface, give it \
+                     once",
+                    crate::mode::show_value(v)
+                ),
+            ));
+        }
         if !self.settings.iso.is_empty() {
             return Ok(self.settings.iso.clone());
         }

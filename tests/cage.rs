@@ -119,6 +119,13 @@ fn cage_of_a_nifti_volume_round_trips_through_vtu() {
         "{missing}"
     );
     assert!(missing.to_string().contains("--texcoords"));
+    // A scalar of that name exists: said so, not "no such array".
+    let scalar = texcoords(&mesh, "intensity").unwrap_err();
+    assert_eq!(scalar, CageError::ScalarTexcoords("intensity".into()));
+    assert!(
+        scalar.to_string().contains("is a scalar") && scalar.to_string().contains("3 components"),
+        "{scalar}"
+    );
 }
 
 #[test]

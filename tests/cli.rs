@@ -845,6 +845,50 @@ fn generate_takes_negative_thresholds() {
     }
 }
 
+/// Tet counts a generator cannot honour are refused before anything is allocated: a billion
+/// tets (23 GiB; it used to abort allocating 16 GB of tets) with the memory it needs and the flag
+/// that allows it, and 0 alike for every shape (grid, hole and ring made their smallest mesh).
+#[test]
+fn generate_refuses_counts_it_cannot_make_before_allocating() {
+    let dir = out_dir("generate-limits");
+    let out = dir.join("g.vtu");
+    // Written by the last run's final step: nothing before it may write it.
+    let _ = std::fs::remove_file(&out);
+    let out = out.to_str().unwrap();
+    for shape in ["grid", "hole", "ring"] {
+        let e = failure(&["generate", shape, "--tets", "900000000", "-o", out]);
+        assert!(
+            e.contains("GiB of memory") && e.contains("--max-memory"),
+            "{shape}: {e}"
+        );
+        let e = failure(&["generate", shape, "--tets", "0", "-o", out]);
+        assert!(e.contains("--tets 0 asks for no tets"), "{shape}: {e}");
+    }
+    let e = failure(&[
+        "generate",
+        "grid",
+        "--tets",
+        "100000",
+        "--max-memory",
+        "1M",
+        "-o",
+        out,
+    ]);
+    assert!(e.contains("over the limit of 1.0 MiB"), "{e}");
+    assert!(!dir.join("g.vtu").exists());
+    let o = tetvr(&[
+        "generate",
+        "grid",
+        "--tets",
+        "100000",
+        "--max-memory",
+        "8M",
+        "-o",
+        out,
+    ]);
+    assert!(o.status.success(), "{}", text(&o).1);
+}
+
 /// The viewer renders the mesh's own scalars: a texture given to it is refused, not ignored
 /// (it showed the cage untextured).
 #[cfg(feature = "viewer")]
@@ -1256,6 +1300,65 @@ fn isovalues_are_named_where_they_were_given() {
         stderr.contains("isovalues must be finite numbers, not NaN"),
         "{stderr}"
     );
+    // A value given twice drew (or exported) the same surface twice without a word.
+    let glb = dir.join("x.glb");
+    for args in [
+        vec![
+            "render",
+            LOX,
+            "--mode",
+            "iso",
+            "--iso",
+            "0.5,0.6,0.5",
+            "-o",
+            png,
+        ],
+        vec![
+            "iso-export",
+            LOX,
+            "--iso",
+            "0.5,0.5",
+            "-o",
+            glb.to_str().unwrap(),
+        ],
+    ] {
+        let stderr = failure(&args);
+        assert!(
+            stderr.contains("--iso: isovalue 0.5 is given more than once"),
+            "{args:?}: {stderr}"
+        );
+    }
+    let json = serde_json::json!({"mesh": LOX, "mode": "iso", "settings": {"iso": [0.5, 0.5]}});
+    std::fs::write(scene, json.to_string()).unwrap();
+    let stderr = failure(&["render", "--scene", scene, "--size", "8x8", "-o", png]);
+    assert!(
+        stderr.contains("settings.iso") && stderr.contains("isovalue 0.5 is given more than once"),
+        "{stderr}"
+    );
+}
+
+/// A series (.pvd) given where one mesh is read is named as a series, with the commands that
+/// play it; it was an "unknown extension".
+#[test]
+fn a_series_where_one_mesh_is_read_names_the_commands_that_play_it() {
+    let dir = out_dir("pvd-as-mesh");
+    let pvd = dir.join("run.PVD");
+    std::fs::write(&pvd, "<VTKFile type=\"Collection\"></VTKFile>").unwrap();
+    let pvd = pvd.to_str().unwrap();
+    let png = dir.join("x.png");
+    let glb = dir.join("x.glb");
+    for args in [
+        vec!["render", pvd, "-o", png.to_str().unwrap()],
+        vec!["info", pvd],
+        vec!["iso-export", pvd, "-o", glb.to_str().unwrap()],
+    ] {
+        let stderr = failure(&args);
+        assert!(
+            stderr.contains("is a time series")
+                && stderr.contains("`tetvr animate` or `tetvr view`"),
+            "{args:?}: {stderr}"
+        );
+    }
 }
 
 /// Runs render, animate (and view) with `flags` on a mesh that does not exist, in `dir`: each

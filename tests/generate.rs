@@ -7,9 +7,11 @@ use std::time::Instant;
 use glam::{DVec3, UVec3};
 use proptest::prelude::*;
 use tetvr::TetMesh;
-use tetvr::generate::shapes::{box_with_hole, ring, ring_cells, ring_volume};
+use tetvr::generate::shapes::{
+    box_with_hole, box_with_hole_within, ring, ring_cells, ring_volume, ring_within,
+};
 use tetvr::generate::volume::{VolumeError, VolumeToTets, nifti_to_tets};
-use tetvr::generate::{Field, GenerateError, box_grid, fields};
+use tetvr::generate::{Field, GenerateError, box_grid, fields, memory_needed};
 
 mod common;
 
@@ -66,6 +68,42 @@ fn ring_is_conforming_closed_around_and_non_convex() {
         ring(u64::MAX, Field::Linear),
         Err(GenerateError::TooManyTets { .. })
     ));
+}
+
+/// The memory check comes before any allocation and names what the mesh needs; 0 tets is
+/// refused by every shape alike.
+#[test]
+fn generators_refuse_zero_tets_and_meshes_over_their_memory_limit() {
+    let cells = UVec3::splat(10);
+    let needed = memory_needed(6000, 11 * 11 * 11);
+    assert_eq!(needed, 6000 * 24 + 5 * 1331);
+    assert_eq!(
+        fields::grid_within(Field::Linear, cells, "x", needed - 1).unwrap_err(),
+        GenerateError::OverMemory {
+            tets: 6000,
+            needed,
+            limit: needed - 1
+        }
+    );
+    assert_eq!(
+        fields::grid_within(Field::Linear, cells, "x", needed)
+            .unwrap()
+            .tet_count(),
+        6000
+    );
+    assert!(matches!(
+        box_with_hole_within(100_000, Field::Linear, 1 << 20),
+        Err(GenerateError::OverMemory { .. })
+    ));
+    assert!(matches!(
+        ring_within(100_000, Field::Linear, 1 << 20),
+        Err(GenerateError::OverMemory { .. })
+    ));
+    assert_eq!(
+        box_with_hole(0, Field::Linear).unwrap_err(),
+        GenerateError::ZeroTets
+    );
+    assert_eq!(ring(0, Field::Linear).unwrap_err(), GenerateError::ZeroTets);
 }
 
 #[test]

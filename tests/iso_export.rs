@@ -439,10 +439,39 @@ fn errors_name_the_path_or_the_range() {
     .unwrap_err();
     let msg = err.to_string();
     assert!(
-        msg.contains("isovalues 7") && msg.contains("[0, 1]"),
+        msg.contains("isovalue(s) 7: they miss the scalar range [0, 1]")
+            && msg.contains("e.g. 0.5"),
         "{msg}"
     );
     assert!(!Path::new("unused.glb").exists());
+    // At an end of the range the surface is empty or degenerate: said so, not "misses the range"
+    // it ends; numbers as the CLI's range check prints them (1e-7, not 0.0000001).
+    for (iso, range) in [(0.0, (0.0, 1.0)), (1.0, (0.0, 1.0)), (1e-7, (1e-7, 3e-7))] {
+        let end = Surface {
+            isovalue: iso,
+            ..Default::default()
+        };
+        let colored = [Colored {
+            surface: &end,
+            color: ORANGE,
+        }];
+        let msg = write_glb(Path::new("unused.glb"), &colored, range)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            msg.contains("at an end of the scalar range")
+                && msg.contains("empty")
+                && msg.contains("degenerate")
+                && !msg.contains("miss"),
+            "{msg}"
+        );
+        if iso == 1e-7 {
+            assert!(
+                msg.contains("isovalue(s) 1e-7: ") && msg.contains("e.g. 2e-7"),
+                "{msg}"
+            );
+        }
+    }
 
     // The CLI says the same and fails (the missing folder found before the mesh is read).
     let mesh = generate::fields::grid(generate::Field::Linear, UVec3::splat(2), "l").unwrap();

@@ -164,7 +164,7 @@ impl Playback {
             build_ms: ms(build),
         });
         let output = r.output.clone().unwrap_or_else(|| "tetvr.gif".into());
-        let sink = FrameSink::create(&output, r.background.color(), args.fps)?;
+        let sink = FrameSink::create(&output, r.background.color(), args.fps, frames)?;
         let bar = ProgressBar::new(frames).with_style(
             ProgressStyle::with_template("frame {pos}/{len} {bar:40} {eta} left")
                 .expect("a valid template"),
@@ -278,6 +278,9 @@ enum FrameSink {
     Png {
         /// The output without its extension: frames are `{stem}-0000.png`, ...
         stem: PathBuf,
+        /// Digits of the frame numbers: as many as the last frame's needs, at least 4, so
+        /// that the names sort in frame order.
+        digits: usize,
         written: usize,
         background: Option<[f32; 3]>,
     },
@@ -295,13 +298,19 @@ enum FrameSink {
 }
 
 impl FrameSink {
-    /// A sink for `output` (`.gif`, or `.png` for a numbered sequence).
-    fn create(output: &Path, background: Option<[f32; 3]>, fps: u32) -> Result<Self, CliError> {
+    /// A sink for `frames` frames to `output` (`.gif`, or `.png` for a numbered sequence).
+    fn create(
+        output: &Path,
+        background: Option<[f32; 3]>,
+        fps: u32,
+        frames: u64,
+    ) -> Result<Self, CliError> {
         // Any case, as check_output takes it: out.GIF is a GIF.
         let ext = output.extension().and_then(|e| e.to_str());
         match ext.map(str::to_ascii_lowercase).as_deref() {
             Some("png") => Ok(Self::Png {
                 stem: output.with_extension(""),
+                digits: frame_digits(frames),
                 written: 0,
                 background,
             }),
@@ -327,10 +336,11 @@ impl FrameSink {
         match self {
             Self::Png {
                 stem,
+                digits,
                 written,
                 background,
             } => {
-                img.save_png(&png_name(stem, *written), *background)?;
+                img.save_png(&png_name(stem, *written, *digits), *background)?;
                 *written += 1;
             }
             Self::Gif {
@@ -363,15 +373,20 @@ impl FrameSink {
     /// Ends the file(s) and says what was written, for the user.
     fn finish(self) -> Result<String, CliError> {
         match self {
-            Self::Png { stem, written, .. } => {
+            Self::Png {
+                stem,
+                digits,
+                written,
+                ..
+            } => {
                 let mut what = format!(
                     "{} .. {}",
-                    png_name(&stem, 0).display(),
-                    png_name(&stem, written.saturating_sub(1)).display()
+                    png_name(&stem, 0, digits).display(),
+                    png_name(&stem, written.saturating_sub(1), digits).display()
                 );
                 // A longer earlier run's frames are not ours to delete, but a tool that takes
                 // every NAME-*.png would play them after these: say so.
-                let stale = png_name(&stem, written);
+                let stale = png_name(&stem, written, digits);
                 if stale.exists() {
                     what.push_str(&format!(
                         "; {} and later frames are from an earlier run, left as they were",
@@ -392,13 +407,38 @@ impl FrameSink {
     }
 }
 
-fn png_name(stem: &Path, i: usize) -> PathBuf {
-    PathBuf::from(format!("{}-{i:04}.png", stem.display()))
+/// Digits of the frame numbers of `frames` frames: the last one's (`frames - 1`), at least 4.
+fn frame_digits(frames: u64) -> usize {
+    (frames.saturating_sub(1).max(1).ilog10() as usize + 1).max(4)
+}
+
+fn png_name(stem: &Path, i: usize, digits: usize) -> PathBuf {
+    PathBuf::from(format!("{}-{i:0digits$}.png", stem.display()))
 }
 
 fn animation_error(path: &Path, e: impl std::fmt::Display) -> CliError {
     CliError::Animation {
         path: path.display().to_string(),
         message: e.to_string(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Frame names sort in frame order however many frames there are: 4 digits up to 10000
+    /// frames (the names of shorter runs stay as they were), more beyond (`-10000` sorted before
+    /// `-1001` with 4).
+    #[test]
+    fn frame_names_are_as_wide_as_the_last_frame_needs() {
+        assert_eq!(frame_digits(1), 4);
+        assert_eq!(frame_digits(10_000), 4);
+        assert_eq!(frame_digits(10_001), 5);
+        assert_eq!(frame_digits(123_457), 6);
+        let name = |i, frames| png_name(Path::new("st"), i, frame_digits(frames));
+        assert_eq!(name(7, 24), PathBuf::from("st-0007.png"));
+        assert_eq!(name(1001, 10_001), PathBuf::from("st-01001.png"));
+        assert!(name(1001, 10_001) < name(10_000, 10_001));
     }
 }

@@ -477,12 +477,20 @@ pub(super) fn median(v: &mut [f64]) -> f64 {
     v[v.len() / 2]
 }
 
-/// An error naming `--iso` when one of the flag's `isovalues` is not a finite number: checked
-/// before the mesh is read (`render`, `view`, `animate` and `iso-export`).
+/// An error naming `--iso` when one of the flag's `isovalues` is not a finite number or is
+/// given twice (it drew, or exported, the same surface twice without a word): checked before
+/// the mesh is read (`render`, `view`, `animate` and `iso-export`).
 pub(super) fn finite_iso_flag(isovalues: &[f64]) -> Result<(), CliError> {
-    match isovalues.iter().find(|v| !v.is_finite()) {
-        Some(v) => Err(CliError::Usage(format!(
+    if let Some(v) = isovalues.iter().find(|v| !v.is_finite()) {
+        return Err(CliError::Usage(format!(
             "--iso: isovalues must be finite numbers, not {v}"
+        )));
+    }
+    match tetvr::mode::repeated_isovalue(isovalues) {
+        Some(v) => Err(CliError::Usage(format!(
+            "--iso: isovalue {} is given more than once; each value draws one surface, give \
+             it once",
+            show_value(v)
         ))),
         None => Ok(()),
     }
@@ -587,15 +595,29 @@ fn compare(args: CompareArgs) -> Result<(), CliError> {
 fn generate(args: GenerateArgs) -> Result<(), CliError> {
     check_output(&args.output, &["vtu"])?;
     let mesh = match &args.shape {
-        GenerateShape::Grid { tets, field } => generate::grid(
-            parse_field(field)?,
-            generate::cells_for_tet_count(*tets),
-            "field",
-        )?,
-        GenerateShape::Hole { tets, field } => {
-            generate::shapes::box_with_hole(*tets, parse_field(field)?)?
+        GenerateShape::Grid {
+            tets,
+            field,
+            memory,
+        } => {
+            generate::check_target_tets(*tets)?;
+            generate::grid_within(
+                parse_field(field)?,
+                generate::cells_for_tet_count(*tets),
+                "field",
+                memory.bytes(),
+            )?
         }
-        GenerateShape::Ring { tets, field } => generate::shapes::ring(*tets, parse_field(field)?)?,
+        GenerateShape::Hole {
+            tets,
+            field,
+            memory,
+        } => generate::shapes::box_with_hole_within(*tets, parse_field(field)?, memory.bytes())?,
+        GenerateShape::Ring {
+            tets,
+            field,
+            memory,
+        } => generate::shapes::ring_within(*tets, parse_field(field)?, memory.bytes())?,
         GenerateShape::Nifti {
             input,
             downsample,
@@ -611,13 +633,14 @@ fn generate(args: GenerateArgs) -> Result<(), CliError> {
             input,
             tets,
             threshold,
+            memory,
         } => {
             let volume = tetvr::texture::Volume::load(input, 1)?;
             let opts = tetvr::texture::CageOptions {
                 tets: *tets,
                 threshold: *threshold,
             };
-            tetvr::texture::cage(&volume, &opts)?
+            tetvr::texture::cage_within(&volume, &opts, memory.bytes())?
         }
     };
     write(&mesh, &args.output)?;

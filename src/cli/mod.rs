@@ -405,6 +405,8 @@ pub enum GenerateShape {
         /// Scalar field: gaussians, marschner-lobb, linear, radial, constant:<v>.
         #[arg(long, default_value = "gaussians")]
         field: String,
+        #[command(flatten)]
+        memory: GenerateMemory,
     },
     /// A box with a square through-hole (non-convex: rays leave and re-enter).
     Hole {
@@ -412,6 +414,8 @@ pub enum GenerateShape {
         tets: u64,
         #[arg(long, default_value = "gaussians")]
         field: String,
+        #[command(flatten)]
+        memory: GenerateMemory,
     },
     /// A square-section ring (non-convex).
     Ring {
@@ -419,6 +423,8 @@ pub enum GenerateShape {
         tets: u64,
         #[arg(long, default_value = "gaussians")]
         field: String,
+        #[command(flatten)]
+        memory: GenerateMemory,
     },
     /// Tetrahedralize a NIfTI volume (.nii or .nii.gz): voxel centres become vertices.
     #[command(allow_negative_numbers = true)]
@@ -447,5 +453,23 @@ pub enum GenerateShape {
         /// Keep only cells where some voxel the trilinear field reads inside reaches this.
         #[arg(long)]
         threshold: Option<f64>,
+        #[command(flatten)]
+        memory: GenerateMemory,
     },
+}
+
+#[derive(clap::Args, Debug)]
+pub struct GenerateMemory {
+    /// Most memory generating the mesh may take, e.g. 8G, 512M (default 8G): a tet count that
+    /// needs more (about 24 bytes a tet) is refused with what it needs.
+    #[arg(long, value_parser = tetvr::io::parse_size)]
+    pub max_memory: Option<u64>,
+}
+
+impl GenerateMemory {
+    /// The limit in bytes: `--max-memory` or the readers' default.
+    pub fn bytes(&self) -> u64 {
+        self.max_memory
+            .unwrap_or_else(tetvr::generate::default_max_memory)
+    }
 }

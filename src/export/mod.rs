@@ -18,6 +18,8 @@ use std::path::Path;
 
 use glam::DVec3;
 use gltf::json;
+
+use crate::mode::show_value;
 use json::validation::Checked::Valid;
 use json::validation::USize64;
 
@@ -35,13 +37,10 @@ pub enum ExportError {
         source: std::io::Error,
     },
     /// No isovalue produced a triangle.
-    #[error(
-        "no isosurface to export: isovalues {isovalues} miss the scalar range [{lo}, {hi}] \
-         (or only meet tets where the field is constant); choose values inside the range"
-    )]
+    #[error("{}", empty_message(.isovalues, *.lo, *.hi))]
     Empty {
-        /// The isovalues asked for, comma separated.
-        isovalues: String,
+        /// The isovalues asked for.
+        isovalues: Vec<f64>,
         /// The scalar range's minimum.
         lo: f64,
         /// The scalar range's maximum.
@@ -61,6 +60,39 @@ pub enum ExportError {
     /// The glTF encoder failed (the message is its own).
     #[error("encoding the glTF file failed: {0}")]
     Encode(String),
+}
+
+/// Why no isovalue of `isovalues` gave a triangle on a field ranging over `[lo, hi]`, and what
+/// to give instead. Marching tetrahedra count a vertex at the isovalue as above it (see
+/// [`marching`]): at the range's minimum every vertex is above, so the surface is empty; at its
+/// maximum every crossing collapses onto a vertex that reaches it, so the triangles are
+/// degenerate and dropped (unless the maximum is held over a whole face). A value inside the
+/// range met only by tets where the field is constant gives nothing either.
+fn empty_message(isovalues: &[f64], lo: f64, hi: f64) -> String {
+    let list = |v: &[f64]| {
+        v.iter()
+            .map(|&v| show_value(v))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let (lo_s, hi_s, mid) = (show_value(lo), show_value(hi), show_value(0.5 * (lo + hi)));
+    let why = if isovalues.iter().any(|&v| v == lo || v == hi) {
+        format!(
+            "a surface at an end of the scalar range [{lo_s}, {hi_s}] is empty (at the minimum \
+             the whole field is at or above it) or degenerate (at the maximum it shrinks to the \
+             points that reach it)"
+        )
+    } else {
+        format!(
+            "they miss the scalar range [{lo_s}, {hi_s}] or only meet tets where the field is \
+             constant"
+        )
+    };
+    format!(
+        "no isosurface to export at isovalue(s) {}: {why}; choose values strictly inside the \
+         range, e.g. {mid}",
+        list(isovalues)
+    )
 }
 
 /// A surface to export with its colour (linear RGB in [0, 1]).
@@ -275,11 +307,7 @@ pub fn write_glb(
 ) -> Result<ExportCounts, ExportError> {
     if surfaces.iter().all(|c| c.surface.triangles.is_empty()) {
         return Err(ExportError::Empty {
-            isovalues: surfaces
-                .iter()
-                .map(|c| c.surface.isovalue.to_string())
-                .collect::<Vec<_>>()
-                .join(", "),
+            isovalues: surfaces.iter().map(|c| c.surface.isovalue).collect(),
             lo: range.0,
             hi: range.1,
         });

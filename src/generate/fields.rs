@@ -116,8 +116,20 @@ impl FromStr for Field {
 }
 
 /// A structured grid of `cells` hexahedra on the cube `[-1, 1]^3`, 6 conforming tets per cell,
-/// with `field` sampled at the vertices into the scalar array `name`.
+/// with `field` sampled at the vertices into the scalar array `name`; at most
+/// [`super::default_max_memory`] ([`grid_within`] takes another limit).
 pub fn grid(field: Field, cells: UVec3, name: &str) -> Result<TetMesh, GenerateError> {
+    grid_within(field, cells, name, super::default_max_memory())
+}
+
+/// [`grid`] refused with [`GenerateError::OverMemory`] when it needs more than `max_memory`
+/// bytes ([`super::memory_needed`]).
+pub fn grid_within(
+    field: Field,
+    cells: UVec3,
+    name: &str,
+    max_memory: u64,
+) -> Result<TetMesh, GenerateError> {
     let step = 2.0 / cells.max(UVec3::ONE).as_dvec3();
     let position = |v: UVec3| v.as_dvec3() * step - DVec3::ONE;
     hex_grid_mesh(
@@ -127,6 +139,7 @@ pub fn grid(field: Field, cells: UVec3, name: &str) -> Result<TetMesh, GenerateE
         position,
         |v| field.eval(position(v)),
         name,
+        max_memory,
     )
 }
 

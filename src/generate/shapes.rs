@@ -6,7 +6,9 @@ use std::f64::consts::{PI, TAU};
 
 use glam::{DVec3, UVec3};
 
-use super::{Field, GenerateError, MAX_GENERATED_TETS, hex_grid_mesh};
+use super::{
+    Field, GenerateError, MAX_GENERATED_TETS, check_target_tets, default_max_memory, hex_grid_mesh,
+};
 use crate::mesh::TetMesh;
 
 /// Inner radius of [`ring`] (its outer radius is 1).
@@ -17,9 +19,20 @@ pub const RING_HALF_HEIGHT: f64 = 0.25;
 /// The cube `[-1, 1]^3` with the square hole `|x| < 1/3, |y| < 1/3` through it along z, made
 /// of `(3m)^3 - 3m^3` cells (`144 m^3` tets) for the `m` nearest `target_tets`. The scalar
 /// array, named after `field`, is `field` at the vertices (the cube is `field`'s own domain).
-/// Volume: `8 - 8/9 = 64/9`.
+/// Volume: `8 - 8/9 = 64/9`. At most [`default_max_memory`] ([`box_with_hole_within`] takes
+/// another limit).
 pub fn box_with_hole(target_tets: u64, field: Field) -> Result<TetMesh, GenerateError> {
-    check_target(target_tets)?;
+    box_with_hole_within(target_tets, field, default_max_memory())
+}
+
+/// [`box_with_hole`] refused with [`GenerateError::OverMemory`] when it needs more than
+/// `max_memory` bytes ([`super::memory_needed`]).
+pub fn box_with_hole_within(
+    target_tets: u64,
+    field: Field,
+    max_memory: u64,
+) -> Result<TetMesh, GenerateError> {
+    check_target_tets(target_tets)?;
     let m = ((target_tets as f64 / 144.0).cbrt().round() as u32).max(1);
     let n = 3 * m;
     let step = 2.0 / n as f64;
@@ -32,6 +45,7 @@ pub fn box_with_hole(target_tets: u64, field: Field) -> Result<TetMesh, Generate
         position,
         |v| field.eval(position(v)),
         field.name(),
+        max_memory,
     )
 }
 
@@ -41,8 +55,19 @@ pub fn box_with_hole(target_tets: u64, field: Field) -> Result<TetMesh, Generate
 /// around) mapped to cylinder coordinates and closed conformingly at `theta = 2 pi`. The cells'
 /// faces are planar, so the mesh is exactly a prism over a polygonal annulus. `field` is
 /// evaluated at `(x, y, z / RING_HALF_HEIGHT)`, the ring's bounding box mapped onto `[-1, 1]^3`.
+/// At most [`default_max_memory`] ([`ring_within`] takes another limit).
 pub fn ring(target_tets: u64, field: Field) -> Result<TetMesh, GenerateError> {
-    check_target(target_tets)?;
+    ring_within(target_tets, field, default_max_memory())
+}
+
+/// [`ring`] refused with [`GenerateError::OverMemory`] when it needs more than `max_memory`
+/// bytes ([`super::memory_needed`]).
+pub fn ring_within(
+    target_tets: u64,
+    field: Field,
+    max_memory: u64,
+) -> Result<TetMesh, GenerateError> {
+    check_target_tets(target_tets)?;
     let cells = ring_cells(target_tets);
     let (m, around) = (cells.x, cells.y);
     let position = |v: UVec3| {
@@ -59,6 +84,7 @@ pub fn ring(target_tets: u64, field: Field) -> Result<TetMesh, GenerateError> {
         position,
         |v| field.eval(position(v) * scale),
         field.name(),
+        max_memory,
     )
 }
 
@@ -75,14 +101,4 @@ pub fn ring_cells(target_tets: u64) -> UVec3 {
 pub fn ring_volume(around: u32) -> f64 {
     let n = around as f64;
     2.0 * RING_HALF_HEIGHT * 0.5 * n * (TAU / n).sin() * (1.0 - RING_INNER_RADIUS.powi(2))
-}
-
-fn check_target(target_tets: u64) -> Result<(), GenerateError> {
-    if target_tets > MAX_GENERATED_TETS {
-        return Err(GenerateError::TooManyTets {
-            requested: target_tets,
-            max: MAX_GENERATED_TETS,
-        });
-    }
-    Ok(())
 }

@@ -735,7 +735,18 @@ fn mesh_volume(samples: Samples, name: &str, opts: &VolumeToTets) -> Result<TetM
     // A block's centre in voxel units: the mean of its voxels' indices.
     let half = (factor as f64 - 1.0) / 2.0;
     let position = |v: UVec3| (v.as_dvec3() * factor as f64 + half) * spacing;
-    hex_grid_mesh(sdims - UVec3::ONE, false, keep, position, at, "intensity").map_err(|e| match e {
+    // At most 2^24 samples make at most 6 * 2^24 tets, 2.3 GiB by `memory_needed`: the default
+    // limit always holds, so `generate nifti` takes no --max-memory.
+    hex_grid_mesh(
+        sdims - UVec3::ONE,
+        false,
+        keep,
+        position,
+        at,
+        "intensity",
+        super::default_max_memory(),
+    )
+    .map_err(|e| match e {
         GenerateError::Mesh(MeshError::NoTets) => {
             let (lo, hi) = values
                 .iter()

@@ -242,13 +242,16 @@ pub fn load_copied(path: &Path, limits: &ReadLimits) -> Result<Loaded, LoadError
 fn load_from(path: &Path, limits: &ReadLimits, map_bytes: u64) -> Result<Loaded, LoadError> {
     let shown = path.display().to_string();
     let format = Format::from_path(path).ok_or_else(|| {
-        LoadError::new(
-            &shown,
-            None,
-            LoadErrorKind::Unsupported(
-                "unknown extension; tetvr reads .vtk, .vtu, .msh and TetGen .node/.ele".into(),
-            ),
-        )
+        let series = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("pvd"));
+        let message = if series {
+            "a .pvd is a time series of meshes, not one mesh: play it with `tetvr animate` or \
+             `tetvr view`, or give one of its steps' files"
+        } else {
+            "unknown extension; tetvr reads .vtk, .vtu, .msh and TetGen .node/.ele"
+        };
+        LoadError::new(&shown, None, LoadErrorKind::Unsupported(message.into()))
     })?;
     let read = |p: &Path| {
         let name = p.display().to_string();

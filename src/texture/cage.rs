@@ -6,7 +6,7 @@ use glam::{DVec3, UVec3};
 
 use super::{DEFAULT_TEXCOORDS, Volume};
 use crate::generate::volume::VolumeError;
-use crate::generate::{GenerateError, hex_grid_mesh};
+use crate::generate::{GenerateError, check_target_tets, default_max_memory, hex_grid_mesh};
 use crate::mesh::{DataArray, MeshError, TetMesh};
 
 /// How [`cage`] grids a volume.
@@ -25,12 +25,9 @@ pub enum CageError {
     /// The volume could not be read.
     #[error(transparent)]
     Volume(#[from] VolumeError),
-    /// The grid could not be made (too many tets asked for).
+    /// The grid could not be made (no tets, too many or too much memory asked for).
     #[error("cage: {0}")]
     Generate(#[from] GenerateError),
-    /// A tet count of 0.
-    #[error("a cage needs at least 6 tets (one cell); --tets 0 given")]
-    NoTets,
     /// The threshold is NaN or infinite.
     #[error("cage threshold {0} must be a finite number")]
     BadThreshold(f64),
@@ -56,6 +53,13 @@ pub enum CageError {
         /// The point arrays of several components it has.
         available: Vec<String>,
     },
+    /// The array named for the texture coordinates is a scalar point array.
+    #[error(
+        "point array '{0}' is a scalar (one value per vertex); texture coordinates need a point \
+         array of 3 components per vertex (normalized u, v, w), such as the 'texcoords' that \
+         `tetvr generate cage` writes; name one with --texcoords"
+    )]
+    ScalarTexcoords(String),
     /// The texture coordinate array is not 3 components per vertex.
     #[error(
         "point array '{name}' has {components} components per vertex; texture coordinates need 3"
@@ -74,11 +78,20 @@ pub enum CageError {
 /// The undeformed cage of `volume`: a grid of hexahedra (6 tets each) over the box of its sample
 /// centres ([`Volume::bounds`]), with the point array [`DEFAULT_TEXCOORDS`] (each vertex's
 /// normalized texture coordinate) and the scalar array `intensity` (the volume sampled at each
-/// vertex, for a coarse untextured preview and the default transfer-function range).
+/// vertex, for a coarse untextured preview and the default transfer-function range). At most
+/// [`default_max_memory`] ([`cage_within`] takes another limit).
 pub fn cage(volume: &Volume, opts: &CageOptions) -> Result<TetMesh, CageError> {
-    if opts.tets == 0 {
-        return Err(CageError::NoTets);
-    }
+    cage_within(volume, opts, default_max_memory())
+}
+
+/// [`cage`] refused with [`GenerateError::OverMemory`] when it needs more than `max_memory`
+/// bytes ([`crate::generate::memory_needed`]).
+pub fn cage_within(
+    volume: &Volume,
+    opts: &CageOptions,
+    max_memory: u64,
+) -> Result<TetMesh, CageError> {
+    check_target_tets(opts.tets)?;
     if let Some(t) = opts.threshold.filter(|t| !t.is_finite()) {
         return Err(CageError::BadThreshold(t));
     }
@@ -91,8 +104,8 @@ pub fn cage(volume: &Volume, opts: &CageOptions) -> Result<TetMesh, CageError> {
         Some(t) => cell_max(volume, position(c), position(c + UVec3::ONE)) >= t,
     };
     let value = |v: UVec3| volume.sample(volume.texcoord(position(v)));
-    let mut mesh =
-        hex_grid_mesh(cells, false, keep, position, value, "intensity").map_err(|e| match e {
+    let mut mesh = hex_grid_mesh(cells, false, keep, position, value, "intensity", max_memory)
+        .map_err(|e| match e {
             GenerateError::Mesh(MeshError::NoTets) => {
                 let (lo, hi) = volume.range();
                 let threshold = opts.threshold.unwrap_or(f64::NEG_INFINITY);
@@ -193,6 +206,9 @@ mod tests {
             Err(CageError::AllBelowThreshold { hi: 5.0, .. })
         ));
         let zero = CageOptions { tets: 0, ..opts };
-        assert_eq!(cage(&v, &zero).unwrap_err(), CageError::NoTets);
+        assert_eq!(
+            cage(&v, &zero).unwrap_err(),
+            CageError::Generate(GenerateError::ZeroTets)
+        );
     }
 }

@@ -30,7 +30,7 @@ use crate::mesh::{TetMesh, box_diagonal};
 use crate::mode::{AutoPath, ModeSettings};
 use crate::render::{RenderError, Renderer};
 
-pub use cage::{CageError, CageOptions, cage};
+pub use cage::{CageError, CageOptions, cage, cage_within};
 pub use reference::TexturedReference;
 
 /// The point array of texture coordinates a cage carries unless told otherwise.
@@ -346,6 +346,9 @@ pub fn textured_renderer(
 
 /// The texture coordinates of `mesh`'s vertices: its 3-component point array `name`.
 pub fn texcoords(mesh: &TetMesh, name: &str) -> Result<Vec<DVec3>, CageError> {
+    if mesh.arrays().iter().any(|a| a.name == name) {
+        return Err(CageError::ScalarTexcoords(name.to_owned()));
+    }
     let array = mesh
         .point_vector(name)
         .ok_or_else(|| CageError::NoTexcoords {
