@@ -6,30 +6,34 @@
 //! where WebGPU's default, and some GL and mobile adapters, offer 8) would only fail when its
 //! pipeline is created, inside wgpu, whose default error handler panics. Each renderer checks
 //! its [`ShaderNeeds`] when it is built, so only the modes an adapter cannot run are refused.
-//! The tables are the largest value over every entry point of the renderer's shaders;
+//! The tables are the largest value over the renderer's shaders: resources per stage as one
+//! bind group layout holds them (the bindings its pipelines' entry points use; the shells
+//! compute sampler's tile and fine stages share one), workgroups per entry point.
 //! `tests/limits.rs` derives them with naga from every shipped shader and fails when a table
-//! differs, so they cannot go stale. Colour targets depend on the settings and are checked
-//! where they are chosen (`shells/config.rs`).
+//! differs, so they cannot go stale, and renders each mode on a device opened at exactly its
+//! table. Colour targets depend on the settings and are checked where they are chosen
+//! (`shells/config.rs`).
 
 use crate::gpu::{GpuContext, GpuError};
 
 /// What a set of shaders needs of [`wgpu::Limits`]: per field the largest value over their
-/// entry points. Resource counts are per shader stage, as wgpu counts them.
+/// bind group layouts (resource counts, per shader stage, as wgpu counts them) or compute
+/// entry points (workgroups).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ShaderNeeds {
     /// The largest bind group index + 1 (`max_bind_groups`).
     pub bind_groups: u32,
     /// The largest binding index + 1 in one group (`max_bindings_per_bind_group`).
     pub bindings_per_bind_group: u32,
-    /// Storage buffers one entry point uses (`max_storage_buffers_per_shader_stage`).
+    /// Storage buffers in one stage (`max_storage_buffers_per_shader_stage`).
     pub storage_buffers: u32,
-    /// Uniform buffers one entry point uses (`max_uniform_buffers_per_shader_stage`).
+    /// Uniform buffers in one stage (`max_uniform_buffers_per_shader_stage`).
     pub uniform_buffers: u32,
-    /// Sampled textures one entry point uses (`max_sampled_textures_per_shader_stage`).
+    /// Sampled textures in one stage (`max_sampled_textures_per_shader_stage`).
     pub sampled_textures: u32,
-    /// Samplers one entry point uses (`max_samplers_per_shader_stage`).
+    /// Samplers in one stage (`max_samplers_per_shader_stage`).
     pub samplers: u32,
-    /// Storage textures one entry point uses (`max_storage_textures_per_shader_stage`).
+    /// Storage textures in one stage (`max_storage_textures_per_shader_stage`).
     pub storage_textures: u32,
     /// Invocations in one compute workgroup, x y z (`max_compute_invocations_per_workgroup`).
     pub invocations_per_workgroup: u32,
