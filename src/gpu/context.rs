@@ -1,6 +1,7 @@
 //! A headless wgpu device: prefers a real GPU, falls back to a software adapter (Mesa's
 //! lavapipe), and says which one it got.
 
+use crate::gpu::ShaderNeeds;
 use crate::gpu::pieces::Uploader;
 
 /// Which adapter to ask for.
@@ -57,6 +58,26 @@ pub enum GpuError {
         /// The missing feature or limit, with the adapter's value.
         what: String,
         /// The setting that needs it.
+        needed_by: &'static str,
+    },
+    /// The adapter offers less of a limit than a mode's shaders need
+    /// ([`crate::gpu::limits::ShaderNeeds`]): another adapter, another mode or the CPU must
+    /// render.
+    #[error(
+        "the adapter '{adapter}' offers {limit} = {has}, but {needed_by} needs {needs}: render \
+         on an adapter that offers at least {needs} (another GPU or driver), or on the CPU with \
+         --mode raycast-cpu"
+    )]
+    Limit {
+        /// The adapter's name.
+        adapter: String,
+        /// The limit's name in [`wgpu::Limits`], e.g. `max_storage_buffers_per_shader_stage`.
+        limit: &'static str,
+        /// The adapter's value.
+        has: u32,
+        /// The value the mode's shaders need.
+        needs: u32,
+        /// The mode, e.g. `the shells mode`.
         needed_by: &'static str,
     },
     /// The adapter ran out of memory allocating a mesh's GPU buffers: the mesh is too large
@@ -216,8 +237,8 @@ impl GpuContext {
         )
     }
 
-    /// A multi-line report for `tetvr gpu-info`: the adapter, and the limits and features the
-    /// renderers depend on.
+    /// A multi-line report for `tetvr gpu-info`: the adapter, the limits and features the
+    /// renderers depend on, and the modes whose shaders need more than its limits offer.
     pub fn report(&self) -> String {
         let l = &self.limits;
         let yes = |f| {
@@ -238,6 +259,24 @@ impl GpuContext {
             (true, false) => "yes",
             (false, _) => "no",
         };
+        let refused: Vec<String> = [
+            (ShaderNeeds::SHELLS, "the shells mode"),
+            (ShaderNeeds::ISO, "the iso mode"),
+            (ShaderNeeds::CELLPROJ, "the cellproj mode"),
+            (
+                ShaderNeeds::RAYCAST,
+                "the raycast mode and the shells' walk sampler",
+            ),
+        ]
+        .iter()
+        .filter_map(|(needs, mode)| self.check_needs(needs, mode).err())
+        .map(|e| format!("\n  {e}"))
+        .collect();
+        let refused = if refused.is_empty() {
+            "none".to_string()
+        } else {
+            refused.concat()
+        };
         format!(
             "adapter: {}\n\
              software adapter: {}\n\
@@ -247,8 +286,10 @@ impl GpuContext {
              max buffer size: {} bytes\n\
              max texture size 2D: {}\n\
              max compute workgroups per dimension: {}\n\
+             max storage buffers per shader stage: {}\n\
              blendable 32-bit float targets (FLOAT32_BLENDABLE): {}\n\
-             GPU timestamps (TIMESTAMP_QUERY): {}",
+             GPU timestamps (TIMESTAMP_QUERY): {}\n\
+             modes these limits refuse: {}",
             self.summary(),
             if self.is_software() { "yes" } else { "no" },
             l.max_color_attachments,
@@ -257,8 +298,10 @@ impl GpuContext {
             l.max_buffer_size,
             l.max_texture_dimension_2d,
             l.max_compute_workgroups_per_dimension,
+            l.max_storage_buffers_per_shader_stage,
             yes(wgpu::Features::FLOAT32_BLENDABLE),
             timestamps,
+            refused,
         )
     }
 }

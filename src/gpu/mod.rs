@@ -20,6 +20,7 @@ pub mod gpu_data;
 #[cfg(test)]
 pub(crate) mod h200;
 pub mod iso;
+pub mod limits;
 pub mod mesh;
 pub(crate) mod pieces;
 pub mod raycast;
@@ -35,6 +36,7 @@ pub use assembly::DEGENERATE_TOL;
 pub use cellproj::{CellProjRenderer, CellProjSettings, Integrate};
 pub use context::{AdapterChoice, GpuContext, GpuError};
 pub use iso::{IsoRenderer, IsoSettings};
+pub use limits::ShaderNeeds;
 pub use mesh::GpuTetMesh;
 pub use raycast::{RaycastRenderer, RaycastSettings};
 pub use shells::skips::{Skip, Skips};

@@ -49,13 +49,13 @@ use std::time::Instant;
 use glam::DVec3;
 
 use crate::camera::Camera;
-use crate::gpu::GpuContext;
 use crate::gpu::assembly::{AssemblyInputs, AssemblyStage, RECORD_BYTES};
 use crate::gpu::frame::{FrameResources, FrameStats, ImageReadback};
 pub use crate::gpu::gpu_data::CellProjUniforms;
 use crate::gpu::gpu_data::{TfPoints, ViewUniforms};
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
 use crate::gpu::util::{entry, far_eye, ms_since, uniform_buffer};
+use crate::gpu::{GpuContext, ShaderNeeds};
 use crate::image::Image;
 use crate::mesh::TetMesh;
 use crate::render::{Frame, RenderError, Renderer, Timings};
@@ -166,6 +166,7 @@ impl CellProjRenderer {
         mesh: Arc<GpuTetMesh>,
         settings: CellProjSettings,
     ) -> Result<Self, RenderError> {
+        ctx.check_needs(&ShaderNeeds::CELLPROJ, "the cellproj mode")?;
         preint::check_table(&ctx.limits, &settings)?;
         // Records beyond one storage binding are assembled and drawn in chunks of the sorted
         // order (each bound as a window of the record array, drawn one after the other, so the

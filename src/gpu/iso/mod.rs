@@ -47,7 +47,6 @@ use std::time::Instant;
 use glam::DVec3;
 
 use crate::camera::Camera;
-use crate::gpu::GpuContext;
 use crate::gpu::assembly::{AssemblyInputs, AssemblyStage};
 use crate::gpu::frame::{FrameResources, FrameStats, ImageReadback, Timestamps};
 use crate::gpu::gpu_data::ViewUniforms;
@@ -55,6 +54,7 @@ pub use crate::gpu::gpu_data::{IsoUniforms, MAX_ISOVALUES};
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
 use crate::gpu::util::{far_eye, ms_since, read_mapped, settings_error, uniform_buffer};
 use crate::gpu::view::ViewFrame;
+use crate::gpu::{GpuContext, ShaderNeeds};
 use crate::image::Image;
 use crate::mesh::TetMesh;
 pub use crate::reference::iso::{IsoImage, Shading};
@@ -185,6 +185,7 @@ impl IsoRenderer {
         mesh: Arc<GpuTetMesh>,
         mut settings: IsoSettings,
     ) -> Result<Self, RenderError> {
+        ctx.check_needs(&ShaderNeeds::ISO, "the iso mode")?;
         check_isovalues(&settings.isovalues)?;
         if !(settings.epsilon.is_finite() && settings.epsilon >= 0.0) {
             return Err(settings_error(format!(

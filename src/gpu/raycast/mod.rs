@@ -73,12 +73,12 @@ use std::sync::Arc;
 use glam::DVec3;
 
 use crate::camera::Camera;
-use crate::gpu::GpuContext;
 use crate::gpu::cellproj::preint::{LongestEdge, TableKey};
 use crate::gpu::frame::{FrameResources, ImageReadback};
 use crate::gpu::gpu_data::{LayerUniforms, TfPoints, ViewUniforms};
 use crate::gpu::mesh::{GpuTetMesh, TetArray};
 use crate::gpu::util::{largest_binding, settings_error, uniform_buffer};
+use crate::gpu::{GpuContext, ShaderNeeds};
 use crate::mesh::{TetMesh, checked_bounds};
 use crate::render::{Frame, RenderError, Renderer};
 use crate::tf::TransferFunction;
@@ -426,6 +426,11 @@ impl RaycastRenderer {
         textured: Option<(GpuTexture, TextureUse)>,
         sliced: bool,
     ) -> Result<Self, RenderError> {
+        let needed_by = match sliced {
+            false => "the raycast mode",
+            true => "the shells mode's walk sampler",
+        };
+        ctx.check_needs(&ShaderNeeds::RAYCAST, needed_by)?;
         let nt = mesh.tet_count() as u64;
         let nv = mesh.read().positions.len() as u64;
         // The limits first, then the face adjacency (seconds on a mesh of tens of millions of

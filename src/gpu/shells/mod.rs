@@ -95,7 +95,6 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::camera::Camera;
-use crate::gpu::GpuContext;
 use crate::gpu::assembly::{AssemblyGroups, AssemblyInputs, AssemblyStage, RECORD_BYTES};
 use crate::gpu::frame::{FrameResources, FrameStats, Recorder};
 use crate::gpu::gpu_data::{ShellUniforms, SlicingUniforms, TfPoints, ViewUniforms};
@@ -104,6 +103,7 @@ use crate::gpu::pieces::Uploader;
 use crate::gpu::util::{
     check_image_size, entry, far_eye, ms_since, settings_error, uniform_buffer,
 };
+use crate::gpu::{GpuContext, ShaderNeeds};
 use crate::image::Image;
 use crate::mesh::TetMesh;
 use crate::render::{Frame, RenderError, Renderer, Timings};
@@ -340,6 +340,7 @@ impl ShellsRenderer {
         settings: ShellSettings,
         texture: Option<ShellTexture>,
     ) -> Result<Self, RenderError> {
+        ctx.check_needs(&ShaderNeeds::SHELLS, "the shells mode")?;
         let config = config::slices(ctx, &settings)?;
         config::check(&settings)?;
         let device = &ctx.device;
