@@ -24,6 +24,7 @@
 //! ```
 
 use crate::cpu::raycast::{self as cpu_raycast, CpuRaycastRenderer, CpuRaycastSettings};
+use crate::gpu::limits::ShaderNeeds;
 use crate::gpu::raycast::{Entry, Segments};
 use crate::gpu::{
     AdapterChoice, CellProjRenderer, CellProjSettings, GpuContext, GpuError, Integrate,
@@ -45,6 +46,10 @@ pub enum AutoPath {
     /// Only a software adapter (type Cpu, e.g. lavapipe), which measured slower than the CPU
     /// ray caster: the CPU ray caster.
     SoftwareSlower,
+    /// A hardware adapter offering less of a limit than the GPU path's shaders need (the
+    /// shells mode's, or the ray caster's that textured cages and the walk sampler take:
+    /// [`ShaderNeeds`]): the CPU ray caster, where a GPU mode named would be refused.
+    ShortLimits,
 }
 
 impl AutoPath {
@@ -63,7 +68,20 @@ impl AutoPath {
 
     /// The path for `gpu` as [`ModeSettings::open_gpu`] gave it.
     pub fn for_gpu(gpu: Option<&GpuContext>) -> Self {
-        Self::of(gpu.map(|g| g.info.device_type))
+        match (Self::of(gpu.map(|g| g.info.device_type)), gpu) {
+            (Self::Gpu, Some(gpu)) if Self::short_limit(gpu).is_some() => Self::ShortLimits,
+            (path, _) => path,
+        }
+    }
+
+    /// The first limit of `gpu` below what the GPU path's shaders need, if any.
+    fn short_limit(gpu: &GpuContext) -> Option<GpuError> {
+        [
+            (ShaderNeeds::SHELLS, "the shells mode"),
+            (ShaderNeeds::RAYCAST, "the ray caster"),
+        ]
+        .iter()
+        .find_map(|(needs, by)| gpu.check_needs(needs, by).err())
     }
 }
 
@@ -128,8 +146,8 @@ impl ModeSettings {
     }
 
     /// The mode that renders when `gpu` is what [`Self::open_gpu`] gave: `Auto` becomes
-    /// `Shells` on a hardware adapter and `RaycastCpu` otherwise ([`AutoPath`]); every other
-    /// mode is itself.
+    /// `Shells` on a hardware adapter whose limits fit its shaders and `RaycastCpu` otherwise
+    /// ([`AutoPath`]); every other mode is itself.
     pub fn resolve(&self, gpu: Option<&GpuContext>) -> Self {
         match (self, AutoPath::for_gpu(gpu)) {
             (Self::Auto(shells), AutoPath::Gpu) => Self::Shells(*shells),
@@ -154,6 +172,19 @@ impl ModeSettings {
             (AutoPath::NoAdapter, _) => Some(
                 "no GPU adapter; rendering with the CPU ray caster (--mode raycast-cpu)".into(),
             ),
+            (AutoPath::ShortLimits, Some(gpu)) => match AutoPath::short_limit(gpu) {
+                Some(GpuError::Limit {
+                    adapter,
+                    limit,
+                    has,
+                    needs,
+                    needed_by,
+                }) => Some(format!(
+                    "the GPU adapter {adapter} offers {limit} = {has}, under the {needs} \
+                     {needed_by} needs; rendering with the CPU ray caster (--mode raycast-cpu)"
+                )),
+                _ => None,
+            },
             _ => None,
         }
     }

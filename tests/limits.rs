@@ -489,3 +489,47 @@ fn each_mode_renders_on_a_device_with_exactly_its_table() {
         );
     }
 }
+
+/// `auto` on a hardware adapter whose limits are below the GPU path's shaders renders with the
+/// CPU ray caster and says which limit, instead of choosing shells and failing; at exactly
+/// the shells' and the ray caster's tables it takes the GPU. (The test adapter is a software
+/// one, which `auto` never takes, so its type is set to a discrete GPU's.)
+#[test]
+fn auto_on_a_gpu_short_of_a_limit_renders_on_the_cpu_and_says_why() {
+    use tetvr::ModeSettings;
+    use tetvr::gpu::ShellSettings;
+    use tetvr::mode::AutoPath;
+    let mesh = common::gaussians(2);
+    let (tf, camera) = common::default_view(&mesh, 24);
+    let auto = ModeSettings::Auto(ShellSettings::default());
+    let hardware = |needs: &ShaderNeeds| {
+        let mut ctx = device_offering(needs);
+        ctx.info.device_type = wgpu::DeviceType::DiscreteGpu;
+        ctx
+    };
+    let both = max(ShaderNeeds::SHELLS, ShaderNeeds::RAYCAST);
+    let fits = hardware(&both);
+    assert_eq!(AutoPath::for_gpu(Some(&fits)), AutoPath::Gpu);
+    assert_eq!(auto.note(Some(&fits)), None);
+    assert!(matches!(auto.resolve(Some(&fits)), ModeSettings::Shells(_)));
+
+    let short = hardware(&ShaderNeeds {
+        storage_buffers: 8,
+        ..both
+    });
+    assert_eq!(AutoPath::for_gpu(Some(&short)), AutoPath::ShortLimits);
+    assert!(matches!(
+        auto.resolve(Some(&short)),
+        ModeSettings::RaycastCpu(_)
+    ));
+    let note = auto.note(Some(&short)).expect("a note");
+    for part in [
+        "max_storage_buffers_per_shader_stage = 8",
+        "the shells mode",
+        "--mode raycast-cpu",
+    ] {
+        assert!(note.contains(part), "{note}");
+    }
+    let mut renderer = auto.build(Some(&short), &mesh).unwrap();
+    renderer.render(&camera, &tf).unwrap();
+}
