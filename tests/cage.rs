@@ -126,6 +126,12 @@ fn cage_of_a_nifti_volume_round_trips_through_vtu() {
         scalar.to_string().contains("is a scalar") && scalar.to_string().contains("3 components"),
         "{scalar}"
     );
+    // A vector beside a scalar of the same name (a file may hold both) is the coordinates.
+    let mut both = mesh.clone();
+    let coords = a.iter().flat_map(|t| t.to_array()).collect();
+    both.add_point_vectors(tetvr::mesh::DataArray::new("intensity", 3, coords))
+        .unwrap();
+    assert_eq!(texcoords(&both, "intensity").unwrap(), a);
 }
 
 #[test]

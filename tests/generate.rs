@@ -104,6 +104,12 @@ fn generators_refuse_zero_tets_and_meshes_over_their_memory_limit() {
         GenerateError::ZeroTets
     );
     assert_eq!(ring(0, Field::Linear).unwrap_err(), GenerateError::ZeroTets);
+    // More cells than a u64 counts (2^96): refused, not an overflow panic (or, wrapped, a count
+    // under the limits).
+    assert!(matches!(
+        fields::grid_within(Field::Linear, UVec3::splat(u32::MAX), "x", u64::MAX),
+        Err(GenerateError::TooManyTets { .. })
+    ));
 }
 
 #[test]

@@ -472,6 +472,29 @@ fn errors_name_the_path_or_the_range() {
             );
         }
     }
+    // A constant field has no value inside its range: said so, not "choose values strictly
+    // inside the range, e.g. 5" (the value that failed). Near f64::MAX the suggested midpoint is
+    // a number, not inf (lo + hi overflows).
+    let empty_at = |iso: f64, range: (f64, f64)| {
+        let s = Surface {
+            isovalue: iso,
+            ..Default::default()
+        };
+        let colored = [Colored {
+            surface: &s,
+            color: ORANGE,
+        }];
+        write_glb(Path::new("unused.glb"), &colored, range)
+            .unwrap_err()
+            .to_string()
+    };
+    let msg = empty_at(5.0, (5.0, 5.0));
+    assert!(
+        msg.contains("the field is constant (5 everywhere)") && !msg.contains("e.g."),
+        "{msg}"
+    );
+    let msg = empty_at(1e308, (1e308, 1.7e308));
+    assert!(msg.contains("e.g. 1.35e308"), "{msg}");
 
     // The CLI says the same and fails (the missing folder found before the mesh is read).
     let mesh = generate::fields::grid(generate::Field::Linear, UVec3::splat(2), "l").unwrap();

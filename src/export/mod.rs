@@ -75,7 +75,15 @@ fn empty_message(isovalues: &[f64], lo: f64, hi: f64) -> String {
             .collect::<Vec<_>>()
             .join(", ")
     };
-    let (lo_s, hi_s, mid) = (show_value(lo), show_value(hi), show_value(0.5 * (lo + hi)));
+    let (lo_s, hi_s) = (show_value(lo), show_value(hi));
+    if lo == hi {
+        // No value lies inside: suggesting one (the midpoint is the value that failed) misleads.
+        return format!(
+            "no isosurface to export at isovalue(s) {}: the field is constant ({lo_s} \
+             everywhere), so no value crosses it; export another array (--array NAME)",
+            list(isovalues)
+        );
+    }
     let why = if isovalues.iter().any(|&v| v == lo || v == hi) {
         format!(
             "a surface at an end of the scalar range [{lo_s}, {hi_s}] is empty (at the minimum \
@@ -90,8 +98,10 @@ fn empty_message(isovalues: &[f64], lo: f64, hi: f64) -> String {
     };
     format!(
         "no isosurface to export at isovalue(s) {}: {why}; choose values strictly inside the \
-         range, e.g. {mid}",
-        list(isovalues)
+         range, e.g. {}",
+        list(isovalues),
+        // Halved apart: lo + hi overflows to infinity near f64::MAX.
+        show_value(0.5 * lo + 0.5 * hi)
     )
 }
 

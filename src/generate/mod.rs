@@ -173,7 +173,10 @@ pub(crate) fn hex_grid_mesh(
         });
     }
     let c = cells.as_u64vec3();
-    let cell_count = c.x * c.y * c.z;
+    // Checked: three u32 axes overflow u64 (2^22 each), which wrapped past the limits below.
+    let cell_count = (c.x.checked_mul(c.y))
+        .and_then(|n| n.checked_mul(c.z))
+        .unwrap_or(u64::MAX);
     if cell_count.saturating_mul(6) > MAX_GENERATED_TETS {
         return Err(GenerateError::TooManyTets {
             requested: cell_count.saturating_mul(6),

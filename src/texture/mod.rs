@@ -346,19 +346,20 @@ pub fn textured_renderer(
 
 /// The texture coordinates of `mesh`'s vertices: its 3-component point array `name`.
 pub fn texcoords(mesh: &TetMesh, name: &str) -> Result<Vec<DVec3>, CageError> {
-    if mesh.arrays().iter().any(|a| a.name == name) {
-        return Err(CageError::ScalarTexcoords(name.to_owned()));
-    }
-    let array = mesh
-        .point_vector(name)
-        .ok_or_else(|| CageError::NoTexcoords {
+    let array = mesh.point_vector(name).ok_or_else(|| {
+        // Only when no vector has the name: a file may hold a scalar and a vector of one name.
+        if mesh.arrays().iter().any(|a| a.name == name) {
+            return CageError::ScalarTexcoords(name.to_owned());
+        }
+        CageError::NoTexcoords {
             name: name.to_owned(),
             available: mesh
                 .point_vectors()
                 .iter()
                 .map(|a| a.name.clone())
                 .collect(),
-        })?;
+        }
+    })?;
     if array.components != 3 {
         return Err(CageError::TexcoordComponents {
             name: name.to_owned(),
