@@ -1,6 +1,8 @@
 //! The limits tables of `gpu::limits` are what the shipped shaders need: derived here with
-//! naga from every module and variant of the shader registry, per entry point, so a shader
-//! that binds one buffer more (or less) fails this test until its renderer's table says so.
+//! naga from every module and variant of the shader registry, per bind group layout as wgpu
+//! counts it (the bindings it declares, read or not), so a shader that binds one buffer more
+//! (or less) fails this test until its renderer's table says so; and every variant renders on
+//! a device at exactly its table, which wgpu refuses where a layout declares more.
 //! And the check itself: every limit below a table is refused with an error naming it;
 //! lavapipe's limits pass every table.
 
@@ -16,7 +18,7 @@ use tetvr::gpu::{GpuError, ShaderNeeds, shaders};
 /// per-stage limit counts it (an index into [`count`]'s order).
 type Slot = (u8, u32, u32, u8);
 
-/// The bindings `module`'s entry points use, per stage (`info` is its validation), and its
+/// The bindings `module`'s layout holds, per stage (`info` is its validation), and its
 /// compute entry points' workgroup sizes and memory (per entry point).
 fn module_needs(
     module: &naga::Module,
@@ -34,7 +36,11 @@ fn module_needs(
             other => panic!("{name}: {}: a {other:?} stage is not counted", ep.name),
         };
         for (handle, var) in module.global_variables.iter() {
-            let (Some(binding), false) = (&var.binding, uses[handle].is_empty()) else {
+            // A compute stage's layout declares every binding its module declares (and
+            // more: [`layout_extras`]), and wgpu counts the layout's, read or not; a render
+            // stage's layout names the stages that read each binding.
+            let counted = ep.stage == ShaderStage::Compute || !uses[handle].is_empty();
+            let (Some(binding), true) = (&var.binding, counted) else {
                 continue;
             };
             let kind = match (var.space, &module.types[var.ty].inner) {
@@ -117,6 +123,17 @@ fn layout_of(name: &str) -> &str {
     }
 }
 
+/// The bindings the layout of the registry's module `name` declares that the module does
+/// not: every ray caster traversal's layout (`raycast/pipelines.rs`, `traverse_entries`)
+/// holds 12, the integrator's table, which only the psi and table integrators declare, and
+/// wgpu counts a layout's bindings whether a shader reads them or not.
+fn layout_extras(name: &str) -> Vec<Slot> {
+    match name.split(' ').next().unwrap_or_default() {
+        "raycast_traverse" => vec![(2, 0, 12, 0)],
+        _ => Vec::new(),
+    }
+}
+
 /// The larger of `a` and `b` in every field.
 fn max(a: ShaderNeeds, b: ShaderNeeds) -> ShaderNeeds {
     let [ax, ay, az] = a.workgroup_size;
@@ -193,6 +210,7 @@ fn every_table_is_what_its_shaders_need() {
         let layout = layouts.entry(layout_of(&name).to_owned());
         let (all, _) = layout.or_insert_with(|| (BTreeSet::new(), renderers(&name)));
         all.extend(slots);
+        all.extend(layout_extras(&name));
     }
     for (slots, renderers) in layouts.values() {
         for &r in *renderers {
@@ -532,4 +550,84 @@ fn auto_on_a_gpu_short_of_a_limit_renders_on_the_cpu_and_says_why() {
     }
     let mut renderer = auto.build(Some(&short), &mesh).unwrap();
     renderer.render(&camera, &tf).unwrap();
+}
+
+/// The ray caster's variants the mode test does not build (textured, textured isosurfaces,
+/// each entry method and integrator), and the textured shells samplers, each on a device at
+/// exactly its table: wgpu counts every binding a layout declares, used or not, so a table
+/// derived from what the shaders declare alone (13 storage buffers and 4 uniform buffers for
+/// the ray caster, where the peeled textured isosurfaces' layout holds 15 and 5) panics here.
+#[test]
+fn textured_and_every_ray_caster_variant_render_on_exactly_their_table() {
+    use tetvr::gpu::iso::IsoSettings;
+    use tetvr::gpu::raycast::{Entry, Segments};
+    use tetvr::gpu::*;
+    use tetvr::texture::{CageOptions, DEFAULT_TEXCOORDS, Volume, cage, texcoords};
+    use tetvr::{Camera, Renderer, View};
+    const N: usize = 12;
+    let values = (0..N * N * N).map(|i| (i % 17) as f32).collect();
+    let volume = Volume::new([N; 3], glam::DVec3::ZERO, glam::DVec3::ONE, values).unwrap();
+    let opts = CageOptions {
+        tets: 162,
+        threshold: None,
+    };
+    let mesh = cage(&volume, &opts).unwrap();
+    let tc = texcoords(&mesh, DEFAULT_TEXCOORDS).unwrap();
+    let (lo, hi) = mesh.bounds();
+    let camera = Camera::framing(lo, hi, View::parse("30,20").unwrap(), 1.0, 30.0, 24, 24);
+    let (tf, _) = common::default_view(&mesh, 24);
+    let render = |what: &str, r: Result<Box<dyn Renderer>, tetvr::RenderError>| {
+        let frame = r.and_then(|mut r| r.render(&camera, &tf).map(drop));
+        frame.unwrap_or_else(|e| panic!("{what}: {e}"));
+    };
+    let walk = max(ShaderNeeds::SHELLS, ShaderNeeds::RAYCAST);
+    for sampler in [Sampler::Raster, Sampler::Compute, Sampler::Walk] {
+        let needs = match sampler {
+            Sampler::Walk => walk,
+            _ => ShaderNeeds::SHELLS,
+        };
+        let ctx = device_offering(&needs);
+        let s = ShellSettings {
+            sampler,
+            ..ShellSettings::default()
+        };
+        let r = ShellsRenderer::textured(&ctx, &mesh, &tc, &volume, s);
+        render(
+            &format!("textured shells {sampler:?}"),
+            r.map(|r| Box::new(r) as _),
+        );
+    }
+    let ctx = device_offering(&ShaderNeeds::RAYCAST);
+    for entry in [Entry::Lists, Entry::Peel] {
+        let s = RaycastSettings {
+            entry,
+            ..RaycastSettings::default()
+        };
+        let r = RaycastRenderer::textured(&ctx, &mesh, &tc, &volume, None, s);
+        render(
+            &format!("textured raycast {entry:?}"),
+            r.map(|r| Box::new(r) as _),
+        );
+        let iso = IsoSettings {
+            isovalues: vec![(8.0, [1.0, 0.0, 0.0])],
+            ..IsoSettings::default()
+        };
+        let r = RaycastRenderer::textured_iso(&ctx, &mesh, &tc, &volume, None, s, &iso);
+        render(
+            &format!("textured iso {entry:?}"),
+            r.map(|r| Box::new(r) as _),
+        );
+        for segments in [Segments::Partial, Segments::Exact, Segments::Table] {
+            let s = RaycastSettings {
+                entry,
+                segments,
+                ..RaycastSettings::default()
+            };
+            let r = RaycastRenderer::new(&ctx, &mesh, s);
+            render(
+                &format!("raycast {entry:?} {segments:?}"),
+                r.map(|r| Box::new(r) as _),
+            );
+        }
+    }
 }

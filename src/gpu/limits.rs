@@ -7,8 +7,11 @@
 //! pipeline is created, inside wgpu, whose default error handler panics. Each renderer checks
 //! its [`ShaderNeeds`] when it is built, so only the modes an adapter cannot run are refused.
 //! The tables are the largest value over the renderer's shaders: resources per stage as one
-//! bind group layout holds them (the bindings its pipelines' entry points use; the shells
-//! compute sampler's tile and fine stages share one), workgroups per entry point.
+//! bind group layout declares them, as wgpu counts them, read by its entry points or not (a
+//! compute layout holds every binding its module declares, and the ray caster's traversals
+//! also its integrator's table; a render layout's bindings are visible to the stages that
+//! read them; the shells compute sampler's tile and fine stages share one), workgroups per
+//! entry point.
 //! `tests/limits.rs` derives them with naga from every shipped shader and fails when a table
 //! differs, so they cannot go stale, and renders each mode on a device opened at exactly its
 //! table. Colour targets depend on the settings and are checked where they are chosen
@@ -90,8 +93,8 @@ impl ShaderNeeds {
     pub const RAYCAST: Self = Self {
         bind_groups: 1,
         bindings_per_bind_group: 22,
-        storage_buffers: 13,
-        uniform_buffers: 4,
+        storage_buffers: 15,
+        uniform_buffers: 5,
         sampled_textures: 1,
         samplers: 0,
         storage_textures: 1,
