@@ -165,42 +165,9 @@ pub(crate) fn hex_grid_mesh(
     name: &str,
     max_memory: u64,
 ) -> Result<TetMesh, GenerateError> {
-    if cells.min_element() == 0 {
-        return Err(GenerateError::NoCells {
-            x: cells.x,
-            y: cells.y,
-            z: cells.z,
-        });
-    }
+    let (cell_count, nv) = checked_grid_size(cells, wrap_y, max_memory)?;
     let c = cells.as_u64vec3();
-    // Checked: three u32 axes overflow u64 (2^22 each), which wrapped past the limits below.
-    let cell_count = (c.x.checked_mul(c.y))
-        .and_then(|n| n.checked_mul(c.z))
-        .unwrap_or(u64::MAX);
-    if cell_count.saturating_mul(6) > MAX_GENERATED_TETS {
-        return Err(GenerateError::TooManyTets {
-            requested: cell_count.saturating_mul(6),
-            max: MAX_GENERATED_TETS,
-        });
-    }
-    // Vertex dimensions; with at most 2^28 cells every id below fits in u32 comfortably
-    // (each axis has at most one more vertex than cells, so at most 8 * 2^28 = 2^31 vertices).
-    let nv = UVec3::new(
-        cells.x + 1,
-        if wrap_y { cells.y } else { cells.y + 1 },
-        cells.z + 1,
-    );
     let vertex_count = nv.x as usize * nv.y as usize * nv.z as usize;
-    // Every cell kept is the bound, as for the tet count above: counting the kept cells first
-    // would cost a pass over all of them, and a threshold rarely drops most of a huge grid.
-    let needed = memory_needed(cell_count * 6, vertex_count as u64);
-    if needed > max_memory {
-        return Err(GenerateError::OverMemory {
-            tets: cell_count * 6,
-            needed,
-            limit: max_memory,
-        });
-    }
     let vid = |x: u32, y: u32, z: u32| -> usize {
         let y = if wrap_y && y == nv.y { 0 } else { y };
         x as usize + nv.x as usize * (y as usize + nv.y as usize * z as usize)
@@ -277,6 +244,52 @@ pub(crate) fn hex_grid_mesh(
     let values: Vec<f64> = used_ids.par_iter().map(|&v| value(grid_point(v))).collect();
     let (mesh, _) = TetMesh::new(positions, tets, vec![ScalarArray::new(name, values)])?;
     Ok(mesh)
+}
+
+/// [`hex_grid_mesh`]'s refusals, before anything is allocated: no cells, more tets than
+/// [`MAX_GENERATED_TETS`], or more than `max_memory` bytes with every cell kept. Returns the
+/// cell count and the vertex grid's dimensions (`cells + 1`, less the y row a wrap shares).
+fn checked_grid_size(
+    cells: UVec3,
+    wrap_y: bool,
+    max_memory: u64,
+) -> Result<(u64, UVec3), GenerateError> {
+    if cells.min_element() == 0 {
+        return Err(GenerateError::NoCells {
+            x: cells.x,
+            y: cells.y,
+            z: cells.z,
+        });
+    }
+    let c = cells.as_u64vec3();
+    // Checked: three u32 axes overflow u64 (2^22 each), which wrapped past the limits below.
+    let cell_count = (c.x.checked_mul(c.y))
+        .and_then(|n| n.checked_mul(c.z))
+        .unwrap_or(u64::MAX);
+    if cell_count.saturating_mul(6) > MAX_GENERATED_TETS {
+        return Err(GenerateError::TooManyTets {
+            requested: cell_count.saturating_mul(6),
+            max: MAX_GENERATED_TETS,
+        });
+    }
+    // Vertex dimensions; with at most 2^28 cells every id below fits in u32 comfortably
+    // (each axis has at most one more vertex than cells, so at most 8 * 2^28 = 2^31 vertices).
+    let nv = UVec3::new(
+        cells.x + 1,
+        if wrap_y { cells.y } else { cells.y + 1 },
+        cells.z + 1,
+    );
+    // Every cell kept is the bound, as for the tet count above: counting the kept cells first
+    // would cost a pass over all of them, and a threshold rarely drops most of a huge grid.
+    let needed = memory_needed(cell_count * 6, nv.as_u64vec3().element_product());
+    if needed > max_memory {
+        return Err(GenerateError::OverMemory {
+            tets: cell_count * 6,
+            needed,
+            limit: max_memory,
+        });
+    }
+    Ok((cell_count, nv))
 }
 
 #[cfg(test)]
