@@ -2,8 +2,9 @@
 //! `gltf` crate (which validates it) and checked geometrically: vertices on the isosurface,
 //! closed and consistently oriented surfaces (every edge in exactly two triangles, once each
 //! way: the welding is exact), the Euler characteristic and area of a sphere, an isovalue
-//! exactly equal to vertex values (an octahedron and a plane through grid vertices), the CLI's
-//! counts, and the error messages.
+//! exactly equal to vertex values (an octahedron, a plane through grid vertices, a layer that
+//! only reaches it: one sheet, not two), no zero-area triangles, the CLI's counts, and the error
+//! messages.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -337,6 +338,76 @@ fn plane_through_grid_vertices_is_the_vertex_grid() {
         assert!((p[1] - p[0]).cross(p[2] - p[0]).x > 0.0);
     }
     assert!(s.normals.iter().all(|n| (*n - DVec3::X).length() <= 1e-12));
+}
+
+/// A layer of grid vertices that just reaches the isovalue from below on both sides (x = 2 in a
+/// 4-cell grid of [0, 4]^3): a one-vertex-thick layer of label 1 in a label field of 0s, and a
+/// maximum held over faces (-|x - 2| at 0). The tets on both sides each give the layer's faces,
+/// wound opposite ways; the surface is the layer once: 25 vertices, 32 triangles, a disc of area
+/// 16, wound one way (+x, the largest normal component positive), with unit normals in the file
+/// (both copies were written, 64 triangles, and at 11 of the 25 vertices the normals of the two
+/// copies cancelled to a zero NORMAL, which glTF forbids).
+#[test]
+fn a_layer_at_the_isovalue_is_one_sheet_not_two() {
+    let fields: [(&str, fn(DVec3) -> f64); 2] = [
+        ("label layer", |p| if p.x == 2.0 { 1.0 } else { 0.0 }),
+        ("ridge", |p| 1.0 - (p.x - 2.0).abs()),
+    ];
+    for (name, field) in fields {
+        let mesh = generate::box_grid(DVec3::ZERO, DVec3::splat(4.0), UVec3::splat(4), "s", field);
+        let surfaces = isosurfaces(
+            mesh.positions(),
+            mesh.tets(),
+            mesh.scalars().unwrap(),
+            &[1.0],
+        );
+        let (bytes, _) = glb_bytes(&[Colored {
+            surface: &surfaces[0],
+            color: ORANGE,
+        }])
+        .expect("encode");
+        let back = read_glb(&bytes);
+        let s = &back[0];
+        let topo = topology(&s.positions, &s.triangles);
+        assert_eq!(
+            (s.positions.len(), s.triangles.len()),
+            (25, 32),
+            "{name}: {topo:?}"
+        );
+        assert_eq!(topo.euler, 1, "{name}");
+        assert_eq!(topo.edges_by_use.get(&1), Some(&16), "{name}: {topo:?}");
+        assert_eq!(topo.edges_by_use.len(), 2, "{name}: {topo:?}");
+        assert_eq!(topo.repeated_directed, 0, "{name}");
+        assert_eq!(topo.degenerate, 0, "{name}");
+        assert!((topo.area - 16.0).abs() <= 1e-5, "{name}: {}", topo.area);
+        for t in &s.triangles {
+            let p = t.map(|i| s.positions[i as usize]);
+            assert!((p[1] - p[0]).cross(p[2] - p[0]).x > 0.0, "{name}");
+        }
+        // f32 in the file: unit to f32 rounding.
+        for n in &s.normals {
+            assert!((n.length() - 1.0).abs() <= 1e-6, "{name}: normal {n}");
+        }
+    }
+}
+
+/// A zero-volume tet on a duplicate vertex (vertex 2 is vertex 1 again) gives a triangle whose
+/// crossings on edges 0-1 and 0-2 coincide: zero area, no normal. It is dropped; the real tet's
+/// triangle stays.
+#[test]
+fn zero_area_triangles_are_dropped() {
+    let positions = [DVec3::ZERO, DVec3::X, DVec3::X, DVec3::Y, DVec3::Z];
+    let tets = [[0, 1, 3, 4], [0, 1, 2, 3]];
+    let scalars = [0.0, 1.0, 1.0, 1.0, 1.0];
+    let s = &isosurfaces(&positions, &tets, &scalars, &[0.5])[0];
+    let topo = topology(&s.positions, &s.triangles);
+    assert_eq!(topo.degenerate, 0, "{topo:?}");
+    assert_eq!((s.positions.len(), s.triangles.len()), (3, 1), "{s:?}");
+    assert!(
+        (topo.area - 3f64.sqrt() / 8.0).abs() <= 1e-15,
+        "{}",
+        topo.area
+    );
 }
 
 fn write_temp_mesh(name: &str, mesh: &TetMesh) -> (PathBuf, PathBuf) {

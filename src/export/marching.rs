@@ -11,9 +11,21 @@
 //! **Welding is exact**: each crossing is keyed by what it lies on, the vertex id or the edge's
 //! sorted vertex ids, and its position is computed once from that key, so neighbouring tets
 //! share the very same vertex without any epsilon. A triangle with two equal keys (an isovalue
-//! equal to vertex values collapses crossings onto a vertex) is dropped. Tets whose four values
+//! equal to vertex values collapses crossings onto a vertex) is dropped, and so is one of zero
+//! area (three distinct keys at collinear or coinciding points: a zero-volume tet, duplicate
+//! vertices): it covers nothing and has no normal, and tools that read the file count it as
+//! broken geometry. Tets whose four values
 //! all equal `v` give nothing, as in the renderers (the surface is the boundary of the constant
 //! region; see [`crate::reference::iso`]).
+//!
+//! **Doubled faces.** Where a mesh face's three vertices all equal `v` and the field is below
+//! `v` on both sides of it (a ridge that just reaches `v`: a one-vertex-thick layer of an
+//! integer label field, a maximum held over a face), the tets on both sides each give that face,
+//! wound opposite ways. The level set is that face once, and the renderers draw it once (the
+//! nearer of two equal depths), so one copy is kept: a file with both has coincident faces that
+//! viewers draw with z-fighting, and their normals cancel. The field increases to neither side,
+//! so the copy kept is wound by a rule that does not depend on the mesh's order: its normal's
+//! largest component is positive (a flat layer is wound one way throughout).
 //!
 //! **Orientation**: every triangle winds counter-clockwise seen from the side of *increasing*
 //! scalar, so its geometric normal `(p1 - p0) x (p2 - p0)` points along the field gradient
@@ -23,6 +35,8 @@
 //! **Normals** are smooth: the per-vertex gradients of [`vertex_gradients`] (volume-weighted
 //! means over each vertex's tets) interpolated linearly along the crossing's edge and made
 //! unit; where that vanishes, the area-weighted mean of the vertex's triangle normals.
+
+use std::collections::{HashMap, HashSet};
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -67,6 +81,44 @@ pub fn isosurfaces(
         .collect()
 }
 
+/// `triangles` with one copy of each face that two tets both gave (see the module docs,
+/// "Doubled faces"), wound so that its `normal`'s largest component (by magnitude; the first of
+/// equals) is positive. Only a triangle on three mesh vertices can lie on a face, so only those
+/// are looked at. The order of the rest is kept.
+fn without_doubled_faces(
+    triangles: Vec<[Key; 3]>,
+    normal: impl Fn(&[Key; 3]) -> DVec3,
+) -> Vec<[Key; 3]> {
+    let face = |t: &[Key; 3]| {
+        let mut f = *t;
+        f.sort_unstable();
+        f
+    };
+    let on_vertices = |t: &[Key; 3]| t.iter().all(|k| matches!(k, Key::Vertex(_)));
+    let mut uses: HashMap<[Key; 3], usize> = HashMap::new();
+    for t in triangles.iter().filter(|t| on_vertices(t)) {
+        *uses.entry(face(t)).or_default() += 1;
+    }
+    uses.retain(|_, n| *n > 1);
+    if uses.is_empty() {
+        return triangles;
+    }
+    let mut kept = HashSet::new();
+    triangles
+        .into_iter()
+        .filter_map(|t| {
+            if !on_vertices(&t) || !uses.contains_key(&face(&t)) {
+                return Some(t);
+            }
+            kept.insert(face(&t)).then(|| {
+                let n = normal(&t).to_array();
+                let axis = (0..3).fold(0, |a, i| if n[i].abs() > n[a].abs() { i } else { a });
+                if n[axis] < 0.0 { [t[0], t[2], t[1]] } else { t }
+            })
+        })
+        .collect()
+}
+
 fn isosurface(
     positions: &[DVec3],
     tets: &[[u32; 4]],
@@ -81,6 +133,11 @@ fn isosurface(
             let u = (v - sa) / (sb - sa);
             positions[a as usize].lerp(positions[b as usize], u)
         }
+    };
+    // The geometric normal (not unit) of a triangle of crossings.
+    let normal = |k: &[Key; 3]| {
+        let p = k.map(position);
+        (p[1] - p[0]).cross(p[2] - p[0])
     };
     // The crossing on the edge from below-corner `a` to above-corner `b`.
     let crossing = |a: u32, b: u32| {
@@ -115,17 +172,17 @@ fn isosurface(
             let gradient = tet_gradient(t.map(|i| positions[i as usize]), s);
             let fan = (2..polygon.len()).map(move |i| [polygon[0], polygon[i - 1], polygon[i]]);
             fan.filter(|k| k[0] != k[1] && k[1] != k[2] && k[0] != k[2])
-                .map(move |k| {
-                    let p = k.map(position);
-                    let n = (p[1] - p[0]).cross(p[2] - p[0]);
-                    match gradient {
+                .filter_map(move |k| {
+                    let n = normal(&k);
+                    (n != DVec3::ZERO).then(|| match gradient {
                         Some(g) if n.dot(g) < 0.0 => [k[0], k[2], k[1]],
                         _ => k,
-                    }
+                    })
                 })
                 .collect::<Vec<_>>()
         })
         .collect();
+    let key_triangles = without_doubled_faces(key_triangles, normal);
 
     let mut keys: Vec<Key> = key_triangles.par_iter().flatten().copied().collect();
     keys.par_sort_unstable();
