@@ -132,6 +132,18 @@ pub fn glb_bytes(surfaces: &[Colored]) -> Result<(Vec<u8>, ExportCounts), Export
         .iter()
         .filter(|c| !c.surface.triangles.is_empty())
         .collect();
+    let (counts, bytes) = checked_size(&kept)?;
+    let centre = centre(&kept);
+    let mut doc = Document::new(bytes);
+    let children = kept.iter().map(|c| doc.surface_node(c, centre)).collect();
+    let data = doc.finish(children, centre)?;
+    Ok((data, counts))
+}
+
+/// What `kept` (the non-empty surfaces) holds, and its bytes of geometry: 24 a vertex (f32
+/// position and normal), 12 a triangle (u32 indices); [`ExportError::TooLarge`] past what a
+/// `.glb` holds.
+fn checked_size(kept: &[&Colored]) -> Result<(ExportCounts, usize), ExportError> {
     let vertices: usize = kept.iter().map(|c| c.surface.positions.len()).sum();
     let triangles: usize = kept.iter().map(|c| c.surface.triangles.len()).sum();
     let bytes = 24 * vertices + 12 * triangles;
@@ -139,46 +151,108 @@ pub fn glb_bytes(surfaces: &[Colored]) -> Result<(Vec<u8>, ExportCounts), Export
     if bytes > (u32::MAX as usize) - (1 << 20) || vertices > u32::MAX as usize {
         return Err(ExportError::TooLarge { vertices, bytes });
     }
+    let counts = ExportCounts {
+        surfaces: kept.len(),
+        vertices,
+        triangles,
+    };
+    Ok((counts, bytes))
+}
+
+/// The centre of the surfaces' bounding box, rounded to f32 (the origin when there are none).
+/// Rounded first: the file's translation is f32, and positions are stored relative to exactly
+/// that translation, so translation + position is the f64 point to f32 rounding of the (small)
+/// relative coordinates.
+fn centre(kept: &[&Colored]) -> DVec3 {
     let (lo, hi) = kept
         .iter()
         .flat_map(|c| &c.surface.positions)
         .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), &p| {
             (lo.min(p), hi.max(p))
         });
-    // Rounded to f32 first: the file's translation is f32, and positions are stored relative
-    // to exactly that translation, so translation + position is the f64 point to f32 rounding
-    // of the (small) relative coordinates.
-    let centre = if lo.is_finite() {
+    if lo.is_finite() {
         ((lo + hi) * 0.5).as_vec3().as_dvec3()
     } else {
         DVec3::ZERO
-    };
+    }
+}
 
-    let mut root = json::Root::default();
-    let mut bin: Vec<u8> = Vec::with_capacity(bytes);
-    let buffer = root.push(json::Buffer {
-        byte_length: USize64::from(bytes),
-        extensions: None,
-        extras: Default::default(),
-        name: None,
-        uri: None,
-    });
-    let mut push_view = |root: &mut json::Root, data: &[u8], target: json::buffer::Target| {
-        let view = root.push(json::buffer::View {
+/// The per-component minimum and maximum of `points` (the `min`/`max` a `POSITION` accessor
+/// must carry).
+fn bounds(points: &[[f32; 3]]) -> ([f32; 3], [f32; 3]) {
+    points.iter().fold(
+        ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
+        |(lo, hi), p| {
+            (
+                [lo[0].min(p[0]), lo[1].min(p[1]), lo[2].min(p[2])],
+                [hi[0].max(p[0]), hi[1].max(p[1]), hi[2].max(p[2])],
+            )
+        },
+    )
+}
+
+/// A glTF document being built: the JSON root and the one binary buffer its views point into.
+struct Document {
+    root: json::Root,
+    bin: Vec<u8>,
+    buffer: json::Index<json::Buffer>,
+}
+
+/// The accessors of one surface's triangle primitive.
+struct Accessors {
+    positions: json::Index<json::Accessor>,
+    normals: json::Index<json::Accessor>,
+    indices: json::Index<json::Accessor>,
+}
+
+impl Document {
+    /// An empty document whose buffer will hold `bytes` bytes.
+    fn new(bytes: usize) -> Self {
+        let mut root = json::Root::default();
+        let buffer = root.push(json::Buffer {
+            byte_length: USize64::from(bytes),
+            extensions: None,
+            extras: Default::default(),
+            name: None,
+            uri: None,
+        });
+        Self {
+            root,
+            bin: Vec::with_capacity(bytes),
             buffer,
+        }
+    }
+
+    /// Appends `data` to the buffer behind a new view for `target`.
+    fn view(
+        &mut self,
+        data: &[u8],
+        target: json::buffer::Target,
+    ) -> json::Index<json::buffer::View> {
+        let view = self.root.push(json::buffer::View {
+            buffer: self.buffer,
             byte_length: USize64::from(data.len()),
-            byte_offset: Some(USize64::from(bin.len())),
+            byte_offset: Some(USize64::from(self.bin.len())),
             byte_stride: None,
             extensions: None,
             extras: Default::default(),
             name: None,
             target: Some(Valid(target)),
         });
-        bin.extend_from_slice(data);
+        self.bin.extend_from_slice(data);
         view
-    };
-    let accessor = |view, count: usize, component, type_, bounds: Option<([f32; 3], [f32; 3])>| {
-        json::Accessor {
+    }
+
+    /// A new accessor of `count` elements over the whole of `view`.
+    fn accessor(
+        &mut self,
+        view: json::Index<json::buffer::View>,
+        count: usize,
+        component: json::accessor::ComponentType,
+        type_: json::accessor::Type,
+        bounds: Option<([f32; 3], [f32; 3])>,
+    ) -> json::Index<json::Accessor> {
+        self.root.push(json::Accessor {
             buffer_view: Some(view),
             byte_offset: None,
             count: USize64::from(count),
@@ -191,51 +265,44 @@ pub fn glb_bytes(surfaces: &[Colored]) -> Result<(Vec<u8>, ExportCounts), Export
             name: None,
             normalized: false,
             sparse: None,
-        }
-    };
-    let mut children = Vec::new();
-    for c in &kept {
-        let s = c.surface;
+        })
+    }
+
+    /// The surface's geometry in the buffer (positions relative to `centre`, unit normals,
+    /// indices; three views) and its accessors.
+    fn geometry(&mut self, s: &Surface, centre: DVec3) -> Accessors {
+        use json::accessor::{ComponentType as C, Type as T};
+        use json::buffer::Target;
         let pos: Vec<[f32; 3]> = s
             .positions
             .iter()
             .map(|&p| (p - centre).as_vec3().to_array())
             .collect();
-        let (pmin, pmax) = pos.iter().fold(
-            ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
-            |(lo, hi), p| {
-                (
-                    [lo[0].min(p[0]), lo[1].min(p[1]), lo[2].min(p[2])],
-                    [hi[0].max(p[0]), hi[1].max(p[1]), hi[2].max(p[2])],
-                )
-            },
-        );
         let normals: Vec<[f32; 3]> = s
             .normals
             .iter()
             .map(|n| n.as_vec3().normalize_or_zero().to_array())
             .collect();
-        use json::accessor::{ComponentType as C, Type as T};
-        use json::buffer::Target;
-        let pv = push_view(&mut root, bytemuck::cast_slice(&pos), Target::ArrayBuffer);
-        let nv = push_view(
-            &mut root,
-            bytemuck::cast_slice(&normals),
-            Target::ArrayBuffer,
-        );
-        let iv = push_view(
-            &mut root,
+        let pv = self.view(bytemuck::cast_slice(&pos), Target::ArrayBuffer);
+        let nv = self.view(bytemuck::cast_slice(&normals), Target::ArrayBuffer);
+        let iv = self.view(
             bytemuck::cast_slice(&s.triangles),
             Target::ElementArrayBuffer,
         );
-        let positions = root.push(accessor(pv, pos.len(), C::F32, T::Vec3, Some((pmin, pmax))));
-        let normals = root.push(accessor(nv, normals.len(), C::F32, T::Vec3, None));
-        let indices = root.push(accessor(iv, 3 * s.triangles.len(), C::U32, T::Scalar, None));
-        let name = format!("isosurface {}", s.isovalue);
-        let [r, g, b] = c.color.map(|v| v.clamp(0.0, 1.0));
-        let material = root.push(json::Material {
+        let triangles = s.triangles.len();
+        Accessors {
+            positions: self.accessor(pv, pos.len(), C::F32, T::Vec3, Some(bounds(&pos))),
+            normals: self.accessor(nv, normals.len(), C::F32, T::Vec3, None),
+            indices: self.accessor(iv, 3 * triangles, C::U32, T::Scalar, None),
+        }
+    }
+
+    /// A double-sided material named `name` of the colour `color` (clamped to [0, 1]).
+    fn material(&mut self, name: &str, color: [f32; 3]) -> json::Index<json::Material> {
+        let [r, g, b] = color.map(|v| v.clamp(0.0, 1.0));
+        self.root.push(json::Material {
             double_sided: true,
-            name: Some(name.clone()),
+            name: Some(name.to_owned()),
             pbr_metallic_roughness: json::material::PbrMetallicRoughness {
                 base_color_factor: json::material::PbrBaseColorFactor([r, g, b, 1.0]),
                 metallic_factor: json::material::StrengthFactor(0.0),
@@ -243,69 +310,77 @@ pub fn glb_bytes(surfaces: &[Colored]) -> Result<(Vec<u8>, ExportCounts), Export
                 ..Default::default()
             },
             ..Default::default()
-        });
-        let mesh = root.push(json::Mesh {
+        })
+    }
+
+    /// One surface as a node with its mesh (geometry, accessors, material), named after its
+    /// isovalue.
+    fn surface_node(&mut self, c: &Colored, centre: DVec3) -> json::Index<json::Node> {
+        let a = self.geometry(c.surface, centre);
+        let name = format!("isosurface {}", c.surface.isovalue);
+        let material = self.material(&name, c.color);
+        let mesh = self.root.push(json::Mesh {
             extensions: None,
             extras: Default::default(),
             name: Some(name.clone()),
             primitives: vec![json::mesh::Primitive {
                 attributes: BTreeMap::from([
-                    (Valid(json::mesh::Semantic::Positions), positions),
-                    (Valid(json::mesh::Semantic::Normals), normals),
+                    (Valid(json::mesh::Semantic::Positions), a.positions),
+                    (Valid(json::mesh::Semantic::Normals), a.normals),
                 ]),
                 extensions: None,
                 extras: Default::default(),
-                indices: Some(indices),
+                indices: Some(a.indices),
                 material: Some(material),
                 mode: Valid(json::mesh::Mode::Triangles),
                 targets: None,
             }],
             weights: None,
         });
-        children.push(root.push(json::Node {
+        self.root.push(json::Node {
             mesh: Some(mesh),
             name: Some(name),
             ..Default::default()
-        }));
+        })
     }
-    let top = root.push(json::Node {
-        children: Some(children),
-        name: Some("isosurfaces".into()),
-        translation: Some(centre.as_vec3().to_array()),
-        ..Default::default()
-    });
-    let scene = root.push(json::Scene {
-        extensions: None,
-        extras: Default::default(),
-        name: Some("tetvr isosurfaces".into()),
-        nodes: vec![top],
-    });
-    root.scene = Some(scene);
-    root.asset.generator = Some(format!("tetvr {}", env!("CARGO_PKG_VERSION")));
-    let json_text = root
-        .to_string()
-        .map_err(|e| ExportError::Encode(e.to_string()))?;
-    let glb = gltf::binary::Glb {
-        header: gltf::binary::Header {
-            magic: *b"glTF",
-            version: 2,
-            // to_vec computes and writes the real length.
-            length: 0,
-        },
-        json: Cow::Owned(json_text.into_bytes()),
-        bin: Some(Cow::Owned(bin)),
-    };
-    let data = glb
-        .to_vec()
-        .map_err(|e| ExportError::Encode(e.to_string()))?;
-    Ok((
-        data,
-        ExportCounts {
-            surfaces: kept.len(),
-            vertices,
-            triangles,
-        },
-    ))
+
+    /// The scene (a top node at `centre` over `children`) and the document encoded as `.glb`
+    /// bytes.
+    fn finish(
+        mut self,
+        children: Vec<json::Index<json::Node>>,
+        centre: DVec3,
+    ) -> Result<Vec<u8>, ExportError> {
+        let top = self.root.push(json::Node {
+            children: Some(children),
+            name: Some("isosurfaces".into()),
+            translation: Some(centre.as_vec3().to_array()),
+            ..Default::default()
+        });
+        let scene = self.root.push(json::Scene {
+            extensions: None,
+            extras: Default::default(),
+            name: Some("tetvr isosurfaces".into()),
+            nodes: vec![top],
+        });
+        self.root.scene = Some(scene);
+        self.root.asset.generator = Some(format!("tetvr {}", env!("CARGO_PKG_VERSION")));
+        let json_text = self
+            .root
+            .to_string()
+            .map_err(|e| ExportError::Encode(e.to_string()))?;
+        let glb = gltf::binary::Glb {
+            header: gltf::binary::Header {
+                magic: *b"glTF",
+                version: 2,
+                // to_vec computes and writes the real length.
+                length: 0,
+            },
+            json: Cow::Owned(json_text.into_bytes()),
+            bin: Some(Cow::Owned(self.bin)),
+        };
+        glb.to_vec().map_err(|e| ExportError::Encode(e.to_string()))
+    }
 }
 
 /// Writes the surfaces to `path` as a `.glb` (see [`glb_bytes`]); an error if every surface is
