@@ -812,7 +812,52 @@ fn animate_names_frames_left_from_a_longer_run() {
     assert!(!run("3").contains("earlier run"));
     let stdout = run("2");
     assert!(
-        stdout.contains("run-0002.png and later frames are from an earlier run"),
+        stdout.contains("1 frame of an earlier run is left as it was: ")
+            && stdout.contains("run-0002.png"),
+        "{stdout}"
+    );
+}
+
+/// Frames of an earlier run numbered with another width (12000 frames are named with 5 digits,
+/// 10 with 4) are not overwritten by a run of 4 digits, and were not noticed: the note looked
+/// only for the next name of this run's width. Names that are not `run5-<digits>.png` are
+/// nobody's frames and are not counted.
+#[test]
+fn animate_names_frames_of_another_width_left_from_an_earlier_run() {
+    let dir = out_dir("animate-stale-width");
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        std::fs::remove_file(entry.unwrap().path()).unwrap(); // an earlier test run
+    }
+    // Stand-ins for the frames of a 12000-frame run: names are all the note reads.
+    for i in [0, 1, 2, 11_999] {
+        std::fs::write(dir.join(format!("run5-{i:05}.png")), b"").unwrap();
+    }
+    for other in [
+        "run5-12a.png",
+        "run5-.png",
+        "run5-0001.png.bak",
+        "run50-0009.png",
+    ] {
+        std::fs::write(dir.join(other), b"").unwrap();
+    }
+    let out = dir.join("run5.png");
+    let o = tetvr(&[
+        "animate",
+        LOX,
+        "--frames",
+        "2",
+        "--size",
+        "8x8",
+        "--mode",
+        "raycast-cpu",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stderr}");
+    assert!(
+        stdout.contains("4 frames of an earlier run are left as they were, first ")
+            && stdout.contains("run5-00000.png"),
         "{stdout}"
     );
 }

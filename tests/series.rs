@@ -376,6 +376,62 @@ fn a_step_that_does_not_fit_the_first_is_named() {
     );
 }
 
+/// A step that fails part way (step 3 of 5 unreadable) stops the run naming the step. The GIF
+/// was encoded into its file frame by frame and, on the error, ended as a valid 3-frame GIF
+/// that looked complete; it is now written beside its name and renamed only when complete, so a
+/// GIF from before is left as it was and none is left otherwise. PNG frames are each whole: the
+/// ones written stay, and the error names them.
+#[test]
+fn a_run_stopped_by_a_step_leaves_no_shorter_gif() {
+    let dir = out_dir("stopped");
+    let files = write_series(&dir, 5);
+    std::fs::write(&files[3], b"not a mesh").unwrap();
+    let pattern = dir.join("data/step_*.vtu");
+    let pattern = pattern.to_str().unwrap();
+    let earlier = dir.join("earlier.gif");
+    std::fs::write(&earlier, b"an earlier GIF").unwrap();
+    for gif in [&earlier, &dir.join("new.gif")] {
+        let e = animate_error(&[
+            pattern,
+            "--mode",
+            "raycast-cpu",
+            "-o",
+            gif.to_str().unwrap(),
+        ]);
+        assert!(
+            e.contains("step 3") && e.contains("step_003.vtu") && e.contains("was not written"),
+            "{e}"
+        );
+    }
+    assert_eq!(std::fs::read(&earlier).unwrap(), b"an earlier GIF");
+    let mut left: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    left.sort();
+    assert_eq!(
+        left,
+        ["data", "earlier.gif", "run.pvd"],
+        "no new.gif, no temporary file"
+    );
+
+    let png = dir.join("frames.png");
+    let e = animate_error(&[
+        pattern,
+        "--mode",
+        "raycast-cpu",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    assert!(
+        e.contains("step 3")
+            && e.contains("frames-0000.png .. ")
+            && e.contains("frames-0002.png were written"),
+        "{e}"
+    );
+    assert!(dir.join("frames-0002.png").exists() && !dir.join("frames-0003.png").exists());
+}
+
 /// The steps of [`step_mesh`] as a solver writes them: every file holds the rest positions and
 /// a `displacement` array, half the motion (the test warps with scale 2).
 fn write_displaced_series(dir: &Path, steps: usize) -> Vec<PathBuf> {

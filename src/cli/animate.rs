@@ -1,7 +1,9 @@
 //! `tetvr animate`: a mesh under an analytic deformation, or a time series of meshes (a `.pvd`
 //! collection or numbered files), rendered frame by frame on one renderer. Each frame is written
 //! as soon as it is rendered (numbered PNGs, or one GIF encoded frame by frame), so memory stays
-//! flat however many frames there are.
+//! flat however many frames there are. A GIF is written beside its name and renamed onto it
+//! when complete, so a run that stops part way leaves no shorter GIF that looks whole; PNG frames
+//! are each complete when written, so those written stay, and the error names them.
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -73,18 +75,20 @@ fn deform(args: &AnimateArgs) -> Result<(), CliError> {
         args.deform.unwrap_or(Deformation::Twist),
         args.amplitude.unwrap_or(0.5),
     );
-    let mut play = Playback::open(args, &mesh, frames as u64, read_ms)?;
+    let play = Playback::open(args, &mesh, frames as u64, read_ms)?;
     let (lo, hi) = mesh.bounds();
     // One buffer for every frame's positions: a fresh one per frame costs its page faults.
     let mut moved = Vec::new();
-    for i in 0..frames {
-        let phase = i as f64 / frames as f64;
-        play.prepare(|| {
-            deformation.apply_into(mesh.positions(), lo, hi, amplitude, phase, &mut moved);
-        });
-        play.frame(|renderer| Ok(renderer.update_positions(&moved)?))?;
-    }
-    play.finish("deform")
+    play.play("deform", |play| {
+        for i in 0..frames {
+            let phase = i as f64 / frames as f64;
+            play.prepare(|| {
+                deformation.apply_into(mesh.positions(), lo, hi, amplitude, phase, &mut moved);
+            });
+            play.frame(|renderer| Ok(renderer.update_positions(&moved)?))?;
+        }
+        Ok(())
+    })
 }
 
 /// The steps of a series, each loaded, checked against the first, given the chosen array and
@@ -107,16 +111,18 @@ fn play_series(args: &AnimateArgs) -> Result<(), CliError> {
         require_renderable(&first, &series.steps()[0].path)?;
     }
     let steps = series.steps().len() as u64;
-    let mut play = Playback::open(args, &first, steps, read_ms)?;
-    play.frame(|_| Ok(()))?;
-    for i in 1..series.steps().len() {
-        let step = play.prepare(|| series.load_like(i, &first, &limits, prepare))?;
-        play.frame(|renderer| {
-            renderer.update_positions(step.positions())?;
-            Ok(renderer.update_scalars(step.scalars()?)?)
-        })?;
-    }
-    play.finish("load")
+    let play = Playback::open(args, &first, steps, read_ms)?;
+    play.play("load", |play| {
+        play.frame(|_| Ok(()))?;
+        for i in 1..series.steps().len() {
+            let step = play.prepare(|| series.load_like(i, &first, &limits, prepare))?;
+            play.frame(|renderer| {
+                renderer.update_positions(step.positions())?;
+                Ok(renderer.update_scalars(step.scalars()?)?)
+            })?;
+        }
+        Ok(())
+    })
 }
 
 /// What every frame needs: the renderer built on the first mesh, the camera and transfer
@@ -208,6 +214,24 @@ impl Playback {
         Ok(())
     }
 
+    /// Runs `frames` (the frames' work, with [`Self::prepare`] and [`Self::frame`]), then
+    /// `finish`es with `prepared`. When a frame fails, the error says what the output holds:
+    /// the PNG frames written before it, or no GIF (see [`FrameSink::stopped`]).
+    fn play(
+        mut self,
+        prepared: &str,
+        frames: impl FnOnce(&mut Self) -> Result<(), CliError>,
+    ) -> Result<(), CliError> {
+        if let Err(e) = frames(&mut self) {
+            self.bar.finish_and_clear();
+            return Err(CliError::AnimationStopped {
+                source: Box::new(e),
+                written: self.sink.stopped(),
+            });
+        }
+        self.finish(prepared)
+    }
+
     /// Ends the output and prints what was written and the median times, the preparation's
     /// as `prepared` (none when no frame had one: a series of one step); with `--timings`, what
     /// came before the first frame.
@@ -272,6 +296,46 @@ fn check_gif(output: &Path, args: &AnimateArgs) -> Result<(), CliError> {
     Ok(())
 }
 
+/// A file written under a temporary name beside its target (same directory, so the rename is
+/// atomic) and renamed onto the target by [`Partial::persist`] once complete. Dropped before
+/// that, it removes itself: the target is left as it was.
+struct Partial {
+    temp: PathBuf,
+    target: PathBuf,
+    persisted: bool,
+}
+
+impl Partial {
+    /// Creates the temporary file for `target`: `.NAME.PID.part` beside it.
+    fn create(target: &Path) -> Result<(Self, File), CliError> {
+        let name = target.file_name().unwrap_or(target.as_os_str()).display();
+        let temp = target.with_file_name(format!(".{name}.{}.part", std::process::id()));
+        let file = File::create(&temp).map_err(|e| animation_error(target, e))?;
+        let partial = Self {
+            temp,
+            target: target.to_owned(),
+            persisted: false,
+        };
+        Ok((partial, file))
+    }
+
+    /// Renames the (complete, closed) temporary file onto the target.
+    fn persist(mut self) -> Result<(), CliError> {
+        std::fs::rename(&self.temp, &self.target).map_err(|e| animation_error(&self.target, e))?;
+        self.persisted = true;
+        Ok(())
+    }
+}
+
+impl Drop for Partial {
+    fn drop(&mut self) {
+        if !self.persisted {
+            // Nothing to tell the user if it fails: the temporary file's name says what it is.
+            let _ = std::fs::remove_file(&self.temp);
+        }
+    }
+}
+
 /// Where frames go as they are rendered: numbered PNGs, or one GIF that the encoder extends
 /// frame by frame. Nothing of a frame is kept once it is written.
 enum FrameSink {
@@ -285,7 +349,6 @@ enum FrameSink {
         background: Option<[f32; 3]>,
     },
     Gif {
-        path: PathBuf,
         /// The file, until the first frame gives the picture's size and starts the encoder.
         file: Option<BufWriter<File>>,
         encoder: Option<gif::Encoder<BufWriter<File>>>,
@@ -294,6 +357,9 @@ enum FrameSink {
         /// The GIF has no partial transparency: frames are composited over this colour
         /// (`check_gif` refuses `--background none` for a GIF).
         background: [f32; 3],
+        /// Where the file is written, and the name it gets when complete. Last: dropped after
+        /// the file is closed.
+        partial: Partial,
     },
 }
 
@@ -315,13 +381,13 @@ impl FrameSink {
                 background,
             }),
             Some("gif") => {
-                let file = File::create(output).map_err(|e| animation_error(output, e))?;
+                let (partial, file) = Partial::create(output)?;
                 Ok(Self::Gif {
-                    path: output.to_owned(),
                     file: Some(BufWriter::new(file)),
                     encoder: None,
                     delay: gif_delay(fps),
                     background: background.unwrap_or([1.0; 3]),
+                    partial,
                 })
             }
             _ => Err(CliError::Usage(format!(
@@ -344,15 +410,15 @@ impl FrameSink {
                 *written += 1;
             }
             Self::Gif {
-                path,
                 file,
                 encoder,
                 delay,
                 background,
+                partial,
             } => {
                 // Sizes are at most 16384 (parse_size), within a GIF's 16 bits.
                 let (w, h) = (img.width as u16, img.height as u16);
-                let fail = |e: gif::EncodingError| animation_error(path, e);
+                let fail = |e: gif::EncodingError| animation_error(&partial.target, e);
                 if let Some(file) = file.take() {
                     let mut started = gif::Encoder::new(file, w, h, &[]).map_err(fail)?;
                     started.set_repeat(gif::Repeat::Infinite).map_err(fail)?;
@@ -384,27 +450,100 @@ impl FrameSink {
                     png_name(&stem, 0, digits).display(),
                     png_name(&stem, written.saturating_sub(1), digits).display()
                 );
-                // A longer earlier run's frames are not ours to delete, but a tool that takes
-                // every NAME-*.png would play them after these: say so.
-                let stale = png_name(&stem, written, digits);
-                if stale.exists() {
-                    what.push_str(&format!(
-                        "; {} and later frames are from an earlier run, left as they were",
-                        stale.display()
-                    ));
+                // An earlier run's frames are not ours to delete, but a tool that takes every
+                // NAME-*.png would play them with these: say so.
+                let (count, first) = stale_frames(&stem, digits, written);
+                match (count, first) {
+                    (1, Some(first)) => what.push_str(&format!(
+                        "; 1 frame of an earlier run is left as it was: {}",
+                        first.display()
+                    )),
+                    (_, Some(first)) => what.push_str(&format!(
+                        "; {count} frames of an earlier run are left as they were, first {}",
+                        first.display()
+                    )),
+                    _ => {}
                 }
                 Ok(what)
             }
-            Self::Gif { path, encoder, .. } => {
-                let encoder = encoder.ok_or_else(|| animation_error(&path, "no frames"))?;
-                let mut file = encoder
-                    .into_inner()
-                    .map_err(|e| animation_error(&path, e))?;
-                file.flush().map_err(|e| animation_error(&path, e))?;
-                Ok(path.display().to_string())
+            Self::Gif {
+                encoder, partial, ..
+            } => {
+                let path = &partial.target;
+                let encoder = encoder.ok_or_else(|| animation_error(path, "no frames"))?;
+                let mut file = encoder.into_inner().map_err(|e| animation_error(path, e))?;
+                file.flush().map_err(|e| animation_error(path, e))?;
+                drop(file);
+                let written = path.display().to_string();
+                partial.persist()?;
+                Ok(written)
             }
         }
     }
+
+    /// Drops the output of a run that stopped part way and says what is on disk: the PNG
+    /// frames written so far (each complete), or no GIF (its temporary file is removed, so a
+    /// GIF of that name from before is left as it was).
+    fn stopped(self) -> String {
+        match self {
+            Self::Png { written: 0, .. } => "no frame was written".into(),
+            Self::Png {
+                stem,
+                digits,
+                written,
+                ..
+            } => format!(
+                "frames {} .. {} were written, later ones were not",
+                png_name(&stem, 0, digits).display(),
+                png_name(&stem, written - 1, digits).display()
+            ),
+            Self::Gif { partial, .. } => format!(
+                "{} was not written (a GIF cut short would look complete)",
+                partial.target.display()
+            ),
+        }
+    }
+}
+
+/// Frames `{stem}-<digits>.png` in the stem's directory that this run (`written` frames named
+/// with `digits` digits) did not write: an earlier run's, with any number of digits (a run of
+/// 12000 frames names them with 5). Their count and the first by name; unreadable directories
+/// count as holding none (this only feeds a note).
+fn stale_frames(stem: &Path, digits: usize, written: usize) -> (usize, Option<PathBuf>) {
+    let dir = match stem.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let Some(prefix) = stem.file_name().and_then(|n| n.to_str()) else {
+        return (0, None);
+    };
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return (0, None);
+    };
+    let mut count = 0;
+    let mut first: Option<String> = None;
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(number) = name.to_str().and_then(|n| {
+            n.strip_prefix(prefix)?
+                .strip_prefix('-')?
+                .strip_suffix(".png")
+        }) else {
+            continue;
+        };
+        if number.is_empty() || !number.bytes().all(|b| b.is_ascii_digit()) {
+            continue;
+        }
+        let ours = number.len() == digits && number.parse::<usize>().is_ok_and(|n| n < written);
+        if !ours {
+            count += 1;
+            let name = name.to_string_lossy();
+            if first.as_deref().is_none_or(|f| *name < *f) {
+                first = Some(name.into_owned());
+            }
+        }
+    }
+    (count, first.map(|f| stem.with_file_name(f)))
 }
 
 /// Digits of the frame numbers of `frames` frames: the last one's (`frames - 1`), at least 4.

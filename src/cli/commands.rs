@@ -39,6 +39,12 @@ pub enum CliError {
     Usage(String),
     #[error("{path}: cannot write the animation: {message}")]
     Animation { path: String, message: String },
+    /// An animation stopped part way by `source`; `written` says what is on disk.
+    #[error("{source}; {written}")]
+    AnimationStopped {
+        source: Box<CliError>,
+        written: String,
+    },
     #[error(transparent)]
     Load(#[from] LoadError),
     #[error(transparent)]
