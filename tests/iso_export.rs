@@ -344,12 +344,14 @@ fn plane_through_grid_vertices_is_the_vertex_grid() {
 /// 4-cell grid of [0, 4]^3): a one-vertex-thick layer of label 1 in a label field of 0s, and a
 /// maximum held over faces (-|x - 2| at 0). The tets on both sides each give the layer's faces,
 /// wound opposite ways; the surface is the layer once: 25 vertices, 32 triangles, a disc of area
-/// 16, wound one way (+x, the largest normal component positive), with unit normals in the file
-/// (both copies were written, 64 triangles, and at 11 of the 25 vertices the normals of the two
-/// copies cancelled to a zero NORMAL, which glTF forbids).
+/// 16, wound one way (+x, the largest normal component positive), with normals +x like its
+/// triangles (both copies were written, 64 triangles, and at 11 of the 25 vertices the normals
+/// of the two copies cancelled to a zero NORMAL, which glTF forbids; the other 14 were vertex
+/// gradients, +x or -x).
 #[test]
 fn a_layer_at_the_isovalue_is_one_sheet_not_two() {
-    let fields: [(&str, fn(DVec3) -> f64); 2] = [
+    type Field = fn(DVec3) -> f64;
+    let fields: [(&str, Field); 2] = [
         ("label layer", |p| if p.x == 2.0 { 1.0 } else { 0.0 }),
         ("ridge", |p| 1.0 - (p.x - 2.0).abs()),
     ];
@@ -384,9 +386,10 @@ fn a_layer_at_the_isovalue_is_one_sheet_not_two() {
             let p = t.map(|i| s.positions[i as usize]);
             assert!((p[1] - p[0]).cross(p[2] - p[0]).x > 0.0, "{name}");
         }
-        // f32 in the file: unit to f32 rounding.
+        // Normals along the triangles' +x (f32 in the file: to f32 rounding), not the
+        // vertex gradients, which point either way on the layer.
         for n in &s.normals {
-            assert!((n.length() - 1.0).abs() <= 1e-6, "{name}: normal {n}");
+            assert!((*n - DVec3::X).length() <= 1e-6, "{name}: normal {n}");
         }
     }
 }

@@ -34,7 +34,10 @@
 //!
 //! **Normals** are smooth: the per-vertex gradients of [`vertex_gradients`] (volume-weighted
 //! means over each vertex's tets) interpolated linearly along the crossing's edge and made
-//! unit; where that vanishes, the area-weighted mean of the vertex's triangle normals.
+//! unit; where that vanishes, the area-weighted mean of the vertex's triangle normals. A vertex
+//! of a doubled face takes that mean too: its gradient is a mean over tets whose gradients point
+//! opposite ways (towards the layer from both sides), so it points either way, and normals of
+//! opposite signs side by side shade as dark seams.
 
 use std::collections::{HashMap, HashSet};
 
@@ -83,12 +86,12 @@ pub fn isosurfaces(
 
 /// `triangles` with one copy of each face that two tets both gave (see the module docs,
 /// "Doubled faces"), wound so that its `normal`'s largest component (by magnitude; the first of
-/// equals) is positive. Only a triangle on three mesh vertices can lie on a face, so only those
-/// are looked at. The order of the rest is kept.
+/// equals) is positive, and the vertices of those faces. Only a triangle on three mesh vertices
+/// can lie on a face, so only those are looked at. The order of the rest is kept.
 fn without_doubled_faces(
     triangles: Vec<[Key; 3]>,
     normal: impl Fn(&[Key; 3]) -> DVec3,
-) -> Vec<[Key; 3]> {
+) -> (Vec<[Key; 3]>, HashSet<Key>) {
     let face = |t: &[Key; 3]| {
         let mut f = *t;
         f.sort_unstable();
@@ -101,10 +104,11 @@ fn without_doubled_faces(
     }
     uses.retain(|_, n| *n > 1);
     if uses.is_empty() {
-        return triangles;
+        return (triangles, HashSet::new());
     }
+    let on_doubled = uses.keys().flatten().copied().collect();
     let mut kept = HashSet::new();
-    triangles
+    let triangles = triangles
         .into_iter()
         .filter_map(|t| {
             if !on_vertices(&t) || !uses.contains_key(&face(&t)) {
@@ -116,7 +120,8 @@ fn without_doubled_faces(
                 if n[axis] < 0.0 { [t[0], t[2], t[1]] } else { t }
             })
         })
-        .collect()
+        .collect();
+    (triangles, on_doubled)
 }
 
 fn isosurface(
@@ -182,7 +187,7 @@ fn isosurface(
                 .collect::<Vec<_>>()
         })
         .collect();
-    let key_triangles = without_doubled_faces(key_triangles, normal);
+    let (key_triangles, on_doubled) = without_doubled_faces(key_triangles, normal);
 
     let mut keys: Vec<Key> = key_triangles.par_iter().flatten().copied().collect();
     keys.par_sort_unstable();
@@ -197,6 +202,8 @@ fn isosurface(
         .par_iter()
         .map(|&k| {
             match k {
+                // Taken from the triangles below: see the module docs ("Normals").
+                Key::Vertex(_) if on_doubled.contains(&k) => DVec3::ZERO,
                 Key::Vertex(i) => gradients[i as usize],
                 Key::Edge(a, b) => {
                     let (sa, sb) = (scalars[a as usize], scalars[b as usize]);
