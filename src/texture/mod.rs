@@ -24,8 +24,9 @@ use glam::DVec3;
 use crate::cpu::raycast::{CpuRaycastRenderer, CpuRaycastSettings};
 use crate::generate::volume::{VolumeError, VolumeToTets, check_header_file, read_samples_file};
 use crate::gpu::ShellsRenderer;
-use crate::gpu::raycast::{RaycastRenderer, RaycastSettings};
-use crate::gpu::{GpuContext, GpuError};
+use crate::gpu::raycast::texture::TextureUse;
+use crate::gpu::raycast::{Entry, RaycastRenderer, RaycastSettings};
+use crate::gpu::{GpuContext, GpuError, ShaderNeeds};
 use crate::mesh::{TetMesh, box_diagonal};
 use crate::mode::{AutoPath, ModeSettings};
 use crate::render::{RenderError, Renderer};
@@ -295,9 +296,16 @@ pub fn textured_renderer(
             s,
         )?))
     };
+    // `auto`'s GPU path: the ray caster's default entry method over the volume.
+    let textured_raycast = (
+        ShaderNeeds::raycast(Entry::default(), Some(TextureUse::Volume)),
+        "the raycast mode",
+    );
     match (mode, gpu) {
         (ModeSettings::Raycast(s), Some(gpu)) => gpu_raycast(gpu, *s),
-        (ModeSettings::Auto(_), Some(gpu)) if AutoPath::for_gpu(Some(gpu)) == AutoPath::Gpu => {
+        (ModeSettings::Auto(_), Some(gpu))
+            if AutoPath::for_gpu(Some(gpu), &[textured_raycast]) == AutoPath::Gpu =>
+        {
             gpu_raycast(gpu, RaycastSettings::default())
         }
         (ModeSettings::Auto(_), _) => cpu_raycast(CpuRaycastSettings::default()),
