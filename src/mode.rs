@@ -25,6 +25,7 @@
 
 use crate::cpu::raycast::{self as cpu_raycast, CpuRaycastRenderer, CpuRaycastSettings};
 use crate::gpu::limits::ShaderNeeds;
+use crate::gpu::raycast::texture::TextureUse;
 use crate::gpu::raycast::{Entry, Segments};
 use crate::gpu::{
     AdapterChoice, BinningMode, CellProjRenderer, CellProjSettings, GpuContext, GpuError,
@@ -154,29 +155,14 @@ impl ModeSettings {
         let Self::Auto(shells) = self else {
             return None;
         };
-        match (self.auto_path(gpu), gpu) {
-            (AutoPath::SoftwareSlower, Some(gpu)) => Some(format!(
-                "the only GPU adapter, {}, is a software one and measured slower than the CPU \
-                 ray caster; rendering with --mode raycast-cpu (name a GPU mode to use the \
-                 adapter)",
-                gpu.info.name
-            )),
-            (AutoPath::NoAdapter, _) => Some(
-                "no GPU adapter; rendering with the CPU ray caster (--mode raycast-cpu)".into(),
-            ),
-            (AutoPath::ShortLimits, Some(gpu)) => match gpu.check_parts(&auto_needs(shells)) {
-                Err(GpuError::Limit {
-                    adapter,
-                    limit,
-                    has,
-                    needs,
-                    needed_by,
-                }) => Some(format!(
-                    "the GPU adapter {adapter} offers {limit} = {has}, under the {needs} \
-                     {needed_by} needs; rendering with the CPU ray caster (--mode raycast-cpu)"
-                )),
-                _ => None,
-            },
+        auto_note(gpu, &auto_needs(shells))
+    }
+
+    /// [`Self::note`] for a textured cage, whose `auto` takes the GPU ray caster
+    /// ([`crate::texture::textured_renderer`], [`textured_auto_needs`]).
+    pub fn textured_note(&self, gpu: Option<&GpuContext>) -> Option<String> {
+        match self {
+            Self::Auto(_) => auto_note(gpu, &textured_auto_needs()),
             _ => None,
         }
     }
@@ -278,6 +264,44 @@ impl ModeSettings {
             ),
         }
     }
+}
+
+/// What a user should be told, in one line, about `auto` on `gpu` when its GPU path needs
+/// `needs` and it does not render on the GPU: which path it took and why; otherwise `None`.
+fn auto_note(gpu: Option<&GpuContext>, needs: &[(ShaderNeeds, &'static str)]) -> Option<String> {
+    let path = AutoPath::for_gpu(gpu, needs);
+    match (path, gpu) {
+        (AutoPath::SoftwareSlower, Some(gpu)) => Some(format!(
+            "the only GPU adapter, {}, is a software one and measured slower than the CPU \
+             ray caster; rendering with --mode raycast-cpu (name a GPU mode to use the \
+             adapter)",
+            gpu.info.name
+        )),
+        (AutoPath::NoAdapter, _) => {
+            Some("no GPU adapter; rendering with the CPU ray caster (--mode raycast-cpu)".into())
+        }
+        (AutoPath::ShortLimits, Some(gpu)) => match gpu.check_parts(needs) {
+            Err(GpuError::Limit {
+                adapter,
+                limit,
+                has,
+                needs,
+                needed_by,
+            }) => Some(format!(
+                "the GPU adapter {adapter} offers {limit} = {has}, under the {needs} \
+                 {needed_by} needs; rendering with the CPU ray caster (--mode raycast-cpu)"
+            )),
+            _ => None,
+        },
+        _ => None,
+    }
+}
+
+/// What `auto`'s GPU path on a textured cage, the ray caster's default entry method over the
+/// volume ([`crate::texture::textured_renderer`]), needs of the adapter's limits.
+pub(crate) fn textured_auto_needs() -> [(ShaderNeeds, &'static str); 1] {
+    let needs = ShaderNeeds::raycast(Entry::default(), Some(TextureUse::Volume));
+    [(needs, "the raycast mode on a textured cage")]
 }
 
 /// What `auto`'s GPU path, the shells mode with `shells`, needs of the adapter's limits: with

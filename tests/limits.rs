@@ -683,6 +683,16 @@ fn auto_on_a_gpu_short_of_a_limit_renders_on_the_cpu_and_says_why() {
     let fits = hardware(&needs);
     assert_eq!(AutoPath::for_gpu(Some(&fits), &parts), AutoPath::Gpu);
     assert_eq!(auto.note(Some(&fits)), None);
+    // A textured cage's `auto` takes the ray caster (12 storage buffers), which this adapter
+    // cannot run: said so, for that path.
+    let textured = auto
+        .textured_note(Some(&fits))
+        .expect("a textured cage's note");
+    assert!(
+        textured.contains("the raycast mode on a textured cage")
+            && textured.contains("raycast-cpu"),
+        "{textured}"
+    );
     assert!(matches!(auto.resolve(Some(&fits)), ModeSettings::Shells(_)));
     auto.build(Some(&fits), &mesh)
         .unwrap()

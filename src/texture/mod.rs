@@ -24,11 +24,10 @@ use glam::DVec3;
 use crate::cpu::raycast::{CpuRaycastRenderer, CpuRaycastSettings};
 use crate::generate::volume::{VolumeError, VolumeToTets, check_header_file, read_samples_file};
 use crate::gpu::ShellsRenderer;
-use crate::gpu::raycast::texture::TextureUse;
-use crate::gpu::raycast::{Entry, RaycastRenderer, RaycastSettings};
-use crate::gpu::{GpuContext, GpuError, ShaderNeeds};
+use crate::gpu::raycast::{RaycastRenderer, RaycastSettings};
+use crate::gpu::{GpuContext, GpuError};
 use crate::mesh::{TetMesh, box_diagonal};
-use crate::mode::{AutoPath, ModeSettings};
+use crate::mode::{AutoPath, ModeSettings, textured_auto_needs};
 use crate::render::{RenderError, Renderer};
 
 pub use cage::{CageError, CageOptions, cage, cage_within};
@@ -296,15 +295,10 @@ pub fn textured_renderer(
             s,
         )?))
     };
-    // `auto`'s GPU path: the ray caster's default entry method over the volume.
-    let textured_raycast = (
-        ShaderNeeds::raycast(Entry::default(), Some(TextureUse::Volume)),
-        "the raycast mode",
-    );
     match (mode, gpu) {
         (ModeSettings::Raycast(s), Some(gpu)) => gpu_raycast(gpu, *s),
         (ModeSettings::Auto(_), Some(gpu))
-            if AutoPath::for_gpu(Some(gpu), &[textured_raycast]) == AutoPath::Gpu =>
+            if AutoPath::for_gpu(Some(gpu), &textured_auto_needs()) == AutoPath::Gpu =>
         {
             gpu_raycast(gpu, RaycastSettings::default())
         }
