@@ -25,10 +25,11 @@
 
 use crate::cpu::raycast::{self as cpu_raycast, CpuRaycastRenderer, CpuRaycastSettings};
 use crate::gpu::limits::ShaderNeeds;
+use crate::gpu::raycast::texture::TextureUse;
 use crate::gpu::raycast::{Entry, Segments};
 use crate::gpu::{
-    AdapterChoice, CellProjRenderer, CellProjSettings, GpuContext, GpuError, Integrate,
-    IsoRenderer, IsoSettings, RaycastRenderer, RaycastSettings, Sampler, ShellSettings,
+    AdapterChoice, BinningMode, CellProjRenderer, CellProjSettings, GpuContext, GpuError,
+    Integrate, IsoRenderer, IsoSettings, RaycastRenderer, RaycastSettings, Sampler, ShellSettings,
     ShellsRenderer, TunedShells,
 };
 use crate::mesh::TetMesh;
@@ -46,9 +47,10 @@ pub enum AutoPath {
     /// Only a software adapter (type Cpu, e.g. lavapipe), which measured slower than the CPU
     /// ray caster: the CPU ray caster.
     SoftwareSlower,
-    /// A hardware adapter offering less of a limit than the GPU path's shaders need (the
-    /// shells mode's, or the ray caster's that textured cages and the walk sampler take:
-    /// [`ShaderNeeds`]): the CPU ray caster, where a GPU mode named would be refused.
+    /// A hardware adapter offering less of a limit than the stages `auto`'s GPU path would
+    /// dispatch need (the shells mode's with `auto`'s settings, or the ray caster's that a
+    /// textured cage takes: [`ShaderNeeds`]): the CPU ray caster, where that path would be
+    /// refused.
     ShortLimits,
 }
 
@@ -66,22 +68,13 @@ impl AutoPath {
         }
     }
 
-    /// The path for `gpu` as [`ModeSettings::open_gpu`] gave it.
-    pub fn for_gpu(gpu: Option<&GpuContext>) -> Self {
+    /// The path for `gpu` as [`ModeSettings::open_gpu`] gave it, where the GPU path's stages
+    /// need `needs` (each part with what to name, e.g. [`ShaderNeeds::shells`]).
+    pub fn for_gpu(gpu: Option<&GpuContext>, needs: &[(ShaderNeeds, &'static str)]) -> Self {
         match (Self::of(gpu.map(|g| g.info.device_type)), gpu) {
-            (Self::Gpu, Some(gpu)) if Self::short_limit(gpu).is_some() => Self::ShortLimits,
+            (Self::Gpu, Some(gpu)) if gpu.check_parts(needs).is_err() => Self::ShortLimits,
             (path, _) => path,
         }
-    }
-
-    /// The first limit of `gpu` below what the GPU path's shaders need, if any.
-    fn short_limit(gpu: &GpuContext) -> Option<GpuError> {
-        [
-            (ShaderNeeds::SHELLS, "the shells mode"),
-            (ShaderNeeds::RAYCAST, "the ray caster"),
-        ]
-        .iter()
-        .find_map(|(needs, by)| gpu.check_needs(needs, by).err())
     }
 }
 
@@ -149,7 +142,7 @@ impl ModeSettings {
     /// `Shells` on a hardware adapter whose limits fit its shaders and `RaycastCpu` otherwise
     /// ([`AutoPath`]); every other mode is itself.
     pub fn resolve(&self, gpu: Option<&GpuContext>) -> Self {
-        match (self, AutoPath::for_gpu(gpu)) {
+        match (self, self.auto_path(gpu)) {
             (Self::Auto(shells), AutoPath::Gpu) => Self::Shells(*shells),
             (Self::Auto(_), _) => Self::RaycastCpu(CpuRaycastSettings::default()),
             (mode, _) => mode.clone(),
@@ -159,33 +152,27 @@ impl ModeSettings {
     /// What a user should be told, in one line, about how `Auto` was resolved when it does not
     /// render on the GPU: which path it took and why; otherwise `None`.
     pub fn note(&self, gpu: Option<&GpuContext>) -> Option<String> {
-        if !matches!(self, Self::Auto(_)) {
+        let Self::Auto(shells) = self else {
             return None;
-        }
-        match (AutoPath::for_gpu(gpu), gpu) {
-            (AutoPath::SoftwareSlower, Some(gpu)) => Some(format!(
-                "the only GPU adapter, {}, is a software one and measured slower than the CPU \
-                 ray caster; rendering with --mode raycast-cpu (name a GPU mode to use the \
-                 adapter)",
-                gpu.info.name
-            )),
-            (AutoPath::NoAdapter, _) => Some(
-                "no GPU adapter; rendering with the CPU ray caster (--mode raycast-cpu)".into(),
-            ),
-            (AutoPath::ShortLimits, Some(gpu)) => match AutoPath::short_limit(gpu) {
-                Some(GpuError::Limit {
-                    adapter,
-                    limit,
-                    has,
-                    needs,
-                    needed_by,
-                }) => Some(format!(
-                    "the GPU adapter {adapter} offers {limit} = {has}, under the {needs} \
-                     {needed_by} needs; rendering with the CPU ray caster (--mode raycast-cpu)"
-                )),
-                _ => None,
-            },
+        };
+        auto_note(gpu, &auto_needs(shells))
+    }
+
+    /// [`Self::note`] for a textured cage, whose `auto` takes the GPU ray caster
+    /// ([`crate::texture::textured_renderer`], [`textured_auto_needs`]).
+    pub fn textured_note(&self, gpu: Option<&GpuContext>) -> Option<String> {
+        match self {
+            Self::Auto(_) => auto_note(gpu, &textured_auto_needs()),
             _ => None,
+        }
+    }
+
+    /// [`AutoPath::for_gpu`] with the needs of `Auto`'s GPU path ([`auto_needs`]; any for
+    /// another mode, which it does not resolve).
+    fn auto_path(&self, gpu: Option<&GpuContext>) -> AutoPath {
+        match self {
+            Self::Auto(shells) => AutoPath::for_gpu(gpu, &auto_needs(shells)),
+            _ => AutoPath::of(gpu.map(|g| g.info.device_type)),
         }
     }
 
@@ -277,6 +264,50 @@ impl ModeSettings {
             ),
         }
     }
+}
+
+/// What a user should be told, in one line, about `auto` on `gpu` when its GPU path needs
+/// `needs` and it does not render on the GPU: which path it took and why; otherwise `None`.
+fn auto_note(gpu: Option<&GpuContext>, needs: &[(ShaderNeeds, &'static str)]) -> Option<String> {
+    let path = AutoPath::for_gpu(gpu, needs);
+    match (path, gpu) {
+        (AutoPath::SoftwareSlower, Some(gpu)) => Some(format!(
+            "the only GPU adapter, {}, is a software one and measured slower than the CPU \
+             ray caster; rendering with --mode raycast-cpu (name a GPU mode to use the \
+             adapter)",
+            gpu.info.name
+        )),
+        (AutoPath::NoAdapter, _) => {
+            Some("no GPU adapter; rendering with the CPU ray caster (--mode raycast-cpu)".into())
+        }
+        (AutoPath::ShortLimits, Some(gpu)) => match gpu.check_parts(needs) {
+            Err(GpuError::Limit {
+                adapter,
+                limit,
+                has,
+                needs,
+                needed_by,
+            }) => Some(format!(
+                "the GPU adapter {adapter} offers {limit} = {has}, under the {needs} \
+                 {needed_by} needs; rendering with the CPU ray caster (--mode raycast-cpu)"
+            )),
+            _ => None,
+        },
+        _ => None,
+    }
+}
+
+/// What `auto`'s GPU path on a textured cage, the ray caster's default entry method over the
+/// volume ([`crate::texture::textured_renderer`]), needs of the adapter's limits.
+pub(crate) fn textured_auto_needs() -> [(ShaderNeeds, &'static str); 1] {
+    let needs = ShaderNeeds::raycast(Entry::default(), Some(TextureUse::Volume));
+    [(needs, "the raycast mode on a textured cage")]
+}
+
+/// What `auto`'s GPU path, the shells mode with `shells`, needs of the adapter's limits: with
+/// `--binning auto` the GPU binning's too (`auto` resolves before the mesh's size is known).
+fn auto_needs(shells: &ShellSettings) -> [(ShaderNeeds, &'static str); 2] {
+    ShaderNeeds::shells(shells, false, shells.binning != BinningMode::Cpu)
 }
 
 fn segments(s: cpu_raycast::Segments) -> &'static str {

@@ -1,8 +1,9 @@
-//! The limits tables of `gpu::limits` are what the shipped shaders need: derived here with
-//! naga from every module and variant of the shader registry, per bind group layout as wgpu
-//! counts it (the bindings it declares, read or not), so a shader that binds one buffer more
-//! (or less) fails this test until its renderer's table says so; and every variant renders on
-//! a device at exactly its table, which wgpu refuses where a layout declares more.
+//! The limits tables of `gpu::limits` are what the shipped shaders need: each stage group's
+//! table derived here with naga from every module and variant of the shader registry, per bind
+//! group layout as wgpu counts it (the bindings it declares, read or not), so a shader that
+//! binds one buffer more (or less) fails this test until its group's table says so; and every
+//! setting renders on a device at exactly its needs (the max of its groups), which wgpu
+//! refuses where a layout declares more, so a setting missing one of its groups fails too.
 //! And the check itself: every limit below a table is refused with an error naming it;
 //! lavapipe's limits pass every table.
 
@@ -11,22 +12,23 @@ mod common;
 use std::collections::{BTreeMap, BTreeSet};
 
 use naga::valid::{Capabilities, ValidationFlags, Validator};
-use naga::{AddressSpace, ImageClass, ShaderStage, TypeInner};
+use naga::{AddressSpace, Binding, BuiltIn, ImageClass, ShaderStage, TypeInner};
 use tetvr::gpu::{GpuError, ShaderNeeds, shaders};
 
 /// A binding a stage uses: the stage (vertex, fragment, compute), group, binding, and which
 /// per-stage limit counts it (an index into [`count`]'s order).
 type Slot = (u8, u32, u32, u8);
 
-/// The bindings `module`'s layout holds, per stage (`info` is its validation), and its
-/// compute entry points' workgroup sizes and memory (per entry point).
+/// The bindings `module`'s layout holds, per stage (`info` is its validation), and what its
+/// entry points need themselves: inter-stage variables per render entry point, workgroup
+/// sizes and memory per compute entry point.
 fn module_needs(
     module: &naga::Module,
     info: &naga::valid::ModuleInfo,
     name: &str,
 ) -> (BTreeSet<Slot>, ShaderNeeds) {
     let mut slots = BTreeSet::new();
-    let mut workgroups = NONE;
+    let mut entries = NONE;
     for (i, ep) in module.entry_points.iter().enumerate() {
         let uses = info.get_entry_point(i);
         let stage = match ep.stage {
@@ -60,6 +62,8 @@ fn module_needs(
             slots.insert((stage, binding.group, binding.binding, kind));
         }
         if ep.stage != ShaderStage::Compute {
+            let variables = inter_stage_variables(module, ep, name);
+            entries.inter_stage_variables = entries.inter_stage_variables.max(variables);
             continue;
         }
         assert!(
@@ -82,9 +86,58 @@ fn module_needs(
             workgroup_storage,
             ..NONE
         };
-        workgroups = max(workgroups, s);
+        entries = entries.max(s);
     }
-    (slots, workgroups)
+    (slots, entries)
+}
+
+/// The inter-stage variables of a vertex entry point's outputs or a fragment entry point's
+/// inputs, as wgpu counts them: the locations' count, or the largest location + 1 where
+/// more, and for a fragment stage one more per built-in input other than the position
+/// (front facing, sample index and mask, primitive index).
+fn inter_stage_variables(module: &naga::Module, ep: &naga::EntryPoint, name: &str) -> u32 {
+    let f = &ep.function;
+    let io: Vec<(Option<&Binding>, naga::Handle<naga::Type>)> = match ep.stage {
+        ShaderStage::Vertex => f
+            .result
+            .iter()
+            .map(|r| (r.binding.as_ref(), r.ty))
+            .collect(),
+        _ => f
+            .arguments
+            .iter()
+            .map(|a| (a.binding.as_ref(), a.ty))
+            .collect(),
+    };
+    let mut bindings = Vec::new();
+    for (binding, ty) in io {
+        match (binding, &module.types[ty].inner) {
+            (Some(b), _) => bindings.push(b.clone()),
+            (None, TypeInner::Struct { members, .. }) => {
+                bindings.extend(members.iter().filter_map(|m| m.binding.clone()))
+            }
+            (None, ty) => panic!("{name}: {}: unbound {ty:?}", ep.name),
+        }
+    }
+    let (mut count, mut end) = (0, 0);
+    for b in bindings {
+        match b {
+            Binding::Location { location, .. } => {
+                count += 1;
+                end = end.max(location + 1);
+            }
+            Binding::BuiltIn(BuiltIn::Position { .. }) => {}
+            Binding::BuiltIn(_) if ep.stage == ShaderStage::Vertex => {}
+            Binding::BuiltIn(
+                BuiltIn::FrontFacing
+                | BuiltIn::SampleIndex
+                | BuiltIn::SampleMask
+                | BuiltIn::PrimitiveIndex,
+            ) => count += 1,
+            Binding::BuiltIn(other) => panic!("{name}: {}: {other:?} is not counted", ep.name),
+        }
+    }
+    count.max(end)
 }
 
 /// What one bind group layout holding `slots` needs: wgpu counts a layout's bindings per
@@ -104,7 +157,7 @@ fn count(slots: &BTreeSet<Slot>) -> ShaderNeeds {
             sampled_textures: of(4),
             ..NONE
         };
-        n = max(n, s);
+        n = n.max(s);
     }
     for &(_, group, binding, _) in slots {
         n.bind_groups = n.bind_groups.max(group + 1);
@@ -113,13 +166,17 @@ fn count(slots: &BTreeSet<Slot>) -> ShaderNeeds {
     n
 }
 
-/// The bind group layout the registry's module `name` is bound with: its own, except the
-/// shells compute sampler's tile stage and fine stages, which share one (`shells/tiles.rs`),
-/// so it holds the bindings of both.
-fn layout_of(name: &str) -> &str {
+/// The bind group layouts the registry's module `name` is bound with: its own, except the
+/// shells compute sampler's tile stage and fine stages, which share one (`shells/tiles.rs`):
+/// the tile stage's and the fine stage's bindings, with a textured cage's for its variants.
+fn layouts_of(name: &str) -> Vec<String> {
+    const COMPUTE: &str = "shells compute sampler";
+    const TEXTURED: &str = "shells compute sampler (textured)";
     match name.split(' ').next().unwrap_or_default() {
-        "shells_tiles" | "shells_fine" => "shells compute sampler",
-        _ => name,
+        "shells_tiles" => vec![COMPUTE.into(), TEXTURED.into()],
+        "shells_fine" if name.ends_with("textured)") => vec![TEXTURED.into()],
+        "shells_fine" => vec![COMPUTE.into()],
+        _ => vec![name.into()],
     }
 }
 
@@ -134,90 +191,133 @@ fn layout_extras(name: &str) -> Vec<Slot> {
     }
 }
 
-/// The larger of `a` and `b` in every field.
-fn max(a: ShaderNeeds, b: ShaderNeeds) -> ShaderNeeds {
-    let [ax, ay, az] = a.workgroup_size;
-    let [bx, by, bz] = b.workgroup_size;
-    ShaderNeeds {
-        bind_groups: a.bind_groups.max(b.bind_groups),
-        bindings_per_bind_group: a.bindings_per_bind_group.max(b.bindings_per_bind_group),
-        storage_buffers: a.storage_buffers.max(b.storage_buffers),
-        uniform_buffers: a.uniform_buffers.max(b.uniform_buffers),
-        sampled_textures: a.sampled_textures.max(b.sampled_textures),
-        samplers: a.samplers.max(b.samplers),
-        storage_textures: a.storage_textures.max(b.storage_textures),
-        invocations_per_workgroup: a.invocations_per_workgroup.max(b.invocations_per_workgroup),
-        workgroup_size: [ax.max(bx), ay.max(by), az.max(bz)],
-        workgroup_storage: a.workgroup_storage.max(b.workgroup_storage),
+/// The uniform buffers with a dynamic offset in `layout`'s pipeline layout (one bind group
+/// each), which WGSL does not say: the per-shell uniforms (binding 1) of the shells raster
+/// stage (`shells/pipelines.rs`) and the compute sampler (`shells/tiles.rs`). No layout has a
+/// dynamic storage buffer.
+fn dynamic_uniforms(layout: &str) -> u32 {
+    match layout.split(' ').next().unwrap_or_default() {
+        "shells_raster" => 1,
+        _ if layout.starts_with("shells compute sampler") => 1,
+        _ => 0,
     }
 }
 
 /// Nothing needed.
-const NONE: ShaderNeeds = ShaderNeeds {
-    bind_groups: 0,
-    bindings_per_bind_group: 0,
-    storage_buffers: 0,
-    uniform_buffers: 0,
-    sampled_textures: 0,
-    samplers: 0,
-    storage_textures: 0,
-    invocations_per_workgroup: 0,
-    workgroup_size: [0; 3],
-    workgroup_storage: 0,
-};
+const NONE: ShaderNeeds = ShaderNeeds::NONE;
 
-/// The renderers that load the registry's module `name` (indices into the tables of
-/// [`every_table_is_what_its_shaders_need`]): the assembly is shared by the shells, iso and
-/// cellproj modes, the walk sampler's traversals (`raycast_traverse (lists, slices, ...)`) are
-/// the ray caster's like its other stages.
-fn renderers(name: &str) -> &'static [usize] {
-    const SHELLS: usize = 0;
-    const ISO: usize = 1;
-    const CELLPROJ: usize = 2;
-    const RAYCAST: usize = 3;
-    match name.split(' ').next().unwrap_or_default() {
-        "assemble" => &[SHELLS, ISO, CELLPROJ],
-        n if n.starts_with("shells_") => &[SHELLS],
+/// Every stage group's table, by name.
+const GROUPS: [(&str, ShaderNeeds); 14] = [
+    ("ASSEMBLY", ShaderNeeds::ASSEMBLY),
+    ("SHELLS_RASTER", ShaderNeeds::SHELLS_RASTER),
+    (
+        "SHELLS_RASTER_TEXTURED",
+        ShaderNeeds::SHELLS_RASTER_TEXTURED,
+    ),
+    ("SHELLS_COMPUTE", ShaderNeeds::SHELLS_COMPUTE),
+    (
+        "SHELLS_COMPUTE_TEXTURED",
+        ShaderNeeds::SHELLS_COMPUTE_TEXTURED,
+    ),
+    ("SHELLS_BINNING", ShaderNeeds::SHELLS_BINNING),
+    ("ISO", ShaderNeeds::ISO),
+    ("CELLPROJ", ShaderNeeds::CELLPROJ),
+    ("RAYCAST_LISTS", ShaderNeeds::RAYCAST_LISTS),
+    ("RAYCAST_PEEL", ShaderNeeds::RAYCAST_PEEL),
+    (
+        "RAYCAST_TEXTURED_LISTS",
+        ShaderNeeds::RAYCAST_TEXTURED_LISTS,
+    ),
+    ("RAYCAST_TEXTURED_PEEL", ShaderNeeds::RAYCAST_TEXTURED_PEEL),
+    ("RAYCAST_ISO_LISTS", ShaderNeeds::RAYCAST_ISO_LISTS),
+    ("RAYCAST_ISO_PEEL", ShaderNeeds::RAYCAST_ISO_PEEL),
+];
+
+/// The stage groups (indices into [`GROUPS`]) whose stages include the layout `layout` (a
+/// module's name, or [`layouts_of`]'s): the assembly is the shells' group of its own and in
+/// the iso and cellproj tables; the shells composite and termination stages are in both
+/// raster groups; each ray caster group has the stages its entry method and field run, the
+/// walk sampler's slices (`raycast_traverse (lists, slices, ...)`) with the lists.
+fn groups(layout: &str) -> &'static [usize] {
+    const ASSEMBLY: usize = 0;
+    const RASTER: usize = 1;
+    const RASTER_T: usize = 2;
+    const COMPUTE: usize = 3;
+    const COMPUTE_T: usize = 4;
+    const BINNING: usize = 5;
+    const ISO: usize = 6;
+    const CELLPROJ: usize = 7;
+    const LISTS: usize = 8;
+    const PEEL: usize = 9;
+    const TEX_LISTS: usize = 10;
+    const TEX_PEEL: usize = 11;
+    const ISO_LISTS: usize = 12;
+    const ISO_PEEL: usize = 13;
+    let textured = layout.ends_with("textured)");
+    match layout.split(' ').next().unwrap_or_default() {
+        "assemble" => &[ASSEMBLY, ISO, CELLPROJ],
+        "shells_raster" if textured => &[RASTER_T],
+        "shells_raster" => &[RASTER],
+        "shells_composite" | "shells_mark" => &[RASTER, RASTER_T],
+        "shells" if textured => &[COMPUTE_T],
+        "shells" => &[COMPUTE],
+        "shells_bin" => &[BINNING],
         n if n.starts_with("iso_") => &[ISO],
         n if n.starts_with("cellproj_") => &[CELLPROJ],
-        n if n.starts_with("raycast_") => &[RAYCAST],
-        _ => panic!("{name}: which renderer loads it? (add it to `renderers`)"),
+        "raycast_vertices" | "raycast_planes" => {
+            &[LISTS, PEEL, TEX_LISTS, TEX_PEEL, ISO_LISTS, ISO_PEEL]
+        }
+        "raycast_entries" => &[LISTS, TEX_LISTS, ISO_LISTS],
+        "raycast_peel" => &[PEEL, TEX_PEEL, ISO_PEEL],
+        "raycast_tiles" if layout.contains("entry lists") => &[LISTS, TEX_LISTS, ISO_LISTS],
+        "raycast_tiles" => &[PEEL, TEX_PEEL, ISO_PEEL],
+        "raycast_traverse" => {
+            let lists = layout.contains("(lists");
+            match (lists, layout.contains("textured iso"), textured) {
+                (true, true, _) => &[ISO_LISTS],
+                (false, true, _) => &[ISO_PEEL],
+                (true, false, true) => &[TEX_LISTS],
+                (false, false, true) => &[TEX_PEEL],
+                (true, false, false) => &[LISTS],
+                (false, false, false) => &[PEEL],
+            }
+        }
+        _ => panic!("{layout}: which stage group has it? (add it to `groups`)"),
     }
 }
 
-/// Each table of `gpu::limits` is exactly the largest need over every entry point of the
-/// shaders its renderer loads: not below (the adapter check would let a pipeline creation
-/// panic), not above (it would refuse adapters that can run the mode).
+/// Each stage group's table is exactly the largest need over every layout and entry point of
+/// the shaders in it: not below (the adapter check would let a pipeline creation panic), not
+/// above (it would refuse adapters that can run the settings).
 #[test]
 fn every_table_is_what_its_shaders_need() {
-    let tables = [
-        ("SHELLS", ShaderNeeds::SHELLS),
-        ("ISO", ShaderNeeds::ISO),
-        ("CELLPROJ", ShaderNeeds::CELLPROJ),
-        ("RAYCAST", ShaderNeeds::RAYCAST),
-    ];
-    let mut derived = [NONE; 4];
-    let mut layouts: BTreeMap<String, (BTreeSet<Slot>, &[usize])> = BTreeMap::new();
+    let mut derived = [NONE; GROUPS.len()];
+    let mut layouts: BTreeMap<String, BTreeSet<Slot>> = BTreeMap::new();
     for (name, src, _) in shaders::registry() {
         let module = naga::front::wgsl::parse_str(&src).expect(&name);
         let info = Validator::new(ValidationFlags::all(), Capabilities::all())
             .validate(&module)
             .expect(&name);
-        let (slots, workgroups) = module_needs(&module, &info, &name);
-        for &r in renderers(&name) {
-            derived[r] = max(derived[r], workgroups);
-        }
-        let layout = layouts.entry(layout_of(&name).to_owned());
-        let (all, _) = layout.or_insert_with(|| (BTreeSet::new(), renderers(&name)));
-        all.extend(slots);
-        all.extend(layout_extras(&name));
-    }
-    for (slots, renderers) in layouts.values() {
-        for &r in *renderers {
-            derived[r] = max(derived[r], count(slots));
+        let (slots, entries) = module_needs(&module, &info, &name);
+        for layout in layouts_of(&name) {
+            for &g in groups(&layout) {
+                derived[g] = derived[g].max(entries);
+            }
+            let all = layouts.entry(layout).or_default();
+            all.extend(&slots);
+            all.extend(layout_extras(&name));
         }
     }
-    let wrong: Vec<String> = (tables.iter().zip(derived))
+    for (layout, slots) in &layouts {
+        let needs = ShaderNeeds {
+            dynamic_uniform_buffers: dynamic_uniforms(layout),
+            ..count(slots)
+        };
+        for &g in groups(layout) {
+            derived[g] = derived[g].max(needs);
+        }
+    }
+    let wrong: Vec<String> = (GROUPS.iter().zip(derived))
         .filter(|((_, declared), derived)| declared != derived)
         .map(|((table, declared), derived)| {
             format!("ShaderNeeds::{table} is\n  {declared:?}\nits shaders need\n  {derived:?}")
@@ -228,21 +328,31 @@ fn every_table_is_what_its_shaders_need() {
 
 /// `limits` with each limit of the tables set to what `needs` says.
 fn offering(mut limits: wgpu::Limits, needs: &ShaderNeeds) -> wgpu::Limits {
-    limits.max_bind_groups = needs.bind_groups;
-    limits.max_bindings_per_bind_group = needs.bindings_per_bind_group;
-    limits.max_storage_buffers_per_shader_stage = needs.storage_buffers;
-    limits.max_uniform_buffers_per_shader_stage = needs.uniform_buffers;
-    limits.max_sampled_textures_per_shader_stage = needs.sampled_textures;
-    limits.max_samplers_per_shader_stage = needs.samplers;
-    limits.max_storage_textures_per_shader_stage = needs.storage_textures;
-    limits.max_compute_invocations_per_workgroup = needs.invocations_per_workgroup;
-    [
-        limits.max_compute_workgroup_size_x,
-        limits.max_compute_workgroup_size_y,
-        limits.max_compute_workgroup_size_z,
-    ] = needs.workgroup_size;
-    limits.max_compute_workgroup_storage_size = needs.workgroup_storage;
+    for name in LIMITS {
+        *limit_mut(&mut limits, name) = need_of(needs, name);
+    }
     limits
+}
+
+/// What `needs` says of the limit `name` (one of [`LIMITS`]).
+fn need_of(needs: &ShaderNeeds, name: &str) -> u32 {
+    match name {
+        "max_bind_groups" => needs.bind_groups,
+        "max_bindings_per_bind_group" => needs.bindings_per_bind_group,
+        "max_dynamic_uniform_buffers_per_pipeline_layout" => needs.dynamic_uniform_buffers,
+        "max_storage_buffers_per_shader_stage" => needs.storage_buffers,
+        "max_uniform_buffers_per_shader_stage" => needs.uniform_buffers,
+        "max_sampled_textures_per_shader_stage" => needs.sampled_textures,
+        "max_samplers_per_shader_stage" => needs.samplers,
+        "max_storage_textures_per_shader_stage" => needs.storage_textures,
+        "max_inter_stage_shader_variables" => needs.inter_stage_variables,
+        "max_compute_invocations_per_workgroup" => needs.invocations_per_workgroup,
+        "max_compute_workgroup_size_x" => needs.workgroup_size[0],
+        "max_compute_workgroup_size_y" => needs.workgroup_size[1],
+        "max_compute_workgroup_size_z" => needs.workgroup_size[2],
+        "max_compute_workgroup_storage_size" => needs.workgroup_storage,
+        _ => panic!("unknown limit {name}"),
+    }
 }
 
 /// Limits exactly at a table pass its check; each limit one below is refused with an error
@@ -253,22 +363,18 @@ fn a_limit_below_the_needs_is_refused_by_name() {
     let ones = ShaderNeeds {
         bind_groups: 1,
         bindings_per_bind_group: 1,
+        dynamic_uniform_buffers: 1,
         storage_buffers: 1,
         uniform_buffers: 1,
         sampled_textures: 1,
         samplers: 1,
         storage_textures: 1,
+        inter_stage_variables: 1,
         invocations_per_workgroup: 1,
         workgroup_size: [1; 3],
         workgroup_storage: 1,
     };
-    let tables = [
-        ShaderNeeds::SHELLS,
-        ShaderNeeds::ISO,
-        ShaderNeeds::CELLPROJ,
-        ShaderNeeds::RAYCAST,
-        ones,
-    ];
+    let tables = GROUPS.map(|(_, t)| t).into_iter().chain([ones]);
     for needs in tables {
         let exact = offering(wgpu::Limits::default(), &needs);
         needs.check("Tiny GPU", &exact, "the test mode").unwrap();
@@ -304,14 +410,16 @@ fn a_limit_below_the_needs_is_refused_by_name() {
 }
 
 /// The limits the tables cover, by their names in [`wgpu::Limits`].
-const LIMITS: [&str; 12] = [
+const LIMITS: [&str; 14] = [
     "max_bind_groups",
     "max_bindings_per_bind_group",
+    "max_dynamic_uniform_buffers_per_pipeline_layout",
     "max_storage_buffers_per_shader_stage",
     "max_uniform_buffers_per_shader_stage",
     "max_sampled_textures_per_shader_stage",
     "max_samplers_per_shader_stage",
     "max_storage_textures_per_shader_stage",
+    "max_inter_stage_shader_variables",
     "max_compute_invocations_per_workgroup",
     "max_compute_workgroup_size_x",
     "max_compute_workgroup_size_y",
@@ -324,6 +432,9 @@ fn limit_mut<'a>(limits: &'a mut wgpu::Limits, name: &str) -> &'a mut u32 {
     match name {
         "max_bind_groups" => &mut limits.max_bind_groups,
         "max_bindings_per_bind_group" => &mut limits.max_bindings_per_bind_group,
+        "max_dynamic_uniform_buffers_per_pipeline_layout" => {
+            &mut limits.max_dynamic_uniform_buffers_per_pipeline_layout
+        }
         "max_storage_buffers_per_shader_stage" => &mut limits.max_storage_buffers_per_shader_stage,
         "max_uniform_buffers_per_shader_stage" => &mut limits.max_uniform_buffers_per_shader_stage,
         "max_sampled_textures_per_shader_stage" => {
@@ -333,6 +444,7 @@ fn limit_mut<'a>(limits: &'a mut wgpu::Limits, name: &str) -> &'a mut u32 {
         "max_storage_textures_per_shader_stage" => {
             &mut limits.max_storage_textures_per_shader_stage
         }
+        "max_inter_stage_shader_variables" => &mut limits.max_inter_stage_shader_variables,
         "max_compute_invocations_per_workgroup" => {
             &mut limits.max_compute_invocations_per_workgroup
         }
@@ -349,18 +461,12 @@ fn offering_of(limits: &wgpu::Limits, name: &str) -> u32 {
     *limit_mut(&mut limits.clone(), name)
 }
 
-/// The test adapter (lavapipe here) offers what every mode needs.
+/// The test adapter (lavapipe here) offers what every stage group needs.
 #[test]
 fn the_test_adapter_offers_every_table() {
     let ctx = common::ctx();
-    let tables = [
-        ShaderNeeds::SHELLS,
-        ShaderNeeds::ISO,
-        ShaderNeeds::CELLPROJ,
-        ShaderNeeds::RAYCAST,
-    ];
-    for needs in tables {
-        if let Err(e) = needs.check(&ctx.info.name, &ctx.limits, "a mode") {
+    for (name, needs) in GROUPS {
+        if let Err(e) = needs.check(&ctx.info.name, &ctx.limits, name) {
             panic!("{e}");
         }
     }
@@ -377,62 +483,69 @@ fn device_offering(needs: &ShaderNeeds) -> tetvr::gpu::GpuContext {
     GpuContext::from_device(ctx.adapter.clone(), device, queue)
 }
 
-/// A device opened with exactly a mode's table (its other limits the adapter's) builds the
-/// mode and renders a frame: wgpu validates the renderers' bind group layouts and pipelines
-/// against those limits and panics on any it refuses, so a table that counts fewer bindings
-/// than a layout declares fails here. Fewer storage buffers are refused by the build, with
-/// an error naming the limit, not a panic.
+/// The needs of the shells mode with `settings` (of a `textured` cage, `gpu_binning`): the max
+/// of its parts.
+fn shells_needs(
+    settings: &tetvr::gpu::ShellSettings,
+    textured: bool,
+    gpu_binning: bool,
+) -> ShaderNeeds {
+    let parts = ShaderNeeds::shells(settings, textured, gpu_binning);
+    parts.iter().fold(NONE, |n, (p, _)| n.max(*p))
+}
+
+/// A device opened with exactly a setting's needs (its other limits the adapter's) builds the
+/// setting and renders a frame: wgpu validates the renderers' bind group layouts and
+/// pipelines against those limits and panics on any it refuses, so needs that leave out a
+/// stage group the setting runs, or count fewer bindings than a layout declares, fail here.
+/// One storage buffer fewer is refused by the build, with an error naming the limit, not a
+/// panic.
 #[test]
-fn each_mode_renders_on_a_device_with_exactly_its_table() {
+fn each_setting_renders_on_a_device_with_exactly_its_needs() {
     use tetvr::ModeSettings;
+    use tetvr::gpu::raycast::Entry;
     use tetvr::gpu::*;
     let mesh = common::gaussians(2);
     let (tf, camera) = common::default_view(&mesh, 24);
     let shells = |sampler, binning| {
-        ModeSettings::Shells(ShellSettings {
+        let s = ShellSettings {
             sampler,
             binning,
             ..ShellSettings::default()
-        })
+        };
+        let gpu = binning == BinningMode::Gpu;
+        (shells_needs(&s, false, gpu), ModeSettings::Shells(s))
     };
-    let walk = max(ShaderNeeds::SHELLS, ShaderNeeds::RAYCAST);
+    let raycast = |entry| {
+        let s = RaycastSettings {
+            entry,
+            ..RaycastSettings::default()
+        };
+        (ShaderNeeds::raycast(entry, None), ModeSettings::Raycast(s))
+    };
     let cases = [
-        (
-            ShaderNeeds::SHELLS,
-            shells(Sampler::Raster, BinningMode::Gpu),
-        ),
-        (
-            ShaderNeeds::SHELLS,
-            shells(Sampler::Raster, BinningMode::Cpu),
-        ),
-        (
-            ShaderNeeds::SHELLS,
-            shells(Sampler::Compute, BinningMode::Gpu),
-        ),
-        (walk, shells(Sampler::Walk, BinningMode::Cpu)),
+        shells(Sampler::Raster, BinningMode::Cpu),
+        shells(Sampler::Raster, BinningMode::Gpu),
+        shells(Sampler::Compute, BinningMode::Cpu),
+        shells(Sampler::Compute, BinningMode::Gpu),
+        shells(Sampler::Walk, BinningMode::Cpu),
         (ShaderNeeds::ISO, ModeSettings::Iso(IsoSettings::default())),
         (
             ShaderNeeds::CELLPROJ,
             ModeSettings::CellProj(CellProjSettings::default()),
         ),
-        (
-            ShaderNeeds::RAYCAST,
-            ModeSettings::Raycast(RaycastSettings::default()),
-        ),
+        raycast(Entry::Lists),
+        raycast(Entry::Peel),
     ];
     for (needs, mode) in cases {
-        let name = mode.describe(None);
+        let name = format!("{mode:?}");
         let frame = |ctx: &GpuContext| {
             let mut renderer = mode.build(Some(ctx), &mesh)?;
             renderer.render(&camera, &tf).map(drop)
         };
         frame(&device_offering(&needs)).unwrap_or_else(|e| panic!("{name}: {e}"));
-        // One storage buffer less, or WebGPU's default of 8 where that is less: without the
-        // check, the shells' GPU binning (9) would panic in wgpu's error handler at its first
-        // frame.
-        let webgpu = wgpu::Limits::default().max_storage_buffers_per_shader_stage;
         let below = ShaderNeeds {
-            storage_buffers: (needs.storage_buffers - 1).min(webgpu),
+            storage_buffers: needs.storage_buffers - 1,
             ..needs
         };
         let err = frame(&device_offering(&below)).err();
@@ -450,10 +563,106 @@ fn each_mode_renders_on_a_device_with_exactly_its_table() {
     }
 }
 
-/// `auto` on a hardware adapter whose limits are below the GPU path's shaders renders with the
-/// CPU ray caster and says which limit, instead of choosing shells and failing; at exactly
-/// the shells' and the ray caster's tables it takes the GPU. (The test adapter is a software
-/// one, which `auto` never takes, so its type is set to a discrete GPU's.)
+/// A setting is refused only by the limits of the stages it runs: on an adapter offering
+/// WebGPU's default of 8 storage buffers per stage (some GL and mobile adapters), the default
+/// shells setting (raster sampler, CPU binning: 7) renders, where the shells mode's whole
+/// table (12, the textured compute sampler's) refused it; its GPU binning (9) is refused by
+/// name, and `gpu-info` lists the binning and the compute sampler, not the raster sampler.
+#[test]
+fn the_default_shells_renders_at_webgpus_default_storage_buffers() {
+    use tetvr::Renderer;
+    use tetvr::gpu::*;
+    let mesh = common::gaussians(2);
+    let (tf, camera) = common::default_view(&mesh, 24);
+    let webgpu = wgpu::Limits::default().max_storage_buffers_per_shader_stage;
+    assert_eq!(webgpu, 8);
+    let ctx = {
+        let ctx = common::ctx();
+        let mut desc = GpuContext::device_descriptor(&ctx.adapter);
+        desc.required_limits.max_storage_buffers_per_shader_stage = webgpu;
+        let (device, queue) = pollster::block_on(ctx.adapter.request_device(&desc)).unwrap();
+        GpuContext::from_device(ctx.adapter.clone(), device, queue)
+    };
+    let mut r = ShellsRenderer::new(&ctx, &mesh, ShellSettings::default()).unwrap();
+    r.render(&camera, &tf).unwrap();
+    let binning = ShellSettings {
+        binning: BinningMode::Gpu,
+        ..ShellSettings::default()
+    };
+    let err = ShellsRenderer::new(&ctx, &mesh, binning)
+        .err()
+        .map(|e| e.to_string());
+    let msg = err.expect("the GPU binning refused");
+    for part in [
+        "max_storage_buffers_per_shader_stage = 8",
+        "needs 9",
+        "GPU binning",
+    ] {
+        assert!(msg.contains(part), "{part:?} is not in: {msg}");
+    }
+    // gpu-info lists the settings refused, each by name: the raster sampler is not one.
+    let refused: Vec<&str> = (ctx.refusals().iter())
+        .map(|e| match e {
+            GpuError::Limit { needed_by, .. } => *needed_by,
+            other => panic!("{other}"),
+        })
+        .collect();
+    assert!(refused.contains(&"the shells mode's GPU binning (--binning gpu)"));
+    assert!(refused.contains(&"the shells mode's compute sampler"));
+    assert!(!refused.contains(&"the shells mode's raster sampler"));
+    assert!(!refused.contains(&"the iso mode"), "{refused:?}");
+}
+
+/// Each renderer's `new` checks the limits before it reads or uploads the mesh (seconds and
+/// GPU memory for a large one): a mesh the upload refuses (no scalars to copy) on a device one
+/// storage buffer short is refused for the limit, not for the mesh.
+#[test]
+fn the_limits_are_checked_before_the_mesh_is_uploaded() {
+    use tetvr::gpu::raycast::Entry;
+    use tetvr::gpu::*;
+    let cube = common::gaussians(1);
+    let (no_scalars, _) =
+        tetvr::TetMesh::new(cube.positions().to_vec(), cube.tets().to_vec(), Vec::new()).unwrap();
+    let short = |needs: ShaderNeeds| {
+        device_offering(&ShaderNeeds {
+            storage_buffers: needs.storage_buffers - 1,
+            ..needs
+        })
+    };
+    let limit = |what: &str, r: Result<(), tetvr::RenderError>| match r {
+        Err(tetvr::RenderError::Gpu(GpuError::Limit { .. })) => {}
+        other => panic!("{what}: {:?}", other.map_err(|e| e.to_string())),
+    };
+    let s = ShellSettings::default();
+    let ctx = short(shells_needs(&s, false, false));
+    limit(
+        "shells",
+        ShellsRenderer::new(&ctx, &no_scalars, s).map(drop),
+    );
+    let tuned = ShellSettings { tune: true, ..s };
+    limit(
+        "tuned shells",
+        TunedShells::new(&ctx, &no_scalars, tuned).map(drop),
+    );
+    let ctx = short(ShaderNeeds::ISO);
+    limit(
+        "iso",
+        IsoRenderer::new(&ctx, &no_scalars, IsoSettings::default()).map(drop),
+    );
+    let ctx = short(ShaderNeeds::CELLPROJ);
+    let cellproj = CellProjRenderer::new(&ctx, &no_scalars, CellProjSettings::default());
+    limit("cellproj", cellproj.map(drop));
+    let ctx = short(ShaderNeeds::raycast(Entry::Lists, None));
+    let raycast = RaycastRenderer::new(&ctx, &no_scalars, RaycastSettings::default());
+    limit("raycast", raycast.map(drop));
+}
+
+/// `auto` on a hardware adapter whose limits are below what its path's stages need renders
+/// with the CPU ray caster and says which limit, instead of choosing shells and failing; at
+/// exactly the needs of `auto`'s settings (the default: the raster sampler, CPU binning; not
+/// the ray caster's, which `auto` does not run on this mesh) it takes the GPU. (The test
+/// adapter is a software one, which `auto` never takes, so its type is set to a discrete
+/// GPU's.)
 #[test]
 fn auto_on_a_gpu_short_of_a_limit_renders_on_the_cpu_and_says_why() {
     use tetvr::ModeSettings;
@@ -461,47 +670,71 @@ fn auto_on_a_gpu_short_of_a_limit_renders_on_the_cpu_and_says_why() {
     use tetvr::mode::AutoPath;
     let mesh = common::gaussians(2);
     let (tf, camera) = common::default_view(&mesh, 24);
-    let auto = ModeSettings::Auto(ShellSettings::default());
+    let settings = ShellSettings::default();
+    let auto = ModeSettings::Auto(settings);
     let hardware = |needs: &ShaderNeeds| {
         let mut ctx = device_offering(needs);
         ctx.info.device_type = wgpu::DeviceType::DiscreteGpu;
         ctx
     };
-    let both = max(ShaderNeeds::SHELLS, ShaderNeeds::RAYCAST);
-    let fits = hardware(&both);
-    assert_eq!(AutoPath::for_gpu(Some(&fits)), AutoPath::Gpu);
+    let parts = ShaderNeeds::shells(&settings, false, false);
+    let needs = shells_needs(&settings, false, false);
+    assert!(needs.storage_buffers < ShaderNeeds::RAYCAST_LISTS.storage_buffers);
+    let fits = hardware(&needs);
+    assert_eq!(AutoPath::for_gpu(Some(&fits), &parts), AutoPath::Gpu);
     assert_eq!(auto.note(Some(&fits)), None);
+    // A textured cage's `auto` takes the ray caster (12 storage buffers), which this adapter
+    // cannot run: said so, for that path.
+    let textured = auto
+        .textured_note(Some(&fits))
+        .expect("a textured cage's note");
+    assert!(
+        textured.contains("the raycast mode on a textured cage")
+            && textured.contains("raycast-cpu"),
+        "{textured}"
+    );
     assert!(matches!(auto.resolve(Some(&fits)), ModeSettings::Shells(_)));
+    auto.build(Some(&fits), &mesh)
+        .unwrap()
+        .render(&camera, &tf)
+        .unwrap();
 
+    let below = needs.storage_buffers - 1;
     let short = hardware(&ShaderNeeds {
-        storage_buffers: 8,
-        ..both
+        storage_buffers: below,
+        ..needs
     });
-    assert_eq!(AutoPath::for_gpu(Some(&short)), AutoPath::ShortLimits);
+    assert_eq!(
+        AutoPath::for_gpu(Some(&short), &parts),
+        AutoPath::ShortLimits
+    );
     assert!(matches!(
         auto.resolve(Some(&short)),
         ModeSettings::RaycastCpu(_)
     ));
     let note = auto.note(Some(&short)).expect("a note");
     for part in [
-        "max_storage_buffers_per_shader_stage = 8",
-        "the shells mode",
-        "--mode raycast-cpu",
+        format!("max_storage_buffers_per_shader_stage = {below}"),
+        "the shells mode's raster sampler".into(),
+        "--mode raycast-cpu".into(),
     ] {
-        assert!(note.contains(part), "{note}");
+        assert!(note.contains(&part), "{note}");
     }
     let mut renderer = auto.build(Some(&short), &mesh).unwrap();
     renderer.render(&camera, &tf).unwrap();
 }
 
-/// The ray caster's variants the mode test does not build (textured, textured isosurfaces,
-/// each entry method and integrator), and the textured shells samplers, each on a device at
-/// exactly its table: wgpu counts every binding a layout declares, used or not, so a table
-/// derived from what the shaders declare alone (13 storage buffers and 4 uniform buffers for
-/// the ray caster, where the peeled textured isosurfaces' layout holds 15 and 5) panics here.
+/// The ray caster's variants the setting test does not build (textured, textured
+/// isosurfaces, each entry method and integrator), and the textured shells samplers, each on a
+/// device at exactly its needs: wgpu counts every binding a layout declares, used or not, so
+/// needs derived from what the shaders declare alone (13 storage buffers and 4 uniform
+/// buffers for the peeled textured isosurfaces, where their layout holds 15 and 5) panic
+/// here. A ray caster switched to depth peeling on a device at the entry lists' needs is
+/// refused by name, and keeps rendering with its lists.
 #[test]
-fn textured_and_every_ray_caster_variant_render_on_exactly_their_table() {
+fn textured_and_every_ray_caster_variant_render_on_exactly_their_needs() {
     use tetvr::gpu::iso::IsoSettings;
+    use tetvr::gpu::raycast::texture::TextureUse;
     use tetvr::gpu::raycast::{Entry, Segments};
     use tetvr::gpu::*;
     use tetvr::texture::{CageOptions, DEFAULT_TEXCOORDS, Volume, cage, texcoords};
@@ -522,29 +755,24 @@ fn textured_and_every_ray_caster_variant_render_on_exactly_their_table() {
         let frame = r.and_then(|mut r| r.render(&camera, &tf).map(drop));
         frame.unwrap_or_else(|e| panic!("{what}: {e}"));
     };
-    let walk = max(ShaderNeeds::SHELLS, ShaderNeeds::RAYCAST);
     for sampler in [Sampler::Raster, Sampler::Compute, Sampler::Walk] {
-        let needs = match sampler {
-            Sampler::Walk => walk,
-            _ => ShaderNeeds::SHELLS,
-        };
-        let ctx = device_offering(&needs);
         let s = ShellSettings {
             sampler,
             ..ShellSettings::default()
         };
+        let ctx = device_offering(&shells_needs(&s, true, false));
         let r = ShellsRenderer::textured(&ctx, &mesh, &tc, &volume, s);
         render(
             &format!("textured shells {sampler:?}"),
             r.map(|r| Box::new(r) as _),
         );
     }
-    let ctx = device_offering(&ShaderNeeds::RAYCAST);
     for entry in [Entry::Lists, Entry::Peel] {
         let s = RaycastSettings {
             entry,
             ..RaycastSettings::default()
         };
+        let ctx = device_offering(&ShaderNeeds::raycast(entry, Some(TextureUse::Volume)));
         let r = RaycastRenderer::textured(&ctx, &mesh, &tc, &volume, None, s);
         render(
             &format!("textured raycast {entry:?}"),
@@ -554,11 +782,13 @@ fn textured_and_every_ray_caster_variant_render_on_exactly_their_table() {
             isovalues: vec![(8.0, [1.0, 0.0, 0.0])],
             ..IsoSettings::default()
         };
+        let ctx = device_offering(&ShaderNeeds::raycast(entry, Some(TextureUse::Isosurfaces)));
         let r = RaycastRenderer::textured_iso(&ctx, &mesh, &tc, &volume, None, s, &iso);
         render(
             &format!("textured iso {entry:?}"),
             r.map(|r| Box::new(r) as _),
         );
+        let ctx = device_offering(&ShaderNeeds::raycast(entry, None));
         for segments in [Segments::Partial, Segments::Exact, Segments::Table] {
             let s = RaycastSettings {
                 entry,
@@ -572,4 +802,13 @@ fn textured_and_every_ray_caster_variant_render_on_exactly_their_table() {
             );
         }
     }
+    let ctx = device_offering(&ShaderNeeds::RAYCAST_LISTS);
+    let mut r = RaycastRenderer::new(&ctx, &mesh, RaycastSettings::default()).unwrap();
+    let err = r.set_entry(Entry::Peel).unwrap_err().to_string();
+    assert!(
+        err.contains("max_storage_buffers_per_shader_stage") && err.contains("depth peeling"),
+        "{err}"
+    );
+    assert_eq!(r.settings().entry, Entry::Lists);
+    r.render(&camera, &tf).unwrap();
 }

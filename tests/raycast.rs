@@ -667,7 +667,7 @@ fn switching_integrator_and_entry_between_frames_renders_each_as_a_fresh_rendere
     let mut by_integrator = Vec::new();
     for (segments, entry) in sequence {
         r.set_segments(segments);
-        r.set_entry(entry);
+        r.set_entry(entry).unwrap();
         let got = r.render(&camera, &tf).unwrap();
         let fresh = framed(&mesh, &camera, &tf, with(segments, entry));
         assert!(bits(&got).iter().any(|&b| b != 0), "an empty picture");

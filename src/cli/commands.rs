@@ -220,7 +220,7 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
     let file = cmd.scene.as_deref();
     check_scene_isovalues(&scene, args, file, &mesh, textured.as_ref())?;
     let open = Instant::now();
-    let (mode, gpu) = open_scene_mode(&scene, &mesh, &tf)?;
+    let (mode, gpu) = open_scene_mode(&scene, &mesh, &tf, textured.is_some())?;
     startup.open_ms = ms(open);
     // A textured cage keeps `auto` for its own rule (texture::textured_renderer).
     let (mode, bar) = match (cmd.frames, &textured) {
@@ -440,22 +440,25 @@ pub(super) fn open_mode(
     mesh: &TetMesh,
     tf: &TransferFunction,
 ) -> Result<(ModeSettings, Option<GpuContext>), CliError> {
-    open_scene_mode(&of_flags(args)?, mesh, tf)
+    open_scene_mode(&of_flags(args)?, mesh, tf, false)
 }
 
 /// The mode `scene` asks for and the GPU it renders on, opened; `auto` off the GPU says in one
-/// line which path it took and why, a GPU mode by name without an adapter is an error.
+/// line which path it took and why (for a `textured` cage, the ray caster's), a GPU mode by
+/// name without an adapter is an error.
 fn open_scene_mode(
     scene: &Scene,
     mesh: &TetMesh,
     tf: &TransferFunction,
+    textured: bool,
 ) -> Result<(ModeSettings, Option<GpuContext>), CliError> {
     let mode = scene.mode_settings(mesh, tf)?;
     let gpu = mode.open_gpu(AdapterChoice::from_env())?;
-    let notes = [
-        mode.note(gpu.as_ref()),
-        mode.mesh_note(mesh).map(str::to_owned),
-    ];
+    let auto_note = match textured {
+        false => mode.note(gpu.as_ref()),
+        true => mode.textured_note(gpu.as_ref()),
+    };
+    let notes = [auto_note, mode.mesh_note(mesh).map(str::to_owned)];
     for note in notes.into_iter().flatten() {
         eprintln!("note: {note}");
     }

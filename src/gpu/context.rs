@@ -237,6 +237,49 @@ impl GpuContext {
         )
     }
 
+    /// The settings whose stages need more than this adapter's limits offer, one error each
+    /// (for `tetvr gpu-info`): each shells sampler and the GPU binning, iso, cellproj, the
+    /// ray caster with each entry method, and a textured cage's ray caster and isosurfaces.
+    pub fn refusals(&self) -> Vec<GpuError> {
+        use crate::gpu::raycast::{Entry, texture::TextureUse};
+        use crate::gpu::{Sampler, ShellSettings};
+        let shells = |sampler| {
+            let s = ShellSettings {
+                sampler,
+                ..ShellSettings::default()
+            };
+            ShaderNeeds::shells(&s, false, false)[0]
+        };
+        let textured = |used| ShaderNeeds::raycast(Entry::Lists, Some(used));
+        let settings = [
+            shells(Sampler::Raster),
+            shells(Sampler::Compute),
+            shells(Sampler::Walk),
+            (
+                ShaderNeeds::SHELLS_BINNING,
+                "the shells mode's GPU binning (--binning gpu)",
+            ),
+            (ShaderNeeds::ISO, "the iso mode"),
+            (ShaderNeeds::CELLPROJ, "the cellproj mode"),
+            (ShaderNeeds::RAYCAST_LISTS, "the raycast mode"),
+            (
+                ShaderNeeds::RAYCAST_PEEL,
+                "the raycast mode's depth peeling",
+            ),
+            (
+                textured(TextureUse::Volume),
+                "the raycast mode on a textured cage",
+            ),
+            (
+                textured(TextureUse::Isosurfaces),
+                "the iso mode on a textured cage",
+            ),
+        ];
+        (settings.iter())
+            .filter_map(|(needs, by)| self.check_needs(needs, by).err())
+            .collect()
+    }
+
     /// A multi-line report for `tetvr gpu-info`: the adapter, the limits and features the
     /// renderers depend on, and the modes whose shaders need more than its limits offer.
     pub fn report(&self) -> String {
@@ -259,19 +302,9 @@ impl GpuContext {
             (true, false) => "yes",
             (false, _) => "no",
         };
-        let refused: Vec<String> = [
-            (ShaderNeeds::SHELLS, "the shells mode"),
-            (ShaderNeeds::ISO, "the iso mode"),
-            (ShaderNeeds::CELLPROJ, "the cellproj mode"),
-            (
-                ShaderNeeds::RAYCAST,
-                "the raycast mode and the shells' walk sampler",
-            ),
-        ]
-        .iter()
-        .filter_map(|(needs, mode)| self.check_needs(needs, mode).err())
-        .map(|e| format!("\n  {e}"))
-        .collect();
+        let refused: Vec<String> = (self.refusals().iter())
+            .map(|e| format!("\n  {e}"))
+            .collect();
         let refused = if refused.is_empty() {
             "none".to_string()
         } else {

@@ -1,33 +1,44 @@
-//! What each renderer's shaders need of an adapter's limits, and the check that refuses an
+//! What each setting's shaders need of an adapter's limits, and the check that refuses an
 //! adapter offering less with an error instead of wgpu's panic at pipeline creation.
 //!
 //! tetvr opens its device with the adapter's own limits ([`GpuContext::device_descriptor`]),
 //! so a shader binding more than the adapter allows (e.g. 9 storage buffers in one stage
 //! where WebGPU's default, and some GL and mobile adapters, offer 8) would only fail when its
 //! pipeline is created, inside wgpu, whose default error handler panics. Each renderer checks
-//! its [`ShaderNeeds`] when it is built, so only the modes an adapter cannot run are refused.
-//! The tables are the largest value over the renderer's shaders: resources per stage as one
-//! bind group layout declares them, as wgpu counts them, read by its entry points or not (a
+//! the needs of the stages its settings can dispatch before it uploads anything, so only the
+//! settings an adapter cannot run are refused: a table per stage group ([`ShaderNeeds`]'s
+//! constants), a setting's needs the [`ShaderNeeds::max`] of its groups
+//! ([`ShaderNeeds::shells`], [`ShaderNeeds::raycast`]).
+//! A group's table is the largest value over its shaders: resources per stage as one bind
+//! group layout declares them, as wgpu counts them, read by its entry points or not (a
 //! compute layout holds every binding its module declares, and the ray caster's traversals
 //! also its integrator's table; a render layout's bindings are visible to the stages that
-//! read them; the shells compute sampler's tile and fine stages share one), workgroups per
-//! entry point.
+//! read them; the shells compute sampler's tile and fine stages share one), dynamic uniform
+//! buffers per pipeline layout, inter-stage variables and workgroups per entry point.
 //! `tests/limits.rs` derives them with naga from every shipped shader and fails when a table
-//! differs, so they cannot go stale, and renders each mode on a device opened at exactly its
-//! table. Colour targets depend on the settings and are checked where they are chosen
-//! (`shells/config.rs`).
+//! differs, so they cannot go stale, and renders each setting on a device opened at exactly
+//! its needs. No layout declares a dynamic storage buffer. Colour targets depend on the
+//! settings and are checked where they are chosen (`shells/config.rs`); the iso mode's two
+//! and cellproj's one fixed target take at most 32 bytes per sample, WebGPU's minimum.
 
+use crate::gpu::raycast::Entry;
+use crate::gpu::raycast::texture::TextureUse;
+use crate::gpu::shells::{Sampler, ShellSettings};
 use crate::gpu::{GpuContext, GpuError};
 
 /// What a set of shaders needs of [`wgpu::Limits`]: per field the largest value over their
-/// bind group layouts (resource counts, per shader stage, as wgpu counts them) or compute
-/// entry points (workgroups).
+/// bind group layouts (resource counts, per shader stage, as wgpu counts them), pipeline
+/// layouts (dynamic buffers), render entry points (inter-stage variables) or compute entry
+/// points (workgroups).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ShaderNeeds {
     /// The largest bind group index + 1 (`max_bind_groups`).
     pub bind_groups: u32,
     /// The largest binding index + 1 in one group (`max_bindings_per_bind_group`).
     pub bindings_per_bind_group: u32,
+    /// Uniform buffers with a dynamic offset in one pipeline layout
+    /// (`max_dynamic_uniform_buffers_per_pipeline_layout`).
+    pub dynamic_uniform_buffers: u32,
     /// Storage buffers in one stage (`max_storage_buffers_per_shader_stage`).
     pub storage_buffers: u32,
     /// Uniform buffers in one stage (`max_uniform_buffers_per_shader_stage`).
@@ -38,6 +49,9 @@ pub struct ShaderNeeds {
     pub samplers: u32,
     /// Storage textures in one stage (`max_storage_textures_per_shader_stage`).
     pub storage_textures: u32,
+    /// Variables a vertex stage passes to a fragment stage, as wgpu counts them: the
+    /// locations' count or the largest location + 1 (`max_inter_stage_shader_variables`).
+    pub inter_stage_variables: u32,
     /// Invocations in one compute workgroup, x y z (`max_compute_invocations_per_workgroup`).
     pub invocations_per_workgroup: u32,
     /// A compute workgroup's largest size in x, y and z (`max_compute_workgroup_size_*`).
@@ -48,19 +62,79 @@ pub struct ShaderNeeds {
 }
 
 impl ShaderNeeds {
-    /// The shells mode: its raster, composite, tile, fine, mark and binning stages and the
-    /// assembly (the walk sampler's traversal is the ray caster's, [`Self::RAYCAST`]).
-    pub const SHELLS: Self = Self {
-        bind_groups: 1,
-        bindings_per_bind_group: 17,
-        storage_buffers: 12,
-        uniform_buffers: 4,
-        sampled_textures: 1,
+    /// Nothing needed.
+    pub const NONE: Self = Self {
+        bind_groups: 0,
+        bindings_per_bind_group: 0,
+        dynamic_uniform_buffers: 0,
+        storage_buffers: 0,
+        uniform_buffers: 0,
+        sampled_textures: 0,
         samplers: 0,
         storage_textures: 0,
+        inter_stage_variables: 0,
+        invocations_per_workgroup: 0,
+        workgroup_size: [0; 3],
+        workgroup_storage: 0,
+    };
+    /// The assembly, shared by the shells, iso and cellproj modes (not the walk sampler).
+    pub const ASSEMBLY: Self = Self {
+        bind_groups: 1,
+        bindings_per_bind_group: 8,
+        storage_buffers: 7,
+        uniform_buffers: 1,
+        invocations_per_workgroup: 64,
+        workgroup_size: [64, 1, 1],
+        ..Self::NONE
+    };
+    /// The shells raster, composite and early-termination stages, whose layouts every
+    /// sampler builds.
+    pub const SHELLS_RASTER: Self = Self {
+        bind_groups: 1,
+        bindings_per_bind_group: 17,
+        dynamic_uniform_buffers: 1,
+        storage_buffers: 4,
+        uniform_buffers: 3,
+        sampled_textures: 1,
+        inter_stage_variables: 5,
+        invocations_per_workgroup: 64,
+        workgroup_size: [8, 8, 1],
+        ..Self::NONE
+    };
+    /// [`Self::SHELLS_RASTER`] for a textured cage.
+    pub const SHELLS_RASTER_TEXTURED: Self = Self {
+        storage_buffers: 5,
+        inter_stage_variables: 8,
+        ..Self::SHELLS_RASTER
+    };
+    /// The shells compute sampler's tile and fine stages (one layout).
+    pub const SHELLS_COMPUTE: Self = Self {
+        bind_groups: 1,
+        bindings_per_bind_group: 17,
+        dynamic_uniform_buffers: 1,
+        storage_buffers: 11,
+        uniform_buffers: 4,
         invocations_per_workgroup: 256,
         workgroup_size: [256, 8, 1],
         workgroup_storage: 7744,
+        ..Self::NONE
+    };
+    /// [`Self::SHELLS_COMPUTE`] for a textured cage.
+    pub const SHELLS_COMPUTE_TEXTURED: Self = Self {
+        storage_buffers: 12,
+        sampled_textures: 1,
+        ..Self::SHELLS_COMPUTE
+    };
+    /// The shells' GPU binning ([`crate::gpu::BinningMode::Gpu`]).
+    pub const SHELLS_BINNING: Self = Self {
+        bind_groups: 1,
+        bindings_per_bind_group: 11,
+        storage_buffers: 9,
+        uniform_buffers: 2,
+        invocations_per_workgroup: 256,
+        workgroup_size: [256, 1, 1],
+        workgroup_storage: 1024,
+        ..Self::NONE
     };
     /// The iso mode: its raster and gradient stages and the assembly.
     pub const ISO: Self = Self {
@@ -68,12 +142,10 @@ impl ShaderNeeds {
         bindings_per_bind_group: 17,
         storage_buffers: 7,
         uniform_buffers: 2,
-        sampled_textures: 0,
-        samplers: 0,
-        storage_textures: 0,
+        inter_stage_variables: 8,
         invocations_per_workgroup: 64,
         workgroup_size: [64, 1, 1],
-        workgroup_storage: 0,
+        ..Self::NONE
     };
     /// The cellproj mode: its raster stage and the assembly.
     pub const CELLPROJ: Self = Self {
@@ -82,29 +154,144 @@ impl ShaderNeeds {
         storage_buffers: 7,
         uniform_buffers: 3,
         sampled_textures: 1,
-        samplers: 0,
-        storage_textures: 0,
+        inter_stage_variables: 5,
         invocations_per_workgroup: 64,
         workgroup_size: [64, 1, 1],
-        workgroup_storage: 0,
+        ..Self::NONE
     };
-    /// The ray caster (the raycast mode, the shells' walk sampler): every stage of
-    /// [`crate::gpu::shaders::raycast_stages`] and the walk's traversals.
-    pub const RAYCAST: Self = Self {
+    /// The ray caster with entry lists ([`Entry::Lists`]): vertices, planes, entries, tiles
+    /// and every traversal of the mesh's field (each integrator, the shells' walk sampler's
+    /// slices).
+    pub const RAYCAST_LISTS: Self = Self {
         bind_groups: 1,
-        bindings_per_bind_group: 22,
-        storage_buffers: 15,
-        uniform_buffers: 5,
-        sampled_textures: 1,
-        samplers: 0,
+        bindings_per_bind_group: 17,
+        storage_buffers: 11,
+        uniform_buffers: 3,
         storage_textures: 1,
         invocations_per_workgroup: 64,
         workgroup_size: [64, 8, 1],
         workgroup_storage: 144,
+        ..Self::NONE
+    };
+    /// The ray caster with depth peeling ([`Entry::Peel`]): vertices, planes, peeling, tiles
+    /// and every traversal of the mesh's field.
+    pub const RAYCAST_PEEL: Self = Self {
+        storage_buffers: 12,
+        uniform_buffers: 4,
+        workgroup_storage: 0,
+        ..Self::RAYCAST_LISTS
+    };
+    /// [`Self::RAYCAST_LISTS`] for a textured cage's volume (the ray caster's stepping and
+    /// the walk sampler's slices).
+    pub const RAYCAST_TEXTURED_LISTS: Self = Self {
+        bindings_per_bind_group: 19,
+        storage_buffers: 12,
+        sampled_textures: 1,
+        ..Self::RAYCAST_LISTS
+    };
+    /// [`Self::RAYCAST_PEEL`] for a textured cage's volume.
+    pub const RAYCAST_TEXTURED_PEEL: Self = Self {
+        bindings_per_bind_group: 19,
+        storage_buffers: 13,
+        sampled_textures: 1,
+        ..Self::RAYCAST_PEEL
+    };
+    /// [`Self::RAYCAST_LISTS`] for a textured cage's isosurfaces.
+    pub const RAYCAST_ISO_LISTS: Self = Self {
+        bindings_per_bind_group: 22,
+        storage_buffers: 14,
+        uniform_buffers: 4,
+        sampled_textures: 1,
+        ..Self::RAYCAST_LISTS
+    };
+    /// [`Self::RAYCAST_PEEL`] for a textured cage's isosurfaces.
+    pub const RAYCAST_ISO_PEEL: Self = Self {
+        bindings_per_bind_group: 22,
+        storage_buffers: 15,
+        uniform_buffers: 5,
+        sampled_textures: 1,
+        ..Self::RAYCAST_PEEL
     };
 
+    /// The larger of `self` and `other` in every field: what two groups of stages need.
+    pub const fn max(self, other: Self) -> Self {
+        const fn m(a: u32, b: u32) -> u32 {
+            if a > b { a } else { b }
+        }
+        let ([ax, ay, az], [bx, by, bz]) = (self.workgroup_size, other.workgroup_size);
+        Self {
+            bind_groups: m(self.bind_groups, other.bind_groups),
+            bindings_per_bind_group: m(self.bindings_per_bind_group, other.bindings_per_bind_group),
+            dynamic_uniform_buffers: m(self.dynamic_uniform_buffers, other.dynamic_uniform_buffers),
+            storage_buffers: m(self.storage_buffers, other.storage_buffers),
+            uniform_buffers: m(self.uniform_buffers, other.uniform_buffers),
+            sampled_textures: m(self.sampled_textures, other.sampled_textures),
+            samplers: m(self.samplers, other.samplers),
+            storage_textures: m(self.storage_textures, other.storage_textures),
+            inter_stage_variables: m(self.inter_stage_variables, other.inter_stage_variables),
+            invocations_per_workgroup: m(
+                self.invocations_per_workgroup,
+                other.invocations_per_workgroup,
+            ),
+            workgroup_size: [m(ax, bx), m(ay, by), m(az, bz)],
+            workgroup_storage: m(self.workgroup_storage, other.workgroup_storage),
+        }
+    }
+
+    /// The ray caster with `entry` over the mesh's field (`texture` `None`) or a textured
+    /// cage's: the stages it can dispatch with any integrator.
+    pub fn raycast(entry: Entry, texture: Option<TextureUse>) -> Self {
+        match (entry, texture) {
+            (Entry::Lists, None) => Self::RAYCAST_LISTS,
+            (Entry::Peel, None) => Self::RAYCAST_PEEL,
+            (Entry::Lists, Some(TextureUse::Volume)) => Self::RAYCAST_TEXTURED_LISTS,
+            (Entry::Peel, Some(TextureUse::Volume)) => Self::RAYCAST_TEXTURED_PEEL,
+            (Entry::Lists, Some(TextureUse::Isosurfaces)) => Self::RAYCAST_ISO_LISTS,
+            (Entry::Peel, Some(TextureUse::Isosurfaces)) => Self::RAYCAST_ISO_PEEL,
+        }
+    }
+
+    /// The shells mode with `settings` (of a `textured` cage; with `gpu_binning` where the
+    /// GPU bins its tets, which the walk sampler never does), in the two parts an adapter may
+    /// fall short of, each with what to name: the sampler's stages, and the GPU binning's
+    /// ([`Self::NONE`] without it). Their [`Self::max`] is the setting's needs.
+    pub fn shells(
+        settings: &ShellSettings,
+        textured: bool,
+        gpu_binning: bool,
+    ) -> [(Self, &'static str); 2] {
+        let raster = match textured {
+            false => Self::SHELLS_RASTER,
+            true => Self::SHELLS_RASTER_TEXTURED,
+        };
+        let compute = match textured {
+            false => Self::SHELLS_COMPUTE,
+            true => Self::SHELLS_COMPUTE_TEXTURED,
+        };
+        let walk = Self::raycast(Entry::Lists, textured.then_some(TextureUse::Volume));
+        let sampler = match settings.sampler {
+            Sampler::Raster => (
+                raster.max(Self::ASSEMBLY),
+                "the shells mode's raster sampler",
+            ),
+            Sampler::Compute => (
+                raster.max(Self::ASSEMBLY).max(compute),
+                "the shells mode's compute sampler",
+            ),
+            Sampler::Walk => (raster.max(walk), "the shells mode's walk sampler"),
+        };
+        let binning = match gpu_binning && settings.sampler != Sampler::Walk {
+            true => Self::SHELLS_BINNING,
+            false => Self::NONE,
+        };
+        [
+            sampler,
+            (binning, "the shells mode's GPU binning (--binning gpu)"),
+        ]
+    }
+
     /// Each limit's wgpu name, what `limits` offers and what these shaders need.
-    fn rows(&self, limits: &wgpu::Limits) -> [(&'static str, u32, u32); 12] {
+    fn rows(&self, limits: &wgpu::Limits) -> [(&'static str, u32, u32); 14] {
         let l = limits;
         [
             ("max_bind_groups", l.max_bind_groups, self.bind_groups),
@@ -112,6 +299,11 @@ impl ShaderNeeds {
                 "max_bindings_per_bind_group",
                 l.max_bindings_per_bind_group,
                 self.bindings_per_bind_group,
+            ),
+            (
+                "max_dynamic_uniform_buffers_per_pipeline_layout",
+                l.max_dynamic_uniform_buffers_per_pipeline_layout,
+                self.dynamic_uniform_buffers,
             ),
             (
                 "max_storage_buffers_per_shader_stage",
@@ -137,6 +329,11 @@ impl ShaderNeeds {
                 "max_storage_textures_per_shader_stage",
                 l.max_storage_textures_per_shader_stage,
                 self.storage_textures,
+            ),
+            (
+                "max_inter_stage_shader_variables",
+                l.max_inter_stage_shader_variables,
+                self.inter_stage_variables,
             ),
             (
                 "max_compute_invocations_per_workgroup",
@@ -200,5 +397,16 @@ impl GpuContext {
         needed_by: &'static str,
     ) -> Result<(), GpuError> {
         needs.check(&self.info.name, &self.limits, needed_by)
+    }
+
+    /// [`Self::check_needs`] on each part of a setting's needs (e.g. [`ShaderNeeds::shells`]),
+    /// in order.
+    pub(crate) fn check_parts(
+        &self,
+        parts: &[(ShaderNeeds, &'static str)],
+    ) -> Result<(), GpuError> {
+        parts
+            .iter()
+            .try_for_each(|(needs, by)| self.check_needs(needs, by))
     }
 }

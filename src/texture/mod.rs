@@ -27,7 +27,7 @@ use crate::gpu::ShellsRenderer;
 use crate::gpu::raycast::{RaycastRenderer, RaycastSettings};
 use crate::gpu::{GpuContext, GpuError};
 use crate::mesh::{TetMesh, box_diagonal};
-use crate::mode::{AutoPath, ModeSettings};
+use crate::mode::{AutoPath, ModeSettings, textured_auto_needs};
 use crate::render::{RenderError, Renderer};
 
 pub use cage::{CageError, CageOptions, cage, cage_within};
@@ -297,7 +297,9 @@ pub fn textured_renderer(
     };
     match (mode, gpu) {
         (ModeSettings::Raycast(s), Some(gpu)) => gpu_raycast(gpu, *s),
-        (ModeSettings::Auto(_), Some(gpu)) if AutoPath::for_gpu(Some(gpu)) == AutoPath::Gpu => {
+        (ModeSettings::Auto(_), Some(gpu))
+            if AutoPath::for_gpu(Some(gpu), &textured_auto_needs()) == AutoPath::Gpu =>
+        {
             gpu_raycast(gpu, RaycastSettings::default())
         }
         (ModeSettings::Auto(_), _) => cpu_raycast(CpuRaycastSettings::default()),

@@ -167,6 +167,14 @@ impl CellProjRenderer {
         settings: CellProjSettings,
     ) -> Result<Self, RenderError> {
         ctx.check_needs(&ShaderNeeds::CELLPROJ, "the cellproj mode")?;
+        Self::build(ctx, mesh, settings)
+    }
+
+    fn build(
+        ctx: &GpuContext,
+        mesh: Arc<GpuTetMesh>,
+        settings: CellProjSettings,
+    ) -> Result<Self, RenderError> {
         preint::check_table(&ctx.limits, &settings)?;
         // Records beyond one storage binding are assembled and drawn in chunks of the sorted
         // order (each bound as a window of the record array, drawn one after the other, so the
@@ -217,8 +225,10 @@ impl CellProjRenderer {
 
     /// Builds the pipelines and uploads the mesh (positions relative to its bounding-box
     /// centre, normalized active scalars).
+    /// An adapter short of a limit is refused before anything is uploaded.
     pub fn new(ctx: &GpuContext, mesh: &TetMesh, s: CellProjSettings) -> Result<Self, RenderError> {
-        Self::with_mesh(ctx, GpuTetMesh::new(ctx, mesh)?, s)
+        ctx.check_needs(&ShaderNeeds::CELLPROJ, "the cellproj mode")?;
+        Self::build(ctx, GpuTetMesh::new(ctx, mesh)?, s)
     }
 
     /// Switches the integrator (the table is built on the next frame that needs it).

@@ -183,9 +183,17 @@ impl IsoRenderer {
     pub fn with_mesh(
         ctx: &GpuContext,
         mesh: Arc<GpuTetMesh>,
-        mut settings: IsoSettings,
+        settings: IsoSettings,
     ) -> Result<Self, RenderError> {
         ctx.check_needs(&ShaderNeeds::ISO, "the iso mode")?;
+        Self::build(ctx, mesh, settings)
+    }
+
+    fn build(
+        ctx: &GpuContext,
+        mesh: Arc<GpuTetMesh>,
+        mut settings: IsoSettings,
+    ) -> Result<Self, RenderError> {
         check_isovalues(&settings.isovalues)?;
         if !(settings.epsilon.is_finite() && settings.epsilon >= 0.0) {
             return Err(settings_error(format!(
@@ -274,8 +282,10 @@ impl IsoRenderer {
     /// Builds the pipelines and uploads the mesh (positions relative to its bounding-box
     /// centre, normalized active scalars). Empty `settings.isovalues`: one at the middle of the
     /// active scalar range.
+    /// An adapter short of a limit is refused before anything is uploaded.
     pub fn new(ctx: &GpuContext, mesh: &TetMesh, s: IsoSettings) -> Result<Self, RenderError> {
-        Self::with_mesh(ctx, GpuTetMesh::new(ctx, mesh)?, s)
+        ctx.check_needs(&ShaderNeeds::ISO, "the iso mode")?;
+        Self::build(ctx, GpuTetMesh::new(ctx, mesh)?, s)
     }
 
     /// The per-vertex gradients the last frame's gradient stage wrote (normalized-scalar

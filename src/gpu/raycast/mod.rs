@@ -254,6 +254,8 @@ struct PlanesStage {
 pub struct RaycastRenderer {
     device: wgpu::Device,
     queue: wgpu::Queue,
+    /// The adapter's name and limits (for [`Self::set_entry`]'s check).
+    adapter: String,
     limits: wgpu::Limits,
     settings: RaycastSettings,
     mesh: Arc<GpuTetMesh>,
@@ -364,10 +366,12 @@ impl RaycastRenderer {
         mesh: Arc<GpuTetMesh>,
         settings: RaycastSettings,
     ) -> Result<Self, RenderError> {
+        check_limits(ctx, settings.entry, None)?;
         Self::build(ctx, mesh, settings, None, false)
     }
 
-    /// The traversal of the shells' walk sampler over a mesh already on the GPU: each segment
+    /// The traversal of the shells' walk sampler over a mesh already on the GPU (its limits
+    /// checked by the shells renderer, [`ShaderNeeds::shells`]): each segment
     /// composites the slices it holds (`shaders/raycast_slices.wgsl`) instead of integrating
     /// the TF, `settings.segments` unused; frames come from [`Self::render_slices`].
     /// With `texture` (a textured cage's, over `mesh` as its cage), the slices read its volume
@@ -414,6 +418,7 @@ impl RaycastRenderer {
         step: Option<f64>,
         settings: RaycastSettings,
     ) -> Result<Self, RenderError> {
+        check_limits(ctx, settings.entry, Some(TextureUse::Volume))?;
         let texture = GpuTexture::for_cage(ctx, cage, volume, texcoords, step)?;
         let textured = Some((texture, TextureUse::Volume));
         Self::build(ctx, GpuTetMesh::new(ctx, cage)?, settings, textured, false)
@@ -426,11 +431,6 @@ impl RaycastRenderer {
         textured: Option<(GpuTexture, TextureUse)>,
         sliced: bool,
     ) -> Result<Self, RenderError> {
-        let needed_by = match sliced {
-            false => "the raycast mode",
-            true => "the shells mode's walk sampler",
-        };
-        ctx.check_needs(&ShaderNeeds::RAYCAST, needed_by)?;
         let nt = mesh.tet_count() as u64;
         let nv = mesh.read().positions.len() as u64;
         // The limits first, then the face adjacency (seconds on a mesh of tens of millions of
@@ -489,6 +489,7 @@ impl RaycastRenderer {
             eye_tol: 0.0,
             planes: PlanesStage::default(),
             queue: ctx.queue.clone(),
+            adapter: ctx.info.name.clone(),
             limits: ctx.limits.clone(),
             device,
             settings,
@@ -501,8 +502,10 @@ impl RaycastRenderer {
     }
 
     /// Uploads the mesh and builds the renderer over it ([`Self::with_mesh`]).
+    /// An adapter short of a limit is refused before anything is uploaded.
     pub fn new(ctx: &GpuContext, mesh: &TetMesh, s: RaycastSettings) -> Result<Self, RenderError> {
-        Self::with_mesh(ctx, GpuTetMesh::new(ctx, mesh)?, s)
+        check_limits(ctx, s.entry, None)?;
+        Self::build(ctx, GpuTetMesh::new(ctx, mesh)?, s, None, false)
     }
 
     /// The settings in use.
@@ -516,9 +519,19 @@ impl RaycastRenderer {
         self.settings.segments = segments;
     }
 
-    /// Switches how rays find their entries (the per-pixel buffers follow on the next frame).
-    pub fn set_entry(&mut self, entry: Entry) {
+    /// Switches how rays find their entries (the per-pixel buffers follow on the next frame);
+    /// [`GpuError::Limit`](crate::gpu::GpuError::Limit), and no switch, where the adapter's
+    /// limits are short of the new method's stages ([`ShaderNeeds::raycast`]).
+    pub fn set_entry(&mut self, entry: Entry) -> Result<(), RenderError> {
+        let texture = match (&self.iso, &self.texture) {
+            (Some(_), _) => Some(TextureUse::Isosurfaces),
+            (None, Some(_)) => Some(TextureUse::Volume),
+            (None, None) => None,
+        };
+        let (needs, needed_by) = limits_of(entry, texture);
+        needs.check(&self.adapter, &self.limits, needed_by)?;
         self.settings.entry = entry;
+        Ok(())
     }
 
     /// Bytes per tet of what scales with the mesh: the links, the boundary, the vertex
@@ -529,6 +542,28 @@ impl RaycastRenderer {
         let own = self.links.size() + self.verts.size() + self.boundary.size();
         (mesh + own) as f64 / self.mesh.tet_count().max(1) as f64
     }
+}
+
+/// What the ray caster with `entry` over `texture`'s field (`None`: the mesh's) needs of the
+/// adapter's limits, and what to name when it falls short.
+fn limits_of(entry: Entry, texture: Option<TextureUse>) -> (ShaderNeeds, &'static str) {
+    let needed_by = match (entry, texture) {
+        (_, Some(TextureUse::Isosurfaces)) => "the iso mode on a textured cage",
+        (Entry::Lists, _) => "the raycast mode",
+        (Entry::Peel, _) => "the raycast mode's depth peeling",
+    };
+    (ShaderNeeds::raycast(entry, texture), needed_by)
+}
+
+/// An error unless `ctx`'s limits offer what [`limits_of`] says; checked before anything is
+/// uploaded.
+pub(crate) fn check_limits(
+    ctx: &GpuContext,
+    entry: Entry,
+    texture: Option<TextureUse>,
+) -> Result<(), RenderError> {
+    let (needs, needed_by) = limits_of(entry, texture);
+    Ok(ctx.check_needs(&needs, needed_by)?)
 }
 
 /// Uploads a cell-data mesh's values per tet, which the traversal binds as one window; an

@@ -154,6 +154,7 @@ impl RaycastRenderer {
         settings: RaycastSettings,
         iso: &IsoSettings,
     ) -> Result<Self, RenderError> {
+        super::check_limits(ctx, settings.entry, Some(TextureUse::Isosurfaces))?;
         let texture = GpuTexture::for_cage(ctx, cage, volume, texcoords, step)?;
         let surfaces = TexturedIso::new(ctx, &iso.isovalues, &texture, cage, texcoords, volume)?;
         let mesh: Arc<GpuTetMesh> = GpuTetMesh::new(ctx, cage)?;

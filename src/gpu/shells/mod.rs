@@ -306,7 +306,21 @@ impl ShellsRenderer {
         mesh: Arc<GpuTetMesh>,
         settings: ShellSettings,
     ) -> Result<Self, RenderError> {
+        Self::check_limits(ctx, &settings, false, mesh.tet_count())?;
         Self::build(ctx, mesh, settings, None)
+    }
+
+    /// An error unless `ctx`'s limits offer what `settings` dispatch over a mesh of `tets`
+    /// tets (a `textured` cage's): [`ShaderNeeds::shells`]. Checked before anything is
+    /// uploaded.
+    pub(crate) fn check_limits(
+        ctx: &GpuContext,
+        settings: &ShellSettings,
+        textured: bool,
+        tets: usize,
+    ) -> Result<(), RenderError> {
+        let gpu_binning = gpu_binning::picked(settings.binning, tets as u64);
+        Ok(ctx.check_parts(&ShaderNeeds::shells(settings, textured, gpu_binning))?)
     }
 
     /// The shells renderer of a textured cage (issue 12): `cage`'s vertices carry `texcoords`,
@@ -330,6 +344,7 @@ impl ShellsRenderer {
                  per shell and the skips yourself",
             ));
         }
+        Self::check_limits(ctx, &settings, true, cage.tet_count())?;
         let texture = ShellTexture::new(ctx, cage, texcoords, volume)?;
         Self::build(ctx, GpuTetMesh::new(ctx, cage)?, settings, Some(texture))
     }
@@ -340,7 +355,6 @@ impl ShellsRenderer {
         settings: ShellSettings,
         texture: Option<ShellTexture>,
     ) -> Result<Self, RenderError> {
-        ctx.check_needs(&ShaderNeeds::SHELLS, "the shells mode")?;
         let config = config::slices(ctx, &settings)?;
         config::check(&settings)?;
         let device = &ctx.device;
@@ -442,9 +456,11 @@ impl ShellsRenderer {
     }
 
     /// Builds pipelines and uploads the mesh (positions relative to its bounding-box centre,
-    /// normalized active scalars, tets). The device and queue are shared with `ctx`.
+    /// normalized active scalars, tets). The device and queue are shared with `ctx`. An
+    /// adapter short of a limit is refused before anything is uploaded.
     pub fn new(ctx: &GpuContext, mesh: &TetMesh, s: ShellSettings) -> Result<Self, RenderError> {
-        Self::with_mesh(ctx, GpuTetMesh::new(ctx, mesh)?, s)
+        Self::check_limits(ctx, &s, false, mesh.tet_count())?;
+        Self::build(ctx, GpuTetMesh::new(ctx, mesh)?, s, None)
     }
 
     /// Slice spacing in world units.

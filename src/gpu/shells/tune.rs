@@ -430,6 +430,9 @@ impl TunedShells {
         mesh: &crate::TetMesh,
         settings: ShellSettings,
     ) -> Result<Self, RenderError> {
+        // The default configuration's limits before the upload (a candidate short of one is
+        // dropped like any that fails to build).
+        ShellsRenderer::check_limits(ctx, &settings, false, mesh.tet_count())?;
         let mesh = GpuTetMesh::new(ctx, mesh)?;
         Self::with_source(
             ctx,
