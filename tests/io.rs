@@ -640,6 +640,121 @@ fn all_tet_vtu_pieces_read_in_place_and_still_name_a_bad_cell() {
     }
 }
 
+/// The mixed fixture's points with `cells` instead of its own.
+fn with_cells(cells: &[(u8, Vec<usize>)]) -> Fixture {
+    Fixture {
+        cells: cells.to_vec(),
+        ..mixed()
+    }
+}
+
+/// The mixed fixture's points with `cells` as legacy binary files, 4.2 and 5.1.
+fn legacy_binaries(cells: &[(u8, Vec<usize>)]) -> [(&'static str, Vec<u8>); 2] {
+    let f = with_cells(cells);
+    [
+        ("legacy binary 4.2", encode::legacy_binary(&f, false)),
+        ("legacy binary 5.1", encode::legacy_binary(&f, true)),
+    ]
+}
+
+#[test]
+fn all_tet_legacy_binary_files_read_as_the_vtu_and_name_a_bad_cell_as_before() {
+    // All tets, decoded in place and added in one step; then tets beside a quad of four
+    // vertices (decoded in place, then added cell by cell): the mesh the VTU of the same cells
+    // gives, in both layouts.
+    let tets = vec![
+        (10, vec![0, 1, 3, 4]),
+        (10, vec![1, 2, 3, 6]),
+        (10, vec![5, 6, 10, 11]),
+    ];
+    let mut with_quad = tets.clone();
+    with_quad.insert(1, (9, vec![0, 1, 2, 3]));
+    for cells in [tets.clone(), with_quad] {
+        let o = encode::Vtu {
+            layout: encode::Layout::Inline,
+            header64: false,
+            big: false,
+            zlib: false,
+        };
+        let vtu = encode::vtu(&with_cells(&cells), o);
+        let want = load_bytes(&vtu, Format::Vtu, "vtu").unwrap();
+        for (label, bytes) in legacy_binaries(&cells) {
+            let l = load_bytes(&bytes, Format::VtkLegacy, label).unwrap_or_else(|e| panic!("{e}"));
+            let (m, w) = (&l.mesh, &want.mesh);
+            assert_eq!(m.tets(), w.tets(), "{label}");
+            assert_eq!(m.positions(), w.positions(), "{label}");
+            assert_eq!(m.arrays(), w.arrays(), "{label}");
+            assert_eq!(m.cell_arrays(), w.cell_arrays(), "{label}");
+            let (r, wr) = (&l.report, &want.report);
+            assert_eq!(r.skipped_cells, wr.skipped_cells, "{label}");
+            assert_eq!(r.reoriented, wr.reoriented, "{label}");
+        }
+    }
+    // A bad cell among tets that are otherwise all tets: the message the cell-by-cell reader
+    // gave before the in-place one, in both layouts.
+    let bad = |i: usize, cell: (u8, Vec<usize>)| {
+        let mut c = tets.clone();
+        c[i] = cell;
+        c
+    };
+    let cases = [
+        (
+            bad(1, (10, vec![1, 2, 12, 6])),
+            "cell 1: vertex index 12 of the tetrahedron is out of range (the mesh has 12 points)",
+        ),
+        (
+            bad(2, (10, vec![5, 6, 5, 11])),
+            "cell 2: the tetrahedron repeats vertex 5; a cell needs distinct vertices",
+        ),
+        (
+            bad(1, (12, vec![1, 2, 3, 6])),
+            "cell 1: a hexahedron has 8 vertices, the file gives 4",
+        ),
+        (
+            bad(0, (42, vec![0, 1, 3, 4])),
+            "cell 0: cell type 42 (polyhedron) is not supported",
+        ),
+        (
+            bad(1, (10, vec![1, 2, 3])),
+            "cell 1: a tetrahedron has 4 vertices, the file gives 3",
+        ),
+    ];
+    for (cells, want) in cases {
+        for (label, bytes) in legacy_binaries(&cells) {
+            let e = load_bytes(&bytes, Format::VtkLegacy, label).unwrap_err();
+            assert!(
+                e.to_string().contains(want),
+                "{label}: {e}\nexpected {want}"
+            );
+        }
+    }
+    // CELL_TYPES one short of the cells, and a 4.2 list one number longer than its cells use
+    // (five numbers a cell, but one cell of three vertices and one of five).
+    for (label, mut bytes) in legacy_binaries(&tets) {
+        let at = find(&bytes, b"CELL_TYPES 3\n");
+        bytes.splice(at..at + 13 + 4, b"CELL_TYPES 2\n".iter().copied());
+        let e = load_bytes(&bytes, Format::VtkLegacy, label).unwrap_err();
+        let want = "CELL_TYPES has 2 entries, but CELLS has 3 cells";
+        assert!(e.to_string().contains(want), "{label}: {e}");
+    }
+    let cells = [
+        (10, vec![0, 1, 3]),
+        (10, vec![1, 2, 3, 6, 7]),
+        tets[2].clone(),
+    ];
+    let [(label, bytes), _] = legacy_binaries(&cells);
+    let e = load_bytes(&bytes, Format::VtkLegacy, label).unwrap_err();
+    let want = "cell 0: a tetrahedron has 4 vertices, the file gives 3";
+    assert!(e.to_string().contains(want), "{label}: {e}");
+}
+
+/// Where `needle` first occurs in `hay`.
+fn find(hay: &[u8], needle: &[u8]) -> usize {
+    hay.windows(needle.len())
+        .position(|w| w == needle)
+        .expect("the encoder writes it")
+}
+
 /// A piece for [`appended_vtu`]: its points' count, Float64 connectivity, offsets, types.
 type RawPiece = (usize, Vec<f64>, Vec<i64>, Vec<u8>);
 

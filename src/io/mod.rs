@@ -870,7 +870,22 @@ impl Scalar {
         points: usize,
         base: usize,
     ) -> Option<Vec<[u32; 4]>> {
-        let at = (big_endian, points, base);
+        self.tets_of(bytes, (big_endian, points, base, false))
+    }
+
+    /// [`Self::decode_tets`] for a counted list (legacy VTK 4.2 `CELLS`): five values a cell,
+    /// the count 4, then the four indices. None also where a count is not 4.
+    pub(crate) fn decode_counted_tets(
+        self,
+        bytes: &[u8],
+        big_endian: bool,
+        points: usize,
+    ) -> Option<Vec<[u32; 4]>> {
+        self.tets_of(bytes, (big_endian, points, 0, true))
+    }
+
+    /// The tets of [`Self::decode_tets`] (`counted`: of [`Self::decode_counted_tets`]).
+    fn tets_of(self, bytes: &[u8], at: (bool, usize, usize, bool)) -> Option<Vec<[u32; 4]>> {
         match self.size() {
             1 => self.decode_tets_of::<1>(bytes, at),
             2 => self.decode_tets_of::<2>(bytes, at),
@@ -882,26 +897,38 @@ impl Scalar {
     fn decode_tets_of<const N: usize>(
         self,
         bytes: &[u8],
-        (big_endian, points, base): (bool, usize, usize),
+        (big_endian, points, base, counted): (bool, usize, usize, bool),
     ) -> Option<Vec<[u32; 4]>> {
+        let int = |c: &[u8]| self.int_of(&arr::<N>(c, big_endian));
         let index = |c: &[u8]| {
-            (self.int_of(&arr::<N>(c, big_endian)))
+            int(c)
                 .filter(|&v| v >= 0 && (v as u64) < points as u64)
                 .map(|v| (v as u64 + base as u64) as u32)
         };
+        let lead = usize::from(counted);
         // A cell that is no tet becomes [0; 4], which no tet is (its vertices are distinct).
-        let tet = |c: &[u8]| match [0, 1, 2, 3].map(|k| index(&c[k * N..][..N])) {
+        let tet = |c: &[u8]| match [0, 1, 2, 3].map(|k| index(&c[(lead + k) * N..][..N])) {
             [Some(a), Some(b), Some(d), Some(e)]
-                if a != b && a != d && a != e && b != d && b != e && d != e =>
+                if (!counted || int(&c[..N]) == Some(4))
+                    && a != b
+                    && a != d
+                    && a != e
+                    && b != d
+                    && b != e
+                    && d != e =>
             {
                 [a, b, d, e]
             }
             _ => [0; 4],
         };
-        let tets: Vec<[u32; 4]> = if bytes.len() < 4 * N * PAR_MIN_LEN {
-            bytes.chunks_exact(4 * N).map(tet).collect()
+        let cell = (4 + lead) * N;
+        if !bytes.len().is_multiple_of(cell) {
+            return None;
+        }
+        let tets: Vec<[u32; 4]> = if bytes.len() < cell * PAR_MIN_LEN {
+            bytes.chunks_exact(cell).map(tet).collect()
         } else {
-            (bytes.par_chunks_exact(4 * N).with_min_len(PAR_MIN_LEN))
+            (bytes.par_chunks_exact(cell).with_min_len(PAR_MIN_LEN))
                 .map(tet)
                 .collect()
         };
@@ -1107,6 +1134,20 @@ mod tests {
             .flat_map(|&v| (v as f64).to_le_bytes())
             .collect();
         assert_eq!(Scalar::F64.decode_tets(&f64s, false, 5, 7), Some(tets));
+        // Counted (legacy VTK 4.2): each cell's count, 4, before its indices; any other count,
+        // or a list that ends inside a cell, is no tet.
+        let counted: Vec<i32> = conn.chunks(4).flat_map(|c| [&[4], c].concat()).collect();
+        let unmoved = Scalar::I32.decode_tets(&bytes(&conn), true, 5, 0);
+        let got = Scalar::I32.decode_counted_tets(&bytes(&counted), true, 5);
+        assert_eq!((got.as_ref().map(Vec::len), got), (Some(n), unmoved));
+        let mut three = counted.clone();
+        three[5 * 1000] = 3;
+        assert_eq!(
+            Scalar::I32.decode_counted_tets(&bytes(&three), true, 5),
+            None
+        );
+        let short = &bytes(&counted)[..4 * (counted.len() - 1)];
+        assert_eq!(Scalar::I32.decode_counted_tets(short, true, 5), None);
     }
 
     #[test]

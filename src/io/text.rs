@@ -204,7 +204,12 @@ impl<'a> Cursor<'a> {
     }
 
     /// The bytes of `count` binary values of `ty`, checked to be in the file.
-    fn binary(&mut self, count: usize, ty: Scalar, section: &str) -> Result<&'a [u8], LoadError> {
+    pub fn binary(
+        &mut self,
+        count: usize,
+        ty: Scalar,
+        section: &str,
+    ) -> Result<&'a [u8], LoadError> {
         let bytes = count.checked_mul(ty.size()).ok_or_else(|| {
             self.err_byte(
                 self.pos,

@@ -8,11 +8,13 @@
 
 use super::text::Cursor;
 use super::{
-    Assembler, Budget, Fields, Format, LoadError, Loaded, Location, Scalar, positions_from, shown,
+    Assembler, Budget, Fields, Format, LoadError, Loaded, Location, PAR_MIN_LEN, Scalar,
+    position_first, positions_from, shown,
 };
 use crate::mesh::DataArray;
 use crate::mesh::name::shown_name;
 use crate::mesh::split::CellKind;
+use rayon::prelude::*;
 
 /// What a VTK cell type id means to tetvr.
 pub(super) enum Class {
@@ -96,6 +98,11 @@ enum RawCells {
     Counted { n: usize, stream: Vec<i64> },
     /// 5.1 layout.
     Offsets { offsets: Vec<i64>, conn: Vec<i64> },
+    /// Either layout in a BINARY file when every cell lists a tet as VTK writes them (4.2:
+    /// each count 4, five numbers a cell; 5.1: offsets 0, 4, 8, ...; the indices below the
+    /// `points` read before them, distinct within a cell): the lists the other two would hold,
+    /// decoded in place straight into the tets, the list charged to the budget.
+    Tets { tets: Vec<[u32; 4]>, points: usize },
 }
 
 #[derive(Clone, Copy, PartialEq, Default)]
@@ -259,7 +266,10 @@ impl<'a> Reader<'a> {
         match kw {
             b"DATASET" => s.dataset = self.dataset(l)?,
             b"POINTS" => s.positions = Some(self.points(l)?),
-            b"CELLS" => s.cells = Some((l.at, self.cells(l)?)),
+            b"CELLS" => {
+                let points = s.positions.as_ref().map(|p| p.len() / 3);
+                s.cells = Some((l.at, self.cells(l, points)?));
+            }
             b"CELL_TYPES" => {
                 let n = self.count(l.args_at, first, "the number of cell types")?;
                 s.types = Some((l.at, self.ints(n, Scalar::I32, "CELL_TYPES")?));
@@ -325,14 +335,20 @@ impl<'a> Reader<'a> {
         self.values(count, ty, "POINTS", Some(&describe))
     }
 
-    /// `CELLS n size`, then either the 4.2 list or the 5.1 `OFFSETS` and `CONNECTIVITY`.
-    fn cells(&mut self, l: &Line) -> Result<RawCells, LoadError> {
+    /// `CELLS n size`, then either the 4.2 list or the 5.1 `OFFSETS` and `CONNECTIVITY`;
+    /// `points`: the number of points read so far, if any.
+    fn cells(&mut self, l: &Line, points: Option<usize>) -> Result<RawCells, LoadError> {
         let n = self.count(l.args_at, l.args.first(), "the number of cells")?;
         let size = self.count(l.args_at, l.args.get(1), "the size of the cell list")?;
         let save = self.c.pos;
         self.c.skip_ws();
         if !self.c.data[self.c.pos..].starts_with(b"OFFSETS") {
             self.c.pos = save;
+            if n.checked_mul(5) == Some(size)
+                && let Some(cells) = self.binary_tets(n, Scalar::I32, points, true)
+            {
+                return Ok(cells);
+            }
             let stream = self.ints(size, Scalar::I32, "CELLS")?;
             return Ok(RawCells::Counted { n, stream });
         }
@@ -346,8 +362,52 @@ impl<'a> Reader<'a> {
         }
         let (a, t) = self.args();
         let ty = self.ty(a, t.first())?;
+        let cells = n.saturating_sub(1);
+        if cells.checked_mul(4) == Some(size)
+            && (offsets.par_iter().enumerate().with_min_len(PAR_MIN_LEN))
+                .all(|(i, &o)| o == 4 * i as i64)
+            && let Some(cells) = self.binary_tets(cells, ty, points, false)
+        {
+            return Ok(cells);
+        }
         let conn = self.ints(size, ty, "CONNECTIVITY")?;
         Ok(RawCells::Offsets { offsets, conn })
+    }
+
+    /// The next `n` cells of a BINARY file as [`RawCells::Tets`] (`counted`: the 4.2 list,
+    /// whose numbers are `ty`; else 5.1's `CONNECTIVITY`), when they are all tets and `points`
+    /// is known; else None, with nothing read and nothing charged: read as numbers, a bad
+    /// cell is then named where it was before.
+    fn binary_tets(
+        &mut self,
+        n: usize,
+        ty: Scalar,
+        points: Option<usize>,
+        counted: bool,
+    ) -> Option<RawCells> {
+        let (big_endian, points) = (self.binary?, points?);
+        let count = n.checked_mul(4 + usize::from(counted))?;
+        if n == 0 {
+            return None;
+        }
+        let budget = self.c.budget;
+        budget
+            .charge_items(n, size_of::<[u32; 4]>(), String::new)
+            .ok()?;
+        let save = self.c.pos;
+        let raw = self.c.binary(count, ty, "CELLS").ok();
+        let tets = raw.and_then(|raw| match counted {
+            true => ty.decode_counted_tets(raw, big_endian, points),
+            false => ty.decode_tets(raw, big_endian, points, 0),
+        });
+        if tets.is_none() {
+            self.c.pos = save;
+            budget.refund((n * size_of::<[u32; 4]>()) as u64);
+        }
+        Some(RawCells::Tets {
+            tets: tets?,
+            points,
+        })
     }
 
     /// `POINT_DATA n`, which must match the points read so far.
@@ -606,6 +666,7 @@ impl<'a> Reader<'a> {
         let n = match &cells {
             RawCells::Counted { n, .. } => *n,
             RawCells::Offsets { offsets, .. } => offsets.len().saturating_sub(1),
+            RawCells::Tets { tets, .. } => tets.len(),
         };
         if types.len() != n {
             return Err(self.err(
@@ -634,7 +695,39 @@ impl<'a> Reader<'a> {
             RawCells::Offsets { offsets, conn } => {
                 offset_cells(self.c.name, &offsets, &conn, &mut add)
             }
+            RawCells::Tets { tets, points } => {
+                let bytes = (tets.len() * size_of::<[u32; 4]>()) as u64;
+                let added = self.add_tets(asm, tets, points, &types);
+                // The list was adopted by the assembler (and charged there) or dropped.
+                self.c.budget.refund(bytes);
+                added
+            }
         }
+    }
+
+    /// Adds the cells of [`RawCells::Tets`] (checked against `points`): in one step when they
+    /// are all of type 10 (tetra) and the file has `points` points (a later POINTS section
+    /// would have replaced them), else cell by cell as the other layouts are.
+    fn add_tets(
+        &self,
+        asm: &mut Assembler,
+        tets: Vec<[u32; 4]>,
+        points: usize,
+        types: &[i64],
+    ) -> Result<(), LoadError> {
+        const TETRA: i64 = 10;
+        let mut held = Some(tets);
+        if points == asm.n_points
+            && position_first(types, |&t| t != TETRA).is_none()
+            && asm.tets(types.len(), || held.take())
+        {
+            return Ok(());
+        }
+        let tets = held.expect("the assembler takes the tets only when it adds them");
+        for (i, t) in tets.iter().enumerate() {
+            add_cell(asm, self.c.name, i, types[i], &t.map(i64::from))?;
+        }
+        Ok(())
     }
 }
 
