@@ -42,7 +42,7 @@ use bytemuck::bytes_of;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
-use crate::camera::Camera;
+use crate::camera::{Camera, check_frame_memory};
 use crate::gpu::gpu_data::ViewUniforms;
 use crate::gpu::mesh::cell_update_error;
 use crate::gpu::raycast::{default_max_steps, links};
@@ -356,6 +356,8 @@ impl Renderer for CpuRaycastRenderer {
 
     fn render(&mut self, camera: &Camera, tf: &TransferFunction) -> Result<Frame, RenderError> {
         camera.validate()?;
+        // The tiles' pixels and the image's, 16 bytes each.
+        check_frame_memory(camera.width, camera.height, 32)?;
         let tf = self.f32_frame.tf(tf)?;
         let camera = self.f32_frame.camera(camera);
         let sphere = (self.origin, self.radius);
