@@ -262,3 +262,14 @@ fn update_positions_refuses_what_the_mesh_refuses_in_every_mode() {
         );
     }
 }
+
+/// `IsoSettings::default()` (no isovalues: one at the middle of the scalar range) was
+/// described as "mode iso at  on ...".
+#[test]
+fn the_default_iso_mode_says_where_its_surface_is() {
+    let described = ModeSettings::Iso(IsoSettings::default()).describe(None);
+    assert_eq!(
+        described,
+        "mode iso at the middle of the scalar range on no GPU"
+    );
+}

@@ -399,11 +399,19 @@ impl TetMesh {
     }
 
     /// The four corner positions of tet `t`.
+    ///
+    /// # Panics
+    ///
+    /// When `t >= self.tet_count()`, as slice indexing does.
     pub fn tet_corners(&self, t: usize) -> [DVec3; 4] {
         self.tets[t].map(|v| self.positions[v as usize])
     }
 
     /// Signed volume of tet `t` (positive for the orientation convention above).
+    ///
+    /// # Panics
+    ///
+    /// When `t >= self.tet_count()`, as slice indexing does.
     pub fn signed_volume(&self, t: usize) -> f64 {
         orient(&self.positions, &self.tets[t]) / 6.0
     }
