@@ -273,3 +273,55 @@ fn the_default_iso_mode_says_where_its_surface_is() {
         "mode iso at the middle of the scalar range on no GPU"
     );
 }
+
+/// Scalars whose range overflows an f64 (-1e308 and 1e308): the f32 modes normalize the field
+/// to its range, whose infinite span made every value 0, and drew another picture than the
+/// reference with no error (on a 5-tet cube, alpha summed over the image: 0 in raycast-cpu
+/// and shells, 1.47 times the reference's in cellproj and raycast). They refuse such a field, built or updated, and an update refused
+/// leaves the renderer's field as it was; the exact reference renders it.
+#[test]
+fn the_f32_modes_refuse_a_scalar_range_wider_than_f64() {
+    let mut mesh = common::gaussians(2);
+    let (tf, camera) = common::default_view(&mesh, 8);
+    let wide: Vec<f64> = (0..mesh.vertex_count())
+        .map(|i| if i % 2 == 0 { -1e308 } else { 1e308 })
+        .collect();
+    let f32_modes = [
+        ModeSettings::RaycastCpu(CpuRaycastSettings::default()),
+        ModeSettings::Shells(ShellSettings::default()),
+        ModeSettings::Iso(IsoSettings::default()),
+        ModeSettings::CellProj(CellProjSettings::default()),
+        ModeSettings::Raycast(RaycastSettings::default()),
+    ];
+    let gpu = common::ctx();
+    for mode in &f32_modes {
+        let mut r = mode.build(Some(gpu), &mesh).expect("built");
+        let before = r.render(&camera, &tf).expect("renders").image;
+        let e = r.update_scalars(&wide).unwrap_err();
+        assert!(
+            matches!(e, RenderError::Mesh(MeshError::ScalarRangeTooWide { .. })),
+            "{}: {e}",
+            mode.name()
+        );
+        assert!(e.to_string().contains("rescale the array"), "{e}");
+        let after = r.render(&camera, &tf).expect("renders").image;
+        assert_eq!(
+            before,
+            after,
+            "{}: the refused field was taken",
+            mode.name()
+        );
+    }
+    mesh.set_scalars(wide).unwrap();
+    for mode in &f32_modes {
+        let e = mode.build(Some(gpu), &mesh).err().expect("refused");
+        assert!(
+            matches!(e, RenderError::Mesh(MeshError::ScalarRangeTooWide { .. })),
+            "{}: {e}",
+            mode.name()
+        );
+    }
+    let reference = ModeSettings::Reference(ReferenceSettings::default());
+    let frame = reference.build(None, &mesh).unwrap().render(&camera, &tf);
+    assert!(frame.unwrap().image.pixels.iter().any(|p| p[3] > 0.0));
+}

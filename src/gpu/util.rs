@@ -130,14 +130,19 @@ pub(crate) fn sphere_of((lo, hi): (DVec3, DVec3)) -> (DVec3, f64) {
 }
 
 /// The GPU modes' frame for scalars, normalized as `(s - min) / span`: `(min, span)`, with
-/// span 1 for a constant field.
-pub(crate) fn scalar_frame(scalars: &[f64]) -> (f64, f64) {
+/// span 1 for a constant field; [`MeshError::ScalarRangeTooWide`] where the span overflows
+/// (values near both ends of f64, e.g. -1e308 and 1e308): its infinite span normalized every
+/// value to 0, and the f32 modes drew another picture than the reference, with no error.
+pub(crate) fn scalar_frame(scalars: &[f64]) -> Result<(f64, f64), MeshError> {
     let (lo, hi) = scalars
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &s| {
             (lo.min(s), hi.max(s))
         });
-    (lo, if hi > lo { hi - lo } else { 1.0 })
+    if lo.is_finite() && hi.is_finite() && !(hi - lo).is_finite() {
+        return Err(MeshError::ScalarRangeTooWide { lo, hi });
+    }
+    Ok((lo, if hi > lo { hi - lo } else { 1.0 }))
 }
 
 /// An error unless a `width` x `height` image fits this adapter's 2D textures and its
