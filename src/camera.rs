@@ -51,6 +51,20 @@ pub enum CameraError {
     )]
     /// A view name that is not one of the known directions.
     UnknownView(String),
+    /// A CPU renderer's frame of `width` x `height` pixels needs `bytes` of memory that cannot
+    /// be allocated ([`check_frame_memory`]).
+    #[error(
+        "a {width}x{height} image needs {bytes} bytes of memory to render on the CPU, more than \
+         can be allocated; render a smaller image (e.g. --size 4096x4096)"
+    )]
+    ImageTooLarge {
+        /// Image width in pixels.
+        width: u32,
+        /// Image height in pixels.
+        height: u32,
+        /// The bytes the frame needs.
+        bytes: u128,
+    },
     /// A position, direction or angle is NaN or infinite.
     #[error("the camera setting is not finite; check the numbers given")]
     NotFinite,
@@ -212,6 +226,27 @@ impl Camera {
         let u = (2.0 * (x as f64 + 0.5) / self.width as f64 - 1.0) * th * self.aspect();
         let v = (1.0 - 2.0 * (y as f64 + 0.5) / self.height as f64) * th;
         (forward + right * u + up * v).normalize()
+    }
+}
+
+/// An error unless a CPU renderer's frame of `width` x `height` pixels, `bytes_per_pixel` in
+/// all (the image and its working buffers), can be allocated now: tried, not taken (reserved
+/// address space, no page touched). Unchecked, a size beyond memory aborted the process in
+/// the allocator (`u32::MAX` x 2 pixels), or beyond the address space panicked.
+pub(crate) fn check_frame_memory(
+    width: u32,
+    height: u32,
+    bytes_per_pixel: u64,
+) -> Result<(), CameraError> {
+    let bytes = width as u128 * height as u128 * bytes_per_pixel as u128;
+    let fits = usize::try_from(bytes).is_ok_and(|b| Vec::<u8>::new().try_reserve_exact(b).is_ok());
+    match fits {
+        true => Ok(()),
+        false => Err(CameraError::ImageTooLarge {
+            width,
+            height,
+            bytes,
+        }),
     }
 }
 

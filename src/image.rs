@@ -36,6 +36,20 @@ pub enum ImageError {
     /// Two images to compare differ in size (width x height of each).
     #[error("images differ in size: {0}x{1} and {2}x{3}; render both at the same --size")]
     SizeMismatch(u32, u32, u32, u32),
+    /// An image's `pixels` are not `width * height` (the fields are public: an image built or
+    /// changed by hand).
+    #[error(
+        "the image is {width}x{height} but has {len} pixels, not width x height; build images \
+         with Image::new and keep `pixels` at that length"
+    )]
+    PixelCount {
+        /// Its width.
+        width: u32,
+        /// Its height.
+        height: u32,
+        /// The length of its `pixels`.
+        len: usize,
+    },
 }
 
 /// Error of a result against a reference (DESIGN.md, "Accuracy").
@@ -75,9 +89,33 @@ impl Image {
         }
     }
 
-    /// The pixel at column `x`, row `y` (from the top); panics outside the image.
+    /// The pixel at column `x`, row `y` (from the top).
+    ///
+    /// # Panics
+    ///
+    /// Outside the image (`x >= width` or `y >= height`), as slice indexing does.
     pub fn get(&self, x: u32, y: u32) -> [f32; 4] {
-        self.pixels[(y * self.width + x) as usize]
+        assert!(
+            x < self.width && y < self.height,
+            "pixel ({x}, {y}) is outside the {}x{} image",
+            self.width,
+            self.height
+        );
+        // In usize: in u32, y * width wrapped on images of over 4G pixels.
+        self.pixels[y as usize * self.width as usize + x as usize]
+    }
+
+    /// An error unless `pixels` holds `width * height` pixels.
+    fn check_pixels(&self) -> Result<(), ImageError> {
+        let len = self.pixels.len();
+        match len as u128 == self.width as u128 * self.height as u128 {
+            true => Ok(()),
+            false => Err(ImageError::PixelCount {
+                width: self.width,
+                height: self.height,
+                len,
+            }),
+        }
     }
 
     /// Error metrics of `self` (the result) against `reference`.
@@ -170,6 +208,8 @@ impl Image {
 
     /// Writes a PNG (see [`Self::to_rgba8`]).
     pub fn save_png(&self, path: &Path, background: Option<[f32; 3]>) -> Result<(), ImageError> {
+        // The encoder asserts the buffer's length: a wrong pixel count panicked in it.
+        self.check_pixels()?;
         image::save_buffer(
             path,
             &self.to_rgba8(background),
@@ -231,7 +271,11 @@ impl Image {
             .save_png(&dir.join(format!("{stem}-diff.png")), None)
     }
 
+    /// Both images' pixel counts are right ([`ImageError::PixelCount`]; zipped, a short one
+    /// was compared on its pixels alone) and their sizes are equal.
     fn check_size(&self, other: &Image) -> Result<(), ImageError> {
+        self.check_pixels()?;
+        other.check_pixels()?;
         if (self.width, self.height) != (other.width, other.height) {
             return Err(ImageError::SizeMismatch(
                 self.width,

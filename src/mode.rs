@@ -230,7 +230,12 @@ impl ModeSettings {
             }
             Self::Iso(s) => {
                 let values: Vec<String> = s.isovalues.iter().map(|(v, _)| show_value(*v)).collect();
-                format!("mode iso at {} on {on}", values.join(", "))
+                let at = match values.is_empty() {
+                    // IsoSettings' default: said "mode iso at  on ...".
+                    true => "the middle of the scalar range".to_string(),
+                    false => values.join(", "),
+                };
+                format!("mode iso at {at} on {on}")
             }
             Self::CellProj(s) => {
                 let how = match s.integrate {

@@ -148,7 +148,7 @@ impl SceneError {
                 CameraError::BadUp => "camera.up",
                 CameraError::BadFov(_) => "camera.fov",
                 CameraError::BadDistance(_) => "camera.distance",
-                CameraError::EmptyImage(..) => "size",
+                CameraError::EmptyImage(..) | CameraError::ImageTooLarge { .. } => "size",
                 CameraError::UnknownView(_) => "camera.view",
                 CameraError::NotFinite => "camera",
             },

@@ -192,7 +192,8 @@ fn sphere_is_closed_oriented_on_the_surface_and_of_the_right_area() {
         (p - c).length()
     });
     let r = 0.6;
-    let surfaces = isosurfaces(mesh.positions(), mesh.tets(), mesh.scalars().unwrap(), &[r]);
+    let surfaces =
+        isosurfaces(mesh.positions(), mesh.tets(), mesh.scalars().unwrap(), &[r]).unwrap();
     let (bytes, counts) = glb_bytes(&[Colored {
         surface: &surfaces[0],
         color: ORANGE,
@@ -276,7 +277,8 @@ fn isovalue_on_vertex_values_gives_a_closed_exact_octahedron() {
         mesh.tets(),
         mesh.scalars().unwrap(),
         &[0.5],
-    );
+    )
+    .unwrap();
     let s = &surfaces[0];
     let topo = topology(&s.positions, &s.triangles);
     eprintln!("octahedron: {} vertices, {topo:?}", s.positions.len());
@@ -317,7 +319,8 @@ fn plane_through_grid_vertices_is_the_vertex_grid() {
         mesh.tets(),
         mesh.scalars().unwrap(),
         &[0.25],
-    );
+    )
+    .unwrap();
     let s = &surfaces[0];
     let topo = topology(&s.positions, &s.triangles);
     assert_eq!(
@@ -452,7 +455,8 @@ fn cli_counts_match_the_file() {
         mesh.tets(),
         mesh.scalars().unwrap(),
         &[0.3, 0.6],
-    );
+    )
+    .unwrap();
     assert_eq!(back.len(), 2);
     for (b, s) in back.iter().zip(&surfaces) {
         assert_eq!(

@@ -523,7 +523,7 @@ fn iso_export(args: IsoExportArgs) -> Result<(), CliError> {
     };
     let t = Instant::now();
     let surfaces =
-        tetvr::export::isosurfaces(mesh.positions(), mesh.tets(), mesh.scalars()?, &isovalues);
+        tetvr::export::isosurfaces(mesh.positions(), mesh.tets(), mesh.scalars()?, &isovalues)?;
     let extract_s = t.elapsed().as_secs_f64();
     let colored: Vec<tetvr::export::Colored> = surfaces
         .iter()

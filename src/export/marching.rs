@@ -44,6 +44,7 @@ use std::collections::{HashMap, HashSet};
 use glam::DVec3;
 use rayon::prelude::*;
 
+use crate::mesh::{MeshError, check_values};
 use crate::reference::iso::{tet_gradient, vertex_gradients};
 
 /// What a surface vertex lies on; see the module docs ("Welding").
@@ -69,19 +70,34 @@ pub struct Surface {
 }
 
 /// The isosurfaces of `scalars` over the mesh `positions`/`tets` at each of `isovalues`, in
-/// that order (see the module docs). Indices must be valid vertex ids, as in any
-/// [`crate::TetMesh`].
+/// that order (see the module docs): for a [`crate::TetMesh`], `mesh.positions()`,
+/// `mesh.tets()` and `mesh.scalars()?`. An error, not a panic, when `scalars` has not one
+/// finite value per position ([`MeshError::ArrayLength`], [`MeshError::NonFiniteScalar`]) or
+/// a tet names a vertex beyond `positions` ([`MeshError::IndexOutOfRange`]).
 pub fn isosurfaces(
     positions: &[DVec3],
     tets: &[[u32; 4]],
     scalars: &[f64],
     isovalues: &[f64],
-) -> Vec<Surface> {
+) -> Result<Vec<Surface>, MeshError> {
+    check_values("scalars", scalars, positions.len())?;
+    let count = positions.len();
+    if let Some(t) = tets
+        .par_iter()
+        .position_first(|t| t.iter().any(|&v| v as usize >= count))
+    {
+        let index = tets[t].iter().copied().find(|&v| v as usize >= count);
+        return Err(MeshError::IndexOutOfRange {
+            tet: t,
+            index: index.unwrap_or_default() as u64,
+            count,
+        });
+    }
     let gradients = vertex_gradients(positions, tets, scalars);
-    isovalues
+    Ok(isovalues
         .iter()
         .map(|&v| isosurface(positions, tets, scalars, &gradients, v))
-        .collect()
+        .collect())
 }
 
 /// `triangles` with one copy of each face that two tets both gave (see the module docs,

@@ -93,6 +93,23 @@ pub enum GpuError {
         /// The bytes of mesh data that did not fit.
         bytes: u64,
     },
+    /// wgpu refused work a renderer gave the device (a validation or internal error, which
+    /// wgpu's default handler turns into a panic): the device was lost or destroyed (a
+    /// driver reset, [`wgpu::Device::destroy`]; or its readback fails: [`GpuError::Readback`]),
+    /// [`GpuContext::limits`] were declared above what the device was opened with, or tetvr
+    /// has a bug.
+    #[error(
+        "the GPU refused {during}: {reason}. If the device was lost or destroyed, open a new \
+         GPU context and build the renderer again; if the GpuContext's limits were raised above \
+         the device's, keep them at most the device's; otherwise this is a bug in tetvr, please \
+         report it (render on the CPU with --mode raycast-cpu meanwhile)"
+    )]
+    Failed {
+        /// The work that failed, e.g. `a shells frame`.
+        during: &'static str,
+        /// wgpu's error.
+        reason: String,
+    },
     /// Waiting for submitted GPU work failed (device lost or a timeout).
     #[error("GPU work failed: {0}")]
     Poll(#[from] wgpu::PollError),

@@ -77,8 +77,8 @@ impl MeshData {
         let (origin, radius) = sphere_of(bounds);
         let cells = mesh.cell_scalars().map(par_copy);
         let (scalar_min, scalar_span) = match &cells {
-            Some(c) => scalar_frame(&[scalars.as_slice(), c].concat()),
-            None => scalar_frame(&scalars),
+            Some(c) => scalar_frame(&[scalars.as_slice(), c].concat())?,
+            None => scalar_frame(&scalars)?,
         };
         Ok(Self {
             ranges: OnceLock::new(),
@@ -384,8 +384,9 @@ impl GpuTetMesh {
             return Err(cell_update_error());
         }
         check_values("scalars", scalars, data.scalars.len())?;
+        // Checked before anything changes: refused, the mesh keeps its scalars.
+        (data.scalar_min, data.scalar_span) = scalar_frame(scalars)?;
         data.scalars.copy_from_slice(scalars);
-        (data.scalar_min, data.scalar_span) = scalar_frame(&data.scalars);
         data.ranges = OnceLock::new();
         data.scalars_version += 1;
         self.upload_scalars(&data);

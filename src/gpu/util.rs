@@ -130,14 +130,19 @@ pub(crate) fn sphere_of((lo, hi): (DVec3, DVec3)) -> (DVec3, f64) {
 }
 
 /// The GPU modes' frame for scalars, normalized as `(s - min) / span`: `(min, span)`, with
-/// span 1 for a constant field.
-pub(crate) fn scalar_frame(scalars: &[f64]) -> (f64, f64) {
+/// span 1 for a constant field; [`MeshError::ScalarRangeTooWide`] where the span overflows
+/// (values near both ends of f64, e.g. -1e308 and 1e308): its infinite span normalized every
+/// value to 0, and the f32 modes drew another picture than the reference, with no error.
+pub(crate) fn scalar_frame(scalars: &[f64]) -> Result<(f64, f64), MeshError> {
     let (lo, hi) = scalars
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &s| {
             (lo.min(s), hi.max(s))
         });
-    (lo, if hi > lo { hi - lo } else { 1.0 })
+    if lo.is_finite() && hi.is_finite() && !(hi - lo).is_finite() {
+        return Err(MeshError::ScalarRangeTooWide { lo, hi });
+    }
+    Ok((lo, if hi > lo { hi - lo } else { 1.0 }))
 }
 
 /// An error unless a `width` x `height` image fits this adapter's 2D textures and its
@@ -164,6 +169,22 @@ pub(crate) fn check_image_size(
         )));
     }
     Ok(())
+}
+
+/// `e` and its sources on one line: wgpu's error says only "Validation Error", its source
+/// what was refused (e.g. "Buffer with 'frame stats readback' label is invalid").
+fn error_chain(e: &dyn std::error::Error) -> String {
+    let mut parts = vec![e.to_string()];
+    let mut source = e.source();
+    while let Some(s) = source {
+        parts.push(s.to_string());
+        source = s.source();
+    }
+    parts
+        .iter()
+        .map(|p| p.trim())
+        .collect::<Vec<_>>()
+        .join(": ")
 }
 
 /// A mappable buffer that a `width` x `height` texture of `texel` bytes per pixel is copied
@@ -207,6 +228,33 @@ pub(crate) fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry
 /// A renderer setting the user must change (the message says how).
 pub(crate) fn settings_error(msg: impl Into<String>) -> RenderError {
     RenderError::Settings(msg.into())
+}
+
+/// Runs `work`, a frame or another piece of GPU work behind the public API, with wgpu's
+/// validation and internal errors captured on this thread (error scopes) and returned as
+/// [`GpuError::Failed`] naming `during`. Uncaptured, wgpu's default handler panics: a lost or
+/// destroyed device (a driver reset, [`wgpu::Device::destroy`]) panicked in the first frame
+/// after it ("Buffer ... is invalid"; captured, the frame's readback fails and says the
+/// device was probably lost: a lost device's scopes report nothing, as WebGPU specifies), and
+/// so did a frame over limits declared above the device's. wgpu's error is the cause and wins
+/// over whatever `work` returned after it.
+pub(crate) fn captured<T>(
+    device: &wgpu::Device,
+    during: &'static str,
+    work: impl FnOnce() -> Result<T, RenderError>,
+) -> Result<T, RenderError> {
+    let internal = device.push_error_scope(wgpu::ErrorFilter::Internal);
+    let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let out = work();
+    let validation = pollster::block_on(validation.pop());
+    let internal = pollster::block_on(internal.pop());
+    match validation.or(internal) {
+        Some(e) => Err(RenderError::Gpu(GpuError::Failed {
+            during,
+            reason: error_chain(&e),
+        })),
+        None => out,
+    }
 }
 
 /// Maps `buf` for reading, waits for it and returns its bytes (unmap the buffer after the view

@@ -153,6 +153,19 @@ pub enum MeshError {
         /// Bounding-sphere radius about the bounding-box centre (world units).
         radius: f64,
     },
+    /// The field's range is wider than an f64 holds (`hi - lo` overflows): the f32 modes
+    /// normalize the field to its range.
+    #[error(
+        "the scalar range [{lo:e}, {hi:e}] is wider than an f64 holds (hi - lo overflows); the \
+         f32 modes (auto, shells, iso, cellproj, raycast, raycast-cpu) normalize the field to \
+         its range: rescale the array (e.g. divide it by 1e10), or render with --mode reference"
+    )]
+    ScalarRangeTooWide {
+        /// The smallest value.
+        lo: f64,
+        /// The largest value.
+        hi: f64,
+    },
     /// More vertices than 32-bit indices can name.
     #[error("the mesh has {count} vertices; tetvr indexes vertices with 32 bits (at most {max})")]
     TooManyVertices {
@@ -399,11 +412,19 @@ impl TetMesh {
     }
 
     /// The four corner positions of tet `t`.
+    ///
+    /// # Panics
+    ///
+    /// When `t >= self.tet_count()`, as slice indexing does.
     pub fn tet_corners(&self, t: usize) -> [DVec3; 4] {
         self.tets[t].map(|v| self.positions[v as usize])
     }
 
     /// Signed volume of tet `t` (positive for the orientation convention above).
+    ///
+    /// # Panics
+    ///
+    /// When `t >= self.tet_count()`, as slice indexing does.
     pub fn signed_volume(&self, t: usize) -> f64 {
         orient(&self.positions, &self.tets[t]) / 6.0
     }

@@ -57,7 +57,7 @@ use std::time::Instant;
 use glam::DVec3;
 use rayon::prelude::*;
 
-use crate::camera::Camera;
+use crate::camera::{Camera, check_frame_memory};
 use crate::gpu::mesh::cell_update_error;
 use crate::image::Image;
 use crate::mesh::TetMesh;
@@ -141,11 +141,15 @@ impl ReferenceRenderer {
         &self.mesh
     }
 
-    /// Checks `camera` ([`Camera::validate`]) and that its eye is at most [`FAR_EYE`] mesh
-    /// radii from the bounding-box centre ([`RenderError::EyeTooFar`]): every picture of the
-    /// reference, volume, iso or textured, is drawn from a camera checked here.
+    /// Checks `camera` ([`Camera::validate`]), that its frame can be allocated
+    /// ([`CameraError::ImageTooLarge`](crate::camera::CameraError::ImageTooLarge)) and that
+    /// its eye is at most [`FAR_EYE`] mesh radii from the bounding-box centre
+    /// ([`RenderError::EyeTooFar`]): every picture of the reference, volume, iso or textured,
+    /// is drawn from a camera checked here.
     pub(crate) fn check_camera(&self, camera: &Camera) -> Result<(), RenderError> {
         camera.validate()?;
+        // The largest frame, iso's: colour, depth and normal per pixel, collected then copied.
+        check_frame_memory(camera.width, camera.height, 80)?;
         let radii = self.frame.radii(camera.eye);
         match radii <= FAR_EYE {
             true => Ok(()),

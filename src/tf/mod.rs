@@ -54,6 +54,19 @@ pub enum TfError {
     )]
     /// The unit distance is zero, negative or not finite.
     BadUnitDistance(f64),
+    /// The data range to place a transfer function on is not finite, is reversed
+    /// (`lo > hi`), or is wider than an f64 holds (`hi - lo` overflows).
+    #[error(
+        "the data range [{lo:e}, {hi:e}] cannot hold a transfer function: it needs finite ends \
+         with lo <= hi (an array's range() gives them in that order) and hi - lo within f64 \
+         (rescale the array otherwise)"
+    )]
+    BadRange {
+        /// The range's minimum as given.
+        lo: f64,
+        /// The range's maximum as given.
+        hi: f64,
+    },
 }
 
 /// A validated transfer function; see the module docs for the model.
@@ -97,8 +110,13 @@ impl TransferFunction {
 
     /// The default: a perceptual colour map (viridis) over `[lo, hi]` with opacity ramping
     /// linearly from 0 at `lo` to [`DEFAULT_MAX_OPACITY`] at `hi` (for constant data,
-    /// `lo == hi`, over a range around the value: see `tf::file`).
+    /// `lo == hi`, over a range around the value: see `tf::file`). A reversed, infinite or
+    /// overflowing range is [`TfError::BadRange`]: reversed, it was placed around its midpoint
+    /// as if constant.
     pub fn default_for_range(lo: f64, hi: f64, unit_distance: f64) -> Result<Self, TfError> {
+        if !(lo.is_finite() && hi.is_finite() && lo <= hi && (hi - lo).is_finite()) {
+            return Err(TfError::BadRange { lo, hi });
+        }
         let (lo, hi) = placement_range(lo, hi);
         let n = VIRIDIS.len() - 1;
         let points = VIRIDIS

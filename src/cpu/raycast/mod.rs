@@ -42,14 +42,14 @@ use bytemuck::bytes_of;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
-use crate::camera::Camera;
+use crate::camera::{Camera, check_frame_memory};
 use crate::gpu::gpu_data::ViewUniforms;
 use crate::gpu::mesh::cell_update_error;
 use crate::gpu::raycast::{default_max_steps, links};
 use crate::gpu::util::{F32Frame, far_eye, ms_since, scalar_frame, sphere_of};
 use crate::gpu::view::ViewFrame;
 use crate::image::Image;
-use crate::mesh::{TetMesh, check_values, checked_bounds};
+use crate::mesh::{MeshError, TetMesh, check_values, checked_bounds};
 use crate::render::{Frame, RenderError, Renderer, Timings};
 use crate::texture::Volume;
 use crate::texture::{check_step, sampling_step};
@@ -145,7 +145,7 @@ impl CpuRaycastRenderer {
             texture: None,
         };
         r.set_positions(mesh.positions(), mesh.bounds())?;
-        r.normalize_scalars();
+        r.normalize_scalars()?;
         Ok(r)
     }
 
@@ -203,15 +203,17 @@ impl CpuRaycastRenderer {
         Ok(())
     }
 
-    /// Normalizes the vertex scalars and any cell values into [0, 1] over both's range.
-    fn normalize_scalars(&mut self) {
+    /// Normalizes the vertex scalars and any cell values into [0, 1] over both's range; an
+    /// error, and nothing changed, where that range overflows ([`scalar_frame`]).
+    fn normalize_scalars(&mut self) -> Result<(), MeshError> {
         (self.scalar_min, self.scalar_span) = match &self.raw_cells {
-            Some(c) => scalar_frame(&[self.raw_scalars.as_slice(), c].concat()),
-            None => scalar_frame(&self.raw_scalars),
+            Some(c) => scalar_frame(&[self.raw_scalars.as_slice(), c].concat())?,
+            None => scalar_frame(&self.raw_scalars)?,
         };
         let frame = (self.scalar_min, self.scalar_span);
         self.scalars = normalized(&self.raw_scalars, frame);
         self.cells = (self.raw_cells.as_deref()).map(|c| normalized(c, frame));
+        Ok(())
     }
 
     /// Stages 1 and 2 for view `f`: eye-space positions and per-tet records into `self.eye`
@@ -356,6 +358,8 @@ impl Renderer for CpuRaycastRenderer {
 
     fn render(&mut self, camera: &Camera, tf: &TransferFunction) -> Result<Frame, RenderError> {
         camera.validate()?;
+        // The tiles' pixels and the image's, 16 bytes each.
+        check_frame_memory(camera.width, camera.height, 32)?;
         let tf = self.f32_frame.tf(tf)?;
         let camera = self.f32_frame.camera(camera);
         let sphere = (self.origin, self.radius);
@@ -386,8 +390,10 @@ impl Renderer for CpuRaycastRenderer {
             ));
         }
         check_values("scalars", scalars, self.raw_scalars.len())?;
+        // Checked before anything changes: refused, the renderer keeps its scalars.
+        scalar_frame(scalars)?;
         self.raw_scalars.copy_from_slice(scalars);
-        self.normalize_scalars();
+        self.normalize_scalars()?;
         self.view = None;
         Ok(())
     }

@@ -77,7 +77,7 @@ use crate::gpu::cellproj::preint::{LongestEdge, TableKey};
 use crate::gpu::frame::{FrameResources, ImageReadback};
 use crate::gpu::gpu_data::{LayerUniforms, TfPoints, ViewUniforms};
 use crate::gpu::mesh::{GpuTetMesh, TetArray};
-use crate::gpu::util::{largest_binding, settings_error, uniform_buffer};
+use crate::gpu::util::{captured, largest_binding, settings_error, uniform_buffer};
 use crate::gpu::{GpuContext, ShaderNeeds};
 use crate::mesh::{TetMesh, checked_bounds};
 use crate::render::{Frame, RenderError, Renderer};
@@ -635,7 +635,11 @@ impl Renderer for RaycastRenderer {
     fn render(&mut self, camera: &Camera, tf: &TransferFunction) -> Result<Frame, RenderError> {
         camera.validate()?;
         let frame = self.mesh.frame();
-        self.frame(&frame.camera(camera), Some(&frame.tf(tf)?))
+        // A lost device fails here as an error, not as wgpu's panic.
+        let device = self.device.clone();
+        captured(&device, "a raycast frame", || {
+            self.frame(&frame.camera(camera), Some(&frame.tf(tf)?))
+        })
     }
 
     /// Refused, and nothing moved, where a textured cage's step would sample the moved cage

@@ -101,7 +101,7 @@ use crate::gpu::gpu_data::{ShellUniforms, SlicingUniforms, TfPoints, ViewUniform
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
 use crate::gpu::pieces::Uploader;
 use crate::gpu::util::{
-    check_image_size, entry, far_eye, ms_since, settings_error, uniform_buffer,
+    captured, check_image_size, entry, far_eye, ms_since, settings_error, uniform_buffer,
 };
 use crate::gpu::{GpuContext, ShaderNeeds};
 use crate::image::Image;
@@ -918,73 +918,77 @@ impl Renderer for ShellsRenderer {
     }
 
     fn render(&mut self, camera: &Camera, tf: &TransferFunction) -> Result<Frame, RenderError> {
-        camera.validate()?;
-        let frame = self.mesh.frame();
-        let (camera, tf) = (&frame.camera(camera), &frame.tf(tf)?);
-        let (mode, limit) = match self.walk {
-            Some(_) => ("shells (walk sampler)", far_eye::WALK),
-            None => ("shells", far_eye::SHELLS),
-        };
-        self.mesh.read().check_eye(mode, limit, camera)?;
-        if self.walk.is_some() {
-            return self.render_walk(camera, tf);
-        }
-        let start = Instant::now();
-        let mut timings = Timings::default();
-        let mesh = Arc::clone(&self.mesh);
-        let m = mesh.read();
-
-        // 1. Plan and binning (CPU): the frame's slices, each tet's shells, slices per shell.
-        let plan = self.plan(&m, camera)?;
-        let t0 = Instant::now();
-        let on_gpu = self.bin_on_gpu(&m, &plan, tf)?;
-        let (n, bins, bin) = if let Some((n, bin)) = on_gpu {
-            (n, Vec::new(), bin)
-        } else {
-            let bins = self.classify(&m, &plan, tf);
-            let n = self.choose_slices(&plan, &bins);
-            let bin = binning::sort_into_shells(&bins, n, plan.shells(n) as u32);
-            (n, bins, bin)
-        };
-        timings.stage("binning", ms_since(t0));
-
-        // 2. Upload: view and slicing constants, transfer function, shell constants, active lists.
-        let t1 = Instant::now();
-        let drawn = self.upload(&m, &plan, tf, n, &bin)?;
-        timings.stage("upload", ms_since(t1));
-
-        // 3.-6. Assembly, per drawn shell its sampling and composite, readback.
-        let frame = ShellFrame {
-            plan,
-            n,
-            bins,
-            bin,
-            drawn,
-        };
-        let image = match self.settings.sampler {
-            Sampler::Raster => self.render_raster(frame, tf, &mut timings)?,
-            // The walk sampler renders its frame before any of the stages above.
-            Sampler::Walk => return Err(RenderError::Internal("the walk reached the binning")),
-            Sampler::Compute => {
-                let c = self.draw_compute(&frame, tf)?;
-                self.report_frame(
-                    &mut timings,
-                    &c.stats,
-                    &frame,
-                    &["assembly", "tiles", "fine"],
-                );
-                timings.stage("readback", c.readback);
-                timings.count("frame runs (tile lists grown)", c.runs);
-                if self.settings.skips.early_termination {
-                    let threshold = self.settings.skips.ert_threshold;
-                    let finished = c.image.pixels.par_iter().filter(|p| p[3] >= threshold);
-                    timings.count("pixels finished", finished.count() as u64);
-                }
-                c.image
+        // A lost device fails here as an error, not as wgpu's panic.
+        let device = self.ctx.device.clone();
+        captured(&device, "a shells frame", || {
+            camera.validate()?;
+            let frame = self.mesh.frame();
+            let (camera, tf) = (&frame.camera(camera), &frame.tf(tf)?);
+            let (mode, limit) = match self.walk {
+                Some(_) => ("shells (walk sampler)", far_eye::WALK),
+                None => ("shells", far_eye::SHELLS),
+            };
+            self.mesh.read().check_eye(mode, limit, camera)?;
+            if self.walk.is_some() {
+                return self.render_walk(camera, tf);
             }
-        };
-        timings.stage("total", ms_since(start));
-        Ok(Frame { image, timings })
+            let start = Instant::now();
+            let mut timings = Timings::default();
+            let mesh = Arc::clone(&self.mesh);
+            let m = mesh.read();
+
+            // 1. Plan and binning (CPU): the frame's slices, each tet's shells, slices per shell.
+            let plan = self.plan(&m, camera)?;
+            let t0 = Instant::now();
+            let on_gpu = self.bin_on_gpu(&m, &plan, tf)?;
+            let (n, bins, bin) = if let Some((n, bin)) = on_gpu {
+                (n, Vec::new(), bin)
+            } else {
+                let bins = self.classify(&m, &plan, tf);
+                let n = self.choose_slices(&plan, &bins);
+                let bin = binning::sort_into_shells(&bins, n, plan.shells(n) as u32);
+                (n, bins, bin)
+            };
+            timings.stage("binning", ms_since(t0));
+
+            // 2. Upload: view and slicing constants, transfer function, shell constants, active lists.
+            let t1 = Instant::now();
+            let drawn = self.upload(&m, &plan, tf, n, &bin)?;
+            timings.stage("upload", ms_since(t1));
+
+            // 3.-6. Assembly, per drawn shell its sampling and composite, readback.
+            let frame = ShellFrame {
+                plan,
+                n,
+                bins,
+                bin,
+                drawn,
+            };
+            let image = match self.settings.sampler {
+                Sampler::Raster => self.render_raster(frame, tf, &mut timings)?,
+                // The walk sampler renders its frame before any of the stages above.
+                Sampler::Walk => return Err(RenderError::Internal("the walk reached the binning")),
+                Sampler::Compute => {
+                    let c = self.draw_compute(&frame, tf)?;
+                    self.report_frame(
+                        &mut timings,
+                        &c.stats,
+                        &frame,
+                        &["assembly", "tiles", "fine"],
+                    );
+                    timings.stage("readback", c.readback);
+                    timings.count("frame runs (tile lists grown)", c.runs);
+                    if self.settings.skips.early_termination {
+                        let threshold = self.settings.skips.ert_threshold;
+                        let finished = c.image.pixels.par_iter().filter(|p| p[3] >= threshold);
+                        timings.count("pixels finished", finished.count() as u64);
+                    }
+                    c.image
+                }
+            };
+            timings.stage("total", ms_since(start));
+            Ok(Frame { image, timings })
+        })
     }
 
     fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {

@@ -1,0 +1,327 @@
+//! The library as a user calls it, with a user's mistakes: each case was a panic, an abort or a
+//! silently wrong result of the public API that a QA pass as a library user found, and is now
+//! an error that says what to fix.
+
+mod common;
+
+use glam::DVec3;
+use tetvr::camera::CameraError;
+use tetvr::cpu::raycast::CpuRaycastSettings;
+use tetvr::gpu::{
+    AdapterChoice, CellProjSettings, GpuContext, GpuError, IsoSettings, RaycastSettings,
+    ShellSettings,
+};
+use tetvr::image::ImageError;
+use tetvr::mesh::MeshError;
+use tetvr::mode::ReferenceSettings;
+use tetvr::tf::TfError;
+use tetvr::{Camera, Image, ModeSettings, RenderError, TransferFunction};
+
+/// A device lost under a renderer (a driver reset; here [`wgpu::Device::destroy`]) made the
+/// next frame of every GPU mode panic in wgpu's default error handler ("Buffer ... is
+/// invalid"); it is an error naming the frame and what wgpu refused, and saying to open a new
+/// context.
+#[test]
+fn a_lost_device_is_an_error_not_a_panic() {
+    let mesh = common::gaussians(3);
+    let (tf, camera) = common::default_view(&mesh, 16);
+    // A context of its own: the shared one must stay usable for the other tests.
+    let gpu = GpuContext::new(AdapterChoice::Auto).expect("an adapter (lavapipe will do)");
+    let modes = [
+        ModeSettings::Shells(ShellSettings::default()),
+        ModeSettings::Iso(IsoSettings::default()),
+        ModeSettings::CellProj(CellProjSettings::default()),
+        ModeSettings::Raycast(RaycastSettings::default()),
+    ];
+    let mut renderers: Vec<_> = (modes.iter())
+        .map(|m| m.build(Some(&gpu), &mesh).expect("built"))
+        .collect();
+    // Lost before the first frame: the frame's buffers, made on first use, are invalid, and
+    // wgpu's validation error panicked (lost after a frame, the readback's map failed with an
+    // error already).
+    gpu.device.destroy();
+    for r in &mut renderers {
+        let name = r.name();
+        let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            r.render(&camera, &tf).map(|f| f.image.width)
+        }));
+        match caught {
+            Ok(Err(e @ RenderError::Gpu(GpuError::Failed { .. }))) => {
+                let msg = e.to_string();
+                assert!(msg.contains(&format!("{name} frame")), "{msg}");
+                assert!(msg.contains("is invalid"), "{name}: {msg}");
+                assert!(msg.contains("open a new GPU context"), "{name}: {msg}");
+            }
+            Ok(other) => panic!("{name} after the loss: {other:?}"),
+            Err(_) => panic!("{name} panicked after the loss"),
+        }
+    }
+}
+
+/// `GpuContext`'s fields are public, and its docs say its `limits` must not exceed the
+/// device's; a context declaring a larger 2D texture than the device has let a frame create
+/// one, and wgpu's refusal panicked. It is an error saying what to keep the limits at.
+#[test]
+fn limits_above_the_device_are_an_error_not_a_panic() {
+    let mesh = common::gaussians(2);
+    let (tf, camera) = common::default_view(&mesh, 8);
+    let mut gpu = common::ctx().clone();
+    let width = gpu.device.limits().max_texture_dimension_2d + 1;
+    gpu.limits.max_texture_dimension_2d = width;
+    let wide = Camera {
+        width,
+        height: 1,
+        ..camera
+    };
+    for mode in [
+        ModeSettings::Shells(ShellSettings::default()),
+        ModeSettings::Iso(IsoSettings::default()),
+        ModeSettings::CellProj(CellProjSettings::default()),
+        ModeSettings::Raycast(RaycastSettings::default()),
+    ] {
+        let mut r = mode.build(Some(&gpu), &mesh).expect("built");
+        let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            r.render(&wide, &tf).map(|f| f.image.width)
+        }));
+        match caught {
+            Ok(Err(e @ RenderError::Gpu(GpuError::Failed { .. }))) => {
+                let msg = e.to_string();
+                assert!(msg.contains(&format!("{} frame", mode.name())), "{msg}");
+                assert!(msg.contains("at most the device's"), "{msg}");
+            }
+            Ok(other) => panic!("{}: {other:?}", mode.name()),
+            Err(_) => panic!("{} panicked", mode.name()),
+        }
+    }
+}
+
+/// A frame of `u32::MAX` x `u32::MAX` pixels panicked in the CPU modes' image allocation
+/// (capacity overflow), and one of `u32::MAX` x 2 (137 GB) aborted the process in the
+/// allocator; the GPU modes refused it by their texture limit. The CPU modes refuse a frame
+/// their memory cannot hold, naming its size.
+#[test]
+fn the_cpu_modes_refuse_an_image_they_cannot_allocate() {
+    let mesh = common::gaussians(2);
+    let (tf, camera) = common::default_view(&mesh, 8);
+    let huge = Camera {
+        width: u32::MAX,
+        height: u32::MAX,
+        ..camera
+    };
+    for mode in [
+        ModeSettings::Reference(ReferenceSettings::default()),
+        ModeSettings::RaycastCpu(CpuRaycastSettings::default()),
+    ] {
+        let mut r = mode.build(None, &mesh).expect("built");
+        match r.render(&huge, &tf) {
+            Err(RenderError::Camera(e @ CameraError::ImageTooLarge { .. })) => {
+                assert!(e.to_string().contains("4294967295x4294967295"), "{e}");
+            }
+            other => panic!("{}: {:?}", mode.name(), other.map(|f| f.image.width)),
+        }
+        // The renderer still renders a frame that fits.
+        r.render(&camera, &tf).expect("an ordinary frame");
+    }
+}
+
+/// `export::isosurfaces` takes slices; scalars of another length (a cell array, another
+/// mesh's field) indexed out of bounds and panicked. Now an error naming the lengths, as are
+/// a tet's vertex beyond the positions and a NaN scalar.
+#[test]
+fn isosurfaces_of_mismatched_slices_are_errors() {
+    let mesh = common::gaussians(2);
+    let (p, t) = (mesh.positions(), mesh.tets());
+    let n = p.len();
+    let short = tetvr::export::isosurfaces(p, t, &[0.5; 3], &[0.5]).unwrap_err();
+    assert_eq!(
+        short,
+        MeshError::ArrayLength {
+            array: "scalars".into(),
+            len: 3,
+            count: n
+        }
+    );
+    let mut nan = mesh.scalars().unwrap().to_vec();
+    nan[1] = f64::NAN;
+    let e = tetvr::export::isosurfaces(p, t, &nan, &[0.5]).unwrap_err();
+    assert!(
+        matches!(e, MeshError::NonFiniteScalar { vertex: 1, .. }),
+        "{e}"
+    );
+    let mut tets = t.to_vec();
+    tets[2][3] = n as u32;
+    let e = tetvr::export::isosurfaces(p, &tets, mesh.scalars().unwrap(), &[0.5]).unwrap_err();
+    assert!(
+        matches!(e, MeshError::IndexOutOfRange { tet: 2, .. }),
+        "{e}"
+    );
+    let (lo, hi) = mesh.active_array().and_then(|a| a.range()).unwrap();
+    let mid = 0.5 * (lo + hi);
+    let ok = tetvr::export::isosurfaces(p, t, mesh.scalars().unwrap(), &[mid]).unwrap();
+    assert!(!ok[0].triangles.is_empty());
+}
+
+/// `Image`'s fields are public: pixels of the wrong count panicked in the PNG encoder's
+/// assertion, and a comparison zipped them, reporting metrics over the short image alone.
+/// `get` outside the image returned another pixel (x past the row end wrapped to the next
+/// row) where its docs promised a panic.
+#[test]
+fn images_of_the_wrong_pixel_count_are_errors() {
+    let bad = Image {
+        width: 4,
+        height: 4,
+        pixels: vec![[1.0; 4]; 3],
+    };
+    let dir = common::test_output_dir().join("api");
+    std::fs::create_dir_all(&dir).unwrap();
+    let e = bad.save_png(&dir.join("bad.png"), None).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            ImageError::PixelCount {
+                width: 4,
+                height: 4,
+                len: 3
+            }
+        ),
+        "{e}"
+    );
+    let good = Image::new(4, 4);
+    assert!(matches!(
+        bad.compare(&good),
+        Err(ImageError::PixelCount { .. })
+    ));
+    assert!(matches!(
+        good.difference(&bad, 1.0),
+        Err(ImageError::PixelCount { .. })
+    ));
+    let wrapped = std::panic::catch_unwind(|| good.get(5, 0));
+    assert!(wrapped.is_err(), "get(5, 0) of a 4x4 image: {wrapped:?}");
+}
+
+/// A reversed range (`hi < lo`, e.g. a (max, min) pair) was taken for constant data and the
+/// map placed around its midpoint: (10, 0) gave a map over [2.5, 7.5] with no error. An
+/// overflowing range said "control point 0 is not finite", naming no range.
+#[test]
+fn the_default_transfer_function_refuses_a_reversed_or_overflowing_range() {
+    for (lo, hi) in [
+        (10.0, 0.0),
+        (f64::NAN, 1.0),
+        (0.0, f64::INFINITY),
+        (-f64::MAX, f64::MAX),
+    ] {
+        let e = TransferFunction::default_for_range(lo, hi, 1.0).unwrap_err();
+        assert!(matches!(e, TfError::BadRange { .. }), "({lo}, {hi}): {e}");
+        assert!(e.to_string().contains("lo <= hi"), "{e}");
+    }
+    let constant = TransferFunction::default_for_range(5.0, 5.0, 1.0).unwrap();
+    assert!(constant.points()[0].s < 5.0 && constant.points().last().unwrap().s > 5.0);
+}
+
+/// The positions given to a renderer's `update_positions` are checked as the mesh's are, in
+/// every mode: another count, NaN, or no extent (for the f32 modes) are errors and the
+/// renderer renders on with its old positions.
+#[test]
+fn update_positions_refuses_what_the_mesh_refuses_in_every_mode() {
+    let mesh = common::gaussians(2);
+    let (tf, camera) = common::default_view(&mesh, 8);
+    let gpu = common::ctx();
+    let n = mesh.vertex_count();
+    for mode in [
+        ModeSettings::Reference(ReferenceSettings::default()),
+        ModeSettings::RaycastCpu(CpuRaycastSettings::default()),
+        ModeSettings::Shells(ShellSettings::default()),
+        ModeSettings::Iso(IsoSettings::default()),
+        ModeSettings::CellProj(CellProjSettings::default()),
+        ModeSettings::Raycast(RaycastSettings::default()),
+    ] {
+        let mut r = mode.build(Some(gpu), &mesh).expect("built");
+        let before = r.render(&camera, &tf).expect("renders").image;
+        for wrong in [vec![DVec3::ZERO; n - 1], vec![DVec3::ZERO; n + 1], vec![]] {
+            let e = r.update_positions(&wrong).unwrap_err();
+            assert!(
+                matches!(e, RenderError::Mesh(MeshError::ArrayLength { .. })),
+                "{}: {e}",
+                mode.name()
+            );
+        }
+        let mut nan = mesh.positions().to_vec();
+        nan[n / 2].y = f64::NAN;
+        let e = r.update_positions(&nan).unwrap_err();
+        assert!(
+            matches!(e, RenderError::Mesh(MeshError::NonFiniteCoordinate { .. })),
+            "{}: {e}",
+            mode.name()
+        );
+        let after = r.render(&camera, &tf).expect("renders").image;
+        assert_eq!(
+            before,
+            after,
+            "{}: a refused update changed the picture",
+            mode.name()
+        );
+    }
+}
+
+/// `IsoSettings::default()` (no isovalues: one at the middle of the scalar range) was
+/// described as "mode iso at  on ...".
+#[test]
+fn the_default_iso_mode_says_where_its_surface_is() {
+    let described = ModeSettings::Iso(IsoSettings::default()).describe(None);
+    assert_eq!(
+        described,
+        "mode iso at the middle of the scalar range on no GPU"
+    );
+}
+
+/// Scalars whose range overflows an f64 (-1e308 and 1e308): the f32 modes normalize the field
+/// to its range, whose infinite span made every value 0, and drew another picture than the
+/// reference with no error (on a 5-tet cube, alpha summed over the image: 0 in raycast-cpu
+/// and shells, 1.47 times the reference's in cellproj and raycast). They refuse such a field, built or updated, and an update refused
+/// leaves the renderer's field as it was; the exact reference renders it.
+#[test]
+fn the_f32_modes_refuse_a_scalar_range_wider_than_f64() {
+    let mut mesh = common::gaussians(2);
+    let (tf, camera) = common::default_view(&mesh, 8);
+    let wide: Vec<f64> = (0..mesh.vertex_count())
+        .map(|i| if i % 2 == 0 { -1e308 } else { 1e308 })
+        .collect();
+    let f32_modes = [
+        ModeSettings::RaycastCpu(CpuRaycastSettings::default()),
+        ModeSettings::Shells(ShellSettings::default()),
+        ModeSettings::Iso(IsoSettings::default()),
+        ModeSettings::CellProj(CellProjSettings::default()),
+        ModeSettings::Raycast(RaycastSettings::default()),
+    ];
+    let gpu = common::ctx();
+    for mode in &f32_modes {
+        let mut r = mode.build(Some(gpu), &mesh).expect("built");
+        let before = r.render(&camera, &tf).expect("renders").image;
+        let e = r.update_scalars(&wide).unwrap_err();
+        assert!(
+            matches!(e, RenderError::Mesh(MeshError::ScalarRangeTooWide { .. })),
+            "{}: {e}",
+            mode.name()
+        );
+        assert!(e.to_string().contains("rescale the array"), "{e}");
+        let after = r.render(&camera, &tf).expect("renders").image;
+        assert_eq!(
+            before,
+            after,
+            "{}: the refused field was taken",
+            mode.name()
+        );
+    }
+    mesh.set_scalars(wide).unwrap();
+    for mode in &f32_modes {
+        let e = mode.build(Some(gpu), &mesh).err().expect("refused");
+        assert!(
+            matches!(e, RenderError::Mesh(MeshError::ScalarRangeTooWide { .. })),
+            "{}: {e}",
+            mode.name()
+        );
+    }
+    let reference = ModeSettings::Reference(ReferenceSettings::default());
+    let frame = reference.build(None, &mesh).unwrap().render(&camera, &tf);
+    assert!(frame.unwrap().image.pixels.iter().any(|p| p[3] > 0.0));
+}
