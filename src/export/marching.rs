@@ -89,8 +89,9 @@ pub fn isosurfaces(
 
 /// `triangles` with one copy of each face that two tets both gave (see the module docs,
 /// "Doubled faces"), wound so that its `normal`'s largest component (by magnitude; the first of
-/// those equal to rounding) is positive, and the vertices of those faces. Only a triangle on three mesh vertices
-/// can lie on a face, so only those are looked at. The order of the rest is kept.
+/// those equal to rounding) is positive, and the vertices of those faces. Only a triangle on
+/// three mesh vertices can lie on a face, so only those are looked at. The order of the rest is
+/// kept.
 fn without_doubled_faces(
     triangles: Vec<[Key; 3]>,
     normal: impl Fn(&[Key; 3]) -> DVec3,
@@ -225,21 +226,29 @@ fn isosurface(
         .collect();
     if normals.contains(&DVec3::ZERO) {
         let mut face_sum = vec![DVec3::ZERO; normals.len()];
-        // Each vertex's largest triangle's normal: where the mean cancels.
+        // Each vertex's sum of triangle areas (twice), and its largest triangle's normal: where
+        // the mean cancels (to rounding: what is left then points anywhere).
+        let mut area = vec![0.0; normals.len()];
         let mut largest = vec![DVec3::ZERO; normals.len()];
         for t in &triangles {
             let p = t.map(|i| positions_out[i as usize]);
             let n = (p[1] - p[0]).cross(p[2] - p[0]);
             for &i in t {
-                face_sum[i as usize] += n;
-                if n.length_squared() > largest[i as usize].length_squared() {
-                    largest[i as usize] = n;
+                let i = i as usize;
+                face_sum[i] += n;
+                area[i] += n.length();
+                if n.length_squared() > largest[i].length_squared() {
+                    largest[i] = n;
                 }
             }
         }
-        for ((n, f), l) in normals.iter_mut().zip(face_sum).zip(largest) {
+        for (i, n) in normals.iter_mut().enumerate() {
             if *n == DVec3::ZERO {
-                *n = f.try_normalize().unwrap_or_else(|| l.normalize_or_zero());
+                *n = if face_sum[i].length() > 1e-9 * area[i] {
+                    face_sum[i].normalize_or_zero()
+                } else {
+                    largest[i].normalize_or_zero()
+                };
             }
         }
     }
