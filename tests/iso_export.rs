@@ -398,6 +398,77 @@ fn a_layer_at_the_isovalue_is_one_sheet_not_two() {
     }
 }
 
+/// A layer at 45 degrees (label 1 on the grid vertices with x = y, spacing 0.1 from an origin
+/// that is not a multiple of it) is flat: its triangles' normals are all along (1, -1, 0), with
+/// x and y equal in magnitude up to rounding. The largest component decided the winding, and
+/// rounding decided which was largest: 40 directed edges were used twice (neighbours wound
+/// opposite ways). Equal to rounding counts as equal now, so x decides and the layer is wound
+/// one way.
+#[test]
+fn a_layer_at_45_degrees_is_wound_one_way() {
+    let lo = DVec3::new(0.37, -1.13, 2.9);
+    let step = 0.1;
+    let index = move |p: DVec3| ((p - lo) / step).round();
+    let mesh = generate::box_grid(lo, lo + DVec3::splat(0.8), UVec3::splat(8), "s", move |p| {
+        let i = index(p);
+        if i.x == i.y { 1.0 } else { 0.0 }
+    });
+    let s = &isosurfaces(
+        mesh.positions(),
+        mesh.tets(),
+        mesh.scalars().unwrap(),
+        &[1.0],
+    )[0];
+    let topo = topology(&s.positions, &s.triangles);
+    assert_eq!(s.triangles.len(), 128, "{topo:?}");
+    assert_eq!(topo.repeated_directed, 0, "{topo:?}");
+    for t in &s.triangles {
+        let p = t.map(|i| s.positions[i as usize]);
+        assert!((p[1] - p[0]).cross(p[2] - p[0]).x > 0.0);
+    }
+}
+
+/// A spherical shell of label 1 (the grid vertices within 0.5 of radius 5 on a 12-cell grid) is
+/// a curved layer of doubled faces and faces with one side, whose winding flips where the
+/// largest normal component changes. Around 24 of its vertices the triangle normals cancelled,
+/// and those vertices were written with zero NORMALs, which glTF forbids; each vertex now has a
+/// unit normal.
+#[test]
+fn a_curved_layer_has_no_zero_normals() {
+    let c = DVec3::splat(6.0);
+    let mesh = generate::box_grid(
+        DVec3::ZERO,
+        DVec3::splat(12.0),
+        UVec3::splat(12),
+        "s",
+        |p| {
+            if ((p - c).length() - 5.0).abs() < 0.5 {
+                1.0
+            } else {
+                0.0
+            }
+        },
+    );
+    let s = &isosurfaces(
+        mesh.positions(),
+        mesh.tets(),
+        mesh.scalars().unwrap(),
+        &[1.0],
+    )[0];
+    assert!(!s.triangles.is_empty());
+    let bad: Vec<_> = s
+        .normals
+        .iter()
+        .filter(|n| (n.length() - 1.0).abs() > 1e-12)
+        .collect();
+    assert!(
+        bad.is_empty(),
+        "{} of {} normals not unit: {bad:?}",
+        bad.len(),
+        s.normals.len()
+    );
+}
+
 /// A zero-volume tet on a duplicate vertex (vertex 2 is vertex 1 again) gives a triangle whose
 /// crossings on edges 0-1 and 0-2 coincide: zero area, no normal. It is dropped; the real tet's
 /// triangle stays.

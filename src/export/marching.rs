@@ -25,7 +25,8 @@
 //! nearer of two equal depths), so one copy is kept: a file with both has coincident faces that
 //! viewers draw with z-fighting, and their normals cancel. The field increases to neither side,
 //! so the copy kept is wound by a rule that does not depend on the mesh's order: its normal's
-//! largest component is positive (a flat layer is wound one way throughout).
+//! largest component is positive, components equal to rounding counting as equal (a flat
+//! layer is wound one way throughout; a curved one flips where its largest component changes).
 //!
 //! **Orientation**: every triangle winds counter-clockwise seen from the side of *increasing*
 //! scalar, so its geometric normal `(p1 - p0) x (p2 - p0)` points along the field gradient
@@ -34,7 +35,9 @@
 //!
 //! **Normals** are smooth: the per-vertex gradients of [`vertex_gradients`] (volume-weighted
 //! means over each vertex's tets) interpolated linearly along the crossing's edge and made
-//! unit; where that vanishes, the area-weighted mean of the vertex's triangle normals. A vertex
+//! unit; where that vanishes, the area-weighted mean of the vertex's triangle normals, and where
+//! that cancels too (triangles wound opposite ways around the vertex: where a doubled face's
+//! winding rule flips on a curved layer), the normal of its largest triangle. A vertex
 //! of a doubled face takes that mean too: its gradient is a mean over tets whose gradients point
 //! opposite ways (towards the layer from both sides), so it points either way, and normals of
 //! opposite signs side by side shade as dark seams.
@@ -102,8 +105,9 @@ pub fn isosurfaces(
 
 /// `triangles` with one copy of each face that two tets both gave (see the module docs,
 /// "Doubled faces"), wound so that its `normal`'s largest component (by magnitude; the first of
-/// equals) is positive, and the vertices of those faces. Only a triangle on three mesh vertices
-/// can lie on a face, so only those are looked at. The order of the rest is kept.
+/// those equal to rounding) is positive, and the vertices of those faces. Only a triangle on
+/// three mesh vertices can lie on a face, so only those are looked at. The order of the rest is
+/// kept.
 fn without_doubled_faces(
     triangles: Vec<[Key; 3]>,
     normal: impl Fn(&[Key; 3]) -> DVec3,
@@ -131,8 +135,15 @@ fn without_doubled_faces(
                 return Some(t);
             }
             kept.insert(face(&t)).then(|| {
+                // Equal to rounding counts as equal: on a layer at 45 degrees (x = y through
+                // grid vertices) the two largest components differ only by rounding, and which
+                // is larger changes from triangle to triangle, so a flat layer would be wound
+                // both ways.
                 let n = normal(&t).to_array();
-                let axis = (0..3).fold(0, |a, i| if n[i].abs() > n[a].abs() { i } else { a });
+                let largest = n.iter().fold(0.0f64, |m, c| m.max(c.abs()));
+                let axis = (0..3)
+                    .find(|&i| n[i].abs() >= largest * (1.0 - 1e-9))
+                    .unwrap_or(0);
                 if n[axis] < 0.0 { [t[0], t[2], t[1]] } else { t }
             })
         })
@@ -231,16 +242,29 @@ fn isosurface(
         .collect();
     if normals.contains(&DVec3::ZERO) {
         let mut face_sum = vec![DVec3::ZERO; normals.len()];
+        // Each vertex's sum of triangle areas (twice), and its largest triangle's normal: where
+        // the mean cancels (to rounding: what is left then points anywhere).
+        let mut area = vec![0.0; normals.len()];
+        let mut largest = vec![DVec3::ZERO; normals.len()];
         for t in &triangles {
             let p = t.map(|i| positions_out[i as usize]);
             let n = (p[1] - p[0]).cross(p[2] - p[0]);
             for &i in t {
-                face_sum[i as usize] += n;
+                let i = i as usize;
+                face_sum[i] += n;
+                area[i] += n.length();
+                if n.length_squared() > largest[i].length_squared() {
+                    largest[i] = n;
+                }
             }
         }
-        for (n, f) in normals.iter_mut().zip(face_sum) {
+        for (i, n) in normals.iter_mut().enumerate() {
             if *n == DVec3::ZERO {
-                *n = f.normalize_or_zero();
+                *n = if face_sum[i].length() > 1e-9 * area[i] {
+                    face_sum[i].normalize_or_zero()
+                } else {
+                    largest[i].normalize_or_zero()
+                };
             }
         }
     }
