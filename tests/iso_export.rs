@@ -418,7 +418,8 @@ fn a_layer_at_45_degrees_is_wound_one_way() {
         mesh.tets(),
         mesh.scalars().unwrap(),
         &[1.0],
-    )[0];
+    )
+    .unwrap()[0];
     let topo = topology(&s.positions, &s.triangles);
     assert_eq!(s.triangles.len(), 128, "{topo:?}");
     assert_eq!(topo.repeated_directed, 0, "{topo:?}");
@@ -454,7 +455,8 @@ fn a_curved_layer_has_no_zero_normals() {
         mesh.tets(),
         mesh.scalars().unwrap(),
         &[1.0],
-    )[0];
+    )
+    .unwrap()[0];
     assert!(!s.triangles.is_empty());
     let bad: Vec<_> = s
         .normals
