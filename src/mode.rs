@@ -310,9 +310,10 @@ pub(crate) fn textured_auto_needs() -> [(ShaderNeeds, &'static str); 1] {
 }
 
 /// What `auto`'s GPU path, the shells mode with `shells`, needs of the adapter's limits: with
-/// `--binning auto` the GPU binning's too (`auto` resolves before the mesh's size is known).
+/// `--binning gpu` the GPU binning's too (`--binning auto` bins on the CPU where the adapter
+/// cannot run it).
 fn auto_needs(shells: &ShellSettings) -> [(ShaderNeeds, &'static str); 2] {
-    ShaderNeeds::shells(shells, false, shells.binning != BinningMode::Cpu)
+    ShaderNeeds::shells(shells, false, shells.binning == BinningMode::Gpu)
 }
 
 fn segments(s: cpu_raycast::Segments) -> &'static str {

@@ -812,3 +812,33 @@ fn textured_and_every_ray_caster_variant_render_on_exactly_their_needs() {
     assert_eq!(r.settings().entry, Entry::Lists);
     r.render(&camera, &tf).unwrap();
 }
+
+/// `--binning auto` is a choice, not a demand: on an adapter short of the GPU binning's limits
+/// (at exactly the default raster sampler's, 7 storage buffers where the binning takes 9) it
+/// bins on the CPU, so the shells mode renders a mesh of [`tetvr::gpu::AUTO_GPU_TETS`] tets
+/// (it was refused for the GPU binning, "--binning gpu", which the user had not asked for),
+/// and `auto` with it takes the GPU (it rendered on the CPU, counting the GPU binning).
+#[test]
+fn binning_auto_bins_on_the_cpu_where_the_gpu_binning_is_short() {
+    use tetvr::ModeSettings;
+    use tetvr::Renderer;
+    use tetvr::gpu::*;
+    let auto = ShellSettings {
+        binning: BinningMode::Auto,
+        ..ShellSettings::default()
+    };
+    let mut ctx = device_offering(&shells_needs(&auto, false, false));
+    assert!(
+        ctx.limits.max_storage_buffers_per_shader_stage
+            < ShaderNeeds::SHELLS_BINNING.storage_buffers
+    );
+    ctx.info.device_type = wgpu::DeviceType::DiscreteGpu;
+    let resolved = ModeSettings::Auto(auto).resolve(Some(&ctx));
+    assert!(matches!(resolved, ModeSettings::Shells(_)), "{resolved:?}");
+    let cells = (AUTO_GPU_TETS as f64 / 6.0).cbrt().ceil() as u32;
+    let mesh = common::gaussians(cells);
+    assert!(mesh.tet_count() >= AUTO_GPU_TETS);
+    let (tf, camera) = common::default_view(&mesh, 16);
+    let mut r = ShellsRenderer::new(&ctx, &mesh, auto).unwrap_or_else(|e| panic!("{e}"));
+    r.render(&camera, &tf).unwrap();
+}

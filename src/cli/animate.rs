@@ -160,7 +160,7 @@ impl Playback {
         }
         let camera = camera(r, mesh)?;
         let open = Instant::now();
-        let (mode, gpu) = open_mode(r, mesh, &tf)?;
+        let (mode, gpu) = open_mode(r, mesh, &tf, textured.is_some())?;
         let open_ms = ms(open);
         let build = Instant::now();
         let (renderer, what) = build_renderer(textured.as_ref(), &mode, gpu.as_ref(), mesh)?;

@@ -434,13 +434,15 @@ pub(super) fn camera(args: &RenderArgs, mesh: &TetMesh) -> Result<Camera, CliErr
     Ok(of_flags(args)?.camera(mesh)?)
 }
 
-/// The mode `args` ask for and the GPU it renders on, opened (see [`open_scene_mode`]).
+/// The mode `args` ask for and the GPU it renders on, opened (see [`open_scene_mode`]; for a
+/// `textured` cage, `auto`'s note is the ray caster's).
 pub(super) fn open_mode(
     args: &RenderArgs,
     mesh: &TetMesh,
     tf: &TransferFunction,
+    textured: bool,
 ) -> Result<(ModeSettings, Option<GpuContext>), CliError> {
-    open_scene_mode(&of_flags(args)?, mesh, tf, false)
+    open_scene_mode(&of_flags(args)?, mesh, tf, textured)
 }
 
 /// The mode `scene` asks for and the GPU it renders on, opened; `auto` off the GPU says in one

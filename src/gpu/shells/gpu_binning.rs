@@ -21,6 +21,7 @@
 
 use crate::gpu::GpuContext;
 use crate::gpu::gpu_data::{BinChunk, BinUniforms};
+use crate::gpu::limits::ShaderNeeds;
 use crate::gpu::mesh::{MeshData, TetArray};
 use crate::gpu::shaders;
 use crate::gpu::util::{
@@ -211,12 +212,15 @@ fn chunk_uniforms(ctx: &GpuContext, chunks: &[(u64, u64)]) -> (u64, wgpu::Buffer
     (stride as u64, buffer)
 }
 
-/// Whether `mode` bins a mesh of `tets` tets on the GPU.
-pub(super) fn picked(mode: BinningMode, tets: u64) -> bool {
+/// Whether `mode` bins a mesh of `tets` tets on the GPU of `ctx`: [`BinningMode::Auto`] only
+/// where its limits offer what the GPU binning's stages need (else it bins on the CPU, as the
+/// choice it is, instead of refusing the setting for a stage it chose itself).
+pub(super) fn picked(mode: BinningMode, tets: u64, ctx: &GpuContext) -> bool {
+    let runs = || (ctx.check_needs(&ShaderNeeds::SHELLS_BINNING, "")).is_ok();
     match mode {
         BinningMode::Cpu => false,
         BinningMode::Gpu => true,
-        BinningMode::Auto => tets >= AUTO_GPU_TETS as u64,
+        BinningMode::Auto => tets >= AUTO_GPU_TETS as u64 && runs(),
     }
 }
 

@@ -168,8 +168,9 @@ pub enum BinningMode {
     /// tets per frame (a deforming mesh's update needs none). Its slices per shell are fixed or
     /// the default (not profiled).
     Gpu,
-    /// GPU for meshes of at least [`AUTO_GPU_TETS`] tets (in any number of record chunks),
-    /// else CPU; with [`ShellSettings::tune`], the faster of the two measured on the first frames.
+    /// GPU for meshes of at least [`AUTO_GPU_TETS`] tets (in any number of record chunks) on
+    /// an adapter whose limits run the GPU binning ([`ShaderNeeds::SHELLS_BINNING`]), else
+    /// CPU; with [`ShellSettings::tune`], the faster of the two measured on the first frames.
     Auto,
 }
 
@@ -319,7 +320,7 @@ impl ShellsRenderer {
         textured: bool,
         tets: usize,
     ) -> Result<(), RenderError> {
-        let gpu_binning = gpu_binning::picked(settings.binning, tets as u64);
+        let gpu_binning = gpu_binning::picked(settings.binning, tets as u64, ctx);
         Ok(ctx.check_parts(&ShaderNeeds::shells(settings, textured, gpu_binning))?)
     }
 
@@ -377,7 +378,7 @@ impl ShellsRenderer {
             }
             _ => None,
         };
-        let binner = if !walks && gpu_binning::picked(settings.binning, tet_count) {
+        let binner = if !walks && gpu_binning::picked(settings.binning, tet_count, ctx) {
             let spans = mesh.tet_array("shells bin spans", chunking, tet_count, 8)?;
             let chunks = chunking.ranges(tet_count);
             Some(gpu_binning::GpuBinner::new(ctx, tet_count, chunks, spans))
