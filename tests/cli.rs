@@ -862,6 +862,32 @@ fn animate_names_frames_of_another_width_left_from_an_earlier_run() {
     );
 }
 
+/// A GIF output naming a directory is refused before any frame renders (the temporary file is
+/// renamed onto the output only at the end, which a directory refuses after the whole run).
+#[test]
+fn animate_refuses_a_directory_as_its_gif() {
+    let dir = out_dir("animate-gif-dir").join("taken.gif");
+    std::fs::create_dir_all(&dir).unwrap();
+    let o = tetvr(&[
+        "animate",
+        LOX,
+        "--frames",
+        "2",
+        "--size",
+        "8x8",
+        "--mode",
+        "raycast-cpu",
+        "-o",
+        dir.to_str().unwrap(),
+    ]);
+    let (_, stderr) = text(&o);
+    assert!(!o.status.success());
+    assert!(
+        stderr.contains("taken.gif: is a directory; give the animation a file name"),
+        "{stderr}"
+    );
+}
+
 /// A CT volume's Hounsfield units are negative below water: `--threshold -500` is a value, not
 /// an unknown flag (clap took it for one, with the tip to write `-- -500`).
 #[test]

@@ -307,7 +307,14 @@ struct Partial {
 
 impl Partial {
     /// Creates the temporary file for `target`: `.NAME.PID.part` beside it.
+    /// A directory of that name is refused here, not by the rename after every frame.
     fn create(target: &Path) -> Result<(Self, File), CliError> {
+        if target.is_dir() {
+            return Err(CliError::Usage(format!(
+                "{}: is a directory; give the animation a file name (-o DIR/NAME.gif)",
+                target.display()
+            )));
+        }
         let name = target.file_name().unwrap_or(target.as_os_str()).display();
         let temp = target.with_file_name(format!(".{name}.{}.part", std::process::id()));
         let file = File::create(&temp).map_err(|e| animation_error(target, e))?;
