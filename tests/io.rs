@@ -748,6 +748,12 @@ fn all_tet_legacy_binary_files_read_as_the_vtu_and_name_a_bad_cell_as_before() {
         let want = "cell 0: a tetrahedron has 4 vertices, the file gives 3";
         assert!(e.to_string().contains(want), "{label}: {e}");
     }
+    // A 5.1 vtktypeint64 index of 2^32 + 4, which as a u32 would be vertex 4: out of range,
+    // not the tet [0, 1, 3, 4].
+    let [_, (label, bytes)] = legacy_binaries(&bad(0, (10, vec![0, 1, 3, (1 << 32) + 4])));
+    let e = load_bytes(&bytes, Format::VtkLegacy, label).unwrap_err();
+    let want = "cell 0: vertex index 4294967300 of the tetrahedron is out of range";
+    assert!(e.to_string().contains(want), "{label}: {e}");
 }
 
 /// Where `needle` first occurs in `hay`.
