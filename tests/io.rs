@@ -728,8 +728,9 @@ fn all_tet_legacy_binary_files_read_as_the_vtu_and_name_a_bad_cell_as_before() {
             );
         }
     }
-    // CELL_TYPES one short of the cells, and a 4.2 list one number longer than its cells use
-    // (five numbers a cell, but one cell of three vertices and one of five).
+    // CELL_TYPES one short of the cells; then a cell of three vertices and one of five: a 4.2
+    // list of five numbers a cell, and a 5.1 list of four a cell (offsets 0, 3, 8, 12) whose
+    // fours are distinct indices, so only the offsets tell that its cells are no tets.
     for (label, mut bytes) in legacy_binaries(&tets) {
         let at = find(&bytes, b"CELL_TYPES 3\n");
         bytes.splice(at..at + 13 + 4, b"CELL_TYPES 2\n".iter().copied());
@@ -739,12 +740,19 @@ fn all_tet_legacy_binary_files_read_as_the_vtu_and_name_a_bad_cell_as_before() {
     }
     let cells = [
         (10, vec![0, 1, 3]),
-        (10, vec![1, 2, 3, 6, 7]),
+        (10, vec![4, 2, 5, 6, 7]),
         tets[2].clone(),
     ];
-    let [(label, bytes), _] = legacy_binaries(&cells);
+    for (label, bytes) in legacy_binaries(&cells) {
+        let e = load_bytes(&bytes, Format::VtkLegacy, label).unwrap_err();
+        let want = "cell 0: a tetrahedron has 4 vertices, the file gives 3";
+        assert!(e.to_string().contains(want), "{label}: {e}");
+    }
+    // A 5.1 vtktypeint64 index of 2^32 + 4, which as a u32 would be vertex 4: out of range,
+    // not the tet [0, 1, 3, 4].
+    let [_, (label, bytes)] = legacy_binaries(&bad(0, (10, vec![0, 1, 3, (1 << 32) + 4])));
     let e = load_bytes(&bytes, Format::VtkLegacy, label).unwrap_err();
-    let want = "cell 0: a tetrahedron has 4 vertices, the file gives 3";
+    let want = "cell 0: vertex index 4294967300 of the tetrahedron is out of range";
     assert!(e.to_string().contains(want), "{label}: {e}");
 }
 
