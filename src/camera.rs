@@ -51,8 +51,8 @@ pub enum CameraError {
     )]
     /// A view name that is not one of the known directions.
     UnknownView(String),
-    /// A CPU renderer's frame of `width` x `height` pixels needs `bytes` of memory that cannot
-    /// be allocated ([`check_frame_memory`]).
+    /// A CPU renderer's frame of `width` x `height` pixels needs `bytes` of memory, more than
+    /// can be allocated: refused before allocating it.
     #[error(
         "a {width}x{height} image needs {bytes} bytes of memory to render on the CPU, more than \
          can be allocated; render a smaller image (e.g. --size 4096x4096)"

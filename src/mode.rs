@@ -159,7 +159,7 @@ impl ModeSettings {
     }
 
     /// [`Self::note`] for a textured cage, whose `auto` takes the GPU ray caster
-    /// ([`crate::texture::textured_renderer`], [`textured_auto_needs`]).
+    /// ([`crate::texture::textured_renderer`]).
     pub fn textured_note(&self, gpu: Option<&GpuContext>) -> Option<String> {
         match self {
             Self::Auto(_) => auto_note(gpu, &textured_auto_needs()),
