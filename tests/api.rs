@@ -50,6 +50,9 @@ fn a_lost_device_is_an_error_not_a_panic() {
                 let msg = e.to_string();
                 assert!(msg.contains(&format!("{name} frame")), "{msg}");
                 assert!(msg.contains("is invalid"), "{name}: {msg}");
+                // One line, each cause once (wgpu's text repeated its causes over lines).
+                assert!(!msg.contains('\n'), "{name}: {msg}");
+                assert_eq!(msg.matches("is invalid").count(), 1, "{name}: {msg}");
                 assert!(msg.contains("open a new GPU context"), "{name}: {msg}");
             }
             Ok(other) => panic!("{name} after the loss: {other:?}"),
