@@ -365,7 +365,8 @@ fn a_layer_at_the_isovalue_is_one_sheet_not_two() {
             mesh.tets(),
             mesh.scalars().unwrap(),
             &[1.0],
-        );
+        )
+        .unwrap();
         let (bytes, _) = glb_bytes(&[Colored {
             surface: &surfaces[0],
             color: ORANGE,
@@ -405,7 +406,7 @@ fn zero_area_triangles_are_dropped() {
     let positions = [DVec3::ZERO, DVec3::X, DVec3::X, DVec3::Y, DVec3::Z];
     let tets = [[0, 1, 3, 4], [0, 1, 2, 3]];
     let scalars = [0.0, 1.0, 1.0, 1.0, 1.0];
-    let s = &isosurfaces(&positions, &tets, &scalars, &[0.5])[0];
+    let s = &isosurfaces(&positions, &tets, &scalars, &[0.5]).unwrap()[0];
     let topo = topology(&s.positions, &s.triangles);
     assert_eq!(topo.degenerate, 0, "{topo:?}");
     assert_eq!((s.positions.len(), s.triangles.len()), (3, 1), "{s:?}");
