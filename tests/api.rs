@@ -50,6 +50,9 @@ fn a_lost_device_is_an_error_not_a_panic() {
                 let msg = e.to_string();
                 assert!(msg.contains(&format!("{name} frame")), "{msg}");
                 assert!(msg.contains("is invalid"), "{name}: {msg}");
+                // One line, each cause once (wgpu's text repeated its causes over lines).
+                assert!(!msg.contains('\n'), "{name}: {msg}");
+                assert_eq!(msg.matches("is invalid").count(), 1, "{name}: {msg}");
                 assert!(msg.contains("open a new GPU context"), "{name}: {msg}");
             }
             Ok(other) => panic!("{name} after the loss: {other:?}"),
@@ -324,4 +327,50 @@ fn the_f32_modes_refuse_a_scalar_range_wider_than_f64() {
     let reference = ModeSettings::Reference(ReferenceSettings::default());
     let frame = reference.build(None, &mesh).unwrap().render(&camera, &tf);
     assert!(frame.unwrap().image.pixels.iter().any(|p| p[3] > 0.0));
+}
+
+/// `RaycastRenderer::render_surface` (a textured cage's isosurfaces, public) ran outside the
+/// error scopes that `render` has: after a lost device it panicked in wgpu's default handler
+/// ("Buffer ... is invalid"). It is the same error as every other GPU frame's.
+#[test]
+fn a_lost_device_under_a_textured_iso_surface_is_an_error() {
+    use tetvr::gpu::RaycastRenderer;
+    use tetvr::texture::{CageOptions, DEFAULT_TEXCOORDS, Volume, cage, texcoords};
+    // A Gaussian blob on 8^3 voxels, its cage, and the isosurface at 10 (of a peak of 100).
+    const N: usize = 8;
+    let blob = |n: usize| {
+        let p = DVec3::new((n % N) as f64, ((n / N) % N) as f64, (n / (N * N)) as f64);
+        (100.0 * (-(p - DVec3::splat(3.5)).length_squared() / 8.0).exp()) as f32
+    };
+    let values = (0..N * N * N).map(blob).collect();
+    let volume = Volume::new([N; 3], DVec3::ZERO, DVec3::ONE, values).unwrap();
+    let opts = CageOptions {
+        tets: 48,
+        threshold: None,
+    };
+    let mesh = cage(&volume, &opts).unwrap();
+    let tc = texcoords(&mesh, DEFAULT_TEXCOORDS).unwrap();
+    let iso = IsoSettings {
+        isovalues: vec![(10.0, [0.9, 0.5, 0.2])],
+        ..IsoSettings::default()
+    };
+    let (_, camera) = common::default_view(&mesh, 16);
+    // A context of its own: the shared one must stay usable for the other tests.
+    let gpu = GpuContext::new(AdapterChoice::Auto).expect("an adapter (lavapipe will do)");
+    let settings = RaycastSettings::default();
+    let mut r = RaycastRenderer::textured_iso(&gpu, &mesh, &tc, &volume, None, settings, &iso)
+        .expect("built");
+    gpu.device.destroy();
+    let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        r.render_surface(&camera).map(|(s, _)| s.color.width)
+    }));
+    match caught {
+        Ok(Err(e @ RenderError::Gpu(GpuError::Failed { .. }))) => {
+            let msg = e.to_string();
+            assert!(msg.contains("a textured iso frame"), "{msg}");
+            assert!(msg.contains("open a new GPU context"), "{msg}");
+        }
+        Ok(other) => panic!("render_surface after the loss: {other:?}"),
+        Err(_) => panic!("render_surface panicked after the loss"),
+    }
 }

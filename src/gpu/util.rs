@@ -171,10 +171,13 @@ pub(crate) fn check_image_size(
     Ok(())
 }
 
-/// `e` and its sources on one line: wgpu's error says only "Validation Error", its source
-/// what was refused (e.g. "Buffer with 'frame stats readback' label is invalid").
+/// `e` and its sources on one line: wgpu's error's first line says its kind ("Validation
+/// Error"), its sources what was refused (e.g. "Buffer with 'frame stats readback' label is
+/// invalid"). Its whole text is not taken: a validation error's repeats its sources over
+/// several lines ("...\n\nCaused by:\n  In Buffer::map_async\n    Buffer ...").
 fn error_chain(e: &dyn std::error::Error) -> String {
-    let mut parts = vec![e.to_string()];
+    let text = e.to_string();
+    let mut parts = vec![text.lines().next().unwrap_or_default().to_string()];
     let mut source = e.source();
     while let Some(s) = source {
         parts.push(s.to_string());
