@@ -240,38 +240,45 @@ fn isosurface(
             .normalize_or_zero()
         })
         .collect();
-    if normals.contains(&DVec3::ZERO) {
-        let mut face_sum = vec![DVec3::ZERO; normals.len()];
-        // Each vertex's sum of triangle areas (twice), and its largest triangle's normal: where
-        // the mean cancels (to rounding: what is left then points anywhere).
-        let mut area = vec![0.0; normals.len()];
-        let mut largest = vec![DVec3::ZERO; normals.len()];
-        for t in &triangles {
-            let p = t.map(|i| positions_out[i as usize]);
-            let n = (p[1] - p[0]).cross(p[2] - p[0]);
-            for &i in t {
-                let i = i as usize;
-                face_sum[i] += n;
-                area[i] += n.length();
-                if n.length_squared() > largest[i].length_squared() {
-                    largest[i] = n;
-                }
-            }
-        }
-        for (i, n) in normals.iter_mut().enumerate() {
-            if *n == DVec3::ZERO {
-                *n = if face_sum[i].length() > 1e-9 * area[i] {
-                    face_sum[i].normalize_or_zero()
-                } else {
-                    largest[i].normalize_or_zero()
-                };
-            }
-        }
-    }
+    fill_zero_normals(&mut normals, &positions_out, &triangles);
     Surface {
         isovalue: v,
         positions: positions_out,
         normals,
         triangles,
+    }
+}
+
+/// Gives each vertex left with a zero normal (a vertex of a doubled face, or one whose gradient
+/// vanishes) the mean of its triangles' normals, area-weighted; where that mean cancels (to
+/// rounding: what is left then points anywhere), its largest triangle's normal.
+fn fill_zero_normals(normals: &mut [DVec3], positions: &[DVec3], triangles: &[[u32; 3]]) {
+    if !normals.contains(&DVec3::ZERO) {
+        return;
+    }
+    let mut face_sum = vec![DVec3::ZERO; normals.len()];
+    // Each vertex's sum of triangle areas (twice), and its largest triangle's normal.
+    let mut area = vec![0.0; normals.len()];
+    let mut largest = vec![DVec3::ZERO; normals.len()];
+    for t in triangles {
+        let p = t.map(|i| positions[i as usize]);
+        let n = (p[1] - p[0]).cross(p[2] - p[0]);
+        for &i in t {
+            let i = i as usize;
+            face_sum[i] += n;
+            area[i] += n.length();
+            if n.length_squared() > largest[i].length_squared() {
+                largest[i] = n;
+            }
+        }
+    }
+    for (i, n) in normals.iter_mut().enumerate() {
+        if *n == DVec3::ZERO {
+            *n = if face_sum[i].length() > 1e-9 * area[i] {
+                face_sum[i].normalize_or_zero()
+            } else {
+                largest[i].normalize_or_zero()
+            };
+        }
     }
 }
