@@ -783,6 +783,23 @@ fn animate_takes_its_output_extensions_in_any_case() {
     }
 }
 
+/// `tetvr animate` of the lox subset: `frames` frames of 8x8 pixels on the CPU ray caster, to
+/// `out`.
+fn animate_lox(frames: &str, out: &Path) -> Output {
+    tetvr(&[
+        "animate",
+        LOX,
+        "--frames",
+        frames,
+        "--size",
+        "8x8",
+        "--mode",
+        "raycast-cpu",
+        "-o",
+        out.to_str().unwrap(),
+    ])
+}
+
 /// PNG frames over a longer earlier run's: the old frames after the new ones are named, since a
 /// tool taking every NAME-*.png would play them on (they were left without a word).
 #[test]
@@ -793,18 +810,7 @@ fn animate_names_frames_left_from_a_longer_run() {
         let _ = std::fs::remove_file(dir.join(format!("run-{i:04}.png"))); // an earlier test run
     }
     let run = |frames: &str| {
-        let o = tetvr(&[
-            "animate",
-            LOX,
-            "--frames",
-            frames,
-            "--size",
-            "8x8",
-            "--mode",
-            "raycast-cpu",
-            "-o",
-            out.to_str().unwrap(),
-        ]);
+        let o = animate_lox(frames, &out);
         let (stdout, stderr) = text(&o);
         assert!(o.status.success(), "{stderr}");
         stdout
@@ -841,18 +847,7 @@ fn animate_names_frames_of_another_width_left_from_an_earlier_run() {
         std::fs::write(dir.join(other), b"").unwrap();
     }
     let out = dir.join("run5.png");
-    let o = tetvr(&[
-        "animate",
-        LOX,
-        "--frames",
-        "2",
-        "--size",
-        "8x8",
-        "--mode",
-        "raycast-cpu",
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+    let o = animate_lox("2", &out);
     let (stdout, stderr) = text(&o);
     assert!(o.status.success(), "{stderr}");
     assert!(
@@ -868,18 +863,7 @@ fn animate_names_frames_of_another_width_left_from_an_earlier_run() {
 fn animate_refuses_a_directory_as_its_gif() {
     let dir = out_dir("animate-gif-dir").join("taken.gif");
     std::fs::create_dir_all(&dir).unwrap();
-    let o = tetvr(&[
-        "animate",
-        LOX,
-        "--frames",
-        "2",
-        "--size",
-        "8x8",
-        "--mode",
-        "raycast-cpu",
-        "-o",
-        dir.to_str().unwrap(),
-    ]);
+    let o = animate_lox("2", &dir);
     let (_, stderr) = text(&o);
     assert!(!o.status.success());
     assert!(
