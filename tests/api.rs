@@ -335,21 +335,8 @@ fn the_f32_modes_refuse_a_scalar_range_wider_than_f64() {
 #[test]
 fn a_lost_device_under_a_textured_iso_surface_is_an_error() {
     use tetvr::gpu::RaycastRenderer;
-    use tetvr::texture::{CageOptions, DEFAULT_TEXCOORDS, Volume, cage, texcoords};
-    // A Gaussian blob on 8^3 voxels, its cage, and the isosurface at 10 (of a peak of 100).
-    const N: usize = 8;
-    let blob = |n: usize| {
-        let p = DVec3::new((n % N) as f64, ((n / N) % N) as f64, (n / (N * N)) as f64);
-        (100.0 * (-(p - DVec3::splat(3.5)).length_squared() / 8.0).exp()) as f32
-    };
-    let values = (0..N * N * N).map(blob).collect();
-    let volume = Volume::new([N; 3], DVec3::ZERO, DVec3::ONE, values).unwrap();
-    let opts = CageOptions {
-        tets: 48,
-        threshold: None,
-    };
-    let mesh = cage(&volume, &opts).unwrap();
-    let tc = texcoords(&mesh, DEFAULT_TEXCOORDS).unwrap();
+    // The isosurface at 10 (of the blob's peak of 100).
+    let (mesh, tc, volume) = blob_cage();
     let iso = IsoSettings {
         isovalues: vec![(10.0, [0.9, 0.5, 0.2])],
         ..IsoSettings::default()
@@ -373,4 +360,143 @@ fn a_lost_device_under_a_textured_iso_surface_is_an_error() {
         Ok(other) => panic!("render_surface after the loss: {other:?}"),
         Err(_) => panic!("render_surface panicked after the loss"),
     }
+}
+
+/// A Gaussian blob on 8^3 voxels (peak 100), its cage of 48 tets and their texture
+/// coordinates.
+fn blob_cage() -> (tetvr::TetMesh, Vec<DVec3>, tetvr::texture::Volume) {
+    use tetvr::texture::{CageOptions, DEFAULT_TEXCOORDS, Volume, cage, texcoords};
+    const N: usize = 8;
+    let blob = |n: usize| {
+        let p = DVec3::new((n % N) as f64, ((n / N) % N) as f64, (n / (N * N)) as f64);
+        (100.0 * (-(p - DVec3::splat(3.5)).length_squared() / 8.0).exp()) as f32
+    };
+    let values = (0..N * N * N).map(blob).collect();
+    let volume = Volume::new([N; 3], DVec3::ZERO, DVec3::ONE, values).unwrap();
+    let opts = CageOptions {
+        tets: 48,
+        threshold: None,
+    };
+    let mesh = cage(&volume, &opts).unwrap();
+    let tc = texcoords(&mesh, DEFAULT_TEXCOORDS).unwrap();
+    (mesh, tc, volume)
+}
+
+/// A context whose device was opened with `lower` applied to the adapter's limits while the
+/// context declares the adapter's own, above the device's (which `GpuContext::limits`'s docs
+/// forbid): tetvr's limit checks pass and wgpu refuses the work planned for more.
+fn context_above_its_device(lower: impl FnOnce(&mut wgpu::Limits)) -> GpuContext {
+    let shared = common::ctx();
+    let mut desc = GpuContext::device_descriptor(&shared.adapter);
+    lower(&mut desc.required_limits);
+    let (device, queue) = pollster::block_on(shared.adapter.request_device(&desc)).unwrap();
+    let mut gpu = GpuContext::from_device(shared.adapter.clone(), device, queue);
+    gpu.limits = shared.limits.clone();
+    gpu
+}
+
+/// A renderer's build ran outside any error scope, so whatever wgpu refused there (a bind
+/// group layout, pipeline, buffer or texture) panicked in wgpu's default handler. Each build,
+/// every mode and sampler and the textured cages', is refused by a device with lower limits
+/// than its context declares (`context_above_its_device`): 4 storage buffers per stage (the
+/// layouts built with the shells raster and compute samplers, iso and cellproj; none needs
+/// fewer than 7), buffers of at most the mesh's positions (the ray caster's links, and those of
+/// the walk sampler's, 16 bytes per tet: 6 tets per vertex here), or 3D textures of 4 texels
+/// (the 8^3 volume). Each is an error naming the build and saying to keep the limits at most
+/// the device's.
+#[test]
+fn a_build_wgpu_refuses_is_an_error_not_a_panic() {
+    use tetvr::gpu::{RaycastRenderer, Sampler, ShellsRenderer};
+    type Build<'a> = Box<dyn Fn() -> Result<(), RenderError> + 'a>;
+    let mesh = common::gaussians(2);
+    let few_buffers = context_above_its_device(|l| l.max_storage_buffers_per_shader_stage = 4);
+    let positions = 16 * mesh.vertex_count() as u64;
+    assert!(16 * mesh.tet_count() as u64 > positions);
+    let small_buffers = context_above_its_device(|l| l.max_buffer_size = positions);
+    let small_3d = context_above_its_device(|l| l.max_texture_dimension_3d = 4);
+    fn mode<'a>(gpu: &'a GpuContext, mesh: &'a tetvr::TetMesh, mode: ModeSettings) -> Build<'a> {
+        Box::new(move || mode.build(Some(gpu), mesh).map(drop))
+    }
+    let shells = |sampler| {
+        ModeSettings::Shells(ShellSettings {
+            sampler,
+            ..ShellSettings::default()
+        })
+    };
+    let (cage, tc, volume) = blob_cage();
+    let (raycast, iso) = (RaycastSettings::default(), IsoSettings::default());
+    let cases: Vec<(&str, Build, &str)> = vec![
+        (
+            "shells (raster)",
+            mode(&few_buffers, &mesh, shells(Sampler::Raster)),
+            "building the shells renderer",
+        ),
+        (
+            "shells (compute)",
+            mode(&few_buffers, &mesh, shells(Sampler::Compute)),
+            "building the shells renderer",
+        ),
+        (
+            "shells (walk)",
+            mode(&small_buffers, &mesh, shells(Sampler::Walk)),
+            "building the shells renderer",
+        ),
+        (
+            "iso",
+            mode(&few_buffers, &mesh, ModeSettings::Iso(iso.clone())),
+            "building the iso renderer",
+        ),
+        (
+            "cellproj",
+            mode(
+                &few_buffers,
+                &mesh,
+                ModeSettings::CellProj(Default::default()),
+            ),
+            "building the cellproj renderer",
+        ),
+        (
+            "raycast",
+            mode(&small_buffers, &mesh, ModeSettings::Raycast(raycast)),
+            "building the raycast renderer",
+        ),
+        (
+            "textured shells",
+            Box::new(|| {
+                let s = ShellSettings::default();
+                ShellsRenderer::textured(&small_3d, &cage, &tc, &volume, s).map(drop)
+            }),
+            "uploading the volume texture",
+        ),
+        (
+            "textured raycast",
+            Box::new(|| {
+                RaycastRenderer::textured(&small_3d, &cage, &tc, &volume, None, raycast).map(drop)
+            }),
+            "uploading the volume texture",
+        ),
+        (
+            "textured iso",
+            Box::new(|| {
+                RaycastRenderer::textured_iso(&small_3d, &cage, &tc, &volume, None, raycast, &iso)
+                    .map(drop)
+            }),
+            "uploading the volume texture",
+        ),
+    ];
+    // Every case's outcome, so that one failure does not hide another's.
+    let wrong: Vec<String> = (cases.iter())
+        .filter_map(|(name, build, during)| {
+            match std::panic::catch_unwind(std::panic::AssertUnwindSafe(build)) {
+                Ok(Err(e @ RenderError::Gpu(GpuError::Failed { .. }))) => {
+                    let msg = e.to_string();
+                    let right = msg.contains(during) && msg.contains("at most the device's");
+                    (!right).then(|| format!("{name}: {msg}"))
+                }
+                Ok(other) => Some(format!("{name}: {:?}", other.map_err(|e| e.to_string()))),
+                Err(_) => Some(format!("{name}: the build panicked")),
+            }
+        })
+        .collect();
+    assert!(wrong.is_empty(), "{wrong:#?}");
 }

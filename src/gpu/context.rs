@@ -80,24 +80,29 @@ pub enum GpuError {
         /// The mode, e.g. `the shells mode`.
         needed_by: &'static str,
     },
-    /// The adapter ran out of memory allocating a mesh's GPU buffers: the mesh is too large
-    /// for this adapter's memory (its per-buffer limits are not the cause; arrays over them
-    /// are split into several buffers).
+    /// The adapter ran out of memory for work that tetvr gave it: a mesh's GPU buffers, a
+    /// renderer's build, or a frame's per-frame buffers and image targets. Its per-buffer
+    /// limits are not the cause (arrays over them are split into several buffers, and a
+    /// frame's image is checked against them first): the work needs more memory than the
+    /// adapter has free. Caught by wgpu's error scopes (uncaught, wgpu panics).
     #[error(
-        "the adapter '{adapter}' ran out of memory for {bytes} bytes of mesh data; render a \
-         smaller mesh (or split it), or use an adapter with more memory"
+        "the adapter '{adapter}' ran out of memory for {during}; {smaller}, use an adapter \
+         with more memory, or render on the CPU with --mode raycast-cpu"
     )]
     OutOfMemory {
         /// The adapter's name.
         adapter: String,
-        /// The bytes of mesh data that did not fit.
-        bytes: u64,
+        /// The work that did not fit, e.g. `a shells frame` or `4096 bytes of raycast links`.
+        during: String,
+        /// What makes that work smaller, e.g. `render a smaller image (--size) or a smaller
+        /// mesh`.
+        smaller: &'static str,
     },
-    /// wgpu refused work a renderer gave the device (a validation or internal error, which
-    /// wgpu's default handler turns into a panic): the device was lost or destroyed (a
-    /// driver reset, [`wgpu::Device::destroy`]; or its readback fails: [`GpuError::Readback`]),
-    /// [`GpuContext::limits`] were declared above what the device was opened with, or tetvr
-    /// has a bug.
+    /// wgpu refused work a renderer gave the device, a frame or the renderer's build (a
+    /// validation or internal error, which wgpu's default handler turns into a panic): the
+    /// device was lost or destroyed (a driver reset, [`wgpu::Device::destroy`]; or its
+    /// readback fails: [`GpuError::Readback`]), [`GpuContext::limits`] were declared above
+    /// what the device was opened with, or tetvr has a bug.
     #[error(
         "the GPU refused {during}: {reason}. If the device was lost or destroyed, open a new \
          GPU context and build the renderer again; if the GpuContext's limits were raised above \
@@ -105,7 +110,7 @@ pub enum GpuError {
          report it (render on the CPU with --mode raycast-cpu meanwhile)"
     )]
     Failed {
-        /// The work that failed, e.g. `a shells frame`.
+        /// The work that failed, e.g. `a shells frame` or `building the shells renderer`.
         during: &'static str,
         /// wgpu's error.
         reason: String,

@@ -28,7 +28,9 @@ use rayon::prelude::*;
 use crate::camera::Camera;
 use crate::gpu::gpu_data::TetRecord;
 use crate::gpu::pieces::Uploader;
-use crate::gpu::util::{F32Frame, far_eye, scalar_frame, settings_error, sphere_of};
+use crate::gpu::util::{
+    F32Frame, MESH_SMALLER, Work, captured, far_eye, scalar_frame, settings_error, sphere_of,
+};
 use crate::gpu::{GpuContext, GpuError};
 use crate::mesh::{TetMesh, check_values, checked_bounds, field_ranges};
 use crate::render::RenderError;
@@ -203,10 +205,15 @@ impl GpuTetMesh {
     /// per-tet arrays follow when a mode asks for them.
     pub fn new(ctx: &GpuContext, mesh: &TetMesh) -> Result<Arc<Self>, RenderError> {
         let data = MeshData::new(mesh)?;
+        captured(&ctx.device, UPLOAD, || Self::upload(ctx, data))
+    }
+
+    fn upload(ctx: &GpuContext, data: MeshData) -> Result<Arc<Self>, RenderError> {
         let nv = data.positions.len() as u64;
         let vertex_bytes = nv * 16 + nv * 4;
         check_buffer(&ctx.limits, "the vertex positions", nv * 16)?;
-        let (positions, scalars) = allocate(&ctx.device, &ctx.info.name, vertex_bytes, || {
+        let vertices = (vertex_bytes, "mesh vertices (positions and scalars)");
+        let (positions, scalars) = allocate(&ctx.device, &ctx.info.name, vertices, || {
             let vertex = |label, bytes: u64| storage_buffer(&ctx.device, label, bytes);
             (
                 vertex("mesh positions", nv * 16),
@@ -341,7 +348,7 @@ impl GpuTetMesh {
         stride: u64,
     ) -> Result<TetArray, RenderError> {
         let bytes = count * stride;
-        allocate(&self.device, &self.adapter, bytes, || {
+        allocate(&self.device, &self.adapter, (bytes, label), || {
             TetArray::new(&self.device, &self.limits, label, chunking, count, stride)
         })
     }
@@ -604,12 +611,16 @@ pub(crate) fn check_buffer(
     Ok(())
 }
 
-/// Runs `create` (GPU allocations of `bytes` in all) and turns the adapter running out of
-/// memory into an error that says how many bytes were asked for.
+/// The upload of a mesh's vertices ([`GpuTetMesh::new`]).
+const UPLOAD: Work = Work::of_mesh("uploading the mesh");
+
+/// Runs `create` (GPU allocations of `bytes` in all, of `what`) and turns the adapter running
+/// out of memory into an error that says how many bytes of what were asked for (more precise
+/// than the build's own scope, [`captured`], which names only the build).
 pub(crate) fn allocate<T>(
     device: &wgpu::Device,
     adapter: &str,
-    bytes: u64,
+    (bytes, what): (u64, &str),
     create: impl FnOnce() -> T,
 ) -> Result<T, RenderError> {
     let scope = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
@@ -618,7 +629,8 @@ pub(crate) fn allocate<T>(
         None => Ok(out),
         Some(_) => Err(RenderError::Gpu(GpuError::OutOfMemory {
             adapter: adapter.to_owned(),
-            bytes,
+            during: format!("{bytes} bytes of {what}"),
+            smaller: MESH_SMALLER,
         })),
     }
 }

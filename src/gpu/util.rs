@@ -233,30 +233,93 @@ pub(crate) fn settings_error(msg: impl Into<String>) -> RenderError {
     RenderError::Settings(msg.into())
 }
 
-/// Runs `work`, a frame or another piece of GPU work behind the public API, with wgpu's
-/// validation and internal errors captured on this thread (error scopes) and returned as
-/// [`GpuError::Failed`] naming `during`. Uncaptured, wgpu's default handler panics: a lost or
-/// destroyed device (a driver reset, [`wgpu::Device::destroy`]) panicked in the first frame
-/// after it ("Buffer ... is invalid"; captured, the frame's readback fails and says the
-/// device was probably lost: a lost device's scopes report nothing, as WebGPU specifies), and
-/// so did a frame over limits declared above the device's. wgpu's error is the cause and wins
-/// over whatever `work` returned after it.
+/// GPU work behind the public API that [`captured`] runs: what to call it in an error, and
+/// what the user can make smaller when it runs out of GPU memory.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Work {
+    /// The work, e.g. `a shells frame` ([`GpuError::Failed`], [`GpuError::OutOfMemory`]).
+    pub during: &'static str,
+    /// What makes it need less memory, e.g. `render a smaller image (--size) or a smaller
+    /// mesh` ([`GpuError::OutOfMemory`]).
+    pub smaller: &'static str,
+}
+
+impl Work {
+    /// A frame of a mode whose per-frame buffers and targets grow with the image and the mesh.
+    pub(crate) const fn of_frame(during: &'static str) -> Self {
+        Self {
+            during,
+            smaller: "render a smaller image (--size) or a smaller mesh",
+        }
+    }
+
+    /// Work over a mesh whose buffers grow with it: uploading it, building a renderer.
+    pub(crate) const fn of_mesh(during: &'static str) -> Self {
+        Self {
+            during,
+            smaller: MESH_SMALLER,
+        }
+    }
+
+    /// Building a renderer over a textured cage: the volume's texture and the cage's buffers.
+    pub(crate) const fn of_texture(during: &'static str) -> Self {
+        Self {
+            during,
+            smaller: "render a smaller cage or a downsampled volume (Volume::fit_within)",
+        }
+    }
+}
+
+/// What makes a mesh's GPU data smaller ([`GpuError::OutOfMemory`]).
+pub(crate) const MESH_SMALLER: &str = "render a smaller mesh (or split it)";
+
+/// Runs `work`, a frame, a renderer's build or another piece of GPU work behind the public
+/// API, with wgpu's out-of-memory, validation and internal errors captured on this thread
+/// (error scopes) and returned as the error [`refusal`] makes of them for `what`. Uncaptured, wgpu's
+/// default handler panics: a lost or destroyed device (a driver reset,
+/// [`wgpu::Device::destroy`]) panicked in the first frame after it ("Buffer ... is invalid";
+/// captured, the frame's readback fails and says the device was probably lost: a lost
+/// device's scopes report nothing, as WebGPU specifies), and so did a frame over limits
+/// declared above the device's, a renderer's build refused by the device (a bind group layout
+/// over its limits), and any buffer or texture the adapter's memory could not hold. wgpu's
+/// error is the cause and wins over whatever `work` returned after it; running out of memory
+/// wins over the validation errors it causes (the work that uses what was not allocated).
 pub(crate) fn captured<T>(
     device: &wgpu::Device,
-    during: &'static str,
+    what: Work,
     work: impl FnOnce() -> Result<T, RenderError>,
 ) -> Result<T, RenderError> {
+    let memory = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
     let internal = device.push_error_scope(wgpu::ErrorFilter::Internal);
     let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
     let out = work();
     let validation = pollster::block_on(validation.pop());
     let internal = pollster::block_on(internal.pop());
-    match validation.or(internal) {
-        Some(e) => Err(RenderError::Gpu(GpuError::Failed {
-            during,
-            reason: error_chain(&e),
-        })),
+    let memory = pollster::block_on(memory.pop());
+    match memory.or(validation).or(internal) {
+        Some(e) => Err(RenderError::Gpu(refusal(
+            &device.adapter_info().name,
+            what,
+            &e,
+        ))),
         None => out,
+    }
+}
+
+/// The error wgpu's `e`, met in `what` on the adapter named `adapter`, is reported as: out of
+/// memory says what to make smaller ([`GpuError::OutOfMemory`]), a validation or internal
+/// error what wgpu refused ([`GpuError::Failed`]).
+pub(crate) fn refusal(adapter: &str, what: Work, e: &wgpu::Error) -> GpuError {
+    match e {
+        wgpu::Error::OutOfMemory { .. } => GpuError::OutOfMemory {
+            adapter: adapter.to_owned(),
+            during: what.during.to_owned(),
+            smaller: what.smaller,
+        },
+        wgpu::Error::Validation { .. } | wgpu::Error::Internal { .. } => GpuError::Failed {
+            during: what.during,
+            reason: error_chain(e),
+        },
     }
 }
 
@@ -452,6 +515,57 @@ pub(crate) fn texture_2d(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Running out of GPU memory in a frame or a build panicked in wgpu's default handler; it
+    /// is an error naming the work and what to make smaller. Tested from a synthetic
+    /// `wgpu::Error::OutOfMemory` through [`refusal`], the function [`captured`]'s scopes
+    /// report with, not from a real one: lavapipe allocates from host memory, and a real
+    /// failure there would take more memory than the machines running the tests may use.
+    #[test]
+    fn running_out_of_gpu_memory_says_what_to_make_smaller() {
+        let oom = wgpu::Error::OutOfMemory {
+            source: "vkAllocateMemory: VK_ERROR_OUT_OF_DEVICE_MEMORY".into(),
+        };
+        let e = RenderError::Gpu(refusal("llvmpipe", Work::of_frame("an iso frame"), &oom));
+        assert!(
+            matches!(&e, RenderError::Gpu(GpuError::OutOfMemory { during, .. }) if during == "an iso frame"),
+            "{e:?}"
+        );
+        let msg = e.to_string();
+        for part in [
+            "the adapter 'llvmpipe' ran out of memory for an iso frame",
+            "a smaller image (--size)",
+            "a smaller mesh",
+            "an adapter with more memory",
+            "--mode raycast-cpu",
+        ] {
+            assert!(msg.contains(part), "{part:?} is not in: {msg}");
+        }
+        let build = refusal("llvmpipe", Work::of_mesh("building the iso renderer"), &oom);
+        let msg = build.to_string();
+        assert!(
+            msg.contains("for building the iso renderer; render a smaller mesh"),
+            "{msg}"
+        );
+        assert!(!msg.contains("--size"), "no image is built: {msg}");
+        // Validation errors stay refusals, naming the work and wgpu's reason.
+        let refused = wgpu::Error::Validation {
+            source: "Buffer with 'x' label is invalid".into(),
+            description: "Validation Error".into(),
+        };
+        let failed = refusal("llvmpipe", Work::of_frame("an iso frame"), &refused);
+        assert!(
+            matches!(
+                failed,
+                GpuError::Failed {
+                    during: "an iso frame",
+                    ..
+                }
+            ),
+            "{failed:?}"
+        );
+        assert!(failed.to_string().contains("is invalid"), "{failed}");
+    }
 
     /// Radii from 1e-300 to 1e300 map into [0.5, 1) by an exact power of two; none, infinite or
     /// beyond f64's range of squares (1e-200, 1e200: the diagonal's square leaves f64) too.

@@ -54,7 +54,7 @@ use crate::gpu::frame::{FrameResources, FrameStats, ImageReadback};
 pub use crate::gpu::gpu_data::CellProjUniforms;
 use crate::gpu::gpu_data::{TfPoints, ViewUniforms};
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
-use crate::gpu::util::{captured, entry, far_eye, ms_since, uniform_buffer};
+use crate::gpu::util::{Work, captured, entry, far_eye, ms_since, uniform_buffer};
 use crate::gpu::{GpuContext, ShaderNeeds};
 use crate::image::Image;
 use crate::mesh::TetMesh;
@@ -153,6 +153,16 @@ struct Targets {
     readback: ImageReadback,
 }
 
+/// A cellproj frame: its target grows with the image, its pre-integration table with the
+/// table size, its order and records with the mesh.
+const FRAME: Work = Work {
+    during: "a cellproj frame",
+    smaller: "render a smaller image (--size), a smaller pre-integration table (--table-size) \
+              or a smaller mesh",
+};
+/// A cellproj renderer's build.
+const BUILD: Work = Work::of_mesh("building the cellproj renderer");
+
 /// The eye-space z at or below which a tet is drawn as its near-plane quad (as in the iso
 /// mode): 1e-5 of the bounding radius, above f32 rounding of eye-space coordinates.
 fn near_z(radius: f64) -> f32 {
@@ -167,7 +177,7 @@ impl CellProjRenderer {
         settings: CellProjSettings,
     ) -> Result<Self, RenderError> {
         ctx.check_needs(&ShaderNeeds::CELLPROJ, "the cellproj mode")?;
-        Self::build(ctx, mesh, settings)
+        captured(&ctx.device, BUILD, || Self::build(ctx, mesh, settings))
     }
 
     fn build(
@@ -228,7 +238,9 @@ impl CellProjRenderer {
     /// An adapter short of a limit is refused before anything is uploaded.
     pub fn new(ctx: &GpuContext, mesh: &TetMesh, s: CellProjSettings) -> Result<Self, RenderError> {
         ctx.check_needs(&ShaderNeeds::CELLPROJ, "the cellproj mode")?;
-        Self::build(ctx, GpuTetMesh::new(ctx, mesh)?, s)
+        captured(&ctx.device, BUILD, || {
+            Self::build(ctx, GpuTetMesh::new(ctx, mesh)?, s)
+        })
     }
 
     /// Switches the integrator (the table is built on the next frame that needs it).
@@ -296,7 +308,7 @@ impl Renderer for CellProjRenderer {
     fn render(&mut self, camera: &Camera, tf: &TransferFunction) -> Result<Frame, RenderError> {
         // A lost device fails here as an error, not as wgpu's panic.
         let device = self.device.clone();
-        captured(&device, "a cellproj frame", || {
+        captured(&device, FRAME, || {
             camera.validate()?;
             let start = Instant::now();
             let mut timings = Timings::default();

@@ -52,7 +52,9 @@ use crate::gpu::frame::{FrameResources, FrameStats, ImageReadback, Timestamps};
 use crate::gpu::gpu_data::ViewUniforms;
 pub use crate::gpu::gpu_data::{IsoUniforms, MAX_ISOVALUES};
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
-use crate::gpu::util::{captured, far_eye, ms_since, read_mapped, settings_error, uniform_buffer};
+use crate::gpu::util::{
+    Work, captured, far_eye, ms_since, read_mapped, settings_error, uniform_buffer,
+};
 use crate::gpu::view::ViewFrame;
 use crate::gpu::{GpuContext, ShaderNeeds};
 use crate::image::Image;
@@ -163,6 +165,13 @@ struct Targets {
 const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
+/// An iso frame: its targets grow with the image, its selection buffers with the mesh.
+const FRAME: Work = Work::of_frame("an iso frame");
+/// An iso renderer's build.
+const BUILD: Work = Work::of_mesh("building the iso renderer");
+/// [`IsoRenderer::read_vertex_gradients`]: a copy of one gradient per vertex.
+const READ_GRADIENTS: Work = Work::of_mesh("reading the iso vertex gradients back");
+
 pub(crate) fn check_isovalues(isovalues: &[(f64, [f32; 3])]) -> Result<(), RenderError> {
     if isovalues.len() > MAX_ISOVALUES {
         return Err(settings_error(format!(
@@ -186,7 +195,7 @@ impl IsoRenderer {
         settings: IsoSettings,
     ) -> Result<Self, RenderError> {
         ctx.check_needs(&ShaderNeeds::ISO, "the iso mode")?;
-        Self::build(ctx, mesh, settings)
+        captured(&ctx.device, BUILD, || Self::build(ctx, mesh, settings))
     }
 
     fn build(
@@ -285,7 +294,9 @@ impl IsoRenderer {
     /// An adapter short of a limit is refused before anything is uploaded.
     pub fn new(ctx: &GpuContext, mesh: &TetMesh, s: IsoSettings) -> Result<Self, RenderError> {
         ctx.check_needs(&ShaderNeeds::ISO, "the iso mode")?;
-        Self::build(ctx, GpuTetMesh::new(ctx, mesh)?, s)
+        captured(&ctx.device, BUILD, || {
+            Self::build(ctx, GpuTetMesh::new(ctx, mesh)?, s)
+        })
     }
 
     /// The per-vertex gradients the last frame's gradient stage wrote (normalized-scalar
@@ -296,22 +307,24 @@ impl IsoRenderer {
         let Some((vertices, _)) = &self.gradient_vertices else {
             return Ok(None);
         };
-        let size = self.gradients_buf.size();
-        let readback = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("iso gradients readback"),
-            size,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let mut enc = self.device.create_command_encoder(&Default::default());
-        enc.copy_buffer_to_buffer(&self.gradients_buf, 0, &readback, 0, size);
-        self.queue.submit([enc.finish()]);
-        let data = read_mapped(&self.device, &readback, "the iso gradients")?;
-        let all = bytemuck::cast_slice::<u8, [f32; 4]>(&data);
-        let out = vertices.iter().map(|&v| (v, all[v as usize])).collect();
-        drop(data);
-        readback.unmap();
-        Ok(Some(out))
+        captured(&self.device, READ_GRADIENTS, || {
+            let size = self.gradients_buf.size();
+            let readback = self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("iso gradients readback"),
+                size,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let mut enc = self.device.create_command_encoder(&Default::default());
+            enc.copy_buffer_to_buffer(&self.gradients_buf, 0, &readback, 0, size);
+            self.queue.submit([enc.finish()]);
+            let data = read_mapped(&self.device, &readback, "the iso gradients")?;
+            let all = bytemuck::cast_slice::<u8, [f32; 4]>(&data);
+            let out = vertices.iter().map(|&v| (v, all[v as usize])).collect();
+            drop(data);
+            readback.unmap();
+            Ok(Some(out))
+        })
     }
 
     /// Renders `camera`'s view: shaded colour plus each pixel's hit distance and normal (the
@@ -320,7 +333,7 @@ impl IsoRenderer {
     pub fn render_surface(&mut self, camera: &Camera) -> Result<(IsoImage, Timings), RenderError> {
         // A lost device fails here as an error, not as wgpu's panic.
         let device = self.device.clone();
-        captured(&device, "an iso frame", || {
+        captured(&device, FRAME, || {
             camera.validate()?;
             let start = Instant::now();
             let mut timings = Timings::default();

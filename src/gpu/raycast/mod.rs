@@ -77,7 +77,7 @@ use crate::gpu::cellproj::preint::{LongestEdge, TableKey};
 use crate::gpu::frame::{FrameResources, ImageReadback};
 use crate::gpu::gpu_data::{LayerUniforms, TfPoints, ViewUniforms};
 use crate::gpu::mesh::{GpuTetMesh, TetArray};
-use crate::gpu::util::{captured, largest_binding, settings_error, uniform_buffer};
+use crate::gpu::util::{Work, captured, largest_binding, settings_error, uniform_buffer};
 use crate::gpu::{GpuContext, ShaderNeeds};
 use crate::mesh::{TetMesh, checked_bounds};
 use crate::render::{Frame, RenderError, Renderer};
@@ -101,6 +101,18 @@ pub enum Segments {
 }
 
 pub use crate::gpu::gpu_data::{RaycastUniforms, TetLinks};
+
+/// A raycast frame: its per-pixel entry buffers grow with the image, its 3D pre-integration
+/// table with the table size, its eye-space vertices with the mesh.
+const FRAME: Work = Work {
+    during: "a raycast frame",
+    smaller: "render a smaller image (--size), a smaller pre-integration table (--table-size) \
+              or a smaller mesh",
+};
+/// A ray caster's build over a mesh (its links and boundary).
+const BUILD: Work = Work::of_mesh("building the raycast renderer");
+/// A ray caster's build over a textured cage (the volume, its links and boundary).
+const TEXTURED_BUILD: Work = Work::of_texture("building the raycast renderer of a textured cage");
 
 /// How rays find the boundary faces they enter the mesh by (the same entries, the same
 /// picture; only the cost differs).
@@ -367,7 +379,9 @@ impl RaycastRenderer {
         settings: RaycastSettings,
     ) -> Result<Self, RenderError> {
         check_limits(ctx, settings.entry, None)?;
-        Self::build(ctx, mesh, settings, None, false)
+        captured(&ctx.device, BUILD, || {
+            Self::build(ctx, mesh, settings, None, false)
+        })
     }
 
     /// The traversal of the shells' walk sampler over a mesh already on the GPU (its limits
@@ -419,9 +433,11 @@ impl RaycastRenderer {
         settings: RaycastSettings,
     ) -> Result<Self, RenderError> {
         check_limits(ctx, settings.entry, Some(TextureUse::Volume))?;
-        let texture = GpuTexture::for_cage(ctx, cage, volume, texcoords, step)?;
-        let textured = Some((texture, TextureUse::Volume));
-        Self::build(ctx, GpuTetMesh::new(ctx, cage)?, settings, textured, false)
+        captured(&ctx.device, TEXTURED_BUILD, || {
+            let texture = GpuTexture::for_cage(ctx, cage, volume, texcoords, step)?;
+            let textured = Some((texture, TextureUse::Volume));
+            Self::build(ctx, GpuTetMesh::new(ctx, cage)?, settings, textured, false)
+        })
     }
 
     fn build(
@@ -505,7 +521,9 @@ impl RaycastRenderer {
     /// An adapter short of a limit is refused before anything is uploaded.
     pub fn new(ctx: &GpuContext, mesh: &TetMesh, s: RaycastSettings) -> Result<Self, RenderError> {
         check_limits(ctx, s.entry, None)?;
-        Self::build(ctx, GpuTetMesh::new(ctx, mesh)?, s, None, false)
+        captured(&ctx.device, BUILD, || {
+            Self::build(ctx, GpuTetMesh::new(ctx, mesh)?, s, None, false)
+        })
     }
 
     /// The settings in use.
@@ -637,7 +655,7 @@ impl Renderer for RaycastRenderer {
         let frame = self.mesh.frame();
         // A lost device fails here as an error, not as wgpu's panic.
         let device = self.device.clone();
-        captured(&device, "a raycast frame", || {
+        captured(&device, FRAME, || {
             self.frame(&frame.camera(camera), Some(&frame.tf(tf)?))
         })
     }

@@ -8,12 +8,15 @@
 use glam::DVec3;
 
 use crate::gpu::GpuContext;
-use crate::gpu::util::settings_error;
+use crate::gpu::util::{Work, captured, settings_error};
 use crate::mesh::TetMesh;
 use crate::render::RenderError;
 use crate::texture::{Volume, sampling_step};
 
 use super::frame::storage;
+
+/// The upload of a volume and its cage's texture coordinates ([`GpuTexture::new`]).
+const UPLOAD: Work = Work::of_texture("uploading the volume texture");
 
 /// What the traversal does with a textured cage's field.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -89,23 +92,25 @@ impl GpuTexture {
         let texels: Vec<f32> = (volume.values().iter())
             .map(|&v| ((v as f64 - lo) / span) as f32)
             .collect();
-        let texture = upload_volume(ctx, dims, &texels);
-        let buffer = storage(
-            &ctx.device,
-            "cage texture coordinates",
-            16 * texcoords.len(),
-        );
-        ctx.uploader().entries(&buffer, 0, texcoords.len(), |v| {
-            let t = texcoords[v];
-            [t.x as f32, t.y as f32, t.z as f32, 0.0]
-        });
-        Ok(Self {
-            view: texture.create_view(&Default::default()),
-            texture,
-            texcoords: buffer,
-            lo,
-            span,
-            step: None,
+        captured(&ctx.device, UPLOAD, || {
+            let texture = upload_volume(ctx, dims, &texels);
+            let buffer = storage(
+                &ctx.device,
+                "cage texture coordinates",
+                16 * texcoords.len(),
+            );
+            ctx.uploader().entries(&buffer, 0, texcoords.len(), |v| {
+                let t = texcoords[v];
+                [t.x as f32, t.y as f32, t.z as f32, 0.0]
+            });
+            Ok(Self {
+                view: texture.create_view(&Default::default()),
+                texture,
+                texcoords: buffer,
+                lo,
+                span,
+                step: None,
+            })
         })
     }
 

@@ -17,7 +17,7 @@ use crate::gpu::GpuContext;
 use crate::gpu::gpu_data::IsoUniforms;
 use crate::gpu::iso::{DEFAULT_COLOR, IsoSettings, check_isovalues};
 use crate::gpu::mesh::GpuTetMesh;
-use crate::gpu::util::{captured, read_mapped, settings_error, uniform_buffer};
+use crate::gpu::util::{Work, captured, read_mapped, settings_error, uniform_buffer};
 use crate::mesh::TetMesh;
 use crate::reference::iso::IsoImage;
 use crate::render::{RenderError, Timings};
@@ -27,6 +27,11 @@ use crate::texture::ranges::tet_range;
 use super::frame::{mappable, storage};
 use super::texture::{GpuTexture, TextureUse};
 use super::{RaycastRenderer, RaycastSettings};
+
+/// A frame of a textured cage's isosurfaces: its targets and hits grow with the image.
+const FRAME: Work = Work::of_frame("a textured iso frame");
+/// The isosurfaces' build: the volume, the cage's links and boundary, the tets' ranges.
+const TEXTURED_BUILD: Work = Work::of_texture("building the iso renderer of a textured cage");
 
 /// A textured cage's isovalues (data units of the volume, with their colours), their uniform
 /// block (WGSL `Iso`, normalized like the texels) and each tet's range of the field.
@@ -155,13 +160,16 @@ impl RaycastRenderer {
         iso: &IsoSettings,
     ) -> Result<Self, RenderError> {
         super::check_limits(ctx, settings.entry, Some(TextureUse::Isosurfaces))?;
-        let texture = GpuTexture::for_cage(ctx, cage, volume, texcoords, step)?;
-        let surfaces = TexturedIso::new(ctx, &iso.isovalues, &texture, cage, texcoords, volume)?;
-        let mesh: Arc<GpuTetMesh> = GpuTetMesh::new(ctx, cage)?;
-        let textured = Some((texture, TextureUse::Isosurfaces));
-        let mut renderer = Self::build(ctx, mesh, settings, textured, false)?;
-        renderer.iso = Some(surfaces);
-        Ok(renderer)
+        captured(&ctx.device, TEXTURED_BUILD, || {
+            let texture = GpuTexture::for_cage(ctx, cage, volume, texcoords, step)?;
+            let surfaces =
+                TexturedIso::new(ctx, &iso.isovalues, &texture, cage, texcoords, volume)?;
+            let mesh: Arc<GpuTetMesh> = GpuTetMesh::new(ctx, cage)?;
+            let textured = Some((texture, TextureUse::Isosurfaces));
+            let mut renderer = Self::build(ctx, mesh, settings, textured, false)?;
+            renderer.iso = Some(surfaces);
+            Ok(renderer)
+        })
     }
 
     /// The isovalues (volume units) and colours drawn; `None` unless built by
@@ -183,7 +191,7 @@ impl RaycastRenderer {
         }
         // A lost device fails here as an error, not as wgpu's panic (as `render` does).
         let device = self.device.clone();
-        let (frame, (depth, normal)) = captured(&device, "a textured iso frame", || {
+        let (frame, (depth, normal)) = captured(&device, FRAME, || {
             let frame = self.frame(&self.mesh.frame().camera(camera), None)?;
             let hits = (self.targets.as_ref()).and_then(|t| t.hits.as_ref());
             let hits = hits.ok_or(RenderError::Internal("the iso hit buffers are missing"))?;

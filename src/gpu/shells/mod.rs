@@ -101,7 +101,7 @@ use crate::gpu::gpu_data::{ShellUniforms, SlicingUniforms, TfPoints, ViewUniform
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
 use crate::gpu::pieces::Uploader;
 use crate::gpu::util::{
-    captured, check_image_size, entry, far_eye, ms_since, settings_error, uniform_buffer,
+    Work, captured, check_image_size, entry, far_eye, ms_since, settings_error, uniform_buffer,
 };
 use crate::gpu::{GpuContext, ShaderNeeds};
 use crate::image::Image;
@@ -244,6 +244,18 @@ pub const SOFTWARE_SLICES_PER_SHELL: u32 = 16;
 /// The most shells a frame may have (a render pass and a composite pass each).
 const MAX_SHELLS: u64 = 1 << 16;
 
+/// A shells frame: its slice targets grow with the image and the slices per shell, its
+/// per-frame lists with the mesh.
+const FRAME: Work = Work {
+    during: "a shells frame",
+    smaller: "render a smaller image (--size), fewer slices per shell (--slices-per-shell) or a \
+              smaller mesh",
+};
+/// A shells renderer's build over a mesh.
+const BUILD: Work = Work::of_mesh("building the shells renderer");
+/// A shells renderer's build over a textured cage.
+const TEXTURED_BUILD: Work = Work::of_texture("building the shells renderer of a textured cage");
+
 /// The depth format of the early-termination mask (0: finished, 1: not).
 const ERT_DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth16Unorm;
 
@@ -308,7 +320,9 @@ impl ShellsRenderer {
         settings: ShellSettings,
     ) -> Result<Self, RenderError> {
         Self::check_limits(ctx, &settings, false, mesh.tet_count())?;
-        Self::build(ctx, mesh, settings, None)
+        captured(&ctx.device, BUILD, || {
+            Self::build(ctx, mesh, settings, None)
+        })
     }
 
     /// An error unless `ctx`'s limits offer what `settings` dispatch over a mesh of `tets`
@@ -346,8 +360,10 @@ impl ShellsRenderer {
             ));
         }
         Self::check_limits(ctx, &settings, true, cage.tet_count())?;
-        let texture = ShellTexture::new(ctx, cage, texcoords, volume)?;
-        Self::build(ctx, GpuTetMesh::new(ctx, cage)?, settings, Some(texture))
+        captured(&ctx.device, TEXTURED_BUILD, || {
+            let texture = ShellTexture::new(ctx, cage, texcoords, volume)?;
+            Self::build(ctx, GpuTetMesh::new(ctx, cage)?, settings, Some(texture))
+        })
     }
 
     fn build(
@@ -461,7 +477,9 @@ impl ShellsRenderer {
     /// adapter short of a limit is refused before anything is uploaded.
     pub fn new(ctx: &GpuContext, mesh: &TetMesh, s: ShellSettings) -> Result<Self, RenderError> {
         Self::check_limits(ctx, &s, false, mesh.tet_count())?;
-        Self::build(ctx, GpuTetMesh::new(ctx, mesh)?, s, None)
+        captured(&ctx.device, BUILD, || {
+            Self::build(ctx, GpuTetMesh::new(ctx, mesh)?, s, None)
+        })
     }
 
     /// Slice spacing in world units.
@@ -921,7 +939,7 @@ impl Renderer for ShellsRenderer {
     fn render(&mut self, camera: &Camera, tf: &TransferFunction) -> Result<Frame, RenderError> {
         // A lost device fails here as an error, not as wgpu's panic.
         let device = self.ctx.device.clone();
-        captured(&device, "a shells frame", || {
+        captured(&device, FRAME, || {
             camera.validate()?;
             let frame = self.mesh.frame();
             let (camera, tf) = (&frame.camera(camera), &frame.tf(tf)?);
