@@ -637,7 +637,11 @@ impl Renderer for RaycastRenderer {
         let frame = self.mesh.frame();
         // A lost device fails here as an error, not as wgpu's panic.
         let device = self.device.clone();
-        captured(&device, "a raycast frame", || {
+        let during = match self.iso {
+            Some(_) => "a textured iso frame",
+            None => "a raycast frame",
+        };
+        captured(&device, during, || {
             self.frame(&frame.camera(camera), Some(&frame.tf(tf)?))
         })
     }
