@@ -24,7 +24,7 @@
 //! ```
 
 use crate::cpu::raycast::{self as cpu_raycast, CpuRaycastRenderer, CpuRaycastSettings};
-use crate::gpu::limits::ShaderNeeds;
+use crate::gpu::limits::{Setting, ShaderNeeds};
 use crate::gpu::raycast::texture::TextureUse;
 use crate::gpu::raycast::{Entry, Segments};
 use crate::gpu::{
@@ -69,10 +69,10 @@ impl AutoPath {
     }
 
     /// The path for `gpu` as [`ModeSettings::open_gpu`] gave it, where the GPU path's stages
-    /// need `needs` (each part with what to name, e.g. [`ShaderNeeds::shells`]).
-    pub fn for_gpu(gpu: Option<&GpuContext>, needs: &[(ShaderNeeds, &'static str)]) -> Self {
+    /// are the settings `needs` (e.g. [`ShaderNeeds::shells`]).
+    pub fn for_gpu(gpu: Option<&GpuContext>, needs: &[Setting]) -> Self {
         match (Self::of(gpu.map(|g| g.info.device_type)), gpu) {
-            (Self::Gpu, Some(gpu)) if gpu.check_parts(needs).is_err() => Self::ShortLimits,
+            (Self::Gpu, Some(gpu)) if gpu.check_settings(needs).is_err() => Self::ShortLimits,
             (path, _) => path,
         }
     }
@@ -273,7 +273,7 @@ impl ModeSettings {
 
 /// What a user should be told, in one line, about `auto` on `gpu` when its GPU path needs
 /// `needs` and it does not render on the GPU: which path it took and why; otherwise `None`.
-fn auto_note(gpu: Option<&GpuContext>, needs: &[(ShaderNeeds, &'static str)]) -> Option<String> {
+fn auto_note(gpu: Option<&GpuContext>, needs: &[Setting]) -> Option<String> {
     let path = AutoPath::for_gpu(gpu, needs);
     match (path, gpu) {
         (AutoPath::SoftwareSlower, Some(gpu)) => Some(format!(
@@ -285,13 +285,14 @@ fn auto_note(gpu: Option<&GpuContext>, needs: &[(ShaderNeeds, &'static str)]) ->
         (AutoPath::NoAdapter, _) => {
             Some("no GPU adapter; rendering with the CPU ray caster (--mode raycast-cpu)".into())
         }
-        (AutoPath::ShortLimits, Some(gpu)) => match gpu.check_parts(needs) {
+        (AutoPath::ShortLimits, Some(gpu)) => match gpu.check_settings(needs) {
             Err(GpuError::Limit {
                 adapter,
                 limit,
                 has,
                 needs,
                 needed_by,
+                ..
             }) => Some(format!(
                 "the GPU adapter {adapter} offers {limit} = {has}, under the {needs} \
                  {needed_by} needs; rendering with the CPU ray caster (--mode raycast-cpu)"
@@ -304,15 +305,17 @@ fn auto_note(gpu: Option<&GpuContext>, needs: &[(ShaderNeeds, &'static str)]) ->
 
 /// What `auto`'s GPU path on a textured cage, the ray caster's default entry method over the
 /// volume ([`crate::texture::textured_renderer`]), needs of the adapter's limits.
-pub(crate) fn textured_auto_needs() -> [(ShaderNeeds, &'static str); 1] {
-    let needs = ShaderNeeds::raycast(Entry::default(), Some(TextureUse::Volume));
-    [(needs, "the raycast mode on a textured cage")]
+pub(crate) fn textured_auto_needs() -> [Setting; 1] {
+    [Setting::Raycast {
+        entry: Entry::default(),
+        texture: Some(TextureUse::Volume),
+    }]
 }
 
 /// What `auto`'s GPU path, the shells mode with `shells`, needs of the adapter's limits: with
 /// `--binning gpu` the GPU binning's too (`--binning auto` bins on the CPU where the adapter
 /// cannot run it).
-fn auto_needs(shells: &ShellSettings) -> [(ShaderNeeds, &'static str); 2] {
+fn auto_needs(shells: &ShellSettings) -> Vec<Setting> {
     ShaderNeeds::shells(shells, false, shells.binning == BinningMode::Gpu)
 }
 

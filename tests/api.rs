@@ -331,7 +331,8 @@ fn the_f32_modes_refuse_a_scalar_range_wider_than_f64() {
 
 /// `RaycastRenderer::render_surface` (a textured cage's isosurfaces, public) ran outside the
 /// error scopes that `render` has: after a lost device it panicked in wgpu's default handler
-/// ("Buffer ... is invalid"). It is the same error as every other GPU frame's.
+/// ("Buffer ... is invalid"). It is the same error as every other GPU frame's, and `render`'s
+/// on the same renderer names the same frame.
 #[test]
 fn a_lost_device_under_a_textured_iso_surface_is_an_error() {
     use tetvr::gpu::RaycastRenderer;
@@ -341,12 +342,17 @@ fn a_lost_device_under_a_textured_iso_surface_is_an_error() {
         isovalues: vec![(10.0, [0.9, 0.5, 0.2])],
         ..IsoSettings::default()
     };
-    let (_, camera) = common::default_view(&mesh, 16);
+    let (tf, camera) = common::default_view(&mesh, 16);
     // A context of its own: the shared one must stay usable for the other tests.
     let gpu = GpuContext::new(AdapterChoice::Auto).expect("an adapter (lavapipe will do)");
     let settings = RaycastSettings::default();
-    let mut r = RaycastRenderer::textured_iso(&gpu, &mesh, &tc, &volume, None, settings, &iso)
-        .expect("built");
+    let build = || {
+        RaycastRenderer::textured_iso(&gpu, &mesh, &tc, &volume, None, settings, &iso)
+            .expect("built")
+    };
+    // A second renderer for `render`: the first one's frame buffers exist once
+    // `render_surface` made them, and its frame would fail at the readback instead.
+    let (mut r, mut second) = (build(), build());
     gpu.device.destroy();
     let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         r.render_surface(&camera).map(|(s, _)| s.color.width)
@@ -359,6 +365,20 @@ fn a_lost_device_under_a_textured_iso_surface_is_an_error() {
         }
         Ok(other) => panic!("render_surface after the loss: {other:?}"),
         Err(_) => panic!("render_surface panicked after the loss"),
+    }
+    // `render` names the frame as the renderer names its mode (`iso`): it said "a raycast
+    // frame".
+    assert_eq!(tetvr::Renderer::name(&second), "iso");
+    let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        tetvr::Renderer::render(&mut second, &camera, &tf).map(|f| f.image.width)
+    }));
+    match caught {
+        Ok(Err(e @ RenderError::Gpu(GpuError::Failed { .. }))) => {
+            let msg = e.to_string();
+            assert!(msg.contains("a textured iso frame"), "{msg}");
+        }
+        Ok(other) => panic!("render after the loss: {other:?}"),
+        Err(_) => panic!("render panicked after the loss"),
     }
 }
 

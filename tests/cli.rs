@@ -189,6 +189,30 @@ fn raycast_render_prints_its_stages_and_counters() {
     }
 }
 
+/// `gpu-info` lists every GPU setting the renderers check ([`tetvr::gpu::Setting::ALL`]), in
+/// that order, with whether the adapter's limits run it (lavapipe runs each): it listed only
+/// the refused ones, and not the textured shells samplers or a textured cage's depth peeling
+/// (volume or isosurfaces) at all, so an adapter refusing them was not said to.
+#[test]
+fn gpu_info_lists_every_setting_the_limits_check() {
+    let out = stdout_of(&tetvr(&["gpu-info"]));
+    let (_, table) = (out.split_once("settings these limits run:\n"))
+        .unwrap_or_else(|| panic!("no table of settings in: {out}"));
+    let want: Vec<String> = (tetvr::gpu::Setting::ALL.iter())
+        .map(|s| format!("  {}: yes", s.name()))
+        .collect();
+    assert_eq!(table.lines().collect::<Vec<_>>(), want, "{out}");
+    for textured in [
+        "the shells mode's raster sampler on a textured cage",
+        "the shells mode's compute sampler on a textured cage",
+        "the shells mode's walk sampler on a textured cage",
+        "the raycast mode's depth peeling on a textured cage",
+        "the iso mode's depth peeling on a textured cage",
+    ] {
+        assert!(out.contains(&format!("\n  {textured}: yes\n")), "{out}");
+    }
+}
+
 #[test]
 fn raycast_takes_depth_peeling_and_other_modes_refuse_it() {
     let png = out_dir("raycast-peel").join("lox.png");

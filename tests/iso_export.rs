@@ -647,6 +647,25 @@ fn errors_name_the_path_or_the_range() {
     );
     let msg = empty_at(1e308, (1e308, 1.7e308));
     assert!(msg.contains("e.g. 1.35e308"), "{msg}");
+    // No surface at all: said so with a value to extract at, not "at isovalue(s) : they miss
+    // the scalar range" (an empty list of isovalues that missed nothing).
+    let none = |range| (write_glb(Path::new("unused.glb"), &[], range).unwrap_err()).to_string();
+    let msg = none((0.0, 1.0));
+    assert!(
+        msg.contains("no surface was given")
+            && msg.contains("[0, 1], e.g. 0.5")
+            && !msg.contains("isovalue(s)")
+            && !msg.contains("miss"),
+        "{msg}"
+    );
+    let msg = none((5.0, 5.0));
+    assert!(
+        msg.contains("no surface was given")
+            && msg.contains("the field is constant (5 everywhere)")
+            && !msg.contains("e.g."),
+        "{msg}"
+    );
+    assert!(!Path::new("unused.glb").exists());
 
     // The CLI says the same and fails (the missing folder found before the mesh is read).
     let mesh = generate::fields::grid(generate::Field::Linear, UVec3::splat(2), "l").unwrap();

@@ -13,7 +13,7 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use naga::valid::{Capabilities, ValidationFlags, Validator};
 use naga::{AddressSpace, Binding, BuiltIn, ImageClass, ShaderStage, TypeInner};
-use tetvr::gpu::{GpuError, ShaderNeeds, shaders};
+use tetvr::gpu::{GpuError, Setting, ShaderNeeds, shaders};
 
 /// A binding a stage uses: the stage (vertex, fragment, compute), group, binding, and which
 /// per-stage limit counts it (an index into [`count`]'s order).
@@ -409,6 +409,95 @@ fn a_limit_below_the_needs_is_refused_by_name() {
     }
 }
 
+/// A refusal names first the settings to use instead that the adapter's limits run, by their
+/// CLI flags, and only those: for every setting and every limit one below its need (the other
+/// limits at exactly its needs, then at the largest of every setting's), the flags named are
+/// the alternatives those limits run, each needing less of the short limit than the setting,
+/// and come before the other remedies. Spelled out for the cases a user meets: the alternative
+/// is named where it needs less (the peeling's storage buffers), not where it needs as much
+/// (its bindings per group: the lists' and the shells mode's are as many).
+#[test]
+fn a_refusal_names_first_the_settings_that_need_less_of_the_limit() {
+    let largest = Setting::ALL.iter().fold(NONE, |n, s| n.max(s.needs()));
+    let short_of = |setting: Setting, base: &ShaderNeeds, name: &str, value: u32| {
+        let mut limits = offering(wgpu::Limits::default(), base);
+        *limit_mut(&mut limits, name) = value;
+        setting.check("Tiny GPU", &limits).map(|()| limits)
+    };
+    for setting in Setting::ALL {
+        let needs = setting.needs();
+        for base in [needs, largest] {
+            for name in LIMITS {
+                let need = need_of(&needs, name);
+                if need == 0 {
+                    continue;
+                }
+                let err = short_of(setting, &base, name, need - 1).unwrap_err();
+                let GpuError::Limit { limit, instead, .. } = &err else {
+                    panic!("{setting:?} {name}: {err}");
+                };
+                assert_eq!(*limit, name);
+                let mut limits = offering(wgpu::Limits::default(), &base);
+                *limit_mut(&mut limits, name) = need - 1;
+                let runs: Vec<&str> = (setting.alternatives().into_iter())
+                    .filter(|(alt, flag)| {
+                        let fits = alt.fit(&limits);
+                        assert!(!fits || need_of(alt, name) < need, "{setting:?}: {flag}");
+                        fits
+                    })
+                    .map(|(_, flag)| flag)
+                    .collect();
+                assert_eq!(instead, &runs, "{setting:?} {name}");
+                let msg = err.to_string();
+                let rest = msg.find("render on an adapter").unwrap();
+                match instead.first() {
+                    Some(first) => assert!(msg.find(first) < Some(rest), "{msg}"),
+                    None => assert!(!msg.contains("instead"), "{msg}"),
+                }
+            }
+        }
+    }
+    let instead =
+        |setting: Setting, name: &str, value: u32| match short_of(setting, &largest, name, value) {
+            Err(GpuError::Limit { instead, .. }) => instead,
+            other => panic!("{setting:?} {name} = {value}: {other:?}"),
+        };
+    use tetvr::gpu::Sampler;
+    use tetvr::gpu::raycast::{Entry, texture::TextureUse};
+    let storage = "max_storage_buffers_per_shader_stage";
+    let peel = Setting::Raycast {
+        entry: Entry::Peel,
+        texture: None,
+    };
+    assert_eq!(
+        instead(peel, storage, 11),
+        ["--entry lists", "--mode shells"]
+    );
+    assert_eq!(instead(peel, storage, 10), ["--mode shells"]);
+    assert!(instead(peel, "max_bindings_per_bind_group", 16).is_empty());
+    assert_eq!(instead(Setting::GpuBinning, storage, 8), ["--binning cpu"]);
+    let shells = |sampler, textured| Setting::Shells { sampler, textured };
+    assert_eq!(
+        instead(shells(Sampler::Compute, false), storage, 8),
+        ["--sampler raster"]
+    );
+    assert_eq!(
+        instead(shells(Sampler::Walk, true), storage, 11),
+        ["--sampler raster"]
+    );
+    let storage_textures = "max_storage_textures_per_shader_stage";
+    assert_eq!(
+        instead(shells(Sampler::Walk, false), storage_textures, 0),
+        ["--sampler raster", "--sampler compute"]
+    );
+    let textured = Setting::Raycast {
+        entry: Entry::Lists,
+        texture: Some(TextureUse::Volume),
+    };
+    assert_eq!(instead(textured, storage, 11), ["--mode shells"]);
+    assert!(instead(Setting::Iso, storage, 6).is_empty());
+}
+
 /// The limits the tables cover, by their names in [`wgpu::Limits`].
 const LIMITS: [&str; 14] = [
     "max_bind_groups",
@@ -491,7 +580,7 @@ fn shells_needs(
     gpu_binning: bool,
 ) -> ShaderNeeds {
     let parts = ShaderNeeds::shells(settings, textured, gpu_binning);
-    parts.iter().fold(NONE, |n, (p, _)| n.max(*p))
+    parts.iter().fold(NONE, |n, p| n.max(p.needs()))
 }
 
 /// A device opened with exactly a setting's needs (its other limits the adapter's) builds the
@@ -595,16 +684,29 @@ fn the_default_shells_renders_at_webgpus_default_storage_buffers() {
     let msg = err.expect("the GPU binning refused");
     for part in [
         "max_storage_buffers_per_shader_stage = 8",
-        "needs 9",
+        "needs 9: use --binning cpu instead, which these limits run; or render on",
         "GPU binning",
     ] {
         assert!(msg.contains(part), "{part:?} is not in: {msg}");
     }
+    // The compute sampler (11) is refused naming the raster sampler (7) first, not the walk
+    // sampler (11, the ray caster's traversal), which these limits refuse too.
+    let compute = ShellSettings {
+        sampler: Sampler::Compute,
+        ..ShellSettings::default()
+    };
+    let err = ShellsRenderer::new(&ctx, &mesh, compute).err();
+    let msg = err.expect("the compute sampler refused").to_string();
+    assert!(
+        msg.contains("needs 11: use --sampler raster instead") && !msg.contains("--sampler walk"),
+        "{msg}"
+    );
     // gpu-info lists the settings refused, each by name: the raster sampler is not one.
-    let refused: Vec<&str> = (ctx.refusals().iter())
-        .map(|e| match e {
-            GpuError::Limit { needed_by, .. } => *needed_by,
-            other => panic!("{other}"),
+    let refused: Vec<&str> = (ctx.settings().into_iter())
+        .filter_map(|(_, runs)| match runs {
+            Ok(()) => None,
+            Err(GpuError::Limit { needed_by, .. }) => Some(needed_by),
+            Err(other) => panic!("{other}"),
         })
         .collect();
     assert!(refused.contains(&"the shells mode's GPU binning (--binning gpu)"));
@@ -805,8 +907,13 @@ fn textured_and_every_ray_caster_variant_render_on_exactly_their_needs() {
     let ctx = device_offering(&ShaderNeeds::RAYCAST_LISTS);
     let mut r = RaycastRenderer::new(&ctx, &mesh, RaycastSettings::default()).unwrap();
     let err = r.set_entry(Entry::Peel).unwrap_err().to_string();
+    // The lists it renders with are named first; not the shells mode, whose dynamic uniform
+    // buffer a device at the lists' needs (none) lacks.
     assert!(
-        err.contains("max_storage_buffers_per_shader_stage") && err.contains("depth peeling"),
+        err.contains("max_storage_buffers_per_shader_stage")
+            && err.contains("depth peeling")
+            && err.contains("use --entry lists instead")
+            && !err.contains("--mode shells"),
         "{err}"
     );
     assert_eq!(r.settings().entry, Entry::Lists);

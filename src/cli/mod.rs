@@ -473,3 +473,47 @@ impl GenerateMemory {
             .unwrap_or_else(tetvr::generate::default_max_memory)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    use super::{Cli, Command};
+
+    /// Every flag an adapter's limit refusal names as the setting to use instead
+    /// ([`tetvr::gpu::Setting::alternatives`]) is one `tetvr render` takes, with that value.
+    #[test]
+    fn the_flags_a_limit_refusal_names_are_the_clis() {
+        let flags: Vec<&str> = (tetvr::gpu::Setting::ALL.iter())
+            .flat_map(|s| s.alternatives())
+            .map(|(_, flag)| flag)
+            .collect();
+        for flag in [
+            "--sampler raster",
+            "--binning cpu",
+            "--entry lists",
+            "--mode shells",
+        ] {
+            assert!(flags.contains(&flag), "{flag} is not named: {flags:?}");
+        }
+        for flag in flags {
+            let (name, value) = flag.split_once(' ').expect("a flag and its value");
+            let args = ["tetvr", "render", "mesh.vtu", name, value];
+            let render = match Cli::try_parse_from(args) {
+                Ok(Cli {
+                    command: Command::Render(r),
+                }) => r.render,
+                Ok(other) => panic!("{flag}: {other:?}"),
+                Err(e) => panic!("{flag}: {e}"),
+            };
+            let parsed = match name {
+                "--sampler" => format!("{:?}", render.shells.sampler),
+                "--binning" => format!("{:?}", render.shells.binning),
+                "--entry" => format!("{:?}", render.cellproj.entry.expect("an entry")),
+                "--mode" => format!("{:?}", render.mode),
+                _ => panic!("{flag}: which argument is it?"),
+            };
+            assert_eq!(parsed.to_lowercase(), value, "{flag}");
+        }
+    }
+}

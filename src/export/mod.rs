@@ -36,10 +36,10 @@ pub enum ExportError {
         /// Why the system refused.
         source: std::io::Error,
     },
-    /// No isovalue produced a triangle.
+    /// No isovalue produced a triangle, or no surface was given at all.
     #[error("{}", empty_message(.isovalues, *.lo, *.hi))]
     Empty {
-        /// The isovalues asked for.
+        /// The isovalues asked for (empty: no surface was given).
         isovalues: Vec<f64>,
         /// The scalar range's minimum.
         lo: f64,
@@ -67,7 +67,8 @@ pub enum ExportError {
 /// [`marching`]): at the range's minimum every vertex is above, so the surface is empty; at its
 /// maximum every crossing collapses onto a vertex that reaches it, so the triangles are
 /// degenerate and dropped (unless the maximum is held over a whole face). A value inside the
-/// range met only by tets where the field is constant gives nothing either.
+/// range met only by tets where the field is constant gives nothing either. No isovalue at
+/// all (no surface given to [`write_glb`]) is said as such, with a value to extract at.
 fn empty_message(isovalues: &[f64], lo: f64, hi: f64) -> String {
     let list = |v: &[f64]| {
         v.iter()
@@ -76,6 +77,22 @@ fn empty_message(isovalues: &[f64], lo: f64, hi: f64) -> String {
             .join(", ")
     };
     let (lo_s, hi_s) = (show_value(lo), show_value(hi));
+    // Halved apart: lo + hi overflows to infinity near f64::MAX.
+    let mid = show_value(0.5 * lo + 0.5 * hi);
+    if isovalues.is_empty() {
+        let what = match lo == hi {
+            true => format!(
+                "the field is constant ({lo_s} everywhere), so no isovalue would cross it; \
+                 export another array (--array NAME)"
+            ),
+            false => format!(
+                "extract surfaces at isovalues strictly inside the scalar range [{lo_s}, \
+                 {hi_s}], e.g. {mid} (`export::isosurfaces`; `tetvr iso-export --iso`) and \
+                 export those"
+            ),
+        };
+        return format!("no isosurface to export: no surface was given (no isovalue); {what}");
+    }
     if lo == hi {
         // No value lies inside: suggesting one (the midpoint is the value that failed) misleads.
         return format!(
@@ -98,10 +115,8 @@ fn empty_message(isovalues: &[f64], lo: f64, hi: f64) -> String {
     };
     format!(
         "no isosurface to export at isovalue(s) {}: {why}; choose values strictly inside the \
-         range, e.g. {}",
+         range, e.g. {mid}",
         list(isovalues),
-        // Halved apart: lo + hi overflows to infinity near f64::MAX.
-        show_value(0.5 * lo + 0.5 * hi)
     )
 }
 
@@ -384,7 +399,7 @@ impl Document {
 }
 
 /// Writes the surfaces to `path` as a `.glb` (see [`glb_bytes`]); an error if every surface is
-/// empty (`range` is the scalar range, for the message).
+/// empty, or none is given (`range` is the scalar range, for the message).
 pub fn write_glb(
     path: &Path,
     surfaces: &[Colored],

@@ -1,7 +1,7 @@
 //! A headless wgpu device: prefers a real GPU, falls back to a software adapter (Mesa's
 //! lavapipe), and says which one it got.
 
-use crate::gpu::ShaderNeeds;
+use crate::gpu::Setting;
 use crate::gpu::pieces::Uploader;
 
 /// Which adapter to ask for.
@@ -60,13 +60,15 @@ pub enum GpuError {
         /// The setting that needs it.
         needed_by: &'static str,
     },
-    /// The adapter offers less of a limit than a mode's shaders need
-    /// ([`crate::gpu::limits::ShaderNeeds`]): another adapter, another mode or the CPU must
+    /// The adapter offers less of a limit than a setting's shaders need
+    /// ([`crate::gpu::limits::ShaderNeeds`]): a setting that needs less of it and that the
+    /// adapter runs ([`crate::gpu::Setting::alternatives`]), another adapter, or the CPU must
     /// render.
     #[error(
-        "the adapter '{adapter}' offers {limit} = {has}, but {needed_by} needs {needs}: render \
+        "the adapter '{adapter}' offers {limit} = {has}, but {needed_by} needs {needs}: {}render \
          on an adapter that offers at least {needs} (another GPU or driver), or on the CPU with \
-         --mode raycast-cpu"
+         --mode raycast-cpu",
+        use_instead(.instead)
     )]
     Limit {
         /// The adapter's name.
@@ -75,10 +77,13 @@ pub enum GpuError {
         limit: &'static str,
         /// The adapter's value.
         has: u32,
-        /// The value the mode's shaders need.
+        /// The value the setting's shaders need.
         needs: u32,
-        /// The mode, e.g. `the shells mode`.
+        /// The setting, e.g. `the shells mode's compute sampler`.
         needed_by: &'static str,
+        /// The settings to use instead that the adapter's limits run, as the CLI spells them,
+        /// best first (e.g. `--sampler raster`); empty where the setting has none.
+        instead: Vec<&'static str>,
     },
     /// The adapter ran out of memory for work that tetvr gave it: a mesh's GPU buffers, a
     /// renderer's build, or a frame's per-frame buffers and image targets. Its per-buffer
@@ -131,6 +136,18 @@ pub enum GpuError {
         /// wgpu's reason.
         reason: String,
     },
+}
+
+/// The first remedy of [`GpuError::Limit`]: the settings to use `instead`, or nothing.
+fn use_instead(instead: &[&str]) -> String {
+    match instead {
+        [] => String::new(),
+        [one] => format!("use {one} instead, which these limits run; or "),
+        more => format!(
+            "use {} instead (these limits run each); or ",
+            more.join(" or ")
+        ),
+    }
 }
 
 /// The optional features tetvr uses where the adapter has them: blendable 32-bit float targets
@@ -259,51 +276,17 @@ impl GpuContext {
         )
     }
 
-    /// The settings whose stages need more than this adapter's limits offer, one error each
-    /// (for `tetvr gpu-info`): each shells sampler and the GPU binning, iso, cellproj, the
-    /// ray caster with each entry method, and a textured cage's ray caster and isosurfaces.
-    pub fn refusals(&self) -> Vec<GpuError> {
-        use crate::gpu::raycast::{Entry, texture::TextureUse};
-        use crate::gpu::{Sampler, ShellSettings};
-        let shells = |sampler| {
-            let s = ShellSettings {
-                sampler,
-                ..ShellSettings::default()
-            };
-            ShaderNeeds::shells(&s, false, false)[0]
-        };
-        let textured = |used| ShaderNeeds::raycast(Entry::Lists, Some(used));
-        let settings = [
-            shells(Sampler::Raster),
-            shells(Sampler::Compute),
-            shells(Sampler::Walk),
-            (
-                ShaderNeeds::SHELLS_BINNING,
-                "the shells mode's GPU binning (--binning gpu)",
-            ),
-            (ShaderNeeds::ISO, "the iso mode"),
-            (ShaderNeeds::CELLPROJ, "the cellproj mode"),
-            (ShaderNeeds::RAYCAST_LISTS, "the raycast mode"),
-            (
-                ShaderNeeds::RAYCAST_PEEL,
-                "the raycast mode's depth peeling",
-            ),
-            (
-                textured(TextureUse::Volume),
-                "the raycast mode on a textured cage",
-            ),
-            (
-                textured(TextureUse::Isosurfaces),
-                "the iso mode on a textured cage",
-            ),
-        ];
-        (settings.iter())
-            .filter_map(|(needs, by)| self.check_needs(needs, by).err())
+    /// Every setting ([`Setting::ALL`]) with what this adapter's limits say of it: `Ok` where
+    /// they run its stages, else the error that refuses it (for `tetvr gpu-info`).
+    pub fn settings(&self) -> Vec<(Setting, Result<(), GpuError>)> {
+        (Setting::ALL.into_iter())
+            .map(|s| (s, self.check_setting(s)))
             .collect()
     }
 
     /// A multi-line report for `tetvr gpu-info`: the adapter, the limits and features the
-    /// renderers depend on, and the modes whose shaders need more than its limits offer.
+    /// renderers depend on, and a table of every GPU setting ([`Self::settings`]): `yes` where
+    /// its limits run it, else `no` and why.
     pub fn report(&self) -> String {
         let l = &self.limits;
         let yes = |f| {
@@ -324,14 +307,12 @@ impl GpuContext {
             (true, false) => "yes",
             (false, _) => "no",
         };
-        let refused: Vec<String> = (self.refusals().iter())
-            .map(|e| format!("\n  {e}"))
+        let settings: String = (self.settings().into_iter())
+            .map(|(s, runs)| match runs {
+                Ok(()) => format!("\n  {}: yes", s.name()),
+                Err(e) => format!("\n  {}: no: {e}", s.name()),
+            })
             .collect();
-        let refused = if refused.is_empty() {
-            "none".to_string()
-        } else {
-            refused.concat()
-        };
         format!(
             "adapter: {}\n\
              software adapter: {}\n\
@@ -344,7 +325,7 @@ impl GpuContext {
              max storage buffers per shader stage: {}\n\
              blendable 32-bit float targets (FLOAT32_BLENDABLE): {}\n\
              GPU timestamps (TIMESTAMP_QUERY): {}\n\
-             modes these limits refuse: {}",
+             settings these limits run:{}",
             self.summary(),
             if self.is_software() { "yes" } else { "no" },
             l.max_color_attachments,
@@ -356,7 +337,7 @@ impl GpuContext {
             l.max_storage_buffers_per_shader_stage,
             yes(wgpu::Features::FLOAT32_BLENDABLE),
             timestamps,
-            refused,
+            settings,
         )
     }
 }

@@ -7,8 +7,10 @@
 //! pipeline is created, inside wgpu, whose default error handler panics. Each renderer checks
 //! the needs of the stages its settings can dispatch before it uploads anything, so only the
 //! settings an adapter cannot run are refused: a table per stage group ([`ShaderNeeds`]'s
-//! constants), a setting's needs the [`ShaderNeeds::max`] of its groups
-//! ([`ShaderNeeds::shells`], [`ShaderNeeds::raycast`]).
+//! constants), a setting's needs the [`ShaderNeeds::max`] of its groups ([`Setting::needs`];
+//! [`ShaderNeeds::shells`], [`ShaderNeeds::raycast`]). A refusal names first the settings to
+//! switch to whose needs these limits meet ([`Setting::alternatives`]), so a user is pointed
+//! at the flag that helps, computed from the same tables.
 //! A group's table is the largest value over its shaders: resources per stage as one bind
 //! group layout declares them, as wgpu counts them, read by its entry points or not (a
 //! compute layout holds every binding its module declares, and the ray caster's traversals
@@ -252,42 +254,29 @@ impl ShaderNeeds {
     }
 
     /// The shells mode with `settings` (of a `textured` cage; with `gpu_binning` where the
-    /// GPU bins its tets, which the walk sampler never does), in the two parts an adapter may
-    /// fall short of, each with what to name: the sampler's stages, and the GPU binning's
-    /// ([`Self::NONE`] without it). Their [`Self::max`] is the setting's needs.
-    pub fn shells(
-        settings: &ShellSettings,
-        textured: bool,
-        gpu_binning: bool,
-    ) -> [(Self, &'static str); 2] {
-        let raster = match textured {
-            false => Self::SHELLS_RASTER,
-            true => Self::SHELLS_RASTER_TEXTURED,
+    /// GPU bins its tets, which the walk sampler never does), in the parts an adapter may fall
+    /// short of: the sampler's stages, then the GPU binning's (where it runs). Their
+    /// [`Setting::needs`]' [`Self::max`] is the setting's needs.
+    pub fn shells(settings: &ShellSettings, textured: bool, gpu_binning: bool) -> Vec<Setting> {
+        let sampler = Setting::Shells {
+            sampler: settings.sampler,
+            textured,
         };
-        let compute = match textured {
-            false => Self::SHELLS_COMPUTE,
-            true => Self::SHELLS_COMPUTE_TEXTURED,
-        };
-        let walk = Self::raycast(Entry::Lists, textured.then_some(TextureUse::Volume));
-        let sampler = match settings.sampler {
-            Sampler::Raster => (
-                raster.max(Self::ASSEMBLY),
-                "the shells mode's raster sampler",
-            ),
-            Sampler::Compute => (
-                raster.max(Self::ASSEMBLY).max(compute),
-                "the shells mode's compute sampler",
-            ),
-            Sampler::Walk => (raster.max(walk), "the shells mode's walk sampler"),
-        };
-        let binning = match gpu_binning && settings.sampler != Sampler::Walk {
-            true => Self::SHELLS_BINNING,
-            false => Self::NONE,
-        };
-        [
-            sampler,
-            (binning, "the shells mode's GPU binning (--binning gpu)"),
-        ]
+        match gpu_binning && settings.sampler != Sampler::Walk {
+            true => vec![sampler, Setting::GpuBinning],
+            false => vec![sampler],
+        }
+    }
+
+    /// The first limit in `limits` below what these shaders need: its wgpu name, what
+    /// `limits` offers and what they need; `None` where `limits` offer everything.
+    fn shortfall(&self, limits: &wgpu::Limits) -> Option<(&'static str, u32, u32)> {
+        (self.rows(limits).into_iter()).find(|&(_, has, needs)| has < needs)
+    }
+
+    /// Whether `limits` offer everything these shaders need.
+    pub fn fit(&self, limits: &wgpu::Limits) -> bool {
+        self.shortfall(limits).is_none()
     }
 
     /// Each limit's wgpu name, what `limits` offers and what these shaders need.
@@ -365,18 +354,15 @@ impl ShaderNeeds {
 
     /// `Ok` when `limits` (of the adapter named `adapter`) offer everything these shaders
     /// need, else [`GpuError::Limit`] for the first limit that falls short; `needed_by` names
-    /// the mode, e.g. `the shells mode`.
+    /// the mode, e.g. `the shells mode`. It names no setting to use instead: a [`Setting`]'s
+    /// own check ([`Setting::check`]) does.
     pub fn check(
         &self,
         adapter: &str,
         limits: &wgpu::Limits,
         needed_by: &'static str,
     ) -> Result<(), GpuError> {
-        match self
-            .rows(limits)
-            .into_iter()
-            .find(|&(_, has, needs)| has < needs)
-        {
+        match self.shortfall(limits) {
             None => Ok(()),
             Some((limit, has, needs)) => Err(GpuError::Limit {
                 adapter: adapter.to_owned(),
@@ -384,29 +370,210 @@ impl ShaderNeeds {
                 has,
                 needs,
                 needed_by,
+                instead: Vec::new(),
             }),
         }
     }
 }
 
-impl GpuContext {
-    /// [`ShaderNeeds::check`] on this context's adapter and limits.
-    pub(crate) fn check_needs(
-        &self,
-        needs: &ShaderNeeds,
-        needed_by: &'static str,
-    ) -> Result<(), GpuError> {
-        needs.check(&self.info.name, &self.limits, needed_by)
+/// A setting whose stages an adapter's limits may fall short of: what its stages need
+/// ([`Self::needs`], from [`ShaderNeeds`]' tables), its name in errors ([`Self::name`]) and
+/// the settings a user can switch to ([`Self::alternatives`]), so that a refusal
+/// ([`Self::check`]) names those of them the adapter runs. [`Self::ALL`] lists every one
+/// (`tetvr gpu-info`'s table).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Setting {
+    /// The shells mode's stages with `sampler`, over a `textured` cage or the mesh's field:
+    /// raster, composite and early termination, and the assembly or (the walk sampler) the
+    /// ray caster's traversal; not the GPU binning.
+    Shells {
+        /// The sampler (`--sampler`).
+        sampler: Sampler,
+        /// Whether the cage is textured (`--texture`).
+        textured: bool,
+    },
+    /// The shells mode's GPU binning (`--binning gpu`), with the raster or compute sampler.
+    GpuBinning,
+    /// The iso mode over the mesh's field.
+    Iso,
+    /// The cellproj mode.
+    CellProj,
+    /// The ray caster with `entry` over the mesh's field (`texture` `None`: `--mode raycast`),
+    /// or over a textured cage's volume (`--mode raycast`) or isosurfaces (`--mode iso`).
+    Raycast {
+        /// How rays find their entries (`--entry`).
+        entry: Entry,
+        /// What a textured cage's texture is sampled for; `None`: the mesh's own field.
+        texture: Option<TextureUse>,
+    },
+}
+
+impl Setting {
+    /// Every setting, in the order `tetvr gpu-info` lists them.
+    pub const ALL: [Self; 15] = {
+        use Entry::{Lists, Peel};
+        use Sampler::{Compute, Raster, Walk};
+        use TextureUse::{Isosurfaces, Volume};
+        const fn shells(sampler: Sampler, textured: bool) -> Setting {
+            Setting::Shells { sampler, textured }
+        }
+        const fn raycast(entry: Entry, texture: Option<TextureUse>) -> Setting {
+            Setting::Raycast { entry, texture }
+        }
+        [
+            shells(Raster, false),
+            shells(Compute, false),
+            shells(Walk, false),
+            Self::GpuBinning,
+            Self::Iso,
+            Self::CellProj,
+            raycast(Lists, None),
+            raycast(Peel, None),
+            shells(Raster, true),
+            shells(Compute, true),
+            shells(Walk, true),
+            raycast(Lists, Some(Volume)),
+            raycast(Peel, Some(Volume)),
+            raycast(Lists, Some(Isosurfaces)),
+            raycast(Peel, Some(Isosurfaces)),
+        ]
+    };
+
+    /// What the setting's stages need of an adapter's limits.
+    pub fn needs(self) -> ShaderNeeds {
+        use ShaderNeeds as N;
+        match self {
+            Self::Shells { sampler, textured } => {
+                let (raster, compute) = match textured {
+                    false => (N::SHELLS_RASTER, N::SHELLS_COMPUTE),
+                    true => (N::SHELLS_RASTER_TEXTURED, N::SHELLS_COMPUTE_TEXTURED),
+                };
+                match sampler {
+                    Sampler::Raster => raster.max(N::ASSEMBLY),
+                    Sampler::Compute => raster.max(N::ASSEMBLY).max(compute),
+                    Sampler::Walk => {
+                        let volume = textured.then_some(TextureUse::Volume);
+                        raster.max(N::raycast(Entry::Lists, volume))
+                    }
+                }
+            }
+            Self::GpuBinning => N::SHELLS_BINNING,
+            Self::Iso => N::ISO,
+            Self::CellProj => N::CELLPROJ,
+            Self::Raycast { entry, texture } => N::raycast(entry, texture),
+        }
     }
 
-    /// [`Self::check_needs`] on each part of a setting's needs (e.g. [`ShaderNeeds::shells`]),
-    /// in order.
-    pub(crate) fn check_parts(
-        &self,
-        parts: &[(ShaderNeeds, &'static str)],
-    ) -> Result<(), GpuError> {
-        parts
-            .iter()
-            .try_for_each(|(needs, by)| self.check_needs(needs, by))
+    /// The setting as errors and `tetvr gpu-info` name it, e.g. `the shells mode's raster
+    /// sampler`.
+    pub fn name(self) -> &'static str {
+        use Entry::{Lists, Peel};
+        use TextureUse::{Isosurfaces, Volume};
+        match self {
+            Self::Shells { sampler, textured } => match (sampler, textured) {
+                (Sampler::Raster, false) => "the shells mode's raster sampler",
+                (Sampler::Compute, false) => "the shells mode's compute sampler",
+                (Sampler::Walk, false) => "the shells mode's walk sampler",
+                (Sampler::Raster, true) => "the shells mode's raster sampler on a textured cage",
+                (Sampler::Compute, true) => "the shells mode's compute sampler on a textured cage",
+                (Sampler::Walk, true) => "the shells mode's walk sampler on a textured cage",
+            },
+            Self::GpuBinning => "the shells mode's GPU binning (--binning gpu)",
+            Self::Iso => "the iso mode",
+            Self::CellProj => "the cellproj mode",
+            Self::Raycast { entry, texture } => match (entry, texture) {
+                (Lists, None) => "the raycast mode",
+                (Peel, None) => "the raycast mode's depth peeling",
+                (Lists, Some(Volume)) => "the raycast mode on a textured cage",
+                (Peel, Some(Volume)) => "the raycast mode's depth peeling on a textured cage",
+                (Lists, Some(Isosurfaces)) => "the iso mode on a textured cage",
+                (Peel, Some(Isosurfaces)) => "the iso mode's depth peeling on a textured cage",
+            },
+        }
+    }
+
+    /// What a user can render instead with the same command and one setting changed: each
+    /// alternative's needs and its flag as the CLI spells it, in the order to suggest them.
+    /// The shells samplers replace each other (`--sampler`); the GPU binning the CPU's
+    /// (`--binning cpu`, which needs no stage); each entry method the other (`--entry`); the
+    /// ray caster over the mesh's field or a textured cage's volume the shells mode at its
+    /// defaults (`--mode shells`: the raster sampler, CPU binning). The iso and cellproj
+    /// modes, and a textured cage's isosurfaces but for the entry method, have none.
+    pub fn alternatives(self) -> Vec<(ShaderNeeds, &'static str)> {
+        let sampler_flag = |s| match s {
+            Sampler::Raster => "--sampler raster",
+            Sampler::Compute => "--sampler compute",
+            Sampler::Walk => "--sampler walk",
+        };
+        match self {
+            Self::Shells { sampler, textured } => {
+                [Sampler::Raster, Sampler::Compute, Sampler::Walk]
+                    .into_iter()
+                    .filter(|&other| other != sampler)
+                    .map(|other| {
+                        let setting = Self::Shells {
+                            sampler: other,
+                            textured,
+                        };
+                        (setting.needs(), sampler_flag(other))
+                    })
+                    .collect()
+            }
+            Self::GpuBinning => vec![(ShaderNeeds::NONE, "--binning cpu")],
+            Self::Iso | Self::CellProj => Vec::new(),
+            Self::Raycast { entry, texture } => {
+                let (other, flag) = match entry {
+                    Entry::Lists => (Entry::Peel, "--entry peel"),
+                    Entry::Peel => (Entry::Lists, "--entry lists"),
+                };
+                let entry = (ShaderNeeds::raycast(other, texture), flag);
+                let shells = |textured| Self::Shells {
+                    sampler: Sampler::Raster,
+                    textured,
+                };
+                match texture {
+                    None => vec![entry, (shells(false).needs(), "--mode shells")],
+                    Some(TextureUse::Volume) => {
+                        vec![entry, (shells(true).needs(), "--mode shells")]
+                    }
+                    Some(TextureUse::Isosurfaces) => vec![entry],
+                }
+            }
+        }
+    }
+
+    /// `Ok` when `limits` (of the adapter named `adapter`) offer what this setting's stages
+    /// need, else [`GpuError::Limit`] for the first limit that falls short, naming first the
+    /// alternatives ([`Self::alternatives`]) these limits run: each needs less of that limit
+    /// than this setting, as it needs no more than the adapter offers.
+    pub fn check(self, adapter: &str, limits: &wgpu::Limits) -> Result<(), GpuError> {
+        let Some((limit, has, needs)) = self.needs().shortfall(limits) else {
+            return Ok(());
+        };
+        let instead = (self.alternatives().into_iter())
+            .filter(|(needs, _)| needs.fit(limits))
+            .map(|(_, flag)| flag)
+            .collect();
+        Err(GpuError::Limit {
+            adapter: adapter.to_owned(),
+            limit,
+            has,
+            needs,
+            needed_by: self.name(),
+            instead,
+        })
+    }
+}
+
+impl GpuContext {
+    /// [`Setting::check`] on this context's adapter and limits.
+    pub(crate) fn check_setting(&self, setting: Setting) -> Result<(), GpuError> {
+        setting.check(&self.info.name, &self.limits)
+    }
+
+    /// [`Self::check_setting`] on each part of a setting (e.g. [`ShaderNeeds::shells`]), in
+    /// order.
+    pub(crate) fn check_settings(&self, parts: &[Setting]) -> Result<(), GpuError> {
+        (parts.iter()).try_for_each(|&part| self.check_setting(part))
     }
 }

@@ -232,8 +232,15 @@ pub fn warp_by_vector(
 /// Per-tet `values` averaged to the vertices, volume-weighted (ParaView's Cell Data to Point
 /// Data): each vertex gets `sum(V_t v_t) / sum(V_t)` over the tets that use it, `V_t` the
 /// tet's absolute volume. A vertex whose tets all have zero volume gets their plain mean; a
-/// vertex no tet uses gets 0.
-pub fn cell_to_point(mesh: &TetMesh, values: &[f64]) -> Vec<f64> {
+/// vertex no tet uses gets 0. An error ([`MeshError::CellValuesLength`]) unless `values` has
+/// one value per tet: a shorter slice left tets out of the averages, a longer one was cut.
+pub fn cell_to_point(mesh: &TetMesh, values: &[f64]) -> Result<Vec<f64>, MeshError> {
+    if values.len() != mesh.tet_count() {
+        return Err(MeshError::CellValuesLength {
+            len: values.len(),
+            count: mesh.tet_count(),
+        });
+    }
     let n = mesh.vertex_count();
     let (mut sum, mut weight) = (vec![0.0; n], vec![0.0; n]);
     let (mut plain, mut count) = (vec![0.0; n], vec![0u32; n]);
@@ -247,13 +254,13 @@ pub fn cell_to_point(mesh: &TetMesh, values: &[f64]) -> Vec<f64> {
             count[i] += 1;
         }
     }
-    (0..n)
+    Ok((0..n)
         .map(|i| match (weight[i] > 0.0, count[i]) {
             (true, _) => sum[i] / weight[i],
             (false, 0) => 0.0,
             (false, c) => plain[i] / c as f64,
         })
-        .collect()
+        .collect())
 }
 
 impl TetMesh {
@@ -368,7 +375,7 @@ impl TetMesh {
         per_tet: Vec<f64>,
         mode: CellDataMode,
     ) -> Result<(), MeshError> {
-        let averaged = cell_to_point(self, &per_tet);
+        let averaged = cell_to_point(self, &per_tet)?;
         self.add_array(ScalarArray::new(format!("{spec} (cells)"), averaged))?;
         if mode == CellDataMode::Constant {
             self.set_cell_scalars(Some(per_tet))?;
@@ -481,13 +488,30 @@ mod tests {
         let m = two_tets();
         let (v0, v1) = (m.signed_volume(0), m.signed_volume(1));
         assert!((v0 - 1.0 / 6.0).abs() < 1e-15 && v1 > 0.0);
-        let avg = cell_to_point(&m, &[1.0, 4.0]);
+        let avg = cell_to_point(&m, &[1.0, 4.0]).unwrap();
         // Vertex 0 only in tet 0, vertex 4 only in tet 1; the shared ones are weighted.
         let shared = (v0 * 1.0 + v1 * 4.0) / (v0 + v1);
         let want = [1.0, shared, shared, shared, 4.0];
         for (a, w) in avg.iter().zip(want) {
             // Sums of four products: a few ulps.
             assert!((a - w).abs() < 1e-14, "{a} vs {w}");
+        }
+    }
+
+    /// Values not one per tet are refused with both counts: a short slice made the missing
+    /// tets absent from the averages (vertex 4, only in tet 1, became 0), a long one was cut.
+    #[test]
+    fn cell_values_of_another_length_are_refused() {
+        let m = two_tets();
+        for values in [&[1.0][..], &[1.0, 4.0, 9.0]] {
+            let e = cell_to_point(&m, values).unwrap_err();
+            let len = values.len();
+            assert_eq!(e, MeshError::CellValuesLength { len, count: 2 });
+            let msg = e.to_string();
+            assert!(
+                msg.contains(&format!("{len} entries")) && msg.contains("2 tets"),
+                "{msg}"
+            );
         }
     }
 

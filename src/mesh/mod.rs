@@ -125,7 +125,7 @@ pub enum MeshError {
         /// Vertices in the mesh.
         count: usize,
     },
-    /// Per-tet values ([`TetMesh::set_cell_scalars`]) not one per tet.
+    /// Per-tet values ([`TetMesh::set_cell_scalars`], [`cell_to_point`]) not one per tet.
     #[error("the cell values have {len} entries, but the mesh has {count} tets")]
     CellValuesLength {
         /// Values given.

@@ -55,7 +55,7 @@ pub use crate::gpu::gpu_data::CellProjUniforms;
 use crate::gpu::gpu_data::{TfPoints, ViewUniforms};
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
 use crate::gpu::util::{Work, captured, entry, far_eye, ms_since, uniform_buffer};
-use crate::gpu::{GpuContext, ShaderNeeds};
+use crate::gpu::{GpuContext, Setting};
 use crate::image::Image;
 use crate::mesh::TetMesh;
 use crate::render::{Frame, RenderError, Renderer, Timings};
@@ -176,7 +176,7 @@ impl CellProjRenderer {
         mesh: Arc<GpuTetMesh>,
         settings: CellProjSettings,
     ) -> Result<Self, RenderError> {
-        ctx.check_needs(&ShaderNeeds::CELLPROJ, "the cellproj mode")?;
+        ctx.check_setting(Setting::CellProj)?;
         captured(&ctx.device, BUILD, || Self::build(ctx, mesh, settings))
     }
 
@@ -237,7 +237,7 @@ impl CellProjRenderer {
     /// centre, normalized active scalars).
     /// An adapter short of a limit is refused before anything is uploaded.
     pub fn new(ctx: &GpuContext, mesh: &TetMesh, s: CellProjSettings) -> Result<Self, RenderError> {
-        ctx.check_needs(&ShaderNeeds::CELLPROJ, "the cellproj mode")?;
+        ctx.check_setting(Setting::CellProj)?;
         captured(&ctx.device, BUILD, || {
             Self::build(ctx, GpuTetMesh::new(ctx, mesh)?, s)
         })

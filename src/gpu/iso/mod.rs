@@ -56,7 +56,7 @@ use crate::gpu::util::{
     Work, captured, far_eye, ms_since, read_mapped, settings_error, uniform_buffer,
 };
 use crate::gpu::view::ViewFrame;
-use crate::gpu::{GpuContext, ShaderNeeds};
+use crate::gpu::{GpuContext, Setting};
 use crate::image::Image;
 use crate::mesh::TetMesh;
 pub use crate::reference::iso::{IsoImage, Shading};
@@ -194,7 +194,7 @@ impl IsoRenderer {
         mesh: Arc<GpuTetMesh>,
         settings: IsoSettings,
     ) -> Result<Self, RenderError> {
-        ctx.check_needs(&ShaderNeeds::ISO, "the iso mode")?;
+        ctx.check_setting(Setting::Iso)?;
         captured(&ctx.device, BUILD, || Self::build(ctx, mesh, settings))
     }
 
@@ -293,7 +293,7 @@ impl IsoRenderer {
     /// active scalar range.
     /// An adapter short of a limit is refused before anything is uploaded.
     pub fn new(ctx: &GpuContext, mesh: &TetMesh, s: IsoSettings) -> Result<Self, RenderError> {
-        ctx.check_needs(&ShaderNeeds::ISO, "the iso mode")?;
+        ctx.check_setting(Setting::Iso)?;
         captured(&ctx.device, BUILD, || {
             Self::build(ctx, GpuTetMesh::new(ctx, mesh)?, s)
         })

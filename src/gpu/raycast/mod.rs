@@ -78,7 +78,7 @@ use crate::gpu::frame::{FrameResources, ImageReadback};
 use crate::gpu::gpu_data::{LayerUniforms, TfPoints, ViewUniforms};
 use crate::gpu::mesh::{GpuTetMesh, TetArray};
 use crate::gpu::util::{Work, captured, largest_binding, settings_error, uniform_buffer};
-use crate::gpu::{GpuContext, ShaderNeeds};
+use crate::gpu::{GpuContext, Setting};
 use crate::mesh::{TetMesh, checked_bounds};
 use crate::render::{Frame, RenderError, Renderer};
 use crate::tf::TransferFunction;
@@ -385,9 +385,9 @@ impl RaycastRenderer {
     }
 
     /// The traversal of the shells' walk sampler over a mesh already on the GPU (its limits
-    /// checked by the shells renderer, [`ShaderNeeds::shells`]): each segment
-    /// composites the slices it holds (`shaders/raycast_slices.wgsl`) instead of integrating
-    /// the TF, `settings.segments` unused; frames come from [`Self::render_slices`].
+    /// checked by the shells renderer, [`Setting::Shells`]): each segment composites the
+    /// slices it holds (`shaders/raycast_slices.wgsl`) instead of integrating the TF,
+    /// `settings.segments` unused; frames come from [`Self::render_slices`].
     /// With `texture` (a textured cage's, over `mesh` as its cage), the slices read its volume
     /// (`shaders/raycast_slices_texture.wgsl`).
     pub(crate) fn sliced(
@@ -539,15 +539,15 @@ impl RaycastRenderer {
 
     /// Switches how rays find their entries (the per-pixel buffers follow on the next frame);
     /// [`GpuError::Limit`](crate::gpu::GpuError::Limit), and no switch, where the adapter's
-    /// limits are short of the new method's stages ([`ShaderNeeds::raycast`]).
+    /// limits are short of the new method's stages ([`Setting::Raycast`]).
     pub fn set_entry(&mut self, entry: Entry) -> Result<(), RenderError> {
         let texture = match (&self.iso, &self.texture) {
             (Some(_), _) => Some(TextureUse::Isosurfaces),
             (None, Some(_)) => Some(TextureUse::Volume),
             (None, None) => None,
         };
-        let (needs, needed_by) = limits_of(entry, texture);
-        needs.check(&self.adapter, &self.limits, needed_by)?;
+        let setting = Setting::Raycast { entry, texture };
+        setting.check(&self.adapter, &self.limits)?;
         self.settings.entry = entry;
         Ok(())
     }
@@ -562,26 +562,15 @@ impl RaycastRenderer {
     }
 }
 
-/// What the ray caster with `entry` over `texture`'s field (`None`: the mesh's) needs of the
-/// adapter's limits, and what to name when it falls short.
-fn limits_of(entry: Entry, texture: Option<TextureUse>) -> (ShaderNeeds, &'static str) {
-    let needed_by = match (entry, texture) {
-        (_, Some(TextureUse::Isosurfaces)) => "the iso mode on a textured cage",
-        (Entry::Lists, _) => "the raycast mode",
-        (Entry::Peel, _) => "the raycast mode's depth peeling",
-    };
-    (ShaderNeeds::raycast(entry, texture), needed_by)
-}
-
-/// An error unless `ctx`'s limits offer what [`limits_of`] says; checked before anything is
+/// An error unless `ctx`'s limits offer what the ray caster with `entry` over `texture`'s
+/// field (`None`: the mesh's) needs ([`Setting::Raycast`]); checked before anything is
 /// uploaded.
 pub(crate) fn check_limits(
     ctx: &GpuContext,
     entry: Entry,
     texture: Option<TextureUse>,
 ) -> Result<(), RenderError> {
-    let (needs, needed_by) = limits_of(entry, texture);
-    Ok(ctx.check_needs(&needs, needed_by)?)
+    Ok(ctx.check_setting(Setting::Raycast { entry, texture })?)
 }
 
 /// Uploads a cell-data mesh's values per tet, which the traversal binds as one window; an
@@ -655,7 +644,11 @@ impl Renderer for RaycastRenderer {
         let frame = self.mesh.frame();
         // A lost device fails here as an error, not as wgpu's panic.
         let device = self.device.clone();
-        captured(&device, FRAME, || {
+        let work = match self.iso {
+            Some(_) => texture_iso::FRAME,
+            None => FRAME,
+        };
+        captured(&device, work, || {
             self.frame(&frame.camera(camera), Some(&frame.tf(tf)?))
         })
     }

@@ -29,7 +29,7 @@ use super::texture::{GpuTexture, TextureUse};
 use super::{RaycastRenderer, RaycastSettings};
 
 /// A frame of a textured cage's isosurfaces: its targets and hits grow with the image.
-const FRAME: Work = Work::of_frame("a textured iso frame");
+pub(super) const FRAME: Work = Work::of_frame("a textured iso frame");
 /// The isosurfaces' build: the volume, the cage's links and boundary, the tets' ranges.
 const TEXTURED_BUILD: Work = Work::of_texture("building the iso renderer of a textured cage");
 

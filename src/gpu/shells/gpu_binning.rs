@@ -216,7 +216,7 @@ fn chunk_uniforms(ctx: &GpuContext, chunks: &[(u64, u64)]) -> (u64, wgpu::Buffer
 /// where its limits offer what the GPU binning's stages need (else it bins on the CPU, as the
 /// choice it is, instead of refusing the setting for a stage it chose itself).
 pub(super) fn picked(mode: BinningMode, tets: u64, ctx: &GpuContext) -> bool {
-    let runs = || (ctx.check_needs(&ShaderNeeds::SHELLS_BINNING, "")).is_ok();
+    let runs = || ShaderNeeds::SHELLS_BINNING.fit(&ctx.limits);
     match mode {
         BinningMode::Cpu => false,
         BinningMode::Gpu => true,

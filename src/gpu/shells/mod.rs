@@ -335,7 +335,7 @@ impl ShellsRenderer {
         tets: usize,
     ) -> Result<(), RenderError> {
         let gpu_binning = gpu_binning::picked(settings.binning, tets as u64, ctx);
-        Ok(ctx.check_parts(&ShaderNeeds::shells(settings, textured, gpu_binning))?)
+        Ok(ctx.check_settings(&ShaderNeeds::shells(settings, textured, gpu_binning))?)
     }
 
     /// The shells renderer of a textured cage (issue 12): `cage`'s vertices carry `texcoords`,
