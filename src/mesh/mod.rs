@@ -524,60 +524,86 @@ fn check_and_orient(positions: &[DVec3], tets: &mut [[u32; 4]]) -> Result<usize,
 }
 
 /// An error when two of `tets` (with indices below `vertex_count`) have the same vertex set:
-/// the pair whose later tet comes first. Equal tets share their smallest vertex, so the tets
-/// are bucketed by it (a counting sort in two parallel passes with atomic counters: 4 bytes per
-/// tet and 4 per vertex; a bucket's order depends on the threads, but each is sorted below)
-/// and only each bucket's few tets (some 20 in a tet mesh) are compared, in parallel: linear
-/// time.
+/// the pair whose later tet comes first (the first repeat a serial scan meets, named with the
+/// earliest tet equal to it), whatever the threads.
 fn check_distinct_tets(tets: &[[u32; 4]], vertex_count: usize) -> Result<(), MeshError> {
-    const CHUNK: usize = 1 << 12;
-    let sorted = |t: u32| {
-        let mut k = tets[t as usize];
-        k.sort_unstable();
-        k
-    };
-    let lowest = |t: &[u32; 4]| *t.iter().min().expect("four vertices") as usize;
-    let zeros = |n: usize| -> Vec<AtomicU32> {
-        (0..n)
-            .into_par_iter()
-            .with_min_len(CHUNK)
-            .map(|_| AtomicU32::new(0))
-            .collect()
-    };
-    // ends[v]: the end of vertex v's bucket in `order` once filled (its start until then).
-    let ends = zeros(vertex_count);
-    tets.par_iter().with_min_len(CHUNK).for_each(|t| {
-        ends[lowest(t)].fetch_add(1, Relaxed);
-    });
-    let mut start = 0;
-    for e in &ends {
-        start += e.swap(start, Relaxed);
+    /// Tets per task of the bucketing passes.
+    const CHUNK: usize = 1 << 16;
+    /// At least this many vertices (as a power of two) per bucket.
+    const MIN_SHIFT: u32 = 11;
+    match first_repeat(tets, vertex_count, CHUNK, MIN_SHIFT) {
+        Some((second, first)) => Err(MeshError::DuplicateTet {
+            first: first as usize,
+            second: second as usize,
+            vertices: sort4(tets[second as usize]),
+        }),
+        None => Ok(()),
     }
-    let order = zeros(tets.len());
-    tets.par_iter()
-        .enumerate()
-        .with_min_len(CHUNK)
-        .for_each(|(i, t)| {
-            let at = ends[lowest(t)].fetch_add(1, Relaxed);
-            order[at as usize].store(i as u32, Relaxed);
-        });
-    let first = (0..vertex_count)
+}
+
+/// The earliest tet of `tets` whose vertex set an earlier one has, and the earliest of those:
+/// `(second, first)`. Equal tets share their smallest vertex, so the tets are bucketed by it,
+/// `2^shift` consecutive vertices a bucket (`shift` at least `min_shift`; at most 4096 buckets):
+/// each task of `chunk` tets counts its tets per bucket, and, at the offsets those counts give,
+/// writes their indices bucket after bucket (no atomic counter, and each bucket lists its tets
+/// in index order); then each bucket's tets, as their sorted vertices packed into a `u128`, are
+/// sorted and compared, in parallel. 4 bytes per tet and 4 per task and bucket; on meshes
+/// whose nearby tets share vertices (generated and meshed ones), the memory each pass reads is
+/// close to sequential.
+fn first_repeat(
+    tets: &[[u32; 4]],
+    vertex_count: usize,
+    chunk: usize,
+    min_shift: u32,
+) -> Option<(u32, u32)> {
+    const MAX_BUCKETS: usize = 1 << 12;
+    let lowest = |t: &[u32; 4]| t[0].min(t[1]).min(t[2].min(t[3])) as usize;
+    let shift = (vertex_count
+        .div_ceil(MAX_BUCKETS)
+        .next_power_of_two()
+        .trailing_zeros())
+    .max(min_shift);
+    let buckets = (vertex_count >> shift) + 1;
+    // next[c][b]: where task c writes its next tet of bucket b in `order`.
+    let mut next: Vec<Vec<u32>> = (tets.par_chunks(chunk))
+        .map(|c| {
+            let mut counts = vec![0u32; buckets];
+            for t in c {
+                counts[lowest(t) >> shift] += 1;
+            }
+            counts
+        })
+        .collect();
+    let mut ends = Vec::with_capacity(buckets);
+    let mut at = 0;
+    for b in 0..buckets {
+        for counts in &mut next {
+            at += std::mem::replace(&mut counts[b], at);
+        }
+        ends.push(at as usize);
+    }
+    let order: Vec<AtomicU32> = (0..tets.len())
         .into_par_iter()
-        .with_min_len(CHUNK)
-        .map_init(Vec::new, |keys, v| {
-            let lo = if v == 0 {
-                0
-            } else {
-                ends[v - 1].load(Relaxed) as usize
-            };
-            let hi = ends[v].load(Relaxed) as usize;
+        .with_min_len(chunk)
+        .map(|_| AtomicU32::new(0))
+        .collect();
+    (tets.par_chunks(chunk).zip(next).enumerate()).for_each(|(c, (ts, mut next))| {
+        for (i, t) in ts.iter().enumerate() {
+            let at = &mut next[lowest(t) >> shift];
+            order[*at as usize].store((c * chunk + i) as u32, Relaxed);
+            *at += 1;
+        }
+    });
+    let packed = |t: u32| {
+        let [a, b, c, d] = sort4(tets[t as usize]).map(u128::from);
+        (a << 96 | b << 64 | c << 32 | d, t)
+    };
+    (0..buckets)
+        .into_par_iter()
+        .map_init(Vec::new, |keys, b| {
+            let lo = if b == 0 { 0 } else { ends[b - 1] };
             keys.clear();
-            keys.extend(
-                order[lo..hi]
-                    .iter()
-                    .map(|t| t.load(Relaxed))
-                    .map(|t| (sorted(t), t)),
-            );
+            keys.extend(order[lo..ends[b]].iter().map(|t| packed(t.load(Relaxed))));
             keys.sort_unstable();
             // The earliest repeat is the second of its equal tets, and the one before it in
             // the sorted bucket is the first of them.
@@ -587,15 +613,17 @@ fn check_distinct_tets(tets: &[[u32; 4]], vertex_count: usize) -> Result<(), Mes
                 .min()
         })
         .flatten()
-        .min();
-    match first {
-        Some((second, first)) => Err(MeshError::DuplicateTet {
-            first: first as usize,
-            second: second as usize,
-            vertices: sorted(second),
-        }),
-        None => Ok(()),
-    }
+        .min()
+}
+
+/// The four vertices of `t` in ascending order (a sorting network of five exchanges).
+fn sort4([a, b, c, d]: [u32; 4]) -> [u32; 4] {
+    let (a, b) = (a.min(b), a.max(b));
+    let (c, d) = (c.min(d), c.max(d));
+    let (a, c) = (a.min(c), a.max(c));
+    let (b, d) = (b.min(d), b.max(d));
+    let (b, c) = (b.min(c), b.max(c));
+    [a, b, c, d]
 }
 
 /// The indices of tet number `t`: each below `count` (the vertices), none repeated.
@@ -847,6 +875,7 @@ fn range_of(values: &[f64]) -> Option<(f64, f64)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::strategy::Strategy;
 
     fn unit_tet() -> Vec<DVec3> {
         vec![DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z]
@@ -952,10 +981,9 @@ mod tests {
         assert!((m.signed_volume(0) - 1.0 / 6.0).abs() < 1e-15);
     }
 
-    /// The parallel bucketing fills each bucket in an order that depends on the threads; the
-    /// reported pair must still be a serial scan's first repeat (and its earliest equal tet).
-    /// Many tets (several parallel chunks) under few lowest vertices, so buckets are large and
-    /// filled by several threads, with repeats (one listed three times) planted in them.
+    /// The reported pair is a serial scan's first repeat (and its earliest equal tet), in any
+    /// vertex order. Many tets under few lowest vertices, so the one bucket is large, with
+    /// repeats (one listed three times) planted in it.
     #[test]
     fn the_duplicate_reported_is_the_serial_scans_first() {
         let mut x = 12345u64;
@@ -1009,6 +1037,38 @@ mod tests {
         }
         let (first, second, _) = serial_first(&tets).unwrap();
         assert_eq!((first, second), (30_000, 41_000));
+    }
+
+    /// The first repeat of a serial scan, `(second, first)`: what [`first_repeat`] must find.
+    fn serial_first_repeat(tets: &[[u32; 4]]) -> Option<(u32, u32)> {
+        let mut seen = std::collections::HashMap::new();
+        tets.iter().zip(0..).find_map(|(t, i)| {
+            let first = *seen.entry(sort4(*t)).or_insert(i);
+            (first != i).then_some((i, first))
+        })
+    }
+
+    proptest::proptest! {
+        /// Split into many tasks (`chunk` tets each) and buckets (`2^min_shift` vertices
+        /// each), as large meshes are with the real sizes, tets of a dozen vertices (repeats
+        /// in any vertex order, some listed three times and more) give the serial scan's pair.
+        #[test]
+        fn the_first_repeat_is_the_serial_scans_for_any_split(
+            tets in proptest::collection::vec(
+                proptest::sample::subsequence((0..12u32).collect::<Vec<_>>(), 4)
+                    .prop_shuffle()
+                    .prop_map(|t| [t[0], t[1], t[2], t[3]]),
+                1..60,
+            ),
+            spare in 0usize..40,
+            chunk in 1usize..9,
+            min_shift in 0u32..4,
+        ) {
+            proptest::prop_assert_eq!(
+                first_repeat(&tets, 12 + spare, chunk, min_shift),
+                serial_first_repeat(&tets)
+            );
+        }
     }
 
     /// A tet listed twice (in any vertex order, either orientation) is refused, naming the
