@@ -24,20 +24,31 @@
 //! wound opposite ways. The level set is that face once, and the renderers draw it once (the
 //! nearer of two equal depths), so one copy is kept: a file with both has coincident faces that
 //! viewers draw with z-fighting, and their normals cancel. The field increases to neither side,
-//! so the copy kept is wound by a rule that does not depend on the mesh's order: its normal's
-//! largest component is positive, components equal to rounding counting as equal (a flat
-//! layer is wound one way throughout; a curved one flips where its largest component changes).
+//! so the copy kept is wound with its sheet (below).
 //!
 //! **Orientation**: every triangle winds counter-clockwise seen from the side of *increasing*
 //! scalar, so its geometric normal `(p1 - p0) x (p2 - p0)` points along the field gradient
-//! (outwards for a radial field, the glTF front face seen from outside). A triangle of a
-//! zero-volume tet has no gradient and keeps its construction order.
+//! (outwards for a radial field, the glTF front face seen from outside). Each triangle is first
+//! wound along its tet's gradient; then each *sheet* (triangles connected across edges that
+//! exactly two of them share) is wound one way, so neighbours traverse their shared edge in
+//! opposite directions, and faces the way the majority of its triangles does, weighted by how
+//! far each faces along its gradient. That is exact for any sheet with a gradient: only a
+//! triangle whose normal is rounding noise (a sliver at a crossing next to a vertex) or that
+//! has no gradient (a zero-volume tet) can face against its sheet, and it is turned to face
+//! with it. A sheet of doubled faces only (a layer of a label field) is wound outwards when it
+//! is closed, and otherwise so that its summed normal's largest component is positive, equal
+//! to rounding counting as equal (a flat layer faces +x, +y or +z). Where a surface touches
+//! itself along an edge (three or more triangles on it) the sheets meeting there are wound
+//! each on its own.
 //!
 //! **Normals** are smooth: the per-vertex gradients of [`vertex_gradients`] (volume-weighted
 //! means over each vertex's tets) interpolated linearly along the crossing's edge and made
-//! unit; where that vanishes, the area-weighted mean of the vertex's triangle normals, and where
-//! that cancels too (triangles wound opposite ways around the vertex: where a doubled face's
-//! winding rule flips on a curved layer), the normal of its largest triangle. A vertex
+//! unit; where that vanishes or points against the vertex's triangles (a negative dot product
+//! with the sum of their normals, as finally wound: a gradient averaged over a coarse or skewed
+//! mesh that turns away from the surface there, which would shade it as a back face), the
+//! area-weighted mean of those triangle normals, and where that cancels too (triangles wound
+//! opposite ways around the vertex: where sheets wound apart touch), the normal of its largest
+//! triangle. A vertex
 //! of a doubled face takes that mean too: its gradient is a mean over tets whose gradients point
 //! opposite ways (towards the layer from both sides), so it points either way, and normals of
 //! opposite signs side by side shade as dark seams.
@@ -47,6 +58,7 @@ use std::collections::{HashMap, HashSet};
 use glam::DVec3;
 use rayon::prelude::*;
 
+use super::orient::orient_sheets;
 use crate::mesh::{MeshError, check_values};
 use crate::reference::iso::{tet_gradient, vertex_gradients};
 
@@ -103,15 +115,11 @@ pub fn isosurfaces(
         .collect())
 }
 
-/// `triangles` with one copy of each face that two tets both gave (see the module docs,
-/// "Doubled faces"), wound so that its `normal`'s largest component (by magnitude; the first of
-/// those equal to rounding) is positive, and the vertices of those faces. Only a triangle on
-/// three mesh vertices can lie on a face, so only those are looked at. The order of the rest is
-/// kept.
-fn without_doubled_faces(
-    triangles: Vec<[Key; 3]>,
-    normal: impl Fn(&[Key; 3]) -> DVec3,
-) -> (Vec<[Key; 3]>, HashSet<Key>) {
+/// `triangles` (each with its orientation weight, see [`orient_sheets`]) with one copy of each
+/// face that two tets both gave (see the module docs, "Doubled faces"), of weight 0 (the field
+/// increases to neither side), and the vertices of those faces. Only a triangle on three mesh
+/// vertices can lie on a face, so only those are looked at. The order of the rest is kept.
+fn without_doubled_faces(triangles: Vec<([Key; 3], f64)>) -> (Vec<([Key; 3], f64)>, HashSet<Key>) {
     let face = |t: &[Key; 3]| {
         let mut f = *t;
         f.sort_unstable();
@@ -119,7 +127,7 @@ fn without_doubled_faces(
     };
     let on_vertices = |t: &[Key; 3]| t.iter().all(|k| matches!(k, Key::Vertex(_)));
     let mut uses: HashMap<[Key; 3], usize> = HashMap::new();
-    for t in triangles.iter().filter(|t| on_vertices(t)) {
+    for (t, _) in triangles.iter().filter(|(t, _)| on_vertices(t)) {
         *uses.entry(face(t)).or_default() += 1;
     }
     uses.retain(|_, n| *n > 1);
@@ -130,22 +138,11 @@ fn without_doubled_faces(
     let mut kept = HashSet::new();
     let triangles = triangles
         .into_iter()
-        .filter_map(|t| {
+        .filter_map(|(t, weight)| {
             if !on_vertices(&t) || !uses.contains_key(&face(&t)) {
-                return Some(t);
+                return Some((t, weight));
             }
-            kept.insert(face(&t)).then(|| {
-                // Equal to rounding counts as equal: on a layer at 45 degrees (x = y through
-                // grid vertices) the two largest components differ only by rounding, and which
-                // is larger changes from triangle to triangle, so a flat layer would be wound
-                // both ways.
-                let n = normal(&t).to_array();
-                let largest = n.iter().fold(0.0f64, |m, c| m.max(c.abs()));
-                let axis = (0..3)
-                    .find(|&i| n[i].abs() >= largest * (1.0 - 1e-9))
-                    .unwrap_or(0);
-                if n[axis] < 0.0 { [t[0], t[2], t[1]] } else { t }
-            })
+            kept.insert(face(&t)).then_some((t, 0.0))
         })
         .collect();
     (triangles, on_doubled)
@@ -179,7 +176,7 @@ fn isosurface(
             Key::Edge(a.min(b), a.max(b))
         }
     };
-    let key_triangles: Vec<[Key; 3]> = tets
+    let key_triangles: Vec<([Key; 3], f64)> = tets
         .par_iter()
         .flat_map_iter(|t| {
             let s = t.map(|i| scalars[i as usize]);
@@ -201,30 +198,36 @@ fn isosurface(
                 ],
                 _ => Vec::new(),
             };
-            let gradient = tet_gradient(t.map(|i| positions[i as usize]), s);
+            let gradient = tet_gradient(t.map(|i| positions[i as usize]), s)
+                .map_or(DVec3::ZERO, DVec3::normalize_or_zero);
             let fan = (2..polygon.len()).map(move |i| [polygon[0], polygon[i - 1], polygon[i]]);
             fan.filter(|k| k[0] != k[1] && k[1] != k[2] && k[0] != k[2])
                 .filter_map(move |k| {
                     let n = normal(&k);
-                    (n != DVec3::ZERO).then(|| match gradient {
-                        Some(g) if n.dot(g) < 0.0 => [k[0], k[2], k[1]],
-                        _ => k,
+                    let along = n.dot(gradient);
+                    (n != DVec3::ZERO).then(|| {
+                        if along < 0.0 {
+                            ([k[0], k[2], k[1]], -along)
+                        } else {
+                            (k, along)
+                        }
                     })
                 })
                 .collect::<Vec<_>>()
         })
         .collect();
-    let (key_triangles, on_doubled) = without_doubled_faces(key_triangles, normal);
+    let (key_triangles, on_doubled) = without_doubled_faces(key_triangles);
 
-    let mut keys: Vec<Key> = key_triangles.par_iter().flatten().copied().collect();
+    let mut keys: Vec<Key> = key_triangles.par_iter().flat_map_iter(|t| t.0).collect();
     keys.par_sort_unstable();
     keys.dedup();
     let index = |k: &Key| keys.binary_search(k).unwrap_or(0) as u32;
-    let triangles: Vec<[u32; 3]> = key_triangles
+    let (mut triangles, weights): (Vec<[u32; 3]>, Vec<f64>) = key_triangles
         .par_iter()
-        .map(|t| [index(&t[0]), index(&t[1]), index(&t[2])])
-        .collect();
+        .map(|(t, weight)| (t.map(|k| index(&k)), *weight))
+        .unzip();
     let positions_out: Vec<DVec3> = keys.par_iter().map(|&k| position(k)).collect();
+    orient_sheets(&positions_out, &mut triangles, &weights);
     let mut normals: Vec<DVec3> = keys
         .par_iter()
         .map(|&k| {
@@ -240,7 +243,7 @@ fn isosurface(
             .normalize_or_zero()
         })
         .collect();
-    fill_zero_normals(&mut normals, &positions_out, &triangles);
+    fill_normals_from_triangles(&mut normals, &positions_out, &triangles);
     Surface {
         isovalue: v,
         positions: positions_out,
@@ -249,13 +252,13 @@ fn isosurface(
     }
 }
 
-/// Gives each vertex left with a zero normal (a vertex of a doubled face, or one whose gradient
-/// vanishes) the mean of its triangles' normals, area-weighted; where that mean cancels (to
-/// rounding: what is left then points anywhere), its largest triangle's normal.
-fn fill_zero_normals(normals: &mut [DVec3], positions: &[DVec3], triangles: &[[u32; 3]]) {
-    if !normals.contains(&DVec3::ZERO) {
-        return;
-    }
+/// Gives each vertex whose normal is zero (a vertex of a doubled face, or one whose gradient
+/// vanishes) or points against its triangles as finally wound (a negative dot product with
+/// the sum of their normals: a gradient averaged over a coarse or skewed mesh's tets that turns
+/// away from the surface there) the mean of its triangles' normals, area-weighted; where that
+/// mean cancels (to rounding: what is left then points anywhere), its largest triangle's
+/// normal.
+fn fill_normals_from_triangles(normals: &mut [DVec3], positions: &[DVec3], triangles: &[[u32; 3]]) {
     let mut face_sum = vec![DVec3::ZERO; normals.len()];
     // Each vertex's sum of triangle areas (twice), and its largest triangle's normal.
     let mut area = vec![0.0; normals.len()];
@@ -273,7 +276,7 @@ fn fill_zero_normals(normals: &mut [DVec3], positions: &[DVec3], triangles: &[[u
         }
     }
     for (i, n) in normals.iter_mut().enumerate() {
-        if *n == DVec3::ZERO {
+        if *n == DVec3::ZERO || n.dot(face_sum[i]) < 0.0 {
             *n = if face_sum[i].length() > 1e-9 * area[i] {
                 face_sum[i].normalize_or_zero()
             } else {

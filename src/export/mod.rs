@@ -11,6 +11,7 @@
 //! requires.
 
 pub mod marching;
+mod orient;
 
 use std::borrow::Cow;
 use std::collections::BTreeMap;

@@ -1,0 +1,138 @@
+//! Consistent winding of isosurface sheets: see [`orient_sheets`].
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+/// No neighbour across a triangle side: a boundary edge, or a non-manifold one.
+const NONE: u32 = u32::MAX;
+
+/// Winds each sheet of `triangles` one way: two triangles that are the only ones on an edge
+/// traverse it in opposite directions. A sheet is a set of triangles connected across such
+/// (manifold) edges; an edge of one or of three or more triangles (a boundary; a surface
+/// touching itself along a mesh edge) connects nothing, so sheets meeting there are wound
+/// apart. Sheets that cannot be wound one way (a one-sided layer, a Moebius strip of doubled
+/// faces) keep the winding their search from their first triangle gives.
+///
+/// `weights[t]` is how strongly triangle `t`'s current winding is known to face along the
+/// field gradient (`n . g` for its geometric normal `n` and unit tet gradient `g`, `>= 0`;
+/// 0 where the field increases to neither side: a doubled face, a zero-volume tet). A sheet
+/// with weight is wound the way its weighted majority faces: in exact arithmetic every
+/// triangle with weight on one sheet agrees, so only triangles whose normal is rounding noise
+/// (weights near 0) can be outvoted. A sheet without weight (a layer of doubled faces) is wound
+/// outwards (positive enclosed volume) when it is closed, and otherwise so that its summed
+/// normal's largest component is positive (components equal to rounding counting as equal),
+/// the rule for a flat layer.
+pub(super) fn orient_sheets(positions: &[DVec3], triangles: &mut [[u32; 3]], weights: &[f64]) {
+    let neighbours = neighbours(triangles);
+    // 0: not reached yet; 1: keep; 2: flip.
+    let mut state = vec![0u8; triangles.len()];
+    let mut sheet = Vec::new();
+    for seed in 0..triangles.len() {
+        if state[seed] != 0 {
+            continue;
+        }
+        sheet.clear();
+        state[seed] = 1;
+        sheet.push(seed);
+        let mut next = 0;
+        while next < sheet.len() {
+            let t = sheet[next];
+            next += 1;
+            for side in 0..3 {
+                let n = neighbours[3 * t + side];
+                if n == NONE {
+                    continue;
+                }
+                let (u, u_side) = (n as usize / 3, n as usize % 3);
+                if state[u] == 0 {
+                    // Opposite directions along the edge when u's side starts where t's ends.
+                    let same = triangles[u][u_side] == triangles[t][side];
+                    let flip_t = state[t] == 2;
+                    state[u] = if same != flip_t { 2 } else { 1 };
+                    sheet.push(u);
+                }
+            }
+        }
+        let flip_all =
+            !keeps_search_winding(positions, triangles, &neighbours, weights, &sheet, &state);
+        for &t in &sheet {
+            if (state[t] == 2) != flip_all {
+                triangles[t].swap(1, 2);
+            }
+        }
+    }
+}
+
+/// For each triangle side `3 t + i` (the edge from corner `i` to corner `i + 1`), the side of
+/// the other triangle on that edge when exactly two share it, else [`NONE`].
+fn neighbours(triangles: &[[u32; 3]]) -> Vec<u32> {
+    let mut sides: Vec<(u64, u32)> = triangles
+        .par_iter()
+        .enumerate()
+        .flat_map_iter(|(t, k)| {
+            (0..3).map(move |i| {
+                let (a, b) = (k[i], k[(i + 1) % 3]);
+                (
+                    (a.min(b) as u64) << 32 | a.max(b) as u64,
+                    (3 * t + i) as u32,
+                )
+            })
+        })
+        .collect();
+    sides.par_sort_unstable();
+    let mut neighbours = vec![NONE; sides.len()];
+    for run in sides.chunk_by(|x, y| x.0 == y.0) {
+        if let [(_, s), (_, r)] = run {
+            neighbours[*s as usize] = *r;
+            neighbours[*r as usize] = *s;
+        }
+    }
+    neighbours
+}
+
+/// Whether `sheet` (wound as its search from its first triangle gives: `state` 2 flips) faces
+/// the way [`orient_sheets`] wants.
+fn keeps_search_winding(
+    positions: &[DVec3],
+    triangles: &[[u32; 3]],
+    neighbours: &[u32],
+    weights: &[f64],
+    sheet: &[usize],
+    state: &[u8],
+) -> bool {
+    let sign = |t: usize| if state[t] == 2 { -1.0 } else { 1.0 };
+    let vote: f64 = sheet.iter().map(|&t| sign(t) * weights[t]).sum();
+    if vote != 0.0 {
+        return vote > 0.0;
+    }
+    // No weight: a layer of doubled faces. The normals and volume are taken relative to one
+    // of its points, so far from the origin they do not cancel.
+    let origin = positions[triangles[sheet[0]][0] as usize];
+    let (mut normal, mut volume) = (DVec3::ZERO, 0.0);
+    for &t in sheet {
+        let p = triangles[t].map(|i| positions[i as usize] - origin);
+        normal += sign(t) * (p[1] - p[0]).cross(p[2] - p[0]);
+        volume += sign(t) * p[0].dot(p[1].cross(p[2]));
+    }
+    // Closed when every side has a neighbour (the search reached them all, so on this sheet).
+    let closed = sheet
+        .iter()
+        .all(|&t| (0..3).all(|i| neighbours[3 * t + i] != NONE));
+    if closed {
+        volume > 0.0
+    } else {
+        largest_positive(normal)
+    }
+}
+
+/// Whether `n`'s largest component (by magnitude; the first of those equal to rounding) is
+/// positive. Equal to rounding counts as equal: on a layer at 45 degrees (x = y through grid
+/// vertices) the two largest components differ only by rounding.
+fn largest_positive(n: DVec3) -> bool {
+    let n = n.to_array();
+    let largest = n.iter().fold(0.0f64, |m, c| m.max(c.abs()));
+    let axis = (0..3)
+        .find(|&i| n[i].abs() >= largest * (1.0 - 1e-9))
+        .unwrap_or(0);
+    n[axis] >= 0.0
+}
