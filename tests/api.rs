@@ -520,3 +520,119 @@ fn a_build_wgpu_refuses_is_an_error_not_a_panic() {
         .collect();
     assert!(wrong.is_empty(), "{wrong:#?}");
 }
+
+/// A frame wgpu refused kept what it made for the next frames: targets of its image size, the
+/// statistics buffers, the pre-integration tables. A buffer or texture the adapter could not
+/// allocate is an invalid handle (the frame's error says so), so after a frame that ran out of
+/// GPU memory, every later frame of that size (cellproj and raycast: of that TF) reused the
+/// invalid targets and failed as "the GPU refused", even once the memory was free, and
+/// `gpu_memory` counted them. A failed frame now drops them and the next frame makes them again.
+/// Running out of memory is not reproducible here (lavapipe allocates from host memory), so
+/// the frame fails as wgpu refusing its targets (a device whose 2D textures are smaller than its
+/// context declares); the targets it made then are invalid just as after running out of memory.
+/// Bound: after the failed frame the renderer holds at most what it held after a good 8x8 frame,
+/// plus less than one RGBA32F target of the failed frame's size (what its other buffers may grow
+/// by); kept, its targets alone are at least two such (a target and its readback).
+#[test]
+fn a_failed_frame_keeps_no_targets_for_the_next() {
+    use tetvr::Renderer;
+    use tetvr::gpu::{RaycastRenderer, Sampler};
+    let mesh = common::gaussians(2);
+    let (tf, camera) = common::default_view(&mesh, 8);
+    let side = 256;
+    let gpu = context_above_its_device(|l| l.max_texture_dimension_2d = side);
+    let wide = Camera {
+        width: side + 1,
+        height: 64,
+        ..camera
+    };
+    // The compute sampler draws into buffers, not textures: refused buffers over 1 MiB, which
+    // the 8x8 frame's are not (its tile lists take 512 KiB at least), and a 1024x128 image
+    // (2 MiB) is.
+    let buffers = context_above_its_device(|l| {
+        l.max_buffer_size = 1 << 20;
+        l.max_storage_buffer_binding_size = 1 << 20;
+    });
+    let large = Camera {
+        width: 1024,
+        height: 128,
+        ..camera
+    };
+    let shells = |sampler| {
+        ModeSettings::Shells(ShellSettings {
+            sampler,
+            ..ShellSettings::default()
+        })
+    };
+    let mut wrong = Vec::new();
+    let mut check = |name: &str, before: u64, after: u64, failed: &Camera| {
+        let one_target = 16 * failed.width as u64 * failed.height as u64;
+        if after >= before + one_target {
+            wrong.push(format!("{name}: {before} bytes before, {after} after"));
+        }
+    };
+    for (name, mode, gpu, failed) in [
+        ("shells (raster)", shells(Sampler::Raster), &gpu, &wide),
+        (
+            "shells (compute)",
+            shells(Sampler::Compute),
+            &buffers,
+            &large,
+        ),
+        ("shells (walk)", shells(Sampler::Walk), &gpu, &wide),
+        (
+            "iso",
+            ModeSettings::Iso(IsoSettings::default()),
+            &gpu,
+            &wide,
+        ),
+        (
+            "cellproj",
+            ModeSettings::CellProj(CellProjSettings::default()),
+            &gpu,
+            &wide,
+        ),
+        (
+            "raycast",
+            ModeSettings::Raycast(RaycastSettings::default()),
+            &gpu,
+            &wide,
+        ),
+    ] {
+        let mut r = mode.build(Some(gpu), &mesh).expect("built");
+        r.render(&camera, &tf).expect("a good frame");
+        let before = r.gpu_memory();
+        match r.render(failed, &tf) {
+            Err(RenderError::Gpu(GpuError::Failed { .. })) => {}
+            other => panic!("{name}: {:?}", other.map(|f| f.image.width)),
+        }
+        check(name, before, r.gpu_memory(), failed);
+        r.render(&camera, &tf)
+            .expect("a good frame after the failed one");
+    }
+    // A textured cage's isosurfaces, whose frame is `render_surface`.
+    let (cage, tc, volume) = blob_cage();
+    let iso = IsoSettings {
+        isovalues: vec![(10.0, [0.9, 0.5, 0.2])],
+        ..IsoSettings::default()
+    };
+    let raycast = RaycastSettings::default();
+    let mut r = RaycastRenderer::textured_iso(&gpu, &cage, &tc, &volume, None, raycast, &iso)
+        .expect("built");
+    let cage_view = common::default_view(&cage, 8).1;
+    r.render_surface(&cage_view).expect("a good frame");
+    let before = r.gpu_memory();
+    let wide = Camera {
+        width: side + 1,
+        height: 64,
+        ..cage_view
+    };
+    match r.render_surface(&wide) {
+        Err(RenderError::Gpu(GpuError::Failed { .. })) => {}
+        other => panic!("textured iso: {:?}", other.map(|f| f.0.color.width)),
+    }
+    check("textured iso", before, r.gpu_memory(), &wide);
+    r.render_surface(&cage_view)
+        .expect("a good frame after the failed one");
+    assert!(wrong.is_empty(), "{wrong:#?}");
+}

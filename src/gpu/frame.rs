@@ -111,6 +111,13 @@ impl FrameResources {
         }
     }
 
+    /// Drops the query sets and buffers (made again by the next frame's [`Self::recorder`]):
+    /// after a failed frame, where one the adapter could not allocate is invalid, and reused
+    /// while large enough, it would fail every later frame.
+    pub(crate) fn forget(&mut self) {
+        (self.timestamps, self.occlusion, self.stats, self.resolve) = (None, None, None, None);
+    }
+
     /// Bytes of the statistics buffers.
     pub(crate) fn size(&self) -> u64 {
         [&self.stats, &self.resolve]

@@ -306,6 +306,15 @@ pub(crate) fn captured<T>(
     }
 }
 
+/// Whether `out`, a frame's result, is an error of the GPU. The frame's wgpu objects may then
+/// be invalid (a buffer or texture the adapter could not allocate is an invalid handle, not an
+/// error where it is made), and kept for the next frames (targets of the same image size,
+/// tables of the same TF, buffers grown large enough) they would fail every later frame: the
+/// renderers drop them, so that the next frame makes them again.
+pub(crate) fn gpu_failed<T>(out: &Result<T, RenderError>) -> bool {
+    matches!(out, Err(RenderError::Gpu(_)))
+}
+
 /// The error wgpu's `e`, met in `what` on the adapter named `adapter`, is reported as: out of
 /// memory says what to make smaller ([`GpuError::OutOfMemory`]), a validation or internal
 /// error what wgpu refused ([`GpuError::Failed`]).

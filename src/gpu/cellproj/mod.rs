@@ -54,7 +54,7 @@ use crate::gpu::frame::{FrameResources, FrameStats, ImageReadback};
 pub use crate::gpu::gpu_data::CellProjUniforms;
 use crate::gpu::gpu_data::{TfPoints, ViewUniforms};
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
-use crate::gpu::util::{Work, captured, entry, far_eye, ms_since, uniform_buffer};
+use crate::gpu::util::{Work, captured, entry, far_eye, gpu_failed, ms_since, uniform_buffer};
 use crate::gpu::{GpuContext, Setting};
 use crate::image::Image;
 use crate::mesh::TetMesh;
@@ -308,7 +308,7 @@ impl Renderer for CellProjRenderer {
     fn render(&mut self, camera: &Camera, tf: &TransferFunction) -> Result<Frame, RenderError> {
         // A lost device fails here as an error, not as wgpu's panic.
         let device = self.device.clone();
-        captured(&device, FRAME, || {
+        let out = captured(&device, FRAME, || {
             camera.validate()?;
             let start = Instant::now();
             let mut timings = Timings::default();
@@ -362,7 +362,13 @@ impl Renderer for CellProjRenderer {
             timings.count("table rebuilt", rebuilt as u64);
             timings.count("fragments (occlusion query)", stats.fragments.unwrap_or(0));
             Ok(Frame { image, timings })
-        })
+        });
+        if gpu_failed(&out) {
+            // What the failed frame made may be invalid (`gpu_failed`): made again next frame.
+            (self.targets, self.table) = (None, None);
+            self.frame.forget();
+        }
+        out
     }
 
     fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {

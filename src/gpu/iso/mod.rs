@@ -53,7 +53,7 @@ use crate::gpu::gpu_data::ViewUniforms;
 pub use crate::gpu::gpu_data::{IsoUniforms, MAX_ISOVALUES};
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
 use crate::gpu::util::{
-    Work, captured, far_eye, ms_since, read_mapped, settings_error, uniform_buffer,
+    Work, captured, far_eye, gpu_failed, ms_since, read_mapped, settings_error, uniform_buffer,
 };
 use crate::gpu::view::ViewFrame;
 use crate::gpu::{GpuContext, Setting};
@@ -333,7 +333,7 @@ impl IsoRenderer {
     pub fn render_surface(&mut self, camera: &Camera) -> Result<(IsoImage, Timings), RenderError> {
         // A lost device fails here as an error, not as wgpu's panic.
         let device = self.device.clone();
-        captured(&device, FRAME, || {
+        let out = captured(&device, FRAME, || {
             camera.validate()?;
             let start = Instant::now();
             let mut timings = Timings::default();
@@ -405,7 +405,13 @@ impl IsoRenderer {
                 },
                 timings,
             ))
-        })
+        });
+        if gpu_failed(&out) {
+            // What the failed frame made may be invalid (`gpu_failed`): made again next frame.
+            self.targets = None;
+            self.frame.forget();
+        }
+        out
     }
 
     /// Records the GPU stages of a frame drawing the first `drawn` tets of the lists (the

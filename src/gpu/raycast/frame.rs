@@ -275,7 +275,8 @@ impl RaycastRenderer {
             )));
         }
         let table = key.build(n, l);
-        if self.preint.size() != bytes {
+        // No key: none built yet, or the last frame failed and the buffer may be invalid.
+        if self.preint_key.is_none() || self.preint.size() != bytes {
             self.preint = storage(&self.device, "raycast 3D table", bytes as usize);
         }
         (self.queue).write_buffer(&self.preint, 0, bytemuck::cast_slice(&table.data));

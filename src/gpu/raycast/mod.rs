@@ -77,7 +77,9 @@ use crate::gpu::cellproj::preint::{LongestEdge, TableKey};
 use crate::gpu::frame::{FrameResources, ImageReadback};
 use crate::gpu::gpu_data::{LayerUniforms, TfPoints, ViewUniforms};
 use crate::gpu::mesh::{GpuTetMesh, TetArray};
-use crate::gpu::util::{Work, captured, largest_binding, settings_error, uniform_buffer};
+use crate::gpu::util::{
+    Work, captured, gpu_failed, largest_binding, settings_error, uniform_buffer,
+};
 use crate::gpu::{GpuContext, Setting};
 use crate::mesh::{TetMesh, checked_bounds};
 use crate::render::{Frame, RenderError, Renderer};
@@ -526,6 +528,14 @@ impl RaycastRenderer {
         })
     }
 
+    /// Drops what a frame keeps for the next ones ([`gpu_failed`]): the targets, the 3D table
+    /// (its buffer made again, not reused at its size) and the statistics buffers.
+    pub(crate) fn forget_frame(&mut self) {
+        self.targets = None;
+        self.preint_key = None;
+        self.frame.forget();
+    }
+
     /// The settings in use.
     pub fn settings(&self) -> RaycastSettings {
         self.settings
@@ -648,9 +658,13 @@ impl Renderer for RaycastRenderer {
             Some(_) => texture_iso::FRAME,
             None => FRAME,
         };
-        captured(&device, work, || {
+        let out = captured(&device, work, || {
             self.frame(&frame.camera(camera), Some(&frame.tf(tf)?))
-        })
+        });
+        if gpu_failed(&out) {
+            self.forget_frame();
+        }
+        out
     }
 
     /// Refused, and nothing moved, where a textured cage's step would sample the moved cage

@@ -49,7 +49,7 @@ pub(super) struct ComputeFrame {
 pub(super) struct ComputeSampler {
     tiles: TilePipelines,
     fine: FinePipelines,
-    buffers: Option<TileBuffers>,
+    pub(super) buffers: Option<TileBuffers>,
 }
 
 impl ComputeSampler {

@@ -101,7 +101,8 @@ use crate::gpu::gpu_data::{ShellUniforms, SlicingUniforms, TfPoints, ViewUniform
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
 use crate::gpu::pieces::Uploader;
 use crate::gpu::util::{
-    Work, captured, check_image_size, entry, far_eye, ms_since, settings_error, uniform_buffer,
+    Work, captured, check_image_size, entry, far_eye, gpu_failed, ms_since, settings_error,
+    uniform_buffer,
 };
 use crate::gpu::{GpuContext, ShaderNeeds};
 use crate::image::Image;
@@ -495,6 +496,20 @@ impl ShellsRenderer {
         let m = self.mesh.read();
         let (t_first, dz) = self.slices_for(&m, &m.frame.camera(camera));
         (m.frame.world_length(t_first), m.frame.world_length(dz))
+    }
+
+    /// Drops what a frame keeps for the next ones, which a failed frame may have left invalid
+    /// ([`gpu_failed`]): the targets, the compute sampler's tile buffers, the statistics
+    /// buffers and the walk's.
+    fn forget_frame(&mut self) {
+        self.targets = None;
+        if let Some(c) = &mut self.compute {
+            c.buffers = None;
+        }
+        if let Some(w) = &mut self.walk {
+            w.raycast.forget_frame();
+        }
+        self.frame.forget();
     }
 
     /// The targets of a `width` x `height` frame: the kept ones when the size holds, else
@@ -939,7 +954,7 @@ impl Renderer for ShellsRenderer {
     fn render(&mut self, camera: &Camera, tf: &TransferFunction) -> Result<Frame, RenderError> {
         // A lost device fails here as an error, not as wgpu's panic.
         let device = self.ctx.device.clone();
-        captured(&device, FRAME, || {
+        let out = captured(&device, FRAME, || {
             camera.validate()?;
             let frame = self.mesh.frame();
             let (camera, tf) = (&frame.camera(camera), &frame.tf(tf)?);
@@ -1007,7 +1022,11 @@ impl Renderer for ShellsRenderer {
             };
             timings.stage("total", ms_since(start));
             Ok(Frame { image, timings })
-        })
+        });
+        if gpu_failed(&out) {
+            self.forget_frame();
+        }
+        out
     }
 
     fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {

@@ -32,7 +32,7 @@ const MAX_SLICES: f64 = (1u64 << 22) as f64;
 
 /// The walk sampler: a ray caster whose segments composite the shells' slices.
 pub(super) struct WalkSampler {
-    raycast: RaycastRenderer,
+    pub(super) raycast: RaycastRenderer,
 }
 
 impl WalkSampler {
