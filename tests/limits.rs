@@ -498,6 +498,59 @@ fn a_refusal_names_first_the_settings_that_need_less_of_the_limit() {
     assert!(instead(Setting::Iso, storage, 6).is_empty());
 }
 
+/// A shells sampler refused is told the samplers to switch to that run with the user's other
+/// settings, not at the shells defaults: with `--binning gpu` the raster sampler needs the GPU
+/// binning's 9 storage buffers too (it was named on 8, which then refused the binning), and
+/// with `--slice-format f16` the walk sampler is refused by the settings (it was named). A
+/// textured cage's iso is told no `--entry`: the CLI refuses it beside `--mode iso`.
+#[test]
+fn a_shells_refusal_names_the_samplers_that_run_with_the_other_settings() {
+    use tetvr::gpu::raycast::{Entry, texture::TextureUse};
+    use tetvr::gpu::{BinningMode, Sampler, ShellSettings, SliceFormat};
+    let largest = Setting::ALL.iter().fold(NONE, |n, s| n.max(s.needs()));
+    let short = |name: &str, value: u32| {
+        let mut limits = offering(wgpu::Limits::default(), &largest);
+        *limit_mut(&mut limits, name) = value;
+        limits
+    };
+    let instead = |settings: ShellSettings, gpu_binning: bool, limits: &wgpu::Limits| {
+        match ShaderNeeds::check_shells(&settings, false, gpu_binning, "Tiny GPU", limits) {
+            Err(GpuError::Limit { instead, .. }) => instead,
+            other => panic!("{settings:?}: {other:?}"),
+        }
+    };
+    let compute = ShellSettings {
+        sampler: Sampler::Compute,
+        ..ShellSettings::default()
+    };
+    let storage = short("max_storage_buffers_per_shader_stage", 8);
+    assert_eq!(instead(compute, false, &storage), ["--sampler raster"]);
+    let binning = ShellSettings {
+        binning: BinningMode::Gpu,
+        ..compute
+    };
+    assert!(instead(binning, true, &storage).is_empty());
+    // At 9 the raster sampler runs with the GPU binning.
+    let nine = short("max_storage_buffers_per_shader_stage", 9);
+    assert_eq!(instead(binning, true, &nine), ["--sampler raster"]);
+    // The walk sampler needs 144 bytes of workgroup memory, the compute sampler 7744.
+    let memory = short("max_compute_workgroup_storage_size", 7743);
+    assert_eq!(
+        instead(compute, false, &memory),
+        ["--sampler raster", "--sampler walk"]
+    );
+    let f16 = ShellSettings {
+        format: SliceFormat::Float16,
+        ..compute
+    };
+    assert_eq!(instead(f16, false, &memory), ["--sampler raster"]);
+    let textured_iso = Setting::Raycast {
+        entry: Entry::Lists,
+        texture: Some(TextureUse::Isosurfaces),
+    };
+    assert!(textured_iso.alternatives().is_empty());
+}
+
 /// The limits the tables cover, by their names in [`wgpu::Limits`].
 const LIMITS: [&str; 14] = [
     "max_bind_groups",

@@ -26,7 +26,7 @@ use tetvr::tf::TransferFunction;
 use tetvr::tf::file::{TfFileError, load_tf};
 use tetvr::{TetMesh, generate};
 
-use super::scene::{Startup, of_flags, resolve, unused_mode_flags, warm_frames};
+use super::scene::{Startup, of_flags, resolve, unused_mode_flags, usable_instead, warm_frames};
 use super::{
     Cli, Command, CompareArgs, GenerateArgs, GenerateShape, InfoArgs, IsoExportArgs, MeshArgs,
     RenderArgs, RenderCommand,
@@ -229,7 +229,8 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
         (None, None) => with_row_bar(mode.resolve(gpu.as_ref()), camera.height),
     };
     let build = Instant::now();
-    let (mut renderer, what) = build_renderer(textured.as_ref(), &mode, gpu.as_ref(), &mesh)?;
+    let (mut renderer, what) = build_renderer(textured.as_ref(), &mode, gpu.as_ref(), &mesh)
+        .map_err(|e| usable_instead(e, args, matches))?;
     startup.build_ms = ms(build);
     let cold = Instant::now();
     let frame = renderer.render(&camera, &tf)?;

@@ -516,4 +516,56 @@ mod tests {
             assert_eq!(parsed.to_lowercase(), value, "{flag}");
         }
     }
+
+    /// A refusal of the ray caster names `--mode shells` only where the command's other flags
+    /// are the shells mode's too: beside `--entry`, `--integrate` or `--table-size` the CLI
+    /// refuses it ("belongs to --mode raycast"), and the refusal named it.
+    #[test]
+    fn a_limit_refusal_names_the_shells_mode_only_where_the_other_flags_take_it() {
+        use clap::{CommandFactory, FromArgMatches};
+        use tetvr::RenderError;
+        use tetvr::gpu::GpuError;
+
+        use super::commands::CliError;
+        use super::scene::usable_instead;
+        let refusal = || {
+            CliError::Render(RenderError::Gpu(GpuError::Limit {
+                adapter: "Tiny GPU".into(),
+                limit: "max_storage_buffers_per_shader_stage",
+                has: 10,
+                needs: 11,
+                needed_by: "the raycast mode",
+                instead: vec!["--entry peel", "--mode shells"],
+            }))
+        };
+        let both: &[&str] = &["--entry peel", "--mode shells"];
+        for (flags, want) in [
+            (&["--mode", "raycast"][..], both),
+            (
+                &["--mode", "raycast", "--entry", "lists"],
+                &["--entry peel"],
+            ),
+            (
+                &["--mode", "raycast", "--integrate", "exact"],
+                &["--entry peel"],
+            ),
+            (
+                &["--mode", "raycast", "--table-size", "64"],
+                &["--entry peel"],
+            ),
+        ] {
+            let args = [&["tetvr", "render", "mesh.vtu"][..], flags].concat();
+            let matches = Cli::command().try_get_matches_from(args).unwrap();
+            let Command::Render(render) = Cli::from_arg_matches(&matches).unwrap().command else {
+                panic!("{flags:?}: not a render");
+            };
+            let render_matches = matches.subcommand_matches("render").unwrap();
+            match usable_instead(refusal(), &render.render, render_matches) {
+                CliError::Render(RenderError::Gpu(GpuError::Limit { instead, .. })) => {
+                    assert_eq!(instead, want, "{flags:?}")
+                }
+                other => panic!("{flags:?}: {other}"),
+            }
+        }
+    }
 }

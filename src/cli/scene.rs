@@ -6,8 +6,9 @@ use std::time::Instant;
 
 use clap::parser::ValueSource;
 use clap::{ArgMatches, ValueEnum};
+use tetvr::gpu::GpuError;
 use tetvr::scene::{Integration, Mode, Scene, SceneTexture, TfSpec, Warp};
-use tetvr::{Camera, Renderer, TransferFunction, Tuning};
+use tetvr::{Camera, RenderError, Renderer, TransferFunction, Tuning};
 
 use super::commands::{CliError, finite_iso_flag, median};
 use super::{RenderArgs, RenderCommand};
@@ -180,6 +181,19 @@ pub fn unused_mode_flags(
         ))),
         None => Ok(()),
     }
+}
+
+/// `e` with the settings a limit's refusal names to use instead ([`GpuError::Limit`]) kept
+/// where this command's other flags take them: `--mode shells` (the ray caster's alternative)
+/// only without a flag that the shells mode refuses ([`check`]'s `--entry`,
+/// [`unused_mode_flags`]' `--integrate`, `--table-size`, ...), as those checks decide.
+pub fn usable_instead(mut e: CliError, args: &RenderArgs, matches: &ArgMatches) -> CliError {
+    if let CliError::Render(RenderError::Gpu(GpuError::Limit { instead, .. })) = &mut e {
+        let shells_takes = args.cellproj.entry.is_none()
+            && unused_mode_flags(args, Mode::Shells, None, matches).is_ok();
+        instead.retain(|&flag| flag != "--mode shells" || shells_takes);
+    }
+    e
 }
 
 /// Whether `mode` integrating with `integrate` (its default when `None`) builds the

@@ -279,6 +279,26 @@ impl ShaderNeeds {
         self.shortfall(limits).is_none()
     }
 
+    /// `Ok` when `limits` (of the adapter named `adapter`) run the shells mode with
+    /// `settings` ([`Self::shells`]'s parts, in order), else the first part's refusal
+    /// ([`Setting::check`]), whose samplers to switch to are those that run with the rest of
+    /// `settings` ([`other_samplers`]): with the GPU binning where it runs.
+    pub fn check_shells(
+        settings: &ShellSettings,
+        textured: bool,
+        gpu_binning: bool,
+        adapter: &str,
+        limits: &wgpu::Limits,
+    ) -> Result<(), GpuError> {
+        (Self::shells(settings, textured, gpu_binning).into_iter()).try_for_each(|part| {
+            let alternatives = match part {
+                Setting::Shells { .. } => other_samplers(settings, textured, gpu_binning),
+                other => other.alternatives(),
+            };
+            part.check_among(adapter, limits, alternatives)
+        })
+    }
+
     /// Each limit's wgpu name, what `limits` offers and what these shaders need.
     fn rows(&self, limits: &wgpu::Limits) -> [(&'static str, u32, u32); 14] {
         let l = limits;
@@ -494,30 +514,21 @@ impl Setting {
 
     /// What a user can render instead with the same command and one setting changed: each
     /// alternative's needs and its flag as the CLI spells it, in the order to suggest them.
-    /// The shells samplers replace each other (`--sampler`); the GPU binning the CPU's
-    /// (`--binning cpu`, which needs no stage); each entry method the other (`--entry`); the
-    /// ray caster over the mesh's field or a textured cage's volume the shells mode at its
-    /// defaults (`--mode shells`: the raster sampler, CPU binning). The iso and cellproj
-    /// modes, and a textured cage's isosurfaces but for the entry method, have none.
+    /// The shells samplers replace each other (`--sampler`; at the other shells defaults:
+    /// [`ShaderNeeds::check_shells`] takes the user's); the GPU binning the CPU's
+    /// (`--binning cpu`, which needs no stage); the ray caster's entry methods each other
+    /// (`--entry`), and over the mesh's field or a textured cage's volume the shells mode at
+    /// its defaults (`--mode shells`: the raster sampler, CPU binning). The iso and cellproj
+    /// modes, and a textured cage's isosurfaces (the iso mode, which takes no `--entry`),
+    /// have none.
     pub fn alternatives(self) -> Vec<(ShaderNeeds, &'static str)> {
-        let sampler_flag = |s| match s {
-            Sampler::Raster => "--sampler raster",
-            Sampler::Compute => "--sampler compute",
-            Sampler::Walk => "--sampler walk",
-        };
         match self {
             Self::Shells { sampler, textured } => {
-                [Sampler::Raster, Sampler::Compute, Sampler::Walk]
-                    .into_iter()
-                    .filter(|&other| other != sampler)
-                    .map(|other| {
-                        let setting = Self::Shells {
-                            sampler: other,
-                            textured,
-                        };
-                        (setting.needs(), sampler_flag(other))
-                    })
-                    .collect()
+                let settings = ShellSettings {
+                    sampler,
+                    ..ShellSettings::default()
+                };
+                other_samplers(&settings, textured, false)
             }
             Self::GpuBinning => vec![(ShaderNeeds::NONE, "--binning cpu")],
             Self::Iso | Self::CellProj => Vec::new(),
@@ -536,7 +547,9 @@ impl Setting {
                     Some(TextureUse::Volume) => {
                         vec![entry, (shells(true).needs(), "--mode shells")]
                     }
-                    Some(TextureUse::Isosurfaces) => vec![entry],
+                    // The iso mode takes no --entry (the CLI refuses it beside any mode but
+                    // raycast, and a textured cage's iso renders with the default entry).
+                    Some(TextureUse::Isosurfaces) => Vec::new(),
                 }
             }
         }
@@ -547,10 +560,21 @@ impl Setting {
     /// alternatives ([`Self::alternatives`]) these limits run: each needs less of that limit
     /// than this setting, as it needs no more than the adapter offers.
     pub fn check(self, adapter: &str, limits: &wgpu::Limits) -> Result<(), GpuError> {
+        self.check_among(adapter, limits, self.alternatives())
+    }
+
+    /// [`Self::check`] naming among `alternatives` (each's needs and flag, in order) those
+    /// these limits run.
+    fn check_among(
+        self,
+        adapter: &str,
+        limits: &wgpu::Limits,
+        alternatives: Vec<(ShaderNeeds, &'static str)>,
+    ) -> Result<(), GpuError> {
         let Some((limit, has, needs)) = self.needs().shortfall(limits) else {
             return Ok(());
         };
-        let instead = (self.alternatives().into_iter())
+        let instead = (alternatives.into_iter())
             .filter(|(needs, _)| needs.fit(limits))
             .map(|(_, flag)| flag)
             .collect();
@@ -563,6 +587,35 @@ impl Setting {
             instead,
         })
     }
+}
+
+/// The samplers other than `settings.sampler` with the rest of `settings`, as
+/// [`Setting::alternatives`] names them: each one's needs, with the GPU binning's where
+/// `gpu_binning` and the sampler bins (the walk sampler never does), and its flag; not a sampler
+/// that the rest of `settings` refuses (the walk sampler under 16-bit slices).
+fn other_samplers(
+    settings: &ShellSettings,
+    textured: bool,
+    gpu_binning: bool,
+) -> Vec<(ShaderNeeds, &'static str)> {
+    let flag = |s| match s {
+        Sampler::Raster => "--sampler raster",
+        Sampler::Compute => "--sampler compute",
+        Sampler::Walk => "--sampler walk",
+    };
+    (([Sampler::Raster, Sampler::Compute, Sampler::Walk].into_iter())
+        .filter(|&other| other != settings.sampler))
+    .map(|sampler| ShellSettings {
+        sampler,
+        ..*settings
+    })
+    .filter(|other| crate::gpu::shells::check_walk(other).is_ok())
+    .map(|other| {
+        let parts = ShaderNeeds::shells(&other, textured, gpu_binning);
+        let needs = (parts.iter()).fold(ShaderNeeds::NONE, |n, p| n.max(p.needs()));
+        (needs, flag(other.sampler))
+    })
+    .collect()
 }
 
 impl GpuContext {

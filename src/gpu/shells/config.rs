@@ -149,7 +149,7 @@ pub(super) fn check(settings: &ShellSettings) -> Result<(), RenderError> {
 /// An error when [`Sampler::Walk`] is given a setting that would change its picture and that
 /// it does not honour: 16-bit slices (its samples are f32). The settings it ignores change
 /// nothing in its picture.
-fn check_walk(settings: &ShellSettings) -> Result<(), RenderError> {
+pub(crate) fn check_walk(settings: &ShellSettings) -> Result<(), RenderError> {
     if settings.sampler != Sampler::Walk {
         return Ok(());
     }

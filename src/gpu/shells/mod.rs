@@ -73,6 +73,7 @@ mod composite;
 mod compute;
 mod config;
 use config::TargetFormats;
+pub(crate) use config::check_walk;
 mod fine;
 mod gpu_binning;
 mod pipelines;
@@ -336,7 +337,14 @@ impl ShellsRenderer {
         tets: usize,
     ) -> Result<(), RenderError> {
         let gpu_binning = gpu_binning::picked(settings.binning, tets as u64, ctx);
-        Ok(ctx.check_settings(&ShaderNeeds::shells(settings, textured, gpu_binning))?)
+        let (adapter, limits) = (&ctx.info.name, &ctx.limits);
+        Ok(ShaderNeeds::check_shells(
+            settings,
+            textured,
+            gpu_binning,
+            adapter,
+            limits,
+        )?)
     }
 
     /// The shells renderer of a textured cage (issue 12): `cage`'s vertices carry `texcoords`,
