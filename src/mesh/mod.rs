@@ -543,7 +543,7 @@ fn check_distinct_tets(tets: &[[u32; 4]], vertex_count: usize) -> Result<(), Mes
 
 /// The earliest tet of `tets` whose vertex set an earlier one has, and the earliest of those:
 /// `(second, first)`. Equal tets share their smallest vertex, so the tets are bucketed by it,
-/// `2^shift` consecutive vertices a bucket (`shift` at least `min_shift`; at most 4096 buckets):
+/// `2^shift` consecutive vertices a bucket (`shift` at least `min_shift`; at most 4097 buckets):
 /// each task of `chunk` tets counts its tets per bucket, and, at the offsets those counts give,
 /// writes their indices bucket after bucket (no atomic counter, and each bucket lists its tets
 /// in index order); then each bucket's tets, as their sorted vertices packed into a `u128`, are
@@ -1066,6 +1066,39 @@ mod tests {
         ) {
             proptest::prop_assert_eq!(
                 first_repeat(&tets, 12 + spare, chunk, min_shift),
+                serial_first_repeat(&tets)
+            );
+        }
+
+        /// The vertex counts of the largest meshes, around where the buckets widen past
+        /// `2^min_shift` vertices to stay at most 4097 (2^23 vertices: 4096 buckets of 2^11 and
+        /// an empty one; 2^23 + 1: 2049 of 2^12; `u32::MAX`: 4096 of 2^20), with indices
+        /// anywhere below them (the highest among them): the packed keys tell apart vertices
+        /// differing in any bit, and the pair is the serial scan's (the other test's indices
+        /// are below 12 and its buckets never widen).
+        #[test]
+        fn the_first_repeat_is_the_serial_scans_for_indices_up_to_u32_max(
+            vertex_count in proptest::sample::select(
+                vec![(1usize << 23) - 1, 1 << 23, (1 << 23) + 1, u32::MAX as usize],
+            ),
+            pool in proptest::collection::vec(proptest::num::u32::ANY, 12),
+            picks in proptest::collection::vec(
+                proptest::sample::subsequence((0..12usize).collect::<Vec<_>>(), 4).prop_shuffle(),
+                1..60,
+            ),
+            chunk in 1usize..9,
+        ) {
+            // Half the pool at the top of the index range, half anywhere in it.
+            let pool: Vec<u32> = (pool.iter().enumerate())
+                .map(|(i, &r)| match i % 2 {
+                    0 => (vertex_count - 1 - r as usize % 3000) as u32,
+                    _ => (r as usize % vertex_count) as u32,
+                })
+                .collect();
+            let tets: Vec<[u32; 4]> =
+                picks.iter().map(|p| [pool[p[0]], pool[p[1]], pool[p[2]], pool[p[3]]]).collect();
+            proptest::prop_assert_eq!(
+                first_repeat(&tets, vertex_count, chunk, 11),
                 serial_first_repeat(&tets)
             );
         }
