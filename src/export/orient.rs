@@ -19,9 +19,9 @@ const NONE: u32 = u32::MAX;
 /// with weight is wound the way its weighted majority faces: in exact arithmetic every
 /// triangle with weight on one sheet agrees, so only triangles whose normal is rounding noise
 /// (weights near 0) can be outvoted. A sheet without weight (a layer of doubled faces) is wound
-/// outwards (positive enclosed volume) when it is closed, and otherwise so that its summed
-/// normal's largest component is positive (components equal to rounding counting as equal),
-/// the rule for a flat layer.
+/// outwards (positive enclosed volume) when it is closed (also where it touches itself or
+/// another sheet along an edge), and otherwise so that its summed normal's largest component
+/// is positive (components equal to rounding counting as equal), the rule for a flat layer.
 pub(super) fn orient_sheets(positions: &[DVec3], triangles: &mut [[u32; 3]], weights: &[f64]) {
     let neighbours = neighbours(triangles);
     // 0: not reached yet; 1: keep; 2: flip.
@@ -114,11 +114,22 @@ fn keeps_search_winding(
         normal += sign(t) * (p[1] - p[0]).cross(p[2] - p[0]);
         volume += sign(t) * p[0].dot(p[1].cross(p[2]));
     }
-    // Closed when every side has a neighbour (the search reached them all, so on this sheet).
-    let closed = sheet
-        .iter()
-        .all(|&t| (0..3).all(|i| neighbours[3 * t + i] != NONE));
-    if closed {
+    // Closed when its sides without a neighbour (on edges of three or more triangles: where it
+    // touches itself or another sheet along an edge) pair up, each traversed once each way as
+    // wound: a closed surface pinched along an edge, or with a fin on one, still encloses a
+    // volume (its summed normal is zero, so the rule below would pick a facing by rounding).
+    // A sheet with a true boundary (an edge of one triangle) is open.
+    let mut open_sides: Vec<(u32, u32)> = Vec::new();
+    for &t in sheet {
+        for i in (0..3).filter(|&i| neighbours[3 * t + i] == NONE) {
+            let (a, b) = (triangles[t][i], triangles[t][(i + 1) % 3]);
+            open_sides.push(if state[t] == 2 { (b, a) } else { (a, b) });
+        }
+    }
+    let mut reversed: Vec<(u32, u32)> = open_sides.iter().map(|&(a, b)| (b, a)).collect();
+    open_sides.sort_unstable();
+    reversed.sort_unstable();
+    if open_sides == reversed {
         volume > 0.0
     } else {
         largest_positive(normal)
@@ -135,4 +146,45 @@ fn largest_positive(n: DVec3) -> bool {
         .find(|&i| n[i].abs() >= largest * (1.0 - 1e-9))
         .unwrap_or(0);
     n[axis] >= 0.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Signed volume enclosed by `triangles` (positive when wound outwards).
+    fn volume(positions: &[DVec3], triangles: &[[u32; 3]]) -> f64 {
+        let p = |i: u32| positions[i as usize];
+        triangles
+            .iter()
+            .map(|t| p(t[0]).dot(p(t[1]).cross(p(t[2]))) / 6.0)
+            .sum()
+    }
+
+    /// Two closed layers of doubled faces (no weight) that touch along an edge (the z axis:
+    /// four triangles on it, so it connects nothing): each is a sheet with two sides without a
+    /// neighbour, which it traverses once each way, so it is closed and is wound outwards. They
+    /// were taken as open and wound by their summed normal, which is zero for a closed surface:
+    /// both stayed wound inwards, as given.
+    #[test]
+    fn closed_layers_touching_along_an_edge_face_outwards() {
+        let positions = [
+            DVec3::ZERO,
+            DVec3::Z,
+            DVec3::X,
+            DVec3::Y,
+            DVec3::NEG_X,
+            DVec3::NEG_Y,
+        ];
+        // Two tetrahedra's boundaries on the edge 0-1, wound inwards.
+        let inwards = |a: u32, b: u32| [[0, a, b], [0, 1, a], [0, b, 1], [1, b, a]];
+        let mut triangles: Vec<[u32; 3]> = inwards(2, 3).into_iter().chain(inwards(4, 5)).collect();
+        for half in triangles.chunks(4) {
+            assert!(volume(&positions, half) < 0.0);
+        }
+        orient_sheets(&positions, &mut triangles, &[0.0; 8]);
+        for half in triangles.chunks(4) {
+            assert!(volume(&positions, half) > 0.0, "{triangles:?}");
+        }
+    }
 }
