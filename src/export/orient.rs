@@ -10,8 +10,10 @@ const NONE: u32 = u32::MAX;
 /// traverse it in opposite directions. A sheet is a set of triangles connected across such
 /// (manifold) edges; an edge of one or of three or more triangles (a boundary; a surface
 /// touching itself along a mesh edge) connects nothing, so sheets meeting there are wound
-/// apart. Sheets that cannot be wound one way (a one-sided layer, a Moebius strip of doubled
-/// faces) keep the winding their search from their first triangle gives.
+/// apart. A sheet that cannot be wound one way (one-sided: a layer of doubled faces joining
+/// the two sides of a thick part, a Moebius strip) keeps each triangle's own winding, along
+/// its tet's gradient as marching gave it: any one winding of it would turn some triangles
+/// against their gradient.
 ///
 /// `weights[t]` is how strongly triangle `t`'s current winding is known to face along the
 /// field gradient (`n . g` for its geometric normal `n` and unit tet gradient `g`, `>= 0`;
@@ -34,6 +36,7 @@ pub(super) fn orient_sheets(positions: &[DVec3], triangles: &mut [[u32; 3]], wei
         sheet.clear();
         state[seed] = 1;
         sheet.push(seed);
+        let mut one_sided = false;
         let mut next = 0;
         while next < sheet.len() {
             let t = sheet[next];
@@ -44,14 +47,19 @@ pub(super) fn orient_sheets(positions: &[DVec3], triangles: &mut [[u32; 3]], wei
                     continue;
                 }
                 let (u, u_side) = (n as usize / 3, n as usize % 3);
+                // Opposite directions along the edge when u's side starts where t's ends.
+                let same = triangles[u][u_side] == triangles[t][side];
+                let wanted = if same != (state[t] == 2) { 2 } else { 1 };
                 if state[u] == 0 {
-                    // Opposite directions along the edge when u's side starts where t's ends.
-                    let same = triangles[u][u_side] == triangles[t][side];
-                    let flip_t = state[t] == 2;
-                    state[u] = if same != flip_t { 2 } else { 1 };
+                    state[u] = wanted;
                     sheet.push(u);
+                } else if state[u] != wanted {
+                    one_sided = true;
                 }
             }
+        }
+        if one_sided {
+            continue;
         }
         let flip_all =
             !keeps_search_winding(positions, triangles, &neighbours, weights, &sheet, &state);
@@ -186,5 +194,36 @@ mod tests {
         for half in triangles.chunks(4) {
             assert!(volume(&positions, half) > 0.0, "{triangles:?}");
         }
+    }
+
+    /// A Moebius strip of triangles, each wound along its gradient (weight 1): one-sided, so
+    /// no winding of the whole strip is consistent. Each triangle keeps its own winding; one
+    /// winding from a search would have turned the triangles beyond the twist against their
+    /// gradient.
+    #[test]
+    fn a_one_sided_sheet_keeps_each_triangles_winding() {
+        let n = 8u32;
+        let positions: Vec<DVec3> = (0..n)
+            .flat_map(|i| {
+                let a = std::f64::consts::TAU * f64::from(i) / f64::from(n);
+                let (c, w) = (DVec3::new(a.cos(), a.sin(), 0.0), (a / 2.0).sin_cos());
+                let half = 0.2 * (c * w.1 + DVec3::Z * w.0);
+                [c + half, c - half]
+            })
+            .collect();
+        // Top and bottom of strip position i; past the last one they swap: the twist.
+        let (top, bottom) = (|i: u32| 2 * (i % n), |i: u32| 2 * (i % n) + 1);
+        let mut triangles: Vec<[u32; 3]> = (0..n)
+            .flat_map(|i| {
+                let (t1, b1) = match i + 1 == n {
+                    true => (bottom(0), top(0)),
+                    false => (top(i + 1), bottom(i + 1)),
+                };
+                [[top(i), bottom(i), t1], [bottom(i), b1, t1]]
+            })
+            .collect();
+        let given = triangles.clone();
+        orient_sheets(&positions, &mut triangles, &vec![1.0; given.len()]);
+        assert_eq!(triangles, given);
     }
 }
