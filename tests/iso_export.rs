@@ -689,8 +689,26 @@ fn cli_counts_match_the_file() {
     assert_ne!(back[0].color, back[1].color);
 }
 
+/// The message `write_glb` refuses a surface at `iso` with, over the scalar `range`, and that
+/// nothing was written.
+fn empty_surface_error(iso: f64, range: (f64, f64)) -> String {
+    let s = Surface {
+        isovalue: iso,
+        ..Default::default()
+    };
+    let colored = [Colored {
+        surface: &s,
+        color: ORANGE,
+    }];
+    let msg = write_glb(Path::new("unused.glb"), &colored, range)
+        .unwrap_err()
+        .to_string();
+    assert!(!Path::new("unused.glb").exists());
+    msg
+}
+
 #[test]
-fn errors_name_the_path_or_the_range() {
+fn errors_name_the_path() {
     let surface = Surface {
         isovalue: 0.5,
         positions: vec![DVec3::ZERO, DVec3::X, DVec3::Y],
@@ -709,40 +727,38 @@ fn errors_name_the_path_or_the_range() {
         "{msg}"
     );
 
-    let empty = Surface {
-        isovalue: 7.0,
-        ..Default::default()
-    };
-    let err = write_glb(
-        Path::new("unused.glb"),
-        &[Colored {
-            surface: &empty,
-            color: ORANGE,
-        }],
-        (0.0, 1.0),
-    )
-    .unwrap_err();
-    let msg = err.to_string();
+    // The CLI says the same and fails (the missing folder found before the mesh is read).
+    let mesh = generate::fields::grid(generate::Field::Linear, UVec3::splat(2), "l").unwrap();
+    let (mesh_path, _) = write_temp_mesh("linear", &mesh);
+    let run = Command::new(env!("CARGO_BIN_EXE_tetvr"))
+        .args([
+            "iso-export",
+            mesh_path.to_str().unwrap(),
+            "-o",
+            "/nonexistent-dir/s.glb",
+        ])
+        .output()
+        .expect("run tetvr");
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success());
+    assert!(
+        stderr.contains("/nonexistent-dir/s.glb: the folder /nonexistent-dir does not exist"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn errors_name_the_range() {
+    let msg = empty_surface_error(7.0, (0.0, 1.0));
     assert!(
         msg.contains("isovalue(s) 7: they miss the scalar range [0, 1]")
             && msg.contains("e.g. 0.5"),
         "{msg}"
     );
-    assert!(!Path::new("unused.glb").exists());
     // At an end of the range the surface is empty or degenerate: said so, not "misses the range"
     // it ends; numbers as the CLI's range check prints them (1e-7, not 0.0000001).
     for (iso, range) in [(0.0, (0.0, 1.0)), (1.0, (0.0, 1.0)), (1e-7, (1e-7, 3e-7))] {
-        let end = Surface {
-            isovalue: iso,
-            ..Default::default()
-        };
-        let colored = [Colored {
-            surface: &end,
-            color: ORANGE,
-        }];
-        let msg = write_glb(Path::new("unused.glb"), &colored, range)
-            .unwrap_err()
-            .to_string();
+        let msg = empty_surface_error(iso, range);
         assert!(
             msg.contains("at an end of the scalar range")
                 && msg.contains("empty")
@@ -760,25 +776,12 @@ fn errors_name_the_path_or_the_range() {
     // A constant field has no value inside its range: said so, not "choose values strictly
     // inside the range, e.g. 5" (the value that failed). Near f64::MAX the suggested midpoint is
     // a number, not inf (lo + hi overflows).
-    let empty_at = |iso: f64, range: (f64, f64)| {
-        let s = Surface {
-            isovalue: iso,
-            ..Default::default()
-        };
-        let colored = [Colored {
-            surface: &s,
-            color: ORANGE,
-        }];
-        write_glb(Path::new("unused.glb"), &colored, range)
-            .unwrap_err()
-            .to_string()
-    };
-    let msg = empty_at(5.0, (5.0, 5.0));
+    let msg = empty_surface_error(5.0, (5.0, 5.0));
     assert!(
         msg.contains("the field is constant (5 everywhere)") && !msg.contains("e.g."),
         "{msg}"
     );
-    let msg = empty_at(1e308, (1e308, 1.7e308));
+    let msg = empty_surface_error(1e308, (1e308, 1.7e308));
     assert!(msg.contains("e.g. 1.35e308"), "{msg}");
     // No surface at all: said so with a value to extract at, not "at isovalue(s) : they miss
     // the scalar range" (an empty list of isovalues that missed nothing).
@@ -799,25 +802,6 @@ fn errors_name_the_path_or_the_range() {
         "{msg}"
     );
     assert!(!Path::new("unused.glb").exists());
-
-    // The CLI says the same and fails (the missing folder found before the mesh is read).
-    let mesh = generate::fields::grid(generate::Field::Linear, UVec3::splat(2), "l").unwrap();
-    let (mesh_path, _) = write_temp_mesh("linear", &mesh);
-    let run = Command::new(env!("CARGO_BIN_EXE_tetvr"))
-        .args([
-            "iso-export",
-            mesh_path.to_str().unwrap(),
-            "-o",
-            "/nonexistent-dir/s.glb",
-        ])
-        .output()
-        .expect("run tetvr");
-    let stderr = String::from_utf8_lossy(&run.stderr);
-    assert!(!run.status.success());
-    assert!(
-        stderr.contains("/nonexistent-dir/s.glb: the folder /nonexistent-dir does not exist"),
-        "{stderr}"
-    );
 }
 
 /// An isovalue outside the scalar range has no surface: `tetvr iso-export` refuses it, naming
