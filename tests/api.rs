@@ -15,7 +15,7 @@ use tetvr::image::ImageError;
 use tetvr::mesh::MeshError;
 use tetvr::mode::ReferenceSettings;
 use tetvr::tf::TfError;
-use tetvr::{Camera, Image, ModeSettings, RenderError, TransferFunction};
+use tetvr::{Camera, Frame, Image, ModeSettings, RenderError, TransferFunction};
 
 /// A device lost under a renderer (a driver reset; here [`wgpu::Device::destroy`]) made the
 /// next frame of every GPU mode panic in wgpu's default error handler ("Buffer ... is
@@ -634,5 +634,74 @@ fn a_failed_frame_keeps_no_targets_for_the_next() {
     check("textured iso", before, r.gpu_memory(), &wide);
     r.render_surface(&cage_view)
         .expect("a good frame after the failed one");
+    assert!(wrong.is_empty(), "{wrong:#?}");
+}
+
+/// A buffer a frame grows to its needs and keeps for the next frames was kept after a failed
+/// frame, which may have left it invalid (an allocation the adapter refused, as after running
+/// out of GPU memory): the shells' face index pattern, active list and shell constants, the
+/// GPU binning's buffers, the ray caster's psi table. Kept at their size, they were reused by
+/// every later frame that fitted it, each failing as "the GPU refused". A failed frame now
+/// makes them small again. The frames fail as wgpu refusing a buffer over the device's limit
+/// (`context_above_its_device`, as in `a_failed_frame_keeps_no_targets_for_the_next`):
+/// - shells (slices per shell 4): the default view draws 3122 tet-shell instances, a face
+///   index pattern of 48 x 4096 bytes (192 KiB) over a device's buffers of 128 KiB; under a TF
+///   transparent below 80% of the range, 1566 (96 KiB) fit, and that frame renders, the
+///   picture of a renderer on the whole device, bit for bit;
+/// - raycast: the psi table of partial segments (1 MiB) over buffers of 512 KiB; after it, a
+///   frame of exact segments (no table: the psi buffer's 16-byte stand-in is bound) renders as
+///   on the whole device. Each case failed before.
+#[test]
+fn a_failed_frame_leaves_no_grown_buffer_invalid() {
+    use tetvr::Renderer;
+    use tetvr::gpu::raycast::Segments;
+    use tetvr::gpu::{RaycastRenderer, ShellsRenderer};
+    let mesh = common::gaussians(2);
+    let (tf, camera) = common::default_view(&mesh, 8);
+    let (lo, hi) = mesh.active_array().and_then(|a| a.range()).unwrap();
+    let cp = |u: f64, opacity| tetvr::tf::ControlPoint {
+        s: lo + (hi - lo) * u,
+        color: [1.0, 0.5, 0.2],
+        opacity,
+    };
+    let points = vec![cp(0.0, 0.0), cp(0.8, 0.0), cp(1.0, 1.0)];
+    let culled = TransferFunction::new(points, mesh.diagonal() / 100.0).unwrap();
+    let mut wrong = Vec::new();
+    // The first frame fails, the second fits and draws what the whole device draws.
+    let mut check = |name: &str, failed: Result<Frame, RenderError>, fits, expected: Frame| {
+        if !matches!(failed, Err(RenderError::Gpu(GpuError::Failed { .. }))) {
+            wrong.push(format!("{name}: {:?}", failed.map(|f| f.image.width)));
+        }
+        match fits {
+            Ok(Frame { image, .. }) if image == expected.image => {}
+            Ok(_) => wrong.push(format!("{name}: another picture")),
+            Err(e) => wrong.push(format!("{name}: {e}")),
+        }
+    };
+    let settings = ShellSettings {
+        slices_per_shell: Some(4),
+        ..ShellSettings::default()
+    };
+    let small = context_above_its_device(|l| l.max_buffer_size = 128 << 10);
+    let mut shells = ShellsRenderer::new(&small, &mesh, settings).expect("built");
+    let failed = shells.render(&camera, &tf);
+    let fits = shells.render(&camera, &culled);
+    let mut whole = ShellsRenderer::new(common::ctx(), &mesh, settings).expect("built");
+    check(
+        "shells",
+        failed,
+        fits,
+        whole.render(&camera, &culled).unwrap(),
+    );
+
+    let small = context_above_its_device(|l| l.max_buffer_size = 512 << 10);
+    let settings = RaycastSettings::default();
+    let mut raycast = RaycastRenderer::new(&small, &mesh, settings).expect("built");
+    let failed = raycast.render(&camera, &tf);
+    raycast.set_segments(Segments::Exact);
+    let fits = raycast.render(&camera, &tf);
+    let mut whole = RaycastRenderer::new(common::ctx(), &mesh, settings).expect("built");
+    whole.set_segments(Segments::Exact);
+    check("raycast", failed, fits, whole.render(&camera, &tf).unwrap());
     assert!(wrong.is_empty(), "{wrong:#?}");
 }

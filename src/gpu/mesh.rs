@@ -20,6 +20,7 @@
 //! ([`MeshData::positions_version`], [`MeshData::scalars_version`]) so a renderer knows when
 //! what it derived from them is stale.
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, OnceLock, PoisonError, RwLock, RwLockReadGuard};
 
 use glam::DVec3;
@@ -191,6 +192,10 @@ pub struct GpuTetMesh {
     data: RwLock<MeshData>,
     positions: wgpu::Buffer,
     scalars: wgpu::Buffer,
+    /// Whether the last upload of the positions (of the scalars) failed: the buffer may hold
+    /// part of it, and the next frame uploads them again ([`Self::restore`]).
+    positions_stale: AtomicBool,
+    scalars_stale: AtomicBool,
     /// The tets' vertex indices (16 bytes each), uploaded when a mode first asks.
     tets: OnceLock<TetArray>,
     /// Whether the field is constant per tet (fixed for the mesh's life).
@@ -230,12 +235,14 @@ impl GpuTetMesh {
             data: RwLock::new(data),
             positions,
             scalars,
+            positions_stale: AtomicBool::new(false),
+            scalars_stale: AtomicBool::new(false),
             tets: OnceLock::new(),
             cells: OnceLock::new(),
         };
         let data = gpu.read();
-        gpu.upload_positions(&data);
-        gpu.upload_scalars(&data);
+        gpu.write_positions(&data);
+        gpu.write_scalars(&data);
         drop(data);
         Ok(Arc::new(gpu))
     }
@@ -323,6 +330,7 @@ impl GpuTetMesh {
     /// entries (one of `stride` bytes per tet) into the array it is given, straight from the
     /// mesh data without a copy of its own (on a 10M-tet mesh a copy of the tets alone is
     /// 160 MB).
+    /// An array whose upload failed is not kept: the next mode that asks makes it again.
     fn lazy<'a>(
         &'a self,
         cell: &'a OnceLock<TetArray>,
@@ -334,7 +342,10 @@ impl GpuTetMesh {
             return Ok(array);
         }
         let array = self.tet_array(label, self.chunking()?, self.tet_count as u64, stride)?;
-        fill(&self.read(), self.uploader(), &array);
+        captured(&self.device, UPLOAD_TETS, || {
+            fill(&self.read(), self.uploader(), &array);
+            Ok(())
+        })?;
         Ok(cell.get_or_init(|| array))
     }
 
@@ -359,7 +370,9 @@ impl GpuTetMesh {
     /// and uploads them (one buffer write). Three parallel passes over the vertices and nothing
     /// else: the check and the box together, the copy into the frame, the conversion to f32
     /// straight into the upload (what a deforming mesh pays per frame; topology, per-tet arrays
-    /// and scalars are untouched).
+    /// and scalars are untouched). An upload the GPU fails (out of memory for its staging
+    /// pieces) is an error, and the mesh then has the new positions on the CPU side only: the
+    /// next frame uploads them again before it draws ([`Self::restore`]), or fails.
     pub fn update_positions(&self, positions: &[DVec3]) -> Result<(), RenderError> {
         let mut data = self.data.write().unwrap_or_else(PoisonError::into_inner);
         let world = checked_bounds(positions, data.positions.len())?;
@@ -378,13 +391,13 @@ impl GpuTetMesh {
                 }
             });
         data.positions_version += 1;
-        self.upload_positions(&data);
-        Ok(())
+        self.upload_positions(&data)
     }
 
     /// New values of the active scalar array (same count, finite): recomputes the scalar frame,
     /// drops the per-tet ranges (recomputed when next read) and uploads the scalars (one buffer
-    /// write). A cell-data mesh refuses (`cell_update_error`).
+    /// write; failed, as [`Self::update_positions`]'s upload). A cell-data mesh refuses
+    /// (`cell_update_error`).
     pub fn update_scalars(&self, scalars: &[f64]) -> Result<(), RenderError> {
         let mut data = self.data.write().unwrap_or_else(PoisonError::into_inner);
         if data.cells.is_some() {
@@ -396,18 +409,63 @@ impl GpuTetMesh {
         data.scalars.copy_from_slice(scalars);
         data.ranges = OnceLock::new();
         data.scalars_version += 1;
-        self.upload_scalars(&data);
+        self.upload_scalars(&data)
+    }
+
+    /// Uploads the positions or scalars whose last upload failed ([`Self::update_positions`]),
+    /// so that no frame draws a buffer holding part of an update: every frame calls it first
+    /// ([`crate::gpu::util::captured_frame`]). An error when the upload fails again.
+    pub(crate) fn restore(&self) -> Result<(), RenderError> {
+        let stale = |flag: &AtomicBool| flag.load(Ordering::Relaxed);
+        if !stale(&self.positions_stale) && !stale(&self.scalars_stale) {
+            return Ok(());
+        }
+        let data = self.read();
+        if stale(&self.positions_stale) {
+            self.upload_positions(&data)?;
+        }
+        if stale(&self.scalars_stale) {
+            self.upload_scalars(&data)?;
+        }
         Ok(())
     }
 
-    fn upload_positions(&self, data: &MeshData) {
+    fn upload_positions(&self, data: &MeshData) -> Result<(), RenderError> {
+        let stale = &self.positions_stale;
+        self.upload_vertices(stale, UPDATE_POSITIONS, || self.write_positions(data))
+    }
+
+    fn upload_scalars(&self, data: &MeshData) -> Result<(), RenderError> {
+        let stale = &self.scalars_stale;
+        self.upload_vertices(stale, UPDATE_SCALARS, || self.write_scalars(data))
+    }
+
+    fn write_positions(&self, data: &MeshData) {
         let count = data.positions.len();
         (self.uploader()).entries(&self.positions, 0, count, |v| data.gpu_position(v));
     }
 
-    fn upload_scalars(&self, data: &MeshData) {
+    fn write_scalars(&self, data: &MeshData) {
         let count = data.scalars.len();
         (self.uploader()).entries(&self.scalars, 0, count, |v| data.gpu_scalar(v));
+    }
+
+    /// Runs `upload`, of the positions or the scalars, under error scopes ([`captured`]): its
+    /// staging pieces take up to 16 MiB each, which a GPU out of memory refuses (uncaptured,
+    /// wgpu panicked). `stale` is set until it succeeds ([`Self::restore`]).
+    fn upload_vertices(
+        &self,
+        stale: &AtomicBool,
+        what: Work,
+        upload: impl FnOnce(),
+    ) -> Result<(), RenderError> {
+        stale.store(true, Ordering::Relaxed);
+        captured(&self.device, what, || {
+            upload();
+            Ok(())
+        })?;
+        stale.store(false, Ordering::Relaxed);
+        Ok(())
     }
 
     /// Bytes of the mesh's GPU buffers (vertices, and the per-tet arrays uploaded so far).
@@ -613,6 +671,21 @@ pub(crate) fn check_buffer(
 
 /// The upload of a mesh's vertices ([`GpuTetMesh::new`]).
 const UPLOAD: Work = Work::of_mesh("uploading the mesh");
+/// The upload of a per-tet array of the mesh, when a mode first asks for it.
+const UPLOAD_TETS: Work = Work::of_mesh("uploading the mesh's per-tet arrays");
+/// The uploads of [`GpuTetMesh::update_positions`] and [`GpuTetMesh::update_scalars`] (and of
+/// [`GpuTetMesh::restore`]): pieces of at most 16 MiB, whatever the mesh's size.
+const UPDATE_POSITIONS: Work = Work {
+    during: "updating the mesh's positions",
+    smaller: UPDATE_SMALLER,
+};
+const UPDATE_SCALARS: Work = Work {
+    during: "updating the mesh's scalars",
+    smaller: UPDATE_SMALLER,
+};
+/// What makes an update's upload fit: the memory the renderers' frames hold.
+const UPDATE_SMALLER: &str = "render smaller images (--size) or a smaller mesh, so that the \
+                              frames leave room for the update's upload";
 
 /// Runs `create` (GPU allocations of `bytes` in all, of `what`) and turns the adapter running
 /// out of memory into an error that says how many bytes of what were asked for (more precise
@@ -737,6 +810,78 @@ mod tests {
             .map(|&(lo, hi)| (2.0 * lo, 2.0 * hi))
             .collect();
         assert_eq!(gpu.read().ranges(), expected);
+    }
+
+    /// An update whose upload wgpu refused (out of GPU memory for its staging pieces; here
+    /// buffers that refuse writes, put in place of the mesh's: wgpu reports both the same way)
+    /// panicked in wgpu's default handler, outside any error scope; caught and nothing more, the
+    /// buffer would keep part of the update, which every later frame drew in the new frame of
+    /// reference. It is an error naming the update; while the upload keeps failing, a frame is
+    /// that error, not a picture; once it fits, the next frame uploads the positions and the
+    /// scalars again before it draws, and the buffers hold the update.
+    #[test]
+    fn a_failed_update_is_uploaded_again_before_the_next_frame() {
+        use crate::gpu::{ShellSettings, ShellsRenderer};
+        use crate::{Camera, Renderer, TransferFunction, View, generate};
+        let ctx = GpuContext::new(crate::gpu::AdapterChoice::Auto).expect("an adapter");
+        let (lo, hi) = (DVec3::splat(-1.0), DVec3::ONE);
+        let mesh = generate::box_grid(lo, hi, glam::UVec3::splat(2), "x", |p| p.x);
+        let mut gpu = GpuTetMesh::new(&ctx, &mesh).expect("mesh");
+        let refusing = |bytes| {
+            ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("refuses writes"),
+                size: bytes,
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            })
+        };
+        let swap = |gpu: &mut Arc<GpuTetMesh>, (p, s)| {
+            let g = Arc::get_mut(gpu).expect("not shared");
+            let p = std::mem::replace(&mut g.positions, p);
+            (p, std::mem::replace(&mut g.scalars, s))
+        };
+        let refused = (refusing(gpu.positions.size()), refusing(gpu.scalars.size()));
+        let kept = swap(&mut gpu, refused);
+        let moved: Vec<DVec3> = mesh
+            .positions()
+            .iter()
+            .map(|&p| 3.0 * p + DVec3::X)
+            .collect();
+        let scalars: Vec<f64> = mesh.scalars().unwrap().iter().map(|s| 2.0 * s).collect();
+        let failed = |e: RenderError, what: &str| {
+            let named =
+                matches!(&e, RenderError::Gpu(GpuError::Failed { during, .. }) if *during == what);
+            assert!(named, "not an error of {what}: {e}");
+        };
+        failed(
+            gpu.update_positions(&moved).unwrap_err(),
+            UPDATE_POSITIONS.during,
+        );
+        failed(
+            gpu.update_scalars(&scalars).unwrap_err(),
+            UPDATE_SCALARS.during,
+        );
+        let camera = Camera::framing(3.0 * lo, 3.0 * hi, View::ISO, 1.0, 30.0, 8, 8);
+        let tf = TransferFunction::default_for_range(-2.0, 2.0, 0.1).unwrap();
+        let frame = |gpu: &Arc<GpuTetMesh>| {
+            let settings = ShellSettings::default();
+            let mut r = ShellsRenderer::with_mesh(&ctx, Arc::clone(gpu), settings).expect("built");
+            r.render(&camera, &tf).map(|f| f.image)
+        };
+        failed(frame(&gpu).unwrap_err(), UPDATE_POSITIONS.during);
+        swap(&mut gpu, kept);
+        frame(&gpu).expect("a frame");
+        let data = gpu.read();
+        let positions = data.gpu_positions();
+        assert_eq!(
+            contents(&ctx, &gpu.positions),
+            bytemuck::cast_slice::<_, u8>(&positions)
+        );
+        let scalars = data.gpu_scalars();
+        assert_eq!(
+            contents(&ctx, &gpu.scalars),
+            bytemuck::cast_slice::<_, u8>(&scalars)
+        );
     }
 
     /// The bytes of `buffer` (a copy source), read back.

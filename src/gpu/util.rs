@@ -6,6 +6,7 @@ use glam::DVec3;
 
 use crate::camera::Camera;
 use crate::gpu::GpuError;
+use crate::gpu::mesh::GpuTetMesh;
 use crate::mesh::MeshError;
 use crate::render::RenderError;
 use crate::tf::TransferFunction;
@@ -310,9 +311,48 @@ pub(crate) fn captured<T>(
 /// be invalid (a buffer or texture the adapter could not allocate is an invalid handle, not an
 /// error where it is made), and kept for the next frames (targets of the same image size,
 /// tables of the same TF, buffers grown large enough) they would fail every later frame: the
-/// renderers drop them, so that the next frame makes them again.
+/// renderers drop them ([`KeptFrames::forget_frame`]), so that the next frame makes them again.
 pub(crate) fn gpu_failed<T>(out: &Result<T, RenderError>) -> bool {
     matches!(out, Err(RenderError::Gpu(_)))
+}
+
+/// A GPU renderer whose frames keep wgpu objects for the next frames (targets, tables, buffers
+/// grown to the largest frame so far), run by [`captured_frame`].
+pub(crate) trait KeptFrames {
+    /// The mesh it draws.
+    fn mesh(&self) -> &GpuTetMesh;
+
+    /// Drops what the frames kept, or makes it small again, so that the next frame makes it
+    /// anew: after a frame the GPU failed, it may be invalid ([`gpu_failed`]), and so may be
+    /// what the frame wrote into it.
+    fn forget_frame(&mut self);
+}
+
+/// Runs `frame`, a frame of `r`, as [`captured`] runs work, after uploading again what a
+/// failed update left half uploaded in `r`'s mesh ([`GpuTetMesh::restore`]), so that no frame
+/// draws half an update. When the GPU failed the frame, `r` forgets what its frames kept
+/// ([`KeptFrames::forget_frame`]): after running out of memory for a large frame, the frame's
+/// error is reported once and the next frame that fits renders.
+pub(crate) fn captured_frame<R: KeptFrames, T>(
+    r: &mut R,
+    what: Work,
+    frame: impl FnOnce(&mut R) -> Result<T, RenderError>,
+) -> Result<T, RenderError> {
+    let device = r.mesh().device().clone();
+    let out = captured(&device, what, || {
+        r.mesh().restore()?;
+        frame(r)
+    });
+    if gpu_failed(&out) {
+        // Forgetting makes small buffers in place of the grown ones, under scopes of its own:
+        // the frame's error already says what failed, and a buffer a device failing even a few
+        // bytes could not make fails the next frame, which forgets again.
+        let _refused = captured(&device, what, || {
+            r.forget_frame();
+            Ok(())
+        });
+    }
+    out
 }
 
 /// The error wgpu's `e`, met in `what` on the adapter named `adapter`, is reported as: out of

@@ -54,7 +54,9 @@ use crate::gpu::frame::{FrameResources, FrameStats, ImageReadback};
 pub use crate::gpu::gpu_data::CellProjUniforms;
 use crate::gpu::gpu_data::{TfPoints, ViewUniforms};
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
-use crate::gpu::util::{Work, captured, entry, far_eye, gpu_failed, ms_since, uniform_buffer};
+use crate::gpu::util::{
+    KeptFrames, Work, captured, captured_frame, entry, far_eye, ms_since, uniform_buffer,
+};
 use crate::gpu::{GpuContext, Setting};
 use crate::image::Image;
 use crate::mesh::TetMesh;
@@ -300,6 +302,77 @@ impl CellProjRenderer {
     }
 }
 
+impl CellProjRenderer {
+    /// A frame ([`Renderer::render`], which runs it under error scopes).
+    fn frame_of(&mut self, camera: &Camera, tf: &TransferFunction) -> Result<Frame, RenderError> {
+        camera.validate()?;
+        let start = Instant::now();
+        let mut timings = Timings::default();
+        let mesh = Arc::clone(&self.mesh);
+        let m = mesh.read();
+        let (camera, tf) = (&m.frame.camera(camera), &m.frame.tf(tf)?);
+        m.check_eye("cellproj", far_eye::CELLPROJ, camera)?;
+
+        // 1. Sort.
+        let t0 = Instant::now();
+        let (order, flat) = self.order(&m, camera, tf);
+        let drawn = order.len();
+        timings.stage("sort", ms_since(t0));
+
+        // 2. Pre-integration table.
+        let mut rebuilt = false;
+        if self.settings.integrate == Integrate::Table {
+            let t = Instant::now();
+            rebuilt = self.ensure_table(&m, tf);
+            timings.stage("preint table", ms_since(t));
+        }
+
+        // 3. Upload.
+        let t1 = Instant::now();
+        self.upload(&m, camera, tf, &order)?;
+        let targets = self.ensure_targets(camera.width, camera.height)?;
+        timings.stage("upload", ms_since(t1));
+
+        // 4. Assembly, in the sorted order; 5. raster; 6. readback.
+        let stats = self.record(&targets, drawn as u64)?;
+        let t4 = Instant::now();
+        let mut image = Image::new(targets.width, targets.height);
+        image.pixels = targets.readback.read(&self.device)?;
+        timings.stage("assembly", stats.stage("assembly"));
+        timings.stage("raster", stats.stage("raster"));
+        timings.stage("readback", ms_since(t4));
+        timings.stage("total", ms_since(start));
+        timings.clock = if stats.gpu_clock {
+            "GPU timestamps for assembly, raster; wall clock for sort, preint table, upload, \
+             readback (map + convert, after the GPU drained) and total"
+        } else {
+            stats.wall_clock
+        };
+        timings.count("tets", m.tets.len() as u64);
+        timings.count("tets drawn", drawn as u64);
+        let chunks = self.chunking.ranges(drawn as u64).len();
+        timings.count("record chunks", chunks as u64);
+        timings.count("record buffers", self.records.buffer_count() as u64);
+        timings.count("flat tets skipped", flat);
+        timings.count("degenerate tets", stats.degenerate as u64);
+        timings.count("table rebuilt", rebuilt as u64);
+        timings.count("fragments (occlusion query)", stats.fragments.unwrap_or(0));
+        Ok(Frame { image, timings })
+    }
+}
+
+impl KeptFrames for CellProjRenderer {
+    fn mesh(&self) -> &GpuTetMesh {
+        &self.mesh
+    }
+
+    /// The targets, the pre-integration table and the statistics buffers.
+    fn forget_frame(&mut self) {
+        (self.targets, self.table) = (None, None);
+        self.frame.forget();
+    }
+}
+
 impl Renderer for CellProjRenderer {
     fn name(&self) -> &'static str {
         "cellproj"
@@ -307,68 +380,7 @@ impl Renderer for CellProjRenderer {
 
     fn render(&mut self, camera: &Camera, tf: &TransferFunction) -> Result<Frame, RenderError> {
         // A lost device fails here as an error, not as wgpu's panic.
-        let device = self.device.clone();
-        let out = captured(&device, FRAME, || {
-            camera.validate()?;
-            let start = Instant::now();
-            let mut timings = Timings::default();
-            let mesh = Arc::clone(&self.mesh);
-            let m = mesh.read();
-            let (camera, tf) = (&m.frame.camera(camera), &m.frame.tf(tf)?);
-            m.check_eye("cellproj", far_eye::CELLPROJ, camera)?;
-
-            // 1. Sort.
-            let t0 = Instant::now();
-            let (order, flat) = self.order(&m, camera, tf);
-            let drawn = order.len();
-            timings.stage("sort", ms_since(t0));
-
-            // 2. Pre-integration table.
-            let mut rebuilt = false;
-            if self.settings.integrate == Integrate::Table {
-                let t = Instant::now();
-                rebuilt = self.ensure_table(&m, tf);
-                timings.stage("preint table", ms_since(t));
-            }
-
-            // 3. Upload.
-            let t1 = Instant::now();
-            self.upload(&m, camera, tf, &order)?;
-            let targets = self.ensure_targets(camera.width, camera.height)?;
-            timings.stage("upload", ms_since(t1));
-
-            // 4. Assembly, in the sorted order; 5. raster; 6. readback.
-            let stats = self.record(&targets, drawn as u64)?;
-            let t4 = Instant::now();
-            let mut image = Image::new(targets.width, targets.height);
-            image.pixels = targets.readback.read(&self.device)?;
-            timings.stage("assembly", stats.stage("assembly"));
-            timings.stage("raster", stats.stage("raster"));
-            timings.stage("readback", ms_since(t4));
-            timings.stage("total", ms_since(start));
-            timings.clock = if stats.gpu_clock {
-                "GPU timestamps for assembly, raster; wall clock for sort, preint table, upload, \
-                 readback (map + convert, after the GPU drained) and total"
-            } else {
-                stats.wall_clock
-            };
-            timings.count("tets", m.tets.len() as u64);
-            timings.count("tets drawn", drawn as u64);
-            let chunks = self.chunking.ranges(drawn as u64).len();
-            timings.count("record chunks", chunks as u64);
-            timings.count("record buffers", self.records.buffer_count() as u64);
-            timings.count("flat tets skipped", flat);
-            timings.count("degenerate tets", stats.degenerate as u64);
-            timings.count("table rebuilt", rebuilt as u64);
-            timings.count("fragments (occlusion query)", stats.fragments.unwrap_or(0));
-            Ok(Frame { image, timings })
-        });
-        if gpu_failed(&out) {
-            // What the failed frame made may be invalid (`gpu_failed`): made again next frame.
-            (self.targets, self.table) = (None, None);
-            self.frame.forget();
-        }
-        out
+        captured_frame(self, FRAME, |r| r.frame_of(camera, tf))
     }
 
     fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {

@@ -53,7 +53,8 @@ use crate::gpu::gpu_data::ViewUniforms;
 pub use crate::gpu::gpu_data::{IsoUniforms, MAX_ISOVALUES};
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
 use crate::gpu::util::{
-    Work, captured, far_eye, gpu_failed, ms_since, read_mapped, settings_error, uniform_buffer,
+    KeptFrames, Work, captured, captured_frame, far_eye, ms_since, read_mapped, settings_error,
+    uniform_buffer,
 };
 use crate::gpu::view::ViewFrame;
 use crate::gpu::{GpuContext, Setting};
@@ -332,86 +333,82 @@ impl IsoRenderer {
     /// frame's timings.
     pub fn render_surface(&mut self, camera: &Camera) -> Result<(IsoImage, Timings), RenderError> {
         // A lost device fails here as an error, not as wgpu's panic.
-        let device = self.device.clone();
-        let out = captured(&device, FRAME, || {
-            camera.validate()?;
-            let start = Instant::now();
-            let mut timings = Timings::default();
-            let mesh = Arc::clone(&self.mesh);
-            let m = mesh.read();
-            let frame = m.frame;
-            let camera = &frame.camera(camera);
-            m.check_eye("iso", far_eye::ISO, camera)?;
-            let view = ViewFrame::new(camera);
+        captured_frame(self, FRAME, |r| r.surface_of(camera))
+    }
 
-            // 1. Selection (cached until the scalars or isovalues change), frustum culling.
-            let visible = self.select_visible(&m, &view, &mut timings);
-            let all_selected = self.selection.as_ref().map_or(0, Vec::len);
-            let drawn = visible.as_ref().map_or(all_selected, Vec::len);
+    /// A frame ([`Self::render_surface`], which runs it under error scopes).
+    fn surface_of(&mut self, camera: &Camera) -> Result<(IsoImage, Timings), RenderError> {
+        camera.validate()?;
+        let start = Instant::now();
+        let mut timings = Timings::default();
+        let mesh = Arc::clone(&self.mesh);
+        let m = mesh.read();
+        let frame = m.frame;
+        let camera = &frame.camera(camera);
+        m.check_eye("iso", far_eye::ISO, camera)?;
+        let view = ViewFrame::new(camera);
 
-            // 2. Upload.
-            let t1 = Instant::now();
-            let lists = self.upload(&m, &view, visible.as_deref(), drawn)?;
-            let targets = self.ensure_targets(camera.width, camera.height)?;
-            timings.stage("upload", ms_since(t1));
+        // 1. Selection (cached until the scalars or isovalues change), frustum culling.
+        let visible = self.select_visible(&m, &view, &mut timings);
+        let all_selected = self.selection.as_ref().map_or(0, Vec::len);
+        let drawn = visible.as_ref().map_or(all_selected, Vec::len);
 
-            // 3.-5. Gradients, assembly, raster; 6. readback.
-            let stats = self.record(&lists, &targets, drawn as u64)?;
-            let t4 = Instant::now();
-            let mut color = Image::new(targets.width, targets.height);
-            color.pixels = targets.color_readback.read(&self.device)?;
-            let geometry_px = targets.geometry_readback.read(&self.device)?;
-            let (depth, normal) = geometry_px
-                .iter()
-                .map(|g| {
-                    if g[3] >= 0.0 {
-                        // In f64: a world distance may be beyond f32's range.
-                        let depth = frame.world_length(g[3] as f64);
-                        (depth, [g[0], g[1], g[2]])
-                    } else {
-                        (f64::INFINITY, [0.0; 3])
-                    }
-                })
-                .unzip();
-            let stages: &[&'static str] = match self.gradient_stage {
-                Some(_) => &["gradients", "assembly", "raster"],
-                None => &["assembly", "raster"],
-            };
-            for &stage in stages {
-                timings.stage(stage, stats.stage(stage));
-            }
-            timings.stage("readback", ms_since(t4));
-            timings.stage("total", ms_since(start));
-            timings.clock = if stats.gpu_clock {
-                "GPU timestamps for gradients, assembly, raster; wall clock for select, frustum, \
-                 upload, readback (map + convert, after the GPU drained) and total"
-            } else {
-                stats.wall_clock
-            };
-            timings.count("tets", m.tets.len() as u64);
-            timings.count("tets selected", all_selected as u64);
-            timings.count("tets culled (frustum)", (all_selected - drawn) as u64);
-            let chunks = lists.chunking.ranges(drawn as u64).len();
-            timings.count("record chunks", chunks as u64);
-            timings.count("record buffers", lists.records.buffer_count() as u64);
-            timings.count("triangles", 4 * drawn as u64);
-            timings.count("degenerate tets", stats.degenerate as u64);
-            timings.count("fragments (occlusion query)", stats.fragments.unwrap_or(0));
-            Ok((
-                IsoImage {
-                    color,
-                    depth,
-                    normal,
-                },
-                timings,
-            ))
-        });
-        if gpu_failed(&out) {
-            // What the failed frame made may be invalid (`gpu_failed`): made again next frame.
-            self.targets = None;
-            self.frame.forget();
+        // 2. Upload.
+        let t1 = Instant::now();
+        let lists = self.upload(&m, &view, visible.as_deref(), drawn)?;
+        let targets = self.ensure_targets(camera.width, camera.height)?;
+        timings.stage("upload", ms_since(t1));
+
+        // 3.-5. Gradients, assembly, raster; 6. readback.
+        let stats = self.record(&lists, &targets, drawn as u64)?;
+        let t4 = Instant::now();
+        let mut color = Image::new(targets.width, targets.height);
+        color.pixels = targets.color_readback.read(&self.device)?;
+        let geometry_px = targets.geometry_readback.read(&self.device)?;
+        let (depth, normal) = geometry_px
+            .iter()
+            .map(|g| {
+                if g[3] >= 0.0 {
+                    // In f64: a world distance may be beyond f32's range.
+                    let depth = frame.world_length(g[3] as f64);
+                    (depth, [g[0], g[1], g[2]])
+                } else {
+                    (f64::INFINITY, [0.0; 3])
+                }
+            })
+            .unzip();
+        let stages: &[&'static str] = match self.gradient_stage {
+            Some(_) => &["gradients", "assembly", "raster"],
+            None => &["assembly", "raster"],
+        };
+        for &stage in stages {
+            timings.stage(stage, stats.stage(stage));
         }
-        out
+        timings.stage("readback", ms_since(t4));
+        timings.stage("total", ms_since(start));
+        timings.clock = if stats.gpu_clock {
+            "GPU timestamps for gradients, assembly, raster; wall clock for select, frustum, \
+             upload, readback (map + convert, after the GPU drained) and total"
+        } else {
+            stats.wall_clock
+        };
+        timings.count("tets", m.tets.len() as u64);
+        timings.count("tets selected", all_selected as u64);
+        timings.count("tets culled (frustum)", (all_selected - drawn) as u64);
+        let chunks = lists.chunking.ranges(drawn as u64).len();
+        timings.count("record chunks", chunks as u64);
+        timings.count("record buffers", lists.records.buffer_count() as u64);
+        timings.count("triangles", 4 * drawn as u64);
+        timings.count("degenerate tets", stats.degenerate as u64);
+        timings.count("fragments (occlusion query)", stats.fragments.unwrap_or(0));
+        Ok((
+            IsoImage {
+                color,
+                depth,
+                normal,
+            },
+            timings,
+        ))
     }
 
     /// Records the GPU stages of a frame drawing the first `drawn` tets of the lists (the
@@ -449,6 +446,20 @@ impl IsoRenderer {
             (&targets.geometry, &targets.geometry_readback),
         ];
         rec.finish(&images, self.assembly.degenerate(), 1)
+    }
+}
+
+impl KeptFrames for IsoRenderer {
+    fn mesh(&self) -> &GpuTetMesh {
+        &self.mesh
+    }
+
+    /// The targets, the statistics buffers, and the selection's lists (made and written again
+    /// from the selection kept on the CPU).
+    fn forget_frame(&mut self) {
+        (self.targets, self.lists, self.gradient_vertices) = (None, None, None);
+        self.selection_uploaded = false;
+        self.frame.forget();
     }
 }
 

@@ -78,7 +78,7 @@ use crate::gpu::frame::{FrameResources, ImageReadback};
 use crate::gpu::gpu_data::{LayerUniforms, TfPoints, ViewUniforms};
 use crate::gpu::mesh::{GpuTetMesh, TetArray};
 use crate::gpu::util::{
-    Work, captured, gpu_failed, largest_binding, settings_error, uniform_buffer,
+    KeptFrames, Work, captured, captured_frame, largest_binding, settings_error, uniform_buffer,
 };
 use crate::gpu::{GpuContext, Setting};
 use crate::mesh::{TetMesh, checked_bounds};
@@ -181,6 +181,9 @@ pub const HIT_BYTES: u64 = 8;
 pub const COUNTERS: usize = 4;
 
 /// Bytes read back after each layer: the counters, the tiles run, the layer's progress.
+/// The label of the psi table's stand-in before a frame of partial segments uploads it.
+const NO_PSI: &str = "raycast psi table (none yet)";
+
 const READ_BYTES: usize = 4 * COUNTERS + 16;
 
 /// Settings of the ray caster.
@@ -499,7 +502,7 @@ impl RaycastRenderer {
             verts: frame::storage(&device, "raycast eye-space vertices", 16 * nv as usize),
             boundary,
             boundary_count: boundary_faces as u32,
-            psi: frame::storage(&device, "raycast psi table (none yet)", 16),
+            psi: frame::storage(&device, NO_PSI, 16),
             preint: frame::storage(&device, "raycast 3D table (none yet)", 16),
             preint_key: None,
             max_edge: LongestEdge::default(),
@@ -526,14 +529,6 @@ impl RaycastRenderer {
         captured(&ctx.device, BUILD, || {
             Self::build(ctx, GpuTetMesh::new(ctx, mesh)?, s, None, false)
         })
-    }
-
-    /// Drops what a frame keeps for the next ones ([`gpu_failed`]): the targets, the 3D table
-    /// (its buffer made again, not reused at its size) and the statistics buffers.
-    pub(crate) fn forget_frame(&mut self) {
-        self.targets = None;
-        self.preint_key = None;
-        self.frame.forget();
     }
 
     /// The settings in use.
@@ -638,6 +633,21 @@ fn check_fits(
     Ok(())
 }
 
+impl KeptFrames for RaycastRenderer {
+    fn mesh(&self) -> &GpuTetMesh {
+        &self.mesh
+    }
+
+    /// The targets, the 3D table (its buffer made again, not reused at its size), the psi
+    /// table (a frame of partial segments uploads it again) and the statistics buffers.
+    fn forget_frame(&mut self) {
+        self.targets = None;
+        self.preint_key = None;
+        self.psi = frame::storage(&self.device, NO_PSI, 16);
+        self.frame.forget();
+    }
+}
+
 impl Renderer for RaycastRenderer {
     /// `iso` for a textured cage's isosurfaces, else `raycast`.
     fn name(&self) -> &'static str {
@@ -653,18 +663,13 @@ impl Renderer for RaycastRenderer {
         camera.validate()?;
         let frame = self.mesh.frame();
         // A lost device fails here as an error, not as wgpu's panic.
-        let device = self.device.clone();
         let work = match self.iso {
             Some(_) => texture_iso::FRAME,
             None => FRAME,
         };
-        let out = captured(&device, work, || {
-            self.frame(&frame.camera(camera), Some(&frame.tf(tf)?))
-        });
-        if gpu_failed(&out) {
-            self.forget_frame();
-        }
-        out
+        captured_frame(self, work, |r| {
+            r.frame(&frame.camera(camera), Some(&frame.tf(tf)?))
+        })
     }
 
     /// Refused, and nothing moved, where a textured cage's step would sample the moved cage

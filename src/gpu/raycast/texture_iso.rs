@@ -17,7 +17,9 @@ use crate::gpu::GpuContext;
 use crate::gpu::gpu_data::IsoUniforms;
 use crate::gpu::iso::{DEFAULT_COLOR, IsoSettings, check_isovalues};
 use crate::gpu::mesh::GpuTetMesh;
-use crate::gpu::util::{Work, captured, gpu_failed, read_mapped, settings_error, uniform_buffer};
+use crate::gpu::util::{
+    Work, captured, captured_frame, read_mapped, settings_error, uniform_buffer,
+};
 use crate::mesh::TetMesh;
 use crate::reference::iso::IsoImage;
 use crate::render::{RenderError, Timings};
@@ -190,17 +192,12 @@ impl RaycastRenderer {
             ));
         }
         // A lost device fails here as an error, not as wgpu's panic (as `render` does).
-        let device = self.device.clone();
-        let out = captured(&device, FRAME, || {
-            let frame = self.frame(&self.mesh.frame().camera(camera), None)?;
-            let hits = (self.targets.as_ref()).and_then(|t| t.hits.as_ref());
+        let (frame, (depth, normal)) = captured_frame(self, FRAME, |r| {
+            let frame = r.frame(&r.mesh.frame().camera(camera), None)?;
+            let hits = (r.targets.as_ref()).and_then(|t| t.hits.as_ref());
             let hits = hits.ok_or(RenderError::Internal("the iso hit buffers are missing"))?;
-            Ok((frame, hits.read(&self.device)?))
-        });
-        if gpu_failed(&out) {
-            self.forget_frame();
-        }
-        let (frame, (depth, normal)) = out?;
+            Ok((frame, hits.read(&r.device)?))
+        })?;
         let f32_frame = self.mesh.frame();
         // World units in f64: beyond f32's range for a cage of extent past about 1e38.
         let depth = (depth.iter())

@@ -112,6 +112,7 @@ impl GpuBinner {
         };
         let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
         let (chunk_stride, chunk_uniforms) = chunk_uniforms(ctx, &chunks);
+        let (cursors, offsets, rects, readback) = ungrown(device);
         Self {
             count: pipeline("count"),
             scan: pipeline("scan"),
@@ -121,16 +122,11 @@ impl GpuBinner {
             chunks,
             chunk_uniforms,
             chunk_stride,
-            cursors: storage(device, "shells bin cursors", 0, copy),
-            offsets: storage(device, "shells bin offsets", 0, copy),
-            rects: storage(device, "shells bin rects", 0, copy),
+            cursors,
+            offsets,
+            rects,
+            readback,
             stats: storage(device, "shells bin counters", 16, copy),
-            readback: device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("shells bin readback"),
-                size: 16,
-                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            }),
             mask: storage(device, "shells bin mask", tets.div_ceil(32) * 4, copy),
             mask_key: None,
             spans,
@@ -162,6 +158,13 @@ impl GpuBinner {
         2 * shells * self.chunks.len() as u64
     }
 
+    /// Makes the per-bucket and per-shell buffers small again and the transparent mask due for
+    /// upload: after a frame the GPU failed, they may be invalid or partly written.
+    pub(super) fn forget(&mut self, device: &wgpu::Device) {
+        (self.cursors, self.offsets, self.rects, self.readback) = ungrown(device);
+        self.mask_key = None;
+    }
+
     /// Grows the per-bucket and per-shell buffers for `shells` shells.
     fn ensure(&mut self, device: &wgpu::Device, shells: u64) {
         let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
@@ -189,6 +192,24 @@ impl GpuBinner {
         let words = buckets + 1 + 4 * shells + 4;
         grow(&mut self.readback, "shells bin readback", words, read);
     }
+}
+
+/// The per-bucket and per-shell buffers before a frame grew them ([`GpuBinner::ensure`]):
+/// (cursors, offsets, rectangles, readback).
+fn ungrown(device: &wgpu::Device) -> (wgpu::Buffer, wgpu::Buffer, wgpu::Buffer, wgpu::Buffer) {
+    let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+    let readback = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("shells bin readback"),
+        size: 16,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    (
+        storage(device, "shells bin cursors", 0, copy),
+        storage(device, "shells bin offsets", 0, copy),
+        storage(device, "shells bin rects", 0, copy),
+        readback,
+    )
 }
 
 /// Each chunk's [`BinChunk`] in one uniform buffer, at a stride the adapter accepts as a

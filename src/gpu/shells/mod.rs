@@ -102,8 +102,8 @@ use crate::gpu::gpu_data::{ShellUniforms, SlicingUniforms, TfPoints, ViewUniform
 use crate::gpu::mesh::{Chunking, GpuTetMesh, TetArray};
 use crate::gpu::pieces::Uploader;
 use crate::gpu::util::{
-    Work, captured, check_image_size, entry, far_eye, gpu_failed, ms_since, settings_error,
-    uniform_buffer,
+    KeptFrames, Work, captured, captured_frame, check_image_size, entry, far_eye, ms_since,
+    settings_error, uniform_buffer,
 };
 use crate::gpu::{GpuContext, ShaderNeeds};
 use crate::image::Image;
@@ -418,21 +418,7 @@ impl ShellsRenderer {
         };
         let shell_stride = (size_of::<ShellUniforms>() as u64)
             .next_multiple_of(ctx.limits.min_uniform_buffer_offset_alignment as u64);
-        let active_buf = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("shells active tets"),
-            size: 16,
-            usage: wgpu::BufferUsages::STORAGE
-                | wgpu::BufferUsages::COPY_DST
-                | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let face_indices = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("shells face indices"),
-            size: 0,
-            usage: wgpu::BufferUsages::INDEX | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let shell_buf = uniform_buffer(device, "shells shell uniforms", shell_stride as usize);
+        let (active_buf, face_indices, shell_buf) = upload::ungrown(device, shell_stride);
         let tf_buf = uniform_buffer(device, "shells transfer function", size_of::<TfPoints>());
         Ok(Self {
             ctx: ctx.clone(),
@@ -506,18 +492,75 @@ impl ShellsRenderer {
         (m.frame.world_length(t_first), m.frame.world_length(dz))
     }
 
-    /// Drops what a frame keeps for the next ones, which a failed frame may have left invalid
-    /// ([`gpu_failed`]): the targets, the compute sampler's tile buffers, the statistics
-    /// buffers and the walk's.
-    fn forget_frame(&mut self) {
-        self.targets = None;
-        if let Some(c) = &mut self.compute {
-            c.buffers = None;
+    /// A frame ([`Renderer::render`], which runs it under error scopes).
+    fn frame_of(&mut self, camera: &Camera, tf: &TransferFunction) -> Result<Frame, RenderError> {
+        camera.validate()?;
+        let frame = self.mesh.frame();
+        let (camera, tf) = (&frame.camera(camera), &frame.tf(tf)?);
+        let (mode, limit) = match self.walk {
+            Some(_) => ("shells (walk sampler)", far_eye::WALK),
+            None => ("shells", far_eye::SHELLS),
+        };
+        self.mesh.read().check_eye(mode, limit, camera)?;
+        if self.walk.is_some() {
+            return self.render_walk(camera, tf);
         }
-        if let Some(w) = &mut self.walk {
-            w.raycast.forget_frame();
-        }
-        self.frame.forget();
+        let start = Instant::now();
+        let mut timings = Timings::default();
+        let mesh = Arc::clone(&self.mesh);
+        let m = mesh.read();
+
+        // 1. Plan and binning (CPU): the frame's slices, each tet's shells, slices per shell.
+        let plan = self.plan(&m, camera)?;
+        let t0 = Instant::now();
+        let on_gpu = self.bin_on_gpu(&m, &plan, tf)?;
+        let (n, bins, bin) = if let Some((n, bin)) = on_gpu {
+            (n, Vec::new(), bin)
+        } else {
+            let bins = self.classify(&m, &plan, tf);
+            let n = self.choose_slices(&plan, &bins);
+            let bin = binning::sort_into_shells(&bins, n, plan.shells(n) as u32);
+            (n, bins, bin)
+        };
+        timings.stage("binning", ms_since(t0));
+
+        // 2. Upload: view and slicing constants, transfer function, shell constants, active lists.
+        let t1 = Instant::now();
+        let drawn = self.upload(&m, &plan, tf, n, &bin)?;
+        timings.stage("upload", ms_since(t1));
+
+        // 3.-6. Assembly, per drawn shell its sampling and composite, readback.
+        let frame = ShellFrame {
+            plan,
+            n,
+            bins,
+            bin,
+            drawn,
+        };
+        let image = match self.settings.sampler {
+            Sampler::Raster => self.render_raster(frame, tf, &mut timings)?,
+            // The walk sampler renders its frame before any of the stages above.
+            Sampler::Walk => return Err(RenderError::Internal("the walk reached the binning")),
+            Sampler::Compute => {
+                let c = self.draw_compute(&frame, tf)?;
+                self.report_frame(
+                    &mut timings,
+                    &c.stats,
+                    &frame,
+                    &["assembly", "tiles", "fine"],
+                );
+                timings.stage("readback", c.readback);
+                timings.count("frame runs (tile lists grown)", c.runs);
+                if self.settings.skips.early_termination {
+                    let threshold = self.settings.skips.ert_threshold;
+                    let finished = c.image.pixels.par_iter().filter(|p| p[3] >= threshold);
+                    timings.count("pixels finished", finished.count() as u64);
+                }
+                c.image
+            }
+        };
+        timings.stage("total", ms_since(start));
+        Ok(Frame { image, timings })
     }
 
     /// The targets of a `width` x `height` frame: the kept ones when the size holds, else
@@ -954,6 +997,32 @@ fn draw_shells(
     Ok(draws)
 }
 
+impl KeptFrames for ShellsRenderer {
+    fn mesh(&self) -> &GpuTetMesh {
+        &self.mesh
+    }
+
+    /// The targets, the compute sampler's tile buffers, the statistics buffers and the walk's,
+    /// the active list, face index pattern and shell constants (made small again: a frame grows
+    /// them to its needs) and the GPU binning's.
+    fn forget_frame(&mut self) {
+        let device = &self.ctx.device;
+        self.targets = None;
+        if let Some(c) = &mut self.compute {
+            c.buffers = None;
+        }
+        if let Some(w) = &mut self.walk {
+            w.raycast.forget_frame();
+        }
+        if let Some(b) = &mut self.binner {
+            b.forget(device);
+        }
+        (self.active_buf, self.face_indices, self.shell_buf) =
+            upload::ungrown(device, self.shell_stride);
+        self.frame.forget();
+    }
+}
+
 impl Renderer for ShellsRenderer {
     fn name(&self) -> &'static str {
         "shells"
@@ -961,80 +1030,7 @@ impl Renderer for ShellsRenderer {
 
     fn render(&mut self, camera: &Camera, tf: &TransferFunction) -> Result<Frame, RenderError> {
         // A lost device fails here as an error, not as wgpu's panic.
-        let device = self.ctx.device.clone();
-        let out = captured(&device, FRAME, || {
-            camera.validate()?;
-            let frame = self.mesh.frame();
-            let (camera, tf) = (&frame.camera(camera), &frame.tf(tf)?);
-            let (mode, limit) = match self.walk {
-                Some(_) => ("shells (walk sampler)", far_eye::WALK),
-                None => ("shells", far_eye::SHELLS),
-            };
-            self.mesh.read().check_eye(mode, limit, camera)?;
-            if self.walk.is_some() {
-                return self.render_walk(camera, tf);
-            }
-            let start = Instant::now();
-            let mut timings = Timings::default();
-            let mesh = Arc::clone(&self.mesh);
-            let m = mesh.read();
-
-            // 1. Plan and binning (CPU): the frame's slices, each tet's shells, slices per shell.
-            let plan = self.plan(&m, camera)?;
-            let t0 = Instant::now();
-            let on_gpu = self.bin_on_gpu(&m, &plan, tf)?;
-            let (n, bins, bin) = if let Some((n, bin)) = on_gpu {
-                (n, Vec::new(), bin)
-            } else {
-                let bins = self.classify(&m, &plan, tf);
-                let n = self.choose_slices(&plan, &bins);
-                let bin = binning::sort_into_shells(&bins, n, plan.shells(n) as u32);
-                (n, bins, bin)
-            };
-            timings.stage("binning", ms_since(t0));
-
-            // 2. Upload: view and slicing constants, transfer function, shell constants, active lists.
-            let t1 = Instant::now();
-            let drawn = self.upload(&m, &plan, tf, n, &bin)?;
-            timings.stage("upload", ms_since(t1));
-
-            // 3.-6. Assembly, per drawn shell its sampling and composite, readback.
-            let frame = ShellFrame {
-                plan,
-                n,
-                bins,
-                bin,
-                drawn,
-            };
-            let image = match self.settings.sampler {
-                Sampler::Raster => self.render_raster(frame, tf, &mut timings)?,
-                // The walk sampler renders its frame before any of the stages above.
-                Sampler::Walk => return Err(RenderError::Internal("the walk reached the binning")),
-                Sampler::Compute => {
-                    let c = self.draw_compute(&frame, tf)?;
-                    self.report_frame(
-                        &mut timings,
-                        &c.stats,
-                        &frame,
-                        &["assembly", "tiles", "fine"],
-                    );
-                    timings.stage("readback", c.readback);
-                    timings.count("frame runs (tile lists grown)", c.runs);
-                    if self.settings.skips.early_termination {
-                        let threshold = self.settings.skips.ert_threshold;
-                        let finished = c.image.pixels.par_iter().filter(|p| p[3] >= threshold);
-                        timings.count("pixels finished", finished.count() as u64);
-                    }
-                    c.image
-                }
-            };
-            timings.stage("total", ms_since(start));
-            Ok(Frame { image, timings })
-        });
-        if gpu_failed(&out) {
-            self.forget_frame();
-        }
-        out
+        captured_frame(self, FRAME, |r| r.frame_of(camera, tf))
     }
 
     fn update_positions(&mut self, positions: &[DVec3]) -> Result<(), RenderError> {

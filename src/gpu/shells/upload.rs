@@ -10,7 +10,7 @@ use crate::gpu::GpuContext;
 use crate::gpu::gpu_data::{ShellUniforms, SlicingUniforms};
 use crate::gpu::mesh::MeshData;
 use crate::gpu::tf::tf_points;
-use crate::gpu::util::{largest_binding, settings_error};
+use crate::gpu::util::{largest_binding, settings_error, uniform_buffer};
 use crate::mesh::topology::FACES;
 use crate::render::RenderError;
 use crate::tf::TransferFunction;
@@ -145,6 +145,30 @@ pub(super) fn shell_uniforms(shell: &DrawnShell, n: u32, plan: &FramePlan) -> Sh
 /// their chunk's first (the ids themselves when the mesh is one chunk).
 pub(super) fn chunk_local(ids: &[u32], chunk_tets: u32) -> impl Fn(usize) -> u32 + Sync + '_ {
     move |k| ids[k] % chunk_tets
+}
+
+/// The active list, the face index pattern and the shell constants before a frame grew them
+/// ([`grow`]): (active list, pattern, constants).
+pub(super) fn ungrown(
+    device: &wgpu::Device,
+    shell_stride: u64,
+) -> (wgpu::Buffer, wgpu::Buffer, wgpu::Buffer) {
+    let active = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("shells active tets"),
+        size: 16,
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_DST
+            | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let face_indices = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("shells face indices"),
+        size: 0,
+        usage: wgpu::BufferUsages::INDEX | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let shells = uniform_buffer(device, "shells shell uniforms", shell_stride as usize);
+    (active, face_indices, shells)
 }
 
 /// Writes `data` to `*buf` (in pieces), first growing it ([`grow`]) when it is too small.
