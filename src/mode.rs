@@ -24,7 +24,7 @@
 //! ```
 
 use crate::cpu::raycast::{self as cpu_raycast, CpuRaycastRenderer, CpuRaycastSettings};
-use crate::gpu::limits::{Setting, ShaderNeeds};
+use crate::gpu::limits::{Ask, Setting};
 use crate::gpu::raycast::texture::TextureUse;
 use crate::gpu::raycast::{Entry, Segments};
 use crate::gpu::{
@@ -49,7 +49,7 @@ pub enum AutoPath {
     SoftwareSlower,
     /// A hardware adapter offering less of a limit than the stages `auto`'s GPU path would
     /// dispatch need (the shells mode's with `auto`'s settings, or the ray caster's that a
-    /// textured cage takes: [`ShaderNeeds`]): the CPU ray caster, where that path would be
+    /// textured cage takes: [`ShaderNeeds`](crate::gpu::ShaderNeeds)): the CPU ray caster, where that path would be
     /// refused.
     ShortLimits,
 }
@@ -69,7 +69,7 @@ impl AutoPath {
     }
 
     /// The path for `gpu` as [`ModeSettings::open_gpu`] gave it, where the GPU path's stages
-    /// are the settings `needs` (e.g. [`ShaderNeeds::shells`]).
+    /// are the settings `needs` (e.g. [`Ask::parts`]).
     pub fn for_gpu(gpu: Option<&GpuContext>, needs: &[Setting]) -> Self {
         match (Self::of(gpu.map(|g| g.info.device_type)), gpu) {
             (Self::Gpu, Some(gpu)) if gpu.check_settings(needs).is_err() => Self::ShortLimits,
@@ -155,23 +155,25 @@ impl ModeSettings {
         let Self::Auto(shells) = self else {
             return None;
         };
-        auto_note(gpu, &auto_needs(shells))
+        let ask = auto_ask(shells);
+        auto_note(gpu, &ask.parts(), Some(ask))
     }
 
     /// [`Self::note`] for a textured cage, whose `auto` takes the GPU ray caster
     /// ([`crate::texture::textured_renderer`]).
     pub fn textured_note(&self, gpu: Option<&GpuContext>) -> Option<String> {
         match self {
-            Self::Auto(_) => auto_note(gpu, &textured_auto_needs()),
+            // Its settings take no flag: `--entry` is the raycast mode's.
+            Self::Auto(_) => auto_note(gpu, &textured_auto_needs(), None),
             _ => None,
         }
     }
 
-    /// [`AutoPath::for_gpu`] with the needs of `Auto`'s GPU path ([`auto_needs`]; any for
+    /// [`AutoPath::for_gpu`] with the needs of `Auto`'s GPU path ([`auto_ask`]; any for
     /// another mode, which it does not resolve).
     fn auto_path(&self, gpu: Option<&GpuContext>) -> AutoPath {
         match self {
-            Self::Auto(shells) => AutoPath::for_gpu(gpu, &auto_needs(shells)),
+            Self::Auto(shells) => AutoPath::for_gpu(gpu, &auto_ask(shells).parts()),
             _ => AutoPath::of(gpu.map(|g| g.info.device_type)),
         }
     }
@@ -272,8 +274,10 @@ impl ModeSettings {
 }
 
 /// What a user should be told, in one line, about `auto` on `gpu` when its GPU path needs
-/// `needs` and it does not render on the GPU: which path it took and why; otherwise `None`.
-fn auto_note(gpu: Option<&GpuContext>, needs: &[Setting]) -> Option<String> {
+/// `needs` and it does not render on the GPU: which path it took and why, and where the
+/// limits fall short, the nearest changes of `ask`'s settings that take the GPU
+/// ([`Ask::nearest`]; `None`: no flag changes them); otherwise `None`.
+fn auto_note(gpu: Option<&GpuContext>, needs: &[Setting], ask: Option<Ask>) -> Option<String> {
     let path = AutoPath::for_gpu(gpu, needs);
     match (path, gpu) {
         (AutoPath::SoftwareSlower, Some(gpu)) => Some(format!(
@@ -293,10 +297,21 @@ fn auto_note(gpu: Option<&GpuContext>, needs: &[Setting]) -> Option<String> {
                 needs,
                 needed_by,
                 ..
-            }) => Some(format!(
-                "the GPU adapter {adapter} offers {limit} = {has}, under the {needs} \
-                 {needed_by} needs; rendering with the CPU ray caster (--mode raycast-cpu)"
-            )),
+            }) => {
+                let changes = match ask.map(|a| a.nearest(&gpu.limits)) {
+                    Some((changes, None)) => changes,
+                    _ => Vec::new(),
+                };
+                let on_gpu = match changes.first() {
+                    Some(change) => format!("; with {} it renders on the GPU", change.join(" ")),
+                    None => String::new(),
+                };
+                Some(format!(
+                    "the GPU adapter {adapter} offers {limit} = {has}, under the {needs} \
+                     {needed_by} needs; rendering with the CPU ray caster (--mode raycast-cpu)\
+                     {on_gpu}"
+                ))
+            }
             _ => None,
         },
         _ => None,
@@ -312,11 +327,10 @@ pub(crate) fn textured_auto_needs() -> [Setting; 1] {
     }]
 }
 
-/// What `auto`'s GPU path, the shells mode with `shells`, needs of the adapter's limits: with
-/// `--binning gpu` the GPU binning's too (`--binning auto` bins on the CPU where the adapter
-/// cannot run it).
-fn auto_needs(shells: &ShellSettings) -> Vec<Setting> {
-    ShaderNeeds::shells(shells, false, shells.binning == BinningMode::Gpu)
+/// What `auto`'s GPU path asks of the adapter: the shells mode with `shells`, with `--binning
+/// gpu` binning on the GPU (`--binning auto` bins on the CPU where the adapter cannot run it).
+fn auto_ask(shells: &ShellSettings) -> Ask {
+    Ask::shells(shells, false, shells.binning == BinningMode::Gpu)
 }
 
 fn segments(s: cpu_raycast::Segments) -> &'static str {

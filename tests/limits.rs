@@ -409,15 +409,18 @@ fn a_limit_below_the_needs_is_refused_by_name() {
     }
 }
 
-/// A refusal names first the settings to use instead that the adapter's limits run, by their
-/// CLI flags, and only those: for every setting and every limit one below its need (the other
-/// limits at exactly its needs, then at the largest of every setting's), the flags named are
-/// the alternatives those limits run, each needing less of the short limit than the setting,
-/// and come before the other remedies. Spelled out for the cases a user meets: the alternative
-/// is named where it needs less (the peeling's storage buffers), not where it needs as much
-/// (its bindings per group: the lists' and the shells mode's are as many).
+/// A refusal names first the nearest changes that the adapter's limits run, by their CLI
+/// flags, and only those: for every setting and every limit one below its need (the other
+/// limits at exactly its needs, then at the largest of every setting's), each change named
+/// runs on those limits, and is one of the changes of its mode's settings with the fewest
+/// flags that runs, all of which are named; where none of its mode's settings runs, the
+/// refusal says so and names the other modes that run, one change each. The changes come
+/// before the other remedies. Spelled out for the cases a user meets: a change is named
+/// where it needs less (the peeling's storage buffers), not where it needs as much (its
+/// bindings per group: the lists' and every other volume mode's are as many).
 #[test]
-fn a_refusal_names_first_the_settings_that_need_less_of_the_limit() {
+fn a_refusal_names_first_the_nearest_changes_that_run() {
+    use tetvr::gpu::Ask;
     let largest = Setting::ALL.iter().fold(NONE, |n, s| n.max(s.needs()));
     let short_of = |setting: Setting, base: &ShaderNeeds, name: &str, value: u32| {
         let mut limits = offering(wgpu::Limits::default(), base);
@@ -426,6 +429,7 @@ fn a_refusal_names_first_the_settings_that_need_less_of_the_limit() {
     };
     for setting in Setting::ALL {
         let needs = setting.needs();
+        let ask = Ask::of(setting);
         for base in [needs, largest] {
             for name in LIMITS {
                 let need = need_of(&needs, name);
@@ -433,25 +437,48 @@ fn a_refusal_names_first_the_settings_that_need_less_of_the_limit() {
                     continue;
                 }
                 let err = short_of(setting, &base, name, need - 1).unwrap_err();
-                let GpuError::Limit { limit, instead, .. } = &err else {
+                let GpuError::Limit {
+                    limit,
+                    instead,
+                    no_setting_of,
+                    ..
+                } = &err
+                else {
                     panic!("{setting:?} {name}: {err}");
                 };
                 assert_eq!(*limit, name);
                 let mut limits = offering(wgpu::Limits::default(), &base);
                 *limit_mut(&mut limits, name) = need - 1;
-                let runs: Vec<&str> = (setting.alternatives().into_iter())
-                    .filter(|(alt, flag)| {
-                        let fits = alt.fit(&limits);
-                        assert!(!fits || need_of(alt, name) < need, "{setting:?}: {flag}");
-                        fits
-                    })
-                    .map(|(_, flag)| flag)
-                    .collect();
-                assert_eq!(instead, &runs, "{setting:?} {name}");
+                let runs = |asks: Vec<(Ask, Vec<&'static str>)>| -> Vec<Vec<&'static str>> {
+                    (asks.into_iter())
+                        .filter(|(a, _)| a.needs().fit(&limits))
+                        .map(|(_, change)| change)
+                        .collect()
+                };
+                let settings = runs(ask.settings());
+                let fewest = settings.iter().map(Vec::len).min();
+                match no_setting_of {
+                    None => {
+                        let nearest: Vec<_> = (settings.iter())
+                            .filter(|c| Some(c.len()) == fewest)
+                            .cloned()
+                            .collect();
+                        assert_eq!(instead, &nearest, "{setting:?} {name}");
+                    }
+                    Some(refused) => {
+                        assert!(settings.is_empty(), "{setting:?} {name}: {settings:?}");
+                        assert_eq!(*refused, ask);
+                        let modes = runs(ask.other_modes());
+                        assert!(instead.iter().all(|c| modes.contains(c)), "{instead:?}");
+                        for c in &modes {
+                            assert!(instead.iter().any(|i| i[0] == c[0]), "{c:?}");
+                        }
+                    }
+                }
                 let msg = err.to_string();
                 let rest = msg.find("render on an adapter").unwrap();
                 match instead.first() {
-                    Some(first) => assert!(msg.find(first) < Some(rest), "{msg}"),
+                    Some(first) => assert!(msg.find(&first.join(" ")) < Some(rest), "{msg}"),
                     None => assert!(!msg.contains("instead"), "{msg}"),
                 }
             }
@@ -469,44 +496,48 @@ fn a_refusal_names_first_the_settings_that_need_less_of_the_limit() {
         entry: Entry::Peel,
         texture: None,
     };
+    assert_eq!(instead(peel, storage, 11), [["--entry lists"]]);
     assert_eq!(
-        instead(peel, storage, 11),
-        ["--entry lists", "--mode shells"]
+        instead(peel, storage, 10),
+        [["--mode shells"], ["--mode cellproj"]]
     );
-    assert_eq!(instead(peel, storage, 10), ["--mode shells"]);
     assert!(instead(peel, "max_bindings_per_bind_group", 16).is_empty());
-    assert_eq!(instead(Setting::GpuBinning, storage, 8), ["--binning cpu"]);
+    assert_eq!(
+        instead(Setting::GpuBinning, storage, 8),
+        [["--binning cpu"]]
+    );
     let shells = |sampler, textured| Setting::Shells { sampler, textured };
     assert_eq!(
         instead(shells(Sampler::Compute, false), storage, 8),
-        ["--sampler raster"]
+        [["--sampler raster"]]
     );
     assert_eq!(
         instead(shells(Sampler::Walk, true), storage, 11),
-        ["--sampler raster"]
+        [["--sampler raster"]]
     );
     let storage_textures = "max_storage_textures_per_shader_stage";
     assert_eq!(
         instead(shells(Sampler::Walk, false), storage_textures, 0),
-        ["--sampler raster", "--sampler compute"]
+        [["--sampler raster"], ["--sampler compute"]]
     );
     let textured = Setting::Raycast {
         entry: Entry::Lists,
         texture: Some(TextureUse::Volume),
     };
-    assert_eq!(instead(textured, storage, 11), ["--mode shells"]);
+    assert_eq!(instead(textured, storage, 11), [["--mode shells"]]);
     assert!(instead(Setting::Iso, storage, 6).is_empty());
 }
 
-/// A shells sampler refused is told the samplers to switch to that run with the user's other
-/// settings, not at the shells defaults: with `--binning gpu` the raster sampler needs the GPU
-/// binning's 9 storage buffers too (it was named on 8, which then refused the binning), and
-/// with `--slice-format f16` the walk sampler is refused by the settings (it was named). A
+/// A shells sampler refused is told the changes that run with the user's other settings, not
+/// at the shells defaults: with `--binning gpu` the raster sampler needs the GPU binning's 9
+/// storage buffers too, so on 8 the sampler and the binning change together (the raster
+/// sampler alone was named, which then refused the binning; then nothing was), and with
+/// `--slice-format f16` the walk sampler is refused by the settings (it is not named). A
 /// textured cage's iso is told no `--entry`: the CLI refuses it beside `--mode iso`.
 #[test]
 fn a_shells_refusal_names_the_samplers_that_run_with_the_other_settings() {
     use tetvr::gpu::raycast::{Entry, texture::TextureUse};
-    use tetvr::gpu::{BinningMode, Sampler, ShellSettings, SliceFormat};
+    use tetvr::gpu::{Ask, BinningMode, Sampler, ShellSettings, SliceFormat};
     let largest = Setting::ALL.iter().fold(NONE, |n, s| n.max(s.needs()));
     let short = |name: &str, value: u32| {
         let mut limits = offering(wgpu::Limits::default(), &largest);
@@ -524,31 +555,199 @@ fn a_shells_refusal_names_the_samplers_that_run_with_the_other_settings() {
         ..ShellSettings::default()
     };
     let storage = short("max_storage_buffers_per_shader_stage", 8);
-    assert_eq!(instead(compute, false, &storage), ["--sampler raster"]);
+    assert_eq!(instead(compute, false, &storage), [["--sampler raster"]]);
     let binning = ShellSettings {
         binning: BinningMode::Gpu,
         ..compute
     };
-    assert!(instead(binning, true, &storage).is_empty());
+    assert_eq!(
+        instead(binning, true, &storage),
+        [["--sampler raster", "--binning cpu"]]
+    );
     // At 9 the raster sampler runs with the GPU binning.
     let nine = short("max_storage_buffers_per_shader_stage", 9);
-    assert_eq!(instead(binning, true, &nine), ["--sampler raster"]);
+    assert_eq!(instead(binning, true, &nine), [["--sampler raster"]]);
     // The walk sampler needs 144 bytes of workgroup memory, the compute sampler 7744.
     let memory = short("max_compute_workgroup_storage_size", 7743);
     assert_eq!(
         instead(compute, false, &memory),
-        ["--sampler raster", "--sampler walk"]
+        [["--sampler raster"], ["--sampler walk"]]
     );
     let f16 = ShellSettings {
         format: SliceFormat::Float16,
         ..compute
     };
-    assert_eq!(instead(f16, false, &memory), ["--sampler raster"]);
-    let textured_iso = Setting::Raycast {
+    assert_eq!(instead(f16, false, &memory), [["--sampler raster"]]);
+    let textured_iso = Ask::of(Setting::Raycast {
         entry: Entry::Lists,
         texture: Some(TextureUse::Isosurfaces),
+    });
+    assert!(textured_iso.settings().is_empty() && textured_iso.other_modes().is_empty());
+}
+
+/// The first change a refusal's message names to use instead (`use --sampler raster
+/// --binning cpu instead ...`), as its flags and their values; `None` where it names none.
+fn named_change(msg: &str) -> Option<Vec<(&str, &str)>> {
+    let (_, after) = msg.split_once(": use ").or(msg.split_once("; use "))?;
+    let (named, _) = after.split_once(" instead")?;
+    let first = named.split(" or ").next()?;
+    let words: Vec<&str> = first.split(' ').collect();
+    let pairs = words.chunks(2).map(|p| (p[0], p[1])).collect();
+    Some(pairs)
+}
+
+/// `mode` with the flags of `change` applied as `tetvr render` applies them: `--mode` to that
+/// mode at its defaults, the others to the mode's settings.
+fn apply(mode: tetvr::ModeSettings, change: &[(&str, &str)]) -> tetvr::ModeSettings {
+    use tetvr::ModeSettings as M;
+    use tetvr::gpu::raycast::Entry;
+    use tetvr::gpu::*;
+    let mut mode = mode;
+    for &(flag, value) in change {
+        mode = match (flag, value, mode) {
+            ("--mode", "shells", _) => M::Shells(ShellSettings::default()),
+            ("--mode", "cellproj", _) => M::CellProj(CellProjSettings::default()),
+            ("--mode", "raycast", _) => M::Raycast(RaycastSettings::default()),
+            ("--sampler", s, M::Shells(settings)) => {
+                let sampler = match s {
+                    "raster" => Sampler::Raster,
+                    "compute" => Sampler::Compute,
+                    "walk" => Sampler::Walk,
+                    _ => panic!("--sampler {s}"),
+                };
+                M::Shells(ShellSettings {
+                    sampler,
+                    ..settings
+                })
+            }
+            ("--binning", "cpu", M::Shells(settings)) => M::Shells(ShellSettings {
+                binning: BinningMode::Cpu,
+                ..settings
+            }),
+            ("--entry", e, M::Raycast(settings)) => M::Raycast(RaycastSettings {
+                entry: if e == "peel" {
+                    Entry::Peel
+                } else {
+                    Entry::Lists
+                },
+                ..settings
+            }),
+            (flag, value, mode) => panic!("{flag} {value} does not apply to {mode:?}"),
+        };
+    }
+    mode
+}
+
+/// A request short of two settings on one adapter is told both changes at once, and they
+/// render there: on a device at exactly the default shells' needs (the raster sampler, 7
+/// storage buffers), the walk sampler (11) with `--binning gpu` (the raster sampler with it:
+/// 9) is told `--sampler raster --binning cpu` (it was told nothing, not even the sampler that
+/// would then refuse the binning), as is the compute sampler (11) with it, and `auto` with
+/// the same flags on a hardware adapter says they would take the GPU.
+#[test]
+fn a_refusal_short_of_two_settings_names_both_changes_and_they_render() {
+    use tetvr::ModeSettings;
+    use tetvr::gpu::*;
+    let mesh = common::gaussians(2);
+    let (tf, camera) = common::default_view(&mesh, 24);
+    let mut ctx = device_offering(&shells_needs(&ShellSettings::default(), false, false));
+    for sampler in [Sampler::Walk, Sampler::Compute] {
+        let asked = ModeSettings::Shells(ShellSettings {
+            sampler,
+            binning: BinningMode::Gpu,
+            ..ShellSettings::default()
+        });
+        let err = asked.build(Some(&ctx), &mesh).err().expect("refused");
+        let msg = err.to_string();
+        assert!(
+            matches!(err, tetvr::RenderError::Gpu(GpuError::Limit { .. }))
+                && msg.contains(
+                    ": use --sampler raster --binning cpu instead, which these limits run"
+                ),
+            "{msg}"
+        );
+        let change = named_change(&msg).expect("a change");
+        let fixed = apply(asked, &change);
+        let mut r = fixed
+            .build(Some(&ctx), &mesh)
+            .unwrap_or_else(|e| panic!("{e}"));
+        r.render(&camera, &tf).unwrap();
+    }
+    ctx.info.device_type = wgpu::DeviceType::DiscreteGpu;
+    let auto = ModeSettings::Auto(ShellSettings {
+        sampler: Sampler::Walk,
+        binning: BinningMode::Gpu,
+        ..ShellSettings::default()
+    });
+    let note = auto.note(Some(&ctx)).expect("a note");
+    assert!(
+        note.contains("with --sampler raster --binning cpu it renders on the GPU"),
+        "{note}"
+    );
+}
+
+/// Where no setting of a mode runs on an adapter, its refusal says so and names the other
+/// modes that render the same picture and run there, which render: on a device at exactly
+/// the cellproj mode's needs, the shells mode (a dynamic uniform buffer and 8-high
+/// workgroups more, with any sampler) and the ray caster (11 storage buffers with either
+/// entry) are told `--mode cellproj` (they were told nothing, or the other samplers, which
+/// these limits refuse too); the iso mode one storage buffer short is told plainly that none
+/// of its settings runs, and no other mode (none draws its surfaces).
+#[test]
+fn a_refusal_where_no_setting_of_the_mode_runs_names_the_mode_that_does() {
+    use tetvr::ModeSettings;
+    use tetvr::gpu::raycast::Entry;
+    use tetvr::gpu::*;
+    let mesh = common::gaussians(2);
+    let (tf, camera) = common::default_view(&mesh, 24);
+    let ctx = device_offering(&ShaderNeeds::CELLPROJ);
+    let shells = |sampler| {
+        ModeSettings::Shells(ShellSettings {
+            sampler,
+            ..ShellSettings::default()
+        })
     };
-    assert!(textured_iso.alternatives().is_empty());
+    let raycast = |entry| {
+        ModeSettings::Raycast(RaycastSettings {
+            entry,
+            ..RaycastSettings::default()
+        })
+    };
+    for (asked, mode) in [
+        (shells(Sampler::Compute), "the shells mode"),
+        (shells(Sampler::Raster), "the shells mode"),
+        (raycast(Entry::Peel), "the raycast mode"),
+    ] {
+        let msg = asked
+            .build(Some(&ctx), &mesh)
+            .err()
+            .expect("refused")
+            .to_string();
+        let want = format!(
+            "no setting of {mode} runs on these limits; use --mode cellproj instead, which \
+             these limits run; or render on"
+        );
+        assert!(msg.contains(&want), "{msg}");
+        let fixed = apply(asked, &named_change(&msg).expect("a change"));
+        let mut r = fixed
+            .build(Some(&ctx), &mesh)
+            .unwrap_or_else(|e| panic!("{e}"));
+        r.render(&camera, &tf).unwrap();
+    }
+    let short = device_offering(&ShaderNeeds {
+        storage_buffers: ShaderNeeds::ISO.storage_buffers - 1,
+        ..ShaderNeeds::ISO
+    });
+    let iso = ModeSettings::Iso(IsoSettings::default());
+    let msg = iso
+        .build(Some(&short), &mesh)
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(
+        msg.contains("no setting of the iso mode runs on these limits: render on an adapter"),
+        "{msg}"
+    );
 }
 
 /// The limits the tables cover, by their names in [`wgpu::Limits`].

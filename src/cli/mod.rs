@@ -480,48 +480,68 @@ mod tests {
 
     use super::{Cli, Command};
 
-    /// Every flag an adapter's limit refusal names as the setting to use instead
-    /// ([`tetvr::gpu::Setting::alternatives`]) is one `tetvr render` takes, with that value.
+    /// Every change an adapter's limit refusal names ([`tetvr::gpu::Ask::settings`],
+    /// [`tetvr::gpu::Ask::other_modes`]) is flags `tetvr render` takes together, with those
+    /// values.
     #[test]
     fn the_flags_a_limit_refusal_names_are_the_clis() {
-        let flags: Vec<&str> = (tetvr::gpu::Setting::ALL.iter())
-            .flat_map(|s| s.alternatives())
-            .map(|(_, flag)| flag)
+        use tetvr::gpu::{Ask, Sampler};
+        let binning = |sampler| Ask::Shells {
+            sampler,
+            textured: false,
+            gpu_binning: true,
+            walk_refused: false,
+        };
+        let asks = (tetvr::gpu::Setting::ALL.iter().map(|&s| Ask::of(s)))
+            .chain([binning(Sampler::Compute), binning(Sampler::Walk)]);
+        let changes: Vec<Vec<&str>> = asks
+            .flat_map(|a| a.settings().into_iter().chain(a.other_modes()))
+            .map(|(_, change)| change)
             .collect();
-        for flag in [
-            "--sampler raster",
-            "--binning cpu",
-            "--entry lists",
-            "--mode shells",
+        for change in [
+            &["--sampler raster"][..],
+            &["--sampler raster", "--binning cpu"],
+            &["--binning cpu"],
+            &["--entry lists"],
+            &["--mode shells"],
+            &["--mode cellproj"],
+            &["--mode raycast", "--entry peel"],
         ] {
-            assert!(flags.contains(&flag), "{flag} is not named: {flags:?}");
+            assert!(
+                changes.contains(&change.to_vec()),
+                "{change:?}: {changes:?}"
+            );
         }
-        for flag in flags {
-            let (name, value) = flag.split_once(' ').expect("a flag and its value");
-            let args = ["tetvr", "render", "mesh.vtu", name, value];
+        for change in changes {
+            let flags: Vec<&str> = change.iter().flat_map(|f| f.split(' ')).collect();
+            let args = [&["tetvr", "render", "mesh.vtu"][..], &flags].concat();
             let render = match Cli::try_parse_from(args) {
                 Ok(Cli {
                     command: Command::Render(r),
                 }) => r.render,
-                Ok(other) => panic!("{flag}: {other:?}"),
-                Err(e) => panic!("{flag}: {e}"),
+                Ok(other) => panic!("{change:?}: {other:?}"),
+                Err(e) => panic!("{change:?}: {e}"),
             };
-            let parsed = match name {
-                "--sampler" => format!("{:?}", render.shells.sampler),
-                "--binning" => format!("{:?}", render.shells.binning),
-                "--entry" => format!("{:?}", render.cellproj.entry.expect("an entry")),
-                "--mode" => format!("{:?}", render.mode),
-                _ => panic!("{flag}: which argument is it?"),
-            };
-            assert_eq!(parsed.to_lowercase(), value, "{flag}");
+            for flag in change {
+                let (name, value) = flag.split_once(' ').expect("a flag and its value");
+                let parsed = match name {
+                    "--sampler" => format!("{:?}", render.shells.sampler),
+                    "--binning" => format!("{:?}", render.shells.binning),
+                    "--entry" => format!("{:?}", render.cellproj.entry.expect("an entry")),
+                    "--mode" => format!("{:?}", render.mode),
+                    _ => panic!("{flag}: which argument is it?"),
+                };
+                assert_eq!(parsed.to_lowercase(), value, "{flag}");
+            }
         }
     }
 
-    /// A refusal of the ray caster names `--mode shells` only where the command's other flags
-    /// are the shells mode's too: beside `--entry`, `--integrate` or `--table-size` the CLI
-    /// refuses it ("belongs to --mode raycast"), and the refusal named it.
+    /// Of the changes a refusal names with as few flags, those that keep the flags given on
+    /// the command line come first: with `--binning gpu` given, `--sampler walk` before
+    /// `--binning cpu`; with `--sampler raster` given too, each changes one flag given and
+    /// the refusal's order stands.
     #[test]
-    fn a_limit_refusal_names_the_shells_mode_only_where_the_other_flags_take_it() {
+    fn a_limit_refusal_names_first_the_changes_that_keep_the_flags_given() {
         use clap::{CommandFactory, FromArgMatches};
         use tetvr::RenderError;
         use tetvr::gpu::GpuError;
@@ -531,27 +551,19 @@ mod tests {
         let refusal = || {
             CliError::Render(RenderError::Gpu(GpuError::Limit {
                 adapter: "Tiny GPU".into(),
-                limit: "max_storage_buffers_per_shader_stage",
-                has: 10,
-                needs: 11,
-                needed_by: "the raycast mode",
-                instead: vec!["--entry peel", "--mode shells"],
+                limit: "max_compute_workgroup_storage_size",
+                has: 1023,
+                needs: 1024,
+                needed_by: "the shells mode's GPU binning (--binning gpu)",
+                instead: vec![vec!["--binning cpu"], vec!["--sampler walk"]],
+                no_setting_of: None,
             }))
         };
-        let both: &[&str] = &["--entry peel", "--mode shells"];
-        for (flags, want) in [
-            (&["--mode", "raycast"][..], both),
+        for (flags, first) in [
+            (&["--binning", "gpu"][..], "--sampler walk"),
             (
-                &["--mode", "raycast", "--entry", "lists"],
-                &["--entry peel"],
-            ),
-            (
-                &["--mode", "raycast", "--integrate", "exact"],
-                &["--entry peel"],
-            ),
-            (
-                &["--mode", "raycast", "--table-size", "64"],
-                &["--entry peel"],
+                &["--binning", "gpu", "--sampler", "raster"],
+                "--binning cpu",
             ),
         ] {
             let args = [&["tetvr", "render", "mesh.vtu"][..], flags].concat();
@@ -562,6 +574,74 @@ mod tests {
             let render_matches = matches.subcommand_matches("render").unwrap();
             match usable_instead(refusal(), &render.render, render_matches) {
                 CliError::Render(RenderError::Gpu(GpuError::Limit { instead, .. })) => {
+                    assert_eq!(instead[0], [first], "{flags:?}")
+                }
+                other => panic!("{flags:?}: {other}"),
+            }
+        }
+    }
+
+    /// A refusal names another mode only where the command's other flags are that mode's
+    /// too: the ray caster's `--entry` is refused beside any other mode, `--integrate` and
+    /// `--table-size` beside the shells mode (cellproj takes them), the shells flags beside
+    /// the others ("belongs to --mode raycast", ...), and the refusal named them.
+    #[test]
+    fn a_limit_refusal_names_another_mode_only_where_the_other_flags_take_it() {
+        use clap::{CommandFactory, FromArgMatches};
+        use tetvr::RenderError;
+        use tetvr::gpu::GpuError;
+
+        use super::commands::CliError;
+        use super::scene::usable_instead;
+        let refusal = |modes: &[&'static str]| {
+            CliError::Render(RenderError::Gpu(GpuError::Limit {
+                adapter: "Tiny GPU".into(),
+                limit: "max_storage_buffers_per_shader_stage",
+                has: 10,
+                needs: 11,
+                needed_by: "the raycast mode",
+                instead: modes.iter().map(|&m| vec![m]).collect(),
+                no_setting_of: Some(tetvr::gpu::Ask::Raycast {
+                    entry: tetvr::gpu::raycast::Entry::Lists,
+                    texture: None,
+                }),
+            }))
+        };
+        let from_raycast: &[&str] = &["--mode shells", "--mode cellproj"];
+        let from_shells: &[&str] = &["--mode cellproj", "--mode raycast"];
+        for (flags, modes, want) in [
+            (&["--mode", "raycast"][..], from_raycast, from_raycast),
+            (
+                &["--mode", "raycast", "--entry", "lists"],
+                from_raycast,
+                &[],
+            ),
+            (
+                &["--mode", "raycast", "--integrate", "exact"],
+                from_raycast,
+                &["--mode cellproj"],
+            ),
+            (
+                &["--mode", "raycast", "--table-size", "64"],
+                from_raycast,
+                &["--mode cellproj"],
+            ),
+            (&["--mode", "shells"], from_shells, from_shells),
+            (
+                &["--mode", "shells", "--sampler", "compute"],
+                from_shells,
+                &[],
+            ),
+        ] {
+            let args = [&["tetvr", "render", "mesh.vtu"][..], flags].concat();
+            let matches = Cli::command().try_get_matches_from(args).unwrap();
+            let Command::Render(render) = Cli::from_arg_matches(&matches).unwrap().command else {
+                panic!("{flags:?}: not a render");
+            };
+            let render_matches = matches.subcommand_matches("render").unwrap();
+            match usable_instead(refusal(modes), &render.render, render_matches) {
+                CliError::Render(RenderError::Gpu(GpuError::Limit { instead, .. })) => {
+                    let want: Vec<Vec<&str>> = want.iter().map(|&m| vec![m]).collect();
                     assert_eq!(instead, want, "{flags:?}")
                 }
                 other => panic!("{flags:?}: {other}"),

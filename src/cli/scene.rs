@@ -183,15 +183,28 @@ pub fn unused_mode_flags(
     }
 }
 
-/// `e` with the settings a limit's refusal names to use instead ([`GpuError::Limit`]) kept
-/// where this command's other flags take them: `--mode shells` (the ray caster's alternative)
-/// only without a flag that the shells mode refuses ([`check`]'s `--entry`,
-/// [`unused_mode_flags`]' `--integrate`, `--table-size`, ...), as those checks decide.
+/// `e` with the changes a limit's refusal names to make instead ([`GpuError::Limit`]) kept
+/// where this command's other flags take them: a change to another mode (`--mode cellproj`)
+/// only without a flag that mode refuses ([`check`]'s `--entry`, [`unused_mode_flags`]'
+/// `--sampler`, `--integrate`, `--table-size`, ...), as those checks decide; those that
+/// change fewer of the flags given on the command line first (a choice the user made is kept
+/// before a default).
 pub fn usable_instead(mut e: CliError, args: &RenderArgs, matches: &ArgMatches) -> CliError {
     if let CliError::Render(RenderError::Gpu(GpuError::Limit { instead, .. })) = &mut e {
-        let shells_takes = args.cellproj.entry.is_none()
-            && unused_mode_flags(args, Mode::Shells, None, matches).is_ok();
-        instead.retain(|&flag| flag != "--mode shells" || shells_takes);
+        let takes = |mode: Mode| {
+            (args.cellproj.entry.is_none() || mode == Mode::Raycast)
+                && unused_mode_flags(args, mode, args.cellproj.integrate, matches).is_ok()
+        };
+        instead.retain(|change| {
+            let mode = (change.iter()).find_map(|flag| flag.strip_prefix("--mode "));
+            mode.is_none_or(|m| Mode::from_str(m, false).is_ok_and(takes))
+        });
+        let given = |flag: &str| {
+            let id = flag.split(' ').next().unwrap_or_default();
+            let id = id.trim_start_matches("--").replace('-', "_");
+            matches.value_source(&id) == Some(ValueSource::CommandLine)
+        };
+        instead.sort_by_key(|change| change.iter().filter(|&&f| given(f)).count());
     }
     e
 }

@@ -61,18 +61,18 @@ pub enum GpuError {
         needed_by: &'static str,
     },
     /// The adapter offers less of a limit than a setting's shaders need
-    /// ([`crate::gpu::limits::ShaderNeeds`]): a setting that needs less of it and that the
-    /// adapter runs ([`crate::gpu::Setting::alternatives`]), another adapter, or the CPU must
-    /// render.
+    /// ([`crate::gpu::limits::ShaderNeeds`]): the nearest settings that the adapter runs
+    /// ([`crate::gpu::limits::Ask::nearest`]), another adapter, or the CPU must render.
     #[error(
         "the adapter '{adapter}' offers {limit} = {has}, but {needed_by} needs {needs}: {}render \
          on an adapter that offers at least {needs} (another GPU or driver), or on the CPU with \
          --mode raycast-cpu",
-        use_instead(.instead)
+        use_instead(.instead, *.no_setting_of)
     )]
     Limit {
-        /// The adapter's name.
-        adapter: String,
+        /// The adapter's name (a boxed `str`: this error is in every renderer's `Result`,
+        /// which clippy keeps under 128 bytes).
+        adapter: Box<str>,
         /// The limit's name in [`wgpu::Limits`], e.g. `max_storage_buffers_per_shader_stage`.
         limit: &'static str,
         /// The adapter's value.
@@ -81,9 +81,14 @@ pub enum GpuError {
         needs: u32,
         /// The setting, e.g. `the shells mode's compute sampler`.
         needed_by: &'static str,
-        /// The settings to use instead that the adapter's limits run, as the CLI spells them,
-        /// best first (e.g. `--sampler raster`); empty where the setting has none.
-        instead: Vec<&'static str>,
+        /// The changes to make instead that the adapter's limits run, each every flag to
+        /// change together as the CLI spells them (e.g. `--sampler raster --binning cpu`),
+        /// best first; empty where there is none.
+        instead: Vec<crate::gpu::limits::Change>,
+        /// The request where no setting of its mode ([`crate::gpu::Ask::mode`]) runs on
+        /// these limits: `instead` then names other modes; `None` where `instead` keeps the
+        /// mode.
+        no_setting_of: Option<crate::gpu::Ask>,
     },
     /// The adapter ran out of memory for work that tetvr gave it: a mesh's GPU buffers, a
     /// renderer's build, or a frame's per-frame buffers and image targets. Its per-buffer
@@ -138,16 +143,26 @@ pub enum GpuError {
     },
 }
 
-/// The first remedy of [`GpuError::Limit`]: the settings to use `instead`, or nothing.
-fn use_instead(instead: &[&str]) -> String {
-    match instead {
+/// The first remedy of [`GpuError::Limit`]: the changes to make `instead`, or nothing; said to
+/// be other modes where no setting of `no_setting_of`'s mode runs.
+fn use_instead(
+    instead: &[crate::gpu::limits::Change],
+    no_setting_of: Option<crate::gpu::Ask>,
+) -> String {
+    let none = no_setting_of.map_or_else(String::new, |ask| {
+        let sep = if instead.is_empty() { ":" } else { ";" };
+        format!("no setting of {} runs on these limits{sep} ", ask.mode())
+    });
+    let changes: Vec<String> = instead.iter().map(|c| c.join(" ")).collect();
+    let remedy = match changes.as_slice() {
         [] => String::new(),
         [one] => format!("use {one} instead, which these limits run; or "),
         more => format!(
             "use {} instead (these limits run each); or ",
             more.join(" or ")
         ),
-    }
+    };
+    none + &remedy
 }
 
 /// The optional features tetvr uses where the adapter has them: blendable 32-bit float targets

@@ -8,9 +8,11 @@
 //! the needs of the stages its settings can dispatch before it uploads anything, so only the
 //! settings an adapter cannot run are refused: a table per stage group ([`ShaderNeeds`]'s
 //! constants), a setting's needs the [`ShaderNeeds::max`] of its groups ([`Setting::needs`];
-//! [`ShaderNeeds::shells`], [`ShaderNeeds::raycast`]). A refusal names first the settings to
-//! switch to whose needs these limits meet ([`Setting::alternatives`]), so a user is pointed
-//! at the flag that helps, computed from the same tables.
+//! [`ShaderNeeds::shells`], [`ShaderNeeds::raycast`]). A refusal names first the nearest
+//! change of the whole request ([`Ask`]: every part, e.g. the sampler with the GPU binning)
+//! whose needs these limits meet, every flag to change at once, the fewest flags of the
+//! user's mode ([`Ask::nearest`]), else says that no setting of the mode runs and names the
+//! other modes that do; computed from the same tables.
 //! A group's table is the largest value over its shaders: resources per stage as one bind
 //! group layout declares them, as wgpu counts them, read by its entry points or not (a
 //! compute layout holds every binding its module declares, and the ray caster's traversals
@@ -25,7 +27,7 @@
 
 use crate::gpu::raycast::Entry;
 use crate::gpu::raycast::texture::TextureUse;
-use crate::gpu::shells::{Sampler, ShellSettings};
+use crate::gpu::shells::{Sampler, ShellSettings, check_walk};
 use crate::gpu::{GpuContext, GpuError};
 
 /// What a set of shaders needs of [`wgpu::Limits`]: per field the largest value over their
@@ -258,14 +260,7 @@ impl ShaderNeeds {
     /// short of: the sampler's stages, then the GPU binning's (where it runs). Their
     /// [`Setting::needs`]' [`Self::max`] is the setting's needs.
     pub fn shells(settings: &ShellSettings, textured: bool, gpu_binning: bool) -> Vec<Setting> {
-        let sampler = Setting::Shells {
-            sampler: settings.sampler,
-            textured,
-        };
-        match gpu_binning && settings.sampler != Sampler::Walk {
-            true => vec![sampler, Setting::GpuBinning],
-            false => vec![sampler],
-        }
+        Ask::shells(settings, textured, gpu_binning).parts()
     }
 
     /// The first limit in `limits` below what these shaders need: its wgpu name, what
@@ -280,9 +275,9 @@ impl ShaderNeeds {
     }
 
     /// `Ok` when `limits` (of the adapter named `adapter`) run the shells mode with
-    /// `settings` ([`Self::shells`]'s parts, in order), else the first part's refusal
-    /// ([`Setting::check`]), whose samplers to switch to are those that run with the rest of
-    /// `settings` ([`other_samplers`]): with the GPU binning where it runs.
+    /// `settings` ([`Self::shells`]'s parts), else the refusal of its first short part naming
+    /// every change that makes the whole request run ([`Ask::check`]): e.g. with
+    /// `--binning gpu` the sampler and the binning together.
     pub fn check_shells(
         settings: &ShellSettings,
         textured: bool,
@@ -290,13 +285,7 @@ impl ShaderNeeds {
         adapter: &str,
         limits: &wgpu::Limits,
     ) -> Result<(), GpuError> {
-        (Self::shells(settings, textured, gpu_binning).into_iter()).try_for_each(|part| {
-            let alternatives = match part {
-                Setting::Shells { .. } => other_samplers(settings, textured, gpu_binning),
-                other => other.alternatives(),
-            };
-            part.check_among(adapter, limits, alternatives)
-        })
+        Ask::shells(settings, textured, gpu_binning).check(adapter, limits)
     }
 
     /// Each limit's wgpu name, what `limits` offers and what these shaders need.
@@ -385,22 +374,22 @@ impl ShaderNeeds {
         match self.shortfall(limits) {
             None => Ok(()),
             Some((limit, has, needs)) => Err(GpuError::Limit {
-                adapter: adapter.to_owned(),
+                adapter: adapter.into(),
                 limit,
                 has,
                 needs,
                 needed_by,
                 instead: Vec::new(),
+                no_setting_of: None,
             }),
         }
     }
 }
 
 /// A setting whose stages an adapter's limits may fall short of: what its stages need
-/// ([`Self::needs`], from [`ShaderNeeds`]' tables), its name in errors ([`Self::name`]) and
-/// the settings a user can switch to ([`Self::alternatives`]), so that a refusal
-/// ([`Self::check`]) names those of them the adapter runs. [`Self::ALL`] lists every one
-/// (`tetvr gpu-info`'s table).
+/// ([`Self::needs`], from [`ShaderNeeds`]' tables) and its name in errors ([`Self::name`]);
+/// its refusal ([`Self::check`]) names the nearest changes of its request ([`Ask::of`]) the
+/// adapter runs. [`Self::ALL`] lists every one (`tetvr gpu-info`'s table).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Setting {
     /// The shells mode's stages with `sampler`, over a `textured` cage or the mesh's field:
@@ -512,110 +501,296 @@ impl Setting {
         }
     }
 
-    /// What a user can render instead with the same command and one setting changed: each
-    /// alternative's needs and its flag as the CLI spells it, in the order to suggest them.
-    /// The shells samplers replace each other (`--sampler`; at the other shells defaults:
-    /// [`ShaderNeeds::check_shells`] takes the user's); the GPU binning the CPU's
-    /// (`--binning cpu`, which needs no stage); the ray caster's entry methods each other
-    /// (`--entry`), and over the mesh's field or a textured cage's volume the shells mode at
-    /// its defaults (`--mode shells`: the raster sampler, CPU binning). The iso and cellproj
-    /// modes, and a textured cage's isosurfaces (the iso mode, which takes no `--entry`),
-    /// have none.
-    pub fn alternatives(self) -> Vec<(ShaderNeeds, &'static str)> {
+    /// `Ok` when `limits` (of the adapter named `adapter`) offer what this setting's stages
+    /// need, else [`GpuError::Limit`] for the first limit that falls short, naming the
+    /// nearest changes of its request ([`Ask::of`]) that these limits run
+    /// ([`Ask::nearest`]).
+    pub fn check(self, adapter: &str, limits: &wgpu::Limits) -> Result<(), GpuError> {
+        Ask::of(self).refusal(self, adapter, limits)
+    }
+}
+
+/// What a user asked one GPU mode for, as far as an adapter's limits care: the settings that
+/// choose its stages ([`Self::parts`]). A refusal names the nearest request these limits run
+/// ([`Self::nearest`]): the same mode with as few of its settings changed as possible, else
+/// another mode that renders the same picture at its defaults.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Ask {
+    /// The shells mode with `sampler`, over a `textured` cage or the mesh's field, binning on
+    /// the GPU where `gpu_binning` and the sampler bins (the walk sampler never does, but
+    /// another sampler would with the same flags); `walk_refused` where the other settings
+    /// refuse the walk sampler (`--slice-format f16`).
+    Shells {
+        /// The sampler (`--sampler`).
+        sampler: Sampler,
+        /// Whether the cage is textured (`--texture`).
+        textured: bool,
+        /// Whether the tets are binned on the GPU (`--binning gpu`, or `auto` where it picks
+        /// the GPU).
+        gpu_binning: bool,
+        /// Whether the other settings refuse the walk sampler (16-bit slices).
+        walk_refused: bool,
+    },
+    /// The iso mode over the mesh's field.
+    Iso,
+    /// The cellproj mode.
+    CellProj,
+    /// The ray caster with `entry` over the mesh's field or a textured cage's (as
+    /// [`Setting::Raycast`]).
+    Raycast {
+        /// How rays find their entries (`--entry`).
+        entry: Entry,
+        /// What a textured cage's texture is sampled for; `None`: the mesh's own field.
+        texture: Option<TextureUse>,
+    },
+}
+
+/// The flags that change one request into another, as the CLI spells them (e.g. `--sampler
+/// raster`, `--binning cpu`): together, one command-line fragment.
+pub type Change = Vec<&'static str>;
+
+impl Ask {
+    /// The shells mode with `settings` (of a `textured` cage; binning on the GPU where
+    /// `gpu_binning`).
+    pub fn shells(settings: &ShellSettings, textured: bool, gpu_binning: bool) -> Self {
+        Self::Shells {
+            sampler: settings.sampler,
+            textured,
+            gpu_binning,
+            walk_refused: check_walk(&ShellSettings {
+                sampler: Sampler::Walk,
+                ..*settings
+            })
+            .is_err(),
+        }
+    }
+
+    /// The request of `setting` at its mode's other defaults (the GPU binning's: the raster
+    /// sampler's, which binning on the CPU needs nothing more than).
+    pub fn of(setting: Setting) -> Self {
+        let shells = |sampler, textured, gpu_binning| Self::Shells {
+            sampler,
+            textured,
+            gpu_binning,
+            walk_refused: false,
+        };
+        match setting {
+            Setting::Shells { sampler, textured } => shells(sampler, textured, false),
+            Setting::GpuBinning => shells(Sampler::Raster, false, true),
+            Setting::Iso => Self::Iso,
+            Setting::CellProj => Self::CellProj,
+            Setting::Raycast { entry, texture } => Self::Raycast { entry, texture },
+        }
+    }
+
+    /// The settings whose stages the request runs: the shells mode's sampler, and its GPU
+    /// binning where it bins; the other modes' one setting.
+    pub fn parts(self) -> Vec<Setting> {
         match self {
-            Self::Shells { sampler, textured } => {
-                let settings = ShellSettings {
-                    sampler,
-                    ..ShellSettings::default()
-                };
-                other_samplers(&settings, textured, false)
+            Self::Shells {
+                sampler,
+                textured,
+                gpu_binning,
+                ..
+            } => {
+                let shells = Setting::Shells { sampler, textured };
+                match gpu_binning && sampler != Sampler::Walk {
+                    true => vec![shells, Setting::GpuBinning],
+                    false => vec![shells],
+                }
             }
-            Self::GpuBinning => vec![(ShaderNeeds::NONE, "--binning cpu")],
+            Self::Iso => vec![Setting::Iso],
+            Self::CellProj => vec![Setting::CellProj],
+            Self::Raycast { entry, texture } => vec![Setting::Raycast { entry, texture }],
+        }
+    }
+
+    /// What the request's stages need: the [`ShaderNeeds::max`] of its parts'.
+    pub fn needs(self) -> ShaderNeeds {
+        (self.parts().into_iter()).fold(ShaderNeeds::NONE, |n, p| n.max(p.needs()))
+    }
+
+    /// The mode as a refusal names it, e.g. `the shells mode`.
+    pub fn mode(self) -> &'static str {
+        match self {
+            Self::Shells {
+                textured: false, ..
+            } => "the shells mode",
+            Self::Shells { textured: true, .. } => "the shells mode on a textured cage",
+            Self::Iso => "the iso mode",
+            Self::CellProj => "the cellproj mode",
+            Self::Raycast { texture, .. } => match texture {
+                None => "the raycast mode",
+                Some(TextureUse::Volume) => "the raycast mode on a textured cage",
+                Some(TextureUse::Isosurfaces) => "the iso mode on a textured cage",
+            },
+        }
+    }
+
+    /// The other requests of this mode a user can switch to with the rest of the command as it
+    /// is, each with its change: another sampler, with the CPU binning or not (the walk
+    /// sampler, which bins nothing, not where the other settings refuse it), or the other
+    /// entry method. The
+    /// iso and cellproj modes have none, nor a textured cage's isosurfaces (the iso mode
+    /// takes no `--entry`: the CLI refuses it, and a textured cage's renders with the
+    /// default).
+    pub fn settings(self) -> Vec<(Self, Change)> {
+        let sampler_flag = |s| match s {
+            Sampler::Raster => "--sampler raster",
+            Sampler::Compute => "--sampler compute",
+            Sampler::Walk => "--sampler walk",
+        };
+        match self {
+            Self::Shells {
+                sampler,
+                textured,
+                gpu_binning,
+                walk_refused,
+            } => {
+                let mut out = Vec::new();
+                for other in [Sampler::Raster, Sampler::Compute, Sampler::Walk] {
+                    if other == Sampler::Walk && walk_refused {
+                        continue;
+                    }
+                    // Binning on the CPU changes nothing for the walk sampler.
+                    let binnings = match (gpu_binning, other) {
+                        (true, Sampler::Raster | Sampler::Compute) => &[true, false][..],
+                        _ => &[gpu_binning][..],
+                    };
+                    for &bins in binnings {
+                        let change: Change = [
+                            (other != sampler).then(|| sampler_flag(other)),
+                            (bins != gpu_binning).then_some("--binning cpu"),
+                        ]
+                        .into_iter()
+                        .flatten()
+                        .collect();
+                        let ask = Self::Shells {
+                            sampler: other,
+                            textured,
+                            gpu_binning: bins,
+                            walk_refused,
+                        };
+                        if !change.is_empty() {
+                            out.push((ask, change));
+                        }
+                    }
+                }
+                out
+            }
             Self::Iso | Self::CellProj => Vec::new(),
+            Self::Raycast {
+                texture: Some(TextureUse::Isosurfaces),
+                ..
+            } => Vec::new(),
             Self::Raycast { entry, texture } => {
                 let (other, flag) = match entry {
                     Entry::Lists => (Entry::Peel, "--entry peel"),
                     Entry::Peel => (Entry::Lists, "--entry lists"),
                 };
-                let entry = (ShaderNeeds::raycast(other, texture), flag);
-                let shells = |textured| Self::Shells {
-                    sampler: Sampler::Raster,
-                    textured,
-                };
-                match texture {
-                    None => vec![entry, (shells(false).needs(), "--mode shells")],
-                    Some(TextureUse::Volume) => {
-                        vec![entry, (shells(true).needs(), "--mode shells")]
-                    }
-                    // The iso mode takes no --entry (the CLI refuses it beside any mode but
-                    // raycast, and a textured cage's iso renders with the default entry).
-                    Some(TextureUse::Isosurfaces) => Vec::new(),
-                }
+                vec![(
+                    Self::Raycast {
+                        entry: other,
+                        texture,
+                    },
+                    vec![flag],
+                )]
             }
         }
     }
 
-    /// `Ok` when `limits` (of the adapter named `adapter`) offer what this setting's stages
-    /// need, else [`GpuError::Limit`] for the first limit that falls short, naming first the
-    /// alternatives ([`Self::alternatives`]) these limits run: each needs less of that limit
-    /// than this setting, as it needs no more than the adapter offers.
-    pub fn check(self, adapter: &str, limits: &wgpu::Limits) -> Result<(), GpuError> {
-        self.check_among(adapter, limits, self.alternatives())
+    /// The other modes that render this mode's picture (a volume: shells, cellproj, raycast;
+    /// a textured cage's: shells, raycast; the iso mode's surfaces: none), each at the CLI's
+    /// defaults but for its entry method, with the change to it, the fewest flags first.
+    pub fn other_modes(self) -> Vec<(Self, Change)> {
+        let textured = match self {
+            Self::Shells { textured, .. } => textured,
+            Self::CellProj | Self::Raycast { texture: None, .. } => false,
+            Self::Raycast {
+                texture: Some(TextureUse::Volume),
+                ..
+            } => true,
+            Self::Iso
+            | Self::Raycast {
+                texture: Some(TextureUse::Isosurfaces),
+                ..
+            } => return Vec::new(),
+        };
+        let texture = textured.then_some(TextureUse::Volume);
+        let shells = Self::Shells {
+            sampler: Sampler::Raster,
+            textured,
+            gpu_binning: false,
+            walk_refused: false,
+        };
+        let raycast = |entry| Self::Raycast { entry, texture };
+        let mut modes = vec![(shells, vec!["--mode shells"])];
+        // The cellproj mode renders no textured cage.
+        if !textured {
+            modes.push((Self::CellProj, vec!["--mode cellproj"]));
+        }
+        modes.push((raycast(Entry::Lists), vec!["--mode raycast"]));
+        modes.push((raycast(Entry::Peel), vec!["--mode raycast", "--entry peel"]));
+        modes.retain(|&(ask, _)| !ask.same_mode(self));
+        modes
     }
 
-    /// [`Self::check`] naming among `alternatives` (each's needs and flag, in order) those
-    /// these limits run.
-    fn check_among(
-        self,
-        adapter: &str,
-        limits: &wgpu::Limits,
-        alternatives: Vec<(ShaderNeeds, &'static str)>,
-    ) -> Result<(), GpuError> {
-        let Some((limit, has, needs)) = self.needs().shortfall(limits) else {
+    /// Whether `other` is a request of this one's mode.
+    fn same_mode(self, other: Self) -> bool {
+        std::mem::discriminant(&self) == std::mem::discriminant(&other)
+    }
+
+    /// What a refusal names instead where `limits` fall short of this request: the changes
+    /// to the other settings of its mode ([`Self::settings`]) these limits run with the fewest
+    /// flags (the user's other choices kept; several where as few), and `None`; else, where
+    /// no setting of the mode runs, each other mode ([`Self::other_modes`]) these limits run,
+    /// with its fewest flags, and this request.
+    pub fn nearest(self, limits: &wgpu::Limits) -> (Vec<Change>, Option<Self>) {
+        let runs = |asks: Vec<(Self, Change)>| -> Vec<(Self, Change)> {
+            (asks.into_iter())
+                .filter(|(ask, _)| ask.needs().fit(limits))
+                .collect()
+        };
+        let settings = runs(self.settings());
+        if let Some(fewest) = settings.iter().map(|(_, c)| c.len()).min() {
+            let nearest = (settings.into_iter()).filter(|(_, c)| c.len() == fewest);
+            return (nearest.map(|(_, c)| c).collect(), None);
+        }
+        let mut modes: Vec<(Self, Change)> = Vec::new();
+        for (ask, change) in runs(self.other_modes()) {
+            let same_mode =
+                |(a, _): &(Self, Change)| std::mem::discriminant(a) == std::mem::discriminant(&ask);
+            if !modes.iter().any(same_mode) {
+                modes.push((ask, change));
+            }
+        }
+        modes.sort_by_key(|(_, c)| c.len());
+        (modes.into_iter().map(|(_, c)| c).collect(), Some(self))
+    }
+
+    /// `Ok` when `limits` (of the adapter named `adapter`) run every part of this request,
+    /// else the refusal of the first part short of them ([`Self::refusal`]).
+    pub fn check(self, adapter: &str, limits: &wgpu::Limits) -> Result<(), GpuError> {
+        (self.parts().into_iter()).try_for_each(|part| self.refusal(part, adapter, limits))
+    }
+
+    /// `Ok` when `limits` offer what `part` (one of this request's parts) needs, else
+    /// [`GpuError::Limit`] for the first limit short of it, naming [`Self::nearest`].
+    fn refusal(self, part: Setting, adapter: &str, limits: &wgpu::Limits) -> Result<(), GpuError> {
+        let Some((limit, has, needs)) = part.needs().shortfall(limits) else {
             return Ok(());
         };
-        let instead = (alternatives.into_iter())
-            .filter(|(needs, _)| needs.fit(limits))
-            .map(|(_, flag)| flag)
-            .collect();
+        let (instead, no_setting_of) = self.nearest(limits);
         Err(GpuError::Limit {
-            adapter: adapter.to_owned(),
+            adapter: adapter.into(),
             limit,
             has,
             needs,
-            needed_by: self.name(),
+            needed_by: part.name(),
             instead,
+            no_setting_of,
         })
     }
-}
-
-/// The samplers other than `settings.sampler` with the rest of `settings`, as
-/// [`Setting::alternatives`] names them: each one's needs, with the GPU binning's where
-/// `gpu_binning` and the sampler bins (the walk sampler never does), and its flag; not a sampler
-/// that the rest of `settings` refuses (the walk sampler under 16-bit slices).
-fn other_samplers(
-    settings: &ShellSettings,
-    textured: bool,
-    gpu_binning: bool,
-) -> Vec<(ShaderNeeds, &'static str)> {
-    let flag = |s| match s {
-        Sampler::Raster => "--sampler raster",
-        Sampler::Compute => "--sampler compute",
-        Sampler::Walk => "--sampler walk",
-    };
-    (([Sampler::Raster, Sampler::Compute, Sampler::Walk].into_iter())
-        .filter(|&other| other != settings.sampler))
-    .map(|sampler| ShellSettings {
-        sampler,
-        ..*settings
-    })
-    .filter(|other| crate::gpu::shells::check_walk(other).is_ok())
-    .map(|other| {
-        let parts = ShaderNeeds::shells(&other, textured, gpu_binning);
-        let needs = (parts.iter()).fold(ShaderNeeds::NONE, |n, p| n.max(p.needs()));
-        (needs, flag(other.sampler))
-    })
-    .collect()
 }
 
 impl GpuContext {

@@ -36,7 +36,7 @@ pub use assembly::DEGENERATE_TOL;
 pub use cellproj::{CellProjRenderer, CellProjSettings, Integrate};
 pub use context::{AdapterChoice, GpuContext, GpuError};
 pub use iso::{IsoRenderer, IsoSettings};
-pub use limits::{Setting, ShaderNeeds};
+pub use limits::{Ask, Setting, ShaderNeeds};
 pub use mesh::GpuTetMesh;
 pub use raycast::{RaycastRenderer, RaycastSettings};
 pub use shells::skips::{Skip, Skips};
