@@ -553,6 +553,18 @@ fn info_lists_point_and_cell_arrays_and_selections() {
         "{}",
         text(&o).1
     );
+    // A scale that sends vertices out of f64 is the warp's fault, named as such: it was
+    // "vertex 0 has a non-finite coordinate (NaN, NaN, NaN)", as if the file held a NaN.
+    for scale in ["NaN", "inf"] {
+        let o = tetvr(&["info", &views, "--warp", "displacement", "--scale", scale]);
+        assert_eq!(o.status.code(), Some(1));
+        let stderr = text(&o).1;
+        assert!(
+            stderr.contains(&format!("warping by array 'displacement' times {scale}"))
+                && stderr.contains("not a finite position; give --scale a finite number"),
+            "{stderr}"
+        );
+    }
 }
 
 /// `render --warp d --scale s` draws the mesh whose vertices were moved by `s d` by hand.

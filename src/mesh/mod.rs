@@ -246,6 +246,23 @@ pub enum MeshError {
         /// Components it has (1 for a scalar).
         components: usize,
     },
+    /// Warping moved a vertex to a non-finite position: the scale is NaN or infinite, or it
+    /// times the vectors overflows f64.
+    #[error(
+        "warping by array '{}' times {scale} moves vertex {vertex} to ({}, {}, {}), not a \
+         finite position; give --scale a finite number small enough for the vectors",
+        name::shown_name(.array), .to[0], .to[1], .to[2]
+    )]
+    WarpNotFinite {
+        /// The array's name.
+        array: String,
+        /// The warp's scale.
+        scale: f64,
+        /// The first vertex moved out of the finite numbers.
+        vertex: usize,
+        /// Where it went.
+        to: [f64; 3],
+    },
     /// The mesh has no scalars (point or cell data), which every mode renders.
     #[error(
         "the mesh has no scalar array to render; add point or cell data to the file (POINT_DATA \
