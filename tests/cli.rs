@@ -561,7 +561,7 @@ fn info_lists_point_and_cell_arrays_and_selections() {
         let stderr = text(&o).1;
         assert!(
             stderr.contains(&format!("warping by array 'displacement' times {scale}"))
-                && stderr.contains("not a finite position; give --scale a finite number"),
+                && stderr.contains("not finite; give --scale a finite number"),
             "{stderr}"
         );
     }

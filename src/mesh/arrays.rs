@@ -232,7 +232,6 @@ pub fn warp_by_vector(
             array: vectors.name.clone(),
             scale,
             vertex,
-            to: moved[vertex].to_array(),
         });
     }
     super::check_new_positions(&moved, positions.len())?;

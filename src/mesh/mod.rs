@@ -249,9 +249,9 @@ pub enum MeshError {
     /// Warping moved a vertex to a non-finite position: the scale is NaN or infinite, or it
     /// times the vectors overflows f64.
     #[error(
-        "warping by array '{}' times {scale} moves vertex {vertex} to ({}, {}, {}), not a \
-         finite position; give --scale a finite number small enough for the vectors",
-        name::shown_name(.array), .to[0], .to[1], .to[2]
+        "warping by array '{}' times {scale} moves vertex {vertex} to a position that is not \
+         finite; give --scale a finite number small enough for the vectors",
+        name::shown_name(.array)
     )]
     WarpNotFinite {
         /// The array's name.
@@ -260,8 +260,6 @@ pub enum MeshError {
         scale: f64,
         /// The first vertex moved out of the finite numbers.
         vertex: usize,
-        /// Where it went.
-        to: [f64; 3],
     },
     /// The mesh has no scalars (point or cell data), which every mode renders.
     #[error(
