@@ -1317,6 +1317,21 @@ fn out_of_range_numbers_are_named_with_what_to_write() {
         stderr.contains("--scale 0 must be a positive number"),
         "{stderr}"
     );
+    // A folder given as a PNG is said to be one; it was "The image format could not be
+    // determined". A file that is no PNG is named with what its bytes lack.
+    let folder = out_dir("numbers");
+    let folder = folder.to_str().unwrap();
+    let stderr = failure(&["compare", folder, folder]);
+    assert!(
+        stderr.contains(&format!("{folder}: cannot read the PNG: "))
+            && stderr.contains("Is a directory"),
+        "{stderr}"
+    );
+    let stderr = failure(&["compare", LOX, LOX]);
+    assert!(
+        stderr.contains("cannot read the PNG: ") && stderr.contains("PNG signature"),
+        "{stderr}"
+    );
     // A mesh without scalars is named with the file, before any work.
     let bare = out_dir("numbers").join("bare.vtk");
     std::fs::write(
