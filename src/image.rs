@@ -225,11 +225,15 @@ impl Image {
 
     /// Reads an 8-bit PNG as an image with straight alpha turned into premultiplied.
     pub fn load_png(path: &Path) -> Result<Image, ImageError> {
-        let img = image::open(path)
-            .map_err(|source| ImageError::Read {
-                path: path.display().to_string(),
-                source,
-            })?
+        // Read, then decoded as a PNG whatever the name: `image::open` guessed the format from
+        // the extension, and said "The image format could not be determined" for a folder.
+        let read_error = |source| ImageError::Read {
+            path: path.display().to_string(),
+            source,
+        };
+        let bytes = std::fs::read(path).map_err(|e| read_error(image::ImageError::IoError(e)))?;
+        let img = image::load_from_memory_with_format(&bytes, image::ImageFormat::Png)
+            .map_err(read_error)?
             .to_rgba8();
         let pixels = img
             .pixels()

@@ -569,7 +569,7 @@ impl Scene {
             file: file.clone(),
             source: Box::new(e),
         })?;
-        let folder = absolute(path.parent().unwrap_or(Path::new("")));
+        let folder = folder_of(path);
         scene.map_paths(|p| normalize(&folder.join(p)));
         scene.origin.file = Some(file);
         Ok(scene)
@@ -622,7 +622,7 @@ impl Scene {
     /// Writes the scene as pretty JSON, its paths relative to `path`'s folder.
     pub fn save(&self, path: &Path) -> Result<(), SceneError> {
         let file = path.display().to_string();
-        let folder = absolute(path.parent().unwrap_or(Path::new("")));
+        let folder = folder_of(path);
         let mut relative = self.clone();
         relative.map_paths(|p| relative_to(&normalize(&absolute(p)), &folder));
         let text = serde_json::to_string_pretty(&relative).map_err(|e| SceneError::Write {
@@ -1023,6 +1023,14 @@ fn one_line_number_lists(text: &str) -> String {
         }
     }
     out + rest
+}
+
+/// The folder of the file `path`, absolute and normalized. A bare file name's parent is the
+/// empty path, which `std::path::absolute` refuses: taken as given, it made a scene saved in
+/// the current folder write absolute paths (nothing shared with an empty folder).
+fn folder_of(path: &Path) -> PathBuf {
+    let parent = path.parent().filter(|p| !p.as_os_str().is_empty());
+    normalize(&absolute(parent.unwrap_or(Path::new("."))))
 }
 
 /// `path` from the current directory (as given when that is unknown).

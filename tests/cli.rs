@@ -553,6 +553,18 @@ fn info_lists_point_and_cell_arrays_and_selections() {
         "{}",
         text(&o).1
     );
+    // A scale that sends vertices out of f64 is the warp's fault, named as such: it was
+    // "vertex 0 has a non-finite coordinate (NaN, NaN, NaN)", as if the file held a NaN.
+    for scale in ["NaN", "inf"] {
+        let o = tetvr(&["info", &views, "--warp", "displacement", "--scale", scale]);
+        assert_eq!(o.status.code(), Some(1));
+        let stderr = text(&o).1;
+        assert!(
+            stderr.contains(&format!("warping by array 'displacement' times {scale}"))
+                && stderr.contains("not finite; give --scale a finite number"),
+            "{stderr}"
+        );
+    }
 }
 
 /// `render --warp d --scale s` draws the mesh whose vertices were moved by `s d` by hand.
@@ -1303,6 +1315,21 @@ fn out_of_range_numbers_are_named_with_what_to_write() {
     let stderr = failure(&["compare", LOX, LOX, "--scale", "0"]);
     assert!(
         stderr.contains("--scale 0 must be a positive number"),
+        "{stderr}"
+    );
+    // A folder given as a PNG is said to be one; it was "The image format could not be
+    // determined". A file that is no PNG is named with what its bytes lack.
+    let folder = out_dir("numbers");
+    let folder = folder.to_str().unwrap();
+    let stderr = failure(&["compare", folder, folder]);
+    assert!(
+        stderr.contains(&format!("{folder}: cannot read the PNG: "))
+            && stderr.contains("Is a directory"),
+        "{stderr}"
+    );
+    let stderr = failure(&["compare", LOX, LOX]);
+    assert!(
+        stderr.contains("cannot read the PNG: ") && stderr.contains("PNG signature"),
         "{stderr}"
     );
     // A mesh without scalars is named with the file, before any work.

@@ -1175,7 +1175,8 @@ const MALFORMED: &[(&str, &str)] = &[
     ),
     (
         "bad_counts.vtk",
-        "bad_counts.vtk: line 23: unknown keyword '4'",
+        // CELLS 5 30 where its cells take 31 numbers: the last index is left over.
+        "bad_counts.vtk: line 23: found the number '4' where a keyword was expected: the CELLS section at line 18 holds more values than its line announces; correct its counts",
     ),
     (
         "index_out_of_range.vtk",

@@ -783,6 +783,17 @@ fn errors_name_the_range() {
     );
     let msg = empty_surface_error(1e308, (1e308, 1.7e308));
     assert!(msg.contains("e.g. 1.35e308"), "{msg}");
+    // Every value inside the range, yet no triangle: no tet crosses it (flat tets, constant
+    // ones, or a range widened by unused vertices). Not "they miss the scalar range", and not
+    // "e.g. 0.5", the midpoint that just failed (iso-export's default isovalue).
+    let msg = empty_surface_error(0.5, (0.0, 1.0));
+    assert!(
+        msg.contains("isovalue(s) 0.5: no tet's values cross them")
+            && msg.contains("zero-volume tets and unused vertices")
+            && !msg.contains("miss")
+            && !msg.contains("e.g."),
+        "{msg}"
+    );
     // No surface at all: said so with a value to extract at, not "at isovalue(s) : they miss
     // the scalar range" (an empty list of isovalues that missed nothing).
     let none = |range| (write_glb(Path::new("unused.glb"), &[], range).unwrap_err()).to_string();

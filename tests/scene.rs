@@ -354,6 +354,23 @@ fn render_scene_is_its_flags_and_given_flags_override_it() {
     assert_eq!(overridden, pixels(&dir.join("over-flags.png")));
 }
 
+/// `--save-scene NAME.json` in the current folder writes the paths relative to it, as into
+/// any other folder: the folder moves with its scene. The empty parent of a bare name made
+/// them absolute (`std::path::absolute("")` is an error, and the folder was left empty).
+#[test]
+fn a_scene_saved_in_the_current_folder_keeps_relative_paths() {
+    let dir = out_dir("save-here");
+    std::fs::copy(common::asset("lox_post_subset_tet.vtk"), dir.join("m.vtk")).unwrap();
+    let tf = example_tf_file(&dir);
+    let args = ["render", "m.vtk", "--mode", "raycast-cpu", "--size", "8x8"];
+    let save = ["--tf", &tf, "--save-scene", "s.json", "-o", "m.png"];
+    tetvr_in(&dir, &[&args[..], &save].concat());
+    let text = std::fs::read_to_string(dir.join("s.json")).unwrap();
+    assert!(text.contains("\"mesh\": \"m.vtk\""), "{text}");
+    let tf_name = Path::new(&tf).file_name().unwrap().to_str().unwrap();
+    assert!(text.contains(&format!("\"tf\": \"{tf_name}\"")), "{text}");
+}
+
 /// What `--save-scene` writes renders the same pixels again, from another folder.
 #[test]
 fn a_saved_scene_renders_the_same_picture() {

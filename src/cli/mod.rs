@@ -148,8 +148,8 @@ pub struct RenderArgs {
     /// JSON file (tetvr's own format or a ParaView colour map).
     #[arg(long, default_value = "viridis")]
     pub tf: String,
-    /// Length over which a control point's opacity is gathered (default: 1/100 of the mesh's
-    /// bounding-box diagonal, or the TF file's own value).
+    /// Length over which a control point's opacity is gathered, in the mesh's units (default:
+    /// 1/100 of the mesh's bounding-box diagonal, or the TF file's own value).
     #[arg(long)]
     pub unit_distance: Option<f64>,
     /// Image size in pixels.
@@ -253,10 +253,12 @@ pub struct AnimateArgs {
 
 #[derive(clap::Args, Debug)]
 pub struct ShellArgs {
-    /// shells: samples per ray across the mesh's depth (its bounding-sphere diameter).
+    /// shells: samples per ray across the mesh's depth (its bounding-sphere diameter; default
+    /// 512).
     #[arg(long, conflicts_with = "dz")]
     pub samples: Option<u32>,
-    /// shells: distance between samples along a ray, in world units.
+    /// shells: distance between samples along a ray, in the mesh's units (instead of
+    /// --samples).
     #[arg(long)]
     pub dz: Option<f64>,
     /// shells: slices sampled per fragment and shell (1 to 4 x the adapter's colour targets, 4

@@ -68,7 +68,9 @@ pub enum ExportError {
 /// [`marching`]): at the range's minimum every vertex is above, so the surface is empty; at its
 /// maximum every crossing collapses onto a vertex that reaches it, so the triangles are
 /// degenerate and dropped (unless the maximum is held over a whole face). A value inside the
-/// range met only by tets where the field is constant gives nothing either. No isovalue at
+/// range met only by tets where the field is constant or by flat tets, or lying between the
+/// values of vertices no tet uses, gives nothing either: said so, with no midpoint suggested
+/// (it may be the value that failed: the CLI's default). No isovalue at
 /// all (no surface given to [`write_glb`]) is said as such, with a value to extract at.
 fn empty_message(isovalues: &[f64], lo: f64, hi: f64) -> String {
     let list = |v: &[f64]| {
@@ -108,6 +110,15 @@ fn empty_message(isovalues: &[f64], lo: f64, hi: f64) -> String {
              the whole field is at or above it) or degenerate (at the maximum it shrinks to the \
              points that reach it)"
         )
+    } else if isovalues.iter().all(|&v| lo < v && v < hi) {
+        // Inside the range, "they miss it" is false, and the midpoint may be what failed.
+        return format!(
+            "no isosurface to export at isovalue(s) {}: no tet's values cross them, although \
+             the scalar range [{lo_s}, {hi_s}] holds them (the tets there have a constant field \
+             or no volume, or the range comes from vertices no tet uses: `tetvr info` counts \
+             zero-volume tets and unused vertices); choose other values",
+            list(isovalues)
+        );
     } else {
         format!(
             "they miss the scalar range [{lo_s}, {hi_s}] or only meet tets where the field is \

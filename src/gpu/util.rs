@@ -73,9 +73,20 @@ impl F32Frame {
 
     /// `tf` with its unit distance in the frame: the same opacity over the same stretch of
     /// the mesh, so the same picture (extinction per frame unit is the world's over `scale`).
+    /// The unit distance is at least [`Self::MIN_UNIT_DISTANCE`], which keeps every
+    /// extinction within f32.
     pub fn tf(&self, tf: &TransferFunction) -> Result<TransferFunction, RenderError> {
-        Ok(tf.with_unit_distance(self.length(tf.unit_distance()))?)
+        let unit = self.length(tf.unit_distance()).max(Self::MIN_UNIT_DISTANCE);
+        Ok(tf.with_unit_distance(unit)?)
     }
+
+    /// The shortest unit distance the f32 stages take, in frame units (the mesh's radius is
+    /// about 1). Below about 1e-38 a control point's extinction (up to 9.2 per unit distance)
+    /// overflowed f32 to infinity, and the ray casters drew black (`--unit-distance 1e-40` on
+    /// the lox post: NaN colours, 14 dB against the reference). At this one the extinctions
+    /// stay below 1e31 and every segment longer than 1e-28 is opaque already, as it is in the
+    /// exact picture: shorter ones are far below f32's resolution of positions (6e-8).
+    pub const MIN_UNIT_DISTANCE: f64 = 1e-30;
 }
 
 /// How far the eye may be from the mesh in each f32 mode, in mesh radii (bounding-sphere

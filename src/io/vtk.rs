@@ -205,6 +205,9 @@ struct Sections {
     cell_data: Option<(usize, usize)>,
     /// The attribute section the next arrays belong to.
     section: Section,
+    /// The last keyword read and its offset: a number where a keyword is expected is most
+    /// likely a value of its section beyond the count its line announces.
+    last: Option<(usize, String)>,
 }
 
 pub(super) fn read(data: &[u8], name: &str, budget: &Budget) -> Result<Loaded, LoadError> {
@@ -218,6 +221,7 @@ pub(super) fn read(data: &[u8], name: &str, budget: &Budget) -> Result<Loaded, L
         let kw = kw.to_ascii_uppercase();
         let (args_at, args) = r.args();
         r.keyword(&mut s, &kw, &Line { at, args_at, args })?;
+        s.last = Some((at, shown(&kw)));
     }
     r.finish(s)
 }
@@ -292,9 +296,31 @@ impl<'a> Reader<'a> {
             b"LOOKUP_TABLE" => self.lookup_table(l)?,
             b"FIELD" => self.field(s, l)?,
             b"METADATA" => skip_metadata_body(&mut self.c),
-            _ => return Err(self.err(l.at, format!("unknown keyword '{}'", shown(kw)))),
+            _ => return Err(self.unknown_keyword(s, kw, l.at)),
         }
         Ok(())
+    }
+
+    /// The error for `kw` at `at` where a keyword was expected. A number there (the CELLS
+    /// line's size one too small left the last cell's last index) is named as a value beyond
+    /// the count of the section before, not as an unknown keyword '4'.
+    fn unknown_keyword(&self, s: &Sections, kw: &[u8], at: usize) -> LoadError {
+        let number = std::str::from_utf8(kw).is_ok_and(|t| t.parse::<f64>().is_ok());
+        let msg = match (&s.last, number) {
+            (Some((last_at, last)), true) => {
+                let place = match self.c.by_byte {
+                    true => Location::Byte(*last_at as u64),
+                    false => Location::Line(self.c.line_of(*last_at)),
+                };
+                format!(
+                    "found the number '{}' where a keyword was expected: the {last} section \
+                     at {place} holds more values than its line announces; correct its counts",
+                    shown(kw)
+                )
+            }
+            _ => format!("unknown keyword '{}'", shown(kw)),
+        };
+        self.err(at, msg)
     }
 
     /// `DATASET UNSTRUCTURED_GRID`, the only dataset type read: true, or an error.

@@ -225,6 +225,15 @@ pub fn warp_by_vector(
         .zip(vectors.tuples())
         .map(|(p, v)| *p + scale * DVec3::new(v[0], v[1], v[2]))
         .collect();
+    // Named here as the warp's doing: the file's positions and vectors are finite, and
+    // "vertex 0 has a non-finite coordinate" sent the user to the file for a --scale nan.
+    if let Some(vertex) = moved.iter().position(|p| !p.is_finite()) {
+        return Err(MeshError::WarpNotFinite {
+            array: vectors.name.clone(),
+            scale,
+            vertex,
+        });
+    }
     super::check_new_positions(&moved, positions.len())?;
     Ok(moved)
 }

@@ -246,6 +246,21 @@ pub enum MeshError {
         /// Components it has (1 for a scalar).
         components: usize,
     },
+    /// Warping moved a vertex to a non-finite position: the scale is NaN or infinite, or it
+    /// times the vectors overflows f64.
+    #[error(
+        "warping by array '{}' times {scale} moves vertex {vertex} to a position that is not \
+         finite; give --scale a finite number small enough for the vectors",
+        name::shown_name(.array)
+    )]
+    WarpNotFinite {
+        /// The array's name.
+        array: String,
+        /// The warp's scale.
+        scale: f64,
+        /// The first vertex moved out of the finite numbers.
+        vertex: usize,
+    },
     /// The mesh has no scalars (point or cell data), which every mode renders.
     #[error(
         "the mesh has no scalar array to render; add point or cell data to the file (POINT_DATA \
