@@ -17,10 +17,12 @@
 @group(0) @binding(7) var<storage, read_write> eye_vertices: array<vec4<f32>>;
 
 // World (mesh-origin relative) point to eye space, once per vertex, so every tet that uses a
-// vertex projects it to the same bits (no cracks).
+// vertex projects it to the same bits (no cracks). Measured from view.eye, the pivot where
+// view.pivot_z is not 0 (gpu::view::ViewFrame::pivot_uniforms): only z, the pivot's distance
+// added last, is then rounded to the eye's distance.
 fn to_eye(p: vec3<f32>) -> vec3<f32> {
     let q = p - view.eye;
-    return vec3<f32>(dot(view.right, q), dot(view.up, q), dot(view.forward, q));
+    return vec3<f32>(dot(view.right, q), dot(view.up, q), dot(view.forward, q) + view.pivot_z);
 }
 
 // A world-space vector's components along the eye axes.
@@ -89,6 +91,7 @@ fn assemble(t: u32) -> bool {
     let g2 = c31 * k;
     let g3 = c12 * k;
     let g0 = -(g1 + g2 + g3);
+    // The barycentrics of view.eye: the eye's, or the pivot's where view.pivot_z is not 0.
     let q = (view.eye - p0) * inv_l;
     let l1 = dot(c23, q) / det;
     let l2 = dot(c31, q) / det;

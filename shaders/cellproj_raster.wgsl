@@ -5,7 +5,8 @@
 // view.near_z draws instead a screen-space quad over its part in front of that plane
 // (near_quad), so the eye may be inside the mesh.
 // Each fragment clips the pixel-centre ray against the tet's four face planes in barycentric
-// space (entry: the last plane it enters, clamped at the eye; exit: the first it leaves),
+// space (entry: the last plane it enters, clamped at the eye; exit: the first it leaves;
+// both measured from the ray's point level with the mesh centre, see `segment`),
 // takes the scalar at both ends from the record's linear scalar, and integrates the segment
 // either from the 3D pre-integration table (fs_table) or exactly for the piecewise-linear TF
 // (fs_exact). The output, premultiplied RGBA, is blended "over" what is behind:
@@ -65,15 +66,24 @@ const PARALLEL: f32 = 1e-5;
 // near-plane quad covers pixels outside the tet).
 fn segment(in: Varyings) -> vec3<f32> {
     let d = pixel_ray(in.position.xy);
-    // Barycentrics along the ray: lambda(t) = lambda_eye + t gd.
+    // The ray meets the pivot's plane (eye-space z = view.pivot_z, level with the mesh centre)
+    // at t_c, where its barycentrics are lambda_c (in.lambda_eye are the pivot's) and its
+    // encoded scalar s_c; along it, lambda(t_c + t) = lambda_c + t gd, and the segment's ends
+    // are measured from there. From a far eye, the ends' distances would be ~D and their
+    // difference, the length, rounded to ~6e-8 D. With the pivot at the eye, t_c = 0 and
+    // lambda_c and s_c are the eye's.
+    let t_c = view.pivot_z / d.z;
+    let lambda_c = in.lambda_eye + (t_c * d.x) * in.grad_x + (t_c * d.y) * in.grad_y;
+    let s_c = in.scalar.w + (t_c * d.x) * in.scalar.x + (t_c * d.y) * in.scalar.y;
     let gd = in.grad_x * d.x + in.grad_y * d.y + in.grad_z * d.z;
     let norm = sqrt(in.grad_x * in.grad_x + in.grad_y * in.grad_y + in.grad_z * in.grad_z);
     let along = abs(gd) <= PARALLEL * norm;
-    var t_in = 0.0;
+    // Clamped at the eye.
+    var t_in = 0.0 - t_c;
     var t_out = 3.0e38;
     for (var i = 0u; i < 4u; i++) {
         let g = gd[i];
-        let l = in.lambda_eye[i];
+        let l = lambda_c[i];
         if along[i] {
             continue;
         }
@@ -83,14 +93,14 @@ fn segment(in: Varyings) -> vec3<f32> {
             t_out = min(t_out, -l / g);
         }
     }
-    let middle = in.lambda_eye + (0.5 * (t_in + t_out)) * gd;
+    let middle = lambda_c + (0.5 * (t_in + t_out)) * gd;
     if !(t_out > t_in) || t_out > 1.0e37 || any(along & (middle < vec4<f32>(-view.epsilon))) {
         return vec3<f32>(0.0, 0.0, -1.0);
     }
     // Encoded scalar 1 + u along the ray.
     let ds = dot(in.scalar.xyz, d);
-    let u_in = clamp(in.scalar.w + t_in * ds - 1.0, 0.0, 1.0);
-    let u_out = clamp(in.scalar.w + t_out * ds - 1.0, 0.0, 1.0);
+    let u_in = clamp(s_c + t_in * ds - 1.0, 0.0, 1.0);
+    let u_out = clamp(s_c + t_out * ds - 1.0, 0.0, 1.0);
     return vec3<f32>(u_in, u_out, t_out - t_in);
 }
 

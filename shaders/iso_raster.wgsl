@@ -94,7 +94,14 @@ fn vs_faces(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instanc
 @fragment
 fn fs_iso(in: Varyings) -> IsoOut {
     let d = pixel_ray(in.position.xy);
-    // Barycentrics along the ray: lambda(t) = lambda_eye + t gd.
+    // The ray meets the pivot's plane (eye-space z = view.pivot_z, level with the mesh centre)
+    // at t_c, where its barycentrics are lambda_c (in.lambda_eye are the pivot's); along it,
+    // lambda(t_c + t) = lambda_c + t gd. Every term is of the mesh's size: from a far eye,
+    // lambda_eye + t gd would add two terms of ~D / (tet size) that cancel, losing the hit's
+    // side of a tet face to f32 rounding. With the pivot at the eye, t_c = 0 and lambda_c is
+    // lambda_eye.
+    let t_c = view.pivot_z / d.z;
+    let lambda_c = in.lambda_eye + (t_c * d.x) * in.grad_x + (t_c * d.y) * in.grad_y;
     let gd = in.grad_x * d.x + in.grad_y * d.y + in.grad_z * d.z;
     let s = in.values;
     let lo = min(min(s.x, s.y), min(s.z, s.w));
@@ -116,11 +123,12 @@ fn fs_iso(in: Varyings) -> IsoOut {
         if rate == 0.0 {
             continue;
         }
-        let t = -dot(in.lambda_eye, f) / rate;
-        let l = in.lambda_eye + t * gd;
+        let t = -dot(lambda_c, f) / rate;
+        let l = lambda_c + t * gd;
         let inside = min(min(l.x, l.y), min(l.z, l.w)) >= -view.epsilon;
-        // Hits at or behind the eye (t <= 0) belong to no pixel; depth is t / far.
-        if inside && t > 0.0 && t < best_t {
+        // Hits at or behind the eye (t_c + t <= 0) belong to no pixel; depth is their
+        // distance / far.
+        if inside && t_c + t > 0.0 && t < best_t {
             best_t = t;
             best_k = k;
         }
@@ -132,7 +140,7 @@ fn fs_iso(in: Varyings) -> IsoOut {
     let flat_n = vec3<f32>(dot(in.grad_x, s), dot(in.grad_y, s), dot(in.grad_z, s));
     var n = flat_n;
     if iso.smooth_shading != 0u {
-        let l = clamp(in.lambda_eye + best_t * gd, vec4<f32>(0.0), vec4<f32>(1.0));
+        let l = clamp(lambda_c + best_t * gd, vec4<f32>(0.0), vec4<f32>(1.0));
         let g = vec3<f32>(dot(l, in.vgrad_x), dot(l, in.vgrad_y), dot(l, in.vgrad_z));
         if dot(g, g) > 0.0 {
             n = g;
@@ -147,7 +155,8 @@ fn fs_iso(in: Varyings) -> IsoOut {
     let c = headlight(iso.colors[best_k].rgb, ndv);
     var out: IsoOut;
     out.color = vec4<f32>(c, 1.0);
-    out.geometry = vec4<f32>(normalize(to_world_vector(n)), best_t);
-    out.depth = clamp(best_t * iso.inv_depth_range, 0.0, 1.0);
+    let distance = t_c + best_t;
+    out.geometry = vec4<f32>(normalize(to_world_vector(n)), distance);
+    out.depth = clamp(distance * iso.inv_depth_range, 0.0, 1.0);
     return out;
 }

@@ -16,8 +16,8 @@ struct View {
     proj: vec2<f32>,
     half_extent: vec2<f32>,
     size: vec2<f32>,
+    pivot_z: f32,
     _pad0: u32,
-    _pad1: u32,
 }
 
 // Written by the assembly stage once per tet and frame; see gpu_data::TetRecord. The tet's

@@ -1,11 +1,11 @@
 // The shells mode's own constants (appended after shared.wgsl in front of its stages); see gpu_data::SlicingUniforms and gpu_data::ShellUniforms.
 
-// Slice k lies at distance t_first + k dz from the eye.
+// Slice k lies at distance t_first + k dz from the eye; t_pivot is t_first - view.pivot_z.
 struct Slicing {
     t_first: f32,
     dz: f32,
     slices_per_shell: u32,
-    _pad0: u32,
+    t_pivot: f32,
 }
 
 // Per-shell constants (dynamic uniform offset).

@@ -12,27 +12,51 @@ struct SpanTet {
     scalar: vec4<f32>,
 }
 
-// The distance from the eye of the shell's first slice.
+// The distance of the shell's first slice beyond the pivot's distance view.pivot_z (from the
+// eye where view.pivot_z is 0).
 fn shell_t0() -> f32 {
-    return slicing.t_first + f32(shell.first_slice) * slicing.dz;
+    return slicing.t_pivot + f32(shell.first_slice) * slicing.dz;
+}
+
+// Along the ray `d`, the distance of the shell's first slice from t_c, the ray's distance to
+// the pivot's plane (eye-space z = view.pivot_z): shell_t0() less t_c - pivot_z, which is
+// pivot_z (1 / d.z - 1) written without 1 / d.z - 1's cancellation (e = tan^2 of the ray's
+// angle to the axis). Every term is of the mesh's size; from a far eye, t0 and t_c would be
+// ~D and their difference rounded to ~6e-8 D. 0 where the pivot is the eye.
+fn ray_t0(d: vec3<f32>) -> f32 {
+    let e = dot(d.xy, d.xy) / (d.z * d.z);
+    return shell_t0() - view.pivot_z * e / (sqrt(1.0 + e) + 1.0);
+}
+
+// The ray's point t_c (see ray_t0): its distance from the eye along the unit ray `d` times
+// (d.x, d.y), the only components of its offset from the pivot.
+fn pivot_offset(d: vec3<f32>) -> vec2<f32> {
+    let t_c = view.pivot_z / d.z;
+    return vec2<f32>(t_c * d.x, t_c * d.y);
 }
 
 // The barycentric coordinates of slice j of this shell along the ray `d` in the tet are
-// A + j B; returns (A, B).
+// A + j B; returns (A, B). A is taken from the ray's point in the pivot's plane (rec's
+// lambda_eye are the pivot's), as iso's and cellproj's fragments do: from a far eye,
+// lambda_eye + t0 gd would add two terms of ~D / (tet size) that cancel.
 fn slice_lambdas(rec: SpanTet, d: vec3<f32>) -> array<vec4<f32>, 2> {
     let gd = rec.grad_x * d.x + rec.grad_y * d.y + rec.grad_z * d.z;
-    return array<vec4<f32>, 2>(rec.lambda_eye + shell_t0() * gd, gd * slicing.dz);
+    let o = pivot_offset(d);
+    let lambda_c = rec.lambda_eye + o.x * rec.grad_x + o.y * rec.grad_y;
+    return array<vec4<f32>, 2>(lambda_c + ray_t0(d) * gd, gd * slicing.dz);
 }
 
 // Along the fragment's ray, slice j of this shell (0 <= j < slices_per_shell) lies at
-// t_j = t0 + j dz with t0 = t_first + first_slice dz, so every barycentric coordinate is linear
+// t_j = t0 + j dz with t0 = t_first + first_slice dz (measured from the ray's point in the
+// pivot's plane: ray_t0), so every barycentric coordinate is linear
 // in j: lambda(j) = A + j B. The sample is inside when min(lambda) >= -epsilon, i.e. when j lies
 // in [lo, hi], the intersection of the half-lines A_i + j B_i >= -epsilon. Returns
 // (lo, hi, s0, s1): the slice index range and the encoded scalar s(j) = s0 + j s1.
 // The CPU twin is gpu::shells::twin::slice_span.
 fn tet_span(rec: SpanTet, d: vec3<f32>) -> vec4<f32> {
     let ab = slice_lambdas(rec, d);
-    let t0 = shell_t0();
+    let t0 = ray_t0(d);
+    let o = pivot_offset(d);
     let a = ab[0];
     let b = ab[1];
     let r = (-view.epsilon - a) / b;
@@ -45,7 +69,8 @@ fn tet_span(rec: SpanTet, d: vec3<f32>) -> vec4<f32> {
     let lo = max(max(lo4.x, lo4.y), max(lo4.z, lo4.w));
     let hi = min(min(min(hi4.x, hi4.y), min(hi4.z, hi4.w)), f32(slicing.slices_per_shell - 1u));
     let sd = dot(rec.scalar.xyz, d);
-    return vec4<f32>(lo, hi, rec.scalar.w + t0 * sd, slicing.dz * sd);
+    let s_c = rec.scalar.w + o.x * rec.scalar.x + o.y * rec.scalar.y;
+    return vec4<f32>(lo, hi, s_c + t0 * sd, slicing.dz * sd);
 }
 
 // The shell's slices from slice_span's (lo, hi, s0, s1): slice j (4 per target) holds

@@ -268,7 +268,7 @@ fn auto_on_a_software_adapter_takes_the_cpu_ray_caster_and_says_why() {
 }
 
 /// `--fov 1e-3` frames the lox subset from 1.15e5 mesh radii (1 / sin(0.5e-3 degrees)),
-/// beyond every f32 mode's far-eye limit: `auto` (here the CPU ray caster, limit 1e4) refuses
+/// beyond the ray casters' far-eye limit: `auto` (here the CPU ray caster, limit 1e4) refuses
 /// the frame, naming the distance and the remedies, and writes nothing; `--mode reference`,
 /// exact in f64, renders it.
 #[test]

@@ -346,7 +346,7 @@ fn frame(
         t_first,
         dz,
         slices_per_shell,
-        _pad: 0,
+        t_pivot: t_first,
     };
     (view, slicing)
 }
@@ -572,7 +572,28 @@ fn record_scales(rec: &TetRecord, cond: f32) -> Vec<f32> {
         .collect()
 }
 
-/// Cameras of the sweep: far, near the mesh, and far from the origin.
+/// `(view, slicing)` measured from the pivot `pivot_z` ahead of the eye on the view axis
+/// instead of from the eye, as iso, cellproj and the shells' raster and compute samplers are
+/// given them (`ViewFrame::pivot_uniforms`).
+fn pivoted(
+    (view, slicing): (ViewUniforms, SlicingUniforms),
+    pivot_z: f32,
+) -> (ViewUniforms, SlicingUniforms) {
+    let eye = Vec3::from(view.eye) + Vec3::from(view.forward) * pivot_z;
+    let view = ViewUniforms {
+        eye: eye.to_array(),
+        pivot_z,
+        ..view
+    };
+    let slicing = SlicingUniforms {
+        t_pivot: slicing.t_first - pivot_z,
+        ..slicing
+    };
+    (view, slicing)
+}
+
+/// Cameras of the sweep: far, near the mesh, far from the origin, and that one again measured
+/// from a pivot near the mesh.
 fn cameras() -> Vec<ViewUniforms> {
     let slicing = (0.01, 0.05, 8);
     vec![
@@ -588,6 +609,15 @@ fn cameras() -> Vec<ViewUniforms> {
             Vec3::new(0.1, 0.0, 0.0),
             [96.0, 96.0],
             slicing,
+        ),
+        pivoted(
+            frame(
+                Vec3::new(0.0, 0.0, 30.0),
+                Vec3::new(0.1, 0.0, 0.0),
+                [96.0, 96.0],
+                slicing,
+            ),
+            29.5,
         ),
     ]
     .into_iter()
@@ -808,8 +838,9 @@ fn fragment_cases(
     cases
 }
 
-/// Cameras for the fragments: slices of 0.05 seen from afar, and slices of 1e-3 starting at
-/// 1e-3 with tets at the eye.
+/// Cameras for the fragments: slices of 0.05 seen from afar, slices of 1e-3 starting at
+/// 1e-3 with tets at the eye, slices of 0.01 far from the origin, and those again measured
+/// from a pivot near the mesh.
 fn fragment_cameras() -> Vec<((ViewUniforms, SlicingUniforms), u32)> {
     vec![
         (
@@ -836,6 +867,18 @@ fn fragment_cameras() -> Vec<((ViewUniforms, SlicingUniforms), u32)> {
                 Vec3::new(0.1, 0.0, 0.0),
                 [96.0, 96.0],
                 (25.0, 0.01, 8),
+            ),
+            300,
+        ),
+        (
+            pivoted(
+                frame(
+                    Vec3::new(0.0, 0.0, 30.0),
+                    Vec3::new(0.1, 0.0, 0.0),
+                    [96.0, 96.0],
+                    (25.0, 0.01, 8),
+                ),
+                29.5,
             ),
             300,
         ),

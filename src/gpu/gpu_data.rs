@@ -33,7 +33,10 @@ pub struct ViewUniforms {
     /// A tet is degenerate (skipped) when |det(edges / L)| <= this times the product of the
     /// normalized edge lengths, L the longest of the three edges from vertex 0.
     pub degenerate_tol: f32,
-    /// The eye, relative to the mesh origin.
+    /// The origin of the eye-space arithmetic, relative to the mesh origin: the eye where
+    /// `pivot_z` is 0, else the pivot, the point `pivot_z` ahead of the eye on the view axis
+    /// (`ViewFrame::pivot_uniforms`, `gpu/view.rs`). The assembly measures eye-space
+    /// vertices and the records' `lambda_eye` from it.
     pub eye: [f32; 3],
     /// Number of tets (assembly bound).
     pub tet_count: u32,
@@ -43,8 +46,13 @@ pub struct ViewUniforms {
     pub half_extent: [f32; 2],
     /// Image size in pixels.
     pub size: [f32; 2],
+    /// Eye-space z of the pivot (`eye`): 0 where `eye` is the eye. Iso, cellproj and the
+    /// shells' raster and compute samplers set it (their fragments measure their rays from
+    /// the pivot); the ray caster's stages (and the walk sampler's) take `eye` as the eye and
+    /// are given 0.
+    pub pivot_z: f32,
     /// Zero: pads the struct to WGSL's 16-byte alignment.
-    pub _pad: [u32; 2],
+    pub _pad: u32,
 }
 const _: () = assert!(size_of::<ViewUniforms>() == 96);
 
@@ -59,8 +67,10 @@ pub struct SlicingUniforms {
     pub dz: f32,
     /// Slices per shell (the raster stage writes zeros beyond this).
     pub slices_per_shell: u32,
-    /// Zero: pads the struct to the 16 bytes of a uniform binding.
-    pub _pad: u32,
+    /// `t_first - ViewUniforms::pivot_z`, in f64 before rounding: slice 0's distance beyond
+    /// the pivot's, which the samplers measure their slices from (`t_first` where the pivot
+    /// is the eye).
+    pub t_pivot: f32,
 }
 const _: () = assert!(size_of::<SlicingUniforms>() == 16);
 
@@ -164,10 +174,11 @@ pub struct TetRecord {
     pub grad_y: [f32; 4],
     /// d lambda_i / d z_eye.
     pub grad_z: [f32; 4],
-    /// Barycentric coordinates of the eye.
+    /// Barycentric coordinates of the eye (of the pivot where [`ViewUniforms::pivot_z`] is
+    /// not 0).
     pub lambda_eye: [f32; 4],
     /// xyz: eye-space gradient of the encoded scalar; w: the encoded scalar extrapolated to
-    /// the eye.
+    /// the eye (the pivot).
     pub scalar: [f32; 4],
 }
 const _: () = assert!(size_of::<TetRecord>() == 80);

@@ -97,7 +97,7 @@ pub struct ReferenceRenderer {
 /// 1e7 radii the rays are off by at most 1e-8 radii, which moves a pixel by at most 1e-7, a
 /// tenth of DESIGN's 1e-6, for a picture that changes by up to 10 per radius (measured: the
 /// test's grid just inside the limit within 1.5e-7 of the picture from half as far, which
-/// includes the perspectives' own difference); and 1e7 is a thousand times beyond the
+/// includes the perspectives' own difference); and 1e7 is ten times beyond the
 /// farthest eye an f32 mode accepts ([`crate::gpu::far_eye`]), so their refusal's remedy,
 /// `--mode reference`, holds wherever they refuse.
 pub const FAR_EYE: f64 = 1e7;

@@ -32,13 +32,17 @@ fn v4(a: [f32; 4]) -> Vec4 {
 /// parallel face by more than `f.epsilon`.
 pub fn segment(f: &ViewUniforms, rec: &TetRecord, d: Vec3) -> Option<Vec3> {
     let (gx, gy, gz) = (v4(rec.grad_x), v4(rec.grad_y), v4(rec.grad_z));
-    let lambda_eye = v4(rec.lambda_eye);
+    let s = v4(rec.scalar);
+    // Measured from the ray's point in the pivot's plane (the eye's where pivot_z is 0).
+    let t_c = f.pivot_z / d.z;
+    let lambda_c = v4(rec.lambda_eye) + (t_c * d.x) * gx + (t_c * d.y) * gy;
+    let s_c = s.w + (t_c * d.x) * s.x + (t_c * d.y) * s.y;
     let gd = gx * d.x + gy * d.y + gz * d.z;
     let norm = (gx * gx + gy * gy + gz * gz).sqrt();
     let along = gd.abs().cmple(PARALLEL * norm);
-    let (mut t_in, mut t_out) = (0.0f32, 3.0e38f32);
+    let (mut t_in, mut t_out) = (0.0 - t_c, 3.0e38f32);
     for i in 0..4 {
-        let (g, l) = (gd[i], lambda_eye[i]);
+        let (g, l) = (gd[i], lambda_c[i]);
         if along.test(i) {
             continue;
         }
@@ -48,17 +52,16 @@ pub fn segment(f: &ViewUniforms, rec: &TetRecord, d: Vec3) -> Option<Vec3> {
             t_out = t_out.min(-l / g);
         }
     }
-    let middle = lambda_eye + (0.5 * (t_in + t_out)) * gd;
+    let middle = lambda_c + (0.5 * (t_in + t_out)) * gd;
     let outside = (along & middle.cmplt(Vec4::splat(-f.epsilon))).any();
     // The shader's `!(t_out > t_in)` also refuses NaN.
     let nonempty = t_out > t_in;
     if !nonempty || t_out > 1.0e37 || outside {
         return None;
     }
-    let s = v4(rec.scalar);
     let ds = s.truncate().dot(d);
-    let u_in = (s.w + t_in * ds - 1.0).clamp(0.0, 1.0);
-    let u_out = (s.w + t_out * ds - 1.0).clamp(0.0, 1.0);
+    let u_in = (s_c + t_in * ds - 1.0).clamp(0.0, 1.0);
+    let u_out = (s_c + t_out * ds - 1.0).clamp(0.0, 1.0);
     Some(Vec3::new(u_in, u_out, t_out - t_in))
 }
 

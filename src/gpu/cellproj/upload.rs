@@ -21,7 +21,7 @@ impl CellProjRenderer {
     ) -> Result<(), RenderError> {
         let view = ViewFrame::new(camera);
         let drawn = order.len() as u32;
-        let view = view.uniforms(m.origin, twin::INSIDE_TOL, near_z(m.radius), drawn);
+        let view = view.pivot_uniforms(m.origin, twin::INSIDE_TOL, near_z(m.radius), drawn);
         self.queue
             .write_buffer(&self.view_buf, 0, bytemuck::bytes_of(&view));
         let points = tf_points(tf, m.scalar_min, m.scalar_span)?;

@@ -21,7 +21,7 @@ impl IsoRenderer {
         visible: Option<&[[u32; 4]]>,
         drawn: usize,
     ) -> Result<SelectionLists, RenderError> {
-        let uniforms = view.uniforms(
+        let uniforms = view.pivot_uniforms(
             m.origin,
             self.settings.epsilon,
             near_z(m.radius),

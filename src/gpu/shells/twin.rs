@@ -14,7 +14,11 @@ fn v3(a: [f32; 3]) -> Vec3 {
 
 fn to_eye(f: &ViewUniforms, p: Vec3) -> Vec3 {
     let q = p - v3(f.eye);
-    Vec3::new(v3(f.right).dot(q), v3(f.up).dot(q), v3(f.forward).dot(q))
+    Vec3::new(
+        v3(f.right).dot(q),
+        v3(f.up).dot(q),
+        v3(f.forward).dot(q) + f.pivot_z,
+    )
 }
 
 fn rotate(f: &ViewUniforms, g: Vec3) -> Vec3 {
@@ -87,11 +91,14 @@ pub fn slice_span(
     d: Vec3,
     first_slice: u32,
 ) -> Vec4 {
-    let gd = Vec4::from_array(rec.grad_x) * d.x
-        + Vec4::from_array(rec.grad_y) * d.y
-        + Vec4::from_array(rec.grad_z) * d.z;
-    let t0 = sl.t_first + first_slice as f32 * sl.dz;
-    let a = Vec4::from_array(rec.lambda_eye) + gd * t0;
+    let (gx, gy) = (Vec4::from_array(rec.grad_x), Vec4::from_array(rec.grad_y));
+    let gd = gx * d.x + gy * d.y + Vec4::from_array(rec.grad_z) * d.z;
+    // Measured from the ray's point in the pivot's plane (the eye where pivot_z is 0).
+    let e = (d.x * d.x + d.y * d.y) / (d.z * d.z);
+    let t0 = (sl.t_pivot + first_slice as f32 * sl.dz) - f.pivot_z * e / ((1.0 + e).sqrt() + 1.0);
+    let t_c = f.pivot_z / d.z;
+    let (ox, oy) = (t_c * d.x, t_c * d.y);
+    let a = (Vec4::from_array(rec.lambda_eye) + ox * gx + oy * gy) + gd * t0;
     let b = gd * sl.dz;
     let r = (Vec4::splat(-f.epsilon) - a) / b;
     let big = 1e30f32;
@@ -109,7 +116,8 @@ pub fn slice_span(
         hi = hi.min(hi_i);
     }
     let sd = Vec3::from_slice(&rec.scalar[..3]).dot(d);
-    Vec4::new(lo, hi, rec.scalar[3] + t0 * sd, sl.dz * sd)
+    let s_c = rec.scalar[3] + ox * rec.scalar[0] + oy * rec.scalar[1];
+    Vec4::new(lo, hi, s_c + t0 * sd, sl.dz * sd)
 }
 
 /// The raster fragment for one pixel and shell: each slice's encoded scalar where the sample is
@@ -174,7 +182,7 @@ mod tests {
             t_first,
             dz,
             slices_per_shell,
-            _pad: 0,
+            t_pivot: t_first,
         }
     }
 
@@ -231,6 +239,8 @@ mod tests {
             // Put slice j of shell 0 exactly at the point's distance, and the pixel on its ray.
             let t = xe.length();
             sl.t_first = t - j as f32 * sl.dz;
+            // Measured from the eye (the frame's pivot_z is 0).
+            sl.t_pivot = sl.t_first;
             let d = xe / t;
             // The framebuffer position whose pixel ray is d (inverse of pixel_ray).
             let u = d.x / d.z / f.half_extent[0];

@@ -37,7 +37,7 @@ impl ShellsRenderer {
     ) -> Result<Vec<DrawnShell>, RenderError> {
         let near = (0.5 * plan.near_z) as f32;
         let tets = m.tets.len() as u32;
-        let view = (plan.view).uniforms(m.origin, self.settings.epsilon, near, tets);
+        let view = (plan.view).pivot_uniforms(m.origin, self.settings.epsilon, near, tets);
         self.ctx
             .queue
             .write_buffer(&self.view_buf, 0, bytemuck::bytes_of(&view));
@@ -45,7 +45,7 @@ impl ShellsRenderer {
             t_first: plan.t_first as f32,
             dz: plan.dz as f32,
             slices_per_shell: n,
-            _pad: 0,
+            t_pivot: (plan.t_first - view.pivot_z as f64) as f32,
         };
         self.ctx
             .queue
