@@ -230,7 +230,7 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
     };
     let build = Instant::now();
     let (mut renderer, what) = build_renderer(textured.as_ref(), &mode, gpu.as_ref(), &mesh)
-        .map_err(|e| usable_instead(e, args, matches))?;
+        .map_err(|e| usable_instead(e, args, &scene, matches))?;
     startup.build_ms = ms(build);
     let cold = Instant::now();
     let frame = renderer.render(&camera, &tf)?;

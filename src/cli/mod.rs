@@ -574,7 +574,8 @@ mod tests {
                 panic!("{flags:?}: not a render");
             };
             let render_matches = matches.subcommand_matches("render").unwrap();
-            match usable_instead(refusal(), &render.render, render_matches) {
+            let scene = super::scene::of_flags(&render.render).unwrap();
+            match usable_instead(refusal(), &render.render, &scene, render_matches) {
                 CliError::Render(RenderError::Gpu(GpuError::Limit { instead, .. })) => {
                     assert_eq!(instead[0], [first], "{flags:?}")
                 }
@@ -628,6 +629,12 @@ mod tests {
                 from_raycast,
                 &["--mode cellproj"],
             ),
+            // The cellproj mode refuses the partial integration ("belongs to mode raycast").
+            (
+                &["--mode", "raycast", "--integrate", "partial"],
+                from_raycast,
+                &[],
+            ),
             (&["--mode", "shells"], from_shells, from_shells),
             (
                 &["--mode", "shells", "--sampler", "compute"],
@@ -641,12 +648,87 @@ mod tests {
                 panic!("{flags:?}: not a render");
             };
             let render_matches = matches.subcommand_matches("render").unwrap();
-            match usable_instead(refusal(modes), &render.render, render_matches) {
+            let scene = super::scene::of_flags(&render.render).unwrap();
+            match usable_instead(refusal(modes), &render.render, &scene, render_matches) {
                 CliError::Render(RenderError::Gpu(GpuError::Limit { instead, .. })) => {
                     let want: Vec<Vec<&str>> = want.iter().map(|&m| vec![m]).collect();
                     assert_eq!(instead, want, "{flags:?}")
                 }
                 other => panic!("{flags:?}: {other}"),
+            }
+        }
+    }
+
+    /// A scene file's settings of the mode a refusal names (`--scene`; the flags cannot set
+    /// them beside another mode) would render another request than the one whose needs the
+    /// refusal checked, at that mode's defaults: its sampler or GPU binning for the shells
+    /// mode, its depth peeling for `--mode raycast` (with the entry lists); such a change is
+    /// not named, nor the cellproj mode under its partial integration.
+    #[test]
+    fn a_limit_refusal_names_no_mode_that_the_scene_files_settings_change() {
+        use clap::{CommandFactory, FromArgMatches};
+        use tetvr::RenderError;
+        use tetvr::gpu::GpuError;
+        use tetvr::scene::{BinningChoice, EntryChoice, Integration, SamplerChoice};
+
+        use super::commands::CliError;
+        use super::scene::{of_flags, usable_instead};
+        let shells = vec!["--mode shells"];
+        let cellproj = vec!["--mode cellproj"];
+        let lists = vec!["--mode raycast"];
+        let peel = vec!["--mode raycast", "--entry peel"];
+        let all = vec![
+            shells.clone(),
+            cellproj.clone(),
+            lists.clone(),
+            peel.clone(),
+        ];
+        let refusal = || {
+            CliError::Render(RenderError::Gpu(GpuError::Limit {
+                adapter: "Tiny GPU".into(),
+                limit: "max_storage_buffers_per_shader_stage",
+                has: 6,
+                needs: 7,
+                needed_by: "the iso mode",
+                instead: all.clone(),
+                no_setting_of: None,
+            }))
+        };
+        let args = ["tetvr", "render", "mesh.vtu", "--mode", "iso"];
+        let matches = Cli::command().try_get_matches_from(args).unwrap();
+        let Command::Render(render) = Cli::from_arg_matches(&matches).unwrap().command else {
+            panic!("not a render");
+        };
+        let render_matches = matches.subcommand_matches("render").unwrap();
+        let scene = of_flags(&render.render).unwrap();
+        type Edit = fn(&mut tetvr::scene::Scene);
+        let cases: [(Edit, Vec<Vec<&str>>); 5] = [
+            (|_| {}, all.clone()),
+            (
+                |s| s.settings.sampler = SamplerChoice::Compute,
+                vec![cellproj.clone(), lists.clone(), peel.clone()],
+            ),
+            (
+                |s| s.settings.binning = BinningChoice::Gpu,
+                vec![cellproj.clone(), lists.clone(), peel.clone()],
+            ),
+            (
+                |s| s.settings.entry = Some(EntryChoice::Peel),
+                vec![shells.clone(), cellproj.clone(), peel.clone()],
+            ),
+            (
+                |s| s.settings.integrate = Some(Integration::Partial),
+                vec![shells.clone(), lists.clone(), peel.clone()],
+            ),
+        ];
+        for (i, (edit, want)) in cases.into_iter().enumerate() {
+            let mut scene = scene.clone();
+            edit(&mut scene);
+            match usable_instead(refusal(), &render.render, &scene, render_matches) {
+                CliError::Render(RenderError::Gpu(GpuError::Limit { instead, .. })) => {
+                    assert_eq!(instead, want, "case {i}")
+                }
+                other => panic!("case {i}: {other}"),
             }
         }
     }

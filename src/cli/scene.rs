@@ -186,18 +186,27 @@ pub fn unused_mode_flags(
 /// `e` with the changes a limit's refusal names to make instead ([`GpuError::Limit`]) kept
 /// where this command's other flags take them: a change to another mode (`--mode cellproj`)
 /// only without a flag that mode refuses ([`check`]'s `--entry`, [`unused_mode_flags`]'
-/// `--sampler`, `--integrate`, `--table-size`, ...), as those checks decide; those that
-/// change fewer of the flags given on the command line first (a choice the user made is kept
-/// before a default).
-pub fn usable_instead(mut e: CliError, args: &RenderArgs, matches: &ArgMatches) -> CliError {
+/// `--sampler`, `--integrate`, `--table-size`, ...), as those checks decide, and where
+/// `scene` (the render's, a scene file's settings included) has that mode render what the
+/// refusal reckoned with ([`renders_as_named`]); those that change fewer of the flags given
+/// on the command line first (a choice the user made is kept before a default).
+pub fn usable_instead(
+    mut e: CliError,
+    args: &RenderArgs,
+    scene: &Scene,
+    matches: &ArgMatches,
+) -> CliError {
     if let CliError::Render(RenderError::Gpu(GpuError::Limit { instead, .. })) = &mut e {
+        let integrate = scene.settings.integrate;
         let takes = |mode: Mode| {
             (args.cellproj.entry.is_none() || mode == Mode::Raycast)
-                && unused_mode_flags(args, mode, args.cellproj.integrate, matches).is_ok()
+                && unused_mode_flags(args, mode, integrate, matches).is_ok()
         };
         instead.retain(|change| {
             let mode = (change.iter()).find_map(|flag| flag.strip_prefix("--mode "));
-            mode.is_none_or(|m| Mode::from_str(m, false).is_ok_and(takes))
+            mode.is_none_or(|m| {
+                Mode::from_str(m, false).is_ok_and(|m| takes(m) && renders_as_named(scene, change))
+            })
         });
         let given = |flag: &str| {
             let id = flag.split(' ').next().unwrap_or_default();
@@ -207,6 +216,23 @@ pub fn usable_instead(mut e: CliError, args: &RenderArgs, matches: &ArgMatches) 
         instead.sort_by_key(|change| change.iter().filter(|&&f| given(f)).count());
     }
     e
+}
+
+/// Whether `change`, a change to another mode as a limit's refusal names it
+/// ([`tetvr::gpu::Ask::other_modes`]: that mode at its defaults but for the flags it names),
+/// renders that request with `scene`'s settings: the cellproj mode refuses the raycast
+/// mode's partial integration, and a scene file's settings of the other mode (its sampler
+/// and binning, its entry) would make the render another request, which the limits may
+/// refuse.
+fn renders_as_named(scene: &Scene, change: &[&str]) -> bool {
+    use tetvr::scene::{BinningChoice, EntryChoice, SamplerChoice};
+    let s = &scene.settings;
+    match change.first().and_then(|f| f.strip_prefix("--mode ")) {
+        Some("cellproj") => s.integrate != Some(Integration::Partial),
+        Some("shells") => s.sampler == SamplerChoice::Raster && s.binning != BinningChoice::Gpu,
+        Some("raycast") => change.len() > 1 || s.entry != Some(EntryChoice::Peel),
+        _ => true,
+    }
 }
 
 /// Whether `mode` integrating with `integrate` (its default when `None`) builds the
