@@ -181,10 +181,10 @@ pub const HIT_BYTES: u64 = 8;
 pub const COUNTERS: usize = 4;
 
 /// Bytes read back after each layer: the counters, the tiles run, the layer's progress.
+const READ_BYTES: usize = 4 * COUNTERS + 16;
+
 /// The label of the psi table's stand-in before a frame of partial segments uploads it.
 const NO_PSI: &str = "raycast psi table (none yet)";
-
-const READ_BYTES: usize = 4 * COUNTERS + 16;
 
 /// Settings of the ray caster.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
