@@ -293,6 +293,30 @@ fn a_telephoto_view_is_refused_by_auto_and_rendered_by_the_reference() {
     assert!(covered_fraction(&png) > 0.1, "the reference drew the mesh");
 }
 
+/// An eye at 1e300 is refused with its distance in mesh radii, finite: the f32 modes' check
+/// squared it, overflowed, and said "inf mesh radii" (the lox subset's radius is 4.08, so
+/// 2.45e299 radii).
+#[test]
+fn an_eye_at_1e300_is_refused_with_its_finite_distance() {
+    let png = out_dir("far-eye-1e300").join("far.png");
+    for mode in ["raycast-cpu", "raycast"] {
+        let args = [
+            "render",
+            LOX,
+            "--size",
+            "8x8",
+            "--eye",
+            "1e300,0,0",
+            "--mode",
+            mode,
+        ];
+        let o = tetvr(&[&args[..], &["-o", png.to_str().unwrap()]].concat());
+        let stderr = stderr_of_failure(&o);
+        assert!(!stderr.contains("inf mesh radii"), "{mode}: {stderr}");
+        assert!(stderr.contains("2.454e299 mesh radii"), "{mode}: {stderr}");
+    }
+}
+
 #[test]
 fn raycast_takes_exact_and_table_integrators() {
     let png = out_dir("raycast-integrators").join("lox.png");
@@ -565,6 +589,16 @@ fn info_lists_point_and_cell_arrays_and_selections() {
             "{stderr}"
         );
     }
+    // A scale that moves every vertex to one point (this displacement is p / 10) is named as
+    // the warp's doing: render said the file's "mesh has no extent".
+    let png = out_dir("warp-collapse").join("w.png");
+    let args = ["--warp", "displacement", "--scale", "-10", "-o"];
+    let o = tetvr(&[&["render", &views][..], &args, &[png.to_str().unwrap()]].concat());
+    let stderr = stderr_of_failure(&o);
+    assert!(
+        stderr.contains("warping by array 'displacement' times -10 moves every vertex to one"),
+        "{stderr}"
+    );
 }
 
 /// `render --warp d --scale s` draws the mesh whose vertices were moved by `s d` by hand.

@@ -134,7 +134,8 @@ pub mod far_eye {
         eye: DVec3,
         (centre, radius): (DVec3, f64),
     ) -> Result<(), RenderError> {
-        let radii = (eye - centre).length() / radius;
+        // Not squared: an eye at 1e300 overflowed and was said to be "inf mesh radii" away.
+        let radii = crate::mesh::length_of(eye - centre) / radius;
         match radii <= limit {
             true => Ok(()),
             false => Err(RenderError::EyeTooFar { mode, radii, limit }),

@@ -234,6 +234,15 @@ pub fn warp_by_vector(
             vertex,
         });
     }
+    // Also the warp's doing (`--scale -1` of a field equal to the positions): the file's
+    // vertices are apart, and "the mesh has no extent" sent the user to the file.
+    let at_one_point = |ps: &[DVec3]| ps.iter().all(|p| *p == ps[0]);
+    if !moved.is_empty() && at_one_point(&moved) && !at_one_point(positions) {
+        return Err(MeshError::WarpCollapsed {
+            array: vectors.name.clone(),
+            scale,
+        });
+    }
     super::check_new_positions(&moved, positions.len())?;
     Ok(moved)
 }

@@ -261,6 +261,19 @@ pub enum MeshError {
         /// The first vertex moved out of the finite numbers.
         vertex: usize,
     },
+    /// Warping moved every vertex of a mesh with some extent to one point: nothing is left
+    /// to render.
+    #[error(
+        "warping by array '{}' times {scale} moves every vertex to one point: the warped \
+         mesh has no extent, nothing to render; give --scale another value",
+        name::shown_name(.array)
+    )]
+    WarpCollapsed {
+        /// The array's name.
+        array: String,
+        /// The warp's scale.
+        scale: f64,
+    },
     /// The mesh has no scalars (point or cell data), which every mode renders.
     #[error(
         "the mesh has no scalar array to render; add point or cell data to the file (POINT_DATA \
