@@ -1179,6 +1179,11 @@ const MALFORMED: &[(&str, &str)] = &[
         "bad_counts.vtk: line 23: found the number '4' where a keyword was expected: the CELLS section at line 18 holds more values than its line announces; correct its counts",
     ),
     (
+        "stray_number.vtk",
+        // The DATASET line announces no values: the number is not blamed on its section.
+        "stray_number.vtk: line 5: found the number '7' where a keyword such as POINTS or CELLS was expected",
+    ),
+    (
         "index_out_of_range.vtk",
         "index_out_of_range.vtk: cell 3: vertex index 99 of the tetrahedron is out of range (the mesh has 12 points)",
     ),

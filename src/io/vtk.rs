@@ -205,8 +205,10 @@ struct Sections {
     cell_data: Option<(usize, usize)>,
     /// The attribute section the next arrays belong to.
     section: Section,
-    /// The last keyword read and its offset: a number where a keyword is expected is most
-    /// likely a value of its section beyond the count its line announces.
+    /// The last keyword read that announces a count of values, and its offset: a number where
+    /// a keyword is expected is most likely a value of its section beyond that count. None
+    /// after a line with no values of its own (DATASET, POINT_DATA, CELL_DATA, METADATA), where
+    /// a stray number is named as such.
     last: Option<(usize, String)>,
 }
 
@@ -221,7 +223,8 @@ pub(super) fn read(data: &[u8], name: &str, budget: &Budget) -> Result<Loaded, L
         let kw = kw.to_ascii_uppercase();
         let (args_at, args) = r.args();
         r.keyword(&mut s, &kw, &Line { at, args_at, args })?;
-        s.last = Some((at, shown(&kw)));
+        let valueless = [&b"DATASET"[..], b"POINT_DATA", b"CELL_DATA", b"METADATA"];
+        s.last = (!valueless.contains(&&kw[..])).then(|| (at, shown(&kw)));
     }
     r.finish(s)
 }
@@ -318,6 +321,10 @@ impl<'a> Reader<'a> {
                     shown(kw)
                 )
             }
+            (None, true) => format!(
+                "found the number '{}' where a keyword such as POINTS or CELLS was expected",
+                shown(kw)
+            ),
             _ => format!("unknown keyword '{}'", shown(kw)),
         };
         self.err(at, msg)
