@@ -25,7 +25,7 @@ use super::commands::{
     CliError, Textured, build_renderer, camera, check_isovalues, check_output, load_mesh, median,
     ms, open_mode, read_limits, require_renderable, transfer_function_for,
 };
-use super::scene::{Startup, of_flags, unused_mode_flags};
+use super::scene::{Startup, of_flags, unused_mode_flags, usable_instead};
 use super::{AnimateArgs, RenderArgs};
 
 pub(super) fn animate(args: AnimateArgs, matches: &ArgMatches) -> Result<(), CliError> {
@@ -57,13 +57,13 @@ pub(super) fn animate(args: AnimateArgs, matches: &ArgMatches) -> Result<(), Cli
                     .into(),
             ));
         }
-        return play_series(&args);
+        return play_series(&args, matches);
     }
-    deform(&args)
+    deform(&args, matches)
 }
 
 /// One mesh under `--deform`, one period in `--frames` frames.
-fn deform(args: &AnimateArgs) -> Result<(), CliError> {
+fn deform(args: &AnimateArgs, matches: &ArgMatches) -> Result<(), CliError> {
     let read = Instant::now();
     let mesh = load_mesh(&args.render.mesh)?.mesh;
     let read_ms = ms(read);
@@ -75,7 +75,7 @@ fn deform(args: &AnimateArgs) -> Result<(), CliError> {
         args.deform.unwrap_or(Deformation::Twist),
         args.amplitude.unwrap_or(0.5),
     );
-    let play = Playback::open(args, &mesh, frames as u64, read_ms)?;
+    let play = Playback::open(args, matches, &mesh, frames as u64, read_ms)?;
     let (lo, hi) = mesh.bounds();
     // One buffer for every frame's positions: a fresh one per frame costs its page faults.
     let mut moved = Vec::new();
@@ -95,7 +95,7 @@ fn deform(args: &AnimateArgs) -> Result<(), CliError> {
 /// warp, and handed to the renderer as new positions and scalars; camera and transfer function
 /// are the first step's. A cell array plays averaged to the vertices: the renderers take new
 /// values per vertex only.
-fn play_series(args: &AnimateArgs) -> Result<(), CliError> {
+fn play_series(args: &AnimateArgs, matches: &ArgMatches) -> Result<(), CliError> {
     let series = Series::open(&args.render.mesh.mesh)?;
     let limits = read_limits(&args.render.mesh);
     let m = &args.render.mesh;
@@ -111,7 +111,7 @@ fn play_series(args: &AnimateArgs) -> Result<(), CliError> {
         require_renderable(&first, &series.steps()[0].path)?;
     }
     let steps = series.steps().len() as u64;
-    let play = Playback::open(args, &first, steps, read_ms)?;
+    let play = Playback::open(args, matches, &first, steps, read_ms)?;
     play.play("load", |play| {
         play.frame(|_| Ok(()))?;
         for i in 1..series.steps().len() {
@@ -144,15 +144,18 @@ struct Playback {
 }
 
 impl Playback {
-    /// Opens the playback of `frames` frames of `mesh`, which took `read_ms` to read.
+    /// Opens the playback of `frames` frames of `mesh`, which took `read_ms` to read; a limit's
+    /// refusal names only the changes these flags (`matches`) take, as `render`'s does.
     fn open(
         args: &AnimateArgs,
+        matches: &ArgMatches,
         mesh: &TetMesh,
         frames: u64,
         read_ms: f64,
     ) -> Result<Self, CliError> {
         let r: &RenderArgs = &args.render;
-        let textured = Textured::load(of_flags(r)?.texture.as_ref(), mesh)?;
+        let scene = of_flags(r)?;
+        let textured = Textured::load(scene.texture.as_ref(), mesh)?;
         let tf = transfer_function_for(r, mesh, textured.as_ref())?;
         // A series' later steps may bring its field to an isovalue; a deformation keeps it.
         if r.mode == Mode::Iso && !Series::is_series(&r.mesh.mesh) {
@@ -163,7 +166,8 @@ impl Playback {
         let (mode, gpu) = open_mode(r, mesh, &tf, textured.is_some())?;
         let open_ms = ms(open);
         let build = Instant::now();
-        let (renderer, what) = build_renderer(textured.as_ref(), &mode, gpu.as_ref(), mesh)?;
+        let (renderer, what) = build_renderer(textured.as_ref(), &mode, gpu.as_ref(), mesh)
+            .map_err(|e| usable_instead(e, r, &scene, matches))?;
         let startup = r.timings.then(|| Startup {
             read_ms,
             open_ms,
