@@ -157,6 +157,12 @@ fn fs_iso(in: Varyings) -> IsoOut {
     out.color = vec4<f32>(c, 1.0);
     let distance = t_c + best_t;
     out.geometry = vec4<f32>(normalize(to_world_vector(n)), distance);
-    out.depth = clamp(distance * iso.inv_depth_range, 0.0, 1.0);
+    // (distance - near) / (far - near), every term of the mesh's size: t_c - pivot_z written
+    // pivot_z e / (sqrt(1 + e) + 1) (e = tan^2 of the ray's angle to the axis) without its
+    // cancellation, as shells_span's ray_t0. From distance itself, ~D, hits up to 6e-8 D apart
+    // would tie and the first drawn win. Per pixel t_c is one value, so the order is best_t's.
+    let e = dot(d.xy, d.xy) / (d.z * d.z);
+    let beyond_near = view.pivot_z * e / (sqrt(1.0 + e) + 1.0) + best_t + iso.depth_shift;
+    out.depth = clamp(beyond_near * iso.inv_depth_range, 0.0, 1.0);
     return out;
 }

@@ -10,7 +10,7 @@ struct Iso {
     count: u32,
     smooth_shading: u32,
     inv_depth_range: f32,
-    _pad0: u32,
+    depth_shift: f32,
 }
 
 // Headlight Blinn-Phong, the constants of reference::iso::shade.

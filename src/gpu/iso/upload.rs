@@ -36,8 +36,14 @@ impl IsoRenderer {
         }
         iso.count = self.settings.isovalues.len() as u32;
         iso.smooth_shading = (self.settings.shading == Shading::Smooth) as u32;
+        // Depth spans [near, far] around the mesh's bounding sphere, measured from the pivot
+        // (see IsoUniforms::depth_shift); near = pivot_z - 1.001 radius is at most the
+        // sphere's nearest point's distance from the eye, and far beyond its farthest.
         let far = ((view.eye - m.origin).length() + m.radius) * 1.001;
-        iso.inv_depth_range = (1.0 / far.max(f64::MIN_POSITIVE)) as f32;
+        let shift = m.radius * 1.001;
+        let near = uniforms.pivot_z as f64 - shift;
+        iso.inv_depth_range = (1.0 / (far - near).max(f64::MIN_POSITIVE)) as f32;
+        iso.depth_shift = shift as f32;
         self.queue
             .write_buffer(&self.iso_buf, 0, bytemuck::bytes_of(&iso));
         let lists = match &self.lists {
