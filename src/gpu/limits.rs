@@ -769,7 +769,7 @@ impl Ask {
     }
 
     /// `Ok` when `limits` (of the adapter named `adapter`) run every part of this request,
-    /// else the refusal of the first part short of them ([`Self::refusal`]).
+    /// else the refusal of the first part short of them (`Self::refusal`).
     pub fn check(self, adapter: &str, limits: &wgpu::Limits) -> Result<(), GpuError> {
         (self.parts().into_iter()).try_for_each(|part| self.refusal(part, adapter, limits))
     }

@@ -372,7 +372,7 @@ impl GpuTetMesh {
     /// straight into the upload (what a deforming mesh pays per frame; topology, per-tet arrays
     /// and scalars are untouched). An upload the GPU fails (out of memory for its staging
     /// pieces) is an error, and the mesh then has the new positions on the CPU side only: the
-    /// next frame uploads them again before it draws ([`Self::restore`]), or fails.
+    /// next frame uploads them again before it draws (`restore`), or fails.
     pub fn update_positions(&self, positions: &[DVec3]) -> Result<(), RenderError> {
         let mut data = self.data.write().unwrap_or_else(PoisonError::into_inner);
         let world = checked_bounds(positions, data.positions.len())?;
