@@ -12,6 +12,11 @@
 // shell's faces (or near-plane) list comes out grouped by chunk in chunk order, each chunk's
 // part a run of chunk-local ids that the samplers' pass for that chunk reads, as the CPU's
 // lists (tet ids ascending, made chunk-local on upload) are read.
+// Corners are measured from the pivot (the assembly's, gpu::view::ViewFrame::pivot), a point
+// on the view axis level with the mesh centre, pivot_z ahead of the eye: q = rotate(p - pivot)
+// is of the mesh's size however far the eye is, its eye-space position q + (0, 0, pivot_z), and
+// distances are taken beyond pivot_z (see beyond_pivot), so that no value of the eye's distance D
+// rounds them (from 1e6 mesh radii, 6e-8 D is a tenth of a radius).
 // f32 rounding is absorbed by `bin.margin` (world units) so that the GPU never drops a tet
 // the exact rule keeps: it culls only beyond the margin and widens distance ranges by it. The
 // order within a bucket is arbitrary; the samplers take the same samples in any order (MAX
@@ -25,10 +30,10 @@ struct Bin {
     // Tets with a corner at eye-space z <= near_z are near-plane tets.
     near_z: f32,
     forward: vec3<f32>,
-    // Slice k lies at distance t_first + k dz from the eye.
-    t_first: f32,
-    // The eye, relative to the mesh origin (as the positions are).
-    eye: vec3<f32>,
+    // Slice k lies at distance pivot_z + t_pivot + k dz from the eye.
+    t_pivot: f32,
+    // The pivot, relative to the mesh origin (as the positions are).
+    pivot: vec3<f32>,
     dz: f32,
     // Frustum half-slopes (x, y).
     slope: vec2<f32>,
@@ -42,6 +47,11 @@ struct Bin {
     frustum: u32,
     // Entries `ids` holds; the scatter writes no further.
     capacity: u32,
+    // Eye-space z of the pivot.
+    pivot_z: f32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 // The record chunk a count or scatter pass bins.
@@ -95,9 +105,24 @@ struct TetShells {
     rect: vec4<f32>,
 }
 
-fn to_eye(p: vec3<f32>) -> vec3<f32> {
-    let q = p - bin.eye;
+// Corner `p` relative to the pivot, in the eye's axes (eye space less (0, 0, pivot_z)).
+fn from_pivot(p: vec3<f32>) -> vec3<f32> {
+    let q = p - bin.pivot;
     return vec3<f32>(dot(bin.right, q), dot(bin.up, q), dot(bin.forward, q));
+}
+
+// The distance from the eye of the point `q` from the pivot, less pivot_z:
+// |q + (0, 0, pz)| - pz, written (for pz > 0) as (q.q + 2 q.z pz) / (|q + (0, 0, pz)| + pz),
+// whose terms are of the mesh's size where the difference would cancel two of ~D. Its
+// denominator is at least pz > 0; for pz <= 0 (the mesh centre level with or behind the eye)
+// the difference adds two non-negative terms and does not cancel.
+fn beyond_pivot(q: vec3<f32>) -> f32 {
+    let pz = bin.pivot_z;
+    let e = vec3<f32>(q.xy, q.z + pz);
+    if pz > 0.0 {
+        return (dot(q, q) + 2.0 * q.z * pz) / (length(e) + pz);
+    }
+    return length(e) - pz;
 }
 
 // One bit per frustum plane the point is outside of by more than the margin.
@@ -119,12 +144,16 @@ fn is_transparent(t: u32) -> bool {
 fn classify(t: u32) -> TetShells {
     var out: TetShells;
     let idx = tets[t];
-    let p = array<vec3<f32>, 4>(
-        to_eye(positions[idx.x].xyz),
-        to_eye(positions[idx.y].xyz),
-        to_eye(positions[idx.z].xyz),
-        to_eye(positions[idx.w].xyz),
+    let q = array<vec3<f32>, 4>(
+        from_pivot(positions[idx.x].xyz),
+        from_pivot(positions[idx.y].xyz),
+        from_pivot(positions[idx.z].xyz),
+        from_pivot(positions[idx.w].xyz),
     );
+    // Eye space, for the frustum, near-plane and screen tests (as before the pivot: these
+    // compare values of the same size, or need no precision beyond the rectangles').
+    let z = vec3<f32>(0.0, 0.0, bin.pivot_z);
+    let p = array<vec3<f32>, 4>(q[0] + z, q[1] + z, q[2] + z, q[3] + z);
     let codes = outcode(p[0]) & outcode(p[1]) & outcode(p[2]) & outcode(p[3]);
     if bin.frustum != 0u && codes != 0u {
         out.kind = CULLED;
@@ -134,13 +163,15 @@ fn classify(t: u32) -> TetShells {
         out.kind = TRANSPARENT;
         return out;
     }
-    // Distance range: to the corners' bounding box, to the farthest corner.
-    let lo = min(min(p[0], p[1]), min(p[2], p[3]));
-    let hi = max(max(p[0], p[1]), max(p[2], p[3]));
-    let t_min = length(clamp(vec3<f32>(0.0), lo, hi)) - bin.margin;
-    let t_max = max(max(length(p[0]), length(p[1])), max(length(p[2]), length(p[3]))) + bin.margin;
-    let k_lo = max(ceil((t_min - bin.t_first) / bin.dz - SLICE_MARGIN), 0.0);
-    let k_hi = min(floor((t_max - bin.t_first) / bin.dz + SLICE_MARGIN), f32(bin.slices) - 1.0);
+    // Distance range beyond pivot_z: to the corners' bounding box (the eye is at -z from the
+    // pivot), to the farthest corner.
+    let lo = min(min(q[0], q[1]), min(q[2], q[3]));
+    let hi = max(max(q[0], q[1]), max(q[2], q[3]));
+    let t_min = beyond_pivot(clamp(-z, lo, hi)) - bin.margin;
+    let far = max(max(beyond_pivot(q[0]), beyond_pivot(q[1])), max(beyond_pivot(q[2]), beyond_pivot(q[3])));
+    let t_max = far + bin.margin;
+    let k_lo = max(ceil((t_min - bin.t_pivot) / bin.dz - SLICE_MARGIN), 0.0);
+    let k_hi = min(floor((t_max - bin.t_pivot) / bin.dz + SLICE_MARGIN), f32(bin.slices) - 1.0);
     if !(k_lo <= k_hi) {
         out.kind = NO_SAMPLE;
         return out;

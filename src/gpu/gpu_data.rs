@@ -96,7 +96,7 @@ pub struct ShellUniforms {
 }
 const _: () = assert!(size_of::<ShellUniforms>() == 48);
 
-/// The shells' GPU binning constants (WGSL `Bin` in `shaders/shells_bin.wgsl`, uniform, 96
+/// The shells' GPU binning constants (WGSL `Bin` in `shaders/shells_bin.wgsl`, uniform, 112
 /// bytes): the view in f32 (mesh-origin relative), the slicing, the frame's shells.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
@@ -111,10 +111,12 @@ pub struct BinUniforms {
     pub near_z: f32,
     /// Camera forward (world).
     pub forward: [f32; 3],
-    /// Distance of slice 0 from the eye.
-    pub t_first: f32,
-    /// The eye relative to the mesh origin.
-    pub eye: [f32; 3],
+    /// Distance of slice 0 from the eye less `pivot_z` (in f64 before rounding): slice 0's
+    /// distance beyond the pivot's.
+    pub t_pivot: f32,
+    /// The pivot (`ViewFrame::pivot`, `gpu/view.rs`) relative to the mesh origin: the binning
+    /// measures corners from it, as the assembly does.
+    pub pivot: [f32; 3],
     /// Slice spacing (world units).
     pub dz: f32,
     /// Frustum half-slopes.
@@ -131,8 +133,12 @@ pub struct BinUniforms {
     pub frustum: u32,
     /// Entries the active list holds.
     pub capacity: u32,
+    /// Eye-space z of the pivot.
+    pub pivot_z: f32,
+    /// Zero: pads the struct to a multiple of 16 bytes.
+    pub _pad: [u32; 3],
 }
-const _: () = assert!(size_of::<BinUniforms>() == 96);
+const _: () = assert!(size_of::<BinUniforms>() == 112);
 
 /// The record chunk one count or scatter pass of the GPU binning bins (WGSL `Chunk` in
 /// `shaders/shells_bin.wgsl`, uniform, 16 bytes).

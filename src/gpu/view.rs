@@ -84,13 +84,18 @@ impl ViewFrame {
         tets: u32,
     ) -> ViewUniforms {
         let mut u = self.uniforms(origin, epsilon, near_z, tets);
-        let forward = self.basis[2];
-        let pivot_z = forward.dot(origin - self.eye) as f32;
-        u.eye = (self.eye + forward * pivot_z as f64 - origin)
-            .as_vec3()
-            .to_array();
+        let (pivot, pivot_z) = self.pivot(origin);
+        u.eye = pivot.as_vec3().to_array();
         u.pivot_z = pivot_z;
         u
+    }
+
+    /// The pivot of [`Self::pivot_uniforms`] relative to the mesh centre `origin` (f64, to be
+    /// rounded to f32 by the caller), and its eye-space z `pivot_z`.
+    pub(crate) fn pivot(&self, origin: DVec3) -> (DVec3, f32) {
+        let forward = self.basis[2];
+        let pivot_z = forward.dot(origin - self.eye) as f32;
+        (self.eye + forward * pivot_z as f64 - origin, pivot_z)
     }
 
     /// Every position in eye space with its frustum [`outcode`].

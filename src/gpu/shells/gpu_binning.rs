@@ -438,16 +438,26 @@ impl ShellsRenderer {
         let shells = plan.shells(n);
         let f32x3 = |v: glam::DVec3| v.as_vec3().to_array();
         let [right, up, forward] = plan.view.basis;
-        let dist = (m.origin - plan.view.eye).length();
+        // Measured from the assembly's pivot, so the eye's distance rounds nothing.
+        let (pivot, pivot_z) = plan.view.pivot(m.origin);
+        // The shader's distances and frustum tests add and multiply f32 values of at most the
+        // mesh radius (positions about the origin), the pivot's offset from the origin (about
+        // a radius where the view frames the mesh) and, where the mesh centre lies behind the
+        // eye, -pivot_z (beyond_pivot's |q + (0, 0, pz)| then holds it): each rounds to ~6e-8 of
+        // that size, and the f32 basis is a rotation to ~6e-8, so the results are within a few
+        // 1e-7 of it. 1e-5 of it leaves a factor of ~30 over that, and stays a hundred
+        // thousandth of the mesh however far the eye is (an eye-relative margin grew with the
+        // eye's distance: from 1e6 radii every tet fell in every shell).
+        let size = m.radius + pivot.length() + (-pivot_z as f64).max(0.0);
         BinUniforms {
             right: f32x3(right),
             up: f32x3(up),
             forward: f32x3(forward),
-            eye: f32x3(plan.view.eye - m.origin),
-            // f32 rounding of positions, eye and products: a few ulps of the scene's extent.
-            margin: (1e-5 * (dist + m.radius)) as f32,
+            pivot: f32x3(pivot),
+            pivot_z,
+            margin: (1e-5 * size) as f32,
             near_z: plan.near_z as f32,
-            t_first: plan.t_first as f32,
+            t_pivot: (plan.t_first - pivot_z as f64) as f32,
             dz: plan.dz as f32,
             slope: [plan.view.slope[0] as f32, plan.view.slope[1] as f32],
             slices: plan.slices.min(u32::MAX as u64) as u32,
@@ -456,6 +466,7 @@ impl ShellsRenderer {
             chunks: binner.chunks.len() as u32,
             frustum: self.settings.skips.frustum as u32,
             capacity: self.active_capacity().min(u32::MAX as u64) as u32,
+            _pad: [0; 3],
         }
     }
 
@@ -667,8 +678,9 @@ mod tests {
         assert!((extra - 8.125).abs() < 1e-9, "{extra} bytes per tet more");
     }
 
-    /// A gaussians grid seen from outside (iso), from inside, and zoomed in (most of its tets
-    /// outside the frustum), with the default TF (which culls its transparent tets).
+    /// A gaussians grid seen from outside (iso), from inside, zoomed in (most of its tets
+    /// outside the frustum) and from 1e5 radii, with the default TF (which culls its
+    /// transparent tets).
     fn scenes() -> Vec<(&'static str, TetMesh, Camera)> {
         let mesh = fields::grid(Field::Gaussians, UVec3::splat(12), "g").expect("grid");
         let (lo, hi) = mesh.bounds();
@@ -687,10 +699,16 @@ mod tests {
             fov_y_deg: 8.0,
             ..outside
         };
+        // 1e5 radii away, the fov framing the grid: the binning measures from the pivot, so
+        // its margin stays of the mesh's size (measured from the eye, 1e-5 D, a radius, put
+        // each tet in every shell).
+        let fov = 2.0 * 1e-5f64.asin().to_degrees();
+        let far = Camera::framing(lo, hi, View::parse("iso").unwrap(), 1.0, fov, 64, 48);
         vec![
             ("iso", mesh.clone(), outside),
             ("inside", mesh.clone(), inside),
-            ("zoomed", mesh, zoomed),
+            ("zoomed", mesh.clone(), zoomed),
+            ("far", mesh, far),
         ]
     }
 
@@ -748,10 +766,11 @@ mod tests {
     /// The GPU's lists hold every tet of the CPU's, shell by shell, each once, with the records
     /// in one chunk and in 3 (each chunk's part of a list read through the bucket offsets,
     /// its ids chunk-local); the extras (f32 rounding widened by the margin, at shell and
-    /// frustum boundaries) stay under 2% of the CPU's entries (measured on lavapipe: 36 of
-    /// 65,476 from the iso view, none from inside or zoomed); the counters and rectangles
-    /// agree. From the iso view at 512 samples the list outgrows the first guess of one entry
-    /// per tet, so the overflow re-run is exercised.
+    /// frustum boundaries) stay under 2% of the CPU's entries (measured on lavapipe: 2 of
+    /// 65,136 from the iso view, 2 of 59,672 zoomed, none from inside or from 1e5 radii, where
+    /// a margin measured from the eye filed every tet under every shell); the counters and
+    /// rectangles agree. From the iso view at 512 samples the list outgrows the first guess of
+    /// one entry per tet, so the overflow re-run is exercised.
     #[test]
     fn gpu_lists_hold_the_cpu_lists_shell_by_shell() {
         let ctx = GpuContext::new(AdapterChoice::Auto).expect("a GPU adapter (lavapipe will do)");
