@@ -480,7 +480,33 @@ impl GenerateMemory {
 mod tests {
     use clap::Parser;
 
+    use super::commands::CliError;
     use super::{Cli, Command};
+
+    /// The changes `refusal` names once `usable_instead` has filtered it for `tetvr render
+    /// mesh.vtu FLAGS`, whose scene `edit` changes as a scene file's settings would.
+    fn kept_changes(
+        flags: &[&str],
+        edit: impl FnOnce(&mut tetvr::scene::Scene),
+        refusal: CliError,
+    ) -> Vec<tetvr::gpu::limits::Change> {
+        use clap::{CommandFactory, FromArgMatches};
+        use tetvr::RenderError;
+        use tetvr::gpu::GpuError;
+
+        let args = [&["tetvr", "render", "mesh.vtu"][..], flags].concat();
+        let matches = Cli::command().try_get_matches_from(args).unwrap();
+        let Command::Render(render) = Cli::from_arg_matches(&matches).unwrap().command else {
+            panic!("{flags:?}: not a render");
+        };
+        let render_matches = matches.subcommand_matches("render").unwrap();
+        let mut scene = super::scene::of_flags(&render.render).unwrap();
+        edit(&mut scene);
+        match super::scene::usable_instead(refusal, &render.render, &scene, render_matches) {
+            CliError::Render(RenderError::Gpu(GpuError::Limit { instead, .. })) => instead,
+            other => panic!("{flags:?}: {other}"),
+        }
+    }
 
     /// Every change an adapter's limit refusal names ([`tetvr::gpu::Ask::settings`],
     /// [`tetvr::gpu::Ask::other_modes`]) is flags `tetvr render` takes together, with those
@@ -544,12 +570,9 @@ mod tests {
     /// the refusal's order stands.
     #[test]
     fn a_limit_refusal_names_first_the_changes_that_keep_the_flags_given() {
-        use clap::{CommandFactory, FromArgMatches};
         use tetvr::RenderError;
         use tetvr::gpu::GpuError;
 
-        use super::commands::CliError;
-        use super::scene::usable_instead;
         let refusal = || {
             CliError::Render(RenderError::Gpu(GpuError::Limit {
                 adapter: "Tiny GPU".into(),
@@ -568,19 +591,8 @@ mod tests {
                 "--binning cpu",
             ),
         ] {
-            let args = [&["tetvr", "render", "mesh.vtu"][..], flags].concat();
-            let matches = Cli::command().try_get_matches_from(args).unwrap();
-            let Command::Render(render) = Cli::from_arg_matches(&matches).unwrap().command else {
-                panic!("{flags:?}: not a render");
-            };
-            let render_matches = matches.subcommand_matches("render").unwrap();
-            let scene = super::scene::of_flags(&render.render).unwrap();
-            match usable_instead(refusal(), &render.render, &scene, render_matches) {
-                CliError::Render(RenderError::Gpu(GpuError::Limit { instead, .. })) => {
-                    assert_eq!(instead[0], [first], "{flags:?}")
-                }
-                other => panic!("{flags:?}: {other}"),
-            }
+            let instead = kept_changes(flags, |_| {}, refusal());
+            assert_eq!(instead[0], [first], "{flags:?}")
         }
     }
 
@@ -590,12 +602,9 @@ mod tests {
     /// the others ("belongs to --mode raycast", ...), and the refusal named them.
     #[test]
     fn a_limit_refusal_names_another_mode_only_where_the_other_flags_take_it() {
-        use clap::{CommandFactory, FromArgMatches};
         use tetvr::RenderError;
         use tetvr::gpu::GpuError;
 
-        use super::commands::CliError;
-        use super::scene::usable_instead;
         let refusal = |modes: &[&'static str]| {
             CliError::Render(RenderError::Gpu(GpuError::Limit {
                 adapter: "Tiny GPU".into(),
@@ -642,20 +651,9 @@ mod tests {
                 &[],
             ),
         ] {
-            let args = [&["tetvr", "render", "mesh.vtu"][..], flags].concat();
-            let matches = Cli::command().try_get_matches_from(args).unwrap();
-            let Command::Render(render) = Cli::from_arg_matches(&matches).unwrap().command else {
-                panic!("{flags:?}: not a render");
-            };
-            let render_matches = matches.subcommand_matches("render").unwrap();
-            let scene = super::scene::of_flags(&render.render).unwrap();
-            match usable_instead(refusal(modes), &render.render, &scene, render_matches) {
-                CliError::Render(RenderError::Gpu(GpuError::Limit { instead, .. })) => {
-                    let want: Vec<Vec<&str>> = want.iter().map(|&m| vec![m]).collect();
-                    assert_eq!(instead, want, "{flags:?}")
-                }
-                other => panic!("{flags:?}: {other}"),
-            }
+            let instead = kept_changes(flags, |_| {}, refusal(modes));
+            let want: Vec<Vec<&str>> = want.iter().map(|&m| vec![m]).collect();
+            assert_eq!(instead, want, "{flags:?}")
         }
     }
 
@@ -666,13 +664,10 @@ mod tests {
     /// not named, nor the cellproj mode under its partial integration.
     #[test]
     fn a_limit_refusal_names_no_mode_that_the_scene_files_settings_change() {
-        use clap::{CommandFactory, FromArgMatches};
         use tetvr::RenderError;
         use tetvr::gpu::GpuError;
         use tetvr::scene::{BinningChoice, EntryChoice, Integration, SamplerChoice};
 
-        use super::commands::CliError;
-        use super::scene::{of_flags, usable_instead};
         let shells = vec!["--mode shells"];
         let cellproj = vec!["--mode cellproj"];
         let lists = vec!["--mode raycast"];
@@ -694,13 +689,6 @@ mod tests {
                 no_setting_of: None,
             }))
         };
-        let args = ["tetvr", "render", "mesh.vtu", "--mode", "iso"];
-        let matches = Cli::command().try_get_matches_from(args).unwrap();
-        let Command::Render(render) = Cli::from_arg_matches(&matches).unwrap().command else {
-            panic!("not a render");
-        };
-        let render_matches = matches.subcommand_matches("render").unwrap();
-        let scene = of_flags(&render.render).unwrap();
         type Edit = fn(&mut tetvr::scene::Scene);
         let cases: [(Edit, Vec<Vec<&str>>); 5] = [
             (|_| {}, all.clone()),
@@ -722,14 +710,8 @@ mod tests {
             ),
         ];
         for (i, (edit, want)) in cases.into_iter().enumerate() {
-            let mut scene = scene.clone();
-            edit(&mut scene);
-            match usable_instead(refusal(), &render.render, &scene, render_matches) {
-                CliError::Render(RenderError::Gpu(GpuError::Limit { instead, .. })) => {
-                    assert_eq!(instead, want, "case {i}")
-                }
-                other => panic!("case {i}: {other}"),
-            }
+            let instead = kept_changes(&["--mode", "iso"], edit, refusal());
+            assert_eq!(instead, want, "case {i}")
         }
     }
 }
