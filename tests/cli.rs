@@ -1287,6 +1287,32 @@ fn outputs_are_checked_before_any_work_and_nothing_is_written() {
     );
 }
 
+/// `compare` names what is wrong with its arguments: a scale out of range, a folder or a
+/// file that is no PNG given as an image.
+#[test]
+fn compare_names_what_is_wrong_with_its_images() {
+    let stderr = failure(&["compare", LOX, LOX, "--scale", "0"]);
+    assert!(
+        stderr.contains("--scale 0 must be a positive number"),
+        "{stderr}"
+    );
+    // A folder given as a PNG is said to be one; it was "The image format could not be
+    // determined". A file that is no PNG is named with what its bytes lack.
+    let folder = out_dir("compare-args");
+    let folder = folder.to_str().unwrap();
+    let stderr = failure(&["compare", folder, folder]);
+    assert!(
+        stderr.contains(&format!("{folder}: cannot read the PNG: "))
+            && stderr.contains("Is a directory"),
+        "{stderr}"
+    );
+    let stderr = failure(&["compare", LOX, LOX]);
+    assert!(
+        stderr.contains("cannot read the PNG: ") && stderr.contains("PNG signature"),
+        "{stderr}"
+    );
+}
+
 #[test]
 fn out_of_range_numbers_are_named_with_what_to_write() {
     let png = out_dir("numbers").join("x.png");
@@ -1344,26 +1370,6 @@ fn out_of_range_numbers_are_named_with_what_to_write() {
     let stderr = failure(&["animate", LOX, "--fps", "60", "-o", "x.GIF"]);
     assert!(
         stderr.contains("--fps 60: a GIF plays at most 50 frames per second"),
-        "{stderr}"
-    );
-    let stderr = failure(&["compare", LOX, LOX, "--scale", "0"]);
-    assert!(
-        stderr.contains("--scale 0 must be a positive number"),
-        "{stderr}"
-    );
-    // A folder given as a PNG is said to be one; it was "The image format could not be
-    // determined". A file that is no PNG is named with what its bytes lack.
-    let folder = out_dir("numbers");
-    let folder = folder.to_str().unwrap();
-    let stderr = failure(&["compare", folder, folder]);
-    assert!(
-        stderr.contains(&format!("{folder}: cannot read the PNG: "))
-            && stderr.contains("Is a directory"),
-        "{stderr}"
-    );
-    let stderr = failure(&["compare", LOX, LOX]);
-    assert!(
-        stderr.contains("cannot read the PNG: ") && stderr.contains("PNG signature"),
         "{stderr}"
     );
     // A mesh without scalars is named with the file, before any work.
