@@ -398,19 +398,65 @@ pub(crate) fn read_mapped(
     buf: &wgpu::Buffer,
     what: &'static str,
 ) -> Result<wgpu::BufferView, GpuError> {
-    let failed = |reason: String| GpuError::Readback { what, reason };
+    map_all(device, &[(buf, what)])?;
+    mapped_view(buf, what)
+}
+
+/// Maps each of `bufs` (buffer, what names it in an error) for reading and waits once, for the
+/// GPU and all of the maps: a frame that reads several buffers back pays one wait. On an error
+/// none of them is left mapped; else the caller reads each ([`mapped_view`]) or unmaps it.
+pub(crate) fn map_all(
+    device: &wgpu::Device,
+    bufs: &[(&wgpu::Buffer, &'static str)],
+) -> Result<(), GpuError> {
     let (tx, rx) = std::sync::mpsc::channel();
-    buf.slice(..).map_async(wgpu::MapMode::Read, move |r| {
-        // The receiver outlives the wait below; a send can only fail after it returned.
-        let _ = tx.send(r);
-    });
-    device.poll(wgpu::PollType::wait_indefinitely())?;
-    match rx.recv() {
-        Ok(Ok(())) => {}
-        Ok(Err(e)) => return Err(failed(e.to_string())),
-        Err(_) => return Err(failed("the map callback never ran".into())),
+    for (k, (buf, _)) in bufs.iter().enumerate() {
+        let tx = tx.clone();
+        buf.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+            // The receiver outlives the wait below; a send can only fail after it returned.
+            let _ = tx.send((k, r));
+        });
     }
-    buf.get_mapped_range(..).map_err(|e| failed(e.to_string()))
+    drop(tx);
+    let waited = device.poll(wgpu::PollType::wait_indefinitely());
+    let mut done: Vec<Option<Result<(), wgpu::BufferAsyncError>>> = vec![None; bufs.len()];
+    for (k, r) in rx.try_iter() {
+        done[k] = Some(r);
+    }
+    let failed = waited.map_err(GpuError::from).err().or_else(|| {
+        (bufs.iter().zip(&done)).find_map(|(&(_, what), r)| {
+            let reason = match r {
+                Some(Ok(())) => return None,
+                Some(Err(e)) => e.to_string(),
+                None => "the map callback never ran".into(),
+            };
+            Some(GpuError::Readback { what, reason })
+        })
+    });
+    match failed {
+        None => Ok(()),
+        Some(e) => {
+            // A failed map left its buffer unmapped; a pending one (after a failed wait) is
+            // aborted by the unmap.
+            for ((buf, _), r) in bufs.iter().zip(&done) {
+                if !matches!(r, Some(Err(_))) {
+                    buf.unmap();
+                }
+            }
+            Err(e)
+        }
+    }
+}
+
+/// The bytes of `buf`, mapped by [`map_all`] (unmap the buffer after the view is dropped).
+pub(crate) fn mapped_view(
+    buf: &wgpu::Buffer,
+    what: &'static str,
+) -> Result<wgpu::BufferView, GpuError> {
+    (buf.get_mapped_range(..)).map_err(|e| GpuError::Readback {
+        what,
+        reason: e.to_string(),
+    })
 }
 
 /// A bind group layout entry for a buffer without dynamic offset.

@@ -58,7 +58,6 @@ use crate::gpu::util::{
     KeptFrames, Work, captured, captured_frame, entry, far_eye, ms_since, uniform_buffer,
 };
 use crate::gpu::{GpuContext, Setting};
-use crate::image::Image;
 use crate::mesh::TetMesh;
 use crate::render::{Frame, RenderError, Renderer, Timings};
 use crate::tf::TransferFunction;
@@ -298,7 +297,7 @@ impl CellProjRenderer {
         raster::encode_raster(&mut rec, targets, pipeline, &raster_groups);
         rec.end_stage("raster")?;
         let images = [(&targets.color, &targets.readback)];
-        rec.finish(&images, self.assembly.degenerate(), 1)
+        rec.finish(&images, self.assembly.degenerate(), 1, &[])
     }
 }
 
@@ -336,8 +335,7 @@ impl CellProjRenderer {
         // 4. Assembly, in the sorted order; 5. raster; 6. readback.
         let stats = self.record(&targets, drawn as u64)?;
         let t4 = Instant::now();
-        let mut image = Image::new(targets.width, targets.height);
-        image.pixels = targets.readback.read(&self.device)?;
+        let image = targets.readback.image(&self.device)?;
         timings.stage("assembly", stats.stage("assembly"));
         timings.stage("raster", stats.stage("raster"));
         timings.stage("readback", ms_since(t4));

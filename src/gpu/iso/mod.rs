@@ -58,7 +58,6 @@ use crate::gpu::util::{
 };
 use crate::gpu::view::ViewFrame;
 use crate::gpu::{GpuContext, Setting};
-use crate::image::Image;
 use crate::mesh::TetMesh;
 pub use crate::reference::iso::{IsoImage, Shading};
 use crate::render::{Frame, RenderError, Renderer, Timings};
@@ -362,8 +361,7 @@ impl IsoRenderer {
         // 3.-5. Gradients, assembly, raster; 6. readback.
         let stats = self.record(&lists, &targets, drawn as u64)?;
         let t4 = Instant::now();
-        let mut color = Image::new(targets.width, targets.height);
-        color.pixels = targets.color_readback.read(&self.device)?;
+        let color = targets.color_readback.image(&self.device)?;
         let geometry_px = targets.geometry_readback.read(&self.device)?;
         let (depth, normal) = geometry_px
             .iter()
@@ -445,7 +443,7 @@ impl IsoRenderer {
             (&targets.color, &targets.color_readback),
             (&targets.geometry, &targets.geometry_readback),
         ];
-        rec.finish(&images, self.assembly.degenerate(), 1)
+        rec.finish(&images, self.assembly.degenerate(), 1, &[])
     }
 }
 

@@ -13,7 +13,7 @@ use crate::gpu::gpu_data::LayerUniforms;
 use crate::gpu::mesh::{MeshData, chunk_ranges};
 use crate::gpu::tf::tf_points;
 use crate::gpu::util::{
-    check_image_size, entry, far_eye, largest_binding, ms_since, read_mapped, settings_error,
+    check_image_size, entry, far_eye, largest_binding, mapped_view, ms_since, settings_error,
     texture_2d,
 };
 use crate::gpu::view::ViewFrame;
@@ -157,6 +157,7 @@ impl RaycastRenderer {
             if needed == 0 {
                 return Ok((run, reruns, targets));
             }
+            targets.readback.unmap();
             self.capacity = self.rerun_capacity(needed, &targets);
             self.write_params();
             reruns += 1;
@@ -563,10 +564,13 @@ impl RaycastRenderer {
             if self.settings.entry == Entry::Lists || !again {
                 return Ok(run);
             }
+            targets.readback.unmap();
         }
     }
 
-    /// Records, runs and reads back one layer (the whole frame with entry lists).
+    /// Records, runs and reads back one layer (the whole frame with entry lists). Returns with
+    /// the image's readback mapped: the caller reads it ([`Self::read_image`]) or, where
+    /// another layer or a rerun follows, unmaps it before that copies into it again.
     fn record_layer(
         &mut self,
         t: &Targets,
@@ -627,7 +631,11 @@ impl RaycastRenderer {
         if let Some(hits) = &t.hits {
             hits.copy(enc);
         }
-        let stats = rec.finish(&[], &self.counters, 0)?;
+        // The counters and the image are mapped in the frame's one wait: the counters say
+        // whether the image is the frame's (no list overflowed, no layer follows), and a frame
+        // that is done then reads it with no second wait; otherwise it is unmapped unread.
+        let mapped = [(&self.counters_read, COUNTERS_READ), t.readback.mapping()];
+        let stats = rec.finish(&[], &self.counters, 0, &mapped)?;
         for (stage, ms) in stats.stages {
             match run.stages.iter_mut().find(|(s, _)| *s == stage) {
                 Some((_, sum)) => *sum += ms,
@@ -636,7 +644,8 @@ impl RaycastRenderer {
         }
         run.gpu_clock = stats.gpu_clock;
         run.wall_clock = stats.wall_clock;
-        let words: [u32; COUNTERS + 3] = read_words(&self.device, &self.counters_read)?;
+        let words = read_words::<{ COUNTERS + 3 }>(&self.counters_read);
+        let words = words.inspect_err(|_| t.readback.unmap())?;
         run.counters = std::array::from_fn(|i| words[i]);
         let [tiles, waiting, more] = std::array::from_fn(|i| words[COUNTERS + i]);
         Ok(Progress {
@@ -646,24 +655,21 @@ impl RaycastRenderer {
         })
     }
 
-    /// Reads back the image the last layer copied out ([`Self::record_layer`]).
+    /// Reads back the image the last layer copied out and mapped ([`Self::record_layer`]).
     fn read_image(&self, t: &Targets) -> Result<Image, RenderError> {
-        let mut image = Image::new(t.width, t.height);
-        image.pixels = t.readback.read(&self.device)?;
-        Ok(image)
+        t.readback.mapped_image()
     }
 }
 
-/// The first `N` u32s of a mappable buffer the GPU has written.
-fn read_words<const N: usize>(
-    device: &wgpu::Device,
-    buffer: &wgpu::Buffer,
-) -> Result<[u32; N], RenderError> {
-    let words = {
-        let data = read_mapped(device, buffer, "the ray caster's counters")?;
+/// What the counters' readback is called in an error.
+const COUNTERS_READ: &str = "the ray caster's counters";
+
+/// The first `N` u32s of a buffer [`crate::gpu::frame::Recorder::finish`] mapped; unmaps it.
+fn read_words<const N: usize>(buffer: &wgpu::Buffer) -> Result<[u32; N], RenderError> {
+    let words = mapped_view(buffer, COUNTERS_READ).map(|data| {
         let words: &[u32] = bytemuck::cast_slice(&data);
         std::array::from_fn(|i| words[i])
-    };
+    });
     buffer.unmap();
-    Ok(words)
+    Ok(words?)
 }

@@ -261,7 +261,7 @@ impl ShellsRenderer {
         let enc = rec.encoder();
         enc.copy_buffer_to_buffer(&b.accum, 0, &b.accum_readback, 0, b.accum.size());
         enc.copy_buffer_to_buffer(&b.needed, 0, &b.needed_readback, 0, 4);
-        let stats = rec.finish(&[], assembled.stage.degenerate(), 0)?;
+        let stats = rec.finish(&[], assembled.stage.degenerate(), 0, &[])?;
         let needed = read_u32(&self.ctx.device, &b.needed_readback)? as u64;
         Ok((stats, (needed > b.capacity).then_some(needed)))
     }

@@ -720,8 +720,7 @@ impl ShellsRenderer {
         let targets = self.ensure_targets(width, height)?;
         let run = self.draw(&targets, &mut frame, tf)?;
         let t_read = Instant::now();
-        let mut image = Image::new(targets.width, targets.height);
-        image.pixels = targets.readback.read(&self.ctx.device)?;
+        let image = targets.readback.image(&self.ctx.device)?;
         let readback = ms_since(t_read);
         self.report(timings, &frame, &run, &image);
         timings.stage("readback", readback);
@@ -785,7 +784,7 @@ impl ShellsRenderer {
         let mut term = Termination::new(f, tau_max, threshold);
         let draws = draw_shells(&mut rec, &passes, f, &mut term)?;
         let images = [(&targets.accum, &targets.readback)];
-        let stats = rec.finish(&images, assembled.stage.degenerate(), draws.queries)?;
+        let stats = rec.finish(&images, assembled.stage.degenerate(), draws.queries, &[])?;
         Ok(RasterRun { stats, draws, term })
     }
 
