@@ -23,7 +23,7 @@ use tetvr::{Image, TetMesh};
 
 use super::commands::{
     CliError, Textured, build_renderer, camera, check_isovalues, check_output, load_mesh, median,
-    ms, open_mode, read_limits, require_renderable, transfer_function_for,
+    ms, open_mode, picked, read_limits, require_renderable, transfer_function_for,
 };
 use super::scene::{Startup, of_flags, unused_mode_flags, usable_instead};
 use super::{AnimateArgs, RenderArgs};
@@ -163,10 +163,11 @@ impl Playback {
         }
         let camera = camera(r, mesh)?;
         let open = Instant::now();
-        let (mode, gpu) = open_mode(r, mesh, &tf, textured.is_some())?;
+        let (mode, gpu, auto) = open_mode(r, mesh, &tf, textured.is_some())?;
         let open_ms = ms(open);
         let build = Instant::now();
-        let (renderer, what) = build_renderer(textured.as_ref(), &mode, gpu.as_ref(), mesh)
+        let (renderer, what) = (build_renderer(textured.as_ref(), &mode, gpu.as_ref(), mesh))
+            .map(|(r, what)| (r, picked(what, (&mode, gpu.as_ref(), auto.as_ref()), textured.is_some())))
             .map_err(|e| usable_instead(e, r, &scene, matches))?;
         let startup = r.timings.then(|| Startup {
             read_ms,
