@@ -1282,7 +1282,12 @@ mod tests {
         let beyond = far_eye::WALK * 1.5;
         let far = pick(|_| {}, beyond, true);
         assert_eq!(far, raster(RasterFor::FarEye(beyond)));
-        assert!(far.because.unwrap().to_string().contains("beyond the walk's"));
+        assert!(
+            far.because
+                .unwrap()
+                .to_string()
+                .contains("beyond the walk's")
+        );
         // Limits that refuse the walk: the raster sampler, which they run (tests/limits.rs)
         // or whose refusal, with the changes it names, is the one the shells mode gave before.
         assert_eq!(pick(|_| {}, near, false), raster(RasterFor::Limits));

@@ -1225,7 +1225,10 @@ fn auto_takes_the_raster_sampler_where_the_limits_refuse_the_walk() {
     let auto = scene.auto_sampler(&mesh, Some(&short)).unwrap();
     assert_eq!(auto.map(|a| a.because), Some(Some(RasterFor::Limits)));
     let mode = scene.mode_settings_on(&mesh, &tf, Some(&short)).unwrap();
-    let frame = mode.build(Some(&short), &mesh).unwrap().render(&camera, &tf);
+    let frame = mode
+        .build(Some(&short), &mesh)
+        .unwrap()
+        .render(&camera, &tf);
     assert!(frame.is_ok(), "{:?}", frame.err());
     let full = scene.auto_sampler(&mesh, Some(common::ctx())).unwrap();
     assert_eq!(full.map(|a| a.sampler), Some(Sampler::Walk));

@@ -166,9 +166,10 @@ impl Playback {
         let (mode, gpu, auto) = open_mode(r, mesh, &tf, textured.is_some())?;
         let open_ms = ms(open);
         let build = Instant::now();
-        let (renderer, what) = (build_renderer(textured.as_ref(), &mode, gpu.as_ref(), mesh))
-            .map(|(r, what)| (r, picked(what, (&mode, gpu.as_ref(), auto.as_ref()), textured.is_some())))
+        let (renderer, what) = build_renderer(textured.as_ref(), &mode, gpu.as_ref(), mesh)
             .map_err(|e| usable_instead(e, r, &scene, matches))?;
+        let picks = (&mode, gpu.as_ref(), auto.as_ref());
+        let what = picked(what, picks, textured.is_some());
         let startup = r.timings.then(|| Startup {
             read_ms,
             open_ms,

@@ -229,9 +229,10 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
         (None, None) => with_row_bar(mode.resolve(gpu.as_ref()), camera.height),
     };
     let build = Instant::now();
-    let (mut renderer, what) = (build_renderer(textured.as_ref(), &mode, gpu.as_ref(), &mesh))
-        .map(|(r, what)| (r, picked(what, (&mode, gpu.as_ref(), auto.as_ref()), textured.is_some())))
+    let (mut renderer, what) = build_renderer(textured.as_ref(), &mode, gpu.as_ref(), &mesh)
         .map_err(|e| usable_instead(e, args, &scene, matches))?;
+    let picks = (&mode, gpu.as_ref(), auto.as_ref());
+    let what = picked(what, picks, textured.is_some());
     startup.build_ms = ms(build);
     let cold = Instant::now();
     let frame = renderer.render(&camera, &tf)?;
@@ -487,7 +488,9 @@ fn open_scene_mode(
     tf: &TransferFunction,
     textured: bool,
 ) -> Result<Opened, CliError> {
-    let gpu = scene.mode_settings(mesh, tf)?.open_gpu(AdapterChoice::from_env())?;
+    let gpu = scene
+        .mode_settings(mesh, tf)?
+        .open_gpu(AdapterChoice::from_env())?;
     let mode = scene.mode_settings_on(mesh, tf, gpu.as_ref())?;
     let auto = scene.auto_sampler(mesh, gpu.as_ref())?;
     let auto_note = match textured {
