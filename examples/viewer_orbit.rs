@@ -14,7 +14,7 @@
 use std::time::Instant;
 
 use tetvr::gpu::{AdapterChoice, GpuContext};
-use tetvr::scene::{Mode, Scene};
+use tetvr::scene::{Mode, SamplerChoice, Scene};
 use tetvr::viewer::egui::{self, Event, PointerButton, Pos2, Vec2};
 use tetvr::viewer::{NUMBERS_HEIGHT, PANEL_WIDTH, Viewer, ViewerSetup};
 
@@ -69,6 +69,8 @@ struct Orbit {
 fn orbit(mesh: &str, size: [u32; 2], mode: Mode) -> Result<Orbit, Box<dyn std::error::Error>> {
     let mut scene = Scene::new(mesh);
     (scene.mode, scene.size) = (mode, size);
+    // The README's shells row is the raster sampler's (`tetvr view` takes the walk by default).
+    scene.settings.sampler = SamplerChoice::Raster;
     let loaded = scene.load_mesh(&Default::default())?.mesh;
     let tf = scene.transfer_function(&loaded)?;
     let camera = scene.camera(&loaded)?;

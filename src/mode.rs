@@ -35,6 +35,7 @@ use crate::gpu::{
 use crate::mesh::TetMesh;
 use crate::reference::ReferenceRenderer;
 use crate::render::{Progress, RenderError, Renderer};
+use crate::scene::AutoSampler;
 use crate::tf::TransferFunction;
 
 /// Which path `auto` renders with on a machine, and why: [`AutoPath::of`].
@@ -218,15 +219,29 @@ impl ModeSettings {
     /// A one-line description of the resolved mode for people, e.g. `mode shells (raster
     /// sampler, 512 samples) on llvmpipe (...)` or `mode iso at 0.5, 0.7 on ...`.
     pub fn describe(&self, gpu: Option<&GpuContext>) -> String {
+        self.describe_picked(gpu, None)
+    }
+
+    /// [`Self::describe`], saying that the shells' sampler is `auto`'s pick (and why, where
+    /// that is the raster sampler): `mode shells (walk sampler by auto, 512 samples) on ...`,
+    /// `(raster sampler by auto for --slice-format f16, ...)`.
+    pub fn describe_picked(&self, gpu: Option<&GpuContext>, auto: Option<&AutoSampler>) -> String {
         let on = gpu.map_or_else(|| "no GPU".to_string(), GpuContext::summary);
         match self.resolve(gpu) {
             Self::Auto(_) | Self::Reference(_) => "mode reference, exact f64 on the CPU".into(),
             Self::Shells(s) => {
-                let sampler = match (s.tune, s.sampler) {
-                    (true, _) => "sampler tuned",
-                    (false, Sampler::Raster) => "raster sampler",
-                    (false, Sampler::Compute) => "compute sampler",
-                    (false, Sampler::Walk) => "walk sampler",
+                let name = match s.sampler {
+                    Sampler::Raster => "raster",
+                    Sampler::Compute => "compute",
+                    Sampler::Walk => "walk",
+                };
+                let sampler = match (s.tune, auto) {
+                    (true, _) => "sampler tuned".to_owned(),
+                    (false, None) => format!("{name} sampler"),
+                    (false, Some(a)) => match a.because {
+                        None => format!("{name} sampler by auto"),
+                        Some(why) => format!("{name} sampler by auto {why}"),
+                    },
                 };
                 format!("mode shells ({sampler}, {} samples) on {on}", s.samples)
             }

@@ -49,8 +49,8 @@ use crate::camera::{Camera, CameraError, View};
 use crate::cpu::raycast::{self as cpu_raycast, CpuRaycastSettings};
 use crate::gpu::raycast::{Entry, Segments};
 use crate::gpu::{
-    BinningMode, CellProjSettings, Integrate, IsoSettings, RaycastSettings, Sampler, ShellSettings,
-    Skip, SliceFormat,
+    BinningMode, CellProjSettings, GpuContext, Integrate, IsoSettings, RaycastSettings, Sampler,
+    ShaderNeeds, ShellSettings, Skip, SliceFormat, far_eye,
 };
 use crate::io::{self, LoadError, Loaded, ReadLimits};
 use crate::mesh::{CellDataMode, MeshError, TetMesh};
@@ -234,8 +234,11 @@ pub enum ShadingChoice {
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum SamplerChoice {
-    /// The rasterizer: front faces per shell, slices blended into colour targets.
+    /// The walk, the fastest measured, or the raster sampler where the settings, the eye or
+    /// the adapter's limits need it (`AutoSampler::rule`).
     #[default]
+    Auto,
+    /// The rasterizer: front faces per shell, slices blended into colour targets.
     Raster,
     /// Compute workgroups on 8 x 8 pixel tiles (records in several storage bindings: one pass
     /// per chunk).
@@ -243,6 +246,117 @@ pub enum SamplerChoice {
     /// Each pixel's ray walks the tets through shared faces (the ray caster's traversal) and
     /// composites the same slices; slices per shell, skips and binning do not apply.
     Walk,
+}
+
+impl SamplerChoice {
+    /// The choice that names `sampler`.
+    pub fn of(sampler: Sampler) -> Self {
+        match sampler {
+            Sampler::Raster => Self::Raster,
+            Sampler::Compute => Self::Compute,
+            Sampler::Walk => Self::Walk,
+        }
+    }
+
+    /// The sampler this names; `None` for [`Self::Auto`].
+    pub fn named(self) -> Option<Sampler> {
+        match self {
+            Self::Auto => None,
+            Self::Raster => Some(Sampler::Raster),
+            Self::Compute => Some(Sampler::Compute),
+            Self::Walk => Some(Sampler::Walk),
+        }
+    }
+}
+
+/// The sampler `sampler: auto` picked ([`Scene::auto_sampler`]), and why.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AutoSampler {
+    /// The walk, or the raster sampler `because` of what needs it.
+    pub sampler: Sampler,
+    /// What took the raster sampler instead of the walk; `None` for the walk.
+    pub because: Option<RasterFor>,
+}
+
+/// What makes `sampler: auto` take the raster sampler rather than the walk.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum RasterFor {
+    /// `--tune on`: the tuner starts from the raster sampler and times the others itself.
+    Tune,
+    /// `--slice-format f16`, which the walk refuses (its samples are f32).
+    F16Slices,
+    /// `--binning gpu` or `auto`: binning the walk does not do.
+    Binning(BinningChoice),
+    /// `--slices-per-shell`: the slices a raster fragment samples per shell.
+    SlicesPerShell,
+    /// `--no-skip` of a skip the walk does not take (all but early-termination).
+    NoSkip(Skip),
+    /// The eye is farther from the mesh than the walk's limit ([`far_eye::WALK`]), in mesh
+    /// radii.
+    FarEye(f64),
+    /// The adapter's limits refuse the walk's stages.
+    Limits,
+}
+
+impl std::fmt::Display for RasterFor {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Tune => write!(f, "for --tune on, which starts from it"),
+            Self::F16Slices => write!(f, "for --slice-format f16"),
+            Self::Binning(BinningChoice::Cpu | BinningChoice::Gpu) => {
+                write!(f, "for --binning gpu")
+            }
+            Self::Binning(BinningChoice::Auto) => write!(f, "for --binning auto"),
+            Self::SlicesPerShell => write!(f, "for --slices-per-shell"),
+            Self::NoSkip(k) => write!(f, "for --no-skip {k}"),
+            Self::FarEye(radii) => write!(
+                f,
+                "for an eye {radii:.3e} mesh radii away, beyond the walk's {:e}",
+                far_eye::WALK
+            ),
+            Self::Limits => write!(f, "for this adapter's limits, which refuse the walk"),
+        }
+    }
+}
+
+impl AutoSampler {
+    /// What `sampler: auto` picks for `settings`, the eye `eye_radii` mesh radii from the
+    /// mesh's centre, on an adapter whose limits run the walk's stages where `walk_runs`: the
+    /// walk, the
+    /// fastest sampler on every bench scene measured (docs/performance.md), unless, in this
+    /// order, [`RasterFor`]: `--tune on`; `--slice-format f16`; `--binning gpu` or `auto`;
+    /// `--slices-per-shell`; `--no-skip` of a skip but early-termination; an eye beyond the
+    /// walk's far-eye limit; limits that refuse the walk. Then the raster sampler, which
+    /// honours all of them (and whose refusal, where the limits refuse it too, names the
+    /// changes that run). Settings the walk honours (samples, dz,
+    /// the termination threshold, `--no-skip early-termination`, f32 slices) keep the walk.
+    pub fn rule(settings: &Settings, eye_radii: f64, walk_runs: bool) -> Self {
+        let s = settings;
+        let because = if s.tune == TuneChoice::On {
+            Some(RasterFor::Tune)
+        } else if s.slice_format == SliceFormatChoice::F16 {
+            Some(RasterFor::F16Slices)
+        } else if s.binning != BinningChoice::Cpu {
+            Some(RasterFor::Binning(s.binning))
+        } else if s.slices_per_shell.is_some() {
+            Some(RasterFor::SlicesPerShell)
+        } else if let Some(&k) = (s.no_skip.iter()).find(|&&k| k != Skip::EarlyTermination) {
+            Some(RasterFor::NoSkip(k))
+        } else if eye_radii > far_eye::WALK {
+            Some(RasterFor::FarEye(eye_radii))
+        } else if !walk_runs {
+            Some(RasterFor::Limits)
+        } else {
+            None
+        };
+        Self {
+            sampler: match because {
+                Some(_) => Sampler::Raster,
+                None => Sampler::Walk,
+            },
+            because,
+        }
+    }
 }
 
 /// Where the shells' tets are binned into the shells' active lists (`--binning`).
@@ -387,7 +501,7 @@ impl Default for Settings {
             slices_per_shell: None,
             no_skip: Vec::new(),
             ert_threshold: None,
-            sampler: SamplerChoice::Raster,
+            sampler: SamplerChoice::Auto,
             slice_format: SliceFormatChoice::Auto,
             binning: BinningChoice::Cpu,
             tune: TuneChoice::Off,
@@ -791,19 +905,35 @@ impl Scene {
     }
 
     /// The settings of the scene's mode for `mesh` (iso's default isovalue is the middle of
-    /// its range) with `tf` (which colours the isosurfaces).
+    /// its range) with `tf` (which colours the isosurfaces); `sampler: auto` resolved without
+    /// an adapter's limits ([`Self::mode_settings_on`] weighs them).
     pub fn mode_settings(
         &self,
         mesh: &TetMesh,
         tf: &TransferFunction,
     ) -> Result<ModeSettings, SceneError> {
+        self.mode_settings_on(mesh, tf, None)
+    }
+
+    /// [`Self::mode_settings`] to render on `gpu` (as [`ModeSettings::open_gpu`] opened it):
+    /// `sampler: auto` takes the sampler [`Self::auto_sampler`] picks there.
+    pub fn mode_settings_on(
+        &self,
+        mesh: &TetMesh,
+        tf: &TransferFunction,
+        gpu: Option<&GpuContext>,
+    ) -> Result<ModeSettings, SceneError> {
+        let sampler = match self.auto_sampler(mesh, gpu)? {
+            Some(auto) => auto.sampler,
+            None => self.settings.sampler.named().unwrap_or_default(),
+        };
         self.located(|| {
             let s = &self.settings;
             let frustum = !s.no_skip.contains(&Skip::Frustum);
             Ok(match self.mode {
-                Mode::Auto => ModeSettings::Auto(self.shell_settings()),
+                Mode::Auto => ModeSettings::Auto(self.shell_settings(sampler)),
                 Mode::Reference => ModeSettings::Reference(ReferenceSettings::default()),
-                Mode::Shells => ModeSettings::Shells(self.shell_settings()),
+                Mode::Shells => ModeSettings::Shells(self.shell_settings(sampler)),
                 Mode::Iso => ModeSettings::Iso(IsoSettings {
                     isovalues: iso_surfaces(tf, &self.isovalues(mesh)?),
                     shading: match s.shading {
@@ -894,7 +1024,33 @@ impl Scene {
         Ok(vec![0.5 * (lo + hi)])
     }
 
-    fn shell_settings(&self) -> ShellSettings {
+    /// The sampler `settings.sampler: auto` picks for this scene over `mesh` on `gpu` (`None`:
+    /// no adapter's limits weighed), and why ([`AutoSampler::rule`]); `None` where the scene
+    /// names its sampler or renders no shells (a mode other than shells and auto).
+    pub fn auto_sampler(
+        &self,
+        mesh: &TetMesh,
+        gpu: Option<&GpuContext>,
+    ) -> Result<Option<AutoSampler>, SceneError> {
+        if self.settings.sampler != SamplerChoice::Auto
+            || !matches!(self.mode, Mode::Shells | Mode::Auto)
+        {
+            return Ok(None);
+        }
+        // The distance every frame's far-eye check measures ([`far_eye`]).
+        let eye = self.camera(mesh)?.eye;
+        let (centre, radius) = crate::gpu::util::sphere_of(mesh.bounds());
+        let radii = crate::mesh::length_of(eye - centre) / radius;
+        let textured = self.texture.is_some();
+        let walk_runs = gpu.is_none_or(|g| {
+            let walk = self.shell_settings(Sampler::Walk);
+            // Binning on the CPU: any other binning takes the raster sampler before this.
+            ShaderNeeds::check_shells(&walk, textured, false, &g.info.name, &g.limits).is_ok()
+        });
+        Ok(Some(AutoSampler::rule(&self.settings, radii, walk_runs)))
+    }
+
+    fn shell_settings(&self, sampler: Sampler) -> ShellSettings {
         let s = &self.settings;
         let mut shells = ShellSettings::default();
         shells.samples = s.samples.unwrap_or(shells.samples);
@@ -904,11 +1060,7 @@ impl Scene {
             shells.skips.set(skip, false);
         }
         shells.skips.ert_threshold = s.ert_threshold.unwrap_or(shells.skips.ert_threshold);
-        shells.sampler = match s.sampler {
-            SamplerChoice::Raster => Sampler::Raster,
-            SamplerChoice::Compute => Sampler::Compute,
-            SamplerChoice::Walk => Sampler::Walk,
-        };
+        shells.sampler = sampler;
         shells.format = match s.slice_format {
             SliceFormatChoice::Auto => SliceFormat::Auto,
             SliceFormatChoice::F16 => SliceFormat::Float16,
@@ -938,11 +1090,7 @@ impl Scene {
                     .filter(|&k| !shells.skips.is_on(k))
                     .collect();
                 s.ert_threshold = Some(shells.skips.ert_threshold);
-                s.sampler = match shells.sampler {
-                    Sampler::Raster => SamplerChoice::Raster,
-                    Sampler::Compute => SamplerChoice::Compute,
-                    Sampler::Walk => SamplerChoice::Walk,
-                };
+                s.sampler = SamplerChoice::of(shells.sampler);
                 s.slice_format = match shells.format {
                     SliceFormat::Auto => SliceFormatChoice::Auto,
                     SliceFormat::Float16 => SliceFormatChoice::F16,
@@ -1071,6 +1219,79 @@ fn relative_to(path: &Path, base: &Path) -> PathBuf {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `sampler: auto` takes the walk unless a setting, the eye or the limits need the raster
+    /// sampler; each case alone, with its reason. Settings the walk honours keep it.
+    #[test]
+    fn auto_takes_the_walk_unless_something_needs_the_raster_sampler() {
+        let near = 1.0;
+        let pick = |edit: fn(&mut Settings), radii: f64, walk_runs: bool| {
+            let mut s = Settings::default();
+            edit(&mut s);
+            AutoSampler::rule(&s, radii, walk_runs)
+        };
+        let walk = AutoSampler {
+            sampler: Sampler::Walk,
+            because: None,
+        };
+        let raster = |because| AutoSampler {
+            sampler: Sampler::Raster,
+            because: Some(because),
+        };
+        type Edit = fn(&mut Settings);
+        let keeps_walk: [Edit; 6] = [
+            |_| {},
+            |s| s.samples = Some(64),
+            |s| s.dz = Some(0.01),
+            |s| s.ert_threshold = Some(0.9),
+            |s| s.no_skip = vec![Skip::EarlyTermination],
+            |s| s.slice_format = SliceFormatChoice::F32,
+        ];
+        for (i, edit) in keeps_walk.into_iter().enumerate() {
+            assert_eq!(pick(edit, near, true), walk, "case {i}");
+        }
+        let takes_raster: [(Edit, RasterFor); 7] = [
+            (|s| s.tune = TuneChoice::On, RasterFor::Tune),
+            (
+                |s| s.slice_format = SliceFormatChoice::F16,
+                RasterFor::F16Slices,
+            ),
+            (
+                |s| s.binning = BinningChoice::Gpu,
+                RasterFor::Binning(BinningChoice::Gpu),
+            ),
+            (
+                |s| s.binning = BinningChoice::Auto,
+                RasterFor::Binning(BinningChoice::Auto),
+            ),
+            (|s| s.slices_per_shell = Some(8), RasterFor::SlicesPerShell),
+            (
+                |s| s.no_skip = vec![Skip::EarlyTermination, Skip::TfCull],
+                RasterFor::NoSkip(Skip::TfCull),
+            ),
+            (
+                |s| s.no_skip = vec![Skip::AdaptiveSlices],
+                RasterFor::NoSkip(Skip::AdaptiveSlices),
+            ),
+        ];
+        for (i, (edit, because)) in takes_raster.into_iter().enumerate() {
+            assert_eq!(pick(edit, near, true), raster(because), "case {i}");
+        }
+        // The eye: the walk up to its own far-eye limit, the raster sampler beyond it.
+        assert_eq!(pick(|_| {}, far_eye::WALK, true), walk);
+        let beyond = far_eye::WALK * 1.5;
+        let far = pick(|_| {}, beyond, true);
+        assert_eq!(far, raster(RasterFor::FarEye(beyond)));
+        assert!(
+            far.because
+                .unwrap()
+                .to_string()
+                .contains("beyond the walk's")
+        );
+        // Limits that refuse the walk: the raster sampler, which they run (tests/limits.rs)
+        // or whose refusal, with the changes it names, is the one the shells mode gave before.
+        assert_eq!(pick(|_| {}, near, false), raster(RasterFor::Limits));
+    }
 
     #[test]
     fn number_lists_take_one_line() {

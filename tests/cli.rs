@@ -345,7 +345,13 @@ fn raycast_takes_exact_and_table_integrators() {
 
 #[test]
 fn shells_render_runs_on_the_software_adapter_and_prints_stages() {
+    // The default sampler, auto, takes the walk: the ray caster's stages, and its slices.
     let stdout = render_lox("shells");
+    for stage in ["traverse", "slices"] {
+        assert!(stdout.contains(stage), "no {stage} in {stdout}");
+    }
+    let png = out_dir("shells-raster").join("lox.png");
+    let stdout = stdout_of(&render_lox_shells(&png, &["--sampler", "raster"]));
     for stage in ["binning", "assembly", "raster", "composite"] {
         assert!(stdout.contains(stage), "no {stage} in {stdout}");
     }
@@ -1086,11 +1092,57 @@ fn render_lox_shells(png: &Path, extra: &[&str]) -> Output {
     tetvr(&[&base[..], extra].concat())
 }
 
+/// `--sampler auto`, the default, takes the walk (the fastest sampler, docs/performance.md)
+/// and names it; `--slice-format f16`, which the walk refuses, and an eye beyond the walk's
+/// far-eye limit render with the raster sampler, which says why. A scene file's `sampler: auto` is the flag's, and `--save-scene`
+/// writes the sampler it took, so that the file renders that sampler's picture anywhere.
+#[test]
+fn auto_samples_with_the_walk_and_f16_slices_with_the_raster_sampler() {
+    let dir = out_dir("auto-sampler");
+    let png = dir.join("lox.png");
+    let stdout = stdout_of(&render_lox_shells(&png, &[]));
+    assert!(
+        stdout.contains("mode shells (walk sampler by auto, 512 samples)")
+            && stdout.contains("traverse"),
+        "{stdout}"
+    );
+    let stdout = stdout_of(&render_lox_shells(&png, &["--slice-format", "f16"]));
+    assert!(
+        stdout.contains("(raster sampler by auto for --slice-format f16, 512 samples)")
+            && stdout.contains("composite"),
+        "{stdout}"
+    );
+    // A telephoto eye 1.15e4 mesh radii away, beyond the walk's far-eye limit (1e4; the
+    // raster sampler's is 1e6): the raster sampler renders it where the walk would refuse.
+    let stdout = stdout_of(&render_lox_shells(&png, &["--fov", "0.01"]));
+    assert!(
+        stdout.contains("(raster sampler by auto for an eye 1.146e4 mesh radii away"),
+        "{stdout}"
+    );
+    let scene = dir.join("auto.json");
+    let doc = serde_json::json!({
+        "mesh": LOX,
+        "size": [48, 40],
+        "mode": "shells",
+        "settings": { "sampler": "auto" },
+    });
+    std::fs::write(&scene, doc.to_string()).unwrap();
+    let saved = dir.join("saved.json");
+    let args = ["render", "--scene", scene.to_str().unwrap(), "-o"];
+    let args = [&args[..], &[png.to_str().unwrap(), "--save-scene"]].concat();
+    let stdout = stdout_of(&tetvr(&[&args[..], &[saved.to_str().unwrap()]].concat()));
+    assert!(stdout.contains("walk sampler by auto"), "{stdout}");
+    let saved: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&saved).unwrap()).unwrap();
+    assert_eq!(saved["settings"]["sampler"], "walk", "{saved}");
+}
+
 #[test]
 fn no_skip_turns_skips_off_and_unknown_skips_are_named() {
-    // With early ray termination off its counters are absent; with it on they are printed.
+    // With early ray termination off the raster sampler's counters are absent; with it on
+    // they are printed.
     let png = out_dir("no-skip").join("lox.png");
-    let on = render_lox_shells(&png, &["--ert-threshold", "0.99"]);
+    let on = render_lox_shells(&png, &["--ert-threshold", "0.99", "--sampler", "raster"]);
     let stdout = stdout_of(&on);
     assert!(stdout.contains("pixels finished"), "{stdout}");
     let off = render_lox_shells(&png, &["--no-skip", "early-termination,tf-cull,frustum"]);

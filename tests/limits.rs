@@ -1201,3 +1201,35 @@ fn binning_auto_bins_on_the_cpu_where_the_gpu_binning_is_short() {
     let mut r = ShellsRenderer::new(&ctx, &mesh, auto).unwrap_or_else(|e| panic!("{e}"));
     r.render(&camera, &tf).unwrap();
 }
+
+/// `sampler: auto` never turns a render the adapter runs into a refusal: on a device with
+/// exactly the raster sampler's needs, short of the walk's (the ray caster's storage buffers),
+/// a scene's `auto` takes the raster sampler, says why, and renders; on the test adapter,
+/// which runs both, it takes the walk.
+#[test]
+fn auto_takes_the_raster_sampler_where_the_limits_refuse_the_walk() {
+    use tetvr::gpu::{Sampler, ShellSettings};
+    use tetvr::scene::{Mode, RasterFor, Scene};
+    let mesh = common::gaussians(2);
+    let (tf, camera) = common::default_view(&mesh, 24);
+    let raster = ShellSettings::default();
+    let walk = ShellSettings {
+        sampler: Sampler::Walk,
+        ..raster
+    };
+    let short = device_offering(&shells_needs(&raster, false, false));
+    let refused = ShaderNeeds::check_shells(&walk, false, false, "", &short.limits);
+    assert!(refused.is_err(), "the device runs the walk");
+    let mut scene = Scene::new("gaussians.vtu");
+    scene.mode = Mode::Shells;
+    let auto = scene.auto_sampler(&mesh, Some(&short)).unwrap();
+    assert_eq!(auto.map(|a| a.because), Some(Some(RasterFor::Limits)));
+    let mode = scene.mode_settings_on(&mesh, &tf, Some(&short)).unwrap();
+    let frame = mode
+        .build(Some(&short), &mesh)
+        .unwrap()
+        .render(&camera, &tf);
+    assert!(frame.is_ok(), "{:?}", frame.err());
+    let full = scene.auto_sampler(&mesh, Some(common::ctx())).unwrap();
+    assert_eq!(full.map(|a| a.sampler), Some(Sampler::Walk));
+}

@@ -23,7 +23,7 @@ use tetvr::{Image, TetMesh};
 
 use super::commands::{
     CliError, Textured, build_renderer, camera, check_isovalues, check_output, load_mesh, median,
-    ms, open_mode, read_limits, require_renderable, transfer_function_for,
+    ms, open_mode, picked, read_limits, require_renderable, transfer_function_for,
 };
 use super::scene::{Startup, of_flags, unused_mode_flags, usable_instead};
 use super::{AnimateArgs, RenderArgs};
@@ -163,11 +163,13 @@ impl Playback {
         }
         let camera = camera(r, mesh)?;
         let open = Instant::now();
-        let (mode, gpu) = open_mode(r, mesh, &tf, textured.is_some())?;
+        let (mode, gpu, auto) = open_mode(r, mesh, &tf, textured.is_some())?;
         let open_ms = ms(open);
         let build = Instant::now();
         let (renderer, what) = build_renderer(textured.as_ref(), &mode, gpu.as_ref(), mesh)
             .map_err(|e| usable_instead(e, r, &scene, matches))?;
+        let picks = (&mode, gpu.as_ref(), auto.as_ref());
+        let what = picked(what, picks, textured.is_some());
         let startup = r.timings.then(|| Startup {
             read_ms,
             open_ms,

@@ -20,7 +20,7 @@ use tetvr::mesh::stats::MeshStats;
 use tetvr::mode::{ModeSettings, ReferenceSettings, show_value};
 use tetvr::reference::ReferenceRenderer;
 use tetvr::render::{Progress, RenderError};
-use tetvr::scene::{Scene, SceneError, SceneTexture};
+use tetvr::scene::{AutoSampler, SamplerChoice, Scene, SceneError, SceneTexture};
 use tetvr::texture::{Volume, textured_renderer};
 use tetvr::tf::TransferFunction;
 use tetvr::tf::file::{TfFileError, load_tf};
@@ -220,7 +220,7 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
     let file = cmd.scene.as_deref();
     check_scene_isovalues(&scene, args, file, &mesh, textured.as_ref())?;
     let open = Instant::now();
-    let (mode, gpu) = open_scene_mode(&scene, &mesh, &tf, textured.is_some())?;
+    let (mode, gpu, auto) = open_scene_mode(&scene, &mesh, &tf, textured.is_some())?;
     startup.open_ms = ms(open);
     // A textured cage keeps `auto` for its own rule (texture::textured_renderer).
     let (mode, bar) = match (cmd.frames, &textured) {
@@ -231,6 +231,8 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
     let build = Instant::now();
     let (mut renderer, what) = build_renderer(textured.as_ref(), &mode, gpu.as_ref(), &mesh)
         .map_err(|e| usable_instead(e, args, &scene, matches))?;
+    let picks = (&mode, gpu.as_ref(), auto.as_ref());
+    let what = picked(what, picks, textured.is_some());
     startup.build_ms = ms(build);
     let cold = Instant::now();
     let frame = renderer.render(&camera, &tf)?;
@@ -260,10 +262,37 @@ fn render(cmd: RenderCommand, matches: &ArgMatches) -> Result<(), CliError> {
         );
     }
     if let Some(path) = &cmd.save_scene {
-        scene.save(path)?;
+        saved_scene(scene, &mode, auto.as_ref()).save(path)?;
         println!("wrote {}", path.display());
     }
     Ok(())
+}
+
+/// The scene `--save-scene` writes: `scene` with the sampler `auto` picked for the shells
+/// render `mode` named (`auto` kept under `--tune on`, which chooses its own, and where no
+/// shells rendered), so that the file renders with the same sampler, the same picture bit for
+/// bit, on any adapter and whatever a later tetvr's rule picks.
+fn saved_scene(mut scene: Scene, mode: &ModeSettings, auto: Option<&AutoSampler>) -> Scene {
+    if let (ModeSettings::Shells(s), Some(a)) = (mode, auto)
+        && !s.tune
+    {
+        scene.settings.sampler = SamplerChoice::of(a.sampler);
+    }
+    scene
+}
+
+/// `what`, [`build_renderer`]'s name of a render of `mode` on `gpu`, naming the sampler
+/// `auto` picked ([`ModeSettings::describe_picked`]) unless the mesh is `textured` (its
+/// name is the textured renderer's).
+pub(super) fn picked(
+    what: String,
+    (mode, gpu, auto): (&ModeSettings, Option<&GpuContext>, Option<&AutoSampler>),
+    textured: bool,
+) -> String {
+    match (auto, textured) {
+        (Some(_), false) => mode.describe_picked(gpu, auto),
+        _ => what,
+    }
 }
 
 /// Refuses isovalues outside the scalar range (a textured cage's: its volume's): their
@@ -442,21 +471,28 @@ pub(super) fn open_mode(
     mesh: &TetMesh,
     tf: &TransferFunction,
     textured: bool,
-) -> Result<(ModeSettings, Option<GpuContext>), CliError> {
+) -> Result<Opened, CliError> {
     open_scene_mode(&of_flags(args)?, mesh, tf, textured)
 }
 
-/// The mode `scene` asks for and the GPU it renders on, opened; `auto` off the GPU says in one
-/// line which path it took and why (for a `textured` cage, the ray caster's), a GPU mode by
-/// name without an adapter is an error.
+/// A mode, the GPU it renders on and the sampler `auto` picked there
+/// ([`Scene::auto_sampler`]).
+pub(super) type Opened = (ModeSettings, Option<GpuContext>, Option<AutoSampler>);
+
+/// The mode `scene` asks for and the GPU it renders on, opened, with `sampler: auto` picked
+/// for that GPU's limits; `auto` off the GPU says in one line which path it took and why (for
+/// a `textured` cage, the ray caster's), a GPU mode by name without an adapter is an error.
 fn open_scene_mode(
     scene: &Scene,
     mesh: &TetMesh,
     tf: &TransferFunction,
     textured: bool,
-) -> Result<(ModeSettings, Option<GpuContext>), CliError> {
-    let mode = scene.mode_settings(mesh, tf)?;
-    let gpu = mode.open_gpu(AdapterChoice::from_env())?;
+) -> Result<Opened, CliError> {
+    let gpu = scene
+        .mode_settings(mesh, tf)?
+        .open_gpu(AdapterChoice::from_env())?;
+    let mode = scene.mode_settings_on(mesh, tf, gpu.as_ref())?;
+    let auto = scene.auto_sampler(mesh, gpu.as_ref())?;
     let auto_note = match textured {
         false => mode.note(gpu.as_ref()),
         true => mode.textured_note(gpu.as_ref()),
@@ -465,7 +501,7 @@ fn open_scene_mode(
     for note in notes.into_iter().flatten() {
         eprintln!("note: {note}");
     }
-    Ok((mode, gpu))
+    Ok((mode, gpu, auto))
 }
 
 /// The reference with a progress bar of its rows; other modes as they are, without one.

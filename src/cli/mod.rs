@@ -277,8 +277,11 @@ pub struct ShellArgs {
     /// pixel's ray walks the tets (the ray caster's traversal) and takes the same slices,
     /// stopping it where the others finish its pixel (--ert-threshold, at a shell's end); it
     /// ignores --binning and the other skips, which do not change its picture, and refuses
-    /// --slice-format f16.
-    #[arg(long, value_enum, default_value_t = SamplerChoice::Raster)]
+    /// --slice-format f16. auto: walk, the fastest measured, but raster with --tune on,
+    /// --slice-format f16, --binning gpu or auto, --slices-per-shell, --no-skip of a skip but
+    /// early-termination, an eye beyond the walk's far-eye limit, or an adapter whose limits
+    /// refuse the walk.
+    #[arg(long, value_enum, default_value_t = SamplerChoice::Auto)]
     pub sampler: SamplerChoice,
     /// shells: float format of the raster sampler's slice targets; auto is 32-bit where the
     /// adapter blends it (f16 halves target memory and costs about 20 dB of accuracy).

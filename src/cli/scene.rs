@@ -229,7 +229,11 @@ fn renders_as_named(scene: &Scene, change: &[&str]) -> bool {
     let s = &scene.settings;
     match change.first().and_then(|f| f.strip_prefix("--mode ")) {
         Some("cellproj") => s.integrate != Some(Integration::Partial),
-        Some("shells") => s.sampler == SamplerChoice::Raster && s.binning != BinningChoice::Gpu,
+        // Auto takes the raster sampler where the limits refuse the walk's stages.
+        Some("shells") => {
+            matches!(s.sampler, SamplerChoice::Raster | SamplerChoice::Auto)
+                && s.binning != BinningChoice::Gpu
+        }
         Some("raycast") => change.len() > 1 || s.entry != Some(EntryChoice::Peel),
         _ => true,
     }

@@ -726,7 +726,7 @@ impl Viewer {
         };
         let tf = scene.transfer_function(&self.mesh).map_err(named)?;
         let camera = scene.camera(&self.mesh).map_err(named)?;
-        let mode = scene.mode_settings(&self.mesh, &tf).map_err(named)?;
+        let mode = (scene.mode_settings_on(&self.mesh, &tf, Some(&self.gpu))).map_err(named)?;
         let range = self.mesh.active_array().and_then(|a| a.range());
         self.modes = ModeBook::new(&mode, range.unwrap_or((0.0, 1.0)));
         self.controller.camera = camera;

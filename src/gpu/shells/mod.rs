@@ -208,7 +208,9 @@ pub struct ShellSettings {
     pub format: SliceFormat,
     /// Work the renderer skips where a scene does not need it (all on by default).
     pub skips: Skips,
-    /// What samples the slices (default [`Sampler::Raster`]).
+    /// What samples the slices (default [`Sampler::Raster`], which honours every setting
+    /// here; the CLI's and scene files' default, `auto`, picks the faster walk where the
+    /// settings, the eye and the adapter allow: [`crate::scene::AutoSampler::rule`]).
     pub sampler: Sampler,
     /// Whether the sampler, slices per shell and skips are chosen from timings taken on the
     /// adapter in the first frames ([`tune::TunedShells`], built by
