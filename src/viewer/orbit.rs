@@ -18,8 +18,8 @@ const MIN_DISTANCE: f64 = 1e-4;
 
 /// The eye never goes farther from the target than this multiple of the mesh's diagonal: 100
 /// mesh radii, where a 30-degree view shows the mesh across 2% of its height, and inside every
-/// f32 mode's far-eye limit (`crate::gpu::far_eye`, the ray casters' 1e4 radii the smallest), so zooming
-/// out never reaches a refused frame. A pan that carries the target away from the mesh can
+/// f32 mode's far-eye limit (`crate::gpu::far_eye`, 1e6 radii), so zooming out never reaches a
+/// refused frame. A pan that carries the target away from the mesh can
 /// still; the viewer then shows the refusal's message in place of the picture.
 const MAX_DISTANCE: f64 = 50.0;
 
