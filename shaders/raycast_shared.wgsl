@@ -3,15 +3,17 @@
 // Appended after shared.wgsl; each stage file follows. Rust twins: gpu::raycast::{
 // RaycastUniforms, TetLinks}; CPU twin of the arithmetic: gpu::raycast::twin.
 //
-// Everything is in eye space measured from the pivot (view.eye, the point view.pivot_z ahead of
-// the eye on the view axis, level with the mesh centre: gpu::view::ViewFrame::pivot_uniforms):
+// Everything is in eye space measured from view.eye: from an eye beyond raycast::PIVOT_RADII
+// the pivot, the point view.pivot_z ahead of the eye on the view axis, level with the mesh
+// centre (gpu::raycast::view_uniforms, gpu::view::ViewFrame::pivot_uniforms); nearer, the eye:
 // raycast_vertices.wgsl writes each vertex's position rotate(p - pivot) and scalar every frame
 // (`verts`, declared by each stage at binding 2), and a tet's planes are computed from its four
 // vertices where a stage needs them (`tet_planes`), so a deforming mesh needs no preprocessing
 // and nothing per tet is stored but its links. The ray of a pixel (`Ray`) is x = o + t d, d
 // unit, o where it crosses the pivot's plane z = 0, t measured from o (from the eye at -t_c):
-// every position, plane offset and t is of the mesh's size however far the eye is (measured
-// from the eye, they were ~D and rounded to ~6e-8 D, which a telephoto view magnifies).
+// from the pivot every position, plane offset and t is of the mesh's size however far the eye
+// is (measured from a far eye, they are ~D and round to ~6e-8 D, which a telephoto view
+// magnifies).
 //
 // Bindings every stage shares: 0 the frame (shared.wgsl), 1 the constants, 2 `verts`, 3-6 the
 // links in LINK_BINDINGS windows of params.link_chunk tets each (gpu::raycast::links); a stage's
