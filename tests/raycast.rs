@@ -120,7 +120,7 @@ fn twin_matches_the_shaders() {
     let mesh = generate::shapes::box_with_hole(5_000, Field::Gaussians).unwrap();
     let (tf, camera) = default_view(&mesh, 64);
     twin_check("hole", &mesh, &camera, &tf);
-    // From 1e4 radii the stages measure from the pivot (raycast::PIVOT_RADII).
+    // At 1e4 radii, beyond raycast::PIVOT_RADII, the stages measure from the pivot.
     twin_check(
         "hole-far",
         &mesh,

@@ -85,7 +85,7 @@ impl CameraController {
     /// Moves the eye towards the target (positive `scroll`, in points) or away from it, by a
     /// constant fraction per point, between `MIN_DISTANCE` and `MAX_DISTANCE` diagonals, or
     /// as far as the starting camera when it lies outside them (a scene's telephoto view, which
-    /// the ray caster renders up to 1e4 radii): zooming in from there goes one step in, not to
+    /// every f32 mode renders up to 1e6 radii): zooming in from there goes one step in, not to
     /// the bound, and zooming out comes back to it.
     pub fn zoom(&mut self, scroll: f64) {
         let home = length_of(self.home.eye - self.home.target);
