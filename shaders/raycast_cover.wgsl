@@ -7,7 +7,7 @@
 // (raycast_shared.wgsl, `passes`); no ray slips between two faces. Faces the ray runs along
 // (PARALLEL) are not entries, and a ray only enters where it moves against the outward normal.
 
-// Eye-space point (z > 0) to pixel coordinates (x right, y down).
+// Eye-space point (z > 0, measured from the eye) to pixel coordinates (x right, y down).
 fn to_pixel(c: vec3<f32>) -> vec2<f32> {
     let uv = c.xy / c.z / view.half_extent;
     return vec2<f32>(0.5 * (uv.x + 1.0), 0.5 * (1.0 - uv.y)) * view.size;
@@ -17,13 +17,15 @@ fn to_pixel(c: vec3<f32>) -> vec2<f32> {
 // corners there and its edges' crossings of the plane), grown by one pixel, clamped to the
 // image; empty when the face lies behind the plane. A ray meets the part behind it within
 // near_z of the eye, where the eye's own tet (eye_tol = near_z) stands in.
+// The corners are pivot-relative: their z from the eye is z + view.pivot_z.
 fn pixel_bounds(face: Face) -> vec4<i32> {
     let zc = view.near_z;
     var lo = vec2<f32>(1e30);
     var hi = vec2<f32>(-1e30);
+    let pz = vec3<f32>(0.0, 0.0, view.pivot_z);
     for (var i = 0u; i < 3u; i++) {
-        let c = face.corner[i];
-        let e = face.corner[(i + 1u) % 3u];
+        let c = face.corner[i] + pz;
+        let e = face.corner[(i + 1u) % 3u] + pz;
         if c.z >= zc {
             lo = min(lo, to_pixel(c));
             hi = max(hi, to_pixel(c));
@@ -45,13 +47,14 @@ fn pixel_bounds(face: Face) -> vec4<i32> {
     return vec4<i32>(clamp(a, vec2<i32>(0), size), clamp(b, vec2<i32>(0), size));
 }
 
-// The t > 0 where ray d enters the mesh through boundary face `face` (outward plane p); 0 where
-// it does not: it runs along the face or moves outward, misses it, or crosses it behind the eye.
-fn entry_t(p: vec4<f32>, face: Face, d: vec3<f32>) -> f32 {
-    let den = dot(p.xyz, d);
-    if !(den < 0.0) || runs_along(p, den) || !passes(edge_products(face, d)) {
-        return 0.0;
+// The t > r.eye (ahead of the eye) where ray r enters the mesh through boundary face `face`
+// (outward plane p); r.eye where it does not: it runs along the face or moves outward, misses
+// it, or crosses it behind the eye.
+fn entry_t(p: vec4<f32>, face: Face, r: Ray) -> f32 {
+    let den = dot(p.xyz, r.d);
+    if !(den < 0.0) || runs_along(p, den) || !passes(edge_products(face, r)) {
+        return r.eye;
     }
-    let t = crossing(p, den);
-    return select(0.0, t, t > 0.0);
+    let t = crossing(at_ray(p, r), den);
+    return select(r.eye, t, t > r.eye);
 }

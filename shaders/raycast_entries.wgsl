@@ -28,8 +28,9 @@ fn cover(plane: vec4<f32>, face: Face, code: u32, r: vec4<i32>, first: i32, step
     let n = w * (r.w - r.y);
     for (var i = first; i < n; i += step) {
         let px = vec2<u32>(vec2<i32>(r.x + i % w, r.y + i / w));
-        let t = entry_t(plane, face, ray_of(px));
-        if t > 0.0 {
+        let r = pixel_ray_at(px);
+        let t = entry_t(plane, face, r);
+        if t > r.eye {
             record(px.y * u32(view.size.x) + px.x, t, code);
         }
     }

@@ -8,10 +8,11 @@
 @group(0) @binding(14) var<uniform> layer: Layer;
 @group(0) @binding(15) var<storage, read_write> progress: array<atomic<u32>, 4>;
 
-// The ray's state as the layer starts: the first state in layer 0, later where it left.
-fn ray_start(pixel: u32) -> RayState {
+// The ray's state as the layer starts: the first state in layer 0 (`eye`: the ray's t at the
+// eye), later where it left.
+fn ray_start(pixel: u32, eye: f32) -> RayState {
     if layer.index == 0u {
-        return first_state();
+        return first_state(eye);
     }
     return rays[pixel];
 }
@@ -24,7 +25,7 @@ fn start_tet() -> u32 {
 // The layer's peeled hit (code, t bits) when the ray, having left at t after entering by
 // `last`, may enter by it (it has not taken it yet); NO_NEIGHBOR otherwise.
 fn next_entry(pixel: u32, t: f32, last: vec2<u32>) -> vec2<u32> {
-    let te = ~hits[2u * pixel];
+    let te = key_bits(~hits[2u * pixel]);
     let code = ~hits[2u * pixel + 1u];
     if hits[2u * pixel] == 0u || !may_enter(t, last, bitcast<f32>(te), code, params.eye_tol) {
         return vec2<u32>(NO_NEIGHBOR, 0u);

@@ -6,9 +6,9 @@
 @group(0) @binding(7) var<storage, read> counts: array<u32>;
 @group(0) @binding(8) var<storage, read> entries: array<vec2<u32>>;
 
-// The ray's state as the layer starts.
-fn ray_start(pixel: u32) -> RayState {
-    return first_state();
+// The ray's state as the layer starts (`eye`: its t at the eye).
+fn ray_start(pixel: u32, eye: f32) -> RayState {
+    return first_state(eye);
 }
 
 // The tet the ray starts in: the eye's, or none.

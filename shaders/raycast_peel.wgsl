@@ -5,7 +5,8 @@
 // every ray, and none when the eye is in a tet (rays start there). Rays that are done enter no
 // layer. The first pass (PICK false) keeps each pixel's least t, the second (PICK true) the least
 // face code among its hits at that t; both as the bitwise complement with atomicMax into `hits`
-// (two u32s per pixel, cleared to zero: no hit). The hits are those of entry lists
+// (two u32s per pixel, cleared to zero: no hit; t as `order_key`, which orders negative t
+// too). The hits are those of entry lists
 // (raycast_cover.wgsl), so both methods give the same picture, bit for bit.
 //
 // A pixel with a second hit by which its ray may enter sets progress[1]: a later layer may
@@ -22,9 +23,10 @@
 @group(0) @binding(11) var<uniform> layer: Layer;
 @group(0) @binding(12) var<storage, read_write> progress: array<atomic<u32>, 4>;
 
-// Whether the ray of `pixel` may enter this layer by the hit (t, code).
-fn may_take(pixel: u32, t: f32, code: u32) -> bool {
-    var s = first_state();
+// Whether the ray of `pixel` (its t at the eye: `eye`) may enter this layer by the hit
+// (t, code).
+fn may_take(pixel: u32, eye: f32, t: f32, code: u32) -> bool {
+    var s = first_state(eye);
     if layer.index > 0u {
         s = rays[pixel];
     }
@@ -33,7 +35,7 @@ fn may_take(pixel: u32, t: f32, code: u32) -> bool {
 
 // Keeps the hit (t, code) of `pixel` if it is the least so far (this pass's part of it).
 fn peel(pixel: u32, t: f32, code: u32) {
-    let bits = bitcast<u32>(t);
+    let bits = order_key(t);
     if !PICK {
         atomicMax(&hits[2u * pixel], ~bits);
     } else if ~atomicLoad(&hits[2u * pixel]) != bits {
@@ -57,9 +59,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     let r = pixel_bounds(face);
     for (var y = r.y; y < r.w; y++) {
         for (var x = r.x; x < r.z; x++) {
-            let t = entry_t(p, face, ray_of(vec2<u32>(u32(x), u32(y))));
+            let ray = pixel_ray_at(vec2<u32>(u32(x), u32(y)));
+            let t = entry_t(p, face, ray);
             let pixel = u32(y) * u32(view.size.x) + u32(x);
-            if t > 0.0 && may_take(pixel, t, code) {
+            if t > ray.eye && may_take(pixel, ray.eye, t, code) {
                 peel(pixel, t, code);
             }
         }

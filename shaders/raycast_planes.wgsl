@@ -19,7 +19,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
         atomicAdd(&counters[0], 1u);
         return;
     }
-    let inside = vec4<f32>(pl.face[0].w, pl.face[1].w, pl.face[2].w, pl.face[3].w);
+    // The planes at the eye, (0, 0, -pivot_z) from the pivot the vertices are measured from.
+    let e = vec3<f32>(0.0, 0.0, -view.pivot_z);
+    let inside = vec4<f32>(dot(pl.face[0].xyz, e) + pl.face[0].w,
+        dot(pl.face[1].xyz, e) + pl.face[1].w, dot(pl.face[2].xyz, e) + pl.face[2].w,
+        dot(pl.face[3].xyz, e) + pl.face[3].w);
     if all(inside <= params.eye_tol * pl.norm) {
         atomicMin(&counters[1], t);
     }

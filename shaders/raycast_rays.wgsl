@@ -15,10 +15,11 @@ fn before(t0: f32, code0: u32, t1: f32, code1: u32) -> bool {
 
 // Whether a ray that left the mesh at t, having entered last by `last` (code, t bits), may enter
 // again by the hit (te, code): the hit comes after `last` in hit order and at or beyond t less
-// the re-entry slack (REENTRY, and `eye_tol`). Each hit is taken at most once, so the slack
+// the re-entry slack (REENTRY of |t|, t measured from the ray's origin o (`Ray`), and
+// `eye_tol`). Each hit is taken at most once, so the slack
 // cannot make a ray loop; it may re-integrate at most the slack.
 fn may_enter(t: f32, last: vec2<u32>, te: f32, code: u32, eye_tol: f32) -> bool {
-    let t_min = t - REENTRY * t - eye_tol;
+    let t_min = t - REENTRY * abs(t) - eye_tol;
     return te >= t_min && before(bitcast<f32>(last.y), last.x, te, code);
 }
 
@@ -34,9 +35,27 @@ struct RayState {
     last: vec2<u32>,
 }
 
-// Every ray's state before its first entry: nothing gathered, at the eye, no entry taken.
-fn first_state() -> RayState {
-    return RayState(vec3<f32>(0.0), 1.0, 0.0, 0u, vec2<u32>(0u, bitcast<u32>(-1.0)));
+// Every ray's state before its first entry: nothing gathered, at the eye (t = `eye`, the
+// ray's `Ray::eye`), no entry taken (before every hit: at -FAR_T).
+fn first_state(eye: f32) -> RayState {
+    return RayState(vec3<f32>(0.0), 1.0, eye, 0u, vec2<u32>(0u, bitcast<u32>(-FAR_T)));
+}
+
+// Beyond every t of a ray.
+const FAR_T: f32 = 3.0e38;
+
+// t as a u32 in the order of t, negative t included (t is measured from the ray's origin o,
+// `Ray`, so an entry before the pivot's plane has t < 0): depth peeling keeps a pixel's least
+// hit with atomicMax on its complement. Never 0xffffffff (that is a NaN), so a complement of 0
+// means no hit.
+fn order_key(t: f32) -> u32 {
+    let b = bitcast<u32>(t);
+    return select(b | 0x80000000u, ~b, (b & 0x80000000u) != 0u);
+}
+
+// The t of order_key's key `k`, as its bits.
+fn key_bits(k: u32) -> u32 {
+    return select(~k, k & 0x7fffffffu, (k & 0x80000000u) != 0u);
 }
 
 // The depth-peeling layer (gpu::gpu_data::LayerUniforms); 0 for entry lists.

@@ -3,11 +3,17 @@
 // Appended after shared.wgsl; each stage file follows. Rust twins: gpu::raycast::{
 // RaycastUniforms, TetLinks}; CPU twin of the arithmetic: gpu::raycast::twin.
 //
-// Everything is in eye space (origin at the eye): raycast_vertices.wgsl writes each vertex's
-// eye-space position and scalar every frame (`verts`, declared by each stage at binding 2), and
-// a tet's planes are computed from its four vertices where a stage needs them (`tet_planes`),
-// so a deforming mesh needs no preprocessing and nothing per tet is stored but its links. The
-// ray of a pixel is x = t d, d unit, t the distance from the eye.
+// Everything is in eye space measured from view.eye: from an eye beyond raycast::PIVOT_RADII
+// the pivot, the point view.pivot_z ahead of the eye on the view axis, level with the mesh
+// centre (gpu::raycast::view_uniforms, gpu::view::ViewFrame::pivot_uniforms); nearer, the eye:
+// raycast_vertices.wgsl writes each vertex's position rotate(p - pivot) and scalar every frame
+// (`verts`, declared by each stage at binding 2), and a tet's planes are computed from its four
+// vertices where a stage needs them (`tet_planes`), so a deforming mesh needs no preprocessing
+// and nothing per tet is stored but its links. The ray of a pixel (`Ray`) is x = o + t d, d
+// unit, o where it crosses the pivot's plane z = 0, t measured from o (from the eye at -t_c):
+// from the pivot every position, plane offset and t is of the mesh's size however far the eye
+// is (measured from a far eye, they are ~D and round to ~6e-8 D, which a telephoto view
+// magnifies).
 //
 // Bindings every stage shares: 0 the frame (shared.wgsl), 1 the constants, 2 `verts`, 3-6 the
 // links in LINK_BINDINGS windows of params.link_chunk tets each (gpu::raycast::links); a stage's
@@ -30,8 +36,9 @@ struct Raycast {
     table_size: u32,
     table_lengths: u32,
     inv_length_step: f32,
-    // The shells' walk sampler (raycast_slices.wgsl): slice k lies at t_first + k dz from the
-    // eye, k < slices; zero for the other integrators.
+    // The shells' walk sampler (raycast_slices.wgsl): slice k lies at t_first + view.pivot_z
+    // + k dz from the eye (t_first is the plan's less pivot_z, in f64), k < slices; zero for
+    // the other integrators.
     t_first: f32,
     dz: f32,
     slices: u32,
@@ -254,11 +261,15 @@ fn face_of(ids: vec4<u32>, f: u32) -> Face {
     return face_corners(ids, load_corners(ids), f);
 }
 
-// The Pluecker products dot(cross(a, b), d) of ray d with the face's edges, cycle c0 -> c1 ->
-// c2 -> c0. Each edge's product is computed from its vertices in global index order, so the
-// faces sharing an edge compute the same number (up to sign).
-fn edge_products(face: Face, d: vec3<f32>) -> vec3<f32> {
-    return vec3<f32>(dot(face.edge[0], d), dot(face.edge[1], d), -dot(face.edge[2], d));
+// The Pluecker products dot(cross(a - o, b - o), d) of ray r with the face's edges, cycle
+// c0 -> c1 -> c2 -> c0, as dot(cross(a, b), d) + dot(a - b, cross(d, o)). Each edge's product
+// is computed from its vertices in global index order, so the faces sharing an edge compute
+// the same number (up to sign).
+fn edge_products(face: Face, r: Ray) -> vec3<f32> {
+    let c = face.corner;
+    return vec3<f32>(dot(face.edge[0], r.d) + dot(c[0] - c[1], r.m),
+        dot(face.edge[1], r.d) + dot(c[1] - c[2], r.m),
+        -(dot(face.edge[2], r.d) + dot(c[0] - c[2], r.m)));
 }
 
 // Whether the ray line passes through the face (edges included, so a ray on an edge passes
@@ -271,6 +282,44 @@ fn passes(e: vec3<f32>) -> bool {
 // stage computes a pixel's ray with exactly these operations, so entry and traversal agree.
 fn ray_of(px: vec2<u32>) -> vec3<f32> {
     return pixel_ray(vec2<f32>(px) + vec2<f32>(0.5));
+}
+
+// A pixel's ray: points o + t d (pivot-relative eye space, see the top), o = t_c (d.x, d.y, 0)
+// where it crosses the pivot's plane, t_c = view.pivot_z / d.z its distance there from the eye;
+// `m` = cross(d, o), which moves the edges' Pluecker products to o (`edge_products`); `eye` =
+// -t_c, the eye's t, where rays start. With view.pivot_z = 0 (the eye as pivot) o, m and eye
+// are zeros and every expression is the eye-relative one.
+struct Ray {
+    d: vec3<f32>,
+    o: vec3<f32>,
+    m: vec3<f32>,
+    eye: f32,
+}
+
+// The ray of pixel (x, y) (ray_of's direction).
+fn pixel_ray_at(px: vec2<u32>) -> Ray {
+    let d = ray_of(px);
+    let t_c = view.pivot_z / d.z;
+    let o = vec3<f32>(t_c * d.x, t_c * d.y, 0.0);
+    return Ray(d, o, cross(d, o), -t_c);
+}
+
+// Plane `p` (n, w) with w measured from the ray's origin o: n . (o + t d) + w = 0 at
+// t = -(w + n . o) / (n . d). A face's two tets hold its plane negated bit for bit, and so
+// the shifted ones.
+fn at_ray(p: vec4<f32>, r: Ray) -> vec4<f32> {
+    return vec4<f32>(p.xyz, p.w + dot(p.xyz, r.o));
+}
+
+// The tet's planes and linear scalar measured from the ray's origin (`at_ray`).
+fn planes_at_ray(pl: TetPlanes, r: Ray) -> TetPlanes {
+    var out = pl;
+    out.face[0] = at_ray(pl.face[0], r);
+    out.face[1] = at_ray(pl.face[1], r);
+    out.face[2] = at_ray(pl.face[2], r);
+    out.face[3] = at_ray(pl.face[3], r);
+    out.scalar = at_ray(pl.scalar, r);
+    return out;
 }
 
 // The t where the ray crosses plane `p` moving along `den = dot(p.xyz, d)`.

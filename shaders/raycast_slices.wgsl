@@ -2,7 +2,7 @@
 // walk`, issue 15): the shells picture is its slice samples, so a ray that walks its tets
 // (raycast_traverse.wgsl) and samples, in each tet, the slices its segment holds takes the
 // same samples as the raster and compute samplers, with no binning and no blending. Slice k
-// lies at t_k = params.t_first + k params.dz from the eye, k < params.slices (the shells plan,
+// lies at t_k = t_first + k params.dz from the eye, k < params.slices (the shells plan,
 // gpu::shells::plan); its scalar is the tet's linear field at t_k (for cell data the tet's
 // value; for a textured cage the volume there, raycast_slices_texture.wgsl, composed in
 // front), its colour and extinction the TF as the shells samplers evaluate it (tf_eval.wgsl,
@@ -30,21 +30,31 @@
 // again: no doubles. Composed after integrate_segment.wgsl (its
 // `Acc`) in front of raycast_traverse.wgsl in place of the linear field's `tet_segment`.
 
-// Slice k's distance from the eye.
-fn slice_t(k: u32) -> f32 {
-    return params.t_first + f32(k) * params.dz;
+// Slice 0's t along the ray `d` (t measured from the ray's origin in the pivot's plane, `Ray`):
+// params.t_first is slice 0's distance from the eye less view.pivot_z (in f64), and the ray's
+// origin lies t_c - pivot_z = pivot_z (1 / d.z - 1) beyond pivot_z, written without 1 / d.z - 1's
+// cancellation (e = tan^2 of the ray's angle to the axis; shells_span.wgsl's ray_t0). Every term
+// is of the mesh's size; measured from the eye, t_first + k dz was ~D, rounded to ~6e-8 D.
+fn ray_t_first(d: vec3<f32>) -> f32 {
+    let e = dot(d.xy, d.xy) / (d.z * d.z);
+    return params.t_first - view.pivot_z * e / (sqrt(1.0 + e) + 1.0);
 }
 
-// The first slice with slice_t(k) >= t (params.slices when none): the quotient's guess moved
-// while rounding put it on the wrong side (at most a step on the meshes' scales; the loops
-// keep it exact whatever the scale).
-fn first_slice(t: f32) -> u32 {
-    let guess = clamp(ceil((t - params.t_first) / params.dz), 0.0, f32(params.slices));
+// Slice k's t along the ray whose slice 0 lies at t_first (ray_t_first).
+fn slice_t(t_first: f32, k: u32) -> f32 {
+    return t_first + f32(k) * params.dz;
+}
+
+// The first slice with slice_t(t_first, k) >= t (params.slices when none): the quotient's guess
+// moved while rounding put it on the wrong side (at most a step on the meshes' scales; the
+// loops keep it exact whatever the scale).
+fn first_slice(t_first: f32, t: f32) -> u32 {
+    let guess = clamp(ceil((t - t_first) / params.dz), 0.0, f32(params.slices));
     var k = u32(guess);
-    while k > 0u && slice_t(k - 1u) >= t {
+    while k > 0u && slice_t(t_first, k - 1u) >= t {
         k--;
     }
-    while k < params.slices && slice_t(k) < t {
+    while k < params.slices && slice_t(t_first, k) < t {
         k++;
     }
     return k;
@@ -58,14 +68,15 @@ var<private> last_shell: u32 = NO_SHELL;
 
 fn tet_segment(tet: u32, ids: vec4<u32>, pl: TetPlanes, d: vec3<f32>, t0: f32, t1: f32) -> Acc {
     var acc = Acc(vec3<f32>(0.0), 1.0);
-    var k = max(first_slice(t0), next_slice);
-    if k >= params.slices || !(slice_t(k) < t1) {
+    let t_first = ray_t_first(d);
+    var k = max(first_slice(t_first, t0), next_slice);
+    if k >= params.slices || !(slice_t(t_first, k) < t1) {
         next_slice = k;
         return acc;
     }
     let field = slice_field(tet, ids, pl, d, t0, t1);
     for (; k < params.slices; k++) {
-        let t = slice_t(k);
+        let t = slice_t(t_first, k);
         if !(t < t1) {
             break;
         }

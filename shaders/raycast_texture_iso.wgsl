@@ -109,7 +109,7 @@ fn eye_gradient(ids: vec4<u32>, pl: TetPlanes, g: vec3<f32>) -> vec3<f32> {
     var out = vec3<f32>(0.0);
     for (var f = 0u; f < 4u; f++) {
         let q = pl.face[f];
-        let height = dot(q.xyz, verts[ids[f]].xyz) + q.w;
+        let height = dot(q.xyz, verts[ids[f]].xyz - ray.o) + q.w;
         out += q.xyz * (dot(texcoords[ids[f]].xyz, g) / height);
     }
     return out;
@@ -124,7 +124,9 @@ fn shade_hit(k: u32, grad: vec3<f32>, d: vec3<f32>, t: f32) -> Acc {
     }
     let ndv = min(abs(dot(n, d)), 1.0);
     let c = headlight(iso.colors[k].rgb, ndv);
-    hit = vec4<f32>(normalize(view.right * n.x + view.up * n.y + view.forward * n.z), t);
+    // t from the eye: the traversal's t is measured from ray.o, the eye at ray.eye.
+    let normal = normalize(view.right * n.x + view.up * n.y + view.forward * n.z);
+    hit = vec4<f32>(normal, t - ray.eye);
     return Acc(c, 0.0);
 }
 

@@ -14,7 +14,8 @@
 @group(0) @binding(18) var volume: texture_3d<f32>;
 
 // The texture coordinates at the ends t0, t1 of the segment in the tet with vertices `ids`:
-// sum_f tc_f lambda_f, lambda_f = plane_f(x) / plane_f(p_f) as `tet_planes` builds the scalar;
+// sum_f tc_f lambda_f, lambda_f = plane_f(x) / plane_f(p_f) as `tet_planes` builds the scalar
+// (the planes measured from the ray's origin ray.o, as the traversal gives them);
 // a thin tet (its planes' heights are rounding) takes its corners' mean.
 fn segment_texcoords(ids: vec4<u32>, pl: TetPlanes, d: vec3<f32>, t0: f32, t1: f32) -> array<vec3<f32>, 2> {
     var out = array<vec3<f32>, 2>(vec3<f32>(0.0), vec3<f32>(0.0));
@@ -26,7 +27,7 @@ fn segment_texcoords(ids: vec4<u32>, pl: TetPlanes, d: vec3<f32>, t0: f32, t1: f
             continue;
         }
         let q = pl.face[f];
-        let height = dot(q.xyz, verts[ids[f]].xyz) + q.w;
+        let height = dot(q.xyz, verts[ids[f]].xyz - ray.o) + q.w;
         let den = dot(q.xyz, d);
         out[0] += tc * ((q.w + t0 * den) / height);
         out[1] += tc * ((q.w + t1 * den) / height);

@@ -30,6 +30,9 @@
 // (raycast_slices.wgsl), the other integrators leave the check to the traversal.
 var<private> trans_in: f32 = 1.0;
 var<private> stopped: bool = false;
+// The pixel's ray (`Ray`: t measured from ray.o, the eye at ray.eye), for the segment
+// integrators that need more than its direction.
+var<private> ray: Ray;
 
 // Early ray termination after a segment: what lies behind a transmittance below
 // params.terminate adds at most that much to any channel (twin::TERMINATE for the ray
@@ -93,23 +96,23 @@ fn exit(pl: TetPlanes, den: vec4<f32>, entry: u32, t_in: f32) -> Exit {
 // the same way in every tet sharing an edge; a face passed strictly inside before one passed
 // on an edge. It leaves at the face's plane crossing (at least t_in; t_in where the ray runs
 // along it). NO_FACE when no face passes (then the planes decide). `c`: the tet's corners, so
-// its faces need no load.
-fn exit_by_edges(ids: vec4<u32>, c: Corners, entry: u32, d: vec3<f32>, t_in: f32) -> Exit {
+// its faces need no load; `r`: the ray, its t measured from r.o.
+fn exit_by_edges(ids: vec4<u32>, c: Corners, entry: u32, r: Ray, t_in: f32) -> Exit {
     var best = NO_FACE;
     var strict = false;
     var plane = vec4<f32>(0.0);
     for (var f = 0u; f < 4u; f++) {
         let face = face_corners(ids, c, f);
-        let e = edge_products(face, d);
+        let e = edge_products(face, r);
         if f == entry || !passes(e) || strict {
             continue;
         }
         best = f;
         strict = all(e != vec3<f32>(0.0));
         let n = cross(face.corner[1] - face.corner[0], face.corner[2] - face.corner[0]);
-        plane = vec4<f32>(n, -dot(n, face.corner[0]));
+        plane = at_ray(vec4<f32>(n, -dot(n, face.corner[0])), r);
     }
-    let den = dot(plane.xyz, d);
+    let den = dot(plane.xyz, r.d);
     if best == NO_FACE || runs_along(plane, den) {
         return Exit(best, t_in);
     }
@@ -186,8 +189,10 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
         return;
     }
     let pixel = px.y * size.x + px.x;
-    let d = ray_of(px);
-    let start = ray_start(pixel);
+    let r = pixel_ray_at(px);
+    ray = r;
+    let d = r.d;
+    let start = ray_start(pixel, r.eye);
     var acc = Acc(start.color, start.trans);
     var t = start.t;
     var tet = start_tet();
@@ -227,11 +232,11 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
             corners = load_corners(l.tet);
         }
         ids = l.tet;
-        let pl = corner_planes(ids, corners);
+        let pl = planes_at_ray(corner_planes(ids, corners), r);
         let den = crossings(pl, d);
         var out = Exit(NO_FACE, t);
         if all(pl.scalar.xyz == vec3<f32>(0.0)) || folded(den, entry) {
-            out = exit_by_edges(ids, corners, entry, d, t);
+            out = exit_by_edges(ids, corners, entry, r, t);
         }
         if out.face == NO_FACE {
             out = exit(pl, den, entry, t);

@@ -1,5 +1,6 @@
 // Ray caster stage 1, vertices (once per vertex and frame, from the current positions and
-// scalars, so a deforming mesh needs no preprocessing): each vertex's eye-space position and
+// scalars, so a deforming mesh needs no preprocessing): each vertex's eye-space position
+// measured from the pivot (view.eye; raycast_shared.wgsl) and
 // normalized scalar, which every later stage reads (`verts`). One computation per vertex, so a
 // vertex has the same bits in every tet and stage. CPU twin: gpu::raycast::twin::eye_space.
 

@@ -267,8 +267,8 @@ fn auto_on_a_software_adapter_takes_the_cpu_ray_caster_and_says_why() {
     assert!(stdout.contains("mode raycast-cpu"), "{stdout}");
 }
 
-/// `--fov 1e-3` frames the lox subset from 1.15e5 mesh radii (1 / sin(0.5e-3 degrees)),
-/// beyond the ray casters' far-eye limit: `auto` (here the CPU ray caster, limit 1e4) refuses
+/// `--fov 1e-4` frames the lox subset from 1.15e6 mesh radii (1 / sin(0.5e-4 degrees)),
+/// beyond the f32 modes' far-eye limit: `auto` (here the CPU ray caster, limit 1e6) refuses
 /// the frame, naming the distance and the remedies, and writes nothing; `--mode reference`,
 /// exact in f64, renders it.
 #[test]
@@ -276,12 +276,12 @@ fn a_telephoto_view_is_refused_by_auto_and_rendered_by_the_reference() {
     let dir = out_dir("far-eye");
     let png = dir.join("far.png");
     let _ = std::fs::remove_file(&png); // from an earlier run
-    let args = ["render", LOX, "--size", "16x16", "--fov", "1e-3", "-o"];
+    let args = ["render", LOX, "--size", "16x16", "--fov", "1e-4", "-o"];
     let o = tetvr(&[&args[..], &[png.to_str().unwrap()]].concat());
     let stderr = stderr_of_failure(&o);
     for part in [
-        "1.146e5 mesh radii",
-        "1e4 radii",
+        "1.146e6 mesh radii",
+        "1e6 radii",
         "--fov",
         "--mode reference",
     ] {

@@ -46,10 +46,9 @@ pub struct ViewUniforms {
     pub half_extent: [f32; 2],
     /// Image size in pixels.
     pub size: [f32; 2],
-    /// Eye-space z of the pivot (`eye`): 0 where `eye` is the eye. Iso, cellproj and the
-    /// shells' raster and compute samplers set it (their fragments measure their rays from
-    /// the pivot); the ray caster's stages (and the walk sampler's) take `eye` as the eye and
-    /// are given 0.
+    /// Eye-space z of the pivot (`eye`): 0 where `eye` is the eye. Every mode that reads it sets
+    /// it: iso's, cellproj's and the shells' fragments and the ray caster's stages (the walk
+    /// sampler's too) measure their rays from the pivot.
     pub pivot_z: f32,
     /// Zero: pads the struct to WGSL's 16-byte alignment.
     pub _pad: u32,
@@ -304,7 +303,9 @@ pub struct RaycastUniforms {
     /// `--integrate table`: `(table_lengths - 1) / max_length`, length to level.
     pub inv_length_step: f32,
     /// The shells' walk sampler (`shaders/raycast_slices.wgsl`): slice `k` lies at
-    /// `t_first + k dz` from the eye, `k < slices`; zero for the other integrators.
+    /// `t_first + pivot_z + k dz` from the eye, `k < slices` (this `t_first` is the plan's less
+    /// [`ViewUniforms::pivot_z`], in f64 before rounding: the traversal measures its rays from
+    /// the pivot's plane); zero for the other integrators.
     pub t_first: f32,
     /// See `t_first`.
     pub dz: f32,

@@ -96,30 +96,31 @@ impl F32Frame {
 /// rounding grows with the eye's distance D while the mesh keeps its size: measured on the
 /// stress cube at 65x65 with the fov shrunk to keep the framing, each mode's rmse against the
 /// reference grows about linearly with D (raycast: 5e-8 D) until pixels flip or holes open.
-/// Iso, cellproj and the shells' raster and compute samplers measure instead from a pivot on
-/// the view axis level with the mesh centre (`ViewFrame::pivot_uniforms`, `gpu/view.rs`):
-/// their rmse stays what it is near the mesh up to 9.9e6 radii, as far as the reference draws
-/// a truth to compare with ([`crate::reference::FAR_EYE`], 1e7).
-/// Each limit is the farthest measured distance at which the mode's rmse stays at most 1e-3
-/// (a quarter of an 8-bit level) with no hole and, for iso, no flipped hit: the table of
-/// docs/performance.md ("Meshes at extreme scales"); the pivoting modes' is 1e6, ten times
-/// inside the farthest measured, so that the reference remains the volume modes' remedy
-/// wherever they refuse. Farther, the mode refuses the frame ([`RenderError::EyeTooFar`])
+/// Every f32 mode measures instead from a pivot on the view axis level with the mesh centre
+/// (`ViewFrame::pivot_uniforms`, `gpu/view.rs`; the ray casters from 10 radii on,
+/// `raycast::PIVOT_RADII`): iso's, cellproj's and the shells' raster and compute samplers'
+/// rmse stays what it is near the mesh up to 9.9e6 radii, as far as the reference draws a
+/// truth to compare with ([`crate::reference::FAR_EYE`], 1e7), and the ray casters' (the walk
+/// sampler's too) from 1e2 to 1e6, measured there. Each limit is 1e6, the table of
+/// docs/performance.md ("Meshes at extreme scales"), ten times inside the reference's, so that
+/// the reference remains the volume modes' remedy wherever they refuse. Farther, the mode refuses the frame ([`RenderError::EyeTooFar`])
 /// rather than draw a silently wrong picture.
 pub mod far_eye {
     use glam::DVec3;
 
     use crate::render::RenderError;
 
-    /// `raycast` and `raycast-cpu` (every integration; measured 4.8e-4 at 1e4, 1.0e-3 at 2e4,
-    /// holes from 1e5).
-    pub const RAYCAST: f64 = 1e4;
+    /// `raycast` and `raycast-cpu` (every integration: 2.0e-7, 8.2e-8 for raycast-cpu, and the
+    /// table's 4.8e-5, their errors near the mesh, at 1e2, 1e4, 1e5 and 1e6; before the pivot,
+    /// 4.8e-4 at 1e4, 1.0e-3 at 2e4, holes from 1e5).
+    pub const RAYCAST: f64 = 1e6;
     /// `shells` with the raster or compute sampler (5.6e-4, its sampling error near the mesh,
     /// from 10 to 9.9e6; before the pivot, 1.5e-3 at 1e4).
     pub const SHELLS: f64 = 1e6;
-    /// `shells` with the walk sampler (7.3e-4 at 1e4; it refuses its slices' f32 distances by
-    /// itself a little farther).
-    pub const WALK: f64 = 1e4;
+    /// `shells` with the walk sampler (5.6e-4, its sampling error near the mesh, at 1e2, 1e4,
+    /// 1e5 and 1e6; before the pivot, 7.2e-4 at 1e4, and it refused its slices' f32 distances
+    /// from 1e5).
+    pub const WALK: f64 = 1e6;
     /// `cellproj` (at most 6.0e-6 from 1e2 to 9.9e6; before the pivot, 1.3e-3 at 1e4).
     pub const CELLPROJ: f64 = 1e6;
     /// `iso` (exact to 5e-8 from 10 to 9.9e6; before the pivot, one pixel's hit landed on the

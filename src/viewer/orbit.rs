@@ -18,8 +18,8 @@ const MIN_DISTANCE: f64 = 1e-4;
 
 /// The eye never goes farther from the target than this multiple of the mesh's diagonal: 100
 /// mesh radii, where a 30-degree view shows the mesh across 2% of its height, and inside every
-/// f32 mode's far-eye limit (`crate::gpu::far_eye`, the ray casters' 1e4 radii the smallest), so zooming
-/// out never reaches a refused frame. A pan that carries the target away from the mesh can
+/// f32 mode's far-eye limit (`crate::gpu::far_eye`, 1e6 radii), so zooming out never reaches a
+/// refused frame. A pan that carries the target away from the mesh can
 /// still; the viewer then shows the refusal's message in place of the picture.
 const MAX_DISTANCE: f64 = 50.0;
 
@@ -85,7 +85,7 @@ impl CameraController {
     /// Moves the eye towards the target (positive `scroll`, in points) or away from it, by a
     /// constant fraction per point, between `MIN_DISTANCE` and `MAX_DISTANCE` diagonals, or
     /// as far as the starting camera when it lies outside them (a scene's telephoto view, which
-    /// the ray caster renders up to 1e4 radii): zooming in from there goes one step in, not to
+    /// every f32 mode renders up to 1e6 radii): zooming in from there goes one step in, not to
     /// the bound, and zooming out comes back to it.
     pub fn zoom(&mut self, scroll: f64) {
         let home = length_of(self.home.eye - self.home.target);

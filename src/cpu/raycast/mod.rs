@@ -227,6 +227,7 @@ impl CpuRaycastRenderer {
             &self.scalars,
             &self.topology,
             f.near_z,
+            f.pivot_z,
             &mut self.tets,
         );
         timings.stage("planes", ms_since(t));
@@ -248,9 +249,11 @@ impl CpuRaycastRenderer {
         };
         // The eye-in-tet tolerance: 1e-5 of the bounding radius (the GPU's).
         let eye_tol = (1e-5 * self.radius) as f32;
-        let f = ViewFrame::new(camera).uniforms(
+        // From a far eye, measured from a pivot near the mesh, as the GPU's ray caster.
+        let f = crate::gpu::raycast::view_uniforms(
+            &ViewFrame::new(camera),
             self.origin,
-            0.0,
+            self.radius,
             eye_tol,
             self.topology.links.len() as u32,
         );

@@ -57,6 +57,18 @@ impl Tet {
         self.n[0] * d.x + self.n[1] * d.y + self.n[2] * d.z
     }
 
+    /// The tet with its planes and scalar measured from the ray's origin `r.o`
+    /// ([`twin::Ray::plane`]): `w + n . o` of each face at once.
+    pub fn at_ray(&self, r: &twin::Ray) -> Self {
+        let o = r.o;
+        let g = self.scalar;
+        Self {
+            w: self.w + (self.n[0] * o.x + self.n[1] * o.y + self.n[2] * o.z),
+            scalar: g.truncate().extend(g.w + g.truncate().dot(o)),
+            ..*self
+        }
+    }
+
     /// Whether the tet is thin ([`twin::planes`]: a constant scalar): its gradient's three
     /// lanes equal to 0, tested at once (`Vec3`'s `==` branches on each).
     pub fn thin(&self) -> bool {
@@ -104,8 +116,11 @@ pub fn tets(
     scalars: &[f32],
     topology: &Topology,
     eye_tol: f32,
+    pivot_z: f32,
     out: &mut Vec<Tet>,
 ) -> TetPass {
+    // The eye, measured from the pivot the positions are.
+    let at_eye = Vec3::new(0.0, 0.0, -pivot_z);
     let Topology { links, original } = topology;
     out.resize(links.len(), Tet::default());
     let (thin, eye_key) = (out.par_iter_mut().zip(links).enumerate())
@@ -118,7 +133,10 @@ pub fn tets(
             );
             *tet = Tet::new(&planes, l.next);
             let holds_eye = !thin
-                && (planes.face.iter()).all(|q| q[3] <= eye_tol * Vec3::from_slice(q).length());
+                && (planes.face.iter()).all(|q| {
+                    let n = Vec3::from_slice(q);
+                    n.dot(at_eye) + q[3] <= eye_tol * n.length()
+                });
             // Original index above, ours below: the smallest key is the file's first.
             let key = (original[k] as u64) << 32 | k as u64;
             (thin as u64, if holds_eye { key } else { u64::MAX })
@@ -143,6 +161,9 @@ pub struct EntryFace {
     norm: f32,
     /// `c0 x c1`, `c1 x c2`, `c0 x c2`.
     edge: [Vec3; 3],
+    /// `c0 - c1`, `c1 - c2`, `c0 - c2`: with `d x o`, they move the edges' products to a ray's
+    /// origin `o` ([`twin::edge_products`]).
+    diff: [Vec3; 3],
     /// `4 * tet + face`.
     pub code: u32,
     /// The code in the file's numbering, which orders entries at the same t.
@@ -157,27 +178,33 @@ impl EntryFace {
             plane,
             norm: plane.truncate().length(),
             edge: [c[0].cross(c[1]), c[1].cross(c[2]), c[0].cross(c[2])],
+            diff: [c[0] - c[1], c[1] - c[2], c[0] - c[2]],
             code,
             key,
             rect,
         }
     }
 
-    /// The t where ray `d` enters through this face, edges included; `None` when it misses,
-    /// runs along it, leaves through it or meets it behind the eye. The operations of
-    /// [`twin::face_hit`] with the edges' cross products taken once per frame, so the faces
-    /// sharing an edge compute the same products and no ray slips between them.
-    pub fn hit(&self, d: Vec3) -> Option<f32> {
+    /// The t (from the ray's origin) where ray `r` enters through this face, edges included;
+    /// `None` when it misses, runs along it, leaves through it or meets it behind the eye. The
+    /// operations of [`twin::face_hit`] with the edges' cross products taken once per frame,
+    /// so the faces sharing an edge compute the same products and no ray slips between them.
+    pub fn hit(&self, r: &twin::Ray) -> Option<f32> {
+        let d = r.d;
         let den = self.plane.truncate().dot(d);
         if den >= 0.0 || den.is_nan() || den.abs() <= twin::PARALLEL * self.norm {
             return None;
         }
-        let e = self.edge;
-        if !twin::passes([e[0].dot(d), e[1].dot(d), -e[2].dot(d)]) {
+        let (e, c) = (self.edge, self.diff);
+        if !twin::passes([
+            e[0].dot(d) + c[0].dot(r.m),
+            e[1].dot(d) + c[1].dot(r.m),
+            -(e[2].dot(d) + c[2].dot(r.m)),
+        ]) {
             return None;
         }
-        let t = -self.plane.w / den;
-        (t > 0.0).then_some(t)
+        let t = -r.plane(self.plane).w / den;
+        (t > r.eye).then_some(t)
     }
 }
 
@@ -219,8 +246,10 @@ pub fn bins(
         .filter_map(|&code| {
             let (tet, face) = ((code / 4) as usize, (code % 4) as usize);
             let plane = tets[tet].plane(face);
-            // A ray meets the plane at t > 0 moving inward only if the eye is outside it.
-            if plane.w.is_nan() || plane.w <= 0.0 {
+            // A ray meets the plane ahead of the eye moving inward only if the eye (at
+            // (0, 0, -pivot_z) from the pivot) is outside it.
+            let side = plane.truncate().dot(Vec3::new(0.0, 0.0, -f.pivot_z)) + plane.w;
+            if side.is_nan() || side <= 0.0 {
                 return None;
             }
             let c = face_corners(eye, links[tet].tet, face);
@@ -253,10 +282,12 @@ pub fn bins(
 }
 
 /// The pixel box (first and last pixel, inclusive) whose rays may pass the face with eye-space
-/// corners `c`: its projection's box widened by one pixel, clamped to the image; the whole
-/// image when a corner is at or behind the eye plane; `None` when it is off screen or
-/// entirely behind the eye (rays meet nothing there at t > 0).
+/// corners `c` (measured from the pivot, `f.pivot_z` ahead of the eye): its projection's box
+/// widened by one pixel, clamped to the image; the whole image when a corner is at or behind
+/// the eye plane; `None` when it is off screen or entirely behind the eye (rays meet nothing
+/// there ahead of the eye).
 fn tile_rect(f: &ViewUniforms, size: UVec2, c: [Vec3; 3]) -> Option<[UVec2; 2]> {
+    let c = c.map(|p| p + Vec3::new(0.0, 0.0, f.pivot_z));
     if c.iter().all(|p| p.z <= 0.0) {
         return None;
     }

@@ -8,6 +8,7 @@ use std::sync::Arc;
 
 use glam::{DVec3, Vec3, Vec4};
 
+use crate::gpu::raycast::twin::Ray;
 use crate::texture::Volume;
 use crate::tf::TransferFunction;
 
@@ -34,13 +35,13 @@ pub struct TexturedField<'a> {
 
 impl TexturedField<'_> {
     /// The premultiplied colour and transmittance of the segment from `t0` to `t1` of the tet
-    /// with vertices `ids` and record `here`, along unit eye-space direction `d`.
-    pub fn segment(&self, here: &Tet, ids: [u32; 4], d: Vec3, t0: f32, t1: f32) -> (Vec3, f32) {
+    /// with vertices `ids` and record `here` (measured from the ray's origin), along ray `r`.
+    pub fn segment(&self, here: &Tet, ids: [u32; 4], r: &Ray, t0: f32, t1: f32) -> (Vec3, f32) {
         let len = t1 - t0;
         if len.is_nan() || len <= 0.0 {
             return (Vec3::ZERO, 1.0);
         }
-        let [a, b] = self.ends(here, ids, d, t0, t1);
+        let [a, b] = self.ends(here, ids, r, t0, t1);
         let n = (len / self.step).ceil().max(1.0);
         let dz = (len / n) as f64;
         let (mut color, mut trans) = (DVec3::ZERO, 1.0f64);
@@ -57,11 +58,12 @@ impl TexturedField<'_> {
     /// The texture coordinates at `t0` and `t1`: `sum_f tc_f lambda_f`, `lambda_f` the face
     /// plane's value over its value at the opposite corner; the corners' mean where a height is
     /// not clearly negative (a thin tet, whose planes are rounding).
-    fn ends(&self, here: &Tet, ids: [u32; 4], d: Vec3, t0: f32, t1: f32) -> [Vec3; 2] {
+    fn ends(&self, here: &Tet, ids: [u32; 4], r: &Ray, t0: f32, t1: f32) -> [Vec3; 2] {
+        let d = r.d;
         let tc = ids.map(|v| self.texture.texcoords[v as usize]);
         let planes: [Vec4; 4] = std::array::from_fn(|f| here.plane(f));
         let heights: [f32; 4] = std::array::from_fn(|f| {
-            planes[f].truncate().dot(self.eye[ids[f] as usize]) + planes[f].w
+            planes[f].truncate().dot(self.eye[ids[f] as usize] - r.o) + planes[f].w
         });
         if heights.iter().any(|h| h.is_nan() || *h >= 0.0) {
             let mean = (tc[0] + tc[1] + tc[2] + tc[3]) * 0.25;

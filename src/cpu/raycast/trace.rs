@@ -67,7 +67,7 @@ pub struct Hit {
 /// Scratch space of one worker, reused from tile to tile.
 #[derive(Default)]
 pub struct Scratch {
-    rays: Vec<Vec3>,
+    rays: Vec<twin::Ray>,
     hits: Vec<Hit>,
 }
 
@@ -81,14 +81,14 @@ pub fn tile(sc: &Scene, tf: &SegmentTf, k: usize, out: &mut [[f32; 4]], s: &mut 
     let pixel = |i: usize| origin + UVec2::new(i as u32 % TILE, i as u32 / TILE);
     s.rays.clear();
     s.rays
-        .extend((0..out.len()).map(|i| twin::ray_of(sc.frame, pixel(i))));
+        .extend((0..out.len()).map(|i| twin::ray_at(sc.frame, pixel(i))));
     s.hits.clear();
     for f in sc.bins.of(k) {
         let (lo, hi) = (f.rect[0].max(origin), f.rect[1].min(last));
         for y in lo.y..=hi.y {
             for x in lo.x..=hi.x {
                 let i = (y - origin.y) * TILE + x - origin.x;
-                if let Some(t) = f.hit(s.rays[i as usize]) {
+                if let Some(t) = f.hit(&s.rays[i as usize]) {
                     s.hits.push(Hit {
                         pixel: i,
                         t,
@@ -99,8 +99,9 @@ pub fn tile(sc: &Scene, tf: &SegmentTf, k: usize, out: &mut [[f32; 4]], s: &mut 
             }
         }
     }
-    // t > 0 (never NaN): its bits order as its values.
-    (s.hits).sort_unstable_by_key(|h| (h.pixel, h.t.to_bits(), h.key));
+    // Never NaN: its order key orders as its values (negative t included: t is measured from
+    // the ray's origin in the pivot's plane).
+    (s.hits).sort_unstable_by_key(|h| (h.pixel, order_key(h.t), h.key));
     let mut work = Work::default();
     let mut rest = s.hits.as_slice();
     for (i, px) in out.iter_mut().enumerate() {
@@ -111,22 +112,34 @@ pub fn tile(sc: &Scene, tf: &SegmentTf, k: usize, out: &mut [[f32; 4]], s: &mut 
         let n = rest.iter().take_while(|h| h.pixel == i as u32).count();
         let (hits, after) = rest.split_at(n);
         rest = after;
-        let (rgba, ray) = walk(sc, tf, s.rays[i], hits);
+        let (rgba, ray) = walk(sc, tf, &s.rays[i], hits);
         *px = rgba;
         work = work + ray;
     }
     work
 }
 
-/// One ray along unit `d` with its sorted entries `hits`: premultiplied RGBA, and its work.
-fn walk(sc: &Scene, tf: &SegmentTf, d: Vec3, hits: &[Hit]) -> ([f32; 4], Work) {
+/// A finite f32 as a u32 in the same order (negative values included).
+fn order_key(t: f32) -> u32 {
+    let b = t.to_bits();
+    if b & 0x8000_0000 != 0 {
+        !b
+    } else {
+        b | 0x8000_0000
+    }
+}
+
+/// One ray `r` with its sorted entries `hits`: premultiplied RGBA, and its work. Its t is
+/// measured from `r.o`, in the pivot's plane, and starts at the eye, `r.eye`.
+fn walk(sc: &Scene, tf: &SegmentTf, r: &twin::Ray, hits: &[Hit]) -> ([f32; 4], Work) {
+    let d = r.d;
     let (mut color, mut trans) = (Vec4::ZERO, 1.0f32);
-    let (mut t, mut tet, mut entry) = (0.0f32, sc.eye_tet, 4usize);
+    let (mut t, mut tet, mut entry) = (r.eye, sc.eye_tet, 4usize);
     let (mut next_hit, mut steps) = (0, 0);
     let at_limit = loop {
         if tet == NO_NEIGHBOR {
             // The next entry at or beyond where the ray left, less the re-entry slack.
-            let t_min = t - twin::REENTRY * t - sc.eye_tol;
+            let t_min = t - twin::REENTRY * t.abs() - sc.eye_tol;
             next_hit += hits[next_hit..].iter().take_while(|h| h.t < t_min).count();
             let Some(h) = hits.get(next_hit) else {
                 break false;
@@ -138,11 +151,11 @@ fn walk(sc: &Scene, tf: &SegmentTf, d: Vec3, hits: &[Hit]) -> ([f32; 4], Work) {
             break true;
         }
         steps += 1;
-        let here = &sc.tets[tet as usize];
-        let (f, t_out) = exit(sc, here, tet, entry, d, t);
+        let here = &sc.tets[tet as usize].at_ray(r);
+        let (f, t_out) = exit(sc, here, tet, entry, r, t);
         let (c, tr) = match sc.texture {
             Some(field) => {
-                let (c, tr) = field.segment(here, sc.ids[tet as usize], d, t, t_out);
+                let (c, tr) = field.segment(here, sc.ids[tet as usize], r, t, t_out);
                 (c.extend(0.0), tr)
             }
             None => {
@@ -189,8 +202,8 @@ fn segment_scalars(sc: &Scene, here: &Tet, tet: u32, d: Vec3, t0: f32, t1: f32) 
 /// The face the ray leaves tet `tet` by and where: by its edges when it is thin (gradient
 /// exactly 0) or folded behind the face the ray came in by ([`twin::folded`]), else (or when
 /// no face passes) by its planes.
-fn exit(sc: &Scene, here: &Tet, tet: u32, entry: usize, d: Vec3, t: f32) -> (usize, f32) {
-    let den = here.crossings(d);
+fn exit(sc: &Scene, here: &Tet, tet: u32, entry: usize, r: &twin::Ray, t: f32) -> (usize, f32) {
+    let den = here.crossings(r.d);
     // Lane `entry` of the compare's mask (0 for no face, `entry` 4), not `Vec4`'s `Index` (a
     // jump table on the face index, mispredicted about every other step) nor `to_array` (the
     // four crossings stored to the stack to load one).
@@ -198,7 +211,7 @@ fn exit(sc: &Scene, here: &Tet, tet: u32, entry: usize, d: Vec3, t: f32) -> (usi
     if here.thin() || folded {
         let ids = sc.ids[tet as usize];
         let faces = std::array::from_fn(|f| face_corners(sc.eye, ids, f));
-        if let Some(found) = twin::exit_by_edges(faces, entry, d, t) {
+        if let Some(found) = twin::exit_by_edges(faces, entry, r, t) {
             return found;
         }
     }

@@ -208,7 +208,9 @@ impl RaycastRenderer {
         let m = mesh.read();
         let view = ViewFrame::new(camera);
         let nt = m.tets.len() as u32;
-        let frame = view.uniforms(m.origin, 0.0, near_tol(m.radius), nt);
+        // From a far eye every stage measures from a pivot near the mesh (raycast_shared.wgsl).
+        let frame = super::view_uniforms(&view, m.origin, m.radius, near_tol(m.radius), nt);
+        self.pivot_z = frame.pivot_z;
         self.queue
             .write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&frame));
         // A textured cage's TF applies to its volume's values, normalized like its texels.
@@ -304,7 +306,7 @@ impl RaycastRenderer {
             table_lengths: lengths,
             inv_length_step: (self.preint_key.as_ref())
                 .map_or(0.0, |k| ((lengths - 1) as f64 / k.max_length) as f32),
-            t_first: slicing.t_first as f32,
+            t_first: (slicing.t_first - self.pivot_z as f64) as f32,
             dz: slicing.dz as f32,
             slices: slicing.count,
             terminate: slicing.terminate,

@@ -50,7 +50,8 @@ pub const REENTRY: f32 = 1e-5;
 /// edges ([`exit_by_edges`]).
 pub const THIN: f32 = 1e-5;
 
-/// World (mesh-origin relative) point to eye space (WGSL `raycast_vertices.wgsl`).
+/// World (mesh-origin relative) point to eye space measured from `f.eye`, the pivot where
+/// `f.pivot_z` is not 0 (WGSL `raycast_vertices.wgsl`).
 pub fn eye_space(f: &ViewUniforms, p: Vec3) -> Vec3 {
     let q = p - Vec3::from(f.eye);
     Vec3::new(
@@ -66,6 +67,55 @@ pub fn ray_of(f: &ViewUniforms, px: UVec2) -> Vec3 {
     let u = (2.0 * x / f.size[0] - 1.0) * f.half_extent[0];
     let v = (1.0 - 2.0 * y / f.size[1]) * f.half_extent[1];
     Vec3::new(u, v, 1.0).normalize()
+}
+
+/// A pixel's ray in eye space measured from the pivot (WGSL `Ray`): points `o + t d`, `o` where
+/// it crosses the pivot's plane (`t_c = pivot_z / d.z` from the eye), `m = d x o` (moves the
+/// edges' Pluecker products to `o`), `eye = -t_c` the eye's t. Zeros but `d` where the pivot
+/// is the eye (`pivot_z` 0).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ray {
+    /// The unit direction.
+    pub d: Vec3,
+    /// Where the ray crosses the pivot's plane, which its t is measured from.
+    pub o: Vec3,
+    /// `d x o`.
+    pub m: Vec3,
+    /// The eye's t (`-t_c`).
+    pub eye: f32,
+}
+
+impl Ray {
+    /// The ray along `d` of a frame whose pivot lies `pivot_z` ahead of the eye (WGSL
+    /// `pixel_ray_at`).
+    pub fn new(d: Vec3, pivot_z: f32) -> Self {
+        let t_c = pivot_z / d.z;
+        let o = Vec3::new(t_c * d.x, t_c * d.y, 0.0);
+        Self {
+            d,
+            o,
+            m: d.cross(o),
+            eye: -t_c,
+        }
+    }
+
+    /// Plane `p` with its offset measured from `o` (WGSL `at_ray`).
+    pub fn plane(&self, p: Vec4) -> Vec4 {
+        p.truncate().extend(p.w + p.truncate().dot(self.o))
+    }
+
+    /// The tet's planes and scalar measured from `o` (WGSL `planes_at_ray`).
+    pub fn planes(&self, pl: &TetPlanes) -> TetPlanes {
+        TetPlanes {
+            face: pl.face.map(|q| self.plane(Vec4::from(q)).to_array()),
+            scalar: self.plane(Vec4::from(pl.scalar)).to_array(),
+        }
+    }
+}
+
+/// The ray of pixel `px` (WGSL `pixel_ray_at`).
+pub fn ray_at(f: &ViewUniforms, px: UVec2) -> Ray {
+    Ray::new(ray_of(f, px), f.pivot_z)
 }
 
 /// Local vertices of face `f` sorted by their global index `ids`.
@@ -134,13 +184,14 @@ pub fn exit(pl: &TetPlanes, entry: usize, d: Vec3, t_in: f32) -> (usize, f32) {
     }
 }
 
-/// The Pluecker products of ray `d` with the edges of the face with corners `c` (eye space, in
-/// global index order), cycle c0 -> c1 -> c2 -> c0 (WGSL `edge_products`).
-pub fn edge_products(c: [Vec3; 3], d: Vec3) -> [f32; 3] {
+/// The Pluecker products of ray `r` with the edges of the face with corners `c` (eye space, in
+/// global index order), cycle c0 -> c1 -> c2 -> c0, moved to the ray's origin (WGSL
+/// `edge_products`).
+pub fn edge_products(c: [Vec3; 3], r: &Ray) -> [f32; 3] {
     [
-        c[0].cross(c[1]).dot(d),
-        c[1].cross(c[2]).dot(d),
-        -c[0].cross(c[2]).dot(d),
+        c[0].cross(c[1]).dot(r.d) + (c[0] - c[1]).dot(r.m),
+        c[1].cross(c[2]).dot(r.d) + (c[1] - c[2]).dot(r.m),
+        -(c[0].cross(c[2]).dot(r.d) + (c[0] - c[2]).dot(r.m)),
     ]
 }
 
@@ -150,16 +201,17 @@ pub fn passes(e: [f32; 3]) -> bool {
     same && e.iter().any(|&x| x != 0.0)
 }
 
-/// The t where ray `d` enters through a boundary face with corners `c` (eye space, in global
-/// index order) and outward plane `p`, edges included; `None` when it misses, runs along it,
-/// leaves through it or meets it behind the eye. The entry test of WGSL `raycast_entries`.
-pub fn face_hit(c: [Vec3; 3], p: Vec4, d: Vec3) -> Option<f32> {
-    let den = p.truncate().dot(d);
-    if den >= 0.0 || den.is_nan() || runs_along(p, den) || !passes(edge_products(c, d)) {
+/// The t (from the ray's origin) where ray `r` enters through a boundary face with corners `c`
+/// (eye space, in global index order) and outward plane `p`, edges included; `None` when it
+/// misses, runs along it, leaves through it or meets it behind the eye. The entry test of WGSL
+/// `raycast_entries`.
+pub fn face_hit(c: [Vec3; 3], p: Vec4, r: &Ray) -> Option<f32> {
+    let den = p.truncate().dot(r.d);
+    if den >= 0.0 || den.is_nan() || runs_along(p, den) || !passes(edge_products(c, r)) {
         return None;
     }
-    let t = -p.w / den;
-    (t > 0.0).then_some(t)
+    let t = -r.plane(p).w / den;
+    (t > r.eye).then_some(t)
 }
 
 /// Whether the ray moves outward through `entry`, the face it came in by (4: none): the tet
@@ -180,12 +232,12 @@ pub fn folded(pl: &TetPlanes, entry: usize, d: Vec3) -> bool {
 pub fn exit_by_edges(
     faces: [[Vec3; 3]; 4],
     entry: usize,
-    d: Vec3,
+    r: &Ray,
     t_in: f32,
 ) -> Option<(usize, f32)> {
     let mut best: Option<(usize, bool)> = None;
     for (f, c) in faces.iter().enumerate() {
-        let e = edge_products(*c, d);
+        let e = edge_products(*c, r);
         if f == entry || !passes(e) || best.is_some_and(|b| b.1) {
             continue;
         }
@@ -194,8 +246,8 @@ pub fn exit_by_edges(
     let (f, _) = best?;
     let c = faces[f];
     let n = (c[1] - c[0]).cross(c[2] - c[0]);
-    let plane = n.extend(-n.dot(c[0]));
-    let den = n.dot(d);
+    let plane = r.plane(n.extend(-n.dot(c[0])));
+    let den = n.dot(r.d);
     if runs_along(plane, den) {
         return Some((f, t_in));
     }
@@ -215,6 +267,8 @@ struct Scene {
 }
 
 fn scene(m: &MeshData, f: &ViewUniforms, eye_tol: f32) -> Scene {
+    // The eye, measured from the pivot the positions are.
+    let eye = Vec3::new(0.0, 0.0, -f.pivot_z);
     let pos: Vec<Vec3> = (m.gpu_positions().iter())
         .map(|p| eye_space(f, Vec3::new(p[0], p[1], p[2])))
         .collect();
@@ -225,10 +279,9 @@ fn scene(m: &MeshData, f: &ViewUniforms, eye_tol: f32) -> Scene {
         .collect();
     let eye_tet = planes.iter().position(|(pl, flat)| {
         !flat
-            && pl
-                .face
-                .iter()
-                .all(|q| q[3] <= eye_tol * Vec3::from_slice(q).length())
+            && pl.face.iter().all(|q| {
+                Vec3::from_slice(q).dot(eye) + q[3] <= eye_tol * Vec3::from_slice(q).length()
+            })
     });
     let boundary = (boundary.iter())
         .map(|&code| {
@@ -252,22 +305,23 @@ fn scene(m: &MeshData, f: &ViewUniforms, eye_tol: f32) -> Scene {
 }
 
 /// One pixel: what the traversal stage writes (premultiplied RGBA).
-fn trace(sc: &Scene, tf: &NormalizedTf, d: Vec3, max_steps: u32) -> [f32; 4] {
+fn trace(sc: &Scene, tf: &NormalizedTf, r: &Ray, max_steps: u32) -> [f32; 4] {
+    let d = r.d;
     let hits: Vec<(f32, u32)> = (sc.boundary.iter())
         .filter_map(|&(code, c)| {
             let p = Vec4::from(sc.planes[(code / 4) as usize].face[(code % 4) as usize]);
-            face_hit(c, p, d).map(|t| (t, code))
+            face_hit(c, p, r).map(|t| (t, code))
         })
         .collect();
     let (mut color, mut trans) = ([0.0f64; 3], 1.0f64);
-    let (mut t, mut tet, mut entry, mut steps) = (0.0f32, sc.eye_tet, 4usize, 0);
+    let (mut t, mut tet, mut entry, mut steps) = (r.eye, sc.eye_tet, 4usize, 0);
     // List order: by t, then by code (WGSL `before`); the entry taken last.
     let before = |a: (f32, u32), b: (f32, u32)| a.0 < b.0 || (a.0 == b.0 && a.1 < b.1);
-    let mut last = (-1.0f32, 0u32);
+    let mut last = (-3.0e38f32, 0u32);
     loop {
         if tet == NO_NEIGHBOR {
             let next = (hits.iter().copied())
-                .filter(|&h| h.0 >= t - REENTRY * t - sc.eye_tol && before(last, h))
+                .filter(|&h| h.0 >= t - REENTRY * t.abs() - sc.eye_tol && before(last, h))
                 .reduce(|a, b| if before(b, a) { b } else { a });
             let Some((te, code)) = next else { break };
             (tet, entry, t, last) = (code / 4, (code % 4) as usize, te, (te, code));
@@ -276,9 +330,9 @@ fn trace(sc: &Scene, tf: &NormalizedTf, d: Vec3, max_steps: u32) -> [f32; 4] {
             break;
         }
         steps += 1;
-        let pl = &sc.planes[tet as usize];
+        let pl = &r.planes(&sc.planes[tet as usize]);
         let by_edges = (pl.scalar[..3] == [0.0; 3] || folded(pl, entry, d))
-            .then(|| exit_by_edges(sc.faces[tet as usize], entry, d, t))
+            .then(|| exit_by_edges(sc.faces[tet as usize], entry, r, t))
             .flatten();
         let (f, t_out) = by_edges.unwrap_or_else(|| exit(pl, entry, d, t));
         let g = Vec4::from(pl.scalar);
@@ -314,7 +368,8 @@ fn trace(sc: &Scene, tf: &NormalizedTf, d: Vec3, max_steps: u32) -> [f32; 4] {
 pub fn render(m: &MeshData, camera: &Camera, tf: &TransferFunction) -> Result<Image, RenderError> {
     let (camera, tf) = (&m.frame.camera(camera), &m.frame.tf(tf)?);
     let view = ViewFrame::new(camera);
-    let f = view.uniforms(m.origin, 0.0, near_tol(m.radius), m.tets.len() as u32);
+    let tets = m.tets.len() as u32;
+    let f = super::view_uniforms(&view, m.origin, m.radius, near_tol(m.radius), tets);
     let sc = scene(m, &f, near_tol(m.radius));
     let ntf = NormalizedTf::new(tf, m.scalar_min, m.scalar_span);
     let max_steps = default_max_steps(m.tets.len());
@@ -323,7 +378,7 @@ pub fn render(m: &MeshData, camera: &Camera, tf: &TransferFunction) -> Result<Im
         .into_par_iter()
         .map(|i| {
             let px = UVec2::new(i % camera.width, i / camera.width);
-            trace(&sc, &ntf, ray_of(&f, px), max_steps)
+            trace(&sc, &ntf, &ray_at(&f, px), max_steps)
         })
         .collect();
     Ok(image)
@@ -403,10 +458,10 @@ mod tests {
         let faces = std::array::from_fn(|f| sorted_face(ids, f).map(|i| p[i]));
         let d = Vec3::new(0.3, 0.1, 1.0).normalize();
         let passed: Vec<usize> = (0..3)
-            .filter(|&f| passes(edge_products(faces[f], d)))
+            .filter(|&f| passes(edge_products(faces[f], &Ray::new(d, 0.0))))
             .collect();
         assert_eq!(passed.len(), 1);
-        let (f, t) = exit_by_edges(faces, 3, d, 1.0).expect("a face passes");
+        let (f, t) = exit_by_edges(faces, 3, &Ray::new(d, 0.0), 1.0).expect("a face passes");
         assert_eq!(f, passed[0]);
         // The plane z = 2 is crossed at t = 2 |d| / d.z.
         assert!((t - 2.0 / d.z).abs() < 1e-6);
@@ -429,9 +484,9 @@ mod tests {
         // In b the ray moves outward through the face it came in by (b's face 3).
         assert!(folded(&pb, 3, d));
         let faces = std::array::from_fn(|f| sorted_face([1, 2, 3, 4], f).map(|i| b[i]));
-        let (f, t) = exit_by_edges(faces, 3, d, t_in).expect("a face passes");
+        let (f, t) = exit_by_edges(faces, 3, &Ray::new(d, 0.0), t_in).expect("a face passes");
         // The other face the line passes, crossed before t_in: an empty segment.
-        assert!(f != 3 && passes(edge_products(faces[f], d)));
+        assert!(f != 3 && passes(edge_products(faces[f], &Ray::new(d, 0.0))));
         assert_eq!(t, t_in);
     }
 
@@ -477,7 +532,7 @@ mod tests {
         };
         let tf = TransferFunction::new(vec![white(0.0), white(1.0)], 1.0).unwrap();
         let d = Vec3::new(0.1, 0.1, 1.0).normalize();
-        let px = trace(&sc, &NormalizedTf::new(&tf, 0.0, 1.0), d, 8);
+        let px = trace(&sc, &NormalizedTf::new(&tf, 0.0, 1.0), &Ray::new(d, 0.0), 8);
         // Tet 1 from t = 0 (tet 0's exit) to its face 0 near t = 2.5: opacity 0.5 per unit
         // length gathered over 2.5 units leaves alpha 1 - 0.5^2.5 = 0.82; above 0.5 whatever
         // the rounding.
@@ -497,8 +552,8 @@ mod tests {
             let off = k as f32 * 1e-7;
             let d = Vec3::new(0.25 + off, 0.25 - off, 1.0).normalize();
             let hits = [
-                face_hit([a, c1, b], plane, d),
-                face_hit([a, c2, b], plane, d),
+                face_hit([a, c1, b], plane, &Ray::new(d, 0.0)),
+                face_hit([a, c2, b], plane, &Ray::new(d, 0.0)),
             ];
             assert!(
                 hits.iter().any(Option::is_some),
@@ -506,6 +561,13 @@ mod tests {
             );
         }
         // Leaving through a face is no entry.
-        assert!(face_hit([a, c1, b], -plane, Vec3::new(0.6, 0.3, 1.0).normalize()).is_none());
+        assert!(
+            face_hit(
+                [a, c1, b],
+                -plane,
+                &Ray::new(Vec3::new(0.6, 0.3, 1.0).normalize(), 0.0)
+            )
+            .is_none()
+        );
     }
 }

@@ -17,17 +17,20 @@ use crate::camera::Camera;
 use crate::gpu::raycast::texture::GpuTexture;
 use crate::gpu::raycast::{RaycastRenderer, RaycastSettings, Segments, Slicing};
 use crate::gpu::util::settings_error;
+use crate::gpu::view::ViewFrame;
 use crate::gpu::{GpuContext, GpuTetMesh};
 use crate::render::{Frame, RenderError, Renderer};
 use crate::tf::TransferFunction;
 
 use super::ShellsRenderer;
 
-/// How far, in slices, the last slice may lie from the eye: `t_k = t_first + k dz` is computed
-/// in f32 (`raycast_slices.wgsl`), so beyond about 2^24 slices from the eye neighbouring
-/// slices round to the same distance; within 2^22 consecutive slices stay distinct and in
-/// order (each placed within a few f32 roundings of its distance). The camera must then be
-/// thousands of mesh depths away, the mesh a dot in the picture.
+/// How far, in slices, a slice may lie from where the traversal measures its rays from: the
+/// eye, or for an eye beyond `raycast::PIVOT_RADII` the pivot's plane (level with the mesh
+/// centre, `ViewFrame::pivot`). `t_k = (t_first - pivot_z) + k dz` is computed in f32
+/// (`raycast_slices.wgsl`), so beyond about 2^24 slices from there neighbouring slices round
+/// to the same distance; within 2^22 consecutive slices stay distinct and in order (each
+/// placed within a few f32 roundings of its distance). From the pivot only a mesh more than
+/// 2^21 slices deep reaches it, however far the eye is.
 const MAX_SLICES: f64 = (1u64 << 22) as f64;
 
 /// The walk sampler: a ray caster whose segments composite the shells' slices.
@@ -98,13 +101,17 @@ impl ShellsRenderer {
         let count = super::plan::slice_count(&m, camera, t_first, dz);
         // The user's dz, in world units (`dz` is in the mesh's f32 frame).
         let world_dz = m.frame.world_length(dz);
+        let view = ViewFrame::new(camera);
+        let pivot_z = crate::gpu::raycast::view_uniforms(&view, m.origin, m.radius, 0.0, 0).pivot_z;
+        let from_pivot = t_first - pivot_z as f64;
         drop(m);
-        let reach = t_first / dz + count as f64;
+        let reach = from_pivot.abs().max((from_pivot + count as f64 * dz).abs()) / dz;
         if reach > MAX_SLICES {
             return Err(settings_error(format!(
-                "dz = {world_dz} puts the last of {count} slices {reach:.0} slices from the eye; \
-                 --sampler walk places slices in f32 up to {MAX_SLICES} slices from the eye: \
-                 use fewer samples, move the camera closer, or use --sampler raster"
+                "dz = {world_dz} puts one of {count} slices {reach:.0} slices from the eye \
+                 (from the mesh centre's depth for a far eye); --sampler walk places slices in \
+                 f32 up to {MAX_SLICES} slices from there: use fewer samples, move the camera \
+                 closer, or use --sampler raster"
             )));
         }
         let slicing = Slicing {
