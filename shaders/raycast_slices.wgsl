@@ -66,9 +66,18 @@ var<private> next_slice: u32 = 0u;
 const NO_SHELL: u32 = 0xffffffffu;
 var<private> last_shell: u32 = NO_SHELL;
 
+// Slice 0's t along the pixel's ray (ray_t_first, a square root and two divisions), taken at
+// its first segment rather than at every tet it walks: `d` is the ray's for all of them.
+var<private> ray_first: f32;
+var<private> ray_first_taken: bool = false;
+
 fn tet_segment(tet: u32, ids: vec4<u32>, pl: TetPlanes, d: vec3<f32>, t0: f32, t1: f32) -> Acc {
     var acc = Acc(vec3<f32>(0.0), 1.0);
-    let t_first = ray_t_first(d);
+    if !ray_first_taken {
+        ray_first = ray_t_first(d);
+        ray_first_taken = true;
+    }
+    let t_first = ray_first;
     var k = max(first_slice(t_first, t0), next_slice);
     if k >= params.slices || !(slice_t(t_first, k) < t1) {
         next_slice = k;
