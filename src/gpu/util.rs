@@ -710,4 +710,38 @@ mod tests {
             assert!(matches!(e, MeshError::ExtentNotScalable { .. }), "{e}");
         }
     }
+
+    /// `map_all`'s error path (the frame recorder's one wait): when one buffer's map fails (here
+    /// a destroyed buffer, under a validation scope as a frame's is), the error names it and the
+    /// buffers mapped beside it are unmapped, so a later frame's map of them is not refused as
+    /// "already mapped" (the ray caster keeps its counters' readback across frames).
+    #[test]
+    fn a_failed_map_leaves_none_of_the_others_mapped() {
+        let ctx = crate::gpu::GpuContext::new(crate::gpu::AdapterChoice::Auto).expect("adapter");
+        let device = &ctx.device;
+        let buffer = |label| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: 256,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        let (a, gone, c) = (buffer("a"), buffer("gone"), buffer("c"));
+        gone.destroy();
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let failed = map_all(device, &[(&a, "a"), (&gone, "gone"), (&c, "c")]);
+        assert!(
+            pollster::block_on(scope.pop()).is_some(),
+            "no validation error"
+        );
+        assert!(
+            matches!(failed, Err(GpuError::Readback { what: "gone", .. })),
+            "{failed:?}"
+        );
+        for (buf, what) in [(&a, "a"), (&c, "c")] {
+            assert!(mapped_view(buf, what).is_err(), "{what} is left mapped");
+        }
+        map_all(device, &[(&a, "a"), (&c, "c")]).expect("mapped again");
+    }
 }
