@@ -47,7 +47,7 @@ use serde_json::Value;
 
 use crate::camera::{Camera, CameraError, View};
 use crate::cpu::raycast::{self as cpu_raycast, CpuRaycastSettings};
-use crate::gpu::raycast::{Entry, Segments};
+use crate::gpu::raycast::{self, Entry, Segments};
 use crate::gpu::{
     BinningMode, CellProjSettings, GpuContext, Integrate, IsoSettings, RaycastSettings, Sampler,
     ShaderNeeds, ShellSettings, Skip, SliceFormat, far_eye,
@@ -294,7 +294,8 @@ pub enum RasterFor {
     /// The eye is farther from the mesh than the walk's limit ([`far_eye::WALK`]), in mesh
     /// radii.
     FarEye(f64),
-    /// The adapter's limits refuse the walk's stages.
+    /// The adapter's limits refuse the walk's stages, or its buffers for this mesh and image
+    /// size ([`raycast::fits`]).
     Limits,
 }
 
@@ -1038,14 +1039,21 @@ impl Scene {
             return Ok(None);
         }
         // The distance every frame's far-eye check measures ([`far_eye`]).
-        let eye = self.camera(mesh)?.eye;
+        let camera = self.camera(mesh)?;
         let (centre, radius) = crate::gpu::util::sphere_of(mesh.bounds());
-        let radii = crate::mesh::length_of(eye - centre) / radius;
+        let radii = crate::mesh::length_of(camera.eye - centre) / radius;
         let textured = self.texture.is_some();
         let walk_runs = gpu.is_none_or(|g| {
             let walk = self.shell_settings(Sampler::Walk);
             // Binning on the CPU: any other binning takes the raster sampler before this.
-            ShaderNeeds::check_shells(&walk, textured, false, &g.info.name, &g.limits).is_ok()
+            let stages = ShaderNeeds::check_shells(&walk, textured, false, &g.info.name, &g.limits);
+            // The ray caster's links, vertices and entry lists, which the walk binds whole
+            // where the raster sampler's records are chunked: a mesh or an image too large
+            // for them renders with the raster sampler.
+            let (tets, vertices) = (mesh.tet_count() as u64, mesh.vertex_count() as u64);
+            let size = (camera.width, camera.height);
+            let buffers = raycast::fits(&g.limits, tets, vertices, size, &Default::default());
+            stages.is_ok() && buffers.is_ok()
         });
         Ok(Some(AutoSampler::rule(&self.settings, radii, walk_runs)))
     }

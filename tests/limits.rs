@@ -1233,3 +1233,43 @@ fn auto_takes_the_raster_sampler_where_the_limits_refuse_the_walk() {
     let full = scene.auto_sampler(&mesh, Some(common::ctx())).unwrap();
     assert_eq!(full.map(|a| a.sampler), Some(Sampler::Walk));
 }
+
+/// `sampler: auto` weighs the walk's buffers as well as its stages: the ray caster's links,
+/// which the walk binds in at most four windows, and its entry lists, one binding per image,
+/// where the raster sampler chunks its records. On the test adapter declared to bind 16 KiB
+/// (the 3,072 tets' links in windows of 512: six) and 64 KiB (a 64x64 image's lists of 4
+/// hits: 128 KiB), the walk is refused and auto takes the raster sampler, which renders.
+#[test]
+fn auto_takes_the_raster_sampler_where_the_walk_s_buffers_do_not_fit() {
+    use tetvr::gpu::{Sampler, ShellSettings, ShellsRenderer};
+    use tetvr::render::Renderer;
+    use tetvr::scene::{Mode, RasterFor, Scene};
+    let mesh = common::gaussians(8);
+    let (tf, _) = common::default_view(&mesh, 8);
+    let mut scene = Scene::new("gaussians.vtu");
+    scene.mode = Mode::Shells;
+    for (binding, size) in [(16 << 10, 8), (64 << 10, 64)] {
+        let gpu = common::with_storage_binding_limit(common::ctx(), binding);
+        scene.size = [size, size];
+        let camera = scene.camera(&mesh).unwrap();
+        let walk = ShellSettings {
+            sampler: Sampler::Walk,
+            ..ShellSettings::default()
+        };
+        let walked =
+            ShellsRenderer::new(&gpu, &mesh, walk).and_then(|mut r| r.render(&camera, &tf));
+        assert!(
+            walked.is_err(),
+            "{binding} bytes, {size}x{size}: the walk renders"
+        );
+        let auto = scene.auto_sampler(&mesh, Some(&gpu)).unwrap();
+        assert_eq!(
+            auto.map(|a| a.because),
+            Some(Some(RasterFor::Limits)),
+            "{binding} bytes, {size}x{size}"
+        );
+        let mode = scene.mode_settings_on(&mesh, &tf, Some(&gpu)).unwrap();
+        let frame = (mode.build(Some(&gpu), &mesh).unwrap()).render(&camera, &tf);
+        assert!(frame.is_ok(), "{binding} bytes: {:?}", frame.err());
+    }
+}

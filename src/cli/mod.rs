@@ -280,7 +280,7 @@ pub struct ShellArgs {
     /// --slice-format f16. auto: walk, the fastest measured, but raster with --tune on,
     /// --slice-format f16, --binning gpu or auto, --slices-per-shell, --no-skip of a skip but
     /// early-termination, an eye beyond the walk's far-eye limit, or an adapter whose limits
-    /// refuse the walk.
+    /// refuse the walk (its stages, or its buffers for this mesh and image size).
     #[arg(long, value_enum, default_value_t = SamplerChoice::Auto)]
     pub sampler: SamplerChoice,
     /// shells: float format of the raster sampler's slice targets; auto is 32-bit where the

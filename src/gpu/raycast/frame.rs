@@ -334,25 +334,7 @@ impl RaycastRenderer {
         if let Some(t) = kept {
             return Ok(t.clone());
         }
-        check_image_size(&self.limits, width, height)?;
-        let pixels = width as u64 * height as u64;
-        let (per_pixel, what, or) = match entry {
-            Entry::Lists => (
-                self.capacity as u64 * HIT_BYTES,
-                format!("entry lists of {} boundary-face hits", self.capacity),
-                " or find entries by depth peeling (--entry peel)",
-            ),
-            Entry::Peel => (RAY_STATE_BYTES, "depth-peeling ray states".to_string(), ""),
-        };
-        let bytes = pixels * per_pixel;
-        let max = largest_binding(&self.limits);
-        if bytes > max {
-            return Err(settings_error(format!(
-                "the ray caster's {what} per pixel at {width}x{height} need {bytes} bytes, \
-                 more than one storage binding of this adapter holds ({max}); render a smaller \
-                 image{or}"
-            )));
-        }
+        let bytes = check_pixel_buffers(&self.limits, entry, self.capacity, width, height)?;
         let format = wgpu::TextureFormat::Rgba32Float;
         let image = texture_2d(
             &self.device,
@@ -362,7 +344,7 @@ impl RaycastRenderer {
             wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
         );
         let device = &self.device;
-        let px = pixels as usize;
+        let px = width as usize * height as usize;
         let pixels = match entry {
             Entry::Lists => PixelBuffers::Lists {
                 counts: storage(device, "raycast entry counts", 4 * px),
@@ -674,4 +656,36 @@ fn read_words<const N: usize>(buffer: &wgpu::Buffer) -> Result<[u32; N], RenderE
     });
     buffer.unmap();
     Ok(words?)
+}
+
+/// The bytes of the per-pixel buffer of `entry` (lists of `capacity` hits, or peeling's ray
+/// states) at `width` x `height`; an error unless it and the image fit an adapter with
+/// `limits` ([`RaycastRenderer`]'s targets, and what [`super::fits`] weighs before a frame).
+pub(super) fn check_pixel_buffers(
+    limits: &wgpu::Limits,
+    entry: Entry,
+    capacity: u32,
+    width: u32,
+    height: u32,
+) -> Result<u64, RenderError> {
+    check_image_size(limits, width, height)?;
+    let pixels = width as u64 * height as u64;
+    let (per_pixel, what, or) = match entry {
+        Entry::Lists => (
+            capacity as u64 * HIT_BYTES,
+            format!("entry lists of {capacity} boundary-face hits"),
+            " or find entries by depth peeling (--entry peel)",
+        ),
+        Entry::Peel => (RAY_STATE_BYTES, "depth-peeling ray states".to_string(), ""),
+    };
+    let bytes = pixels * per_pixel;
+    let max = largest_binding(limits);
+    if bytes > max {
+        return Err(settings_error(format!(
+            "the ray caster's {what} per pixel at {width}x{height} need {bytes} bytes, \
+             more than one storage binding of this adapter holds ({max}); render a smaller \
+             image{or}"
+        )));
+    }
+    Ok(bytes)
 }

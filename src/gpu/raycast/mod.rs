@@ -625,6 +625,26 @@ fn check_cells(mesh: &GpuTetMesh) -> Result<(), RenderError> {
     }
 }
 
+/// An error unless the ray caster's buffers sized before its first frame fit an adapter with
+/// `limits`: the eye-space positions of `vertices` vertices, the links of `tets` tets and,
+/// at a `width` x `height` image, the per-pixel buffers of `settings.entry` (lists at their
+/// first length). What the walk sampler needs beyond its stages' limits, weighed before a
+/// mesh's face adjacency is built (`sampler: auto`, [`crate::scene::Scene::auto_sampler`]);
+/// the boundary faces (one binding: only a soup of loose tets comes near it) and the lists a
+/// frame grows to are not.
+pub fn fits(
+    limits: &wgpu::Limits,
+    tets: u64,
+    vertices: u64,
+    (width, height): (u32, u32),
+    settings: &RaycastSettings,
+) -> Result<(), RenderError> {
+    check_fits(limits, vertices, settings)?;
+    links::chunking(tets, limits)?;
+    let capacity = settings.list_capacity.max(1);
+    frame::check_pixel_buffers(limits, settings.entry, capacity, width, height).map(|_| ())
+}
+
 /// An error unless the `faces` boundary faces (4 bytes each) fit the one storage binding the
 /// entry stages read them from (a grid of 100M tets has 0.8M; only a soup of loose tets
 /// comes near a binding).
