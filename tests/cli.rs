@@ -1093,8 +1093,8 @@ fn render_lox_shells(png: &Path, extra: &[&str]) -> Output {
 }
 
 /// `--sampler auto`, the default, takes the walk (the fastest sampler, docs/performance.md)
-/// and names it; `--slice-format f16`, which the walk refuses, and an eye beyond the walk's
-/// far-eye limit render with the raster sampler, which says why. A scene file's `sampler: auto` is the flag's, and `--save-scene`
+/// and names it, from a telephoto eye too; `--slice-format f16`, which the walk refuses,
+/// renders with the raster sampler, which says why. A scene file's `sampler: auto` is the flag's, and `--save-scene`
 /// writes the sampler it took, so that the file renders that sampler's picture anywhere.
 #[test]
 fn auto_samples_with_the_walk_and_f16_slices_with_the_raster_sampler() {
@@ -1112,11 +1112,13 @@ fn auto_samples_with_the_walk_and_f16_slices_with_the_raster_sampler() {
             && stdout.contains("composite"),
         "{stdout}"
     );
-    // A telephoto eye 1.15e4 mesh radii away, beyond the walk's far-eye limit (1e4; the
-    // raster sampler's is 1e6): the raster sampler renders it where the walk would refuse.
+    // A telephoto eye 1.15e4 mesh radii away: the walk measures its rays from a pivot near
+    // the mesh from 10 radii on, so its far-eye limit is the raster sampler's (1e6) and auto
+    // keeps it there (it took the raster sampler while the walk's limit was 1e4).
     let stdout = stdout_of(&render_lox_shells(&png, &["--fov", "0.01"]));
     assert!(
-        stdout.contains("(raster sampler by auto for an eye 1.146e4 mesh radii away"),
+        stdout.contains("mode shells (walk sampler by auto, 512 samples)")
+            && stdout.contains("traverse"),
         "{stdout}"
     );
     let scene = dir.join("auto.json");
