@@ -421,7 +421,14 @@ pub(crate) fn map_all(
     drop(tx);
     let waited = device.poll(wgpu::PollType::wait_indefinitely());
     let mut done: Vec<Option<Result<(), wgpu::BufferAsyncError>>> = vec![None; bufs.len()];
-    for (k, r) in rx.try_iter() {
+    // After a wait that succeeded, every callback runs (or is dropped unrun), but maybe on
+    // another thread polling the same device, after this wait returned: so wait for each (the
+    // channel closes when the last callback is gone). After a failed wait, take what came.
+    let results: Box<dyn Iterator<Item = _>> = match waited {
+        Ok(_) => Box::new(rx.iter()),
+        Err(_) => Box::new(rx.try_iter()),
+    };
+    for (k, r) in results {
         done[k] = Some(r);
     }
     let failed = waited.map_err(GpuError::from).err().or_else(|| {
@@ -743,5 +750,37 @@ mod tests {
             assert!(mapped_view(buf, what).is_err(), "{what} is left mapped");
         }
         map_all(device, &[(&a, "a"), (&c, "c")]).expect("mapped again");
+    }
+
+    /// Threads that share a device (renderers on one context, as the tests run them) each read
+    /// buffers back: one thread's wait can return while another thread's poll runs its map
+    /// callback, which must still count as mapped, never as "the map callback never ran".
+    #[test]
+    fn maps_of_threads_sharing_a_device_all_arrive() {
+        let ctx = crate::gpu::GpuContext::new(crate::gpu::AdapterChoice::Auto).expect("adapter");
+        std::thread::scope(|s| {
+            for t in 0..4u32 {
+                let (device, queue) = (&ctx.device, &ctx.queue);
+                s.spawn(move || {
+                    let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+                        label: Some("thread readback"),
+                        size: 256,
+                        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                        mapped_at_creation: false,
+                    });
+                    for k in 0..300u32 {
+                        queue.write_buffer(&buffer, 0, bytemuck::bytes_of(&[t, k]));
+                        queue.submit([]);
+                        let words: [u32; 2] = {
+                            let view = read_mapped(device, &buffer, "a thread's buffer")
+                                .unwrap_or_else(|e| panic!("thread {t}, map {k}: {e}"));
+                            bytemuck::pod_read_unaligned(&view[..8])
+                        };
+                        buffer.unmap();
+                        assert_eq!(words, [t, k]);
+                    }
+                });
+            }
+        });
     }
 }
