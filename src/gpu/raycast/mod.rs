@@ -243,7 +243,7 @@ fn near_tol(radius: f64) -> f32 {
 
 /// From how far, in bounding radii from the mesh centre, the ray casters (`--mode raycast`,
 /// the shells' walk sampler, `raycast-cpu`) measure their rays from the pivot
-/// ([`ViewFrame::pivot_uniforms`], `shaders/raycast_shared.wgsl`) rather than from the eye.
+/// (`ViewFrame::pivot_uniforms`, `shaders/raycast_shared.wgsl`) rather than from the eye.
 /// Measured from the eye, f32 rounds eye-space vertices, planes and t to ~6e-8 D, an rmse of
 /// about 5e-8 per radius of the eye's distance on the stress cube (6.3e-7 at 10 radii, 5.0e-6
 /// at 1e2), against 2e-7 from the pivot at every distance from 1e2 to 1e6. Nearer than this,
