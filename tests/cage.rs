@@ -585,15 +585,7 @@ fn a_textured_cage_from_a_far_eye_matches_the_reference() {
     use tetvr::cpu::raycast::{CpuRaycastRenderer, CpuRaycastSettings};
     let (volume, mesh) = blob_cage();
     let (tf, near) = view(&volume, &mesh, 48);
-    let (lo, hi) = mesh.bounds();
-    let axis = near.eye - near.target;
-    let far = 1e5 * 0.5 * (hi - lo).length();
-    let half = (0.5 * near.fov_y_deg).to_radians().tan() * axis.length() / far;
-    let camera = Camera {
-        eye: near.target + axis.normalize() * far,
-        fov_y_deg: 2.0 * half.atan().to_degrees(),
-        ..near
-    };
+    let camera = common::far_along_the_axis(&mesh, near, 1e5);
     let reference = textured_image(&mesh, &volume, None, &tf, &camera);
     let tc = texcoords(&mesh, DEFAULT_TEXCOORDS).unwrap();
     let cpu = CpuRaycastRenderer::textured(

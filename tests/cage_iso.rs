@@ -467,15 +467,9 @@ fn textured_iso_reference_at_any_scale_finds_the_unscaled_hits() {
 fn textured_iso_from_a_far_eye_matches_the_reference() {
     let (volume, mesh) = blob_cage();
     let near = camera(&mesh, 48);
+    let camera = common::far_along_the_axis(&mesh, near, 1e5);
     let (lo, hi) = mesh.bounds();
-    let axis = near.eye - near.target;
     let far = 1e5 * 0.5 * (hi - lo).length();
-    let half = (0.5 * near.fov_y_deg).to_radians().tan() * axis.length() / far;
-    let camera = Camera {
-        eye: near.target + axis.normalize() * far,
-        fov_y_deg: 2.0 * half.atan().to_degrees(),
-        ..near
-    };
     let reference = reference(&mesh, &volume, None);
     let depth_tol = reference.step() / f64::from(1u32 << BISECTIONS) + 1e-6 * far;
     let expected = reference.iso_surface(&camera, &ISOVALUES).unwrap();

@@ -124,7 +124,7 @@ fn twin_matches_the_shaders() {
     twin_check(
         "hole-far",
         &mesh,
-        &far_along_the_axis(&mesh, camera, 1e4),
+        &common::far_along_the_axis(&mesh, camera, 1e4),
         &tf,
     );
     // At 96x96 three rays step into the combustor's folded tets (left by their edges).
@@ -227,7 +227,7 @@ fn box_with_hole_seen_through_the_hole() {
 #[test]
 fn a_far_eye_is_held_to_the_near_bounds() {
     let (mesh, tf, near) = common::hole_seen_through_the_hole();
-    let camera = far_along_the_axis(&mesh, near, 1e5);
+    let camera = common::far_along_the_axis(&mesh, near, 1e5);
     check("far", &mesh, &camera, &tf, BOUNDS);
 }
 
@@ -246,26 +246,12 @@ fn a_camera_crossing_the_pivot_distance_changes_nothing() {
         ..near
     };
     let [inside, beyond] = [1.0 - 1e-5, 1.0 + 1e-5].map(|s| {
-        let camera = far_along_the_axis(&mesh, centred, 10.0 * s);
+        let camera = common::far_along_the_axis(&mesh, centred, 10.0 * s);
         check(&format!("pivot-{s}"), &mesh, &camera, &tf, BOUNDS).image
     });
     let m = beyond.compare(&inside).unwrap();
     eprintln!("across the pivot distance: {m}");
     assert_images_close("raycast-pivot-crossing", &beyond, &inside, BOUNDS);
-}
-
-/// `near` moved back along its view axis to `radii` bounding radii of `mesh` from its target,
-/// its fov shrunk to keep the framing at the target's distance.
-fn far_along_the_axis(mesh: &TetMesh, near: Camera, radii: f64) -> Camera {
-    let (lo, hi) = mesh.bounds();
-    let axis = near.eye - near.target;
-    let far = radii * 0.5 * (hi - lo).length();
-    let half = (0.5 * near.fov_y_deg).to_radians().tan() * axis.length() / far;
-    Camera {
-        eye: near.target + axis.normalize() * far,
-        fov_y_deg: 2.0 * half.atan().to_degrees(),
-        ..near
-    }
 }
 
 /// The eye inside a grid: rays start in the eye's tet.

@@ -352,3 +352,17 @@ pub fn head_on_grid() -> Scene {
     let camera = camera(DVec3::new(0.0, 0.0, 5.0), DVec3::ZERO, DVec3::Y, 40.0, 65);
     (mesh, tf, camera)
 }
+
+/// `near` moved back along its view axis to `radii` bounding radii of `mesh` from its target,
+/// its fov shrunk to keep the framing at the target's distance.
+pub fn far_along_the_axis(mesh: &TetMesh, near: Camera, radii: f64) -> Camera {
+    let (lo, hi) = mesh.bounds();
+    let axis = near.eye - near.target;
+    let far = radii * 0.5 * (hi - lo).length();
+    let half = (0.5 * near.fov_y_deg).to_radians().tan() * axis.length() / far;
+    Camera {
+        eye: near.target + axis.normalize() * far,
+        fov_y_deg: 2.0 * half.atan().to_degrees(),
+        ..near
+    }
+}
