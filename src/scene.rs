@@ -1040,8 +1040,7 @@ impl Scene {
         }
         // The distance every frame's far-eye check measures ([`far_eye`]).
         let camera = self.camera(mesh)?;
-        let (centre, radius) = crate::gpu::util::sphere_of(mesh.bounds());
-        let radii = crate::mesh::length_of(camera.eye - centre) / radius;
+        let radii = far_eye::radii(camera.eye, crate::gpu::util::sphere_of(mesh.bounds()));
         let textured = self.texture.is_some();
         let walk_runs = gpu.is_none_or(|g| {
             let walk = self.shell_settings(Sampler::Walk);

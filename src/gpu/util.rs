@@ -127,6 +127,12 @@ pub mod far_eye {
     /// wrong side of a tet face at 1e3).
     pub const ISO: f64 = 1e6;
 
+    /// How many radii `eye` lies from the centre of the sphere `(centre, radius)` of the mesh.
+    pub(crate) fn radii(eye: DVec3, (centre, radius): (DVec3, f64)) -> f64 {
+        // Not squared: an eye at 1e300 overflowed and was said to be "inf mesh radii" away.
+        crate::mesh::length_of(eye - centre) / radius
+    }
+
     /// An error when `eye` is more than `limit` radii from the sphere `(centre, radius)` of the
     /// mesh (all in the same units, the f32 frame's), naming `mode`.
     pub(crate) fn check(
@@ -135,8 +141,7 @@ pub mod far_eye {
         eye: DVec3,
         (centre, radius): (DVec3, f64),
     ) -> Result<(), RenderError> {
-        // Not squared: an eye at 1e300 overflowed and was said to be "inf mesh radii" away.
-        let radii = crate::mesh::length_of(eye - centre) / radius;
+        let radii = radii(eye, (centre, radius));
         match radii <= limit {
             true => Ok(()),
             false => Err(RenderError::EyeTooFar { mode, radii, limit }),
